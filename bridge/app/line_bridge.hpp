@@ -1,0 +1,43 @@
+#pragma once
+// The gateway process's core: from a line configuration, one bus loop per bus (with SYNC and NMT
+// in the master role), one gateway per device, one DDS participant for all of them.
+
+#include <memory>
+#include <vector>
+
+#include "canopen/bus_loop.hpp"
+#include "canopen/remote_node.hpp"
+#include "canopen/sync_producer.hpp"
+#include "dds/participant.hpp"
+#include "gateways/gateway.hpp"
+#include "profiles/line_config.hpp"
+
+namespace lb::app {
+
+class LineBridge {
+ public:
+  // Opens every bus and creates every gateway, or fails with the reason; nothing runs yet.
+  static Result<std::unique_ptr<LineBridge>> create(const profiles::LineConfig& config);
+  explicit LineBridge(const profiles::LineConfig& config) : config_(config) {}
+  ~LineBridge();
+  LineBridge(const LineBridge&) = delete;
+  LineBridge& operator=(const LineBridge&) = delete;
+
+  void start();
+  void stop();  // idempotent
+
+ private:
+  struct BusRuntime {
+    const profiles::BusConfig* config;
+    std::unique_ptr<canopen::BusLoop> loop;
+    std::unique_ptr<canopen::SyncProducer> sync;
+    std::vector<std::unique_ptr<canopen::RemoteNode>> nodes;
+    std::vector<std::unique_ptr<gateways::Gateway>> gateways;
+  };
+
+  const profiles::LineConfig& config_;
+  std::unique_ptr<ddsl::Participant> dds_;
+  std::vector<BusRuntime> buses_;
+};
+
+}  // namespace lb::app

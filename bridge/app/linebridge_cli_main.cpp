@@ -1,0 +1,215 @@
+// linebridge-cli: watch a device's topics and send it set values, from a terminal.
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <chrono>
+#include <condition_variable>
+#include <cstdio>
+#include <mutex>
+#include <optional>
+#include <thread>
+
+#include "app/line_config_source.hpp"
+#include "app/run_until_signal.hpp"
+#include "app/saw_text.hpp"
+#include "dds/participant.hpp"
+#include "dds/topic_names.hpp"
+#include "msgs/commonPubSubTypes.h"
+#include "msgs/sawPubSubTypes.h"
+
+namespace {
+
+namespace msg = linebridge_msgs::msg;
+using namespace std::chrono_literals;
+using Clock = std::chrono::steady_clock;
+
+// Latest value of something a DDS thread delivers, waited for by the main thread.
+template <class T>
+class Mailbox {
+ public:
+  void put(const T& v) {
+    {
+      std::lock_guard lock(m_);
+      value_ = v;
+    }
+    cv_.notify_all();
+  }
+  template <class Pred>
+  std::optional<T> wait(Clock::duration timeout, Pred pred) {
+    std::unique_lock lock(m_);
+    if (!cv_.wait_for(lock, timeout, [&] { return value_ && pred(*value_); })) return std::nullopt;
+    return value_;
+  }
+
+ private:
+  std::mutex m_;
+  std::condition_variable cv_;
+  std::optional<T> value_;
+};
+
+bool wait_until(Clock::duration timeout, const std::function<bool()>& cond) {
+  const auto end = Clock::now() + timeout;
+  while (!cond()) {
+    if (Clock::now() > end) return false;
+    std::this_thread::sleep_for(20ms);
+  }
+  return true;
+}
+
+struct SetOptions {
+  std::optional<std::string> program;
+  std::optional<double> sync_speed_percent;
+  std::optional<double> product_length_m;
+  std::optional<std::string> count_mode;
+  double timeout_s = 5;
+};
+
+int run_set(lb::ddsl::Participant& dds, const std::string& line, const std::string& device, const SetOptions& o) {
+  const auto status_topic = lb::ddsl::topic_name(line, device, "status");
+  const auto result_topic = lb::ddsl::topic_name(line, device, "setpoint_result");
+  const auto setpoint_topic = lb::ddsl::topic_name(line, device, "setpoint");
+  const auto timeout = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(o.timeout_s));
+
+  Mailbox<msg::SawStatus> status;
+  Mailbox<msg::SetpointResult> result;
+  auto writer = dds.writer<msg::SawSetpointPubSubType>(setpoint_topic, lb::ddsl::QosKind::command);
+  if (!writer) return fmt::print(stderr, "{}\n", writer.error().message), 1;
+  if (auto r = dds.subscribe<msg::SawStatusPubSubType>(status_topic, lb::ddsl::QosKind::state,
+                                                        [&](const msg::SawStatus& s, const auto&) { status.put(s); });
+      !r) {
+    return fmt::print(stderr, "{}\n", r.error().message), 1;
+  }
+  if (auto r = dds.subscribe<msg::SetpointResultPubSubType>(
+          result_topic, lb::ddsl::QosKind::command, [&](const msg::SetpointResult& s, const auto&) { result.put(s); });
+      !r) {
+    return fmt::print(stderr, "{}\n", r.error().message), 1;
+  }
+  // Fields not given keep the value in force, which the status topic reports; wait for the
+  // device to be online so the bridge will not refuse the set value as offline.
+  auto current = status.wait(timeout, [](const msg::SawStatus& s) { return s.online(); });
+  if (!current) {
+    fmt::print(stderr, "{}: no online status on {} within {} s (is the bridge running and the device up?)\n", device,
+               status_topic, o.timeout_s);
+    return 1;
+  }
+  if (!wait_until(timeout, [&] { return writer->matched() > 0 && dds.matched_writers(result_topic) > 0; })) {
+    fmt::print(stderr, "{}: the bridge does not subscribe {}\n", device, setpoint_topic);
+    return 1;
+  }
+  msg::SawSetpoint sp;
+  sp.request_id(static_cast<std::uint64_t>(lb::ddsl::now_ns()));
+  sp.saw_program_on(o.program ? *o.program == "on" : current->control_word().saw_program_on());
+  sp.count_mode(o.count_mode ? (*o.count_mode == "corrugated" ? msg::CORRUGATED_PIPE : msg::SMOOTH_PIPE)
+                             : current->control_word().count_mode());
+  sp.sync_speed_percent(o.sync_speed_percent.value_or(current->sync_speed_set_percent()));
+  sp.product_length_m(o.product_length_m.value_or(current->product_length_set_m()));
+  writer->write(sp);
+  auto reply = result.wait(timeout, [&](const msg::SetpointResult& r) { return r.request_id() == sp.request_id(); });
+  if (!reply) return fmt::print(stderr, "{}: no answer from the bridge within {} s\n", device, o.timeout_s), 1;
+  if (!reply->accepted()) return fmt::print(stderr, "{}: set value refused: {}\n", device, reply->reason()), 1;
+  fmt::print("{}: accepted: program {}, sync speed {} %, product length {} m\n", device,
+             sp.saw_program_on() ? "on" : "off", sp.sync_speed_percent(), sp.product_length_m());
+  return 0;
+}
+
+struct EchoOptions {
+  std::string topic = "status";
+  double rate_hz = 2;
+  double duration_s = 0;
+};
+
+int run_echo(lb::ddsl::Participant& dds, const std::string& line, const std::string& device, const EchoOptions& o) {
+  const auto topic = lb::ddsl::topic_name(line, device, o.topic);
+  std::mutex print_mutex;
+  lb::Result<void> sub = lb::make_error("");
+  // Throttle state outlives the subscription's scope: the callback runs until this function returns.
+  const auto min_gap = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / o.rate_hz));
+  auto last_print = Clock::time_point{};
+  std::uint16_t last_word = 0;
+  bool last_online = false;
+  if (o.topic == "status") {
+    sub = dds.subscribe<msg::SawStatusPubSubType>(topic, lb::ddsl::QosKind::state, [&](const msg::SawStatus& s, const auto&) {
+      // Throttled, except that every change of a status bit or of the online flag is shown.
+      const auto now = Clock::now();
+      std::lock_guard lock(print_mutex);
+      if (now - last_print < min_gap && s.status_word().raw() == last_word && s.online() == last_online) return;
+      last_print = now;
+      last_word = s.status_word().raw();
+      last_online = s.online();
+      fmt::print("{} {}\n", device, lb::app::to_text(s));
+      std::fflush(stdout);
+    });
+  } else if (o.topic == "cut") {
+    sub = dds.subscribe<msg::SawCutPubSubType>(topic, lb::ddsl::QosKind::event, [&](const msg::SawCut& c, const auto&) {
+      std::lock_guard lock(print_mutex);
+      fmt::print("{} {}\n", device, lb::app::to_text(c));
+      std::fflush(stdout);
+    });
+  } else {
+    sub = dds.subscribe<msg::SetpointResultPubSubType>(topic, lb::ddsl::QosKind::command,
+                                                      [&](const msg::SetpointResult& r, const auto&) {
+                                                        std::lock_guard lock(print_mutex);
+                                                        fmt::print("{} request {}: {}{}\n", device, r.request_id(),
+                                                                   r.accepted() ? "accepted" : "refused: ", r.reason());
+                                                        std::fflush(stdout);
+                                                      });
+  }
+  if (!sub) return fmt::print(stderr, "{}\n", sub.error().message), 1;
+  lb::app::run_until_signal(std::chrono::milliseconds(static_cast<long>(o.duration_s * 1000)));
+  return 0;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App cli{"linebridge-cli: read and set the devices of a line over DDS"};
+  cli.require_subcommand(1);
+  std::string config_path;
+  cli.add_option("-c,--config", config_path, "line configuration (YAML); default: the built-in demo line");
+
+  std::string device;
+  EchoOptions echo;
+  auto* echo_cmd = cli.add_subcommand("echo", "print a device's samples as they arrive (Ctrl-C stops)");
+  echo_cmd->add_option("device", device, "device name")->required();
+  echo_cmd->add_option("topic", echo.topic, "status, cut or setpoint_result")
+      ->check(CLI::IsMember({"status", "cut", "setpoint_result"}))
+      ->capture_default_str();
+  echo_cmd->add_option("--rate", echo.rate_hz, "status lines per second at most (bit changes always show)")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  echo_cmd->add_option("-d,--duration", echo.duration_s, "stop after this many seconds");
+
+  SetOptions set;
+  auto* set_cmd = cli.add_subcommand("set", "send a saw set value; fields not given keep their value in force");
+  set_cmd->add_option("device", device, "device name")->required();
+  set_cmd->add_option("--program", set.program, "saw program")->check(CLI::IsMember({"on", "off"}));
+  set_cmd->add_option("--sync-speed-percent", set.sync_speed_percent, "saw sync speed set value, 0..100 %");
+  set_cmd->add_option("--product-length-m", set.product_length_m, "product length set value in metres");
+  set_cmd->add_option("--count-mode", set.count_mode, "smooth or corrugated pipe")->check(CLI::IsMember({"smooth", "corrugated"}));
+  set_cmd->add_option("--timeout", set.timeout_s, "seconds to wait for the bridge")->capture_default_str();
+
+  auto* list_cmd = cli.add_subcommand("list", "list the line's buses and devices");
+  CLI11_PARSE(cli, argc, argv);
+  spdlog::set_level(spdlog::level::warn);
+
+  lb::app::block_stop_signals();
+  const auto registry = lb::profiles::ProfileRegistry::builtin();
+  auto config = lb::app::load_config(config_path, registry);
+  if (!config) return fmt::print(stderr, "{}\n", config.error().message), 2;
+  if (list_cmd->parsed()) {
+    for (const auto& b : config->buses) fmt::print("bus {} on {} ({})\n", b.name, b.interface, lb::profiles::to_string(b.role));
+    for (const auto& d : config->devices) {
+      fmt::print("device {} on {} node {}: {} {}\n", d.name, d.bus, d.node_id, d.resolved_profile->device, d.resolved_profile->key());
+    }
+    return 0;
+  }
+  const auto* dev = config->device(device);
+  if (dev == nullptr) return fmt::print(stderr, "no device {} in line {} (try: list)\n", device, config->line), 2;
+  if (dev->resolved_profile->device != "saw") {
+    return fmt::print(stderr, "{}: device type {} is not supported by the CLI yet\n", device, dev->resolved_profile->device), 2;
+  }
+  auto dds = lb::ddsl::Participant::create({config->dds.domain, config->dds.localhost_only, "linebridge-cli"});
+  if (!dds) return fmt::print(stderr, "{}\n", dds.error().message), 1;
+  return echo_cmd->parsed() ? run_echo(**dds, config->line, device, echo) : run_set(**dds, config->line, device, set);
+}

@@ -1,0 +1,67 @@
+// linebridge-sim: plays the devices of a line configuration on their buses, for demos and tests.
+#include <CLI/CLI.hpp>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <memory>
+#include <vector>
+
+#include "app/line_config_source.hpp"
+#include "app/run_until_signal.hpp"
+#include "canopen/bus_loop.hpp"
+#include "sim/saw_simulator.hpp"
+
+int main(int argc, char** argv) {
+  CLI::App cli{"linebridge-sim: simulated CANopen devices of a line"};
+  std::string config_path;
+  std::vector<std::string> only;
+  double duration_s = 0;
+  std::string log_level = "info";
+  cli.add_option("-c,--config", config_path, "line configuration (YAML); default: the built-in demo line");
+  cli.add_option("--device", only, "simulate only these devices (default: all)");
+  cli.add_option("-d,--duration", duration_s, "stop after this many seconds (default: run until Ctrl-C)");
+  cli.add_option("--log-level", log_level, "trace, debug, info, warn, error")->capture_default_str();
+  CLI11_PARSE(cli, argc, argv);
+  spdlog::set_level(spdlog::level::from_str(log_level));
+  spdlog::set_pattern("%H:%M:%S.%e [sim] %^%l%$ %v");
+
+  lb::app::block_stop_signals();
+  const auto registry = lb::profiles::ProfileRegistry::builtin();
+  auto config = lb::app::load_config(config_path, registry);
+  if (!config) {
+    spdlog::error("{}", config.error().message);
+    return 2;
+  }
+  for (const auto& name : only) {
+    if (config->device(name) == nullptr) {
+      spdlog::error("--device {}: no such device in line {}", name, config->line);
+      return 2;
+    }
+  }
+
+  std::vector<std::unique_ptr<lb::canopen::BusLoop>> loops;
+  std::vector<std::unique_ptr<lb::sim::SawSimulator>> devices;
+  for (const auto& bus_cfg : config->buses) {
+    auto bus = lb::can::open_bus(bus_cfg.interface);
+    if (!bus) {
+      spdlog::error("bus {}: {}", bus_cfg.name, bus.error().message);
+      return 1;
+    }
+    auto loop = std::make_unique<lb::canopen::BusLoop>(std::move(*bus));
+    for (const auto& dev : config->devices) {
+      if (dev.bus != bus_cfg.name || (!only.empty() && std::find(only.begin(), only.end(), dev.name) == only.end())) continue;
+      if (dev.resolved_profile->device != "saw") {
+        spdlog::error("{}: no simulator for device type {} yet", dev.name, dev.resolved_profile->device);
+        return 1;
+      }
+      devices.push_back(std::make_unique<lb::sim::SawSimulator>(*loop, dev, *dev.resolved_profile));
+      devices.back()->start();
+    }
+    loops.push_back(std::move(loop));
+  }
+  for (auto& loop : loops) loop->start();
+  spdlog::info("simulating {} device(s) of line {}", devices.size(), config->line);
+  lb::app::run_until_signal(std::chrono::milliseconds(static_cast<long>(duration_s * 1000)));
+  for (auto& loop : loops) loop->stop();
+  return 0;
+}

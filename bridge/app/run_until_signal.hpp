@@ -1,0 +1,36 @@
+#pragma once
+// The executables run until SIGINT/SIGTERM or an optional duration. Signals are blocked in every
+// thread (call block_stop_signals() before starting any) and taken synchronously here, so no
+// handler touches shared state.
+
+#include <chrono>
+#include <csignal>
+
+namespace lb::app {
+
+inline void block_stop_signals() {
+  sigset_t set;
+  sigemptyset(&set);
+  sigaddset(&set, SIGINT);
+  sigaddset(&set, SIGTERM);
+  pthread_sigmask(SIG_BLOCK, &set, nullptr);
+}
+
+// Returns the signal number, or 0 when the duration elapsed. duration zero = no limit.
+inline int run_until_signal(std::chrono::milliseconds duration) {
+  sigset_t set;
+  sigemptyset(&set);
+  sigaddset(&set, SIGINT);
+  sigaddset(&set, SIGTERM);
+  if (duration.count() <= 0) {
+    int sig = 0;
+    sigwait(&set, &sig);
+    return sig;
+  }
+  const auto s = std::chrono::duration_cast<std::chrono::seconds>(duration);
+  const timespec ts{static_cast<time_t>(s.count()), static_cast<long>((duration - s).count() * 1'000'000)};
+  const int sig = sigtimedwait(&set, nullptr, &ts);
+  return sig > 0 ? sig : 0;
+}
+
+}  // namespace lb::app

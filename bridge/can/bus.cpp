@@ -1,0 +1,42 @@
+#include "can/bus.hpp"
+
+#include "can/listen_only_bus.hpp"
+#include "can/socketcan_bus.hpp"
+#include "can/virtual_bus.hpp"
+
+namespace lb::can {
+
+namespace {
+
+Result<std::unique_ptr<Bus>> open_medium(std::string_view uri) {
+  const auto colon = uri.find(':');
+  const std::string_view scheme =
+      colon == std::string_view::npos ? std::string_view{} : uri.substr(0, colon);
+  const std::string_view name =
+      colon == std::string_view::npos ? std::string_view{} : uri.substr(colon + 1);
+  if (scheme != "socketcan" && scheme != "virtual") {
+    return make_error("bus URI '" + std::string(uri) +
+                      "': unknown scheme (expected socketcan:<ifname> or virtual:<name>)");
+  }
+  if (name.empty())
+    return make_error("bus URI '" + std::string(uri) + "': the name after ':' is empty");
+
+  if (scheme == "socketcan") {
+    auto bus = SocketCanBus::open(name);
+    if (!bus) return bus.error();
+    return std::unique_ptr<Bus>(std::move(*bus));
+  }
+  auto bus = VirtualBus::open(name);
+  if (!bus) return bus.error();
+  return std::unique_ptr<Bus>(std::move(*bus));
+}
+
+}  // namespace
+
+Result<std::unique_ptr<Bus>> open_bus(std::string_view uri, BusAccess access) {
+  auto bus = open_medium(uri);
+  if (!bus || access == BusAccess::read_write) return bus;
+  return std::unique_ptr<Bus>(std::make_unique<ListenOnlyBus>(std::move(*bus)));
+}
+
+}  // namespace lb::can

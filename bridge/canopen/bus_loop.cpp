@@ -1,0 +1,170 @@
+#include "canopen/bus_loop.hpp"
+
+#include <spdlog/spdlog.h>
+#include <sys/epoll.h>
+#include <sys/eventfd.h>
+#include <sys/timerfd.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+#include <stdexcept>
+
+namespace lb::canopen {
+namespace {
+
+// epoll user data: which source became ready.
+constexpr std::uint64_t kBusTag = 0;
+constexpr std::uint64_t kWakeTag = 1;
+constexpr std::uint64_t kTimerTagBase = 2;
+
+void epoll_add(int epoll_fd, int fd, std::uint64_t tag) {
+  epoll_event ev{};
+  ev.events = EPOLLIN;
+  ev.data.u64 = tag;
+  if (::epoll_ctl(epoll_fd, EPOLL_CTL_ADD, fd, &ev) != 0) {
+    throw std::runtime_error(std::string("epoll_ctl: ") + std::strerror(errno));
+  }
+}
+
+timespec to_timespec(std::chrono::nanoseconds ns) {
+  const auto s = std::chrono::duration_cast<std::chrono::seconds>(ns);
+  return {static_cast<time_t>(s.count()), static_cast<long>((ns - s).count())};
+}
+
+}  // namespace
+
+BusLoop::BusLoop(std::unique_ptr<can::Bus> bus) : bus_(std::move(bus)) {
+  epoll_fd_ = ::epoll_create1(EPOLL_CLOEXEC);
+  wake_fd_ = ::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
+  if (epoll_fd_ < 0 || wake_fd_ < 0) throw std::runtime_error("cannot create bus loop descriptors");
+  epoll_add(epoll_fd_, bus_->fd(), kBusTag);
+  epoll_add(epoll_fd_, wake_fd_, kWakeTag);
+}
+
+BusLoop::~BusLoop() {
+  stop();
+  for (auto& t : timers_) ::close(t->fd);
+  ::close(wake_fd_);
+  ::close(epoll_fd_);
+}
+
+void BusLoop::on_frame(std::uint32_t cob_id, FrameHandler handler) {
+  if (cob_id >= cob::kStandardIdCount) throw std::invalid_argument("on_frame takes 11-bit identifiers");
+  handlers_[cob_id].push_back(std::move(handler));
+}
+
+void BusLoop::on_other_frame(FrameHandler handler) { other_handlers_.push_back(std::move(handler)); }
+
+BusLoop::TimerId BusLoop::create_timer(Task callback) {
+  const int fd = ::timerfd_create(CLOCK_MONOTONIC, TFD_NONBLOCK | TFD_CLOEXEC);
+  if (fd < 0) throw std::runtime_error(std::string("timerfd_create: ") + std::strerror(errno));
+  const TimerId id = timers_.size();
+  timers_.push_back(std::make_unique<Timer>(Timer{fd, std::move(callback)}));
+  epoll_add(epoll_fd_, fd, kTimerTagBase + id);
+  return id;
+}
+
+void BusLoop::arm_timer(TimerId id, std::chrono::nanoseconds first, std::chrono::nanoseconds period) {
+  itimerspec spec{};
+  // A zero it_value would disarm the timer; "now" means the next loop iteration.
+  spec.it_value = to_timespec(std::max(first, std::chrono::nanoseconds{1}));
+  spec.it_interval = to_timespec(period);
+  ::timerfd_settime(timers_.at(id)->fd, 0, &spec, nullptr);
+}
+
+void BusLoop::disarm_timer(TimerId id) {
+  itimerspec spec{};
+  ::timerfd_settime(timers_.at(id)->fd, 0, &spec, nullptr);
+}
+
+void BusLoop::post(Task task) {
+  {
+    std::lock_guard lock(posted_mutex_);
+    posted_.push_back(std::move(task));
+  }
+  const std::uint64_t one = 1;
+  [[maybe_unused]] auto n = ::write(wake_fd_, &one, sizeof one);
+}
+
+Result<void> BusLoop::send(const can::CanFrame& frame) {
+  auto r = bus_->send(frame);
+  if (!r) spdlog::debug("{}: send {:03X} failed: {}", bus_->uri(), frame.id, r.error().message);
+  return r;
+}
+
+void BusLoop::start() {
+  if (thread_.joinable()) return;
+  thread_ = std::thread([this] { run(); });
+}
+
+void BusLoop::stop() {
+  {
+    std::lock_guard lock(posted_mutex_);
+    stopping_ = true;
+  }
+  const std::uint64_t one = 1;
+  [[maybe_unused]] auto n = ::write(wake_fd_, &one, sizeof one);
+  if (thread_.joinable() && !on_loop_thread()) thread_.join();
+}
+
+void BusLoop::run() {
+  std::array<epoll_event, 16> events{};
+  for (;;) {
+    const int n = ::epoll_wait(epoll_fd_, events.data(), static_cast<int>(events.size()), -1);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      spdlog::critical("{}: epoll_wait failed: {}", bus_->uri(), std::strerror(errno));
+      return;
+    }
+    for (int i = 0; i < n; ++i) {
+      const std::uint64_t tag = events[static_cast<std::size_t>(i)].data.u64;
+      if (tag == kBusTag) {
+        drain_bus();
+      } else if (tag == kWakeTag) {
+        std::uint64_t count = 0;
+        [[maybe_unused]] auto r = ::read(wake_fd_, &count, sizeof count);
+        {
+          std::lock_guard lock(posted_mutex_);
+          if (stopping_) return;
+        }
+        run_posted();
+      } else {
+        auto& timer = *timers_[tag - kTimerTagBase];
+        std::uint64_t expirations = 0;
+        if (::read(timer.fd, &expirations, sizeof expirations) == sizeof expirations) timer.callback();
+      }
+    }
+  }
+}
+
+void BusLoop::drain_bus() {
+  for (;;) {
+    auto r = bus_->receive();
+    if (!r) {
+      spdlog::warn("{}: receive failed: {}", bus_->uri(), r.error().message);
+      return;
+    }
+    if (!r->has_value()) return;
+    dispatch(**r);
+  }
+}
+
+void BusLoop::run_posted() {
+  std::vector<Task> batch;
+  {
+    std::lock_guard lock(posted_mutex_);
+    batch.swap(posted_);
+  }
+  for (auto& task : batch) task();
+}
+
+void BusLoop::dispatch(const can::CanFrame& frame) {
+  if (!frame.extended && !frame.rtr && !frame.error && frame.id < cob::kStandardIdCount) {
+    for (const auto& h : handlers_[frame.id]) h(frame);
+    return;
+  }
+  for (const auto& h : other_handlers_) h(frame);
+}
+
+}  // namespace lb::canopen

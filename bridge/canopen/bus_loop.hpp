@@ -1,0 +1,76 @@
+#pragma once
+// One thread per bus: epoll over the bus, timerfds and an eventfd for work posted from other
+// threads. Every CANopen service of a bus runs on this thread, so none of them needs a lock.
+
+#include <array>
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+#include "base/result.hpp"
+#include "can/bus.hpp"
+#include "canopen/cob_id.hpp"
+
+namespace lb::canopen {
+
+class BusLoop {
+ public:
+  using FrameHandler = std::function<void(const can::CanFrame&)>;
+  using Task = std::function<void()>;
+  using TimerId = std::size_t;
+
+  explicit BusLoop(std::unique_ptr<can::Bus> bus);
+  ~BusLoop();
+  BusLoop(const BusLoop&) = delete;
+  BusLoop& operator=(const BusLoop&) = delete;
+
+  // Registration: before start() or on the loop thread.
+  void on_frame(std::uint32_t cob_id, FrameHandler handler);  // 11-bit identifiers
+  void on_other_frame(FrameHandler handler);                  // 29-bit, RTR and error frames
+  TimerId create_timer(Task callback);
+  // period zero = one-shot. Re-arming replaces the previous schedule. Loop thread (or before start).
+  void arm_timer(TimerId id, std::chrono::nanoseconds first, std::chrono::nanoseconds period = {});
+  void disarm_timer(TimerId id);
+
+  // Any thread: runs the task on the loop thread, in posting order.
+  void post(Task task);
+
+  // Loop thread: transmits, counting and logging failures (the caller decides nothing on them).
+  Result<void> send(const can::CanFrame& frame);
+
+  void start();
+  void stop();  // idempotent; joins the thread
+  bool on_loop_thread() const { return std::this_thread::get_id() == thread_.get_id(); }
+
+  const can::Bus& bus() const { return *bus_; }
+  can::BusStats stats() const { return bus_->stats(); }
+
+ private:
+  struct Timer {
+    int fd = -1;
+    Task callback;
+  };
+
+  void run();
+  void drain_bus();
+  void run_posted();
+  void dispatch(const can::CanFrame& frame);
+
+  std::unique_ptr<can::Bus> bus_;
+  int epoll_fd_ = -1;
+  int wake_fd_ = -1;  // eventfd: posted tasks and stop
+  std::vector<std::unique_ptr<Timer>> timers_;
+  std::array<std::vector<FrameHandler>, cob::kStandardIdCount> handlers_;
+  std::vector<FrameHandler> other_handlers_;
+
+  std::mutex posted_mutex_;
+  std::vector<Task> posted_;
+  bool stopping_ = false;  // guarded by posted_mutex_
+  std::thread thread_;
+};
+
+}  // namespace lb::canopen

@@ -1,0 +1,20 @@
+#include "canopen/sync_producer.hpp"
+
+#include "canopen/cob_id.hpp"
+
+namespace lb::canopen {
+
+SyncProducer::SyncProducer(BusLoop& loop, std::chrono::microseconds period) : loop_(loop), period_(period) {
+  timer_ = loop_.create_timer([this] { tick(); });
+}
+
+void SyncProducer::start() { loop_.arm_timer(timer_, period_, period_); }
+
+void SyncProducer::tick() {
+  can::CanFrame sync;
+  sync.id = cob::sync;
+  (void)loop_.send(sync);  // a failed SYNC is counted by the bus; the next period tries again
+  for (const auto& s : subscribers_) s();
+}
+
+}  // namespace lb::canopen

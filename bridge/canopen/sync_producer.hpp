@@ -1,0 +1,30 @@
+#pragma once
+// Produces SYNC (080h, no data) at a fixed period and tells its subscribers right after each one,
+// which is when a master sends its synchronous RPDOs.
+
+#include <chrono>
+#include <functional>
+#include <vector>
+
+#include "canopen/bus_loop.hpp"
+
+namespace lb::canopen {
+
+class SyncProducer {
+ public:
+  SyncProducer(BusLoop& loop, std::chrono::microseconds period);
+
+  // Before the loop starts.
+  void on_sync(std::function<void()> subscriber) { subscribers_.push_back(std::move(subscriber)); }
+  void start();  // loop thread or before the loop starts
+
+ private:
+  void tick();
+
+  BusLoop& loop_;
+  std::chrono::microseconds period_;
+  BusLoop::TimerId timer_;
+  std::vector<std::function<void()>> subscribers_;
+};
+
+}  // namespace lb::canopen

@@ -1,0 +1,169 @@
+#include "dds/participant.hpp"
+
+#include <fastdds/dds/domain/DomainParticipantFactory.hpp>
+#include <fastdds/rtps/transport/UDPv4TransportDescriptor.h>
+#include <fastdds/rtps/transport/shared_mem/SharedMemTransportDescriptor.h>
+#include <fastrtps/utils/IPLocator.h>
+
+#include <chrono>
+
+namespace lb::ddsl {
+namespace {
+
+using eprosima::fastrtps::rtps::IPLocator;
+using eprosima::fastrtps::rtps::Locator_t;
+
+// Reliable writers announce new data at this period; Fast DDS's 3 s default makes late joiners
+// and lost-packet recovery slow for an HMI.
+const eprosima::fastrtps::Duration_t kHeartbeatPeriod{0, 100'000'000};
+
+fdds::DomainParticipantQos participant_qos(const ParticipantOptions& options) {
+  fdds::DomainParticipantQos qos = fdds::PARTICIPANT_QOS_DEFAULT;
+  qos.name(options.name);
+  if (options.localhost_only) {
+    qos.transport().use_builtin_transports = false;
+    auto udp = std::make_shared<eprosima::fastdds::rtps::UDPv4TransportDescriptor>();
+    udp->interfaceWhiteList.emplace_back("127.0.0.1");
+    qos.transport().user_transports.push_back(udp);
+    qos.transport().user_transports.push_back(std::make_shared<eprosima::fastdds::rtps::SharedMemTransportDescriptor>());
+    Locator_t peer;
+    peer.kind = LOCATOR_KIND_UDPv4;
+    IPLocator::setIPv4(peer, 127, 0, 0, 1);
+    qos.wire_protocol().builtin.initialPeersList.push_back(peer);
+  }
+  return qos;
+}
+
+fdds::DataWriterQos writer_qos(QosKind kind) {
+  fdds::DataWriterQos qos = fdds::DATAWRITER_QOS_DEFAULT;
+  qos.reliability().kind = fdds::RELIABLE_RELIABILITY_QOS;
+  qos.reliable_writer_qos().times.heartbeatPeriod = kHeartbeatPeriod;
+  switch (kind) {
+    case QosKind::state:
+      qos.durability().kind = fdds::TRANSIENT_LOCAL_DURABILITY_QOS;
+      qos.history().kind = fdds::KEEP_LAST_HISTORY_QOS;
+      qos.history().depth = 1;
+      break;
+    case QosKind::command:
+      qos.durability().kind = fdds::VOLATILE_DURABILITY_QOS;
+      qos.history().kind = fdds::KEEP_LAST_HISTORY_QOS;
+      qos.history().depth = 16;
+      break;
+    case QosKind::event:
+      qos.durability().kind = fdds::VOLATILE_DURABILITY_QOS;
+      qos.history().kind = fdds::KEEP_ALL_HISTORY_QOS;
+      break;
+  }
+  return qos;
+}
+
+fdds::DataReaderQos reader_qos(QosKind kind) {
+  fdds::DataReaderQos qos = fdds::DATAREADER_QOS_DEFAULT;
+  qos.reliability().kind = fdds::RELIABLE_RELIABILITY_QOS;
+  switch (kind) {
+    case QosKind::state:
+      qos.durability().kind = fdds::TRANSIENT_LOCAL_DURABILITY_QOS;
+      qos.history().kind = fdds::KEEP_LAST_HISTORY_QOS;
+      qos.history().depth = 1;
+      break;
+    case QosKind::command:
+      qos.durability().kind = fdds::VOLATILE_DURABILITY_QOS;
+      qos.history().kind = fdds::KEEP_LAST_HISTORY_QOS;
+      qos.history().depth = 16;
+      break;
+    case QosKind::event:
+      qos.durability().kind = fdds::VOLATILE_DURABILITY_QOS;
+      qos.history().kind = fdds::KEEP_ALL_HISTORY_QOS;
+      break;
+  }
+  return qos;
+}
+
+}  // namespace
+
+std::int64_t now_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch())
+      .count();
+}
+
+Result<std::unique_ptr<Participant>> Participant::create(const ParticipantOptions& options) {
+  auto p = std::make_unique<Participant>(Key{});
+  auto* factory = fdds::DomainParticipantFactory::get_instance();
+  p->participant_ = factory->create_participant(options.domain, participant_qos(options));
+  if (p->participant_ == nullptr) return make_error("cannot create DDS participant on domain " + std::to_string(options.domain));
+  p->publisher_ = p->participant_->create_publisher(fdds::PUBLISHER_QOS_DEFAULT);
+  p->subscriber_ = p->participant_->create_subscriber(fdds::SUBSCRIBER_QOS_DEFAULT);
+  if (p->publisher_ == nullptr || p->subscriber_ == nullptr) return make_error("cannot create DDS publisher/subscriber");
+  return p;
+}
+
+Participant::~Participant() {
+  if (participant_ == nullptr) return;
+  // Stops every listener before they are freed (members are destroyed after this body).
+  participant_->delete_contained_entities();
+  fdds::DomainParticipantFactory::get_instance()->delete_participant(participant_);
+}
+
+Result<fdds::Topic*> Participant::topic_for_type(const std::string& name, fdds::TypeSupport type) {
+  std::lock_guard lock(mutex_);
+  if (auto it = topics_.find(name); it != topics_.end()) {
+    if (it->second->get_type_name() != type.get_type_name()) {
+      return make_error("topic " + name + " is already used with type " + it->second->get_type_name());
+    }
+    return it->second;
+  }
+  type.register_type(participant_);  // registering a type twice is harmless
+  fdds::Topic* topic = participant_->create_topic(name, type.get_type_name(), fdds::TOPIC_QOS_DEFAULT);
+  if (topic == nullptr) return make_error("cannot create DDS topic " + name);
+  topics_.emplace(name, topic);
+  return topic;
+}
+
+fdds::DataWriter* Participant::create_writer(fdds::Topic* topic, QosKind kind) {
+  auto* w = publisher_->create_datawriter(topic, writer_qos(kind));
+  if (w != nullptr) {
+    std::lock_guard lock(mutex_);
+    writers_[topic->get_name()].push_back(w);
+  }
+  return w;
+}
+
+fdds::DataReader* Participant::create_reader(fdds::Topic* topic, QosKind kind, int keep_last,
+                                             fdds::DataReaderListener* listener) {
+  auto qos = reader_qos(kind);
+  if (keep_last > 0 && qos.history().kind == fdds::KEEP_LAST_HISTORY_QOS) qos.history().depth = keep_last;
+  auto* r = subscriber_->create_datareader(topic, qos, listener);
+  if (r != nullptr) {
+    std::lock_guard lock(mutex_);
+    readers_[topic->get_name()].push_back(r);
+  }
+  return r;
+}
+
+int Participant::matched_readers(const std::string& topic) const {
+  std::lock_guard lock(mutex_);
+  int n = 0;
+  if (auto it = writers_.find(topic); it != writers_.end()) {
+    for (auto* w : it->second) {
+      fdds::PublicationMatchedStatus s;
+      w->get_publication_matched_status(s);
+      n += s.current_count;
+    }
+  }
+  return n;
+}
+
+int Participant::matched_writers(const std::string& topic) const {
+  std::lock_guard lock(mutex_);
+  int n = 0;
+  if (auto it = readers_.find(topic); it != readers_.end()) {
+    for (auto* r : it->second) {
+      fdds::SubscriptionMatchedStatus s;
+      r->get_subscription_matched_status(s);
+      n += s.current_count;
+    }
+  }
+  return n;
+}
+
+}  // namespace lb::ddsl

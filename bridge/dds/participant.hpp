@@ -1,0 +1,153 @@
+#pragma once
+// A DDS participant with the project's QoS conventions, and typed writers and readers on it.
+// Namespace ddsl, not dds: a global ::dds in Fast DDS headers collides with the obvious alias.
+
+#include <fastdds/dds/domain/DomainParticipant.hpp>
+#include <fastdds/dds/publisher/DataWriter.hpp>
+#include <fastdds/dds/publisher/Publisher.hpp>
+#include <fastdds/dds/subscriber/DataReader.hpp>
+#include <fastdds/dds/subscriber/DataReaderListener.hpp>
+#include <fastdds/dds/subscriber/SampleInfo.hpp>
+#include <fastdds/dds/subscriber/Subscriber.hpp>
+#include <fastdds/dds/topic/Topic.hpp>
+#include <fastdds/dds/topic/TypeSupport.hpp>
+
+#include <cstdint>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "base/result.hpp"
+
+namespace lb::ddsl {
+
+namespace fdds = eprosima::fastdds::dds;
+
+// What a topic carries decides its QoS; writers and readers of a kind always match.
+enum class QosKind {
+  state,    // reliable, transient-local, keep-last 1: late joiners get the current state
+  command,  // reliable, volatile, keep-last 16: set values and requests, never replayed to late joiners
+  event,    // reliable, volatile, keep-all: every cut, every emergency
+};
+
+struct ParticipantOptions {
+  std::uint32_t domain = 0;
+  bool localhost_only = true;  // UDPv4 on 127.0.0.1 + shared memory, initial peer 127.0.0.1
+  std::string name = "linebridge";
+};
+
+// Seconds and nanoseconds since the epoch of a CLOCK_REALTIME time in ns.
+struct Stamp {
+  std::int32_t sec;
+  std::uint32_t nanosec;
+};
+constexpr Stamp to_stamp(std::int64_t ns) {
+  return {static_cast<std::int32_t>(ns / 1'000'000'000), static_cast<std::uint32_t>(ns % 1'000'000'000)};
+}
+std::int64_t now_ns();
+
+template <class PubSubType>
+class Writer {
+ public:
+  using Sample = typename PubSubType::type;
+  Writer() = default;
+  explicit Writer(fdds::DataWriter* writer) : writer_(writer) {}
+
+  // Thread-safe (Fast DDS serialises writes). False when the writer refused the sample.
+  bool write(const Sample& sample) const {
+    return writer_ != nullptr && writer_->write(const_cast<Sample*>(&sample));  // API takes void*
+  }
+  int matched() const {
+    fdds::PublicationMatchedStatus status;
+    writer_->get_publication_matched_status(status);
+    return status.current_count;
+  }
+
+ private:
+  fdds::DataWriter* writer_ = nullptr;
+};
+
+template <class PubSubType>
+using SampleCallback = std::function<void(const typename PubSubType::type&, const fdds::SampleInfo&)>;
+
+class Participant {
+  struct Key {};  // only create() can construct a participant, yet make_unique can call it
+
+ public:
+  explicit Participant(Key) {}
+  static Result<std::unique_ptr<Participant>> create(const ParticipantOptions& options);
+  ~Participant();
+  Participant(const Participant&) = delete;
+  Participant& operator=(const Participant&) = delete;
+
+  template <class PubSubType>
+  Result<Writer<PubSubType>> writer(const std::string& topic, QosKind kind) {
+    auto t = topic_for<PubSubType>(topic);
+    if (!t) return t.error();
+    auto* w = create_writer(*t, kind);
+    if (w == nullptr) return make_error("cannot create DDS writer on " + topic);
+    return Writer<PubSubType>(w);
+  }
+
+  // The callback runs on a Fast DDS thread, once per valid sample, in arrival order per writer.
+  // keep_last > 0 deepens a keep-last reader's history, for a subscriber that must see every
+  // sample of a state topic rather than the latest.
+  template <class PubSubType>
+  Result<void> subscribe(const std::string& topic, QosKind kind, SampleCallback<PubSubType> callback,
+                         int keep_last = 0) {
+    auto t = topic_for<PubSubType>(topic);
+    if (!t) return t.error();
+    auto listener = std::make_unique<TypedListener<PubSubType>>(std::move(callback));
+    if (create_reader(*t, kind, keep_last, listener.get()) == nullptr) {
+      return make_error("cannot create DDS reader on " + topic);
+    }
+    std::lock_guard lock(mutex_);
+    listeners_.push_back(std::move(listener));
+    return {};
+  }
+
+  // Number of matched remote readers/writers on a topic: tests and clients wait on it before their
+  // first sample, because DDS discovery is asynchronous.
+  int matched_readers(const std::string& topic) const;
+  int matched_writers(const std::string& topic) const;
+
+ private:
+  template <class PubSubType>
+  class TypedListener : public fdds::DataReaderListener {
+   public:
+    explicit TypedListener(SampleCallback<PubSubType> cb) : cb_(std::move(cb)) {}
+    void on_data_available(fdds::DataReader* reader) override {
+      typename PubSubType::type sample;
+      fdds::SampleInfo info;
+      while (reader->take_next_sample(&sample, &info) == eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK) {
+        if (info.valid_data) cb_(sample, info);
+      }
+    }
+
+   private:
+    SampleCallback<PubSubType> cb_;
+  };
+
+  template <class PubSubType>
+  Result<fdds::Topic*> topic_for(const std::string& name) {
+    // TypeSupport takes ownership of a raw pointer by API design.
+    return topic_for_type(name, fdds::TypeSupport(std::make_unique<PubSubType>().release()));
+  }
+  Result<fdds::Topic*> topic_for_type(const std::string& name, fdds::TypeSupport type);
+  fdds::DataWriter* create_writer(fdds::Topic* topic, QosKind kind);
+  fdds::DataReader* create_reader(fdds::Topic* topic, QosKind kind, int keep_last, fdds::DataReaderListener* listener);
+
+  fdds::DomainParticipant* participant_ = nullptr;
+  fdds::Publisher* publisher_ = nullptr;
+  fdds::Subscriber* subscriber_ = nullptr;
+  mutable std::mutex mutex_;
+  std::map<std::string, fdds::Topic*> topics_;
+  std::map<std::string, std::vector<fdds::DataWriter*>> writers_;
+  std::map<std::string, std::vector<fdds::DataReader*>> readers_;
+  std::vector<std::unique_ptr<fdds::DataReaderListener>> listeners_;
+};
+
+}  // namespace lb::ddsl

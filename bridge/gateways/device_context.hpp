@@ -1,0 +1,27 @@
+#pragma once
+// What every device gateway is given: its bus loop and node, the DDS participant, its configuration.
+
+#include <string>
+
+#include "canopen/bus_loop.hpp"
+#include "canopen/remote_node.hpp"
+#include "canopen/sync_producer.hpp"
+#include "dds/participant.hpp"
+#include "profiles/line_config.hpp"
+
+namespace lb::gateways {
+
+struct DeviceContext {
+  canopen::BusLoop& loop;
+  canopen::RemoteNode& node;
+  canopen::SyncProducer* sync;  // null on a monitor bus: the bridge produces no SYNC there
+  ddsl::Participant& dds;
+  const std::string& line;
+  const profiles::BusConfig& bus;
+  const profiles::DeviceConfig& device;
+  const profiles::Profile& profile;
+
+  bool is_master() const { return bus.role == profiles::BusRole::master; }
+};
+
+}  // namespace lb::gateways

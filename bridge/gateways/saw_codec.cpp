@@ -1,0 +1,130 @@
+#include "gateways/saw_codec.hpp"
+
+#include <stdexcept>
+
+namespace lb::gateways {
+
+namespace msg = linebridge_msgs::msg;
+
+namespace {
+
+unsigned required_bit(const profiles::BitSet& set, std::string_view name, const std::string& profile) {
+  auto bit = set.bit(name);
+  if (!bit) throw std::runtime_error("profile " + profile + ": bit set " + set.name + " has no bit '" + std::string(name) + "'");
+  return *bit;
+}
+
+}  // namespace
+
+SawCodec::SawCodec(const profiles::Profile& profile) : profile_(profile) {
+  status_word_ = bind("status_word");
+  control_word_ = bind("control_word");
+  counter_value_ = bind("counter_value");
+  saw_counter_ = bind("actual_saw_counter");
+  product_speed_ = bind("product_speed");
+  sync_speed_set_ = bind("saw_sync_speed_set_value");
+  length_set_ = bind("product_length_set_value");
+
+  const auto& sw = bitset("status_word");
+  const auto& cw = bitset("control_word");
+  status_bits_ = NamedBits<msg::SawStatusWord>(
+      sw, {{"saw_ready", &msg::SawStatusWord::saw_ready},
+           {"saw_cutting", &msg::SawStatusWord::saw_cutting},
+           {"sample_request", &msg::SawStatusWord::sample_request},
+           {"manual_cut_by_saw", &msg::SawStatusWord::manual_cut_by_saw},
+           {"fault", &msg::SawStatusWord::fault},
+           {"alarm", &msg::SawStatusWord::alarm},
+           {"f1_running", &msg::SawStatusWord::f1_running},
+           {"f1_ready", &msg::SawStatusWord::f1_ready},
+           {"f2_running", &msg::SawStatusWord::f2_running},
+           {"f2_ready", &msg::SawStatusWord::f2_ready},
+           {"f3_running", &msg::SawStatusWord::f3_running},
+           {"f3_ready", &msg::SawStatusWord::f3_ready},
+           {"saw_program_enabled", &msg::SawStatusWord::saw_program_enabled},
+           {"cut_from_limit_switch", &msg::SawStatusWord::cut_from_limit_switch},
+           {"start_saw_program_requested", &msg::SawStatusWord::start_saw_program_requested}});
+  control_bits_ = NamedBits<msg::SawControlWord>(
+      cw, {{"saw_program_on", &msg::SawControlWord::saw_program_on},
+           {"wall_thickening", &msg::SawControlWord::wall_thickening},
+           {"change_of_length", &msg::SawControlWord::change_of_length},
+           {"manual_cut", &msg::SawControlWord::manual_cut},
+           {"tip_pulse", &msg::SawControlWord::tip_pulse},
+           {"stop_immediately", &msg::SawControlWord::stop_immediately},
+           {"f1_stop", &msg::SawControlWord::f1_stop},
+           {"f1_start", &msg::SawControlWord::f1_start},
+           {"f2_stop", &msg::SawControlWord::f2_stop},
+           {"f2_start", &msg::SawControlWord::f2_start},
+           {"f3_stop", &msg::SawControlWord::f3_stop},
+           {"f3_start", &msg::SawControlWord::f3_start}});
+  bit_program_on_ = required_bit(cw, "saw_program_on", profile_.key());
+  bit_change_of_length_ = required_bit(cw, "change_of_length", profile_.key());
+  bit_saw_cutting_ = required_bit(sw, "saw_cutting", profile_.key());
+  bit_count_mode_ = cw.bit("count_mode");
+
+  for (const auto& pdo : profile_.pdos) {
+    auto mapping = canopen::PdoMapping::create(pdo.mapping);
+    if (!mapping) throw std::runtime_error("profile " + profile_.key() + " " + pdo.name + ": " + mapping.error().message);
+    pdos_.push_back({&pdo, canopen::PdoBinding(std::move(*mapping), image_)});
+  }
+}
+
+SawCodec::Object SawCodec::bind(std::string_view name) {
+  const auto* def = profile_.object(name);
+  if (def == nullptr) throw std::runtime_error("profile " + profile_.key() + " has no object '" + std::string(name) + "'");
+  return {def, image_.slot(def->index, def->sub)};
+}
+
+const profiles::BitSet& SawCodec::bitset(std::string_view name) const {
+  const auto* set = profile_.bitset(name);
+  if (set == nullptr) throw std::runtime_error("profile " + profile_.key() + " has no bit set '" + std::string(name) + "'");
+  return *set;
+}
+
+void SawCodec::fill(msg::SawStatus& status) const {
+  const std::uint64_t sw = image_.get(status_word_.slot);
+  status.status_word().raw(static_cast<std::uint16_t>(sw));
+  status_bits_.decode(sw, status.status_word());
+  status.counter_value(static_cast<std::uint32_t>(image_.get(counter_value_.slot)));
+  status.actual_saw_counter_m(saw_counter_.def->to_engineering(image_.get(saw_counter_.slot)));
+  status.product_speed_m_per_min(product_speed_.def->to_engineering(image_.get(product_speed_.slot)));
+
+  const std::uint64_t cw = image_.get(control_word_.slot);
+  status.control_word().raw(static_cast<std::uint16_t>(cw));
+  control_bits_.decode(cw, status.control_word());
+  const bool corrugated = bit_count_mode_ && ((cw >> *bit_count_mode_) & 1U) != 0;
+  status.control_word().count_mode(corrugated ? msg::CORRUGATED_PIPE : msg::SMOOTH_PIPE);
+  status.sync_speed_set_percent(sync_speed_set_.def->to_engineering(image_.get(sync_speed_set_.slot)));
+  status.product_length_set_m(length_set_.def->to_engineering(image_.get(length_set_.slot)));
+}
+
+bool SawCodec::cutting() const { return ((image_.get(status_word_.slot) >> bit_saw_cutting_) & 1U) != 0; }
+
+Result<SawCodec::RawSetpoint> SawCodec::validate(const msg::SawSetpoint& sp) const {
+  if (sp.count_mode() != msg::SMOOTH_PIPE && sp.count_mode() != msg::CORRUGATED_PIPE) {
+    return make_error("count_mode " + std::to_string(static_cast<int>(sp.count_mode())) + " is not a count mode");
+  }
+  RawSetpoint raw{sp.saw_program_on(), sp.count_mode() == msg::CORRUGATED_PIPE, 0, 0};
+  if (raw.corrugated && !bit_count_mode_) {
+    return make_error("profile " + profile_.key() + " has no count mode bit: corrugated pipe mode is not available");
+  }
+  auto speed = sync_speed_set_.def->to_raw(sp.sync_speed_percent());
+  if (!speed) return make_error("sync_speed_percent: " + speed.error().message);
+  auto length = length_set_.def->to_raw(sp.product_length_m());
+  if (!length) return make_error("product_length_m: " + length.error().message);
+  raw.sync_speed = *speed;
+  raw.product_length = *length;
+  return raw;
+}
+
+void SawCodec::apply(const RawSetpoint& raw) {
+  std::uint64_t cw = image_.get(control_word_.slot);
+  const auto set_bit = [&cw](unsigned bit, bool on) { cw = on ? cw | (1ULL << bit) : cw & ~(1ULL << bit); };
+  set_bit(bit_program_on_, raw.program_on);
+  if (bit_count_mode_) set_bit(*bit_count_mode_, raw.corrugated);
+  if (raw.product_length != image_.get(length_set_.slot)) cw ^= 1ULL << bit_change_of_length_;
+  image_.set(control_word_.slot, cw);
+  image_.set(sync_speed_set_.slot, raw.sync_speed);
+  image_.set(length_set_.slot, raw.product_length);
+}
+
+}  // namespace lb::gateways

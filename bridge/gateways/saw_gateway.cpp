@@ -1,0 +1,137 @@
+#include "gateways/saw_gateway.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <stdexcept>
+
+#include "dds/topic_names.hpp"
+#include "gateways/nmt_state_msg.hpp"
+
+namespace lb::gateways {
+
+namespace msg = linebridge_msgs::msg;
+using profiles::PdoDirection;
+
+namespace {
+
+template <class T>
+T checked(Result<T> r, const std::string& what) {
+  if (!r) throw std::runtime_error(what + ": " + r.error().message);
+  return std::move(*r);
+}
+
+}  // namespace
+
+SawGateway::SawGateway(DeviceContext context) : ctx_(context), codec_(context.profile) {
+  const std::string& dev = ctx_.device.name;
+  for (std::size_t i = 0; i < codec_.pdos().size(); ++i) {
+    const auto& pdo = *codec_.pdos()[i].def;
+    const bool from_device = pdo.direction == PdoDirection::tx;
+    if (from_device || !ctx_.is_master()) {
+      ctx_.loop.on_frame(pdo.cob_id(ctx_.device.node_id), [this, i](const can::CanFrame& f) { on_pdo(i, f); });
+    } else {
+      rpdos_.push_back(i);
+    }
+  }
+
+  const std::string& line = ctx_.line;
+  status_writer_ = checked(ctx_.dds.writer<msg::SawStatusPubSubType>(ddsl::topic_name(line, dev, "status"), ddsl::QosKind::state), dev);
+  cut_writer_ = checked(ctx_.dds.writer<msg::SawCutPubSubType>(ddsl::topic_name(line, dev, "cut"), ddsl::QosKind::event), dev);
+  result_writer_ = checked(ctx_.dds.writer<msg::SetpointResultPubSubType>(ddsl::topic_name(line, dev, "setpoint_result"),
+                                                                          ddsl::QosKind::command), dev);
+  auto sub = ctx_.dds.subscribe<msg::SawSetpointPubSubType>(
+      ddsl::topic_name(line, dev, "setpoint"), ddsl::QosKind::command,
+      [this](const msg::SawSetpoint& sp, const ddsl::fdds::SampleInfo&) { on_setpoint(sp); });
+  if (!sub) throw std::runtime_error(dev + ": " + sub.error().message);
+
+  ctx_.node.on_change([this](canopen::NmtState, bool) { publish_status(ddsl::now_ns()); });
+  if (ctx_.sync != nullptr) ctx_.sync->on_sync([this] { on_sync(); });
+  spdlog::info("{}: saw ({}) node {} on bus {} as {}{}", dev, ctx_.profile.key(), ctx_.device.node_id, ctx_.bus.name,
+               profiles::to_string(ctx_.bus.role),
+               ctx_.is_master() ? "; RPDO1 image starts all zero (saw program off)" : "");
+  publish_status(ddsl::now_ns());  // the device exists (offline) before its first heartbeat
+}
+
+void SawGateway::on_pdo(std::size_t pdo, const can::CanFrame& frame) {
+  if (auto r = codec_.receive(pdo, frame.payload()); !r) {
+    // Counted and reported, never decoded: a short PDO would otherwise publish garbage.
+    if (pdo_length_errors_++ % 1000 == 0) {
+      spdlog::warn("{}: {} ({:03X}h) not decoded: {} ({} so far)", ctx_.device.name, codec_.pdos()[pdo].def->name,
+                   frame.id, r.error().message, pdo_length_errors_);
+    }
+    return;
+  }
+  publish_status(frame.timestamp_ns);
+}
+
+void SawGateway::on_sync() {
+  if (!ctx_.node.ready_for_pdos()) return;
+  for (const std::size_t i : rpdos_) {
+    can::CanFrame f;
+    f.id = codec_.pdos()[i].def->cob_id(ctx_.device.node_id);
+    f.len = codec_.pack(i, std::span<std::uint8_t, 8>(f.data));
+    (void)ctx_.loop.send(f);  // failures are counted by the bus; the next SYNC sends the image again
+  }
+}
+
+void SawGateway::on_setpoint(const msg::SawSetpoint& sp) {
+  // DDS thread: validation reads only the profile; the image belongs to the loop thread.
+  if (!ctx_.is_master()) {
+    return reply(sp.request_id(), false, "bus " + ctx_.bus.name + " is in the monitor role: the bridge never transmits there");
+  }
+  auto raw = codec_.validate(sp);
+  if (!raw) {
+    spdlog::warn("{}: set value {} refused: {}", ctx_.device.name, sp.request_id(), raw.error().message);
+    return reply(sp.request_id(), false, raw.error().message);
+  }
+  ctx_.loop.post([this, r = *raw, id = sp.request_id()] {
+    if (!ctx_.node.online()) {
+      spdlog::warn("{}: set value {} refused: device offline", ctx_.device.name, id);
+      return reply(id, false, ctx_.device.name + " is offline (no heartbeat): set value not applied");
+    }
+    codec_.apply(r);
+    publish_status(ddsl::now_ns());
+    spdlog::info("{}: set values: program {}, sync speed {} %, product length {} m (control word {:04X}h)",
+                 ctx_.device.name, status_.control_word().saw_program_on() ? "on" : "off",
+                 status_.sync_speed_set_percent(), status_.product_length_set_m(), status_.control_word().raw());
+    reply(id, true, "");
+  });
+}
+
+void SawGateway::reply(std::uint64_t request_id, bool accepted, const std::string& reason) {
+  msg::SetpointResult r;
+  r.request_id(request_id);
+  r.accepted(accepted);
+  r.reason(reason);
+  result_writer_.write(r);
+}
+
+void SawGateway::publish_status(std::int64_t stamp_ns) {
+  const auto stamp = ddsl::to_stamp(stamp_ns);
+  status_.stamp().sec(stamp.sec);
+  status_.stamp().nanosec(stamp.nanosec);
+  status_.nmt_state(to_msg(ctx_.node.state()));
+  status_.online(ctx_.node.online());
+  codec_.fill(status_);
+  status_.pdo_length_errors(pdo_length_errors_);
+  status_writer_.write(status_);
+
+  // The saw loads a new length when its program starts, otherwise only after the next cut.
+  const bool program_on = status_.control_word().saw_program_on();
+  if (!program_on || !program_was_on_) length_in_force_m_ = status_.product_length_set_m();
+  program_was_on_ = program_on;
+  const bool cutting = codec_.cutting();
+  if (cutting && !was_cutting_) {
+    msg::SawCut cut;
+    cut.stamp(status_.stamp());
+    cut.cut_count(++cut_count_);
+    cut.length_in_force_m(length_in_force_m_);
+    cut.counter_before_cut_m(counter_before_cut_m_);
+    cut_writer_.write(cut);
+    length_in_force_m_ = status_.product_length_set_m();
+  }
+  if (!cutting) counter_before_cut_m_ = status_.actual_saw_counter_m();
+  was_cutting_ = cutting;
+}
+
+}  // namespace lb::gateways

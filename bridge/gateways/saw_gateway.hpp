@@ -1,0 +1,47 @@
+#pragma once
+// CiA 420-4 saw on DDS: decodes its TPDOs into rt/<line>/<device>/status (and a cut event per
+// cut), validates set values from rt/<line>/<device>/setpoint and sends them in RPDO1 at every
+// SYNC (master role), or decodes the line controller's RPDO1 (monitor role).
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+#include "gateways/gateway.hpp"
+#include "gateways/saw_codec.hpp"
+#include "msgs/commonPubSubTypes.h"
+#include "msgs/sawPubSubTypes.h"
+
+namespace lb::gateways {
+
+class SawGateway : public Gateway {
+ public:
+  // Throws std::runtime_error at start-up when the profile lacks what a saw needs.
+  explicit SawGateway(DeviceContext context);
+
+ private:
+  void on_pdo(std::size_t pdo, const can::CanFrame& frame);
+  void on_sync();
+  void on_setpoint(const linebridge_msgs::msg::SawSetpoint& sp);
+  void publish_status(std::int64_t stamp_ns);
+  void reply(std::uint64_t request_id, bool accepted, const std::string& reason);
+
+  DeviceContext ctx_;
+  SawCodec codec_;  // loop thread, except validate() (const, any thread)
+  std::vector<std::size_t> rpdos_;  // indices into codec_.pdos() the master sends at SYNC
+
+  ddsl::Writer<linebridge_msgs::msg::SawStatusPubSubType> status_writer_;
+  ddsl::Writer<linebridge_msgs::msg::SawCutPubSubType> cut_writer_;
+  ddsl::Writer<linebridge_msgs::msg::SetpointResultPubSubType> result_writer_;
+
+  // Loop-thread state.
+  linebridge_msgs::msg::SawStatus status_;
+  std::uint64_t pdo_length_errors_ = 0;
+  bool was_cutting_ = false;
+  bool program_was_on_ = false;
+  double counter_before_cut_m_ = 0;
+  double length_in_force_m_ = 0;  // the set value the saw's comparator uses (6020h bit 2 semantics)
+  std::uint32_t cut_count_ = 0;
+};
+
+}  // namespace lb::gateways

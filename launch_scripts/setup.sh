@@ -1,0 +1,27 @@
+#!/usr/bin/env bash
+# Installs every build and run dependency of linebridge from Debian's packages.
+# Idempotent: installs only what is missing, so repeated runs cost a dpkg query.
+set -euo pipefail
+
+packages=(
+  build-essential cmake pkg-config ninja-build
+  libfastrtps-dev libfastcdr-dev fastddsgen fastdds-tools
+  libyaml-cpp-dev libspdlog-dev libfmt-dev libgtest-dev libcli11-dev
+  iproute2 util-linux procps
+)
+
+missing=()
+for p in "${packages[@]}"; do
+  dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q 'install ok installed' || missing+=("$p")
+done
+
+if ((${#missing[@]})); then
+  echo "setup: installing ${missing[*]}"
+  export DEBIAN_FRONTEND=noninteractive
+  sudo_cmd=()
+  [ "$(id -u)" -eq 0 ] || sudo_cmd=(sudo)
+  "${sudo_cmd[@]}" apt-get update -q
+  "${sudo_cmd[@]}" apt-get install -y -q --no-install-recommends "${missing[@]}"
+else
+  echo "setup: all dependencies present"
+fi

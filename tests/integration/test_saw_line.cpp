@@ -1,0 +1,322 @@
+// The walking skeleton end to end: the real simulator and the real bridge as separate processes on
+// a virtual bus, this test as an independent DDS participant (and as a third bus member that
+// watches the frames). Runs inside launch_scripts/netns-run.sh (CTest does that).
+#include <gtest/gtest.h>
+#include <poll.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <cmath>
+#include <condition_variable>
+#include <fstream>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+#include "can/bus.hpp"
+#include "dds/participant.hpp"
+#include "dds/topic_names.hpp"
+#include "msgs/commonPubSubTypes.h"
+#include "msgs/sawPubSubTypes.h"
+#include "support/child_process.hpp"
+
+namespace msg = linebridge_msgs::msg;
+using namespace std::chrono_literals;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+constexpr std::uint8_t kNode = 5;
+// 60 m/min at 100 %: one metre per second, 20 mm per 20 ms SYNC.
+constexpr double kStepM = 0.02;
+
+// Everything the DDS threads deliver, under one lock, with a condition to wait on.
+struct Observed {
+  std::mutex m;
+  std::condition_variable cv;
+  std::vector<msg::SawStatus> status;
+  std::vector<msg::SawCut> cuts;
+  std::vector<msg::SetpointResult> results;
+
+  template <class Pred>
+  bool wait(Clock::duration timeout, Pred pred) {
+    std::unique_lock lock(m);
+    return cv.wait_for(lock, timeout, [&] { return pred(); });
+  }
+};
+
+// Frames seen by a passive member of the virtual bus.
+class BusSpy {
+ public:
+  explicit BusSpy(const std::string& uri) : bus_(lb::can::open_bus(uri).value()) {
+    thread_ = std::thread([this] {
+      while (!stop_) {
+        pollfd p{bus_->fd(), POLLIN, 0};
+        if (::poll(&p, 1, 50) <= 0) continue;
+        std::lock_guard lock(m_);
+        while (true) {
+          auto r = bus_->receive();
+          if (!r || !r->has_value()) break;
+          frames_.push_back(**r);
+        }
+      }
+    });
+  }
+  ~BusSpy() {
+    stop_ = true;
+    thread_.join();
+  }
+  std::vector<lb::can::CanFrame> frames(std::uint32_t id) {
+    std::lock_guard lock(m_);
+    std::vector<lb::can::CanFrame> out;
+    for (const auto& f : frames_) {
+      if (f.id == id) out.push_back(f);
+    }
+    return out;
+  }
+  void clear() {
+    std::lock_guard lock(m_);
+    frames_.clear();
+  }
+  // Sends from the spy's own member (the receive thread holds m_ only while reading).
+  lb::Result<void> send(const lb::can::CanFrame& f) {
+    std::lock_guard lock(m_);
+    return bus_->send(f);
+  }
+
+ private:
+  std::unique_ptr<lb::can::Bus> bus_;
+  std::mutex m_;
+  std::vector<lb::can::CanFrame> frames_;
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
+};
+
+class SawLine : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    ASSERT_EQ(std::getenv("LINEBRIDGE_NETNS") != nullptr, true) << "run through launch_scripts/netns-run.sh (ctest does)";
+    const std::string tag = std::to_string(::getpid());
+    bus_uri_ = "virtual:it-saw-" + tag;
+    config_path_ = ::testing::TempDir() + "/saw_line_" + tag + ".yaml";
+    std::ofstream(config_path_) << "line: itest\n"
+                                   "dds: {domain: 3, localhost_only: true}\n"
+                                   "buses:\n"
+                                   "  - {name: ext, interface: '" + bus_uri_ + "', role: master, sync_period_ms: 20}\n"
+                                   "devices:\n"
+                                   "  - name: saw1\n"
+                                   "    bus: ext\n"
+                                   "    node_id: 5\n"
+                                   "    profile: cia420-4\n"
+                                   "    version: '3.1'\n"
+                                   "    heartbeat_timeout_ms: 400\n"
+                                   "    simulation: {max_speed_m_per_min: 60, acceleration_m_per_min_s: 6000, heartbeat_period_ms: 100}\n";
+    spy_ = std::make_unique<BusSpy>(bus_uri_);
+    sim_ = std::make_unique<lb::test::ChildProcess>(std::vector<std::string>{LB_BIN_SIM, "--config", config_path_},
+                                                    ::testing::TempDir() + "/sim_" + tag + ".log");
+    bridge_ = std::make_unique<lb::test::ChildProcess>(
+        std::vector<std::string>{LB_BIN_BRIDGE, "--config", config_path_}, ::testing::TempDir() + "/bridge_" + tag + ".log");
+    ASSERT_TRUE(sim_->started());
+    ASSERT_TRUE(bridge_->started());
+
+    auto dds = lb::ddsl::Participant::create({3, true, "itest"});
+    ASSERT_TRUE(dds) << dds.error().message;
+    dds_ = std::move(*dds);
+    const auto topic = [](const char* t) { return lb::ddsl::topic_name("itest", "saw1", t); };
+    ASSERT_TRUE(dds_->subscribe<msg::SawStatusPubSubType>(topic("status"), lb::ddsl::QosKind::state,
+                                                          [this](const msg::SawStatus& s, const auto&) {
+                                                            std::lock_guard lock(seen_.m);
+                                                            seen_.status.push_back(s);
+                                                            seen_.cv.notify_all();
+                                                          },
+                                                          1000));  // every sample, not just the latest
+    ASSERT_TRUE(dds_->subscribe<msg::SawCutPubSubType>(topic("cut"), lb::ddsl::QosKind::event,
+                                                       [this](const msg::SawCut& c, const auto&) {
+                                                         std::lock_guard lock(seen_.m);
+                                                         seen_.cuts.push_back(c);
+                                                         seen_.cv.notify_all();
+                                                       }));
+    ASSERT_TRUE(dds_->subscribe<msg::SetpointResultPubSubType>(topic("setpoint_result"), lb::ddsl::QosKind::command,
+                                                               [this](const msg::SetpointResult& r, const auto&) {
+                                                                 std::lock_guard lock(seen_.m);
+                                                                 seen_.results.push_back(r);
+                                                                 seen_.cv.notify_all();
+                                                               }));
+    auto w = dds_->writer<msg::SawSetpointPubSubType>(topic("setpoint"), lb::ddsl::QosKind::command);
+    ASSERT_TRUE(w);
+    setpoint_ = *w;
+
+    // The device is up and both directions of the set-value exchange are matched.
+    ASSERT_TRUE(seen_.wait(15s, [this] { return !seen_.status.empty() && seen_.status.back().online() &&
+                                                seen_.status.back().nmt_state() == msg::NMT_OPERATIONAL; }))
+        << logs();
+    const auto deadline = Clock::now() + 10s;
+    while ((setpoint_.matched() == 0 || dds_->matched_writers(topic("setpoint_result")) == 0) && Clock::now() < deadline) {
+      std::this_thread::sleep_for(20ms);
+    }
+    ASSERT_GT(setpoint_.matched(), 0);
+  }
+
+  void TearDown() override {
+    dds_.reset();
+    if (bridge_) {
+      EXPECT_EQ(bridge_->stop(), 0) << "the bridge did not exit cleanly on SIGTERM\n" << logs();
+    }
+    if (sim_) {
+      sim_->stop();
+    }
+  }
+
+  std::string logs() const {
+    return "--- bridge log ---\n" + (bridge_ ? bridge_->log() : "") + "--- sim log ---\n" + (sim_ ? sim_->log() : "");
+  }
+
+  msg::SetpointResult send(bool on, double percent, double length_m) {
+    msg::SawSetpoint sp;
+    sp.request_id(++request_id_);
+    sp.saw_program_on(on);
+    sp.sync_speed_percent(percent);
+    sp.product_length_m(length_m);
+    sp.count_mode(msg::SMOOTH_PIPE);
+    EXPECT_TRUE(setpoint_.write(sp));
+    msg::SetpointResult answer;
+    const bool got = seen_.wait(5s, [&] {
+      for (const auto& r : seen_.results) {
+        if (r.request_id() == sp.request_id()) return answer = r, true;
+      }
+      return false;
+    });
+    EXPECT_TRUE(got) << "no answer to request " << sp.request_id() << "\n" << logs();
+    return answer;
+  }
+
+  // The saw counter in the last status sample before each rising edge of "saw cutting", taken from
+  // the status topic alone: where the saw really cut.
+  std::vector<double> cut_lengths_from_status(std::size_t from) {
+    std::lock_guard lock(seen_.m);
+    std::vector<double> lengths;
+    for (std::size_t i = std::max<std::size_t>(from, 1); i < seen_.status.size(); ++i) {
+      if (seen_.status[i].status_word().saw_cutting() && !seen_.status[i - 1].status_word().saw_cutting()) {
+        lengths.push_back(seen_.status[i - 1].actual_saw_counter_m());
+      }
+    }
+    return lengths;
+  }
+  std::size_t status_count() {
+    std::lock_guard lock(seen_.m);
+    return seen_.status.size();
+  }
+
+  std::string bus_uri_, config_path_;
+  std::unique_ptr<BusSpy> spy_;
+  std::unique_ptr<lb::test::ChildProcess> sim_, bridge_;
+  std::unique_ptr<lb::ddsl::Participant> dds_;
+  lb::ddsl::Writer<msg::SawSetpointPubSubType> setpoint_;
+  Observed seen_;
+  std::uint64_t request_id_ = 100;
+};
+
+bool near_length(double measured, double length) {
+  // The counter grows by one SYNC step between samples: the last sample before the cut lies in
+  // [length - step, length); allow a second step for scheduling jitter on a loaded machine.
+  return measured < length + 1e-9 && measured >= length - 2 * kStepM - 1e-9;
+}
+
+}  // namespace
+
+TEST_F(SawLine, ProductLengthSetOverDdsIsWhereTheSawCuts) {
+  const auto accepted = send(true, 100.0, 0.5);
+  ASSERT_TRUE(accepted.accepted()) << accepted.reason();
+  // Cut events and status are separate topics: wait for both to show three cuts.
+  ASSERT_TRUE(seen_.wait(15s, [&] { return seen_.cuts.size() >= 3; })) << logs();
+  const auto deadline = Clock::now() + 5s;
+  while (cut_lengths_from_status(0).size() < 3 && Clock::now() < deadline) std::this_thread::sleep_for(20ms);
+  const auto lengths = cut_lengths_from_status(0);
+  ASSERT_GE(lengths.size(), 3u);
+  for (double l : lengths) EXPECT_PRED2(near_length, l, 0.5);
+  {
+    std::lock_guard lock(seen_.m);
+    for (const auto& c : seen_.cuts) {
+      EXPECT_DOUBLE_EQ(c.length_in_force_m(), 0.5);
+      EXPECT_PRED2(near_length, c.counter_before_cut_m(), 0.5);
+    }
+    EXPECT_DOUBLE_EQ(seen_.status.back().product_length_set_m(), 0.5);
+    EXPECT_NEAR(seen_.status.back().product_speed_m_per_min(), 60.0, 1e-9);
+  }
+
+  // A new length is taken after the next cut (change-of-length toggle, CiA 420-4 6020h bit 2).
+  const std::size_t before = status_count();
+  const auto changed = send(true, 100.0, 0.3);
+  ASSERT_TRUE(changed.accepted()) << changed.reason();
+  ASSERT_TRUE(seen_.wait(15s, [&] {
+    std::size_t short_cuts = 0;
+    for (std::size_t i = std::max<std::size_t>(before, 1); i < seen_.status.size(); ++i) {
+      if (seen_.status[i].status_word().saw_cutting() && !seen_.status[i - 1].status_word().saw_cutting() &&
+          seen_.status[i - 1].actual_saw_counter_m() < 0.4) {
+        ++short_cuts;
+      }
+    }
+    return short_cuts >= 2;
+  })) << logs();
+  const auto after = cut_lengths_from_status(before);
+  ASSERT_GE(after.size(), 3u);
+  EXPECT_PRED2(near_length, after.front(), 0.5) << "the new length must not apply before the next cut";
+  bool switched = false;
+  for (double l : after) {
+    if (near_length(l, 0.3)) {
+      switched = true;
+    } else {
+      EXPECT_TRUE(!switched && near_length(l, 0.5)) << "cut at " << l << " m";
+    }
+  }
+  EXPECT_TRUE(switched);
+  // The cut events agree with the status topic: each reports the length it was made at.
+  std::lock_guard lock(seen_.m);
+  for (const auto& c : seen_.cuts) {
+    EXPECT_PRED2(near_length, c.counter_before_cut_m(), c.length_in_force_m()) << "cut #" << c.cut_count();
+  }
+}
+
+TEST_F(SawLine, OutOfRangeSetValueIsRefusedAndNeverReachesCan) {
+  spy_->clear();
+  const auto refused = send(true, 150.0, 1.0);
+  EXPECT_FALSE(refused.accepted());
+  EXPECT_NE(refused.reason().find("sync_speed_percent"), std::string::npos) << refused.reason();
+  const auto negative = send(true, 50.0, -2.0);
+  EXPECT_FALSE(negative.accepted());
+  EXPECT_NE(negative.reason().find("product_length_m"), std::string::npos) << negative.reason();
+
+  std::this_thread::sleep_for(300ms);  // 15 SYNC cycles of RPDO1
+  const auto rpdos = spy_->frames(0x200 + kNode);
+  ASSERT_GE(rpdos.size(), 5u) << "the bridge sends RPDO1 at every SYNC";
+  for (const auto& f : rpdos) {
+    ASSERT_EQ(f.len, 8);
+    EXPECT_EQ(f.data, (std::array<std::uint8_t, 8>{})) << "a refused set value changed RPDO1";
+  }
+
+  // The bridge is still there and takes a good value: exactly these bytes reach the bus.
+  ASSERT_TRUE(bridge_->running()) << logs();
+  const auto ok = send(true, 50.0, 0.5);
+  ASSERT_TRUE(ok.accepted()) << ok.reason();
+  const std::array<std::uint8_t, 8> expected{0x05, 0x00, 0x88, 0x13, 0x88, 0x13, 0x00, 0x00};
+  const auto deadline = Clock::now() + 2s;
+  bool seen = false;
+  while (!seen && Clock::now() < deadline) {
+    for (const auto& f : spy_->frames(0x200 + kNode)) seen = seen || f.data == expected;
+    std::this_thread::sleep_for(20ms);
+  }
+  EXPECT_TRUE(seen) << "RPDO1 05 00 88 13 88 13 00 00 not seen";
+}
+
+TEST_F(SawLine, ShortPdoIsCountedNotDecoded) {
+  // A 4-byte TPDO2 (the mapping needs 8) from a misbehaving node: counted, never published as values.
+  ASSERT_TRUE(spy_->send(lb::can::make_frame(0x280 + kNode, {0xFF, 0xFF, 0xFF, 0x7F})));
+  ASSERT_TRUE(seen_.wait(5s, [&] { return seen_.status.back().pdo_length_errors() >= 1; })) << logs();
+  {
+    std::lock_guard lock(seen_.m);
+    for (const auto& s : seen_.status) EXPECT_LT(std::abs(s.actual_saw_counter_m()), 1000.0) << "garbage was decoded";
+  }
+  EXPECT_TRUE(bridge_->running());
+  EXPECT_NE(bridge_->log().find("not decoded"), std::string::npos) << logs();
+}

@@ -1,0 +1,147 @@
+// Line configuration: a good file loads; every kind of mistake stops start-up with the file,
+// line and column and what is wrong.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <array>
+#include <cstdio>
+#include <fstream>
+#include <string>
+
+#include "profiles/line_config.hpp"
+
+using lb::profiles::ProfileRegistry;
+using lb::profiles::parse_line_config;
+
+namespace {
+
+const std::string kGood = R"(line: test
+dds:
+  domain: 7
+  localhost_only: true
+buses:
+  - name: ext
+    interface: virtual:x
+    role: master
+    sync_period_ms: 10
+  - name: mon
+    interface: socketcan:can1
+    role: monitor
+devices:
+  - name: saw1
+    bus: ext
+    node_id: 3
+    profile: cia420-4
+    version: "3.1"
+    heartbeat_timeout_ms: 300
+    simulation:
+      max_speed_m_per_min: 12.5
+)";
+
+std::string error_of(const std::string& yaml) {
+  const auto registry = ProfileRegistry::builtin();
+  auto r = parse_line_config(yaml, "line.yaml", registry);
+  EXPECT_FALSE(r) << "accepted:\n" << yaml;
+  return r ? std::string() : r.error().message;
+}
+
+std::string replace(std::string text, const std::string& from, const std::string& to) {
+  const auto pos = text.find(from);
+  EXPECT_NE(pos, std::string::npos) << from;
+  return pos == std::string::npos ? text : text.replace(pos, from.size(), to);
+}
+
+}  // namespace
+
+TEST(LineConfig, GoodFileLoads) {
+  const auto registry = ProfileRegistry::builtin();
+  auto r = parse_line_config(kGood, "line.yaml", registry);
+  ASSERT_TRUE(r) << r.error().message;
+  EXPECT_EQ(r->line, "test");
+  EXPECT_EQ(r->dds.domain, 7u);
+  ASSERT_EQ(r->buses.size(), 2u);
+  EXPECT_EQ(r->buses[0].sync_period, std::chrono::milliseconds(10));
+  EXPECT_EQ(r->buses[1].role, lb::profiles::BusRole::monitor);
+  EXPECT_EQ(r->buses[1].sync_period, std::chrono::milliseconds(20));  // CiA 420-1 default
+  ASSERT_EQ(r->devices.size(), 1u);
+  EXPECT_EQ(r->devices[0].node_id, 3);
+  EXPECT_EQ(r->devices[0].heartbeat_timeout, std::chrono::milliseconds(300));
+  EXPECT_DOUBLE_EQ(r->devices[0].simulation.max_speed_m_per_min, 12.5);
+  ASSERT_NE(r->devices[0].resolved_profile, nullptr);
+  EXPECT_EQ(r->devices[0].resolved_profile->device, "saw");
+}
+
+TEST(LineConfig, UnknownKeyNamesFileLineColumn) {
+  const auto e = error_of(replace(kGood, "    heartbeat_timeout_ms: 300", "    heartbeat_timout_ms: 300"));
+  EXPECT_NE(e.find("line.yaml:19:5: unknown key 'heartbeat_timout_ms' in device"), std::string::npos) << e;
+}
+
+TEST(LineConfig, MissingNodeIdIsRefused) {
+  const auto e = error_of(replace(kGood, "    node_id: 3\n", ""));
+  EXPECT_NE(e.find("line.yaml:14:5: device saw1: missing required key 'node_id'"), std::string::npos) << e;
+}
+
+TEST(LineConfig, UnknownProfileIsRefusedWithTheKnownOnes) {
+  auto e = error_of(replace(kGood, "profile: cia420-4", "profile: cia420-9"));
+  EXPECT_NE(e.find("line.yaml:17:14: device saw1: unknown profile cia420-9 version 3.1"), std::string::npos) << e;
+  EXPECT_NE(e.find("cia420-4@3.1"), std::string::npos) << e;
+  e = error_of(replace(kGood, "version: \"3.1\"", "version: \"9.9\""));
+  EXPECT_NE(e.find("unknown profile cia420-4 version 9.9"), std::string::npos) << e;
+}
+
+TEST(LineConfig, OtherMistakes) {
+  EXPECT_NE(error_of(replace(kGood, "node_id: 3", "node_id: 128")).find("line.yaml:16:14: device saw1: node_id 128 is outside 1..127"),
+            std::string::npos);
+  EXPECT_NE(error_of(replace(kGood, "node_id: 3", "node_id: three")).find("'node_id' has a value of the wrong type"),
+            std::string::npos);
+  EXPECT_NE(error_of(replace(kGood, "bus: ext", "bus: nowhere")).find("no bus named 'nowhere'"), std::string::npos);
+  EXPECT_NE(error_of(replace(kGood, "role: monitor", "role: slave")).find("role must be master or monitor"),
+            std::string::npos);
+  EXPECT_NE(error_of(replace(kGood, "virtual:x", "udp:x")).find("interface must be socketcan:<ifname> or virtual:<name>"),
+            std::string::npos);
+  EXPECT_NE(error_of(replace(kGood, "name: saw1", "name: saw-1")).find("'saw-1' is not a valid name"), std::string::npos);
+  EXPECT_NE(error_of(replace(kGood, "max_speed_m_per_min: 12.5", "max_speed: 12.5")).find("unknown key 'max_speed' in simulation"),
+            std::string::npos);
+  EXPECT_NE(error_of(kGood + "  - {name: saw2, bus: ext, node_id: 3, profile: cia420-4, version: \"3.1\"}\n")
+                .find("node-ID 3 is already used by saw1 on bus ext"),
+            std::string::npos);
+  EXPECT_NE(error_of("line: [unclosed\n").find("line.yaml:2:1: YAML syntax error"), std::string::npos)
+      << error_of("line: [unclosed\n");
+  EXPECT_NE(error_of("- just\n- a list\n").find("must be a mapping"), std::string::npos);
+}
+
+TEST(LineConfig, BridgeRefusesABadFileWithLocationAndNonZeroExit) {
+  const std::string path = ::testing::TempDir() + "/bad_line.yaml";
+  std::ofstream(path) << replace(kGood, "    heartbeat_timeout_ms: 300", "    colour: red");
+  const std::string cmd = std::string(LB_BIN_BRIDGE) + " --config " + path + " 2>&1";
+  FILE* pipe = ::popen(cmd.c_str(), "r");
+  ASSERT_NE(pipe, nullptr);
+  std::string output;
+  std::array<char, 256> buf{};
+  while (std::fgets(buf.data(), buf.size(), pipe) != nullptr) output += buf.data();
+  const int status = ::pclose(pipe);
+  ASSERT_TRUE(WIFEXITED(status));
+  EXPECT_EQ(WEXITSTATUS(status), 2);
+  EXPECT_NE(output.find(path + ":19:5: unknown key 'colour' in device"), std::string::npos) << output;
+}
+
+TEST(ProfileFile, BrokenProfilesAreRefusedWithLocation) {
+  const std::string base = R"(profile: x
+version: "1"
+device: saw
+device_type: 0x01A4
+objects:
+  - {index: 0x6030, name: status_word, type: UNSIGNED16, access: ro}
+)";
+  auto r = lb::profiles::parse_profile(base + "bitsets:\n  status_word:\n    object: 0x6030\n    bits: {a: 16}\n", "p.yaml");
+  ASSERT_FALSE(r);
+  EXPECT_NE(r.error().message.find("p.yaml:10:15: bit 16 does not exist in a 16-bit word"), std::string::npos)
+      << r.error().message;
+  r = lb::profiles::parse_profile(base + "pdos:\n  - {name: t, direction: tx, cob_id: 0x180, transmission_type: 1, mapping: [0x60300020]}\n", "p.yaml");
+  ASSERT_FALSE(r);
+  EXPECT_NE(r.error().message.find("mapping entry length differs"), std::string::npos) << r.error().message;
+  r = lb::profiles::parse_profile(replace(base, "UNSIGNED16", "UNSIGNED17"), "p.yaml");
+  ASSERT_FALSE(r);
+  EXPECT_NE(r.error().message.find("unknown data type 'UNSIGNED17'"), std::string::npos) << r.error().message;
+  ASSERT_TRUE(lb::profiles::parse_profile(base, "p.yaml"));
+}
