@@ -1,5 +1,6 @@
 #include "canopen/bus_loop.hpp"
 
+#include <fmt/ranges.h>
 #include <spdlog/spdlog.h>
 #include <sys/epoll.h>
 #include <sys/eventfd.h>
@@ -163,6 +164,11 @@ void BusLoop::dispatch(const can::CanFrame& frame) {
   if (!frame.extended && !frame.rtr && !frame.error && frame.id < cob::kStandardIdCount) {
     for (const auto& h : handlers_[frame.id]) h(frame);
     return;
+  }
+  if (frame.error && error_frames_logged_++ % 100 == 0) {
+    // Error class bits and data as <linux/can/error.h> defines them; counted in the bus stats.
+    spdlog::warn("{}: error frame, class {:08X}h, data {:02X} ({} so far)", bus_->uri(), frame.id,
+                 fmt::join(frame.payload(), " "), error_frames_logged_);
   }
   for (const auto& h : other_handlers_) h(frame);
 }

@@ -66,6 +66,7 @@ class BusLoop {
   std::vector<std::unique_ptr<Timer>> timers_;
   std::array<std::vector<FrameHandler>, cob::kStandardIdCount> handlers_;
   std::vector<FrameHandler> other_handlers_;
+  std::uint64_t error_frames_logged_ = 0;
 
   std::mutex posted_mutex_;
   std::vector<Task> posted_;
