@@ -8,6 +8,7 @@ packages=(
   libfastrtps-dev libfastcdr-dev fastddsgen fastdds-tools
   libyaml-cpp-dev libspdlog-dev libfmt-dev libgtest-dev libcli11-dev
   iproute2 util-linux procps
+  can-utils qemu-system-x86 busybox-static xz-utils
 )
 
 missing=()

@@ -2,7 +2,10 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <stdexcept>
+
+#include "can/recording_bus.hpp"
 
 namespace lb::app {
 
@@ -16,8 +19,24 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
     const bool master = bus_cfg.role == profiles::BusRole::master;
     auto bus = can::open_bus(bus_cfg.interface, master ? can::BusAccess::read_write : can::BusAccess::listen_only);
     if (!bus) return make_error("bus " + bus_cfg.name + ": " + bus.error().message);
-    BusRuntime rt{&bus_cfg, std::make_unique<canopen::BusLoop>(std::move(*bus)), nullptr, {}, {}};
-    if (master) rt.sync = std::make_unique<canopen::SyncProducer>(*rt.loop, bus_cfg.sync_period);
+    if (!bus_cfg.record.empty()) {
+      // Outermost, so it records what this bridge really sent (a monitor sends nothing).
+      auto recording = can::RecordingBus::open(std::move(*bus), bus_cfg.record);
+      if (!recording) return make_error("bus " + bus_cfg.name + ": " + recording.error().message);
+      bus = std::unique_ptr<can::Bus>(std::move(*recording));
+      spdlog::info("bus {}: recording every frame to {}", bus_cfg.name, bus_cfg.record);
+    }
+    BusRuntime rt{};
+    rt.config = &bus_cfg;
+    rt.loop = std::make_unique<canopen::BusLoop>(std::move(*bus));
+    if (master) {
+      rt.sync = std::make_unique<canopen::SyncProducer>(*rt.loop, bus_cfg.sync_period);
+      rt.sdo = std::make_unique<canopen::SdoClient>(*rt.loop, bus_cfg.sdo_timeout);
+    }
+    if (master && bus_cfg.master_node_id != 0) {
+      rt.heartbeat = std::make_unique<canopen::HeartbeatProducer>(*rt.loop, bus_cfg.master_node_id,
+                                                                  bus_cfg.master_heartbeat_period);
+    }
     bridge->buses_.push_back(std::move(rt));
   }
 
@@ -26,12 +45,32 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
                              [&](const BusRuntime& b) { return b.config->name == dev.bus; });
     const bool master = rt.config->role == profiles::BusRole::master;
     rt.nodes.push_back(std::make_unique<canopen::RemoteNode>(*rt.loop, dev.node_id, dev.heartbeat_timeout, master));
+    const gateways::DeviceContext ctx{*rt.loop,     *rt.nodes.back(), rt.sync.get(), rt.sdo.get(), *bridge->dds_,
+                                      config.line,  *rt.config,       dev,           *dev.resolved_profile};
     try {
-      rt.gateways.push_back(gateways::make_gateway(gateways::DeviceContext{
-          *rt.loop, *rt.nodes.back(), rt.sync.get(), *bridge->dds_, config.line, *rt.config, dev, *dev.resolved_profile}));
+      rt.services.push_back(std::make_unique<gateways::DeviceServices>(ctx));
+      rt.gateways.push_back(gateways::make_gateway(ctx));
     } catch (const std::runtime_error& e) {
       return make_error(e.what());
     }
+  }
+
+  std::vector<gateways::DiagnosticsGateway::Bus> diag;
+  for (const auto& rt : bridge->buses_) {
+    gateways::DiagnosticsGateway::Bus b{rt.config, rt.loop.get(), {}};
+    for (std::size_t i = 0; i < rt.nodes.size(); ++i) {
+      for (const auto& dev : config.devices) {
+        if (dev.bus == rt.config->name && dev.node_id == rt.nodes[i]->node_id()) {
+          b.devices.push_back({&dev, rt.nodes[i].get(), rt.services[i].get()});
+        }
+      }
+    }
+    diag.push_back(std::move(b));
+  }
+  try {
+    bridge->diagnostics_ = std::make_unique<gateways::DiagnosticsGateway>(*bridge->dds_, config.line, std::move(diag));
+  } catch (const std::runtime_error& e) {
+    return make_error(e.what());
   }
   return bridge;
 }
@@ -43,9 +82,11 @@ LineBridge::~LineBridge() {
 }
 
 void LineBridge::start() {
+  diagnostics_->start();  // arms its timers before the loops run
   for (auto& rt : buses_) {
     rt.loop->start();
     rt.loop->post([&rt] {
+      if (rt.heartbeat) rt.heartbeat->start();
       for (auto& node : rt.nodes) node->start();
       if (rt.sync) rt.sync->start();
     });
@@ -54,6 +95,7 @@ void LineBridge::start() {
 }
 
 void LineBridge::stop() {
+  if (diagnostics_) diagnostics_->stop();
   for (auto& rt : buses_) rt.loop->stop();
 }
 

@@ -6,9 +6,13 @@
 #include <vector>
 
 #include "canopen/bus_loop.hpp"
+#include "canopen/heartbeat_producer.hpp"
 #include "canopen/remote_node.hpp"
+#include "canopen/sdo_client.hpp"
 #include "canopen/sync_producer.hpp"
 #include "dds/participant.hpp"
+#include "gateways/device_services.hpp"
+#include "gateways/diagnostics_gateway.hpp"
 #include "gateways/gateway.hpp"
 #include "profiles/line_config.hpp"
 
@@ -31,13 +35,17 @@ class LineBridge {
     const profiles::BusConfig* config;
     std::unique_ptr<canopen::BusLoop> loop;
     std::unique_ptr<canopen::SyncProducer> sync;
+    std::unique_ptr<canopen::HeartbeatProducer> heartbeat;
+    std::unique_ptr<canopen::SdoClient> sdo;
     std::vector<std::unique_ptr<canopen::RemoteNode>> nodes;
+    std::vector<std::unique_ptr<gateways::DeviceServices>> services;
     std::vector<std::unique_ptr<gateways::Gateway>> gateways;
   };
 
   const profiles::LineConfig& config_;
   std::unique_ptr<ddsl::Participant> dds_;
   std::vector<BusRuntime> buses_;
+  std::unique_ptr<gateways::DiagnosticsGateway> diagnostics_;
 };
 
 }  // namespace lb::app

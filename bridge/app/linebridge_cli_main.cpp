@@ -87,7 +87,7 @@ int run_set(lb::ddsl::Participant& dds, const std::string& line, const std::stri
   }
   // Fields not given keep the value in force, which the status topic reports; wait for the
   // device to be online so the bridge will not refuse the set value as offline.
-  auto current = status.wait(timeout, [](const msg::SawStatus& s) { return s.online(); });
+  auto current = status.wait(timeout, [](const msg::SawStatus& s) { return s.health().online(); });
   if (!current) {
     fmt::print(stderr, "{}: no online status on {} within {} s (is the bridge running and the device up?)\n", device,
                status_topic, o.timeout_s);
@@ -133,10 +133,10 @@ int run_echo(lb::ddsl::Participant& dds, const std::string& line, const std::str
       // Throttled, except that every change of a status bit or of the online flag is shown.
       const auto now = Clock::now();
       std::lock_guard lock(print_mutex);
-      if (now - last_print < min_gap && s.status_word().raw() == last_word && s.online() == last_online) return;
+      if (now - last_print < min_gap && s.status_word().raw() == last_word && s.health().online() == last_online) return;
       last_print = now;
       last_word = s.status_word().raw();
-      last_online = s.online();
+      last_online = s.health().online();
       fmt::print("{} {}\n", device, lb::app::to_text(s));
       std::fflush(stdout);
     });

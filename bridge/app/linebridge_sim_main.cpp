@@ -9,6 +9,7 @@
 #include "app/line_config_source.hpp"
 #include "app/run_until_signal.hpp"
 #include "canopen/bus_loop.hpp"
+#include "sim/line_controller.hpp"
 #include "sim/saw_simulator.hpp"
 
 int main(int argc, char** argv) {
@@ -17,7 +18,13 @@ int main(int argc, char** argv) {
   std::vector<std::string> only;
   double duration_s = 0;
   std::string log_level = "info";
+  std::string role = "devices";
   cli.add_option("-c,--config", config_path, "line configuration (YAML); default: the built-in demo line");
+  cli.add_option("--role", role,
+                 "devices: play the devices; controller: play the line controller (SYNC, NMT, RPDOs from "
+                 "simulation.controller_values) for a bridge in the monitor role; both")
+      ->check(CLI::IsMember({"devices", "controller", "both"}))
+      ->capture_default_str();
   cli.add_option("--device", only, "simulate only these devices (default: all)");
   cli.add_option("-d,--duration", duration_s, "stop after this many seconds (default: run until Ctrl-C)");
   cli.add_option("--log-level", log_level, "trace, debug, info, warn, error")->capture_default_str();
@@ -41,6 +48,8 @@ int main(int argc, char** argv) {
 
   std::vector<std::unique_ptr<lb::canopen::BusLoop>> loops;
   std::vector<std::unique_ptr<lb::sim::SawSimulator>> devices;
+  std::vector<std::unique_ptr<lb::sim::LineController>> controllers;
+  const bool play_devices = role != "controller";
   for (const auto& bus_cfg : config->buses) {
     auto bus = lb::can::open_bus(bus_cfg.interface);
     if (!bus) {
@@ -48,8 +57,11 @@ int main(int argc, char** argv) {
       return 1;
     }
     auto loop = std::make_unique<lb::canopen::BusLoop>(std::move(*bus));
+    std::vector<const lb::profiles::DeviceConfig*> on_bus;
     for (const auto& dev : config->devices) {
       if (dev.bus != bus_cfg.name || (!only.empty() && std::find(only.begin(), only.end(), dev.name) == only.end())) continue;
+      on_bus.push_back(&dev);
+      if (!play_devices) continue;
       if (dev.resolved_profile->device != "saw") {
         spdlog::error("{}: no simulator for device type {} yet", dev.name, dev.resolved_profile->device);
         return 1;
@@ -57,10 +69,15 @@ int main(int argc, char** argv) {
       devices.push_back(std::make_unique<lb::sim::SawSimulator>(*loop, dev, *dev.resolved_profile));
       devices.back()->start();
     }
+    if (role != "devices" && !on_bus.empty()) {
+      controllers.push_back(std::make_unique<lb::sim::LineController>(*loop, bus_cfg, on_bus));
+      controllers.back()->start();
+    }
     loops.push_back(std::move(loop));
   }
   for (auto& loop : loops) loop->start();
-  spdlog::info("simulating {} device(s) of line {}", devices.size(), config->line);
+  spdlog::info("simulating {} device(s){} of line {}", devices.size(), controllers.empty() ? "" : " and the line controller",
+               config->line);
   lb::app::run_until_signal(std::chrono::milliseconds(static_cast<long>(duration_s * 1000)));
   for (auto& loop : loops) loop->stop();
   return 0;

@@ -1,6 +1,7 @@
 #include "app/saw_text.hpp"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <ctime>
 
@@ -47,11 +48,12 @@ std::string to_text(const msg::SawStatus& s) {
   const auto& c = s.control_word();
   return fmt::format(
       "{} {:<15} {:<7} | saw counter {:8.4f} m  speed {:7.3f} m/min  pulses {:>10} | status {:04X}h [{}] | "
-      "set: program {}, {} pipe, length {:.4f} m, sync {:.2f} %{}",
-      clock_text(s.stamp()), to_text(s.nmt_state()), s.online() ? "online" : "OFFLINE", s.actual_saw_counter_m(),
+      "set: program {}, {} pipe, length {:.4f} m, sync {:.2f} %{}{}",
+      clock_text(s.stamp()), to_text(s.health().nmt_state()), s.health().online() ? "online" : "OFFLINE", s.actual_saw_counter_m(),
       s.product_speed_m_per_min(), s.counter_value(), w.raw(), bits, c.saw_program_on() ? "on" : "off",
       c.count_mode() == msg::CORRUGATED_PIPE ? "corrugated" : "smooth", s.product_length_set_m(),
-      s.sync_speed_set_percent(), s.pdo_length_errors() ? fmt::format(" | {} short PDOs", s.pdo_length_errors()) : "");
+      s.sync_speed_set_percent(), s.pdo_length_errors() ? fmt::format(" | {} short PDOs", s.pdo_length_errors()) : "",
+      s.health().active_errors().empty() ? "" : fmt::format(" | EMCY active: {:04X}", fmt::join(s.health().active_errors(), " ")));
 }
 
 std::string to_text(const msg::SawCut& c) {

@@ -1,6 +1,7 @@
 #include "can/bus.hpp"
 
 #include "can/listen_only_bus.hpp"
+#include "can/log_bus.hpp"
 #include "can/socketcan_bus.hpp"
 #include "can/virtual_bus.hpp"
 
@@ -14,15 +15,21 @@ Result<std::unique_ptr<Bus>> open_medium(std::string_view uri) {
       colon == std::string_view::npos ? std::string_view{} : uri.substr(0, colon);
   const std::string_view name =
       colon == std::string_view::npos ? std::string_view{} : uri.substr(colon + 1);
-  if (scheme != "socketcan" && scheme != "virtual") {
+  if (scheme != "socketcan" && scheme != "virtual" && scheme != "log") {
     return make_error("bus URI '" + std::string(uri) +
-                      "': unknown scheme (expected socketcan:<ifname> or virtual:<name>)");
+                      "': unknown scheme (expected socketcan:<ifname>, virtual:<name> or log:<file>)");
   }
   if (name.empty())
     return make_error("bus URI '" + std::string(uri) + "': the name after ':' is empty");
 
   if (scheme == "socketcan") {
     auto bus = SocketCanBus::open(name);
+    if (!bus) return bus.error();
+    return std::unique_ptr<Bus>(std::move(*bus));
+  }
+  if (scheme == "log") {
+    // Receive-only by itself: it refuses every send like ListenOnlyBus, whatever the access.
+    auto bus = LogBus::open(name);
     if (!bus) return bus.error();
     return std::unique_ptr<Bus>(std::move(*bus));
   }

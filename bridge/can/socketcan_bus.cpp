@@ -1,74 +1,162 @@
 #include "can/socketcan_bus.hpp"
 
 #include <linux/can.h>
+#include <net/if_arp.h>
 #include <linux/can/error.h>
 #include <linux/can/raw.h>
 #include <net/if.h>
+#include <sys/epoll.h>
+#include <sys/ioctl.h>
 #include <sys/socket.h>
+#include <sys/timerfd.h>
 
 #include <cerrno>
 #include <cstring>
 
+#include "can/controller_state.hpp"
 #include "can/detail.hpp"
 
 namespace lb::can {
 
 using detail::errno_text;
 
+namespace {
+
+// Fast enough that a line notices a link back within a couple of SYNC periods, cheap when idle.
+constexpr long kRetryIntervalNs = 100'000'000;
+
+bool link_error(int err) { return err == ENETDOWN || err == ENODEV || err == ENXIO; }
+
+bool epoll_add(int epoll_fd, int fd) {
+  epoll_event ev{};
+  ev.events = EPOLLIN;
+  ev.data.fd = fd;
+  return ::epoll_ctl(epoll_fd, EPOLL_CTL_ADD, fd, &ev) == 0;
+}
+
+}  // namespace
+
 Result<std::unique_ptr<SocketCanBus>> SocketCanBus::open(std::string_view ifname) {
   std::string uri = "socketcan:" + std::string(ifname);
   if (ifname.empty() || ifname.size() >= IFNAMSIZ) {
-    return make_error(uri + ": interface name must be 1 to " + std::to_string(IFNAMSIZ - 1) +
-                      " characters");
+    return make_error(uri + ": interface name must be 1 to " + std::to_string(IFNAMSIZ - 1) + " characters");
   }
+  UniqueFd epoll{::epoll_create1(EPOLL_CLOEXEC)};
+  UniqueFd timer{::timerfd_create(CLOCK_MONOTONIC, TFD_NONBLOCK | TFD_CLOEXEC)};
+  if (!epoll || !timer || !epoll_add(epoll.get(), timer.get())) {
+    return make_error(uri + ": cannot create descriptors: " + errno_text(errno));
+  }
+  auto bus = std::make_unique<SocketCanBus>(PrivateTag{}, std::move(uri), std::string(ifname), std::move(epoll),
+                                            std::move(timer));
+  std::string why;
+  switch (bus->attach(&why)) {
+    case Attach::attached:
+      break;
+    case Attach::not_yet:  // exists, but down: wait for it
+      bus->stats_.state = BusState::down;
+      bus->set_retry_timer(true);
+      break;
+    case Attach::failed:
+      return make_error(why);
+  }
+  return bus;
+}
 
+SocketCanBus::SocketCanBus(PrivateTag, std::string uri, std::string ifname, UniqueFd epoll, UniqueFd retry_timer)
+    : uri_(std::move(uri)), ifname_(std::move(ifname)), epoll_(std::move(epoll)), retry_timer_(std::move(retry_timer)) {}
+
+SocketCanBus::Attach SocketCanBus::attach(std::string* why) {
   UniqueFd sock{::socket(PF_CAN, SOCK_RAW | SOCK_NONBLOCK | SOCK_CLOEXEC, CAN_RAW)};
   if (!sock) {
     const int err = errno;
     if (err == EAFNOSUPPORT) {
-      return make_error(uri + ": this kernel has no SocketCAN support (socket(PF_CAN) failed: " +
-                        errno_text(err) +
-                        "); load the can and can-raw modules or use a virtual: bus");
+      *why = uri_ + ": this kernel has no SocketCAN support (socket(PF_CAN) failed: " + errno_text(err) +
+             "); load the can and can-raw modules or use a virtual: bus";
+    } else {
+      *why = uri_ + ": cannot create a CAN socket: " + errno_text(err);
     }
-    return make_error(uri + ": cannot create a CAN socket: " + errno_text(err));
+    return Attach::failed;
   }
-
-  const std::string name(ifname);
-  const unsigned index = ::if_nametoindex(name.c_str());
+  const unsigned index = ::if_nametoindex(ifname_.c_str());
   if (index == 0) {
-    return make_error(uri + ": no network interface named '" + name + "': " + errno_text(errno));
+    *why = uri_ + ": no network interface named '" + ifname_ + "': " + errno_text(errno);
+    return opened_once_ ? Attach::not_yet : Attach::failed;  // deleted: it may be re-created
+  }
+  ifreq ifr{};
+  std::memcpy(ifr.ifr_name, ifname_.c_str(), ifname_.size());
+  if (::ioctl(sock.get(), SIOCGIFHWADDR, &ifr) == 0 && ifr.ifr_hwaddr.sa_family != ARPHRD_CAN) {
+    *why = uri_ + ": '" + ifname_ + "' is not a CAN interface";
+    return Attach::failed;
+  }
+  if (::ioctl(sock.get(), SIOCGIFFLAGS, &ifr) == 0 && (ifr.ifr_flags & IFF_UP) == 0) {
+    *why = uri_ + ": the interface is down";
+    return Attach::not_yet;
   }
 
   // Without this filter the kernel drops error frames, and bus-off or overruns would go unseen.
   const can_err_mask_t err_mask = CAN_ERR_MASK;
-  if (::setsockopt(sock.get(), SOL_CAN_RAW, CAN_RAW_ERR_FILTER, &err_mask, sizeof err_mask) != 0) {
-    return make_error(uri + ": cannot enable error frames: " + errno_text(errno));
-  }
-  // The kernel's reception time is closer to the wire than a clock read after scheduling delays.
   const int on = 1;
-  if (::setsockopt(sock.get(), SOL_SOCKET, SO_TIMESTAMPNS, &on, sizeof on) != 0) {
-    return make_error(uri + ": cannot enable receive timestamps: " + errno_text(errno));
+  if (::setsockopt(sock.get(), SOL_CAN_RAW, CAN_RAW_ERR_FILTER, &err_mask, sizeof err_mask) != 0 ||
+      // The kernel's reception time is closer to the wire than a clock read after scheduling delays.
+      ::setsockopt(sock.get(), SOL_SOCKET, SO_TIMESTAMPNS, &on, sizeof on) != 0 ||
+      // Frames the receive queue had no room for: counted by the kernel, reported with each frame.
+      ::setsockopt(sock.get(), SOL_SOCKET, SO_RXQ_OVFL, &on, sizeof on) != 0) {
+    *why = uri_ + ": cannot set socket options: " + errno_text(errno);
+    return Attach::failed;
   }
-
   sockaddr_can addr{};
   addr.can_family = AF_CAN;
   addr.can_ifindex = static_cast<int>(index);
   if (::bind(sock.get(), reinterpret_cast<const sockaddr*>(&addr), sizeof addr) != 0) {
     const int err = errno;
-    return make_error(uri + ": cannot bind to '" + name + "'" +
-                      (err == ENODEV ? " (not a CAN interface)" : "") + ": " + errno_text(err));
+    *why = uri_ + ": cannot bind to '" + ifname_ + "'" + (err == ENODEV ? " (not a CAN interface)" : "") + ": " +
+           errno_text(err);
+    // Gone between the look-up and bind: just not yet. A non-CAN interface at start: a real error.
+    return opened_once_ && link_error(err) ? Attach::not_yet : Attach::failed;
   }
-  return std::make_unique<SocketCanBus>(PrivateTag{}, std::move(uri), std::move(sock));
+  if (!epoll_add(epoll_.get(), sock.get())) {
+    *why = uri_ + ": epoll_ctl failed: " + errno_text(errno);
+    return Attach::failed;
+  }
+  sock_ = std::move(sock);
+  socket_dropped_ = 0;
+  if (opened_once_) ++stats_.reopens;
+  opened_once_ = true;
+  // No error frame since the link came up: the controller starts error-active.
+  stats_.state = BusState::error_active;
+  set_retry_timer(false);
+  return Attach::attached;
 }
 
-SocketCanBus::SocketCanBus(PrivateTag, std::string uri, UniqueFd sock)
-    : uri_(std::move(uri)), sock_(std::move(sock)) {}
+void SocketCanBus::link_lost() {
+  if (sock_) ::epoll_ctl(epoll_.get(), EPOLL_CTL_DEL, sock_.get(), nullptr);
+  sock_.reset();
+  stats_.state = BusState::down;
+  std::string why;
+  if (attach(&why) != Attach::attached) set_retry_timer(true);  // back already (a quick down/up)?
+}
+
+void SocketCanBus::set_retry_timer(bool armed) {
+  itimerspec spec{};
+  if (armed) {
+    spec.it_value.tv_nsec = kRetryIntervalNs;
+    spec.it_interval.tv_nsec = kRetryIntervalNs;
+  }
+  ::timerfd_settime(retry_timer_.get(), 0, &spec, nullptr);  // also clears a pending expiry
+}
 
 Result<std::optional<CanFrame>> SocketCanBus::receive() {
+  if (!sock_) {
+    std::uint64_t expirations = 0;
+    [[maybe_unused]] const auto n = ::read(retry_timer_.get(), &expirations, sizeof expirations);
+    std::string why;
+    if (attach(&why) == Attach::failed) return make_error(why);
+    if (!sock_) return std::optional<CanFrame>{};
+  }
   for (;;) {
     can_frame raw{};
     iovec iov{&raw, sizeof raw};
-    alignas(cmsghdr) unsigned char control[CMSG_SPACE(sizeof(timespec))];
+    alignas(cmsghdr) unsigned char control[CMSG_SPACE(sizeof(timespec)) + CMSG_SPACE(sizeof(std::uint32_t))];
     msghdr msg{};
     msg.msg_iov = &iov;
     msg.msg_iovlen = 1;
@@ -80,6 +168,10 @@ Result<std::optional<CanFrame>> SocketCanBus::receive() {
       const int err = errno;
       if (err == EAGAIN || err == EWOULDBLOCK) return std::optional<CanFrame>{};
       if (err == EINTR) continue;
+      if (link_error(err)) {
+        link_lost();
+        return std::optional<CanFrame>{};
+      }
       return make_error(uri_ + ": receive failed: " + errno_text(err));
     }
     // CAN FD frames are not enabled on this socket, so anything but a classical frame is noise.
@@ -91,6 +183,13 @@ Result<std::optional<CanFrame>> SocketCanBus::receive() {
         timespec ts{};
         std::memcpy(&ts, CMSG_DATA(c), sizeof ts);
         frame.timestamp_ns = std::int64_t{ts.tv_sec} * 1'000'000'000 + ts.tv_nsec;
+      } else if (c->cmsg_level == SOL_SOCKET && c->cmsg_type == SO_RXQ_OVFL) {
+        std::uint32_t dropped = 0;  // since the socket was opened
+        std::memcpy(&dropped, CMSG_DATA(c), sizeof dropped);
+        if (dropped > socket_dropped_) {
+          stats_.rx_dropped += dropped - socket_dropped_;
+          socket_dropped_ = dropped;
+        }
       }
     }
     if (frame.timestamp_ns == 0) frame.timestamp_ns = detail::realtime_ns();
@@ -101,6 +200,7 @@ Result<std::optional<CanFrame>> SocketCanBus::receive() {
       frame.len = CAN_ERR_DLC;
       std::memcpy(frame.data.data(), raw.data, CAN_ERR_DLC);
       ++stats_.error_frames;
+      apply_error_frame(frame, stats_);
     } else {
       frame.extended = (raw.can_id & CAN_EFF_FLAG) != 0;
       frame.rtr = (raw.can_id & CAN_RTR_FLAG) != 0;
@@ -116,6 +216,10 @@ Result<std::optional<CanFrame>> SocketCanBus::receive() {
 Result<void> SocketCanBus::send(const CanFrame& frame) {
   if (auto ok = detail::check_sendable(frame, uri_); !ok) return ok;
   if (frame.error) return make_error(uri_ + ": error frames cannot be transmitted");
+  if (!sock_) {
+    ++stats_.tx_dropped;
+    return make_error(uri_ + ": link down, frame dropped");
+  }
 
   can_frame raw{};
   raw.can_id = frame.id | (frame.extended ? CAN_EFF_FLAG : 0u) | (frame.rtr ? CAN_RTR_FLAG : 0u);
@@ -132,8 +236,14 @@ Result<void> SocketCanBus::send(const CanFrame& frame) {
     if (err == EINTR) continue;
     ++stats_.tx_dropped;
     // ENOBUFS is how SocketCAN reports a full qdisc/controller queue: congestion, not a failure.
+    // Never retried here: the caller's next period (SYNC) brings the current image again.
     if (err == EAGAIN || err == EWOULDBLOCK || err == ENOBUFS) {
+      ++stats_.tx_queue_full;
       return make_error(uri_ + ": transmit queue full, frame dropped");
+    }
+    if (link_error(err)) {
+      link_lost();
+      return make_error(uri_ + ": link down, frame dropped");
     }
     return make_error(uri_ + ": transmit failed: " + errno_text(err));
   }

@@ -1,5 +1,17 @@
 #pragma once
 // A kernel CAN interface (can0, vcan0, ...) through a raw SocketCAN socket.
+//
+// Faults: error frames (all classes enabled) come back as CanFrame{error = true} and drive
+// BusStats::state (controller_state.hpp). When the interface goes down or is deleted, the socket
+// is closed, the state becomes `down`, and the bus checks every 100 ms whether an interface of that
+// name is up again; then it opens and binds a new socket (BusStats::reopens counts these), so a
+// deleted and re-created interface works like one that was only taken down and up. Nothing above
+// the bus has to act: sends fail (counted in tx_dropped) while the link is down and succeed again
+// after, which is all a bus loop re-sending its PDO images at every SYNC needs.
+//
+// fd() is an epoll descriptor owned by the bus, holding the current socket and the retry timer. It
+// never changes for the lifetime of the object, across any number of re-opens: register it once,
+// level-triggered, and call receive() when it is readable (as VirtualBus).
 
 #include <memory>
 #include <string_view>
@@ -16,23 +28,34 @@ class SocketCanBus final : public Bus {
 
  public:
   // ifname as `ip link` shows it. Fails cleanly when the kernel has no SocketCAN (EAFNOSUPPORT),
-  // when the interface does not exist or is not a CAN interface.
+  // when the interface does not exist or is not a CAN interface. An interface that exists but is
+  // down is not an error: the bus starts in state `down` and opens the socket when it comes up.
   static Result<std::unique_ptr<SocketCanBus>> open(std::string_view ifname);
 
-  SocketCanBus(PrivateTag, std::string uri, UniqueFd sock);
+  SocketCanBus(PrivateTag, std::string uri, std::string ifname, UniqueFd epoll, UniqueFd retry_timer);
 
   const std::string& uri() const override { return uri_; }
-  // The socket itself: stable for the lifetime of the object.
-  int fd() const override { return sock_.get(); }
-  // Error frames (all classes are enabled) come back as CanFrame{error = true}.
+  int fd() const override { return epoll_.get(); }
   Result<std::optional<CanFrame>> receive() override;
-  // A full transmit queue (EAGAIN/ENOBUFS) drops the frame and says so; it never waits.
+  // Never waits: a full transmit queue (ENOBUFS/EAGAIN) drops the frame, counts it in tx_dropped
+  // and tx_queue_full, and says so; so does a link that is down.
   Result<void> send(const CanFrame& frame) override;
   BusStats stats() const override { return stats_; }
 
  private:
+  enum class Attach { attached, not_yet, failed };
+  // Opens and binds a socket when the interface exists and is up.
+  Attach attach(std::string* why);
+  void link_lost();
+  void set_retry_timer(bool armed);
+
   std::string uri_;
-  UniqueFd sock_;
+  std::string ifname_;
+  UniqueFd epoll_;
+  UniqueFd retry_timer_;
+  UniqueFd sock_;  // empty while the link is down
+  bool opened_once_ = false;
+  std::uint32_t socket_dropped_ = 0;  // the current socket's SO_RXQ_OVFL count
   BusStats stats_;
 };
 

@@ -28,6 +28,9 @@ void epoll_add(int epoll_fd, int fd, std::uint64_t tag) {
   }
 }
 
+// Classical CAN: 47 bits of overhead for a base frame (67 extended) plus the data, no stuffing.
+std::uint64_t frame_bits(const can::CanFrame& f) { return (f.extended ? 67U : 47U) + 8U * (f.rtr ? 0U : f.len); }
+
 timespec to_timespec(std::chrono::nanoseconds ns) {
   const auto s = std::chrono::duration_cast<std::chrono::seconds>(ns);
   return {static_cast<time_t>(s.count()), static_cast<long>((ns - s).count())};
@@ -53,6 +56,10 @@ BusLoop::~BusLoop() {
 void BusLoop::on_frame(std::uint32_t cob_id, FrameHandler handler) {
   if (cob_id >= cob::kStandardIdCount) throw std::invalid_argument("on_frame takes 11-bit identifiers");
   handlers_[cob_id].push_back(std::move(handler));
+}
+
+void BusLoop::on_extended_frame(std::uint32_t id, FrameHandler handler) {
+  extended_handlers_.emplace_back(id, std::move(handler));
 }
 
 void BusLoop::on_other_frame(FrameHandler handler) { other_handlers_.push_back(std::move(handler)); }
@@ -90,6 +97,7 @@ void BusLoop::post(Task task) {
 
 Result<void> BusLoop::send(const can::CanFrame& frame) {
   auto r = bus_->send(frame);
+  if (r) bits_out_ += frame_bits(frame);
   if (!r) spdlog::debug("{}: send {:03X} failed: {}", bus_->uri(), frame.id, r.error().message);
   return r;
 }
@@ -147,6 +155,7 @@ void BusLoop::drain_bus() {
       return;
     }
     if (!r->has_value()) return;
+    if (!(*r)->error) bits_in_ += frame_bits(**r);
     dispatch(**r);
   }
 }
@@ -164,6 +173,16 @@ void BusLoop::dispatch(const can::CanFrame& frame) {
   if (!frame.extended && !frame.rtr && !frame.error && frame.id < cob::kStandardIdCount) {
     for (const auto& h : handlers_[frame.id]) h(frame);
     return;
+  }
+  if (frame.extended && !frame.rtr && !frame.error) {
+    bool claimed = false;
+    for (const auto& [id, h] : extended_handlers_) {
+      if (id == frame.id) {
+        h(frame);
+        claimed = true;
+      }
+    }
+    if (claimed) return;
   }
   if (frame.error && error_frames_logged_++ % 100 == 0) {
     // Error class bits and data as <linux/can/error.h> defines them; counted in the bus stats.

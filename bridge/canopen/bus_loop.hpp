@@ -30,7 +30,8 @@ class BusLoop {
 
   // Registration: before start() or on the loop thread.
   void on_frame(std::uint32_t cob_id, FrameHandler handler);  // 11-bit identifiers
-  void on_other_frame(FrameHandler handler);                  // 29-bit, RTR and error frames
+  void on_extended_frame(std::uint32_t id, FrameHandler handler);  // 29-bit identifiers (PDOs so configured)
+  void on_other_frame(FrameHandler handler);                  // RTR, error and unclaimed 29-bit frames
   TimerId create_timer(Task callback);
   // period zero = one-shot. Re-arming replaces the previous schedule. Loop thread (or before start).
   void arm_timer(TimerId id, std::chrono::nanoseconds first, std::chrono::nanoseconds period = {});
@@ -48,6 +49,9 @@ class BusLoop {
 
   const can::Bus& bus() const { return *bus_; }
   can::BusStats stats() const { return bus_->stats(); }
+  // Bits on the wire without stuffing, for the bus load (loop thread).
+  std::uint64_t bits_in() const { return bits_in_; }
+  std::uint64_t bits_out() const { return bits_out_; }
 
  private:
   struct Timer {
@@ -65,8 +69,11 @@ class BusLoop {
   int wake_fd_ = -1;  // eventfd: posted tasks and stop
   std::vector<std::unique_ptr<Timer>> timers_;
   std::array<std::vector<FrameHandler>, cob::kStandardIdCount> handlers_;
+  std::vector<std::pair<std::uint32_t, FrameHandler>> extended_handlers_;  // few: a linear scan
   std::vector<FrameHandler> other_handlers_;
   std::uint64_t error_frames_logged_ = 0;
+  std::uint64_t bits_in_ = 0;
+  std::uint64_t bits_out_ = 0;
 
   std::mutex posted_mutex_;
   std::vector<Task> posted_;

@@ -140,6 +140,23 @@ fdds::DataReader* Participant::create_reader(fdds::Topic* topic, QosKind kind, i
   return r;
 }
 
+void Participant::remove_reader(fdds::DataReader* reader) {
+  {
+    std::lock_guard lock(mutex_);
+    for (auto& [name, readers] : readers_) std::erase(readers, reader);
+  }
+  // Returns once no listener call is running on it, so its listener can be freed after.
+  subscriber_->delete_datareader(reader);
+}
+
+void Participant::remove_writer(fdds::DataWriter* writer) {
+  {
+    std::lock_guard lock(mutex_);
+    for (auto& [name, writers] : writers_) std::erase(writers, writer);
+  }
+  publisher_->delete_datawriter(writer);
+}
+
 int Participant::matched_readers(const std::string& topic) const {
   std::lock_guard lock(mutex_);
   int n = 0;

@@ -39,6 +39,10 @@ struct ParticipantOptions {
   std::string name = "linebridge";
 };
 
+// ROS 2 style service topic names: rq/<path>Request and rr/<path>Reply.
+inline std::string request_topic(const std::string& path) { return "rq/" + path + "Request"; }
+inline std::string reply_topic(const std::string& path) { return "rr/" + path + "Reply"; }
+
 // Seconds and nanoseconds since the epoch of a CLOCK_REALTIME time in ns.
 struct Stamp {
   std::int32_t sec;
@@ -60,6 +64,12 @@ class Writer {
   bool write(const Sample& sample) const {
     return writer_ != nullptr && writer_->write(const_cast<Sample*>(&sample));  // API takes void*
   }
+  // With parameters: the related sample identity of a reply in, the written sample's identity out.
+  bool write(const Sample& sample, eprosima::fastrtps::rtps::WriteParams& params) const {
+    return writer_ != nullptr && writer_->write(const_cast<Sample*>(&sample), params);
+  }
+  eprosima::fastrtps::rtps::GUID_t guid() const { return writer_->guid(); }
+  fdds::DataWriter* entity() const { return writer_; }
   int matched() const {
     fdds::PublicationMatchedStatus status;
     writer_->get_publication_matched_status(status);
@@ -109,6 +119,34 @@ class Participant {
     return {};
   }
 
+  // A subscription that ends with the returned object (the DataReader is deleted, its listener
+  // freed after Fast DDS stopped calling it): for short-lived subscribers such as service clients.
+  class Subscription {
+   public:
+    Subscription(Participant& owner, fdds::DataReader* reader, std::unique_ptr<fdds::DataReaderListener> listener)
+        : owner_(owner), reader_(reader), listener_(std::move(listener)) {}
+    ~Subscription() { owner_.remove_reader(reader_); }
+    Subscription(const Subscription&) = delete;
+    Subscription& operator=(const Subscription&) = delete;
+
+   private:
+    Participant& owner_;
+    fdds::DataReader* reader_;
+    std::unique_ptr<fdds::DataReaderListener> listener_;
+  };
+
+  template <class PubSubType>
+  Result<std::unique_ptr<Subscription>> subscribe_scoped(const std::string& topic, QosKind kind,
+                                                         SampleCallback<PubSubType> callback) {
+    auto t = topic_for<PubSubType>(topic);
+    if (!t) return t.error();
+    auto listener = std::make_unique<TypedListener<PubSubType>>(std::move(callback));
+    auto* reader = create_reader(*t, kind, 0, listener.get());
+    if (reader == nullptr) return make_error("cannot create DDS reader on " + topic);
+    return std::make_unique<Subscription>(*this, reader, std::move(listener));
+  }
+  void remove_writer(fdds::DataWriter* writer);
+
   // Number of matched remote readers/writers on a topic: tests and clients wait on it before their
   // first sample, because DDS discovery is asynchronous.
   int matched_readers(const std::string& topic) const;
@@ -139,6 +177,7 @@ class Participant {
   Result<fdds::Topic*> topic_for_type(const std::string& name, fdds::TypeSupport type);
   fdds::DataWriter* create_writer(fdds::Topic* topic, QosKind kind);
   fdds::DataReader* create_reader(fdds::Topic* topic, QosKind kind, int keep_last, fdds::DataReaderListener* listener);
+  void remove_reader(fdds::DataReader* reader);
 
   fdds::DomainParticipant* participant_ = nullptr;
   fdds::Publisher* publisher_ = nullptr;

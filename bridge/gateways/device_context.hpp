@@ -5,6 +5,7 @@
 
 #include "canopen/bus_loop.hpp"
 #include "canopen/remote_node.hpp"
+#include "canopen/sdo_client.hpp"
 #include "canopen/sync_producer.hpp"
 #include "dds/participant.hpp"
 #include "profiles/line_config.hpp"
@@ -15,6 +16,7 @@ struct DeviceContext {
   canopen::BusLoop& loop;
   canopen::RemoteNode& node;
   canopen::SyncProducer* sync;  // null on a monitor bus: the bridge produces no SYNC there
+  canopen::SdoClient* sdo;      // null on a monitor bus: the bridge sends no SDO requests there
   ddsl::Participant& dds;
   const std::string& line;
   const profiles::BusConfig& bus;

@@ -16,7 +16,7 @@ unsigned required_bit(const profiles::BitSet& set, std::string_view name, const 
 
 }  // namespace
 
-SawCodec::SawCodec(const profiles::Profile& profile) : profile_(profile) {
+SawCodec::SawCodec(const profiles::Profile& profile, std::span<const profiles::DevicePdo> pdos) : profile_(profile) {
   status_word_ = bind("status_word");
   control_word_ = bind("control_word");
   counter_value_ = bind("counter_value");
@@ -61,7 +61,7 @@ SawCodec::SawCodec(const profiles::Profile& profile) : profile_(profile) {
   bit_saw_cutting_ = required_bit(sw, "saw_cutting", profile_.key());
   bit_count_mode_ = cw.bit("count_mode");
 
-  for (const auto& pdo : profile_.pdos) {
+  for (const auto& pdo : pdos) {
     auto mapping = canopen::PdoMapping::create(pdo.mapping);
     if (!mapping) throw std::runtime_error("profile " + profile_.key() + " " + pdo.name + ": " + mapping.error().message);
     pdos_.push_back({&pdo, canopen::PdoBinding(std::move(*mapping), image_)});

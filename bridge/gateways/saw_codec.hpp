@@ -11,14 +11,14 @@
 #include "canopen/process_image.hpp"
 #include "gateways/named_bits.hpp"
 #include "msgs/saw.h"
-#include "profiles/profile.hpp"
+#include "profiles/line_config.hpp"
 
 namespace lb::gateways {
 
 class SawCodec {
  public:
   struct Pdo {
-    const profiles::PdoDef* def;
+    const profiles::DevicePdo* def;
     canopen::PdoBinding binding;
   };
   struct RawSetpoint {
@@ -29,7 +29,8 @@ class SawCodec {
   };
 
   // Throws std::runtime_error (start-up) when the profile lacks an object or bit a saw needs.
-  explicit SawCodec(const profiles::Profile& profile);
+  // pdos: the device's PDOs (profile defaults with overrides); they must outlive the codec.
+  SawCodec(const profiles::Profile& profile, std::span<const profiles::DevicePdo> pdos);
 
   const std::vector<Pdo>& pdos() const { return pdos_; }
   // Writes a received PDO (TPDO, or an RPDO seen on a monitor bus) into the image.

@@ -5,7 +5,7 @@
 #include <stdexcept>
 
 #include "dds/topic_names.hpp"
-#include "gateways/nmt_state_msg.hpp"
+#include "gateways/device_health.hpp"
 
 namespace lb::gateways {
 
@@ -22,16 +22,22 @@ T checked(Result<T> r, const std::string& what) {
 
 }  // namespace
 
-SawGateway::SawGateway(DeviceContext context) : ctx_(context), codec_(context.profile) {
+SawGateway::SawGateway(DeviceContext context) : ctx_(context), codec_(context.profile, context.device.pdos) {
   const std::string& dev = ctx_.device.name;
   for (std::size_t i = 0; i < codec_.pdos().size(); ++i) {
     const auto& pdo = *codec_.pdos()[i].def;
-    const bool from_device = pdo.direction == PdoDirection::tx;
-    if (from_device || !ctx_.is_master()) {
-      ctx_.loop.on_frame(pdo.cob_id(ctx_.device.node_id), [this, i](const can::CanFrame& f) { on_pdo(i, f); });
-    } else {
-      rpdos_.push_back(i);
+    if (!pdo.enabled) continue;  // COB-ID bit 31: this PDO does not exist on the bus
+    if (pdo.direction == PdoDirection::tx || !ctx_.is_master()) {
+      const auto handler = [this, i](const can::CanFrame& f) { on_pdo(i, f); };
+      if (pdo.extended) ctx_.loop.on_extended_frame(pdo.can_id, handler);
+      else ctx_.loop.on_frame(pdo.can_id, handler);
+      continue;
     }
+    rpdos_.push_back(std::make_unique<canopen::PdoTransmitter>(
+        ctx_.loop,
+        canopen::PdoTransmitter::Settings{pdo.can_id, pdo.extended, pdo.transmission_type, pdo.inhibit, pdo.event_timer},
+        [this, i](can::CanFrame& f) { f.len = codec_.pack(i, std::span<std::uint8_t, 8>(f.data)); },
+        [this] { return ctx_.node.ready_for_pdos(); }, [this] { ++ctx_.node.stats().pdos_sent; }));
   }
 
   const std::string& line = ctx_.line;
@@ -44,8 +50,17 @@ SawGateway::SawGateway(DeviceContext context) : ctx_(context), codec_(context.pr
       [this](const msg::SawSetpoint& sp, const ddsl::fdds::SampleInfo&) { on_setpoint(sp); });
   if (!sub) throw std::runtime_error(dev + ": " + sub.error().message);
 
-  ctx_.node.on_change([this](canopen::NmtState, bool) { publish_status(ddsl::now_ns()); });
-  if (ctx_.sync != nullptr) ctx_.sync->on_sync([this] { on_sync(); });
+  ctx_.node.on_change([this](canopen::NmtState, bool) {
+    // A device (re)started gets the current image at once from event-driven RPDOs too.
+    for (auto& t : rpdos_) t->resend();
+    publish_status(ddsl::now_ns());
+  });
+  ctx_.node.on_emergency([this](const canopen::Emergency& e) { publish_status(e.timestamp_ns); });
+  if (ctx_.sync != nullptr) {
+    ctx_.sync->on_sync([this] {
+      for (auto& t : rpdos_) t->on_sync();
+    });
+  }
   spdlog::info("{}: saw ({}) node {} on bus {} as {}{}", dev, ctx_.profile.key(), ctx_.device.node_id, ctx_.bus.name,
                profiles::to_string(ctx_.bus.role),
                ctx_.is_master() ? "; RPDO1 image starts all zero (saw program off)" : "");
@@ -53,25 +68,17 @@ SawGateway::SawGateway(DeviceContext context) : ctx_(context), codec_(context.pr
 }
 
 void SawGateway::on_pdo(std::size_t pdo, const can::CanFrame& frame) {
+  auto& stats = ctx_.node.stats();
   if (auto r = codec_.receive(pdo, frame.payload()); !r) {
     // Counted and reported, never decoded: a short PDO would otherwise publish garbage.
-    if (pdo_length_errors_++ % 1000 == 0) {
+    if (stats.pdo_length_errors++ % 1000 == 0) {
       spdlog::warn("{}: {} ({:03X}h) not decoded: {} ({} so far)", ctx_.device.name, codec_.pdos()[pdo].def->name,
-                   frame.id, r.error().message, pdo_length_errors_);
+                   frame.id, r.error().message, stats.pdo_length_errors);
     }
     return;
   }
+  ++stats.pdos_received;
   publish_status(frame.timestamp_ns);
-}
-
-void SawGateway::on_sync() {
-  if (!ctx_.node.ready_for_pdos()) return;
-  for (const std::size_t i : rpdos_) {
-    can::CanFrame f;
-    f.id = codec_.pdos()[i].def->cob_id(ctx_.device.node_id);
-    f.len = codec_.pack(i, std::span<std::uint8_t, 8>(f.data));
-    (void)ctx_.loop.send(f);  // failures are counted by the bus; the next SYNC sends the image again
-  }
 }
 
 void SawGateway::on_setpoint(const msg::SawSetpoint& sp) {
@@ -90,6 +97,7 @@ void SawGateway::on_setpoint(const msg::SawSetpoint& sp) {
       return reply(id, false, ctx_.device.name + " is offline (no heartbeat): set value not applied");
     }
     codec_.apply(r);
+    for (auto& t : rpdos_) t->on_data();
     publish_status(ddsl::now_ns());
     spdlog::info("{}: set values: program {}, sync speed {} %, product length {} m (control word {:04X}h)",
                  ctx_.device.name, status_.control_word().saw_program_on() ? "on" : "off",
@@ -110,10 +118,9 @@ void SawGateway::publish_status(std::int64_t stamp_ns) {
   const auto stamp = ddsl::to_stamp(stamp_ns);
   status_.stamp().sec(stamp.sec);
   status_.stamp().nanosec(stamp.nanosec);
-  status_.nmt_state(to_msg(ctx_.node.state()));
-  status_.online(ctx_.node.online());
+  fill_health(ctx_.node, status_.health());
   codec_.fill(status_);
-  status_.pdo_length_errors(pdo_length_errors_);
+  status_.pdo_length_errors(ctx_.node.stats().pdo_length_errors);
   status_writer_.write(status_);
 
   // The saw loads a new length when its program starts, otherwise only after the next cut.

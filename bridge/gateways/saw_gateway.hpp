@@ -4,9 +4,11 @@
 // SYNC (master role), or decodes the line controller's RPDO1 (monitor role).
 
 #include <cstdint>
+#include <memory>
 #include <string>
 #include <vector>
 
+#include "canopen/pdo_transmitter.hpp"
 #include "gateways/gateway.hpp"
 #include "gateways/saw_codec.hpp"
 #include "msgs/commonPubSubTypes.h"
@@ -21,14 +23,14 @@ class SawGateway : public Gateway {
 
  private:
   void on_pdo(std::size_t pdo, const can::CanFrame& frame);
-  void on_sync();
+
   void on_setpoint(const linebridge_msgs::msg::SawSetpoint& sp);
   void publish_status(std::int64_t stamp_ns);
   void reply(std::uint64_t request_id, bool accepted, const std::string& reason);
 
   DeviceContext ctx_;
   SawCodec codec_;  // loop thread, except validate() (const, any thread)
-  std::vector<std::size_t> rpdos_;  // indices into codec_.pdos() the master sends at SYNC
+  std::vector<std::unique_ptr<canopen::PdoTransmitter>> rpdos_;  // master role: what the bridge sends
 
   ddsl::Writer<linebridge_msgs::msg::SawStatusPubSubType> status_writer_;
   ddsl::Writer<linebridge_msgs::msg::SawCutPubSubType> cut_writer_;
@@ -36,7 +38,6 @@ class SawGateway : public Gateway {
 
   // Loop-thread state.
   linebridge_msgs::msg::SawStatus status_;
-  std::uint64_t pdo_length_errors_ = 0;
   bool was_cutting_ = false;
   bool program_was_on_ = false;
   double counter_before_cut_m_ = 0;

@@ -1,9 +1,11 @@
 #include "profiles/line_config.hpp"
 
+#include <algorithm>
 #include <fstream>
 #include <regex>
 #include <sstream>
 
+#include "can/log_bus.hpp"
 #include "profiles/yaml_source.hpp"
 
 namespace lb::profiles {
@@ -47,34 +49,166 @@ DdsConfig parse_dds(const YamlSource& src, const YAML::Node& n) {
 }
 
 BusConfig parse_bus(const YamlSource& src, const YAML::Node& n) {
-  src.check_keys(n, "bus", {"name", "interface", "role", "sync_period_ms"});
+  src.check_keys(n, "bus", {"name", "interface", "role", "sync_period_ms", "bitrate", "master_node_id",
+                            "master_heartbeat_ms", "sdo_timeout_ms", "record"});
   BusConfig bus;
   bus.name = src.required<std::string>(n, "name", "bus");
   check_name(src, n["name"], bus.name);
   bus.interface = src.required<std::string>(n, "interface", "bus");
-  if (bus.interface.rfind("socketcan:", 0) != 0 && bus.interface.rfind("virtual:", 0) != 0) {
-    src.fail(n["interface"], "interface must be socketcan:<ifname> or virtual:<name>, not '" + bus.interface + "'");
+  const bool replay = bus.interface.rfind("log:", 0) == 0;
+  if (bus.interface.rfind("socketcan:", 0) != 0 && bus.interface.rfind("virtual:", 0) != 0 && !replay) {
+    src.fail(n["interface"], "interface must be socketcan:<ifname>, virtual:<name> or log:<file>, not '" +
+                                 bus.interface + "'");
   }
-  const auto role = src.optional<std::string>(n, "role").value_or("master");
+  if (replay) {
+    if (auto spec = can::LogBus::parse_spec(std::string_view(bus.interface).substr(4)); !spec) {
+      src.fail(n["interface"], spec.error().message);
+    }
+  }
+  // A replayed recording cannot take frames: it only makes sense as a monitor, which is its default.
+  const auto role = src.optional<std::string>(n, "role").value_or(replay ? "monitor" : "master");
   if (role != "master" && role != "monitor") src.fail(n["role"], "role must be master or monitor, not '" + role + "'");
+  if (replay && role != "monitor") {
+    src.fail(n["role"], "bus " + bus.name + ": a log: bus replays a recording and cannot transmit, so its role is monitor");
+  }
+  bus.record = src.optional<std::string>(n, "record").value_or("");
+  if (n["record"] && bus.record.empty()) src.fail(n["record"], "record: the file path is empty");
   bus.role = role == "master" ? BusRole::master : BusRole::monitor;
   bus.sync_period = std::chrono::milliseconds(bounded<int>(src, n, "sync_period_ms", 20, 1, 10'000, "bus " + bus.name));
+  bus.bitrate = bounded<std::uint32_t>(src, n, "bitrate", bus.bitrate, 10'000, 1'000'000, "bus " + bus.name);
+  bus.master_node_id = bounded<std::uint8_t>(src, n, "master_node_id", 0, 0, 127, "bus " + bus.name);
+  bus.master_heartbeat_period =
+      std::chrono::milliseconds(bounded<int>(src, n, "master_heartbeat_ms", 1000, 1, 65535, "bus " + bus.name));
+  bus.sdo_timeout = std::chrono::milliseconds(bounded<int>(src, n, "sdo_timeout_ms", 1000, 10, 60'000, "bus " + bus.name));
+  if (bus.master_node_id != 0 && bus.role == BusRole::monitor) {
+    src.fail(n["master_node_id"], "bus " + bus.name + ": a monitor bus never transmits, so it has no master_node_id");
+  }
   return bus;
 }
 
-SimulationConfig parse_simulation(const YamlSource& src, const YAML::Node& n) {
-  src.check_keys(n, "simulation", {"max_speed_m_per_min", "acceleration_m_per_min_s", "scaling_pulses_per_m", "heartbeat_period_ms"});
+SimulationConfig parse_simulation(const YamlSource& src, const YAML::Node& n, const Profile& profile) {
+  src.check_keys(n, "simulation", {"max_speed_m_per_min", "acceleration_m_per_min_s", "scaling_pulses_per_m",
+                                   "heartbeat_period_ms", "controller_values"});
   SimulationConfig sim;
   sim.max_speed_m_per_min = positive(src, n, "max_speed_m_per_min", sim.max_speed_m_per_min);
   sim.acceleration_m_per_min_s = positive(src, n, "acceleration_m_per_min_s", sim.acceleration_m_per_min_s);
   sim.scaling_pulses_per_m = bounded<std::uint32_t>(src, n, "scaling_pulses_per_m", sim.scaling_pulses_per_m, 1, 100'000'000, "simulation");
   sim.heartbeat_period = std::chrono::milliseconds(bounded<int>(src, n, "heartbeat_period_ms", 100, 1, 65535, "simulation"));
+  if (const auto values = n["controller_values"]) {
+    src.expect_map(values, "controller_values");
+    for (const auto& kv : values) {
+      const auto name = kv.first.as<std::string>();
+      const ObjectDef* obj = profile.object(name);
+      if (obj == nullptr) src.fail(kv.first, "controller_values: profile " + profile.key() + " has no object '" + name + "'");
+      const auto raw = src.as<std::uint64_t>(kv.second, name);
+      if (raw > canopen::type_max(obj->type)) src.fail(kv.second, "controller_values: " + name + " does not fit its type");
+      sim.controller_values.emplace_back(name, raw);
+    }
+  }
   return sim;
+}
+
+// configure: [{object: name, value: v} | {index: i, sub: s, type: T, value: v}, ...]; the value is
+// raw (what the SDO carries), checked against the type and, for profile objects, its access.
+std::vector<SdoWrite> parse_configure(const YamlSource& src, const YAML::Node& list, const Profile& profile,
+                                      const std::string& device) {
+  src.expect_sequence(list, "configure");
+  std::vector<SdoWrite> writes;
+  for (const auto& w : list) {
+    src.check_keys(w, "configure entry", {"object", "index", "sub", "type", "value"});
+    SdoWrite write;
+    if (w["object"]) {
+      const auto name = src.as<std::string>(w["object"], "object");
+      const ObjectDef* obj = profile.object(name);
+      if (obj == nullptr) src.fail(w["object"], "device " + device + ": profile " + profile.key() + " has no object '" + name + "'");
+      if (!obj->writable()) src.fail(w["object"], "device " + device + ": " + name + " is " + std::string(to_string(obj->access)) + ", not writable");
+      write.index = obj->index;
+      write.sub = obj->sub;
+      write.type = obj->type;
+    } else {
+      write.index = bounded<std::uint16_t>(src, w, "index", 0, 0x1000, 0xFFFF, "configure entry");
+      if (!w["index"]) src.fail(w, "configure entry: give either object or index, sub and type");
+      write.sub = bounded<std::uint8_t>(src, w, "sub", 0, 0, 255, "configure entry");
+      const auto type_text = src.required<std::string>(w, "type", "configure entry");
+      const auto type = canopen::parse_data_type(type_text);
+      if (!type) src.fail(w["type"], "unknown data type '" + type_text + "'");
+      write.type = *type;
+    }
+    const YAML::Node v = w["value"];
+    if (!v) src.fail(w, "configure entry: missing required key 'value'");
+    write.text = v.IsScalar() ? v.Scalar() : "<non-scalar>";
+    if (write.type == canopen::DataType::visible_string) {
+      write.value = src.as<std::string>(v, "value");
+    } else if (write.type == canopen::DataType::real32 || write.type == canopen::DataType::real64) {
+      write.value = src.as<double>(v, "value");
+    } else if (canopen::is_signed_integer(write.type)) {
+      write.value = src.as<std::int64_t>(v, "value");
+    } else if (canopen::is_unsigned_integer(write.type)) {
+      write.value = src.as<std::uint64_t>(v, "value");
+    } else {
+      src.fail(w, "configure entry: " + std::string(canopen::to_string(write.type)) + " values are not supported here");
+    }
+    if (auto bytes = canopen::encode(write.type, write.value); !bytes) src.fail(v, "configure entry: " + bytes.error().message);
+    writes.push_back(std::move(write));
+  }
+  return writes;
+}
+
+// pdos: {<name>: {cob_id, transmission_type, inhibit_time_100us, event_timer_ms, mapping}}: any
+// key not given keeps the profile's default. cob_id is the full CiA 301 entry (bit 31 disables the
+// PDO, bit 29 makes the identifier 29-bit), node-ID included.
+std::vector<DevicePdo> resolve_pdos(const YamlSource& src, const YAML::Node* overrides, const Profile& profile,
+                                    std::uint8_t node_id, const std::string& device) {
+  std::vector<DevicePdo> pdos = default_pdos(profile, node_id);
+  if (overrides == nullptr) return pdos;
+  src.expect_map(*overrides, "pdos");
+  for (const auto& kv : *overrides) {
+    const auto name = kv.first.as<std::string>();
+    auto it = std::find_if(pdos.begin(), pdos.end(), [&](const DevicePdo& p) { return p.name == name; });
+    if (it == pdos.end()) {
+      std::string known;
+      for (const auto& p : pdos) known += (known.empty() ? "" : ", ") + p.name;
+      src.fail(kv.first, "device " + device + ": profile " + profile.key() + " has no PDO '" + name + "' (" + known + ")");
+    }
+    const YAML::Node& o = kv.second;
+    src.check_keys(o, "pdo override", {"cob_id", "transmission_type", "inhibit_time_100us", "event_timer_ms", "mapping"});
+    if (o["cob_id"]) {
+      const auto entry = src.as<std::uint32_t>(o["cob_id"], "cob_id");
+      it->enabled = (entry & 0x8000'0000U) == 0;
+      it->extended = (entry & 0x2000'0000U) != 0;
+      it->can_id = entry & (it->extended ? 0x1FFF'FFFFU : 0x7FFU);
+      if (!it->extended && (entry & 0x1FFF'F800U) != 0) {
+        src.fail(o["cob_id"], "cob_id: an 11-bit identifier (bit 29 clear) must be below 800h");
+      }
+    }
+    it->transmission_type = bounded<std::uint8_t>(src, o, "transmission_type", it->transmission_type, 0, 255, "pdo " + name);
+    if (it->transmission_type > 240 && it->transmission_type < 252) {
+      src.fail(o["transmission_type"], "transmission_type " + std::to_string(it->transmission_type) + " is reserved (CiA 301)");
+    }
+    it->inhibit = std::chrono::microseconds(100 * bounded<int>(src, o, "inhibit_time_100us", 0, 0, 65535, "pdo " + name));
+    it->event_timer = std::chrono::milliseconds(bounded<int>(src, o, "event_timer_ms", 0, 0, 65535, "pdo " + name));
+    if (const auto m = o["mapping"]) {
+      src.expect_sequence(m, "mapping");
+      it->mapping.clear();
+      for (const auto& e : m) {
+        const auto entry = canopen::PdoEntry::from_u32(src.as<std::uint32_t>(e, "mapping"));
+        if (!entry.is_dummy()) {
+          const ObjectDef* obj = profile.object(entry.index, entry.sub);
+          if (obj == nullptr) src.fail(e, "mapping entry names an object profile " + profile.key() + " does not define");
+          if (canopen::bit_size(obj->type) != entry.bits) src.fail(e, "mapping entry length differs from " + obj->name + "'s type");
+        }
+        it->mapping.push_back(entry);
+      }
+      if (auto checked = canopen::PdoMapping::create(it->mapping); !checked) src.fail(m, checked.error().message);
+    }
+  }
+  return pdos;
 }
 
 DeviceConfig parse_device(const YamlSource& src, const YAML::Node& n, const LineConfig& line,
                           const ProfileRegistry& registry) {
-  src.check_keys(n, "device", {"name", "bus", "node_id", "profile", "version", "heartbeat_timeout_ms", "simulation"});
+  src.check_keys(n, "device", {"name", "bus", "node_id", "profile", "version", "heartbeat_timeout_ms", "configure",
+                               "boot_retry_ms", "pdos", "simulation"});
   DeviceConfig dev;
   dev.name = src.required<std::string>(n, "name", "device");
   check_name(src, n["name"], dev.name);
@@ -83,6 +217,10 @@ DeviceConfig parse_device(const YamlSource& src, const YAML::Node& n, const Line
   if (line.bus(dev.bus) == nullptr) src.fail(n["bus"], "device " + dev.name + ": no bus named '" + dev.bus + "'");
   if (!n["node_id"]) src.fail(n, "device " + dev.name + ": missing required key 'node_id'");
   dev.node_id = bounded<std::uint8_t>(src, n, "node_id", 0, 1, 127, "device " + dev.name);
+  if (line.bus(dev.bus)->master_node_id == dev.node_id) {
+    src.fail(n["node_id"], "device " + dev.name + ": node-ID " + std::to_string(dev.node_id) +
+                               " is the bridge's own (master_node_id of bus " + dev.bus + ")");
+  }
   for (const auto& other : line.devices) {
     if (other.bus == dev.bus && other.node_id == dev.node_id) {
       src.fail(n["node_id"], "device " + dev.name + ": node-ID " + std::to_string(dev.node_id) + " is already used by " +
@@ -100,11 +238,29 @@ DeviceConfig parse_device(const YamlSource& src, const YAML::Node& n, const Line
   }
   dev.heartbeat_timeout =
       std::chrono::milliseconds(bounded<int>(src, n, "heartbeat_timeout_ms", 500, 1, 65535, "device " + dev.name));
-  if (n["simulation"]) dev.simulation = parse_simulation(src, n["simulation"]);
+  dev.boot_retry = std::chrono::milliseconds(bounded<int>(src, n, "boot_retry_ms", 5000, 100, 600'000, "device " + dev.name));
+  if (n["configure"]) dev.configure = parse_configure(src, n["configure"], *dev.resolved_profile, dev.name);
+  const YAML::Node pdo_overrides = n["pdos"];
+  dev.pdos = resolve_pdos(src, pdo_overrides ? &pdo_overrides : nullptr, *dev.resolved_profile, dev.node_id, dev.name);
+  if (n["simulation"]) dev.simulation = parse_simulation(src, n["simulation"], *dev.resolved_profile);
   return dev;
 }
 
 }  // namespace
+
+std::vector<DevicePdo> default_pdos(const Profile& profile, std::uint8_t node_id) {
+  std::vector<DevicePdo> pdos;
+  for (const auto& def : profile.pdos) {
+    DevicePdo pdo;
+    pdo.name = def.name;
+    pdo.direction = def.direction;
+    pdo.can_id = def.cob_id(node_id);
+    pdo.transmission_type = def.transmission_type;
+    pdo.mapping = def.mapping;
+    pdos.push_back(std::move(pdo));
+  }
+  return pdos;
+}
 
 std::string_view to_string(BusRole role) { return role == BusRole::master ? "master" : "monitor"; }
 

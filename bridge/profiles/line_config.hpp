@@ -8,6 +8,7 @@
 #include <vector>
 
 #include "base/result.hpp"
+#include "canopen/object_value.hpp"
 #include "profiles/profile_registry.hpp"
 
 namespace lb::profiles {
@@ -22,9 +23,14 @@ struct DdsConfig {
 
 struct BusConfig {
   std::string name;
-  std::string interface;  // "socketcan:can0", "virtual:demo"
+  std::string interface;  // "socketcan:can0", "virtual:demo", "log:/path/file.log?pace=fast"
+  std::string record;     // candump -l format file every frame of the bus is appended to; "" = none
   BusRole role = BusRole::master;
   std::chrono::microseconds sync_period{20'000};  // CiA 420-1: 20 ms
+  std::uint32_t bitrate = 500'000;                 // bit/s, for the bus load in diagnostics
+  std::uint8_t master_node_id = 0;                 // the bridge's own heartbeat (master role); 0 = none
+  std::chrono::milliseconds master_heartbeat_period{1000};
+  std::chrono::milliseconds sdo_timeout{1000};
 };
 
 // Only read by linebridge-sim: how the simulated device behaves.
@@ -33,7 +39,42 @@ struct SimulationConfig {
   double acceleration_m_per_min_s = 60.0;  // speed ramp
   std::uint32_t scaling_pulses_per_m = 10'000;
   std::chrono::milliseconds heartbeat_period{100};
+  // What linebridge-sim sends this device when it plays the line controller (--role controller):
+  // raw values of the device's RPDO objects by profile object name; others are sent as 0.
+  std::vector<std::pair<std::string, std::uint64_t>> controller_values;
 };
+
+// One SDO write of a device's boot configuration (written in this order before NMT start).
+struct SdoWrite {
+  std::uint16_t index = 0;
+  std::uint8_t sub = 0;
+  canopen::DataType type = canopen::DataType::unsigned8;
+  canopen::ObjectValue value;
+  std::string text;  // as written in the file, for logs
+};
+
+// A PDO as one device uses it: the profile's default with the line configuration's overrides.
+struct DevicePdo {
+  std::string name;  // tpdo1, rpdo1, ...
+  PdoDirection direction = PdoDirection::tx;
+  std::uint32_t can_id = 0;  // the identifier on the bus (node-ID included)
+  bool extended = false;     // 29-bit identifier (COB-ID bit 29)
+  bool enabled = true;       // COB-ID bit 31 clear
+  std::uint8_t transmission_type = 1;
+  std::chrono::microseconds inhibit{0};     // event-driven: minimum gap between two transmissions
+  std::chrono::milliseconds event_timer{0};  // event-driven: resend at least this often (0 = never)
+  std::vector<canopen::PdoEntry> mapping;
+
+  bool synchronous() const { return transmission_type <= 240; }
+  bool event_driven() const { return transmission_type >= 254; }
+  // The 32-bit COB-ID entry (1400h/1800h sub 1) as CiA 301 writes it.
+  std::uint32_t cob_id_entry() const {
+    return (enabled ? 0U : 0x8000'0000U) | (extended ? 0x2000'0000U : 0U) | can_id;
+  }
+};
+
+// The profile's PDOs as a device at node_id has them before any override.
+std::vector<DevicePdo> default_pdos(const Profile& profile, std::uint8_t node_id);
 
 struct DeviceConfig {
   std::string name;
@@ -42,6 +83,9 @@ struct DeviceConfig {
   std::string profile;
   std::string version;
   std::chrono::milliseconds heartbeat_timeout{500};
+  std::vector<SdoWrite> configure;               // boot configuration (master role)
+  std::vector<DevicePdo> pdos;                    // the profile's PDOs with this device's overrides
+  std::chrono::milliseconds boot_retry{5000};   // a device that does not answer is tried again
   SimulationConfig simulation;
   const Profile* resolved_profile = nullptr;  // points into the registry the config was loaded with
 };

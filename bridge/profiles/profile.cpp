@@ -55,11 +55,77 @@ Result<std::uint64_t> ObjectDef::to_raw(double engineering) const {
   return check_raw(static_cast<std::int64_t>(raw));
 }
 
-std::optional<unsigned> BitSet::bit(std::string_view field) const {
-  for (const auto& b : bits) {
-    if (b.name == field) return b.bit;
+std::string_view to_string(PdoValidity validity) {
+  switch (validity) {
+    case PdoValidity::valid: return "valid";
+    case PdoValidity::not_valid: return "not valid";
+    case PdoValidity::either: return "valid or not valid";
+  }
+  return "?";
+}
+
+std::optional<std::string_view> ValueTable::name(std::uint64_t code) const {
+  for (const auto& r : ranges) {
+    if (code >= r.first && code <= r.last) return std::string_view(r.name);
   }
   return std::nullopt;
+}
+
+std::optional<std::uint64_t> ValueTable::code(std::string_view wanted) const {
+  std::optional<std::uint64_t> found;
+  for (const auto& r : ranges) {
+    if (r.name != wanted) continue;
+    if (r.first != r.last || found) return std::nullopt;  // several codes: none is "the" code
+    found = r.first;
+  }
+  return found;
+}
+
+std::uint64_t BitField::mask() const {
+  const std::uint64_t low = width >= 64 ? ~std::uint64_t{0} : (std::uint64_t{1} << width) - 1;
+  return bit >= 64 ? 0 : low << bit;
+}
+
+std::uint64_t BitField::insert(std::uint64_t word, std::uint64_t value) const {
+  return (word & ~mask()) | ((value << bit) & mask());
+}
+
+bool BitField::in_range(std::uint64_t value) const {
+  // Field values fit in 63 bits (the loader refuses ranges on wider fields), so the comparison is exact.
+  const auto v = static_cast<std::int64_t>(value);
+  return (!min || v >= *min) && (!max || v <= *max);
+}
+
+std::optional<unsigned> BitSet::bit(std::string_view field_name) const {
+  const BitField* f = field(field_name);
+  if (f == nullptr || f->width != 1) return std::nullopt;
+  return f->bit;
+}
+
+const BitField* BitSet::field(std::string_view field_name) const {
+  for (const auto& b : bits) {
+    if (b.name == field_name) return &b;
+  }
+  return nullptr;
+}
+
+unsigned PdoDef::mapped_bits() const {
+  unsigned total = 0;
+  for (const auto& e : mapping) total += e.bits;
+  return total;
+}
+
+std::optional<std::uint64_t> PdoDef::manufacturer_value(std::span<const std::uint8_t> payload) const {
+  if (!manufacturer_data) return std::nullopt;
+  const unsigned first = mapped_bits();
+  const unsigned bits = manufacturer_data->bits;
+  if (bits == 0 || bits > 64 || payload.size() * 8 < first + bits) return std::nullopt;
+  std::uint64_t value = 0;
+  for (unsigned i = 0; i < bits; ++i) {  // CiA 301 packing: LSB first, bit by bit
+    const unsigned at = first + i;
+    if (((payload[at / 8] >> (at % 8)) & 1U) != 0) value |= std::uint64_t{1} << i;
+  }
+  return value;
 }
 
 const ObjectDef* Profile::object(std::uint16_t index, std::uint8_t sub) const {

@@ -18,7 +18,16 @@ void NmtSlave::boot() {
   state_ = NmtState::boot_up;
   send_heartbeat();  // the boot-up message is a heartbeat with state 0
   state_ = NmtState::pre_operational;
-  loop_.arm_timer(heartbeat_timer_, heartbeat_period_, heartbeat_period_);
+  set_heartbeat_period(heartbeat_period_);
+}
+
+void NmtSlave::set_heartbeat_period(std::chrono::milliseconds period) {
+  heartbeat_period_ = period;
+  if (period.count() == 0) {
+    loop_.disarm_timer(heartbeat_timer_);
+  } else {
+    loop_.arm_timer(heartbeat_timer_, period, period);
+  }
 }
 
 void NmtSlave::send_heartbeat() { (void)loop_.send(canopen::make_heartbeat(node_id_, state_)); }

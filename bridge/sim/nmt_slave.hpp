@@ -18,6 +18,8 @@ class NmtSlave {
            std::function<void()> on_reset_node);
 
   void boot();  // loop thread (or before the loop starts): boot-up, then pre-operational
+  // 1017h written: a period of 0 stops the heartbeat (CiA 301).
+  void set_heartbeat_period(std::chrono::milliseconds period);
   canopen::NmtState state() const { return state_; }
   std::uint8_t node_id() const { return node_id_; }
 

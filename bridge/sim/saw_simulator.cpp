@@ -5,6 +5,8 @@
 #include <algorithm>
 #include <stdexcept>
 
+#include "sim/device_dictionary.hpp"
+
 namespace lb::sim {
 
 using canopen::NmtState;
@@ -17,9 +19,11 @@ constexpr double kMaxStep = 0.1;  // s: a stalled loop must not make the product
 }  // namespace
 
 SawSimulator::SawSimulator(canopen::BusLoop& loop, const profiles::DeviceConfig& device, const profiles::Profile& profile)
-    : loop_(loop), device_(device), profile_(profile), nmt_(loop, device.node_id, device.simulation.heartbeat_period, [this] {
-        reset_application();
-      }) {
+    : loop_(loop),
+      device_(device),
+      profile_(profile),
+      nmt_(loop, device.node_id, device.simulation.heartbeat_period, [this] { reset_application(); }),
+      sdo_(loop, device.node_id, make_device_dictionary(device, profile)) {
   status_word_ = slot("status_word");
   control_word_ = slot("control_word");
   counter_value_ = slot("counter_value");
@@ -27,29 +31,75 @@ SawSimulator::SawSimulator(canopen::BusLoop& loop, const profiles::DeviceConfig&
   product_speed_ = slot("product_speed");
   sync_speed_set_ = slot("saw_sync_speed_set_value");
   length_set_ = slot("product_length_set_value");
+  speed_max_ = slot("saw_sync_speed_set_maximum");
   cw_program_on_ = bit("control_word", "saw_program_on");
   cw_change_of_length_ = bit("control_word", "change_of_length");
   sw_ready_ = bit("status_word", "saw_ready");
   sw_cutting_ = bit("status_word", "saw_cutting");
   sw_program_enabled_ = profile_.bitset("status_word")->bit("saw_program_enabled").value_or(sw_ready_);
 
-  for (const auto& pdo : profile_.pdos) {
+  tpdo_bindings_.reserve(device_.pdos.size());  // the transmitters keep pointers into it
+  for (const auto& pdo : device_.pdos) {
     auto mapping = canopen::PdoMapping::create(pdo.mapping);
     if (!mapping) throw std::runtime_error(device_.name + " " + pdo.name + ": " + mapping.error().message);
+    if (!pdo.enabled) continue;
     canopen::PdoBinding binding(std::move(*mapping), image_);
-    const std::uint32_t cob_id = pdo.cob_id(device_.node_id);
     if (pdo.direction == PdoDirection::tx) {
-      tpdos_.emplace_back(cob_id, std::move(binding));
+      const auto* b = &tpdo_bindings_.emplace_back(std::move(binding));
+      tpdos_.push_back(std::make_unique<canopen::PdoTransmitter>(
+          loop_, canopen::PdoTransmitter::Settings{pdo.can_id, pdo.extended, pdo.transmission_type, pdo.inhibit, pdo.event_timer},
+          [this, b](can::CanFrame& f) { f.len = b->pack_from(image_, std::span<std::uint8_t, 8>(f.data)); },
+          [this] { return nmt_.state() == NmtState::operational; }));
     } else {
-      const std::size_t i = rpdos_.size();
-      rpdos_.emplace_back(cob_id, std::move(binding));
-      pending_rpdos_.emplace_back();
-      loop_.on_frame(cob_id, [this, i](const can::CanFrame& f) {
-        if (nmt_.state() == NmtState::operational) pending_rpdos_[i] = f;
-      });
+      rpdos_.push_back({&pdo, std::move(binding), std::nullopt});
     }
   }
+  for (std::size_t i = 0; i < rpdos_.size(); ++i) {
+    const auto handler = [this, i](const can::CanFrame& f) {
+      if (nmt_.state() != NmtState::operational) return;
+      Rpdo& r = rpdos_[i];
+      if (r.def->synchronous()) r.pending = f;
+      else apply_rpdo(r, f);  // event-driven: takes effect at once
+    };
+    if (rpdos_[i].def->extended) loop_.on_extended_frame(rpdos_[i].def->can_id, handler);
+    else loop_.on_frame(rpdos_[i].def->can_id, handler);
+  }
   loop_.on_frame(canopen::cob::sync, [this](const can::CanFrame&) { on_sync(); });
+  reset_application();
+  link_dictionary();
+}
+
+void SawSimulator::link_dictionary() {
+  auto& od = sdo_.dictionary();
+  // Every profile object the simulation computes with is kept in the image; an SDO write of one
+  // of them changes the simulation at once.
+  for (const auto& o : profile_.objects) {
+    const std::size_t s = image_.find(o.index, o.sub);
+    if (s == canopen::ProcessImage::npos || !o.writable()) continue;
+    (void)od.set_on_write(o.index, o.sub, [this, s](std::span<const std::uint8_t> v) -> std::optional<std::uint32_t> {
+      std::uint64_t raw = 0;
+      for (std::size_t i = 0; i < v.size() && i < 8; ++i) raw |= std::uint64_t{v[i]} << (8 * i);
+      image_.set(s, raw);
+      return std::nullopt;
+    });
+  }
+  (void)od.set_on_write(0x1017, 0, [this](std::span<const std::uint8_t> v) -> std::optional<std::uint32_t> {
+    nmt_.set_heartbeat_period(std::chrono::milliseconds(v[0] | v[1] << 8));
+    return std::nullopt;
+  });
+  publish_to_dictionary();
+}
+
+void SawSimulator::publish_to_dictionary() {
+  auto& od = sdo_.dictionary();
+  for (const auto& o : profile_.objects) {
+    const std::size_t s = image_.find(o.index, o.sub);
+    if (s == canopen::ProcessImage::npos) continue;
+    const std::size_t n = canopen::bit_size(o.type) / 8;
+    std::vector<std::uint8_t> bytes(n);
+    for (std::size_t i = 0; i < n; ++i) bytes[i] = static_cast<std::uint8_t>(image_.get(s) >> (8 * i));
+    (void)od.set(o.index, o.sub, std::move(bytes));
+  }
 }
 
 std::size_t SawSimulator::slot(std::string_view object) {
@@ -72,6 +122,7 @@ void SawSimulator::start() {
 
 void SawSimulator::reset_application() {
   for (auto slot : {control_word_, sync_speed_set_, length_set_, saw_counter_, status_word_}) image_.set(slot, 0);
+  image_.set(speed_max_, static_cast<std::uint64_t>(device_.simulation.max_speed_m_per_min * 1000.0));  // mm/min
   speed_mm_per_min_ = 0;
   saw_counter_01mm_ = 0;
   program_was_on_ = false;
@@ -86,20 +137,22 @@ void SawSimulator::on_sync() {
   last_sync_ = now;
   if (nmt_.state() != NmtState::operational) return;
 
-  for (std::size_t i = 0; i < rpdos_.size(); ++i) {
-    if (!pending_rpdos_[i]) continue;
-    if (!rpdos_[i].second.unpack_into(pending_rpdos_[i]->payload(), image_)) {
-      if (short_rpdos_++ % 100 == 0) spdlog::warn("sim {}: RPDO shorter than its mapping ignored", device_.name);
-    }
-    pending_rpdos_[i].reset();
+  for (auto& r : rpdos_) {
+    if (!r.pending) continue;
+    apply_rpdo(r, *r.pending);
+    r.pending.reset();
   }
   step(dt);
+  publish_to_dictionary();
+  for (auto& t : tpdos_) {
+    t->on_sync();
+    t->on_data();
+  }
+}
 
-  for (auto& [cob_id, binding] : tpdos_) {
-    can::CanFrame f;
-    f.id = cob_id;
-    f.len = binding.pack_from(image_, std::span<std::uint8_t, 8>(f.data));
-    (void)loop_.send(f);
+void SawSimulator::apply_rpdo(Rpdo& rpdo, const can::CanFrame& frame) {
+  if (!rpdo.binding.unpack_into(frame.payload(), image_)) {
+    if (short_rpdos_++ % 100 == 0) spdlog::warn("sim {}: {} shorter than its mapping ignored", device_.name, rpdo.def->name);
   }
 }
 
@@ -110,7 +163,7 @@ void SawSimulator::step(double dt_s) {
   const bool change_bit = ((cw >> cw_change_of_length_) & 1U) != 0;
 
   // The line speed follows the sync speed set value (0.01 % of the maximum) along a ramp.
-  const double max_mm_per_min = device_.simulation.max_speed_m_per_min * 1000.0;
+  const double max_mm_per_min = static_cast<double>(image_.get(speed_max_));  // 6006h, settable by SDO
   const double target = static_cast<double>(image_.get(sync_speed_set_)) / 10000.0 * max_mm_per_min;
   const double max_delta = device_.simulation.acceleration_m_per_min_s * 1000.0 * dt_s;
   speed_mm_per_min_ += std::clamp(target - speed_mm_per_min_, -max_delta, max_delta);

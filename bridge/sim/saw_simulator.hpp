@@ -3,10 +3,13 @@
 // product speed, cuts when it reaches the set length, and answers with TPDO1/TPDO2 after each SYNC.
 
 #include <chrono>
+#include <memory>
 #include <optional>
 #include <vector>
 
+#include "canopen/pdo_transmitter.hpp"
 #include "canopen/process_image.hpp"
+#include "canopen/sdo_server.hpp"
 #include "profiles/line_config.hpp"
 #include "sim/nmt_slave.hpp"
 
@@ -25,17 +28,28 @@ class SawSimulator {
   void reset_application();
   void on_sync();
   void step(double dt_s);
+  void publish_to_dictionary();
+  void link_dictionary();  // SDO writes of image objects reach the image
 
   canopen::BusLoop& loop_;
   const profiles::DeviceConfig& device_;
   const profiles::Profile& profile_;
   canopen::ProcessImage image_;
   NmtSlave nmt_;
-  std::vector<std::pair<std::uint32_t, canopen::PdoBinding>> tpdos_;
-  std::vector<std::pair<std::uint32_t, canopen::PdoBinding>> rpdos_;
-  std::vector<std::optional<can::CanFrame>> pending_rpdos_;  // synchronous: applied at the next SYNC
+  canopen::SdoServer sdo_;
+  struct Rpdo {
+    const profiles::DevicePdo* def;
+    canopen::PdoBinding binding;
+    std::optional<can::CanFrame> pending;  // synchronous: applied at the next SYNC
+  };
+  void apply_rpdo(Rpdo& rpdo, const can::CanFrame& frame);
 
-  std::size_t status_word_, control_word_, counter_value_, saw_counter_, product_speed_, sync_speed_set_, length_set_;
+  std::vector<canopen::PdoBinding> tpdo_bindings_;
+  std::vector<std::unique_ptr<canopen::PdoTransmitter>> tpdos_;
+  std::vector<Rpdo> rpdos_;
+
+  std::size_t status_word_, control_word_, counter_value_, saw_counter_, product_speed_, sync_speed_set_, length_set_,
+      speed_max_;
   unsigned cw_program_on_, cw_change_of_length_, sw_ready_, sw_cutting_, sw_program_enabled_;
 
   std::optional<Clock::time_point> last_sync_;

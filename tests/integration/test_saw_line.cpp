@@ -148,8 +148,8 @@ class SawLine : public ::testing::Test {
     setpoint_ = *w;
 
     // The device is up and both directions of the set-value exchange are matched.
-    ASSERT_TRUE(seen_.wait(15s, [this] { return !seen_.status.empty() && seen_.status.back().online() &&
-                                                seen_.status.back().nmt_state() == msg::NMT_OPERATIONAL; }))
+    ASSERT_TRUE(seen_.wait(15s, [this] { return !seen_.status.empty() && seen_.status.back().health().online() &&
+                                                seen_.status.back().health().nmt_state() == msg::NMT_OPERATIONAL; }))
         << logs();
     const auto deadline = Clock::now() + 10s;
     while ((setpoint_.matched() == 0 || dds_->matched_writers(topic("setpoint_result")) == 0) && Clock::now() < deadline) {

@@ -97,7 +97,7 @@ TEST(LineConfig, OtherMistakes) {
   EXPECT_NE(error_of(replace(kGood, "bus: ext", "bus: nowhere")).find("no bus named 'nowhere'"), std::string::npos);
   EXPECT_NE(error_of(replace(kGood, "role: monitor", "role: slave")).find("role must be master or monitor"),
             std::string::npos);
-  EXPECT_NE(error_of(replace(kGood, "virtual:x", "udp:x")).find("interface must be socketcan:<ifname> or virtual:<name>"),
+  EXPECT_NE(error_of(replace(kGood, "virtual:x", "udp:x")).find("interface must be socketcan:<ifname>, virtual:<name> or log:<file>"),
             std::string::npos);
   EXPECT_NE(error_of(replace(kGood, "name: saw1", "name: saw-1")).find("'saw-1' is not a valid name"), std::string::npos);
   EXPECT_NE(error_of(replace(kGood, "max_speed_m_per_min: 12.5", "max_speed: 12.5")).find("unknown key 'max_speed' in simulation"),

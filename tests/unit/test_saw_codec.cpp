@@ -12,6 +12,7 @@
 #include <vector>
 
 #include "gateways/saw_codec.hpp"
+#include "profiles/line_config.hpp"
 #include "profiles/profile_registry.hpp"
 
 namespace msg = linebridge_msgs::msg;
@@ -21,7 +22,10 @@ namespace {
 
 class SawCodecTest : public ::testing::Test {
  protected:
-  SawCodecTest() : registry_(lb::profiles::ProfileRegistry::builtin()), profile_(*registry_.find("cia420-4", "3.1")) {}
+  SawCodecTest()
+      : registry_(lb::profiles::ProfileRegistry::builtin()),
+        profile_(*registry_.find("cia420-4", "3.1")),
+        pdos_(lb::profiles::default_pdos(profile_, 3)) {}
 
   std::size_t pdo(const std::string& name) const {
     for (std::size_t i = 0; i < codec_.pdos().size(); ++i) {
@@ -51,7 +55,8 @@ class SawCodecTest : public ::testing::Test {
 
   lb::profiles::ProfileRegistry registry_;
   const lb::profiles::Profile& profile_;
-  SawCodec codec_{profile_};
+  std::vector<lb::profiles::DevicePdo> pdos_;
+  SawCodec codec_{profile_, pdos_};
 };
 
 }  // namespace
@@ -59,9 +64,10 @@ class SawCodecTest : public ::testing::Test {
 TEST_F(SawCodecTest, DefaultPdoCommunicationFromTheSpec) {
   // Table 3/7/11: COB-IDs 180h/280h/200h + node-ID, transmission type 1 (synchronous).
   const auto& p = codec_.pdos();
-  EXPECT_EQ(p[pdo("tpdo1")].def->cob_id(3), 0x183u);
-  EXPECT_EQ(p[pdo("tpdo2")].def->cob_id(3), 0x283u);
-  EXPECT_EQ(p[pdo("rpdo1")].def->cob_id(3), 0x203u);
+  EXPECT_EQ(p[pdo("tpdo1")].def->can_id, 0x183u);
+  EXPECT_EQ(p[pdo("tpdo2")].def->can_id, 0x283u);
+  EXPECT_EQ(p[pdo("rpdo1")].def->can_id, 0x203u);
+  EXPECT_EQ(p[pdo("tpdo1")].def->cob_id_entry(), 0x183u);  // valid, 11-bit
   for (const auto& x : p) EXPECT_EQ(x.def->transmission_type, 1);
   // Tables 5/9/13: the default mappings.
   EXPECT_EQ(p[pdo("tpdo1")].binding.mapping().byte_length(), 6u);

@@ -1,0 +1,60 @@
+#include "canopen/emcy.hpp"
+
+#include <algorithm>
+
+namespace lb::canopen {
+
+std::optional<Emergency> parse_emergency(const can::CanFrame& frame) {
+  if (frame.len != 8) return std::nullopt;
+  Emergency e;
+  e.error_code = static_cast<std::uint16_t>(frame.data[0] | frame.data[1] << 8);
+  e.error_register = frame.data[2];
+  std::copy(frame.data.begin() + 3, frame.data.end(), e.manufacturer.begin());
+  e.timestamp_ns = frame.timestamp_ns;
+  return e;
+}
+
+std::string_view emcy_family(std::uint16_t code) {
+  // Most specific first: the communication codes share their high byte.
+  switch (code) {
+    case 0x0000: return "error reset / no error";
+    case 0x8110: return "communication: CAN overrun";
+    case 0x8120: return "communication: CAN error passive";
+    case 0x8130: return "communication: heartbeat or life guard error";
+    case 0x8140: return "communication: recovered from bus-off";
+    case 0x8150: return "communication: CAN-ID collision";
+    case 0x8210: return "protocol: PDO not processed due to length error";
+    case 0x8220: return "protocol: PDO length exceeded";
+    case 0x8230: return "protocol: DAM MPDO not processed";
+    case 0x8240: return "protocol: unexpected SYNC data length";
+    case 0x8250: return "protocol: RPDO timeout";
+    case 0xFF10: return "device specific: feeder error (CiA 414-2)";
+    default: break;
+  }
+  switch (code >> 12) {
+    case 0x1: return "generic error";
+    case 0x2: return "current";
+    case 0x3: return "voltage";
+    case 0x4: return "temperature";
+    case 0x5: return "device hardware";
+    case 0x6: return "device software";
+    case 0x7: return "additional modules";
+    case 0x8: return (code >> 8) == 0x81 ? "communication" : (code >> 8) == 0x82 ? "protocol error" : "monitoring";
+    case 0x9: return "external error";
+    case 0xF: return (code >> 8) == 0xFF ? "device specific" : "additional functions";
+    default: return "unknown family";
+  }
+}
+
+void ActiveErrors::apply(const Emergency& e) {
+  error_register_ = e.error_register;
+  if (e.is_reset()) {
+    codes_.clear();
+    return;
+  }
+  if (std::find(codes_.begin(), codes_.end(), e.error_code) == codes_.end() && codes_.size() < kMax) {
+    codes_.push_back(e.error_code);
+  }
+}
+
+}  // namespace lb::canopen

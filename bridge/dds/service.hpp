@@ -1,0 +1,121 @@
+#pragma once
+// Request/reply over DDS (Fast DDS 2.9 has no RPC): a request topic and a reply topic per service,
+// ROS 2 style, replies correlated with requests by the request's sample identity.
+
+#include <chrono>
+#include <condition_variable>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+
+#include "dds/participant.hpp"
+
+namespace lb::ddsl {
+
+using SampleIdentity = eprosima::fastrtps::rtps::SampleIdentity;
+
+// Server side. The handler runs on a Fast DDS thread; it may answer at once or later, from any
+// thread, through the Responder it is given (answering twice is harmless, never is a bug).
+template <class RequestPS, class ReplyPS>
+class ServiceServer {
+ public:
+  using Request = typename RequestPS::type;
+  using Reply = typename ReplyPS::type;
+
+  class Responder {
+   public:
+    Responder(Writer<ReplyPS> writer, SampleIdentity request) : writer_(writer), request_(request) {}
+    void operator()(const Reply& reply) const {
+      eprosima::fastrtps::rtps::WriteParams params;
+      params.related_sample_identity(request_);
+      writer_.write(reply, params);
+    }
+
+   private:
+    Writer<ReplyPS> writer_;
+    SampleIdentity request_;
+  };
+  using Handler = std::function<void(const Request&, Responder)>;
+
+  // path: "<line>/<device>/<service>". Errors only at start-up.
+  static Result<void> serve(Participant& dds, const std::string& path, Handler handler) {
+    auto writer = dds.writer<ReplyPS>(reply_topic(path), QosKind::command);
+    if (!writer) return writer.error();
+    return dds.subscribe<RequestPS>(request_topic(path), QosKind::command,
+                                    [w = *writer, h = std::move(handler)](const Request& req, const fdds::SampleInfo& info) {
+                                      h(req, Responder(w, info.sample_identity));
+                                    });
+  }
+};
+
+// Client side, for the CLI and tests: call() blocks the calling thread (never a Fast DDS thread).
+template <class RequestPS, class ReplyPS>
+class ServiceClient {
+ public:
+  using Request = typename RequestPS::type;
+  using Reply = typename ReplyPS::type;
+
+  static Result<std::unique_ptr<ServiceClient>> create(Participant& dds, const std::string& path) {
+    auto client = std::make_unique<ServiceClient>(dds, path);
+    auto writer = dds.writer<RequestPS>(request_topic(path), QosKind::command);
+    if (!writer) return writer.error();
+    client->writer_ = *writer;
+    auto* raw = client.get();  // the subscription ends before the client does (member order)
+    auto sub = dds.subscribe_scoped<ReplyPS>(reply_topic(path), QosKind::command,
+                                             [raw](const Reply& rep, const fdds::SampleInfo& info) { raw->received(rep, info); });
+    if (!sub) return sub.error();
+    client->subscription_ = std::move(*sub);
+    return client;
+  }
+  ServiceClient(Participant& dds, std::string path) : dds_(dds), path_(std::move(path)) {}
+  ~ServiceClient() {
+    subscription_.reset();  // no reply callback after this line
+    if (writer_.entity() != nullptr) dds_.remove_writer(writer_.entity());
+  }
+  ServiceClient(const ServiceClient&) = delete;
+  ServiceClient& operator=(const ServiceClient&) = delete;
+
+  // Waits for the server to be discovered (both directions), sends, waits for the matching reply.
+  Result<Reply> call(const Request& request, std::chrono::milliseconds timeout) {
+    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    while (writer_.matched() == 0 || dds_.matched_writers(reply_topic(path_)) == 0) {
+      if (std::chrono::steady_clock::now() > deadline) return make_error("no server for " + path_ + " (is the bridge running?)");
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+    eprosima::fastrtps::rtps::WriteParams params;
+    if (!writer_.write(request, params)) return make_error("cannot send the request on " + request_topic(path_));
+    const SampleIdentity id = params.sample_identity();
+    std::unique_lock lock(mutex_);
+    if (!cv_.wait_until(lock, deadline, [&] { return replies_.count(id) != 0; })) {
+      return make_error("no reply on " + reply_topic(path_) + " within " + std::to_string(timeout.count()) + " ms");
+    }
+    Reply reply = std::move(replies_.at(id));
+    replies_.erase(id);
+    return reply;
+  }
+
+ private:
+  void received(const Reply& reply, const fdds::SampleInfo& info) {
+    // Replies to other clients' requests arrive too; only ours are kept.
+    if (info.related_sample_identity.writer_guid() != writer_guid()) return;
+    {
+      std::lock_guard lock(mutex_);
+      replies_[info.related_sample_identity] = reply;
+    }
+    cv_.notify_all();
+  }
+  eprosima::fastrtps::rtps::GUID_t writer_guid() const { return writer_.guid(); }
+
+  Participant& dds_;
+  std::string path_;
+  Writer<RequestPS> writer_;
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  std::map<SampleIdentity, Reply> replies_;
+  std::unique_ptr<Participant::Subscription> subscription_;
+};
+
+}  // namespace lb::ddsl

@@ -1,0 +1,203 @@
+#include "gateways/device_services.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <stdexcept>
+
+#include "canopen/sdo_abort.hpp"
+#include "dds/service.hpp"
+#include "dds/topic_names.hpp"
+
+namespace lb::gateways {
+
+namespace msg = linebridge_msgs::msg;
+namespace srv = linebridge_msgs::srv;
+using canopen::DataType;
+
+namespace {
+
+std::optional<canopen::NmtCommand> to_command(srv::NmtCommand c) {
+  switch (c) {
+    case srv::NMT_START: return canopen::NmtCommand::start;
+    case srv::NMT_STOP: return canopen::NmtCommand::stop;
+    case srv::NMT_ENTER_PRE_OPERATIONAL: return canopen::NmtCommand::enter_pre_operational;
+    case srv::NMT_RESET_NODE: return canopen::NmtCommand::reset_node;
+    case srv::NMT_RESET_COMMUNICATION: return canopen::NmtCommand::reset_communication;
+  }
+  return std::nullopt;
+}
+
+// The field of srv::ObjectValue that matches the type carries the value.
+Result<canopen::ObjectValue> from_msg(DataType type, const srv::ObjectValue& v) {
+  if (type == DataType::visible_string) return canopen::ObjectValue{v.string_value()};
+  if (type == DataType::octet_string) return canopen::ObjectValue{std::vector<std::uint8_t>(v.octets().begin(), v.octets().end())};
+  if (type == DataType::real32 || type == DataType::real64) return canopen::ObjectValue{v.real_value()};
+  if (canopen::is_signed_integer(type)) return canopen::ObjectValue{v.integer_value()};
+  return canopen::ObjectValue{v.unsigned_value()};
+}
+
+srv::ObjectValue to_msg(DataType type, const canopen::ObjectValue& value) {
+  srv::ObjectValue v;
+  v.data_type(std::string(canopen::to_string(type)));
+  std::visit(
+      [&v](const auto& x) {
+        using T = std::decay_t<decltype(x)>;
+        if constexpr (std::is_same_v<T, std::int64_t>) v.integer_value(x);
+        else if constexpr (std::is_same_v<T, std::uint64_t>) v.unsigned_value(x);
+        else if constexpr (std::is_same_v<T, double>) v.real_value(x);
+        else if constexpr (std::is_same_v<T, std::string>) v.string_value(x);
+        else v.octets(x);
+      },
+      value);
+  return v;
+}
+
+template <class T>
+void stamp(T& m, std::int64_t ns) {
+  const auto s = ddsl::to_stamp(ns);
+  m.stamp().sec(s.sec);
+  m.stamp().nanosec(s.nanosec);
+}
+
+}  // namespace
+
+DeviceServices::DeviceServices(DeviceContext context) : ctx_(context) {
+  const std::string& dev = ctx_.device.name;
+  const std::string path = ctx_.line + "/" + dev + "/";
+  const auto fail = [&dev](const Error& e) { throw std::runtime_error(dev + ": " + e.message); };
+
+  auto ew = ctx_.dds.writer<msg::EmergencyPubSubType>(ddsl::topic_name(ctx_.line, dev, "emergency"), ddsl::QosKind::event);
+  if (!ew) fail(ew.error());
+  emergency_writer_ = *ew;
+  auto iw = ctx_.dds.writer<msg::DeviceInfoPubSubType>(ddsl::topic_name(ctx_.line, dev, "info"), ddsl::QosKind::state);
+  if (!iw) fail(iw.error());
+  info_writer_ = *iw;
+
+  ctx_.node.on_emergency([this](const canopen::Emergency& e) {
+    msg::Emergency m;
+    stamp(m, e.timestamp_ns);
+    m.error_code(e.error_code);
+    m.error_register(e.error_register);
+    m.manufacturer(e.manufacturer);
+    m.family(std::string(canopen::emcy_family(e.error_code)));
+    m.active_errors(ctx_.node.errors().codes());
+    emergency_writer_.write(m);
+  });
+
+  if (ctx_.is_master() && ctx_.sdo != nullptr) {
+    std::vector<canopen::BootSequence::Write> writes;
+    for (const auto& w : ctx_.device.configure) writes.push_back({w.index, w.sub, w.type, w.value});
+    boot_ = std::make_unique<canopen::BootSequence>(
+        ctx_.loop, ctx_.node, *ctx_.sdo, std::move(writes), ctx_.device.boot_retry,
+        canopen::BootSequence::Listener{.on_state = {}, .on_identity = [this](const canopen::DeviceIdentity& id) { publish_info(id); }});
+  }
+
+  using Nmt = ddsl::ServiceServer<srv::Nmt_RequestPubSubType, srv::Nmt_ResponsePubSubType>;
+  auto nmt = Nmt::serve(ctx_.dds, path + "nmt", [this](const srv::Nmt_Request& req, Nmt::Responder respond) {
+    on_nmt(req, [respond](bool ok, std::string message) {
+      srv::Nmt_Response r;
+      r.success(ok);
+      r.message(std::move(message));
+      respond(r);
+    });
+  });
+  if (!nmt) fail(nmt.error());
+
+  using Read = ddsl::ServiceServer<srv::SdoRead_RequestPubSubType, srv::SdoRead_ResponsePubSubType>;
+  auto read = Read::serve(ctx_.dds, path + "sdo_read", [this](const srv::SdoRead_Request& req, Read::Responder respond) {
+    srv::SdoRead_Response r;
+    const auto type = canopen::parse_data_type(req.data_type());
+    if (!type) {
+      r.message("unknown data type '" + req.data_type() + "' (INTEGER8..64, UNSIGNED8..64, REAL32, REAL64, VISIBLE_STRING, OCTET_STRING)");
+      return respond(r);
+    }
+    if (auto why = refusal(); !why.empty()) return r.message(why), respond(r);
+    ctx_.sdo->read(ctx_.device.node_id, req.index(), req.sub_index(), *type,
+                   [respond, t = *type](canopen::SdoClient::ReadResult result) {
+                     srv::SdoRead_Response reply;
+                     if (result) {
+                       reply.success(true);
+                       reply.value(to_msg(t, *result));
+                     } else {
+                       reply.abort_code(result.error().abort_code);
+                       reply.message(result.error().message);
+                     }
+                     respond(reply);
+                   });
+  });
+  if (!read) fail(read.error());
+
+  using Write = ddsl::ServiceServer<srv::SdoWrite_RequestPubSubType, srv::SdoWrite_ResponsePubSubType>;
+  auto write = Write::serve(ctx_.dds, path + "sdo_write", [this](const srv::SdoWrite_Request& req, Write::Responder respond) {
+    srv::SdoWrite_Response r;
+    const auto type = canopen::parse_data_type(req.value().data_type());
+    if (!type) {
+      r.message("unknown data type '" + req.value().data_type() + "'");
+      return respond(r);
+    }
+    if (auto why = refusal(); !why.empty()) return r.message(why), respond(r);
+    auto value = from_msg(*type, req.value());
+    if (!value) return r.message(value.error().message), respond(r);
+    ctx_.sdo->write(ctx_.device.node_id, req.index(), req.sub_index(), *type, *value,
+                    [respond](canopen::SdoClient::DownloadResult result) {
+                      srv::SdoWrite_Response reply;
+                      reply.success(result.has_value());
+                      if (!result) {
+                        reply.abort_code(result.error().abort_code);
+                        reply.message(result.error().message);
+                      }
+                      respond(reply);
+                    });
+  });
+  if (!write) fail(write.error());
+}
+
+std::string DeviceServices::refusal() const {
+  if (!ctx_.is_master() || ctx_.sdo == nullptr) {
+    return "bus " + ctx_.bus.name + " is in the monitor role: the bridge never transmits there";
+  }
+  return {};
+}
+
+void DeviceServices::on_nmt(const srv::Nmt_Request& request, std::function<void(bool, std::string)> reply) {
+  const auto command = to_command(request.command());
+  if (!command) return reply(false, "unknown NMT command " + std::to_string(static_cast<int>(request.command())));
+  if (auto why = refusal(); !why.empty()) return reply(false, why);
+  ctx_.loop.post([this, c = *command, reply = std::move(reply)] {
+    auto r = ctx_.node.command(c);
+    if (!r) return reply(false, r.error().message);
+    spdlog::info("{}: NMT command {:02X}h sent on request", ctx_.device.name, static_cast<int>(c));
+    reply(true, "");
+  });
+}
+
+void DeviceServices::publish_info(const canopen::DeviceIdentity& id) {
+  msg::DeviceInfo m;
+  stamp(m, id.read_at_ns);
+  m.node_id(ctx_.device.node_id);
+  m.device_type(id.device_type);
+  m.profile_number(static_cast<std::uint16_t>(id.device_type & 0xFFFF));
+  m.vendor_id(id.vendor_id);
+  m.product_code(id.product_code);
+  m.revision_number(id.revision_number);
+  m.serial_number(id.serial_number);
+  m.device_name(id.device_name);
+  m.hardware_version(id.hardware_version);
+  m.software_version(id.software_version);
+  // 1000h bits 0..15 tell only the profile family (420 or 414); the part comes from the config.
+  const auto expected = ctx_.profile.device_type & 0xFFFF;
+  m.profile_matches((id.device_type & 0xFFFF) == expected);
+  std::string remarks = id.remarks;
+  if (!m.profile_matches()) {
+    remarks += fmt::format("device type {:08X}h is profile {}, the configuration says {} ({})", id.device_type,
+                           id.device_type & 0xFFFF, expected, ctx_.profile.key());
+    spdlog::warn("{}: {}", ctx_.device.name, remarks);
+  }
+  m.remarks(remarks);
+  spdlog::info("{}: identity: vendor {:08X}h product {:08X}h rev {:08X}h serial {:08X}h, \"{}\" hw \"{}\" sw \"{}\"",
+               ctx_.device.name, id.vendor_id, id.product_code, id.revision_number, id.serial_number, id.device_name,
+               id.hardware_version, id.software_version);
+  info_writer_.write(m);
+}
+
+}  // namespace lb::gateways

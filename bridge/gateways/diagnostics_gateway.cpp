@@ -1,0 +1,106 @@
+#include "gateways/diagnostics_gateway.hpp"
+
+#include <stdexcept>
+
+#include "dds/topic_names.hpp"
+#include "gateways/nmt_state_msg.hpp"
+
+namespace lb::gateways {
+
+namespace msg = linebridge_msgs::msg;
+
+DiagnosticsGateway::DiagnosticsGateway(ddsl::Participant& dds, const std::string& line, std::vector<Bus> buses,
+                                       std::chrono::milliseconds period)
+    : line_(line), buses_(std::move(buses)), period_(period), previous_(buses_.size()),
+      bus_snapshots_(buses_.size()), node_snapshots_(buses_.size()) {
+  auto w = dds.writer<msg::DiagnosticsPubSubType>(ddsl::topic_name(line, "bridge", "diagnostics"), ddsl::QosKind::state);
+  if (!w) throw std::runtime_error("diagnostics: " + w.error().message);
+  writer_ = *w;
+}
+
+DiagnosticsGateway::~DiagnosticsGateway() { stop(); }
+
+void DiagnosticsGateway::start() {
+  for (std::size_t i = 0; i < buses_.size(); ++i) {
+    auto* loop = buses_[i].loop;
+    const auto timer = loop->create_timer([this, i] { snapshot(i); });
+    loop->arm_timer(timer, period_, period_);
+  }
+  thread_ = std::thread([this] { publish_loop(); });
+}
+
+void DiagnosticsGateway::stop() {
+  {
+    std::lock_guard lock(mutex_);
+    stopping_ = true;
+  }
+  cv_.notify_all();
+  if (thread_.joinable()) thread_.join();
+}
+
+void DiagnosticsGateway::snapshot(std::size_t i) {
+  const Bus& bus = buses_[i];
+  const auto stats = bus.loop->stats();
+  const auto now = std::chrono::steady_clock::now();
+  auto& prev = previous_[i];
+  const double dt = prev.at == std::chrono::steady_clock::time_point{} ? 0.0
+                                                                       : std::chrono::duration<double>(now - prev.at).count();
+  const std::uint64_t bits = bus.loop->bits_in() + bus.loop->bits_out();
+
+  msg::BusDiagnostics b;
+  b.name(bus.config->name);
+  b.interface_uri(bus.config->interface);
+  b.role(std::string(profiles::to_string(bus.config->role)));
+  b.state(std::string(can::to_string(stats.state)));
+  b.frames_in(stats.frames_in);
+  b.frames_out(stats.frames_out);
+  b.error_frames(stats.error_frames);
+  b.tx_dropped(stats.tx_dropped);
+  if (dt > 0) {
+    b.frames_in_per_s(static_cast<double>(stats.frames_in - prev.frames_in) / dt);
+    b.frames_out_per_s(static_cast<double>(stats.frames_out - prev.frames_out) / dt);
+    b.load_percent(100.0 * static_cast<double>(bits - prev.bits) / dt / static_cast<double>(bus.config->bitrate));
+  }
+  prev = {now, stats.frames_in, stats.frames_out, bits};
+
+  std::vector<msg::NodeDiagnostics> nodes;
+  const std::int64_t now_ns = ddsl::now_ns();
+  for (const auto& d : bus.devices) {
+    msg::NodeDiagnostics n;
+    n.device(d.config->name);
+    n.bus(bus.config->name);
+    n.node_id(d.config->node_id);
+    n.online(d.node->online());
+    n.nmt_state(to_msg(d.node->state()));
+    n.boot_state(d.services->boot_state());
+    const auto last = d.node->last_heartbeat_ns();
+    n.last_heartbeat_age_s(last == 0 ? -1.0 : static_cast<double>(now_ns - last) / 1e9);
+    const auto& s = d.node->stats();
+    n.boot_ups(s.boot_ups);
+    n.pdos_received(s.pdos_received);
+    n.pdos_sent(s.pdos_sent);
+    n.pdo_length_errors(s.pdo_length_errors);
+    n.emergencies(s.emergencies);
+    n.range_warnings(s.range_warnings);
+    nodes.push_back(std::move(n));
+  }
+  std::lock_guard lock(mutex_);
+  bus_snapshots_[i] = std::move(b);
+  node_snapshots_[i] = std::move(nodes);
+}
+
+void DiagnosticsGateway::publish_loop() {
+  std::unique_lock lock(mutex_);
+  while (!cv_.wait_for(lock, period_, [this] { return stopping_; })) {
+    msg::Diagnostics d;
+    const auto stamp = ddsl::to_stamp(ddsl::now_ns());
+    d.stamp().sec(stamp.sec);
+    d.stamp().nanosec(stamp.nanosec);
+    d.line(line_);
+    d.buses(bus_snapshots_);
+    for (const auto& nodes : node_snapshots_) d.nodes().insert(d.nodes().end(), nodes.begin(), nodes.end());
+    writer_.write(d);
+  }
+}
+
+}  // namespace lb::gateways

@@ -1,0 +1,296 @@
+// The CANopen master core end to end: boot configuration by SDO, identity, SDO services (abort,
+// timeout, segmented strings), a device that never answers, reboot mid-run, heartbeat loss and
+// return, EMCY, two buses at once, diagnostics. Real linebridge and linebridge-sim processes on
+// virtual buses; this test is a separate DDS participant and a passive bus member.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <fstream>
+#include <thread>
+
+#include "dds/participant.hpp"
+#include "dds/service.hpp"
+#include "dds/topic_names.hpp"
+#include "msgs/commonPubSubTypes.h"
+#include "msgs/sawPubSubTypes.h"
+#include "support/bus_spy.hpp"
+#include "support/child_process.hpp"
+#include "support/collector.hpp"
+
+namespace msg = linebridge_msgs::msg;
+namespace srv = linebridge_msgs::srv;
+using namespace std::chrono_literals;
+using lb::ddsl::QosKind;
+
+namespace {
+
+using ReadClient = lb::ddsl::ServiceClient<srv::SdoRead_RequestPubSubType, srv::SdoRead_ResponsePubSubType>;
+using WriteClient = lb::ddsl::ServiceClient<srv::SdoWrite_RequestPubSubType, srv::SdoWrite_ResponsePubSubType>;
+using NmtClient = lb::ddsl::ServiceClient<srv::Nmt_RequestPubSubType, srv::Nmt_ResponsePubSubType>;
+
+class CanopenCore : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
+    const std::string tag = std::to_string(::getpid());
+    bus_a_ = "virtual:core-a-" + tag;
+    const std::string bus_b = "virtual:core-b-" + tag;
+    config_ = ::testing::TempDir() + "/core_" + tag + ".yaml";
+    std::ofstream(config_) << "line: core\n"
+                              "dds: {domain: 4}\n"
+                              "buses:\n"
+                              "  - {name: a, interface: '" + bus_a_ + "', master_node_id: 1, sdo_timeout_ms: 300}\n"
+                              "  - {name: b, interface: '" + bus_b + "'}\n"
+                              "devices:\n"
+                              "  - name: saw1\n"
+                              "    bus: a\n"
+                              "    node_id: 5\n"
+                              "    profile: cia420-4\n"
+                              "    version: '3.1'\n"
+                              "    heartbeat_timeout_ms: 400\n"
+                              "    boot_retry_ms: 1000\n"
+                              "    configure:\n"
+                              "      - {object: saw_sync_speed_set_maximum, value: 45000}\n"
+                              "      - {index: 0x1017, sub: 0, type: UNSIGNED16, value: 100}\n"
+                              "  - {name: saw2, bus: b, node_id: 6, profile: cia420-4, version: '3.1'}\n"
+                              "  - {name: ghost, bus: a, node_id: 9, profile: cia420-4, version: '3.1', boot_retry_ms: 1000}\n";
+    spy_ = std::make_unique<lb::test::BusSpy>(bus_a_);  // first member: the hub lives in this process
+    const auto tmp = ::testing::TempDir();
+    sim_ = std::make_unique<lb::test::ChildProcess>(
+        std::vector<std::string>{LB_BIN_SIM, "--config", config_, "--device", "saw1", "--device", "saw2"}, tmp + "/core_sim_" + tag + ".log");
+    bridge_ = std::make_unique<lb::test::ChildProcess>(std::vector<std::string>{LB_BIN_BRIDGE, "--config", config_},
+                                                       tmp + "/core_bridge_" + tag + ".log");
+    auto dds = lb::ddsl::Participant::create({4, true, "core-test"});
+    ASSERT_TRUE(dds) << dds.error().message;
+    dds_ = std::move(*dds);
+    ASSERT_TRUE(saw1_.subscribe(*dds_, topic("saw1", "status"), QosKind::state));
+    ASSERT_TRUE(saw2_.subscribe(*dds_, topic("saw2", "status"), QosKind::state));
+    ASSERT_TRUE(info_.subscribe(*dds_, topic("saw1", "info"), QosKind::state));
+    ASSERT_TRUE(emcy_.subscribe(*dds_, topic("saw1", "emergency"), QosKind::event));
+    ASSERT_TRUE(diag_.subscribe(*dds_, topic("bridge", "diagnostics"), QosKind::state));
+    ASSERT_TRUE(saw1_.wait_last(15s, [](const msg::SawStatus& s) { return operational(s); })) << logs();
+  }
+
+  void TearDown() override {
+    dds_.reset();
+    if (bridge_) {
+      EXPECT_EQ(bridge_->stop(), 0) << "the bridge did not exit cleanly\n" << logs();
+    }
+    if (sim_) sim_->stop();
+  }
+
+  static bool operational(const msg::SawStatus& s) {
+    return s.health().online() && s.health().nmt_state() == msg::NMT_OPERATIONAL;
+  }
+  static std::string topic(const std::string& device, const std::string& t) { return lb::ddsl::topic_name("core", device, t); }
+  std::string logs() const {
+    return "--- bridge log ---\n" + (bridge_ ? bridge_->log() : "") + "--- sim log ---\n" + (sim_ ? sim_->log() : "");
+  }
+
+  srv::SdoRead_Response sdo_read(const std::string& device, std::uint16_t index, std::uint8_t sub, const std::string& type) {
+    auto client = ReadClient::create(*dds_, "core/" + device + "/sdo_read");
+    EXPECT_TRUE(client);
+    srv::SdoRead_Request req;
+    req.index(index);
+    req.sub_index(sub);
+    req.data_type(type);
+    auto r = (*client)->call(req, 10s);
+    EXPECT_TRUE(r) << (r ? "" : r.error().message);
+    return r ? *r : srv::SdoRead_Response{};
+  }
+  srv::SdoWrite_Response sdo_write(const std::string& device, std::uint16_t index, std::uint8_t sub, srv::ObjectValue v) {
+    auto client = WriteClient::create(*dds_, "core/" + device + "/sdo_write");
+    EXPECT_TRUE(client);
+    srv::SdoWrite_Request req;
+    req.index(index);
+    req.sub_index(sub);
+    req.value(std::move(v));
+    auto r = (*client)->call(req, 10s);
+    EXPECT_TRUE(r) << (r ? "" : r.error().message);
+    return r ? *r : srv::SdoWrite_Response{};
+  }
+  srv::Nmt_Response nmt(const std::string& device, srv::NmtCommand c) {
+    auto client = NmtClient::create(*dds_, "core/" + device + "/nmt");
+    EXPECT_TRUE(client);
+    srv::Nmt_Request req;
+    req.command(c);
+    auto r = (*client)->call(req, 10s);
+    EXPECT_TRUE(r) << (r ? "" : r.error().message);
+    return r ? *r : srv::Nmt_Response{};
+  }
+  static srv::ObjectValue unsigned32(std::uint64_t v) {
+    srv::ObjectValue o;
+    o.data_type("UNSIGNED32");
+    o.unsigned_value(v);
+    return o;
+  }
+  const msg::NodeDiagnostics* node(const msg::Diagnostics& d, const std::string& device) {
+    for (const auto& n : d.nodes()) {
+      if (n.device() == device) return &n;
+    }
+    return nullptr;
+  }
+
+  pid_t sim_pid() const { return sim_->pid(); }
+
+  std::string bus_a_, config_;
+  std::unique_ptr<lb::test::BusSpy> spy_;
+  std::unique_ptr<lb::test::ChildProcess> sim_, bridge_;
+  std::unique_ptr<lb::ddsl::Participant> dds_;
+  lb::test::Collector<msg::SawStatusPubSubType> saw1_, saw2_;
+  lb::test::Collector<msg::DeviceInfoPubSubType> info_;
+  lb::test::Collector<msg::EmergencyPubSubType> emcy_;
+  lb::test::Collector<msg::DiagnosticsPubSubType> diag_;
+};
+
+}  // namespace
+
+TEST_F(CanopenCore, BootConfiguresIdentifiesAndServesTwoBuses) {
+  // saw2 on the second bus comes up too.
+  ASSERT_TRUE(saw2_.wait_last(10s, [](const msg::SawStatus& s) { return operational(s); })) << logs();
+  // The configuration written at boot is in the device: 6006h = 45000 mm/min.
+  const auto max = sdo_read("saw1", 0x6006, 0, "UNSIGNED32");
+  ASSERT_TRUE(max.success()) << max.message();
+  EXPECT_EQ(max.value().unsigned_value(), 45000u);
+  // Identity, including 1008h (longer than 4 bytes: a segmented upload).
+  ASSERT_TRUE(info_.wait_last(10s, [](const msg::DeviceInfo&) { return true; })) << logs();
+  const auto info = info_.samples().back();
+  EXPECT_EQ(info.device_name(), "linebridge simulated saw saw1 (cia420-4 version 3.1)");
+  EXPECT_EQ(info.profile_number(), 420);
+  EXPECT_TRUE(info.profile_matches()) << info.remarks();
+  EXPECT_EQ(info.vendor_id(), 0x4C420000u);
+  EXPECT_EQ(info.serial_number(), 0x51000005u);
+  EXPECT_EQ(info.node_id(), 5);
+}
+
+TEST_F(CanopenCore, DeviceThatNeverAnswersIsReportedAndRetriedWithoutBlockingOthers) {
+  ASSERT_TRUE(diag_.wait_last(10s, [this](const msg::Diagnostics& d) {
+    const auto* ghost = node(d, "ghost");
+    const auto* saw = node(d, "saw1");
+    return ghost != nullptr && saw != nullptr && !ghost->online() &&
+           ghost->boot_state().find("not answering") != std::string::npos && saw->online() && saw->boot_state() == "started";
+  })) << logs();
+  // Retried: the bridge tried at least twice in the meantime.
+  const auto deadline = std::chrono::steady_clock::now() + 5s;
+  auto count = [this] {
+    const auto log = bridge_->log();
+    std::size_t n = 0;
+    for (auto pos = log.find("node 9 not answering"); pos != std::string::npos; pos = log.find("node 9 not answering", pos + 1)) ++n;
+    return n;
+  };
+  while (count() < 2 && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(100ms);
+  EXPECT_GE(count(), 2u) << logs();
+  // Its services fail with the protocol timeout, saw1's work.
+  const auto r = sdo_read("ghost", 0x1000, 0, "UNSIGNED32");
+  EXPECT_FALSE(r.success());
+  EXPECT_EQ(r.abort_code(), 0x05040000u) << r.message();
+  EXPECT_TRUE(sdo_read("saw1", 0x1000, 0, "UNSIGNED32").success());
+}
+
+TEST_F(CanopenCore, SdoAbortsTimeoutsAndSegmentedStrings) {
+  auto r = sdo_read("saw1", 0x6FFF, 0, "UNSIGNED16");
+  EXPECT_FALSE(r.success());
+  EXPECT_EQ(r.abort_code(), 0x06020000u);
+  EXPECT_NE(r.message().find("does not exist"), std::string::npos) << r.message();
+
+  auto w = sdo_write("saw1", 0x6000, 0, unsigned32(1));  // counter value: read-only
+  EXPECT_FALSE(w.success());
+  EXPECT_EQ(w.abort_code(), 0x06010002u) << w.message();
+
+  srv::ObjectValue speed;
+  speed.data_type("UNSIGNED16");
+  speed.unsigned_value(10001);  // 6005h: 0..10000
+  w = sdo_write("saw1", 0x6005, 0, speed);
+  EXPECT_FALSE(w.success());
+  EXPECT_EQ(w.abort_code(), 0x06090031u) << w.message();
+
+  // A 90-character string down and up again: segmented transfers both ways.
+  std::string text;
+  for (int i = 0; i < 9; ++i) text += "0123456789";
+  srv::ObjectValue s;
+  s.data_type("VISIBLE_STRING");
+  s.string_value(text);
+  w = sdo_write("saw1", 0x2000, 0, s);
+  ASSERT_TRUE(w.success()) << w.message();
+  r = sdo_read("saw1", 0x2000, 0, "VISIBLE_STRING");
+  ASSERT_TRUE(r.success()) << r.message();
+  EXPECT_EQ(r.value().string_value(), text);
+
+  r = sdo_read("saw1", 0x1000, 0, "NOT_A_TYPE");
+  EXPECT_FALSE(r.success());
+  EXPECT_NE(r.message().find("unknown data type"), std::string::npos) << r.message();
+}
+
+TEST_F(CanopenCore, DeviceRebootedMidRunIsReconfiguredAndRestarted) {
+  ASSERT_TRUE(sdo_write("saw1", 0x6006, 0, unsigned32(12345)).success());
+  ASSERT_EQ(sdo_read("saw1", 0x6006, 0, "UNSIGNED32").value().unsigned_value(), 12345u);
+  const auto before = saw1_.size();
+  const auto reply = nmt("saw1", srv::NMT_RESET_NODE);
+  ASSERT_TRUE(reply.success()) << reply.message();
+  // It leaves operational (boot-up) and comes back operational, started by the bridge again.
+  ASSERT_TRUE(saw1_.wait(10s, [&](const std::vector<msg::SawStatus>& v) {
+    bool left = false;
+    for (std::size_t i = before; i < v.size(); ++i) {
+      if (v[i].health().nmt_state() != msg::NMT_OPERATIONAL) left = true;
+      if (left && operational(v[i])) return true;
+    }
+    return false;
+  })) << logs();
+  // The boot configuration was written again (the reset put the simulator's 6006h back to 30000).
+  const auto max = sdo_read("saw1", 0x6006, 0, "UNSIGNED32");
+  ASSERT_TRUE(max.success()) << max.message();
+  EXPECT_EQ(max.value().unsigned_value(), 45000u);
+  ASSERT_TRUE(diag_.wait_last(5s, [this](const msg::Diagnostics& d) {
+    const auto* n = node(d, "saw1");
+    return n != nullptr && n->boot_ups() >= 1 && n->boot_state() == "started";
+  })) << logs();
+}
+
+TEST_F(CanopenCore, HeartbeatLossAndReturnFlipOnline) {
+  ::kill(sim_pid(), SIGSTOP);
+  const auto stopped = std::chrono::steady_clock::now();
+  ASSERT_TRUE(saw1_.wait_last(3s, [](const msg::SawStatus& s) { return !s.health().online(); })) << logs();
+  // Within one timeout (400 ms) of the last heartbeat, which came at most 100 ms before the stop.
+  EXPECT_LT(std::chrono::steady_clock::now() - stopped, 1000ms);
+  ASSERT_TRUE(diag_.wait_last(3s, [this](const msg::Diagnostics& d) {
+    const auto* n = node(d, "saw1");
+    return n != nullptr && !n->online() && n->last_heartbeat_age_s() > 0.4;
+  })) << logs();
+  ::kill(sim_pid(), SIGCONT);
+  ASSERT_TRUE(saw1_.wait_last(3s, [](const msg::SawStatus& s) { return operational(s); })) << logs();
+  EXPECT_NE(bridge_->log().find("node 5 lost: no heartbeat for 400 ms"), std::string::npos) << logs();
+}
+
+TEST_F(CanopenCore, EmergenciesAreEventsAndActiveErrorsInStatus) {
+  // EMCY 4210h (temperature), error register 09h, manufacturer bytes 01..05, from node 5.
+  ASSERT_TRUE(spy_->send(lb::can::make_frame(0x85, {0x10, 0x42, 0x09, 0x01, 0x02, 0x03, 0x04, 0x05})));
+  ASSERT_TRUE(emcy_.wait_last(5s, [](const msg::Emergency& e) { return e.error_code() == 0x4210; })) << logs();
+  const auto e = emcy_.samples().back();
+  EXPECT_EQ(e.error_register(), 0x09);
+  EXPECT_EQ(e.family(), "temperature");
+  EXPECT_EQ(e.manufacturer(), (std::array<std::uint8_t, 5>{1, 2, 3, 4, 5}));
+  ASSERT_TRUE(saw1_.wait_last(5s, [](const msg::SawStatus& s) {
+    return s.health().active_errors() == std::vector<std::uint16_t>{0x4210} && s.health().error_register() == 0x09;
+  }));
+  // 8130h heartbeat error joins it; the error reset (0000h) clears both.
+  ASSERT_TRUE(spy_->send(lb::can::make_frame(0x85, {0x30, 0x81, 0x11, 0, 0, 0, 0, 0})));
+  ASSERT_TRUE(saw1_.wait_last(5s, [](const msg::SawStatus& s) { return s.health().active_errors().size() == 2; }));
+  ASSERT_TRUE(spy_->send(lb::can::make_frame(0x85, {0x00, 0x00, 0x00, 0, 0, 0, 0, 0})));
+  ASSERT_TRUE(emcy_.wait_last(5s, [](const msg::Emergency& x) { return x.error_code() == 0 && x.active_errors().empty(); }));
+  ASSERT_TRUE(saw1_.wait_last(5s, [](const msg::SawStatus& s) { return s.health().active_errors().empty(); }));
+  // A short EMCY is refused, not decoded.
+  ASSERT_TRUE(spy_->send(lb::can::make_frame(0x85, {0x10, 0x42})));
+  std::this_thread::sleep_for(200ms);
+  EXPECT_EQ(emcy_.samples().back().error_code(), 0);
+  EXPECT_NE(bridge_->log().find("EMCY with 2 bytes ignored"), std::string::npos);
+}
+
+TEST_F(CanopenCore, BridgeProducesItsOwnHeartbeat) {
+  spy_->clear();
+  std::this_thread::sleep_for(2500ms);
+  const auto beats = spy_->frames(0x701);  // master_node_id 1, 1000 ms default period
+  ASSERT_GE(beats.size(), 2u);
+  for (const auto& f : beats) EXPECT_EQ(f.data[0], 0x05);
+}

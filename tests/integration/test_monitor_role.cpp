@@ -1,0 +1,118 @@
+// A bridge in the monitor role beside a running line: it decodes the devices' TPDOs and the line
+// controller's RPDOs, heartbeats and EMCYs, refuses every command with the reason, and puts no
+// frame on the bus. Real processes: linebridge (monitor), linebridge-sim --role devices and
+// --role controller, this test as DDS participant and passive bus member.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <fstream>
+#include <set>
+#include <thread>
+
+#include "dds/participant.hpp"
+#include "dds/service.hpp"
+#include "dds/topic_names.hpp"
+#include "msgs/commonPubSubTypes.h"
+#include "msgs/sawPubSubTypes.h"
+#include "support/bus_spy.hpp"
+#include "support/child_process.hpp"
+#include "support/collector.hpp"
+
+namespace msg = linebridge_msgs::msg;
+namespace srv = linebridge_msgs::srv;
+using namespace std::chrono_literals;
+using lb::ddsl::QosKind;
+
+TEST(MonitorRole, DecodesBothDirectionsAndNeverTransmits) {
+  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
+  const std::string tag = std::to_string(::getpid());
+  const std::string bus = "virtual:mon-" + tag;
+  const std::string tmp = ::testing::TempDir();
+  const std::string device =
+      "devices:\n"
+      "  - name: saw1\n"
+      "    bus: m\n"
+      "    node_id: 5\n"
+      "    profile: cia420-4\n"
+      "    version: '3.1'\n"
+      "    heartbeat_timeout_ms: 400\n"
+      "    simulation:\n"
+      "      max_speed_m_per_min: 60\n"
+      "      controller_values: {control_word: 1, saw_sync_speed_set_value: 5000, product_length_set_value: 15000}\n";
+  // The line (simulated devices and controller) owns the bus; the bridge only listens.
+  const std::string line_cfg = tmp + "/mon_line_" + tag + ".yaml";
+  std::ofstream(line_cfg) << "line: mon\nbuses:\n  - {name: m, interface: '" + bus + "', role: master}\n" + device;
+  const std::string bridge_cfg = tmp + "/mon_bridge_" + tag + ".yaml";
+  std::ofstream(bridge_cfg) << "line: mon\ndds: {domain: 5}\nbuses:\n  - {name: m, interface: '" + bus + "', role: monitor}\n" + device;
+
+  lb::test::BusSpy spy(bus);
+  lb::test::ChildProcess devices({LB_BIN_SIM, "--config", line_cfg, "--role", "devices"}, tmp + "/mon_sim_" + tag + ".log");
+  lb::test::ChildProcess bridge({LB_BIN_BRIDGE, "--config", bridge_cfg}, tmp + "/mon_bridge_" + tag + ".log");
+  const auto logs = [&] { return "--- bridge ---\n" + bridge.log() + "--- devices ---\n" + devices.log(); };
+
+  auto dds = lb::ddsl::Participant::create({5, true, "monitor-test"});
+  ASSERT_TRUE(dds) << dds.error().message;
+  lb::test::Collector<msg::SawStatusPubSubType> status;
+  lb::test::Collector<msg::SetpointResultPubSubType> results;
+  ASSERT_TRUE(status.subscribe(**dds, lb::ddsl::topic_name("mon", "saw1", "status"), QosKind::state));
+  ASSERT_TRUE(results.subscribe(**dds, lb::ddsl::topic_name("mon", "saw1", "setpoint_result"), QosKind::command));
+  // Without a controller the devices sit in pre-operational and send only heartbeats.
+  ASSERT_TRUE(status.wait_last(10s, [](const msg::SawStatus& s) {
+    return s.health().online() && s.health().nmt_state() == msg::NMT_PRE_OPERATIONAL;
+  })) << logs();
+
+  // Phase 1: every way of making the bridge transmit is refused with the reason...
+  spy.clear();
+  auto nmt = lb::ddsl::ServiceClient<srv::Nmt_RequestPubSubType, srv::Nmt_ResponsePubSubType>::create(**dds, "mon/saw1/nmt");
+  ASSERT_TRUE(nmt);
+  srv::Nmt_Request start;
+  start.command(srv::NMT_START);
+  auto n = (*nmt)->call(start, 10s);
+  ASSERT_TRUE(n) << n.error().message;
+  EXPECT_FALSE(n->success());
+  EXPECT_NE(n->message().find("monitor role"), std::string::npos) << n->message();
+
+  auto read = lb::ddsl::ServiceClient<srv::SdoRead_RequestPubSubType, srv::SdoRead_ResponsePubSubType>::create(**dds, "mon/saw1/sdo_read");
+  ASSERT_TRUE(read);
+  srv::SdoRead_Request rq;
+  rq.index(0x1000);
+  rq.data_type("UNSIGNED32");
+  auto r = (*read)->call(rq, 10s);
+  ASSERT_TRUE(r) << r.error().message;
+  EXPECT_FALSE(r->success());
+  EXPECT_NE(r->message().find("monitor role"), std::string::npos) << r->message();
+
+  auto sp_writer = (*dds)->writer<msg::SawSetpointPubSubType>(lb::ddsl::topic_name("mon", "saw1", "setpoint"), QosKind::command);
+  ASSERT_TRUE(sp_writer);
+  const auto deadline = std::chrono::steady_clock::now() + 10s;
+  while (sp_writer->matched() == 0 && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(20ms);
+  msg::SawSetpoint sp;
+  sp.request_id(7);
+  sp.saw_program_on(true);
+  sp.sync_speed_percent(10);
+  sp.product_length_m(1);
+  sp_writer->write(sp);
+  ASSERT_TRUE(results.wait_last(10s, [](const msg::SetpointResult& x) { return x.request_id() == 7; })) << logs();
+  EXPECT_FALSE(results.samples().back().accepted());
+  EXPECT_NE(results.samples().back().reason().find("monitor role"), std::string::npos);
+
+  // ... and in a full second nothing but the device's own heartbeats is on the bus: no NMT, no
+  // SYNC, no RPDO, no SDO request, no heartbeat of a master.
+  std::this_thread::sleep_for(1000ms);
+  std::set<std::uint32_t> ids;
+  for (const auto& f : spy.frames()) ids.insert(f.id);
+  EXPECT_EQ(ids, (std::set<std::uint32_t>{0x705})) << logs();
+
+  // Phase 2: a line controller starts the device and drives it; the bridge decodes its RPDO1
+  // (program on, 50.00 %, 1.5000 m) and the device's TPDOs.
+  lb::test::ChildProcess controller({LB_BIN_SIM, "--config", line_cfg, "--role", "controller"}, tmp + "/mon_ctl_" + tag + ".log");
+  ASSERT_TRUE(status.wait_last(10s, [](const msg::SawStatus& s) {
+    return s.health().nmt_state() == msg::NMT_OPERATIONAL && s.control_word().saw_program_on() &&
+           s.sync_speed_set_percent() == 50.0 && s.product_length_set_m() == 1.5 && s.product_speed_m_per_min() > 0;
+  })) << logs() << "--- controller ---\n" << controller.log();
+  EXPECT_TRUE(status.samples().back().status_word().saw_ready());
+  EXPECT_EQ(bridge.log().find("transmission refused"), std::string::npos) << "the bridge tried to transmit\n" << logs();
+  dds->reset();
+  EXPECT_EQ(bridge.stop(), 0);
+}

@@ -1,0 +1,69 @@
+#pragma once
+// A passive member of a virtual bus for tests: records every frame the others send, and can inject
+// frames of its own (a misbehaving node, an EMCY, a raw SDO request).
+
+#include <poll.h>
+
+#include <atomic>
+#include <memory>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "can/bus.hpp"
+
+namespace lb::test {
+
+class BusSpy {
+ public:
+  explicit BusSpy(const std::string& uri) : bus_(lb::can::open_bus(uri).value()) {
+    thread_ = std::thread([this] {
+      while (!stop_) {
+        pollfd p{bus_->fd(), POLLIN, 0};
+        if (::poll(&p, 1, 50) <= 0) continue;
+        std::lock_guard lock(m_);
+        while (true) {
+          auto r = bus_->receive();
+          if (!r || !r->has_value()) break;
+          frames_.push_back(**r);
+        }
+      }
+    });
+  }
+  ~BusSpy() {
+    stop_ = true;
+    thread_.join();
+  }
+  BusSpy(const BusSpy&) = delete;
+  BusSpy& operator=(const BusSpy&) = delete;
+
+  std::vector<lb::can::CanFrame> frames() {
+    std::lock_guard lock(m_);
+    return frames_;
+  }
+  std::vector<lb::can::CanFrame> frames(std::uint32_t id) {
+    std::vector<lb::can::CanFrame> out;
+    for (const auto& f : frames()) {
+      if (f.id == id) out.push_back(f);
+    }
+    return out;
+  }
+  void clear() {
+    std::lock_guard lock(m_);
+    frames_.clear();
+  }
+  lb::Result<void> send(const lb::can::CanFrame& f) {
+    std::lock_guard lock(m_);
+    return bus_->send(f);
+  }
+
+ private:
+  std::unique_ptr<lb::can::Bus> bus_;
+  std::mutex m_;
+  std::vector<lb::can::CanFrame> frames_;
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
+};
+
+}  // namespace lb::test

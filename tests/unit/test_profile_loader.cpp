@@ -1,0 +1,315 @@
+// The profile format's keys beyond objects/flags/PDOs: multi-bit fields, value tables (enumerations
+// and special values), bit sets of ARRAY elements and record subs, PDO validity, category and
+// manufacturer-specific tails; and the file:line:column errors of every new key.
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cstdint>
+#include <string>
+
+#include "profiles/profile_registry.hpp"
+
+using lb::profiles::parse_profile;
+using lb::profiles::PdoValidity;
+using lb::profiles::Profile;
+
+namespace {
+
+// Five lines, so that the first object is on line 7 of every document below.
+constexpr const char* kHeader = R"(profile: test
+version: "1"
+device: test
+device_type: 0x01A4
+objects:
+)";
+
+Profile load(const std::string& body) {
+  auto p = parse_profile(kHeader + body, "t.yaml");
+  if (!p) ADD_FAILURE() << p.error().message;
+  return p ? *p : Profile{};
+}
+
+std::string error_of(const std::string& body) {
+  auto p = parse_profile(kHeader + body, "t.yaml");
+  if (p) {
+    ADD_FAILURE() << "loaded, but should have been refused:\n" << body;
+    return {};
+  }
+  return p.error().message;
+}
+
+#define EXPECT_ERROR(body, text) \
+  EXPECT_EQ(error_of(body), text)
+
+}  // namespace
+
+TEST(ProfileLoader, OneBitFieldsAsBeforeAndMultiBitFields) {
+  const auto p = load(R"(  - {index: 0x6010, name: unwinding, type: UNSIGNED32, access: ro}
+bitsets:
+  fields:
+    object: 0x6010
+    bits:
+      flag: 3
+      time: {bit: 0, width: 3}
+      selected: {bit: 24, width: 8}
+      top: {bit: 15}
+)");
+  const auto* set = p.bitset("fields");
+  ASSERT_NE(set, nullptr);
+  EXPECT_EQ(set->bit("flag"), 3u);
+  EXPECT_EQ(set->field("flag")->width, 1u);
+  EXPECT_EQ(set->bit("top"), 15u);  // a map with only `bit` is a flag too
+  // Multi-bit fields are found by field(), never by bit(): a flag reader cannot mistake them.
+  EXPECT_EQ(set->bit("selected"), std::nullopt);
+  const auto* selected = set->field("selected");
+  ASSERT_NE(selected, nullptr);
+  EXPECT_EQ(selected->bit, 24u);
+  EXPECT_EQ(selected->width, 8u);
+  EXPECT_EQ(selected->mask(), 0xFF000000u);
+  EXPECT_EQ(selected->extract(0x12345678u), 0x12u);
+  EXPECT_EQ(selected->insert(0x12345678u, 0xAB), 0xAB345678u);
+  EXPECT_EQ(selected->insert(0, 0x1FF), 0xFF000000u);  // only the field's bits are written
+  EXPECT_EQ(set->field("time")->extract(0x0000000Fu), 7u);
+  EXPECT_EQ(set->field("nothing"), nullptr);
+}
+
+TEST(ProfileLoader, FieldUnitsScaleAndRange) {
+  const auto p = load(R"(  - {index: 0x6010, name: unwinding, type: UNSIGNED32, access: ro}
+bitsets:
+  fields:
+    object: 0x6010
+    bits:
+      time: {bit: 0, width: 16, unit: 0.1 ms, scale: 0.1, eng_unit: ms, min: 0, max: 1000}
+      count: {bit: 16, width: 8, min: 1}
+)");
+  const auto* time = p.bitset("fields")->field("time");
+  EXPECT_EQ(time->unit, "0.1 ms");
+  EXPECT_EQ(time->eng_unit, "ms");
+  EXPECT_DOUBLE_EQ(time->to_engineering(1234), 123.4);
+  EXPECT_TRUE(time->in_range(1000));
+  EXPECT_FALSE(time->in_range(1001));
+  const auto* count = p.bitset("fields")->field("count");
+  EXPECT_EQ(count->eng_unit, "");  // defaults to the (empty) raw unit, as for objects
+  EXPECT_FALSE(count->in_range(0));
+  EXPECT_TRUE(count->in_range(255));
+}
+
+TEST(ProfileLoader, EnumerationsNameCodesAndLeaveTheRestInvalid) {
+  const auto p = load(R"(  - {index: 0x600E, name: command, type: UNSIGNED8, access: wo,
+     values: {0x09..0x5F: manufacturer_specific, 0: off, 1: on, 0b10: start, 3..4: spare}}
+)");
+  const auto& v = p.object(0x600E)->values;
+  EXPECT_TRUE(v.exhaustive);
+  EXPECT_EQ(v.name(0), "off");
+  EXPECT_EQ(v.name(2), "start");  // 0b binary
+  EXPECT_EQ(v.name(4), "spare");
+  EXPECT_EQ(v.name(0x09), "manufacturer_specific");
+  EXPECT_EQ(v.name(0x5F), "manufacturer_specific");
+  EXPECT_EQ(v.name(0x60), std::nullopt);
+  EXPECT_FALSE(v.valid(0x60));
+  EXPECT_FALSE(v.valid(5));
+  EXPECT_TRUE(v.valid(3));
+  // Only a name of exactly one code can be sent.
+  EXPECT_EQ(v.code("start"), 2u);
+  EXPECT_EQ(v.code("spare"), std::nullopt);
+  EXPECT_EQ(v.code("manufacturer_specific"), std::nullopt);
+  EXPECT_EQ(v.code("nothing"), std::nullopt);
+  // Sorted by code whatever the file's order.
+  ASSERT_EQ(v.ranges.size(), 5u);
+  EXPECT_EQ(v.ranges.front().name, "off");
+  EXPECT_EQ(v.ranges.back().name, "manufacturer_specific");
+}
+
+TEST(ProfileLoader, SpecialValuesOfANumber) {
+  const auto p = load(R"(  - {index: 0x6007, name: scaling_factor, type: UNSIGNED32, access: rw, unit: pulse/m, special_values: {0xFFFFFFFF: not_configured}}
+  - {index: 0x6008, name: plain, type: UNSIGNED32, access: rw}
+)");
+  const auto& v = p.object(0x6007)->values;
+  EXPECT_FALSE(v.exhaustive);
+  EXPECT_EQ(v.name(0xFFFFFFFFu), "not_configured");
+  EXPECT_EQ(v.name(10000), std::nullopt);
+  EXPECT_TRUE(v.valid(10000));  // just a number
+  EXPECT_TRUE(p.object(0x6008)->values.empty());
+  EXPECT_TRUE(p.object(0x6008)->values.valid(123));
+}
+
+TEST(ProfileLoader, DuplicateNamesMayShareCodes) {
+  const auto p = load(R"(  - {index: 0x600C, name: pick, type: UNSIGNED8, access: wo, values: {0x01..0x0F: single, 0x10: single}}
+)");
+  EXPECT_EQ(p.object(0x600C)->values.name(0x10), "single");
+  EXPECT_EQ(p.object(0x600C)->values.code("single"), std::nullopt);
+}
+
+TEST(ProfileLoader, ArraysCarryValuesAndTheirElementsFollowTheArrayPattern) {
+  const auto p = load(R"(  - {index: 0x6009, name: status, type: UNSIGNED8, access: ro, array: 254, values: {0: ok}}
+  - {index: 0x600B, name: temperature, type: INTEGER16, access: ro, array: 3, mandatory: false}
+)");
+  ASSERT_NE(p.object(0x6009, 254), nullptr);
+  EXPECT_EQ(p.object(0x6009, 254)->name, "status_254");
+  EXPECT_EQ(p.object(0x6009, 254)->values.name(0), "ok");
+  EXPECT_FALSE(p.object(0x6009, 0)->writable());
+  EXPECT_TRUE(p.object(0x6009, 0)->mandatory);
+  EXPECT_TRUE(p.object(0x6009, 1)->mandatory);
+  EXPECT_FALSE(p.object(0x6009, 2)->mandatory);
+  EXPECT_FALSE(p.object(0x6009, 254)->mandatory);
+  EXPECT_FALSE(p.object(0x600B, 0)->mandatory);
+  EXPECT_FALSE(p.object(0x600B, 1)->mandatory);
+}
+
+TEST(ProfileLoader, BitSetsOfArrayElementsAndOfOneSub) {
+  const auto p = load(R"(  - {index: 0x6001, name: functions, type: UNSIGNED32, access: rw, array: 254}
+  - {index: 0x6005, sub: 0, name: source_count, type: UNSIGNED8, access: ro}
+  - {index: 0x6005, sub: 1, name: supported, type: UNSIGNED16, access: ro}
+  - {index: 0x6005, sub: 2, name: selected, type: UNSIGNED16, access: rw}
+bitsets:
+  functions:
+    object: 0x6001
+    bits:
+      brush_release: {bit: 30, width: 2, values: {0b00: not_available, 0b10: off, 0b11: on}}
+  selected:
+    object: 0x6005
+    sub: 2
+    bits: {canopen: 0}
+  one_feeder:
+    object: 0x6001
+    sub: 7
+    bits: {top: 31}
+)");
+  const auto* f = p.bitset("functions");
+  EXPECT_TRUE(f->every_element);
+  EXPECT_TRUE(f->applies_to(0x6001, 1));
+  EXPECT_TRUE(f->applies_to(0x6001, 254));
+  EXPECT_FALSE(f->applies_to(0x6001, 0));
+  EXPECT_FALSE(f->applies_to(0x6002, 1));
+  const auto* br = f->field("brush_release");
+  EXPECT_EQ(br->values.name(br->extract(0xC0000000u)), "on");
+  EXPECT_EQ(br->values.name(br->extract(0x40000000u)), std::nullopt);  // 01b: undefined
+  const auto* s = p.bitset("selected");
+  EXPECT_FALSE(s->every_element);
+  EXPECT_TRUE(s->applies_to(0x6005, 2));
+  EXPECT_FALSE(s->applies_to(0x6005, 1));
+  const auto* one = p.bitset("one_feeder");
+  EXPECT_FALSE(one->every_element);
+  EXPECT_TRUE(one->applies_to(0x6001, 7));
+  EXPECT_FALSE(one->applies_to(0x6001, 8));
+}
+
+TEST(ProfileLoader, PdoValidityCategoryAndManufacturerData) {
+  const auto p = load(R"(  - {index: 0x6000, name: a, type: UNSIGNED8, access: ro}
+  - {index: 0x6001, name: b, type: UNSIGNED8, access: rw}
+pdos:
+  - {name: tpdo1, direction: tx, cob_id: 0x180, transmission_type: 255, valid: either, mapping: [0x60000008, 0x00010001],
+     manufacturer_data: {name: extra, bits: 12}}
+  - {name: tpdo2, direction: tx, cob_id: 0x280, transmission_type: 1, valid: false, mapping: [0x60000008]}
+  - {name: rpdo1, direction: rx, cob_id: 0x200, transmission_type: 1, mandatory: false, mapping: [0x60010008]}
+  - {name: rpdo2, direction: rx, cob_id: 0x300, transmission_type: 1, valid: true, mapping: [0x60010008]}
+)");
+  const auto* t1 = p.pdo("tpdo1");
+  EXPECT_EQ(t1->validity, PdoValidity::either);
+  EXPECT_TRUE(t1->mandatory);
+  EXPECT_EQ(p.pdo("tpdo2")->validity, PdoValidity::not_valid);
+  EXPECT_EQ(p.pdo("rpdo1")->validity, PdoValidity::valid);
+  EXPECT_FALSE(p.pdo("rpdo1")->mandatory);
+  EXPECT_EQ(p.pdo("rpdo2")->validity, PdoValidity::valid);
+  EXPECT_FALSE(p.pdo("rpdo1")->manufacturer_data.has_value());
+  // 8 + 1 mapped bits, then 12 bits of manufacturer data starting at bit 9: LSB first.
+  ASSERT_TRUE(t1->manufacturer_data.has_value());
+  EXPECT_EQ(t1->manufacturer_data->name, "extra");
+  EXPECT_EQ(t1->mapped_bits(), 9u);
+  // Byte 1 = 1010 1011b: bit 8 is the dummy (1), bits 9..15 = 1010101b; byte 2 low 5 bits = 10011b.
+  const std::array<std::uint8_t, 3> frame{0xFF, 0xAB, 0x13};
+  EXPECT_EQ(t1->manufacturer_value(frame), 0b10011'1010101u);
+  const std::array<std::uint8_t, 2> short_frame{0xFF, 0xAB};  // 16 < 9 + 12 bits: not carried
+  EXPECT_EQ(t1->manufacturer_value(short_frame), std::nullopt);
+  EXPECT_EQ(p.pdo("tpdo2")->manufacturer_value(frame), std::nullopt);
+}
+
+// Errors: file, line and column of the offending token, and what is wrong.
+TEST(ProfileLoaderErrors, FieldWidthAndPosition) {
+  const std::string object = "  - {index: 0x6030, name: status_word, type: UNSIGNED16, access: ro}\nbitsets:\n  s:\n    object: 0x6030\n    bits:\n";
+  EXPECT_ERROR(object + "      a: {bit: 0, width: 0}\n", "t.yaml:11:26: width 0 is outside 1..64");
+  EXPECT_ERROR(object + "      a: {bit: 12, width: 5}\n", "t.yaml:11:16: bits 16..12 does not exist in a 16-bit word");
+  EXPECT_ERROR(object + "      a: 16\n", "t.yaml:11:10: bit 16 does not exist in a 16-bit word");
+  EXPECT_ERROR(object + "      a: {width: 2}\n", "t.yaml:11:10: field a: missing required key 'bit'");
+  EXPECT_ERROR(object + "      a: {bit: 1, widht: 2}\n",
+               "t.yaml:11:19: unknown key 'widht' in field a (allowed: bit, width, unit, scale, eng_unit, min, max, "
+               "values, special_values)");
+  EXPECT_ERROR(object + "      a: {bit: 1, scale: 0}\n", "t.yaml:11:26: scale must not be 0");
+  EXPECT_ERROR(object + "      a: [1, 2]\n", "t.yaml:11:10: 'a' has a value of the wrong type: '<list>'");
+}
+
+TEST(ProfileLoaderErrors, OverlappingFields) {
+  const std::string object = "  - {index: 0x6030, name: status_word, type: UNSIGNED16, access: ro}\nbitsets:\n  s:\n    object: 0x6030\n    bits:\n";
+  EXPECT_ERROR(object + "      a: 3\n      b: 3\n", "t.yaml:12:10: bit 3 is already a");
+  EXPECT_ERROR(object + "      a: 8\n      b: {bit: 7, width: 2}\n", "t.yaml:12:16: bits 8..7 overlap a (bit 8)");
+  EXPECT_ERROR(object + "      a: {bit: 4, width: 4}\n      b: 6\n", "t.yaml:12:10: bit 6 overlaps a (bits 7..4)");
+  // yaml-cpp keeps duplicate keys; the loader refuses the second one.
+  EXPECT_ERROR(object + "      a: 1\n      a: 2\n", "t.yaml:12:7: duplicate bit name 'a'");
+}
+
+TEST(ProfileLoaderErrors, ValueTables) {
+  const std::string head = "  - {index: 0x600A, name: loom_status, type: UNSIGNED8, access: wo, values: ";
+  EXPECT_ERROR(head + "{x1: stop}}\n", "t.yaml:6:78: value code 'x1' must be a number (12, 0x0C, 0b1100) or a range first..last");
+  EXPECT_ERROR(head + "{0x100: stop}}\n", "t.yaml:6:78: value code '0x100' does not fit in 8 bits");
+  EXPECT_ERROR(head + "{5..3: stop}}\n", "t.yaml:6:78: value range '5..3' runs backwards");
+  EXPECT_ERROR(head + "{0..5: stop, 3: run}}\n", "t.yaml:6:90: value code '3' overlaps stop");
+  EXPECT_ERROR(head + "{0: Stop}}\n", "t.yaml:6:81: value name 'Stop' must be snake_case (a-z, 0-9, _; starting with a letter)");
+  EXPECT_ERROR(head + "[stop]}\n", "t.yaml:6:77: values must be a mapping (key: value)");
+  EXPECT_ERROR(head + "{0: stop}, special_values: {1: x}}\n",
+               "t.yaml:6:104: give either values (an enumeration) or special_values (a number), not both");
+  EXPECT_ERROR("  - {index: 0x1008, name: device_name, type: VISIBLE_STRING, access: ro, values: {0: x}}\n",
+               "t.yaml:6:82: named codes need an integer data type, not VISIBLE_STRING");
+  // A field's codes must fit the field, not the word.
+  EXPECT_ERROR("  - {index: 0x6001, name: functions, type: UNSIGNED32, access: rw}\nbitsets:\n  f:\n    object: 0x6001\n"
+               "    bits:\n      br: {bit: 30, width: 2, values: {0b100: on}}\n",
+               "t.yaml:11:40: value code '0b100' does not fit in 2 bits");
+}
+
+TEST(ProfileLoaderErrors, ObjectsSubsAndArrays) {
+  EXPECT_ERROR("  - {index: 0x6005, sub: 256, name: a, type: UNSIGNED8, access: ro}\n", "t.yaml:6:26: sub 256 is outside 0..255");
+  EXPECT_ERROR("  - {index: 0x6005, sub: 1, name: a, type: UNSIGNED8, access: ro}\n"
+               "  - {index: 0x6005, sub: 1, name: b, type: UNSIGNED8, access: ro}\n",
+               "t.yaml:7:13: object 6005h sub 1 is defined twice");
+  EXPECT_ERROR("  - {index: 0x6001, sub: 1, name: a, type: UNSIGNED8, access: ro, array: 4}\n",
+               "t.yaml:6:26: an array defines its subs (0 and 1..4): drop sub");
+  // An explicit sub colliding with a generated element.
+  EXPECT_ERROR("  - {index: 0x6001, name: a, type: UNSIGNED8, access: ro, array: 4}\n"
+               "  - {index: 0x6001, sub: 4, name: b, type: UNSIGNED8, access: ro}\n",
+               "t.yaml:7:13: object 6001h sub 4 is defined twice");
+  EXPECT_ERROR("  - {index: 0x6001, name: a, type: UNSIGNED8, access: ro, array: 4}\n"
+               "  - {index: 0x6002, name: a_3, type: UNSIGNED8, access: ro}\n",
+               "t.yaml:7:27: duplicate object name 'a_3'");
+}
+
+TEST(ProfileLoaderErrors, BitSetObjects) {
+  const std::string objects = "  - {index: 0x6005, sub: 1, name: supported, type: UNSIGNED16, access: ro}\n"
+                              "  - {index: 0x1008, name: device_name, type: VISIBLE_STRING, access: ro}\nbitsets:\n  s:\n";
+  EXPECT_ERROR(objects + "    object: 0x6005\n    sub: 3\n    bits: {a: 0}\n",
+               "t.yaml:11:10: bitset s names an object the profile does not define");
+  EXPECT_ERROR(objects + "    object: 0x1008\n    bits: {a: 0}\n",
+               "t.yaml:10:13: bitset s needs an integer object, not VISIBLE_STRING");
+  EXPECT_ERROR(objects + "    object: 0x6005\n    sub: 1\n    bitz: {a: 0}\n",
+               "t.yaml:12:5: unknown key 'bitz' in bitset s (allowed: object, sub, bits)");
+}
+
+TEST(ProfileLoaderErrors, Pdos) {
+  const std::string objects = "  - {index: 0x6000, name: a, type: UNSIGNED32, access: ro}\n"
+                              "  - {index: 0x6001, name: b, type: UNSIGNED32, access: wo}\npdos:\n";
+  EXPECT_ERROR(objects + "  - {name: tpdo1, direction: tx, cob_id: 0x180, transmission_type: 1, valid: maybe, mapping: [0x60000020]}\n",
+               "t.yaml:9:78: valid must be true, false or either (COB-ID bit 31 as the device starts), not 'maybe'");
+  EXPECT_ERROR(objects + "  - {name: rpdo1, direction: rx, cob_id: 0x200, transmission_type: 1, mapping: [0x60000020]}\n",
+               "t.yaml:9:81: an RPDO cannot carry a, which is ro");
+  EXPECT_ERROR(objects + "  - {name: tpdo1, direction: tx, cob_id: 0x180, transmission_type: 1, mapping: [0x60010020]}\n",
+               "t.yaml:9:81: a TPDO cannot carry b, which is write-only");
+  EXPECT_ERROR(objects + "  - {name: tpdo1, direction: tx, cob_id: 0x180, transmission_type: 1, mapping: [0x60000020],\n"
+                         "     manufacturer_data: {name: extra, bits: 33}}\n",
+               "t.yaml:10:45: manufacturer data of 33 bits does not fit: the mapping uses 32 of 64 bits");
+  EXPECT_ERROR(objects + "  - {name: tpdo1, direction: tx, cob_id: 0x180, transmission_type: 1, mapping: [0x60000020],\n"
+                         "     manufacturer_data: {name: Extra, bits: 16}}\n",
+               "t.yaml:10:32: manufacturer_data name 'Extra' must be snake_case (a-z, 0-9, _; starting with a letter)");
+  EXPECT_ERROR(objects + "  - {name: tpdo1, direction: tx, cob_id: 0x180, transmission_type: 1, mapping: [0x60000020],\n"
+                         "     manufacturer_data: {name: extra}}\n",
+               "t.yaml:10:25: manufacturer_data: missing required key 'bits'");
+  EXPECT_ERROR(objects + "  - {name: tpdo1, direction: tx, cob_id: 0x180, transmission_type: 1, mapping: [0x60000020], mandatory: 2}\n",
+               "t.yaml:9:105: 'mandatory' has a value of the wrong type: '2'");
+}

@@ -1,0 +1,302 @@
+// Puller profile CiA 420-2 1.0 (spec file 001, sections 2 and 3.1) and its 3.0 status word variant,
+// against the specification tables and profile-decisions.md. Frames are written by hand
+// (little-endian) and decoded by the production PDO codec; expected values are typed in.
+#include <gtest/gtest.h>
+
+#include <array>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "canopen/pdo_mapping.hpp"
+#include "canopen/process_image.hpp"
+#include "profiles/profile_registry.hpp"
+
+using lb::canopen::DataType;
+using lb::canopen::PdoEntry;
+using lb::profiles::Access;
+using lb::profiles::PdoDirection;
+using lb::profiles::PdoValidity;
+using lb::profiles::Profile;
+
+namespace {
+
+// The bridge's path for a frame: mapping -> binding -> process image.
+struct Image {
+  lb::canopen::ProcessImage image;
+  std::optional<lb::canopen::PdoBinding> binding;
+
+  Image(const Profile& p, const std::string& pdo_name) {
+    const auto* pdo = p.pdo(pdo_name);
+    EXPECT_NE(pdo, nullptr) << pdo_name;
+    if (pdo == nullptr) return;
+    for (const auto& e : pdo->mapping) image.slot(e.index, e.sub);
+    auto mapping = lb::canopen::PdoMapping::create(pdo->mapping);
+    EXPECT_TRUE(mapping);
+    if (mapping) binding.emplace(std::move(*mapping), image);
+  }
+  bool unpack(std::span<const std::uint8_t> frame) { return binding && binding->unpack_into(frame, image).has_value(); }
+  std::uint64_t raw(std::uint16_t index, std::uint8_t sub = 0) const { return image.get(image.find(index, sub)); }
+  void set(std::uint16_t index, std::uint64_t raw) { image.set(image.find(index, 0), raw); }
+  std::vector<std::uint8_t> pack() const {
+    std::array<std::uint8_t, 8> out{};
+    const auto n = binding->pack_from(image, out);
+    return {out.begin(), out.begin() + n};
+  }
+};
+
+std::vector<PdoEntry> entries(std::initializer_list<std::uint32_t> values) {
+  std::vector<PdoEntry> out;
+  for (auto v : values) out.push_back(PdoEntry::from_u32(v));
+  return out;
+}
+
+using Bits = std::vector<std::pair<const char*, unsigned>>;
+
+// Every named flag at its position, and no flag beyond these.
+void expect_bits(const Profile& p, const char* set_name, const Bits& bits) {
+  const auto* set = p.bitset(set_name);
+  ASSERT_NE(set, nullptr) << set_name;
+  EXPECT_EQ(set->bits.size(), bits.size()) << set_name;
+  for (const auto& [name, bit] : bits) EXPECT_EQ(set->bit(name), bit) << set_name << "." << name;
+}
+
+const Bits kControl{{"motor_stop", 0},  {"motor_start", 1}, {"clamp_close", 2}, {"clamp_open", 3},
+                    {"extruder_running", 6}, {"f1_stop", 7}, {"f1_start", 8}, {"f2_stop", 9},
+                    {"f2_start", 10}, {"f3_stop", 11}, {"f3_start", 12}};
+
+class PullerProfile : public ::testing::Test {
+ protected:
+  lb::profiles::ProfileRegistry registry_ = lb::profiles::ProfileRegistry::builtin();
+  const Profile& p_ = *registry_.find("cia420-2", "1.0");
+  const Profile& p30_ = *registry_.find("cia420-2", "3.0-status");
+};
+
+}  // namespace
+
+TEST_F(PullerProfile, Identity) {
+  EXPECT_EQ(p_.device, "puller");
+  EXPECT_EQ(p_.device_type, 0x01A4u);
+  EXPECT_EQ(p30_.device, "puller");
+  EXPECT_EQ(p30_.device_type, 0x01A4u);
+}
+
+TEST_F(PullerProfile, EveryObjectMatchesTheSpec) {
+  struct Expect {
+    std::uint16_t index;
+    const char* name;
+    DataType type;
+    Access access;
+    const char* unit;
+    double scale;
+    const char* eng_unit;
+    std::optional<std::int64_t> min, max;
+  };
+  const std::optional<std::int64_t> none;
+  // Section 3.1.1-3.1.14; every object is Mandatory.
+  const std::vector<Expect> objects{
+      {0x6000, "puller_speed_actual_value", DataType::integer16, Access::ro, "0.01 %", 0.01, "%", -10000, 10000},
+      {0x6001, "puller_speed_real_maximum", DataType::unsigned32, Access::ro, "mm/min", 0.001, "m/min", none, none},
+      {0x6002, "puller_speed_set_value", DataType::integer16, Access::rw, "0.01 %", 0.01, "%", -10000, 10000},
+      {0x6003, "puller_speed_set_maximum", DataType::unsigned32, Access::rw, "mm/min", 0.001, "m/min", none, none},
+      {0x6004, "puller_speed_set_echo", DataType::integer16, Access::ro, "0.01 %", 0.01, "%", -10000, 10000},
+      {0x6005, "puller_speed_step", DataType::integer16, Access::rw, "0.01 %", 0.01, "%", -10000, 10000},
+      {0x6006, "puller_load_actual_value", DataType::integer16, Access::ro, "0.01 %", 0.01, "%", -32768, 32767},
+      {0x6007, "scaling_factor", DataType::unsigned32, Access::rw, "pulse/m", 1.0, "pulse/m", none, none},
+      {0x6008, "product_speed", DataType::integer32, Access::ro, "0.1 mm/min", 0.0001, "m/min", 0, 10000},
+      {0x6009, "height_adjustment", DataType::unsigned16, Access::rw, "0.1 mm", 0.0001, "m", none, none},
+      {0x600A, "pressure_set_value", DataType::unsigned16, Access::rw, "0.01 %", 0.01, "%", 0, 10000},
+      {0x6010, "configuration_word", DataType::unsigned32, Access::ro, "", 1.0, "", none, none},
+      {0x6020, "control_word", DataType::unsigned16, Access::rw, "", 1.0, "", none, none},
+      {0x6030, "status_word", DataType::unsigned16, Access::ro, "", 1.0, "", none, none},
+  };
+  EXPECT_EQ(p_.objects.size(), objects.size());
+  for (const auto& e : objects) {
+    const auto* o = p_.object(e.index);
+    ASSERT_NE(o, nullptr) << std::hex << e.index;
+    EXPECT_EQ(o->name, e.name);
+    EXPECT_EQ(o->type, e.type) << e.name;
+    EXPECT_EQ(o->access, e.access) << e.name;
+    EXPECT_EQ(o->unit, e.unit) << e.name;
+    EXPECT_DOUBLE_EQ(o->scale, e.scale) << e.name;
+    EXPECT_EQ(o->eng_unit, e.eng_unit) << e.name;
+    EXPECT_EQ(o->min, e.min) << e.name;
+    EXPECT_EQ(o->max, e.max) << e.name;
+    EXPECT_TRUE(o->mandatory) << e.name;
+    EXPECT_EQ(p_.object(e.index, 1), nullptr) << e.name << ": VAR, not ARRAY";
+  }
+  // 3.1.8: FFFF FFFFh means "not configured"; any other value is a number of pulses per metre.
+  const auto& scaling = p_.object(0x6007)->values;
+  EXPECT_FALSE(scaling.exhaustive);
+  EXPECT_EQ(scaling.name(0xFFFFFFFFu), "not_configured");
+  EXPECT_TRUE(scaling.valid(10000));
+  EXPECT_EQ(scaling.name(10000), std::nullopt);
+}
+
+TEST_F(PullerProfile, DefaultPdos) {
+  // 2.1-2.3: TPDO1 180h, TPDO2 280h, RPDO1 200h (+ node-ID), transmission type 1.
+  const auto* t1 = p_.pdo("tpdo1");
+  const auto* t2 = p_.pdo("tpdo2");
+  const auto* r1 = p_.pdo("rpdo1");
+  ASSERT_TRUE(t1 && t2 && r1);
+  EXPECT_EQ(p_.pdos.size(), 3u);
+  EXPECT_EQ(t1->cob_id(5), 0x185u);
+  EXPECT_EQ(t2->cob_id(5), 0x285u);
+  EXPECT_EQ(r1->cob_id(5), 0x205u);
+  for (const auto& pdo : p_.pdos) {
+    EXPECT_EQ(pdo.transmission_type, 1) << pdo.name;
+    EXPECT_EQ(pdo.validity, PdoValidity::valid) << pdo.name;
+    EXPECT_TRUE(pdo.mandatory) << pdo.name;
+  }
+  EXPECT_EQ(t1->direction, PdoDirection::tx);
+  EXPECT_EQ(t2->direction, PdoDirection::tx);
+  EXPECT_EQ(r1->direction, PdoDirection::rx);
+  EXPECT_EQ(t1->mapping, entries({0x60300010, 0x60000010, 0x60060010}));
+  EXPECT_EQ(t2->mapping, entries({0x60040010, 0x60080020}));  // "1 mapped object", two listed
+  EXPECT_EQ(r1->mapping, entries({0x60200010, 0x60020010}));  // lost table: as corrugator 3.1
+  ASSERT_TRUE(t1->manufacturer_data);
+  EXPECT_EQ(t1->manufacturer_data->name, "manufacturer_status_word");
+  EXPECT_EQ(t1->manufacturer_data->bits, 16u);
+  ASSERT_TRUE(r1->manufacturer_data);
+  EXPECT_EQ(r1->manufacturer_data->name, "manufacturer_control_word");
+  EXPECT_EQ(r1->manufacturer_data->bits, 16u);
+  EXPECT_FALSE(t2->manufacturer_data);
+}
+
+TEST_F(PullerProfile, Tpdo1StatusSpeedAndLoad) {
+  // Status 0301h (motor running, f1 running, f1 ready); speed -2500 = F63Ch (-25.00 %);
+  // load 12345 = 3039h (123.45 %: load has the full INTEGER16 range).
+  Image img(p_, "tpdo1");
+  const std::array<std::uint8_t, 6> frame{0x01, 0x03, 0x3C, 0xF6, 0x39, 0x30};
+  ASSERT_TRUE(img.unpack(frame));
+  EXPECT_EQ(img.raw(0x6030), 0x0301u);
+  EXPECT_EQ(img.raw(0x6000), 0xF63Cu);
+  EXPECT_DOUBLE_EQ(p_.object(0x6000)->to_engineering(img.raw(0x6000)), -25.0);
+  EXPECT_DOUBLE_EQ(p_.object(0x6006)->to_engineering(img.raw(0x6006)), 123.45);
+  const auto* sw = p_.bitset("status_word");
+  EXPECT_EQ(sw->field("motor_running")->extract(img.raw(0x6030)), 1u);
+  EXPECT_EQ(sw->field("f1_running")->extract(img.raw(0x6030)), 1u);
+  EXPECT_EQ(sw->field("f1_ready")->extract(img.raw(0x6030)), 1u);
+  EXPECT_EQ(sw->field("motor_ready_to_start")->extract(img.raw(0x6030)), 0u);
+  // No second status word in a 6-byte frame; 8 bytes carry one: ABCDh.
+  EXPECT_EQ(p_.pdo("tpdo1")->manufacturer_value(frame), std::nullopt);
+  const std::array<std::uint8_t, 8> longer{0x01, 0x03, 0x3C, 0xF6, 0x39, 0x30, 0xCD, 0xAB};
+  EXPECT_EQ(p_.pdo("tpdo1")->manufacturer_value(longer), 0xABCDu);
+  // Short frames are refused.
+  const std::array<std::uint8_t, 5> short_frame{0x01, 0x03, 0x3C, 0xF6, 0x39};
+  EXPECT_FALSE(img.unpack(short_frame));
+}
+
+TEST_F(PullerProfile, Tpdo2EchoAndProductSpeed) {
+  // Echo 10000 = 2710h (100.00 %); product speed 123456 = 0001 E240h in 0.1 mm/min = 12.3456 m/min.
+  Image img(p_, "tpdo2");
+  const std::array<std::uint8_t, 6> frame{0x10, 0x27, 0x40, 0xE2, 0x01, 0x00};
+  ASSERT_TRUE(img.unpack(frame));
+  EXPECT_DOUBLE_EQ(p_.object(0x6004)->to_engineering(img.raw(0x6004)), 100.0);
+  EXPECT_DOUBLE_EQ(p_.object(0x6008)->to_engineering(img.raw(0x6008)), 12.3456);
+  // Outside the printed 0..10000: decoded and published, flagged for diagnostics only.
+  EXPECT_FALSE(p_.object(0x6008)->check_raw(123456));
+  // Reverse: -5000 = FFFF EC78h = -0.5 m/min.
+  const std::array<std::uint8_t, 6> reverse{0xF0, 0xD8, 0x78, 0xEC, 0xFF, 0xFF};
+  ASSERT_TRUE(img.unpack(reverse));
+  EXPECT_DOUBLE_EQ(p_.object(0x6004)->to_engineering(img.raw(0x6004)), -100.0);
+  EXPECT_DOUBLE_EQ(p_.object(0x6008)->to_engineering(img.raw(0x6008)), -0.5);
+}
+
+TEST_F(PullerProfile, Rpdo1ControlAndSpeedSetValue) {
+  // Control 0042h (motor start, extruder running); speed set -12.34 % = -1234 = FB2Eh.
+  Image img(p_, "rpdo1");
+  const auto* set = p_.object(0x6002);
+  auto raw = set->to_raw(-12.34);
+  ASSERT_TRUE(raw);
+  img.set(0x6020, 0x0042);
+  img.set(0x6002, *raw);
+  EXPECT_EQ(img.pack(), (std::vector<std::uint8_t>{0x42, 0x00, 0x2E, 0xFB}));
+  // Monitor role: the controller's frame decodes to the same values.
+  Image monitor(p_, "rpdo1");
+  const std::array<std::uint8_t, 4> frame{0x42, 0x00, 0x2E, 0xFB};
+  ASSERT_TRUE(monitor.unpack(frame));
+  EXPECT_EQ(monitor.raw(0x6020), 0x0042u);
+  EXPECT_DOUBLE_EQ(set->to_engineering(monitor.raw(0x6002)), -12.34);
+  // The set value range is -10000..10000 (±100 %).
+  EXPECT_TRUE(set->to_raw(-100.0));
+  EXPECT_FALSE(set->to_raw(100.01));
+  EXPECT_FALSE(set->to_raw(-100.01));
+  // A second control word may follow: 6 bytes carry 1234h.
+  const std::array<std::uint8_t, 6> longer{0x42, 0x00, 0x2E, 0xFB, 0x34, 0x12};
+  EXPECT_EQ(p_.pdo("rpdo1")->manufacturer_value(longer), 0x1234u);
+}
+
+TEST_F(PullerProfile, ControlStatusAndConfigurationBits) {
+  expect_bits(p_, "control_word", kControl);
+  expect_bits(p_, "status_word",
+              {{"motor_running", 0}, {"motor_ready_to_start", 1}, {"clamp_closed", 2}, {"fault", 3}, {"alarm", 4},
+               {"increase_request", 5}, {"decrease_request", 6}, {"reverse_direction", 7}, {"f1_running", 8},
+               {"f1_ready", 9}, {"f2_running", 10}, {"f2_ready", 11}, {"f3_running", 12}, {"f3_ready", 13}});
+  expect_bits(p_, "configuration_word", {{"speed_measuring", 0}});
+  EXPECT_EQ(p_.bitset("control_word")->index, 0x6020);
+  EXPECT_EQ(p_.bitset("status_word")->index, 0x6030);
+  EXPECT_EQ(p_.bitset("configuration_word")->index, 0x6010);
+}
+
+TEST_F(PullerProfile, Status30MovesReverseDirectionAndAddsSpeedSetMode) {
+  expect_bits(p30_, "status_word",
+              {{"motor_running", 0}, {"motor_ready_to_start", 1}, {"clamp_closed", 2}, {"fault", 3}, {"alarm", 4},
+               {"increase_request", 5}, {"decrease_request", 6}, {"f1_running", 8}, {"f1_ready", 9},
+               {"f2_running", 10}, {"f2_ready", 11}, {"f3_running", 12}, {"f3_ready", 13},
+               {"reverse_direction", 14}, {"speed_set_mode", 15}});
+  const auto* mode = p30_.bitset("status_word")->field("speed_set_mode");
+  ASSERT_NE(mode, nullptr);
+  EXPECT_EQ(mode->values.name(0), "local");
+  EXPECT_EQ(mode->values.name(1), "remote");
+
+  // The same TPDO1 frame, status C080h: bits 15, 14 and 7.
+  const std::array<std::uint8_t, 6> frame{0x80, 0xC0, 0x00, 0x00, 0x00, 0x00};
+  Image v10(p_, "tpdo1");
+  Image v30(p30_, "tpdo1");
+  ASSERT_TRUE(v10.unpack(frame));
+  ASSERT_TRUE(v30.unpack(frame));
+  const auto* sw10 = p_.bitset("status_word");
+  const auto* sw30 = p30_.bitset("status_word");
+  // 1.0: bit 7 is reverse direction, 14 and 15 reserved.
+  EXPECT_EQ(sw10->field("reverse_direction")->extract(v10.raw(0x6030)), 1u);
+  EXPECT_EQ(sw10->field("speed_set_mode"), nullptr);
+  // 3.0: bit 7 reserved, bit 14 reverse direction, bit 15 remote.
+  EXPECT_EQ(sw30->field("reverse_direction")->extract(v30.raw(0x6030)), 1u);
+  EXPECT_EQ(mode->values.name(mode->extract(v30.raw(0x6030))), "remote");
+  const std::array<std::uint8_t, 6> only_bit7{0x80, 0x00, 0x00, 0x00, 0x00, 0x00};
+  ASSERT_TRUE(v30.unpack(only_bit7));
+  EXPECT_EQ(sw30->field("reverse_direction")->extract(v30.raw(0x6030)), 0u);
+  EXPECT_EQ(mode->values.name(mode->extract(v30.raw(0x6030))), "local");
+}
+
+TEST_F(PullerProfile, Status30VariantDiffersOnlyInTheStatusWord) {
+  ASSERT_EQ(p30_.objects.size(), p_.objects.size());
+  for (std::size_t i = 0; i < p_.objects.size(); ++i) {
+    const auto& a = p_.objects[i];
+    const auto& b = p30_.objects[i];
+    EXPECT_EQ(a.index, b.index);
+    EXPECT_EQ(a.sub, b.sub);
+    EXPECT_EQ(a.name, b.name);
+    EXPECT_EQ(a.type, b.type) << a.name;
+    EXPECT_EQ(a.access, b.access) << a.name;
+    EXPECT_EQ(a.unit, b.unit) << a.name;
+    EXPECT_EQ(a.scale, b.scale) << a.name;
+    EXPECT_EQ(a.eng_unit, b.eng_unit) << a.name;
+    EXPECT_EQ(a.min, b.min) << a.name;
+    EXPECT_EQ(a.max, b.max) << a.name;
+    EXPECT_EQ(a.mandatory, b.mandatory) << a.name;
+    EXPECT_EQ(a.values.ranges.size(), b.values.ranges.size()) << a.name;
+  }
+  ASSERT_EQ(p30_.pdos.size(), p_.pdos.size());
+  for (std::size_t i = 0; i < p_.pdos.size(); ++i) {
+    EXPECT_EQ(p_.pdos[i].name, p30_.pdos[i].name);
+    EXPECT_EQ(p_.pdos[i].cob_id_base, p30_.pdos[i].cob_id_base);
+    EXPECT_EQ(p_.pdos[i].transmission_type, p30_.pdos[i].transmission_type);
+    EXPECT_EQ(p_.pdos[i].mapping, p30_.pdos[i].mapping);
+    EXPECT_EQ(p_.pdos[i].manufacturer_data.has_value(), p30_.pdos[i].manufacturer_data.has_value());
+  }
+  expect_bits(p30_, "control_word", kControl);
+  expect_bits(p30_, "configuration_word", {{"speed_measuring", 0}});
+}
