@@ -77,7 +77,10 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
 
 LineBridge::~LineBridge() {
   stop();
-  // DDS first: no listener may call into a gateway that is being destroyed.
+  // SDO clients first: they complete what is pending (boot sequences, service calls), and those
+  // completions still need the gateways and the DDS writers.
+  for (auto& rt : buses_) rt.sdo.reset();
+  // Then DDS: no listener may call into a gateway that is being destroyed.
   dds_.reset();
 }
 

@@ -10,7 +10,7 @@
 #include "app/run_until_signal.hpp"
 #include "canopen/bus_loop.hpp"
 #include "sim/line_controller.hpp"
-#include "sim/saw_simulator.hpp"
+#include "sim/device_simulator.hpp"
 
 int main(int argc, char** argv) {
   CLI::App cli{"linebridge-sim: simulated CANopen devices of a line"};
@@ -47,7 +47,7 @@ int main(int argc, char** argv) {
   }
 
   std::vector<std::unique_ptr<lb::canopen::BusLoop>> loops;
-  std::vector<std::unique_ptr<lb::sim::SawSimulator>> devices;
+  std::vector<std::unique_ptr<lb::sim::DeviceSimulator>> devices;
   std::vector<std::unique_ptr<lb::sim::LineController>> controllers;
   const bool play_devices = role != "controller";
   for (const auto& bus_cfg : config->buses) {
@@ -62,11 +62,12 @@ int main(int argc, char** argv) {
       if (dev.bus != bus_cfg.name || (!only.empty() && std::find(only.begin(), only.end(), dev.name) == only.end())) continue;
       on_bus.push_back(&dev);
       if (!play_devices) continue;
-      if (dev.resolved_profile->device != "saw") {
-        spdlog::error("{}: no simulator for device type {} yet", dev.name, dev.resolved_profile->device);
+      try {
+        devices.push_back(lb::sim::make_simulator(*loop, dev));
+      } catch (const std::runtime_error& e) {
+        spdlog::error("{}", e.what());
         return 1;
       }
-      devices.push_back(std::make_unique<lb::sim::SawSimulator>(*loop, dev, *dev.resolved_profile));
       devices.back()->start();
     }
     if (role != "devices" && !on_bus.empty()) {

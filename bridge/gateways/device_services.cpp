@@ -150,6 +150,66 @@ DeviceServices::DeviceServices(DeviceContext context) : ctx_(context) {
                     });
   });
   if (!write) fail(write.error());
+  serve_parameters(path);
+}
+
+void DeviceServices::serve_parameters(const std::string& path) {
+  using Get = ddsl::ServiceServer<srv::GetParameter_RequestPubSubType, srv::GetParameter_ResponsePubSubType>;
+  using Set = ddsl::ServiceServer<srv::SetParameter_RequestPubSubType, srv::SetParameter_ResponsePubSubType>;
+  const auto fail = [this](const Error& e) { throw std::runtime_error(ctx_.device.name + ": " + e.message); };
+
+  auto get = Get::serve(ctx_.dds, path + "get_parameter", [this](const srv::GetParameter_Request& req, Get::Responder respond) {
+    srv::GetParameter_Response r;
+    const auto* obj = ctx_.profile.object(req.parameter());
+    if (obj == nullptr) return r.message("profile " + ctx_.profile.key() + " has no object '" + req.parameter() + "'"), respond(r);
+    if (!obj->readable()) return r.message(req.parameter() + " is write-only"), respond(r);
+    if (auto why = refusal(); !why.empty()) return r.message(why), respond(r);
+    ctx_.sdo->upload(ctx_.device.node_id, obj->index, obj->sub, [respond, obj](canopen::SdoClient::UploadResult result) {
+      srv::GetParameter_Response reply;
+      if (!result) {
+        reply.abort_code(result.error().abort_code);
+        reply.message(result.error().message);
+        return respond(reply);
+      }
+      std::uint64_t raw = 0;
+      for (std::size_t i = 0; i < result->size() && i < 8; ++i) raw |= std::uint64_t{(*result)[i]} << (8 * i);
+      reply.success(true);
+      reply.value(obj->to_engineering(raw));
+      reply.unit(obj->eng_unit);
+      reply.raw(canopen::is_signed_integer(obj->type) ? canopen::sign_extend(raw, canopen::bit_size(obj->type))
+                                                      : static_cast<std::int64_t>(raw));
+      respond(reply);
+    });
+  });
+  if (!get) fail(get.error());
+
+  auto set = Set::serve(ctx_.dds, path + "set_parameter", [this](const srv::SetParameter_Request& req, Set::Responder respond) {
+    srv::SetParameter_Response r;
+    const auto* obj = ctx_.profile.object(req.parameter());
+    if (obj == nullptr) return r.message("profile " + ctx_.profile.key() + " has no object '" + req.parameter() + "'"), respond(r);
+    if (!obj->writable()) {
+      return r.message(req.parameter() + " is " + std::string(profiles::to_string(obj->access)) + ", not writable"), respond(r);
+    }
+    if (auto why = refusal(); !why.empty()) return r.message(why), respond(r);
+    auto raw = obj->to_raw(req.value());  // range of the profile, rounded to the raw unit
+    if (!raw) return r.message(raw.error().message), respond(r);
+    const auto bits = canopen::bit_size(obj->type);
+    const bool is_signed = canopen::is_signed_integer(obj->type);
+    const std::int64_t shown = is_signed ? canopen::sign_extend(*raw, bits) : static_cast<std::int64_t>(*raw);
+    const canopen::ObjectValue value = is_signed ? canopen::ObjectValue{shown} : canopen::ObjectValue{*raw};
+    ctx_.sdo->write(ctx_.device.node_id, obj->index, obj->sub, obj->type, value,
+                    [respond, shown](canopen::SdoClient::DownloadResult result) {
+                      srv::SetParameter_Response reply;
+                      reply.success(result.has_value());
+                      reply.raw(shown);
+                      if (!result) {
+                        reply.abort_code(result.error().abort_code);
+                        reply.message(result.error().message);
+                      }
+                      respond(reply);
+                    });
+  });
+  if (!set) fail(set.error());
 }
 
 std::string DeviceServices::refusal() const {

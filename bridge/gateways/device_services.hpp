@@ -1,6 +1,7 @@
 #pragma once
 // What every device offers on DDS whatever its profile: its emergencies, its identity (info), and
-// the nmt, sdo_read and sdo_write services. In the master role it also owns the device's boot
+// the nmt, sdo_read, sdo_write, get_parameter and set_parameter services (the last two: profile
+// objects by name, in engineering units, checked against the profile's access and range). In the master role it also owns the device's boot
 // sequence (presence check, SDO configuration, NMT start, identity).
 // Device-type gateways add status, set values and typed configuration.
 
@@ -28,6 +29,7 @@ class DeviceServices {
   using Reply = std::function<void(bool ok, std::uint32_t abort_code, std::string message)>;
   void on_nmt(const linebridge_msgs::srv::Nmt_Request& request, std::function<void(bool, std::string)> reply);
   std::string refusal() const;  // why this bus takes no commands, or empty
+  void serve_parameters(const std::string& path);  // get_parameter / set_parameter
   void publish_info(const canopen::DeviceIdentity& id);
 
   DeviceContext ctx_;

@@ -128,3 +128,12 @@ void SawCodec::apply(const RawSetpoint& raw) {
 }
 
 }  // namespace lb::gateways
+
+namespace lb::gateways {
+
+void SawCodec::set_control_bit(unsigned bit, bool on) {
+  const std::uint64_t cw = image_.get(control_word_.slot);
+  image_.set(control_word_.slot, on ? cw | (1ULL << bit) : cw & ~(1ULL << bit));
+}
+
+}  // namespace lb::gateways

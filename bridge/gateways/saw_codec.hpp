@@ -50,6 +50,9 @@ class SawCodec {
   // Into the RPDO image; toggles "change of length" whenever the product length changes, which
   // makes the saw take the new length after its next cut.
   void apply(const RawSetpoint& raw);
+  // A single control-word bit (momentary commands).
+  void set_control_bit(unsigned bit, bool on);
+  const profiles::BitSet& control_word() const { return bitset("control_word"); }
 
  private:
   struct Object {

@@ -10,6 +10,7 @@
 
 #include "canopen/pdo_transmitter.hpp"
 #include "gateways/gateway.hpp"
+#include "gateways/momentary_commands.hpp"
 #include "gateways/saw_codec.hpp"
 #include "msgs/commonPubSubTypes.h"
 #include "msgs/sawPubSubTypes.h"
@@ -31,6 +32,7 @@ class SawGateway : public Gateway {
   DeviceContext ctx_;
   SawCodec codec_;  // loop thread, except validate() (const, any thread)
   std::vector<std::unique_ptr<canopen::PdoTransmitter>> rpdos_;  // master role: what the bridge sends
+  MomentaryCommands commands_;
 
   ddsl::Writer<linebridge_msgs::msg::SawStatusPubSubType> status_writer_;
   ddsl::Writer<linebridge_msgs::msg::SawCutPubSubType> cut_writer_;

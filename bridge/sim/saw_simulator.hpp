@@ -11,14 +11,15 @@
 #include "canopen/process_image.hpp"
 #include "canopen/sdo_server.hpp"
 #include "profiles/line_config.hpp"
+#include "sim/device_simulator.hpp"
 #include "sim/nmt_slave.hpp"
 
 namespace lb::sim {
 
-class SawSimulator {
+class SawSimulator : public DeviceSimulator {
  public:
   SawSimulator(canopen::BusLoop& loop, const profiles::DeviceConfig& device, const profiles::Profile& profile);
-  void start();  // boot-up; loop thread or before the loop starts
+  void start() override;
 
  private:
   using Clock = std::chrono::steady_clock;
