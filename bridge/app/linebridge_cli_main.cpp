@@ -12,6 +12,8 @@
 
 #include "app/line_config_source.hpp"
 #include "app/run_until_signal.hpp"
+#include "app/cli_services.hpp"
+#include "app/common_text.hpp"
 #include "app/saw_text.hpp"
 #include "dds/participant.hpp"
 #include "dds/topic_names.hpp"
@@ -146,6 +148,24 @@ int run_echo(lb::ddsl::Participant& dds, const std::string& line, const std::str
       fmt::print("{} {}\n", device, lb::app::to_text(c));
       std::fflush(stdout);
     });
+  } else if (o.topic == "info") {
+    sub = dds.subscribe<msg::DeviceInfoPubSubType>(topic, lb::ddsl::QosKind::state, [&](const msg::DeviceInfo& i, const auto&) {
+      std::lock_guard lock(print_mutex);
+      fmt::print("{} {}\n", device, lb::app::to_text(i));
+      std::fflush(stdout);
+    });
+  } else if (o.topic == "emergency") {
+    sub = dds.subscribe<msg::EmergencyPubSubType>(topic, lb::ddsl::QosKind::event, [&](const msg::Emergency& e, const auto&) {
+      std::lock_guard lock(print_mutex);
+      fmt::print("{} {}\n", device, lb::app::to_text(e));
+      std::fflush(stdout);
+    });
+  } else if (o.topic == "diagnostics") {
+    sub = dds.subscribe<msg::DiagnosticsPubSubType>(topic, lb::ddsl::QosKind::state, [&](const msg::Diagnostics& d, const auto&) {
+      std::lock_guard lock(print_mutex);
+      fmt::print("{}", lb::app::to_text(d));
+      std::fflush(stdout);
+    });
   } else {
     sub = dds.subscribe<msg::SetpointResultPubSubType>(topic, lb::ddsl::QosKind::command,
                                                       [&](const msg::SetpointResult& r, const auto&) {
@@ -171,9 +191,9 @@ int main(int argc, char** argv) {
   std::string device;
   EchoOptions echo;
   auto* echo_cmd = cli.add_subcommand("echo", "print a device's samples as they arrive (Ctrl-C stops)");
-  echo_cmd->add_option("device", device, "device name")->required();
-  echo_cmd->add_option("topic", echo.topic, "status, cut or setpoint_result")
-      ->check(CLI::IsMember({"status", "cut", "setpoint_result"}))
+  echo_cmd->add_option("device", device, "device name, or 'bridge' for diagnostics")->required();
+  echo_cmd->add_option("topic", echo.topic, "status, cut, setpoint_result, info, emergency; diagnostics (device 'bridge')")
+      ->check(CLI::IsMember({"status", "cut", "setpoint_result", "info", "emergency", "diagnostics"}))
       ->capture_default_str();
   echo_cmd->add_option("--rate", echo.rate_hz, "status lines per second at most (bit changes always show)")
       ->check(CLI::PositiveNumber)
@@ -190,6 +210,44 @@ int main(int argc, char** argv) {
   set_cmd->add_option("--timeout", set.timeout_s, "seconds to wait for the bridge")->capture_default_str();
 
   auto* list_cmd = cli.add_subcommand("list", "list the line's buses and devices");
+
+  double timeout_s = 10;
+  std::string nmt_command;
+  auto* nmt_cmd = cli.add_subcommand("nmt", "send an NMT command to a device (master role)");
+  nmt_cmd->add_option("device", device, "device name")->required();
+  nmt_cmd->add_option("command", nmt_command)->required()->check(
+      CLI::IsMember({"start", "stop", "pre-operational", "reset-node", "reset-communication"}));
+
+  std::uint16_t index = 0;
+  std::uint16_t sub = 0;
+  std::string type, value;
+  auto* read_cmd = cli.add_subcommand("sdo-read", "read an object by SDO: sdo-read DEVICE INDEX SUB TYPE (e.g. 0x1008 0 VISIBLE_STRING)");
+  auto* write_cmd = cli.add_subcommand("sdo-write", "write an object by SDO: sdo-write DEVICE INDEX SUB TYPE VALUE");
+  for (auto* c : {read_cmd, write_cmd}) {
+    c->add_option("device", device, "device name")->required();
+    c->add_option("index", index, "object index (0x... for hex)")->required();
+    c->add_option("sub", sub, "sub-index")->required()->check(CLI::Range(0, 255));
+    c->add_option("type", type, "INTEGER8..64, UNSIGNED8..64, REAL32, REAL64, VISIBLE_STRING, OCTET_STRING")->required();
+  }
+  write_cmd->add_option("value", value)->required();
+
+  std::string parameter;
+  double parameter_value = 0;
+  auto* get_cmd = cli.add_subcommand("get", "read a profile object by name in engineering units: get DEVICE NAME");
+  auto* put_cmd = cli.add_subcommand("put", "write a profile object by name in engineering units: put DEVICE NAME VALUE");
+  for (auto* c : {get_cmd, put_cmd}) {
+    c->add_option("device", device, "device name")->required();
+    c->add_option("name", parameter, "profile object name, e.g. saw_cut_depth")->required();
+  }
+  put_cmd->add_option("value", parameter_value)->required();
+
+  std::string command_name;
+  auto* press_cmd = cli.add_subcommand("press", "a momentary command, held 100 ms: press DEVICE COMMAND (e.g. manual_cut)");
+  press_cmd->add_option("device", device, "device name")->required();
+  press_cmd->add_option("command", command_name)->required();
+  for (auto* c : {nmt_cmd, read_cmd, write_cmd, get_cmd, put_cmd, press_cmd}) {
+    c->add_option("--timeout", timeout_s, "seconds to wait for the bridge")->capture_default_str();
+  }
   CLI11_PARSE(cli, argc, argv);
   spdlog::set_level(spdlog::level::warn);
 
@@ -204,12 +262,23 @@ int main(int argc, char** argv) {
     }
     return 0;
   }
+  const bool bridge_topic = echo_cmd->parsed() && device == "bridge" && echo.topic == "diagnostics";
   const auto* dev = config->device(device);
-  if (dev == nullptr) return fmt::print(stderr, "no device {} in line {} (try: list)\n", device, config->line), 2;
-  if (dev->resolved_profile->device != "saw") {
-    return fmt::print(stderr, "{}: device type {} is not supported by the CLI yet\n", device, dev->resolved_profile->device), 2;
+  if (dev == nullptr && !bridge_topic) return fmt::print(stderr, "no device {} in line {} (try: list)\n", device, config->line), 2;
+  const bool saw_only = set_cmd->parsed() || (echo_cmd->parsed() && (echo.topic == "status" || echo.topic == "cut"));
+  if (saw_only && dev->resolved_profile->device != "saw") {
+    return fmt::print(stderr, "{}: the CLI shows and sets saws only so far (this is a {})\n", device,
+                      dev->resolved_profile->device), 2;
   }
   auto dds = lb::ddsl::Participant::create({config->dds.domain, config->dds.localhost_only, "linebridge-cli"});
   if (!dds) return fmt::print(stderr, "{}\n", dds.error().message), 1;
+  const lb::app::ServiceTarget target{**dds, config->line + "/" + device + "/",
+                                      std::chrono::milliseconds(static_cast<long>(timeout_s * 1000))};
+  if (nmt_cmd->parsed()) return lb::app::call_nmt(target, nmt_command);
+  if (read_cmd->parsed()) return lb::app::call_sdo_read(target, index, static_cast<std::uint8_t>(sub), type);
+  if (write_cmd->parsed()) return lb::app::call_sdo_write(target, index, static_cast<std::uint8_t>(sub), type, value);
+  if (get_cmd->parsed()) return lb::app::call_get_parameter(target, parameter);
+  if (put_cmd->parsed()) return lb::app::call_set_parameter(target, parameter, parameter_value);
+  if (press_cmd->parsed()) return lb::app::call_command(target, command_name);
   return echo_cmd->parsed() ? run_echo(**dds, config->line, device, echo) : run_set(**dds, config->line, device, set);
 }

@@ -20,6 +20,14 @@ const eprosima::fastrtps::Duration_t kHeartbeatPeriod{0, 100'000'000};
 fdds::DomainParticipantQos participant_qos(const ParticipantOptions& options) {
   fdds::DomainParticipantQos qos = fdds::PARTICIPANT_QOS_DEFAULT;
   qos.name(options.name);
+  // Short-lived participants (the CLI, HMI tools) come and go: announce often enough that a
+  // missed initial announcement costs a second, not Fast DDS's default three, and forget a
+  // participant that went away within ten seconds rather than twenty.
+  auto& discovery = qos.wire_protocol().builtin.discovery_config;
+  discovery.leaseDuration = eprosima::fastrtps::Duration_t(10, 0);
+  discovery.leaseDuration_announcementperiod = eprosima::fastrtps::Duration_t(1, 0);
+  discovery.initial_announcements.count = 5;
+  discovery.initial_announcements.period = eprosima::fastrtps::Duration_t(0, 50'000'000);
   if (options.localhost_only) {
     qos.transport().use_builtin_transports = false;
     auto udp = std::make_shared<eprosima::fastdds::rtps::UDPv4TransportDescriptor>();

@@ -110,6 +110,38 @@ TEST(LineConfig, OtherMistakes) {
   EXPECT_NE(error_of("- just\n- a list\n").find("must be a mapping"), std::string::npos);
 }
 
+TEST(LineConfig, PdoOverrides) {
+  const auto registry = ProfileRegistry::builtin();
+  const std::string pdos = "    pdos:\n"
+                           "      tpdo1: {cob_id: 0x80000183}\n"
+                           "      tpdo2: {cob_id: 0x20012345, transmission_type: 254, inhibit_time_100us: 10, event_timer_ms: 250}\n"
+                           "      rpdo1: {transmission_type: 0, mapping: [0x60200010, 0x00060010, 0x60020020]}\n";
+  auto r = parse_line_config(replace(kGood, "    simulation:\n", pdos + "    simulation:\n"), "line.yaml", registry);
+  ASSERT_TRUE(r) << r.error().message;
+  const auto& p = r->devices[0].pdos;
+  ASSERT_EQ(p.size(), 3u);
+  EXPECT_FALSE(p[0].enabled);
+  EXPECT_EQ(p[0].can_id, 0x183u);
+  EXPECT_TRUE(p[1].extended);
+  EXPECT_EQ(p[1].can_id, 0x12345u);
+  EXPECT_EQ(p[1].transmission_type, 254);
+  EXPECT_EQ(p[1].inhibit, std::chrono::microseconds(1000));
+  EXPECT_EQ(p[1].event_timer, std::chrono::milliseconds(250));
+  EXPECT_EQ(p[1].cob_id_entry(), 0x20012345u);
+  EXPECT_EQ(p[2].mapping[1].index, 0x0006);  // dummy UNSIGNED16
+  EXPECT_EQ(p[2].transmission_type, 0);
+
+  const auto bad = [&](const std::string& text) { return error_of(replace(kGood, "    simulation:\n", text + "    simulation:\n")); };
+  EXPECT_NE(bad("    pdos: {tpdo9: {transmission_type: 1}}\n").find("has no PDO 'tpdo9' (tpdo1, tpdo2, rpdo1)"), std::string::npos);
+  EXPECT_NE(bad("    pdos: {tpdo1: {cob_id: 0x800}}\n").find("must be below 800h"), std::string::npos);
+  EXPECT_NE(bad("    pdos: {tpdo1: {transmission_type: 245}}\n").find("transmission_type 245 is reserved"), std::string::npos);
+  EXPECT_NE(bad("    pdos: {tpdo1: {mapping: [0x60300020]}}\n").find("mapping entry length differs"), std::string::npos);
+  EXPECT_NE(bad("    pdos: {tpdo1: {mapping: [0x70000010]}}\n").find("does not define"), std::string::npos);
+  EXPECT_NE(bad("    pdos: {tpdo1: {mapping: [0x60000020, 0x60010020, 0x60070020]}}\n").find("64"), std::string::npos);
+  EXPECT_NE(bad("    configure: [{object: counter_value, value: 1}]\n").find("counter_value is ro, not writable"), std::string::npos);
+  EXPECT_NE(bad("    configure: [{object: saw_cut_depth, value: 70000}]\n").find("configure entry"), std::string::npos);
+}
+
 TEST(LineConfig, BridgeRefusesABadFileWithLocationAndNonZeroExit) {
   const std::string path = ::testing::TempDir() + "/bad_line.yaml";
   std::ofstream(path) << replace(kGood, "    heartbeat_timeout_ms: 300", "    colour: red");
