@@ -25,7 +25,6 @@ setup() {
   mkdir -p /dev/pts /dev/shm
   mount -t devpts devpts /dev/pts
   mount -t tmpfs -o size=512m tmpfs /dev/shm
-  mount -t tmpfs -o size=1g tmpfs /tmp
   mount -t tmpfs tmpfs /run
   # The kernel's own module tree (the cache's copy of the .deb), for modprobe of anything a test needs.
   mkdir -p "/lib/modules/$kver"

@@ -8,6 +8,8 @@
 
 #include <chrono>
 #include <fstream>
+#include <map>
+#include <stdexcept>
 #include <thread>
 
 #include "dds/participant.hpp"
@@ -74,6 +76,9 @@ class CanopenCore : public ::testing::Test {
   }
 
   void TearDown() override {
+    reads_.clear();  // clients before the participant they live in
+    writes_.clear();
+    nmts_.clear();
     dds_.reset();
     if (bridge_) {
       EXPECT_EQ(bridge_->stop(), 0) << "the bridge did not exit cleanly\n" << logs();
@@ -90,35 +95,43 @@ class CanopenCore : public ::testing::Test {
   }
 
   srv::SdoRead_Response sdo_read(const std::string& device, std::uint16_t index, std::uint8_t sub, const std::string& type) {
-    auto client = ReadClient::create(*dds_, "core/" + device + "/sdo_read");
-    EXPECT_TRUE(client);
+    auto& client = client_for(reads_, device, "sdo_read");
     srv::SdoRead_Request req;
     req.index(index);
     req.sub_index(sub);
     req.data_type(type);
-    auto r = (*client)->call(req, 10s);
+    auto r = client.call(req, 20s);
     EXPECT_TRUE(r) << (r ? "" : r.error().message);
     return r ? *r : srv::SdoRead_Response{};
   }
   srv::SdoWrite_Response sdo_write(const std::string& device, std::uint16_t index, std::uint8_t sub, srv::ObjectValue v) {
-    auto client = WriteClient::create(*dds_, "core/" + device + "/sdo_write");
-    EXPECT_TRUE(client);
+    auto& client = client_for(writes_, device, "sdo_write");
     srv::SdoWrite_Request req;
     req.index(index);
     req.sub_index(sub);
     req.value(std::move(v));
-    auto r = (*client)->call(req, 10s);
+    auto r = client.call(req, 20s);
     EXPECT_TRUE(r) << (r ? "" : r.error().message);
     return r ? *r : srv::SdoWrite_Response{};
   }
   srv::Nmt_Response nmt(const std::string& device, srv::NmtCommand c) {
-    auto client = NmtClient::create(*dds_, "core/" + device + "/nmt");
-    EXPECT_TRUE(client);
+    auto& client = client_for(nmts_, device, "nmt");
     srv::Nmt_Request req;
     req.command(c);
-    auto r = (*client)->call(req, 10s);
+    auto r = client.call(req, 20s);
     EXPECT_TRUE(r) << (r ? "" : r.error().message);
     return r ? *r : srv::Nmt_Response{};
+  }
+  // One client per service and device for the whole test: discovery once, not per call.
+  template <class Client>
+  Client& client_for(std::map<std::string, std::unique_ptr<Client>>& cache, const std::string& device, const std::string& service) {
+    auto& slot = cache[device];
+    if (!slot) {
+      auto c = Client::create(*dds_, "core/" + device + "/" + service);
+      if (!c) throw std::runtime_error(c.error().message);
+      slot = std::move(*c);
+    }
+    return *slot;
   }
   static srv::ObjectValue unsigned32(std::uint64_t v) {
     srv::ObjectValue o;
@@ -139,6 +152,9 @@ class CanopenCore : public ::testing::Test {
   std::unique_ptr<lb::test::BusSpy> spy_;
   std::unique_ptr<lb::test::ChildProcess> sim_, bridge_;
   std::unique_ptr<lb::ddsl::Participant> dds_;
+  std::map<std::string, std::unique_ptr<ReadClient>> reads_;
+  std::map<std::string, std::unique_ptr<WriteClient>> writes_;
+  std::map<std::string, std::unique_ptr<NmtClient>> nmts_;
   lb::test::Collector<msg::SawStatusPubSubType> saw1_, saw2_;
   lb::test::Collector<msg::DeviceInfoPubSubType> info_;
   lb::test::Collector<msg::EmergencyPubSubType> emcy_;

@@ -113,6 +113,8 @@ TEST(MonitorRole, DecodesBothDirectionsAndNeverTransmits) {
   })) << logs() << "--- controller ---\n" << controller.log();
   EXPECT_TRUE(status.samples().back().status_word().saw_ready());
   EXPECT_EQ(bridge.log().find("transmission refused"), std::string::npos) << "the bridge tried to transmit\n" << logs();
+  nmt.value().reset();  // service clients before the participant they live in
+  read.value().reset();
   dds->reset();
   EXPECT_EQ(bridge.stop(), 0);
 }

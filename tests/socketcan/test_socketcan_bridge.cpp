@@ -276,12 +276,16 @@ TEST_F(BridgeOnVcan, InjectedFramesBecomeDdsSamplesMonitorStaysSilentAndTheRecor
   ASSERT_TRUE(decoded()) << logs();
   std::lock_guard lock(seen_.m);
   check(seen_.status.back());
-  // The sample decoded from TPDO2 carries the time candump recorded for it, not the replay's.
-  const std::int64_t tpdo2_ns = dumped[2].frame.timestamp_ns;
+  // Decoded samples carry the time candump recorded for their frame, not the replay's. (The status
+  // topic is keep-last 1 at the writer: under load a fast replay may replace a sample before it is
+  // delivered, so any of the recorded frames' times will do, not necessarily TPDO2's.)
   bool recorded_stamp = false;
   for (const auto& s : seen_.status) {
-    recorded_stamp = recorded_stamp || (s.stamp().sec() == static_cast<std::int32_t>(tpdo2_ns / 1'000'000'000) &&
-                                        s.stamp().nanosec() / 1000 == static_cast<std::uint32_t>(tpdo2_ns % 1'000'000'000 / 1000));
+    for (const auto& d : dumped) {
+      const std::int64_t ns = d.frame.timestamp_ns;
+      recorded_stamp = recorded_stamp || (s.stamp().sec() == static_cast<std::int32_t>(ns / 1'000'000'000) &&
+                                          s.stamp().nanosec() / 1000 == static_cast<std::uint32_t>(ns % 1'000'000'000 / 1000));
+    }
   }
   EXPECT_TRUE(recorded_stamp) << "samples carry the recorded time";
 }
