@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # The whole test suite from nothing: installs the dependencies (apt), builds with warnings as
-# errors, runs every test. Tests that start DDS run in private network namespaces (netns-run.sh).
+# errors, runs every test (unit, integration over virtual buses with DDS in private network
+# namespaces, real SocketCAN in a VM or natively), then runs the integration tests once more under
+# ThreadSanitizer (LINEBRIDGE_TSAN=0 skips that stage).
 #   launch_scripts/test.sh [extra ctest arguments, e.g. -R SawLine]
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -9,5 +11,24 @@ cd "$(dirname "$0")/.."
 build=${LINEBRIDGE_BUILD_DIR:-build}
 cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLINEBRIDGE_WERROR=ON
 cmake --build "$build"
+
+tsan_status=0
+if [ "${LINEBRIDGE_TSAN:-1}" != 0 ]; then
+  # Races between service calls, DDS threads and the bus loops are what this stage is for: the
+  # real bridge and simulator processes, instrumented, under the integration tests.
+  tsan="${build}-tsan"
+  cmake -S . -B "$tsan" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLINEBRIDGE_WERROR=ON -DLINEBRIDGE_SANITIZE=thread
+  cmake --build "$tsan" --target linebridge linebridge-sim integration_saw integration_core integration_monitor \
+    integration_pdo unit_sdo unit_pdo_transmitter
+  echo "== ThreadSanitizer: integration tests"
+  (cd "$tsan" && TSAN_OPTIONS="suppressions=$PWD/../tests/tsan.supp second_deadlock_stack=1" \
+    ctest --output-on-failure --timeout 300 -j 1 -R 'SawLine|CanopenCore|MonitorRole|PdoOverrides|Transmitter|^Sdo') ||
+    tsan_status=$?
+fi
+
 cd "$build"
 ctest --output-on-failure --timeout 300 -j 2 "$@"
+if [ "$tsan_status" != 0 ]; then
+  echo "test.sh: the ThreadSanitizer stage failed (see above)" >&2
+  exit "$tsan_status"
+fi
