@@ -6,6 +6,7 @@
 #   launch_scripts/test.sh [extra ctest arguments, e.g. -R SawLine]
 set -euo pipefail
 cd "$(dirname "$0")/.."
+root=$PWD
 
 ./launch_scripts/setup.sh
 build=${LINEBRIDGE_BUILD_DIR:-build}
@@ -21,7 +22,7 @@ if [ "${LINEBRIDGE_TSAN:-1}" != 0 ]; then
   cmake --build "$tsan" --target linebridge linebridge-sim integration_saw integration_core integration_monitor \
     integration_pdo unit_sdo unit_pdo_transmitter
   echo "== ThreadSanitizer: integration tests"
-  (cd "$tsan" && TSAN_OPTIONS="suppressions=$PWD/../tests/tsan.supp second_deadlock_stack=1" \
+  (cd "$tsan" && TSAN_OPTIONS="suppressions=$root/tests/tsan.supp second_deadlock_stack=1" \
     ctest --output-on-failure --timeout 300 -j 1 -R 'SawLine|CanopenCore|MonitorRole|PdoOverrides|Transmitter|^Sdo') ||
     tsan_status=$?
 fi
