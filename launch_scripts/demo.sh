@@ -39,14 +39,17 @@ trap cleanup EXIT
 trap 'exit 0' INT TERM
 say() { printf '\n\033[1m== %s\033[0m\n' "$*"; }
 
-say "starting the saw simulator and the bridge (built-in demo line: saw1, node 3, virtual bus, SYNC 20 ms)"
+say "starting the simulators and the bridge (built-in demo line: puller, saw, corrugator on bus 'extrusion' with SYNC 20 ms; a feeder box on bus 'weaving')"
 "$bin/linebridge-sim" >"$logdir/sim.log" 2>&1 & pids+=($!)
 "$bin/linebridge" 2>&1 & pids+=($!)
 
 say "saw program on, sync speed 100 % (30 m/min), product length 1.0 m"
 "$bin/linebridge-cli" set saw1 --program on --sync-speed-percent 100 --product-length-m 1.0 --timeout 10
 
-say "live status (1 line/s, and every status change) and cut events"
+say "the bridge's diagnostics: every device online and started"
+"$bin/linebridge-cli" echo bridge diagnostics --duration 1.5
+
+say "live saw status (1 line/s, and every status change) and cut events"
 "$bin/linebridge-cli" echo saw1 status --rate 1 & pids+=($!)
 "$bin/linebridge-cli" echo saw1 cut & pids+=($!)
 sleep 7

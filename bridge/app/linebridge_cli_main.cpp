@@ -83,7 +83,7 @@ int run_set(lb::ddsl::Participant& dds, const std::string& line, const std::stri
     return fmt::print(stderr, "{}\n", r.error().message), 1;
   }
   if (auto r = dds.subscribe<msg::SetpointResultPubSubType>(
-          result_topic, lb::ddsl::QosKind::command, [&](const msg::SetpointResult& s, const auto&) { result.put(s); });
+          result_topic, lb::ddsl::QosKind::reply, [&](const msg::SetpointResult& s, const auto&) { result.put(s); });
       !r) {
     return fmt::print(stderr, "{}\n", r.error().message), 1;
   }
@@ -167,7 +167,7 @@ int run_echo(lb::ddsl::Participant& dds, const std::string& line, const std::str
       std::fflush(stdout);
     });
   } else {
-    sub = dds.subscribe<msg::SetpointResultPubSubType>(topic, lb::ddsl::QosKind::command,
+    sub = dds.subscribe<msg::SetpointResultPubSubType>(topic, lb::ddsl::QosKind::reply,
                                                       [&](const msg::SetpointResult& r, const auto&) {
                                                         std::lock_guard lock(print_mutex);
                                                         fmt::print("{} request {}: {}{}\n", device, r.request_id(),

@@ -61,6 +61,11 @@ fdds::DataWriterQos writer_qos(QosKind kind) {
       qos.durability().kind = fdds::VOLATILE_DURABILITY_QOS;
       qos.history().kind = fdds::KEEP_ALL_HISTORY_QOS;
       break;
+    case QosKind::reply:
+      qos.durability().kind = fdds::TRANSIENT_LOCAL_DURABILITY_QOS;
+      qos.history().kind = fdds::KEEP_LAST_HISTORY_QOS;
+      qos.history().depth = 16;
+      break;
   }
   return qos;
 }
@@ -82,6 +87,11 @@ fdds::DataReaderQos reader_qos(QosKind kind) {
     case QosKind::event:
       qos.durability().kind = fdds::VOLATILE_DURABILITY_QOS;
       qos.history().kind = fdds::KEEP_ALL_HISTORY_QOS;
+      break;
+    case QosKind::reply:
+      qos.durability().kind = fdds::TRANSIENT_LOCAL_DURABILITY_QOS;
+      qos.history().kind = fdds::KEEP_LAST_HISTORY_QOS;
+      qos.history().depth = 16;
       break;
   }
   return qos;

@@ -31,6 +31,10 @@ enum class QosKind {
   state,    // reliable, transient-local, keep-last 1: late joiners get the current state
   command,  // reliable, volatile, keep-last 16: set values and requests, never replayed to late joiners
   event,    // reliable, volatile, keep-all: every cut, every emergency
+  // reliable, transient-local, keep-last 16: answers (service replies, set-value results). A
+  // client's new reader may be matched by the client before the server's writer has matched it;
+  // transient-local lets the reader still get the answer written in that gap.
+  reply,
 };
 
 struct ParticipantOptions {

@@ -42,7 +42,7 @@ class ServiceServer {
 
   // path: "<line>/<device>/<service>". Errors only at start-up.
   static Result<void> serve(Participant& dds, const std::string& path, Handler handler) {
-    auto writer = dds.writer<ReplyPS>(reply_topic(path), QosKind::command);
+    auto writer = dds.writer<ReplyPS>(reply_topic(path), QosKind::reply);
     if (!writer) return writer.error();
     return dds.subscribe<RequestPS>(request_topic(path), QosKind::command,
                                     [w = *writer, h = std::move(handler)](const Request& req, const fdds::SampleInfo& info) {
@@ -64,7 +64,7 @@ class ServiceClient {
     if (!writer) return writer.error();
     client->writer_ = *writer;
     auto* raw = client.get();  // the subscription ends before the client does (member order)
-    auto sub = dds.subscribe_scoped<ReplyPS>(reply_topic(path), QosKind::command,
+    auto sub = dds.subscribe_scoped<ReplyPS>(reply_topic(path), QosKind::reply,
                                              [raw](const Reply& rep, const fdds::SampleInfo& info) { raw->received(rep, info); });
     if (!sub) return sub.error();
     client->subscription_ = std::move(*sub);

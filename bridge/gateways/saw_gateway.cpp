@@ -53,7 +53,7 @@ SawGateway::SawGateway(DeviceContext context)
   status_writer_ = checked(ctx_.dds.writer<msg::SawStatusPubSubType>(ddsl::topic_name(line, dev, "status"), ddsl::QosKind::state), dev);
   cut_writer_ = checked(ctx_.dds.writer<msg::SawCutPubSubType>(ddsl::topic_name(line, dev, "cut"), ddsl::QosKind::event), dev);
   result_writer_ = checked(ctx_.dds.writer<msg::SetpointResultPubSubType>(ddsl::topic_name(line, dev, "setpoint_result"),
-                                                                          ddsl::QosKind::command), dev);
+                                                                          ddsl::QosKind::reply), dev);
   auto sub = ctx_.dds.subscribe<msg::SawSetpointPubSubType>(
       ddsl::topic_name(line, dev, "setpoint"), ddsl::QosKind::command,
       [this](const msg::SawSetpoint& sp, const ddsl::fdds::SampleInfo&) { on_setpoint(sp); });

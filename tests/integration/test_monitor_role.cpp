@@ -56,7 +56,7 @@ TEST(MonitorRole, DecodesBothDirectionsAndNeverTransmits) {
   lb::test::Collector<msg::SawStatusPubSubType> status;
   lb::test::Collector<msg::SetpointResultPubSubType> results;
   ASSERT_TRUE(status.subscribe(**dds, lb::ddsl::topic_name("mon", "saw1", "status"), QosKind::state));
-  ASSERT_TRUE(results.subscribe(**dds, lb::ddsl::topic_name("mon", "saw1", "setpoint_result"), QosKind::command));
+  ASSERT_TRUE(results.subscribe(**dds, lb::ddsl::topic_name("mon", "saw1", "setpoint_result"), QosKind::reply));
   // Without a controller the devices sit in pre-operational and send only heartbeats.
   ASSERT_TRUE(status.wait_last(10s, [](const msg::SawStatus& s) {
     return s.health().online() && s.health().nmt_state() == msg::NMT_PRE_OPERATIONAL;

@@ -48,7 +48,7 @@ TEST(PdoOverrides, RemappedExtendedAndEventDrivenPdos) {
   lb::test::Collector<msg::SawStatusPubSubType> status;
   lb::test::Collector<msg::SetpointResultPubSubType> results;
   ASSERT_TRUE(status.subscribe(**dds, lb::ddsl::topic_name("pdo", "saw1", "status"), lb::ddsl::QosKind::state));
-  ASSERT_TRUE(results.subscribe(**dds, lb::ddsl::topic_name("pdo", "saw1", "setpoint_result"), lb::ddsl::QosKind::command));
+  ASSERT_TRUE(results.subscribe(**dds, lb::ddsl::topic_name("pdo", "saw1", "setpoint_result"), lb::ddsl::QosKind::reply));
   auto writer = (*dds)->writer<msg::SawSetpointPubSubType>(lb::ddsl::topic_name("pdo", "saw1", "setpoint"), lb::ddsl::QosKind::command);
   ASSERT_TRUE(writer);
   ASSERT_TRUE(status.wait_last(15s, [](const msg::SawStatus& s) {

@@ -137,7 +137,7 @@ class SawLine : public ::testing::Test {
                                                          seen_.cuts.push_back(c);
                                                          seen_.cv.notify_all();
                                                        }));
-    ASSERT_TRUE(dds_->subscribe<msg::SetpointResultPubSubType>(topic("setpoint_result"), lb::ddsl::QosKind::command,
+    ASSERT_TRUE(dds_->subscribe<msg::SetpointResultPubSubType>(topic("setpoint_result"), lb::ddsl::QosKind::reply,
                                                                [this](const msg::SetpointResult& r, const auto&) {
                                                                  std::lock_guard lock(seen_.m);
                                                                  seen_.results.push_back(r);

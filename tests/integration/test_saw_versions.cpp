@@ -55,7 +55,7 @@ TEST(SawVersions, OneZeroAndThreeOneSideBySide) {
     status[d] = std::make_unique<lb::test::Collector<msg::SawStatusPubSubType>>();
     results[d] = std::make_unique<lb::test::Collector<msg::SetpointResultPubSubType>>();
     ASSERT_TRUE(status[d]->subscribe(**dds, lb::ddsl::topic_name("versions", d, "status"), lb::ddsl::QosKind::state));
-    ASSERT_TRUE(results[d]->subscribe(**dds, lb::ddsl::topic_name("versions", d, "setpoint_result"), lb::ddsl::QosKind::command));
+    ASSERT_TRUE(results[d]->subscribe(**dds, lb::ddsl::topic_name("versions", d, "setpoint_result"), lb::ddsl::QosKind::reply));
     auto w = (*dds)->writer<msg::SawSetpointPubSubType>(lb::ddsl::topic_name("versions", d, "setpoint"), lb::ddsl::QosKind::command);
     ASSERT_TRUE(w);
     writers[d] = *w;

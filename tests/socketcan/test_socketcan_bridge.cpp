@@ -62,7 +62,7 @@ class BridgeOnVcan : public ::testing::Test {
                                                             seen_.cv.notify_all();
                                                           },
                                                           1000));
-    ASSERT_TRUE(dds_->subscribe<msg::SetpointResultPubSubType>(topic("setpoint_result"), lb::ddsl::QosKind::command,
+    ASSERT_TRUE(dds_->subscribe<msg::SetpointResultPubSubType>(topic("setpoint_result"), lb::ddsl::QosKind::reply,
                                                                [this](const msg::SetpointResult& r, const auto&) {
                                                                  std::lock_guard lock(seen_.m);
                                                                  seen_.results.push_back(r);

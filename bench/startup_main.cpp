@@ -1,0 +1,135 @@
+// bench-startup: start-up time of a bridge process, from the moment it is spawned to the first
+// status sample an application receives (and to the last device's first sample), with the
+// application's participant and readers already up, as on a running line. Also reports the
+// bridge's resident memory once it has settled, then stops it with SIGTERM.
+#include <CLI/CLI.hpp>
+#include <fcntl.h>
+#include <fmt/format.h>
+#include <signal.h>
+#include <spawn.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <condition_variable>
+#include <cstdio>
+#include <fstream>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+#include "clock.hpp"
+#include "dds/participant.hpp"
+#include "dds/topic_names.hpp"
+#include "msgs/sawPubSubTypes.h"
+#include "names.hpp"
+#include "proc_stats.hpp"
+
+namespace bench = lb::bench;
+namespace msg = linebridge_msgs::msg;
+using namespace std::chrono_literals;
+
+namespace {
+
+struct FirstSamples {
+  std::mutex m;
+  std::condition_variable cv;
+  std::size_t devices_seen = 0;
+  std::int64_t first_ns = 0;
+  std::int64_t all_ns = 0;
+  std::vector<bool> seen;
+};
+
+pid_t spawn(std::vector<std::string> argv, const std::string& log) {
+  std::vector<char*> args;
+  for (auto& a : argv) args.push_back(a.data());
+  args.push_back(nullptr);
+  posix_spawn_file_actions_t actions;
+  posix_spawn_file_actions_init(&actions);
+  posix_spawn_file_actions_addopen(&actions, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_adddup2(&actions, 1, 2);
+  pid_t pid = -1;
+  if (posix_spawn(&pid, args[0], &actions, nullptr, args.data(), environ) != 0) pid = -1;
+  posix_spawn_file_actions_destroy(&actions);
+  return pid;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App cli{"bench-startup: from process start to the first status sample"};
+  int buses = 1;
+  int devices = 1;
+  int domain = 0;
+  double timeout_s = 30;
+  double settle_s = 2;
+  int quiet_ms = 500;
+  std::string log = "/dev/null";
+  std::vector<std::string> command;
+  cli.add_option("--buses", buses)->capture_default_str();
+  cli.add_option("--devices", devices, "saws per bus")->capture_default_str();
+  cli.add_option("--domain", domain)->capture_default_str();
+  cli.add_option("--timeout", timeout_s)->capture_default_str();
+  cli.add_option("--settle", settle_s, "seconds after the last first sample before reading memory")->capture_default_str();
+  cli.add_option("--quiet-ms", quiet_ms, "wait this long after subscribing before starting the bridge")->capture_default_str();
+  cli.add_option("--log", log, "the bridge's output")->capture_default_str();
+  cli.add_option("command", command, "the bridge command line (after --)")->required();
+  CLI11_PARSE(cli, argc, argv);
+
+  FirstSamples first;  // outlives the participant's listeners
+  first.seen.assign(static_cast<std::size_t>(buses * devices), false);
+  auto dds = lb::ddsl::Participant::create({static_cast<std::uint32_t>(domain), true, "bench-startup"});
+  if (!dds) {
+    std::fprintf(stderr, "bench-startup: %s\n", dds.error().message.c_str());
+    return 1;
+  }
+  for (int b = 0; b < buses; ++b) {
+    for (int d = 0; d < devices; ++d) {
+      const auto index = static_cast<std::size_t>(b * devices + d);
+      auto sub = (*dds)->subscribe<msg::SawStatusPubSubType>(
+          lb::ddsl::topic_name(bench::kLine, bench::device_name(b, d), "status"), lb::ddsl::QosKind::state,
+          [&first, index](const msg::SawStatus&, const lb::ddsl::fdds::SampleInfo&) {
+            const auto now = bench::realtime_ns();
+            std::lock_guard lock(first.m);
+            if (first.seen[index]) return;
+            first.seen[index] = true;
+            if (first.devices_seen++ == 0) first.first_ns = now;
+            if (first.devices_seen == first.seen.size()) first.all_ns = now;
+            first.cv.notify_all();
+          });
+      if (!sub) {
+        std::fprintf(stderr, "bench-startup: %s\n", sub.error().message.c_str());
+        return 1;
+      }
+    }
+  }
+  // By default our own initial announcements are over: the bridge finds a running application.
+  std::this_thread::sleep_for(std::chrono::milliseconds(quiet_ms));
+
+  const auto t0 = bench::realtime_ns();
+  const pid_t pid = spawn(command, log);
+  if (pid <= 0) {
+    std::fprintf(stderr, "bench-startup: cannot start %s\n", command.front().c_str());
+    return 1;
+  }
+  bool all = false;
+  {
+    std::unique_lock lock(first.m);
+    all = first.cv.wait_for(lock, std::chrono::duration<double>(timeout_s),
+                            [&] { return first.devices_seen == first.seen.size(); });
+  }
+  std::this_thread::sleep_for(std::chrono::duration<double>(settle_s));
+  const auto mem = bench::read_memory(pid);
+  ::kill(pid, SIGTERM);
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+
+  std::lock_guard lock(first.m);
+  std::string report = fmt::format("startup_devices={}\nstartup_devices_seen={}\n", first.seen.size(), first.devices_seen);
+  if (first.devices_seen > 0) report += fmt::format("startup_first_ms={:.1f}\n", static_cast<double>(first.first_ns - t0) / 1e6);
+  if (all) report += fmt::format("startup_all_ms={:.1f}\n", static_cast<double>(first.all_ns - t0) / 1e6);
+  report += fmt::format("startup_rss_kib={}\nstartup_hwm_kib={}\nstartup_exit={}\n", mem.rss_kib, mem.hwm_kib,
+                        WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status));
+  std::fputs(report.c_str(), stdout);
+  return all ? 0 : 3;
+}

@@ -1,0 +1,174 @@
+// bench-status-sub: the application end of CAN -> DDS. Subscribes to the status of every saw of
+// the bench line (and to the bridge's diagnostics), times every sample from the send stamp its
+// frame carried (saw_stamps.hpp) to the moment the listener takes it, and counts what arrived:
+// frames the bridge did not get show in its diagnostics, samples lost between bridge and
+// application show as a shortfall here.
+#include <CLI/CLI.hpp>
+#include <fmt/format.h>
+
+#include <chrono>
+#include <condition_variable>
+#include <cstdio>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+#include "clock.hpp"
+#include "dds/participant.hpp"
+#include "dds/topic_names.hpp"
+#include "latencies.hpp"
+#include "msgs/commonPubSubTypes.h"
+#include "msgs/sawPubSubTypes.h"
+#include "names.hpp"
+#include "rendezvous.hpp"
+#include "saw_stamps.hpp"
+
+namespace bench = lb::bench;
+namespace msg = linebridge_msgs::msg;
+using namespace std::chrono_literals;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+// Shared by the listener threads of every reader.
+struct Tally {
+  std::mutex m;
+  std::condition_variable cv;
+  std::uint64_t stamped = 0;  // samples that reflect a stamped frame
+  std::uint64_t other = 0;    // initial samples, NMT changes
+  std::vector<std::int64_t> latencies;
+  Clock::time_point last_sample{};
+  bool have_diag = false;
+  msg::Diagnostics diag;
+  Clock::time_point diag_at{};
+};
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  CLI::App cli{"bench-status-sub: times and counts the saw status samples of the bench line"};
+  int buses = 1;
+  int devices = 30;
+  int domain = 0;
+  std::uint64_t expect = 10000;
+  std::uint64_t warmup = 0;
+  double idle_s = 3;
+  double timeout_s = 600;
+  bool diagnostics = false;
+  std::string out, ready_file, name = "bench-sub";
+  cli.add_option("--buses", buses)->capture_default_str();
+  cli.add_option("--devices", devices, "saws per bus")->capture_default_str();
+  cli.add_option("--domain", domain)->capture_default_str();
+  cli.add_option("--expect", expect, "stamped samples to receive, warm-up included")->capture_default_str();
+  cli.add_option("--warmup", warmup, "first samples left out of the latency figures")->capture_default_str();
+  cli.add_option("--idle", idle_s, "stop after this long without a sample, once samples flowed")->capture_default_str();
+  cli.add_option("--timeout", timeout_s, "stop after this long in any case")->capture_default_str();
+  cli.add_flag("--diagnostics", diagnostics, "also report the bridge's own counters (rt/bench/bridge/diagnostics)");
+  cli.add_option("--out", out, "write every latency (ns), one per line");
+  cli.add_option("--ready", ready_file, "created once every status topic has a matched writer");
+  cli.add_option("--name", name, "participant name")->capture_default_str();
+  CLI11_PARSE(cli, argc, argv);
+
+  // Declared before the participant, so they outlive every listener call.
+  Tally tally;
+  tally.latencies.reserve(expect);
+  std::vector<bench::StampDecoder> decoders(static_cast<std::size_t>(buses * devices));
+  auto dds = lb::ddsl::Participant::create({static_cast<std::uint32_t>(domain), true, name});
+  if (!dds) {
+    std::fprintf(stderr, "bench-status-sub: %s\n", dds.error().message.c_str());
+    return 1;
+  }
+  std::vector<std::string> topics;
+  for (int b = 0; b < buses; ++b) {
+    for (int d = 0; d < devices; ++d) {
+      const std::size_t index = topics.size();
+      topics.push_back(lb::ddsl::topic_name(bench::kLine, bench::device_name(b, d), "status"));
+      // One reader per device: its listener calls are serialised, so its decoder needs no lock.
+      auto sub = (*dds)->subscribe<msg::SawStatusPubSubType>(
+          topics.back(), lb::ddsl::QosKind::state,
+          [&tally, &decoders, index, warmup](const msg::SawStatus& s, const lb::ddsl::fdds::SampleInfo&) {
+            const auto now = bench::realtime_ns();
+            const auto hit = decoders[index].next(s);
+            {
+              std::lock_guard lock(tally.m);
+              if (!hit) {
+                ++tally.other;
+                return;
+              }
+              if (tally.stamped++ >= warmup) tally.latencies.push_back(bench::elapsed_since(hit->stamp, now));
+              tally.last_sample = Clock::now();
+            }
+            tally.cv.notify_all();
+          },
+          100);  // deeper than keep-last 1, so a burst is not thinned out on the reading side
+      if (!sub) {
+        std::fprintf(stderr, "bench-status-sub: %s\n", sub.error().message.c_str());
+        return 1;
+      }
+    }
+  }
+  if (diagnostics) {
+    auto sub = (*dds)->subscribe<msg::DiagnosticsPubSubType>(
+        lb::ddsl::topic_name(bench::kLine, "bridge", "diagnostics"), lb::ddsl::QosKind::state,
+        [&tally](const msg::Diagnostics& d, const lb::ddsl::fdds::SampleInfo&) {
+          std::lock_guard lock(tally.m);
+          tally.diag = d;
+          tally.have_diag = true;
+          tally.diag_at = Clock::now();
+          tally.cv.notify_all();
+        });
+    if (!sub) {
+      std::fprintf(stderr, "bench-status-sub: %s\n", sub.error().message.c_str());
+      return 1;
+    }
+  }
+
+  const auto deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(timeout_s));
+  for (bool matched = false; !matched;) {
+    matched = true;
+    for (const auto& t : topics) matched = matched && (*dds)->matched_writers(t) > 0;
+    if (Clock::now() > deadline) {
+      std::fprintf(stderr, "bench-status-sub: not every status topic has a writer\n");
+      return 1;
+    }
+    if (!matched) std::this_thread::sleep_for(10ms);
+  }
+  bench::signal_file(ready_file);
+
+  const auto idle = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(idle_s));
+  Clock::time_point finished;
+  {
+    std::unique_lock lock(tally.m);
+    while (tally.stamped < expect && Clock::now() < deadline) {
+      if (tally.stamped > 0 && Clock::now() - tally.last_sample > idle) break;
+      tally.cv.wait_for(lock, 50ms);
+    }
+    finished = Clock::now();
+    // Counters from a diagnostics snapshot taken after the last sample (published once a second).
+    if (diagnostics) {
+      tally.cv.wait_until(lock, finished + 3s, [&] { return tally.have_diag && tally.diag_at > finished + 1100ms; });
+    }
+  }
+
+  std::lock_guard lock(tally.m);
+  std::string report = fmt::format("sub_expected={}\nsub_stamped={}\nsub_other={}\nsub_missing={}\n", expect,
+                                   tally.stamped, tally.other, expect > tally.stamped ? expect - tally.stamped : 0);
+  if (diagnostics && tally.have_diag) {
+    std::uint64_t frames_in = 0, error_frames = 0, pdos = 0, length_errors = 0;
+    for (const auto& b : tally.diag.buses()) {
+      frames_in += b.frames_in();
+      error_frames += b.error_frames();
+    }
+    for (const auto& n : tally.diag.nodes()) {
+      pdos += n.pdos_received();
+      length_errors += n.pdo_length_errors();
+    }
+    report += fmt::format("bridge_frames_in={}\nbridge_error_frames={}\nbridge_pdos_received={}\nbridge_pdo_length_errors={}\n",
+                          frames_in, error_frames, pdos, length_errors);
+  }
+  report += bench::format_summary("sub", bench::summarize(tally.latencies));
+  std::fputs(report.c_str(), stdout);
+  std::fflush(stdout);
+  if (!out.empty()) bench::write_latencies(out, tally.latencies);
+  return tally.stamped == expect ? 0 : 3;
+}

@@ -1,0 +1,180 @@
+#pragma once
+// A CiA 420 drive (puller, corrugator) on DDS, as the saw is: TPDOs decoded into
+// rt/<line>/<device>/status, set values from rt/<line>/<device>/setpoint validated and sent in
+// RPDO1 at every SYNC (master role) or the line controller's RPDO1 decoded (monitor role), and the
+// momentary control bits on the command service. Dds: using Codec, StatusTopic, SetpointTopic.
+// Instantiated once per device type (puller_gateway.cpp, corrugator_gateway.cpp).
+
+#include <spdlog/spdlog.h>
+
+#include <cstdint>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "canopen/pdo_transmitter.hpp"
+#include "dds/topic_names.hpp"
+#include "gateways/command_service.hpp"
+#include "gateways/device_health.hpp"
+#include "gateways/gateway.hpp"
+#include "gateways/momentary_commands.hpp"
+#include "msgs/commonPubSubTypes.h"
+
+namespace lb::gateways {
+
+template <class Dds>
+class DriveGateway : public Gateway {
+ public:
+  using Codec = typename Dds::Codec;
+  using Status = typename Codec::Status;
+  using Setpoint = typename Codec::Setpoint;
+
+  // Throws std::runtime_error at start-up when the profile lacks what the device needs.
+  explicit DriveGateway(DeviceContext context);
+
+ private:
+  void on_pdo(std::size_t pdo, const can::CanFrame& frame);
+  void on_setpoint(const Setpoint& sp);
+  void publish_status(std::int64_t stamp_ns);
+  void reply(std::uint64_t request_id, bool accepted, const std::string& reason);
+
+  DeviceContext ctx_;
+  Codec codec_;  // loop thread, except validate() (const, any thread)
+  std::vector<std::unique_ptr<canopen::PdoTransmitter>> rpdos_;  // master role: what the bridge sends
+  MomentaryCommands commands_;
+  ddsl::Writer<typename Dds::StatusTopic> status_writer_;
+  ddsl::Writer<linebridge_msgs::msg::SetpointResultPubSubType> result_writer_;
+  Status status_;  // loop thread
+  bool echo_mismatch_logged_ = false;
+};
+
+template <class Dds>
+DriveGateway<Dds>::DriveGateway(DeviceContext context)
+    : ctx_(context),
+      codec_(context.profile, context.device.pdos),
+      commands_(
+          context.loop, [this](unsigned bit, bool on) { codec_.set_control_bit(bit, on); },
+          [this] {
+            for (auto& t : rpdos_) t->on_data();
+            publish_status(ddsl::now_ns());
+          }) {
+  namespace msg = linebridge_msgs::msg;
+  const std::string& dev = ctx_.device.name;
+  for (std::size_t i = 0; i < codec_.pdos().size(); ++i) {
+    const auto& pdo = *codec_.pdos()[i].def;
+    if (!pdo.enabled) continue;  // COB-ID bit 31: this PDO does not exist on the bus
+    if (pdo.direction == profiles::PdoDirection::tx || !ctx_.is_master()) {
+      const auto handler = [this, i](const can::CanFrame& f) { on_pdo(i, f); };
+      if (pdo.extended) ctx_.loop.on_extended_frame(pdo.can_id, handler);
+      else ctx_.loop.on_frame(pdo.can_id, handler);
+      continue;
+    }
+    rpdos_.push_back(std::make_unique<canopen::PdoTransmitter>(
+        ctx_.loop,
+        canopen::PdoTransmitter::Settings{pdo.can_id, pdo.extended, pdo.transmission_type, pdo.inhibit, pdo.event_timer},
+        [this, i](can::CanFrame& f) { f.len = codec_.pack(i, std::span<std::uint8_t, 8>(f.data)); },
+        [this] { return ctx_.node.ready_for_pdos(); }, [this] { ++ctx_.node.stats().pdos_sent; }));
+  }
+
+  const auto fail = [&dev](const Error& e) { throw std::runtime_error(dev + ": " + e.message); };
+  auto status = ctx_.dds.writer<typename Dds::StatusTopic>(ddsl::topic_name(ctx_.line, dev, "status"),
+                                                                     ddsl::QosKind::state);
+  if (!status) fail(status.error());
+  status_writer_ = *status;
+  auto result = ctx_.dds.writer<msg::SetpointResultPubSubType>(
+      ddsl::topic_name(ctx_.line, dev, "setpoint_result"), ddsl::QosKind::reply);
+  if (!result) fail(result.error());
+  result_writer_ = *result;
+  auto sub = ctx_.dds.subscribe<typename Dds::SetpointTopic>(
+      ddsl::topic_name(ctx_.line, dev, "setpoint"), ddsl::QosKind::command,
+      [this](const Setpoint& sp, const ddsl::fdds::SampleInfo&) { on_setpoint(sp); });
+  if (!sub) fail(sub.error());
+
+  serve_commands(ctx_, resolve_commands(codec_.bitset("control_word"), Codec::DeviceTraits::momentary_commands()), commands_);
+  ctx_.node.on_change([this](canopen::NmtState, bool) {
+    for (auto& t : rpdos_) t->resend();  // a (re)started device gets the image at once
+    publish_status(ddsl::now_ns());
+  });
+  ctx_.node.on_emergency([this](const canopen::Emergency& e) { publish_status(e.timestamp_ns); });
+  if (ctx_.sync != nullptr) {
+    ctx_.sync->on_sync([this] {
+      for (auto& t : rpdos_) t->on_sync();
+    });
+  }
+  spdlog::info("{}: {} ({}) node {} on bus {} as {}{}", dev, Codec::DeviceTraits::device, ctx_.profile.key(),
+               ctx_.device.node_id, ctx_.bus.name, profiles::to_string(ctx_.bus.role),
+               ctx_.is_master() ? "; RPDO1 image starts all zero (extruder stopped, speed set value 0)" : "");
+  publish_status(ddsl::now_ns());  // the device exists (offline) before its first heartbeat
+}
+
+template <class Dds>
+void DriveGateway<Dds>::on_pdo(std::size_t pdo, const can::CanFrame& frame) {
+  auto& stats = ctx_.node.stats();
+  if (auto r = codec_.receive(pdo, frame.payload()); !r) {
+    // Counted and reported, never decoded: a short PDO would otherwise publish garbage.
+    if (stats.pdo_length_errors++ % 1000 == 0) {
+      spdlog::warn("{}: {} ({:03X}h) not decoded: {} ({} so far)", ctx_.device.name, codec_.pdos()[pdo].def->name,
+                   frame.id, r.error().message, stats.pdo_length_errors);
+    }
+    return;
+  }
+  ++stats.pdos_received;
+  if (codec_.set_echo_mismatch() != echo_mismatch_logged_) {
+    echo_mismatch_logged_ = codec_.set_echo_mismatch();
+    if (echo_mismatch_logged_) {
+      spdlog::warn("{}: set echo {} % differs from the set value {} % beyond the settling time", ctx_.device.name,
+                   codec_.speed_set_echo_percent(), codec_.speed_set_percent());
+    } else {
+      spdlog::info("{}: set echo agrees with the set value again", ctx_.device.name);
+    }
+  }
+  publish_status(frame.timestamp_ns);
+}
+
+template <class Dds>
+void DriveGateway<Dds>::on_setpoint(const Setpoint& sp) {
+  // DDS thread: validation reads only the profile; the image belongs to the loop thread.
+  if (!ctx_.is_master()) {
+    return reply(sp.request_id(), false, "bus " + ctx_.bus.name + " is in the monitor role: the bridge never transmits there");
+  }
+  auto raw = codec_.validate(sp);
+  if (!raw) {
+    spdlog::warn("{}: set value {} refused: {}", ctx_.device.name, sp.request_id(), raw.error().message);
+    return reply(sp.request_id(), false, raw.error().message);
+  }
+  ctx_.loop.post([this, r = *raw, id = sp.request_id()] {
+    if (!ctx_.node.online()) {
+      spdlog::warn("{}: set value {} refused: device offline", ctx_.device.name, id);
+      return reply(id, false, ctx_.device.name + " is offline (no heartbeat): set value not applied");
+    }
+    codec_.apply(r);
+    for (auto& t : rpdos_) t->on_data();
+    publish_status(ddsl::now_ns());
+    spdlog::info("{}: set values: extruder {}, speed {} % (control word {:04X}h)", ctx_.device.name,
+                 r.extruder_running ? "running" : "stopped", codec_.speed_set_percent(), codec_.control_word());
+    reply(id, true, "");
+  });
+}
+
+template <class Dds>
+void DriveGateway<Dds>::reply(std::uint64_t request_id, bool accepted, const std::string& reason) {
+  linebridge_msgs::msg::SetpointResult r;
+  r.request_id(request_id);
+  r.accepted(accepted);
+  r.reason(reason);
+  result_writer_.write(r);
+}
+
+template <class Dds>
+void DriveGateway<Dds>::publish_status(std::int64_t stamp_ns) {
+  const auto stamp = ddsl::to_stamp(stamp_ns);
+  status_.stamp().sec(stamp.sec);
+  status_.stamp().nanosec(stamp.nanosec);
+  fill_health(ctx_.node, status_.health());
+  codec_.fill(status_);
+  status_.pdo_length_errors(ctx_.node.stats().pdo_length_errors);
+  status_writer_.write(status_);
+}
+
+}  // namespace lb::gateways

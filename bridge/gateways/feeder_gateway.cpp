@@ -1,0 +1,424 @@
+#include "gateways/feeder_gateway.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <stdexcept>
+
+#include "canopen/sdo_abort.hpp"
+#include "dds/service.hpp"
+#include "dds/topic_names.hpp"
+#include "gateways/device_health.hpp"
+
+namespace lb::gateways {
+
+namespace msg = linebridge_msgs::msg;
+namespace srv = linebridge_msgs::srv;
+using profiles::PdoDirection;
+
+namespace {
+
+// Feeder status, error condition and functions have no PDO: they are read by SDO this often
+// (and the feeders beyond 32, which FF10h cannot report, are only seen this way).
+constexpr auto kPollPeriod = std::chrono::seconds(1);
+constexpr std::uint16_t kStatus = 0x6009, kErrorCondition = 0x6007, kControlBoxError = 0x6008, kFunctions = 0x6001;
+constexpr std::uint16_t kUnwinding = 0x6010, kLoomStatus = 0x600A, kTrigger = 0x600B, kPicks = 0x600C;
+constexpr std::uint16_t kFf10 = 0xFF10;
+
+template <class T>
+T checked(Result<T> r, const std::string& what) {
+  if (!r) throw std::runtime_error(what + ": " + r.error().message);
+  return std::move(*r);
+}
+
+std::uint64_t little_endian(const canopen::SdoClient::Bytes& b) {
+  std::uint64_t raw = 0;
+  for (std::size_t i = 0; i < b.size() && i < 8; ++i) raw |= std::uint64_t{b[i]} << (8 * i);
+  return raw;
+}
+
+srv::FeederWrite_Response refused(std::string message) {
+  srv::FeederWrite_Response r;
+  r.message(std::move(message));
+  return r;
+}
+
+template <class M>
+void stamp(M& m, std::int64_t ns) {
+  const auto s = ddsl::to_stamp(ns);
+  m.stamp().sec(s.sec);
+  m.stamp().nanosec(s.nanosec);
+}
+
+}  // namespace
+
+FeederGateway::FeederGateway(DeviceContext context) : ctx_(context), codec_(context.profile, context.device.pdos) {
+  const std::string& dev = ctx_.device.name;
+  for (std::size_t i = 0; i < codec_.pdos().size(); ++i) {
+    const auto& pdo = *codec_.pdos()[i].def;
+    if (!pdo.enabled) continue;  // COB-ID bit 31: this PDO does not exist on the bus
+    if (pdo.direction == PdoDirection::tx || !ctx_.is_master()) {
+      const auto handler = [this, i](const can::CanFrame& f) { on_pdo(i, f); };
+      if (pdo.extended) ctx_.loop.on_extended_frame(pdo.can_id, handler);
+      else ctx_.loop.on_frame(pdo.can_id, handler);
+      continue;
+    }
+    // The loom controller's RPDOs are event-driven (255): they go out when a loom set value
+    // changes them, and never before the first one (loom_active_).
+    rpdos_.push_back({i, std::make_unique<canopen::PdoTransmitter>(
+                             ctx_.loop,
+                             canopen::PdoTransmitter::Settings{pdo.can_id, pdo.extended, pdo.transmission_type, pdo.inhibit,
+                                                               pdo.event_timer},
+                             [this, i](can::CanFrame& f) { f.len = codec_.pack(i, std::span<std::uint8_t, 8>(f.data)); },
+                             [this] { return loom_active_ && ctx_.node.ready_for_pdos(); },
+                             [this] { ++ctx_.node.stats().pdos_sent; })});
+  }
+
+  const std::string& line = ctx_.line;
+  using ddsl::QosKind;
+  status_writer_ = checked(ctx_.dds.writer<msg::FeederStatusPubSubType>(ddsl::topic_name(line, dev, "status"), QosKind::state), dev);
+  unwinding_writer_ = checked(ctx_.dds.writer<msg::FeederUnwindingPubSubType>(ddsl::topic_name(line, dev, "unwinding"), QosKind::event), dev);
+  error_writer_ = checked(ctx_.dds.writer<msg::FeederErrorPubSubType>(ddsl::topic_name(line, dev, "feeder_error"), QosKind::event), dev);
+  loom_result_writer_ =
+      checked(ctx_.dds.writer<msg::SetpointResultPubSubType>(ddsl::topic_name(line, dev, "loom_result"), QosKind::reply), dev);
+  auto sub = ctx_.dds.subscribe<msg::LoomSetpointPubSubType>(
+      ddsl::topic_name(line, dev, "loom"), QosKind::command,
+      [this](const msg::LoomSetpoint& sp, const ddsl::fdds::SampleInfo&) { on_loom(sp); });
+  if (!sub) throw std::runtime_error(dev + ": " + sub.error().message);
+  serve_services();
+
+  ctx_.node.on_change([this](canopen::NmtState, bool online) {
+    // A restarted control box gets the loom status again (it is a state; triggers and picks are
+    // events and are not repeated).
+    for (auto& r : rpdos_) {
+      if (!codec_.carries(r.pdo, kLoomStatus)) continue;
+      r.transmitter->resend();
+      r.transmitter->on_data();
+    }
+    if (!online) feeder_count_ = -1;
+    publish_status(ddsl::now_ns());
+  });
+  ctx_.node.on_emergency([this](const canopen::Emergency& e) { on_emergency(e); });
+  if (ctx_.is_master() && ctx_.sdo != nullptr) {
+    poll_timer_ = ctx_.loop.create_timer([this] { poll(); });
+    ctx_.loop.arm_timer(poll_timer_, kPollPeriod, kPollPeriod);
+  }
+  spdlog::info("{}: feeder control box ({}) node {} on bus {} as {}{}", dev, ctx_.profile.key(), ctx_.device.node_id,
+               ctx_.bus.name, profiles::to_string(ctx_.bus.role),
+               ctx_.is_master() ? "; loom controller RPDOs stay silent until the first loom set value" : "");
+  publish_status(ddsl::now_ns());
+}
+
+// ---- CAN -> DDS ----
+
+void FeederGateway::on_pdo(std::size_t pdo, const can::CanFrame& frame) {
+  auto& stats = ctx_.node.stats();
+  if (auto r = codec_.receive(pdo, frame.payload()); !r) {
+    if (stats.pdo_length_errors++ % 1000 == 0) {
+      spdlog::warn("{}: {} ({:03X}h) not decoded: {} ({} so far)", ctx_.device.name, codec_.pdos()[pdo].def->name, frame.id,
+                   r.error().message, stats.pdo_length_errors);
+    }
+    return;
+  }
+  ++stats.pdos_received;
+  if (codec_.pdos()[pdo].def->direction == PdoDirection::tx && codec_.carries(pdo, kUnwinding)) {
+    auto u = codec_.last_unwinding();
+    stamp(u, frame.timestamp_ns);
+    if (!u.in_range()) ++stats.range_warnings;  // published all the same: actual values are never dropped
+    unwinding_writer_.write(u);
+    return;
+  }
+  publish_status(frame.timestamp_ns);  // a loom controller's RPDO (monitor role)
+}
+
+void FeederGateway::on_emergency(const canopen::Emergency& e) {
+  if (e.error_code == kFf10) {
+    // Each FF10h replaces the set of feeders in error (an empty bitmap clears them all).
+    const std::uint32_t bitmap = FeederCodec::ff10_bitmap(e.manufacturer);
+    const std::uint32_t changed = bitmap ^ bitmap_;
+    bitmap_ = bitmap;
+    for (unsigned feeder = 1; feeder <= FeederCodec::kBitmapFeeders; ++feeder) {
+      if (!FeederCodec::in_bitmap(changed, feeder)) continue;
+      entry(feeder).in_error(FeederCodec::in_bitmap(bitmap, feeder));
+      publish_error_event(feeder, FeederCodec::in_bitmap(bitmap, feeder), bitmap, e.timestamp_ns);
+    }
+  }
+  publish_status(e.timestamp_ns);
+}
+
+void FeederGateway::publish_error_event(unsigned feeder, bool in_error, std::uint32_t bitmap, std::int64_t stamp_ns) {
+  msg::FeederError ev;
+  stamp(ev, stamp_ns);
+  ev.feeder(static_cast<std::uint8_t>(feeder));
+  ev.in_error(in_error);
+  ev.bitmap(bitmap);
+  if (!ctx_.is_master() || ctx_.sdo == nullptr) {
+    ev.remark("bus " + ctx_.bus.name + " is in the monitor role: the bridge never transmits, so 6007h could not be read");
+    error_writer_.write(ev);
+    return;
+  }
+  // "If feeders are not able to provide detailed failure conditions immediately after the error
+  // occurs, the Emergency message will not contain [them]": the detail is in 6007h sub feeder.
+  ctx_.sdo->upload(ctx_.device.node_id, kErrorCondition, static_cast<std::uint8_t>(feeder),
+                   [this, ev, feeder](canopen::SdoClient::UploadResult r) mutable {
+                     if (r) {
+                       const auto raw = little_endian(*r);
+                       ev.detail_read(true);
+                       ev.condition(codec_.error_condition(raw));
+                       entry(feeder).error_condition_read(true);
+                       entry(feeder).error_condition(ev.condition());
+                       spdlog::info("{}: feeder {} {} (6007h: {})", ctx_.device.name, feeder, ev.in_error() ? "in error" : "error cleared",
+                                    ev.condition().valid() ? ev.condition().name() : fmt::format("undefined code {:02X}h", raw));
+                     } else {
+                       ev.remark("6007h sub " + std::to_string(feeder) + " not read: " + r.error().message);
+                       spdlog::warn("{}: feeder {} {}; {}", ctx_.device.name, feeder, ev.in_error() ? "in error" : "error cleared", ev.remark());
+                     }
+                     error_writer_.write(ev);
+                     publish_status(ddsl::now_ns());
+                   });
+}
+
+void FeederGateway::poll() {
+  if (polling_ || !ctx_.node.online()) return;
+  polling_ = true;
+  auto reads = std::make_shared<std::vector<Read>>();
+  reads->push_back({kControlBoxError, 0, [this](std::optional<std::uint64_t> v, std::vector<Read>&) {
+                      status_.control_box_error_read(v.has_value());
+                      if (v) status_.control_box_error(codec_.control_box_error(*v));
+                    }});
+  reads->push_back({kStatus, 0, [this](std::optional<std::uint64_t> v, std::vector<Read>& more) {
+                      status_.feeder_count_read(v.has_value());
+                      if (!v) return;
+                      const unsigned count = std::min<unsigned>(static_cast<unsigned>(*v), FeederCodec::kMaxFeeders);
+                      status_.feeder_count(static_cast<std::uint8_t>(count));
+                      feeder_count_ = static_cast<int>(count);
+                      auto& feeders = status_.feeders();
+                      // Entries beyond the count stay only while FF10h reports them in error.
+                      feeders.erase(std::remove_if(feeders.begin(), feeders.end(),
+                                                   [&](const msg::FeederEntry& f) { return f.number() > count && !f.in_error(); }),
+                                    feeders.end());
+                      for (unsigned n = 1; n <= count; ++n) {
+                        const auto sub = static_cast<std::uint8_t>(n);
+                        (void)entry(n);
+                        more.push_back({kStatus, sub, [this, n](std::optional<std::uint64_t> s, std::vector<Read>&) {
+                                            entry(n).status_read(s.has_value());
+                                            if (s) entry(n).status(codec_.feeder_status(*s));
+                                          }});
+                        more.push_back({kErrorCondition, sub, [this, n](std::optional<std::uint64_t> s, std::vector<Read>&) {
+                                            entry(n).error_condition_read(s.has_value());
+                                            if (s) entry(n).error_condition(codec_.error_condition(*s));
+                                          }});
+                        more.push_back({kFunctions, sub, [this, n](std::optional<std::uint64_t> s, std::vector<Read>&) {
+                                            entry(n).functions_read(s.has_value());
+                                            if (s) entry(n).functions(codec_.functions(static_cast<std::uint32_t>(*s)));
+                                          }});
+                      }
+                    }});
+  read_chain(std::move(reads), 0);
+}
+
+void FeederGateway::read_chain(std::shared_ptr<std::vector<Read>> reads, std::size_t next) {
+  if (next >= reads->size()) {
+    polling_ = false;
+    publish_status(ddsl::now_ns());
+    return;
+  }
+  const Read& r = (*reads)[next];
+  ctx_.sdo->upload(ctx_.device.node_id, r.index, r.sub, [this, reads, next](canopen::SdoClient::UploadResult result) {
+    // The count read adds the per-feeder reads: appended after it ran, never while it runs.
+    std::vector<Read> more;
+    (*reads)[next].apply(result ? std::optional(little_endian(*result)) : std::nullopt, more);
+    for (auto& m : more) reads->push_back(std::move(m));
+    // A local general error means the client is going away (or the bus refused the frame): stop
+    // here rather than queue more requests.
+    if (!result && (result.error().abort_code == canopen::sdo_abort::general_error || !ctx_.node.online())) {
+      polling_ = false;
+      return;
+    }
+    read_chain(reads, next + 1);
+  });
+}
+
+msg::FeederEntry& FeederGateway::entry(unsigned feeder) {
+  auto& feeders = status_.feeders();
+  auto it = std::lower_bound(feeders.begin(), feeders.end(), feeder,
+                             [](const msg::FeederEntry& e, unsigned n) { return e.number() < n; });
+  if (it == feeders.end() || it->number() != feeder) {
+    msg::FeederEntry e;
+    e.number(static_cast<std::uint8_t>(feeder));
+    e.in_error(FeederCodec::in_bitmap(bitmap_, feeder));
+    it = feeders.insert(it, e);
+  }
+  return *it;
+}
+
+void FeederGateway::publish_status(std::int64_t stamp_ns) {
+  stamp(status_, stamp_ns);
+  fill_health(ctx_.node, status_.health());
+  status_.error_bitmap(bitmap_);
+  codec_.fill_loom(status_.loom());
+  status_.pdo_length_errors(ctx_.node.stats().pdo_length_errors);
+  status_writer_.write(status_);
+}
+
+// ---- DDS -> CAN ----
+
+std::string FeederGateway::refusal() const {
+  if (!ctx_.is_master() || ctx_.sdo == nullptr) {
+    return "bus " + ctx_.bus.name + " is in the monitor role: the bridge never transmits there";
+  }
+  return {};
+}
+
+std::optional<unsigned> FeederGateway::feeder_count() const {
+  const int n = feeder_count_.load();
+  return n < 0 ? std::nullopt : std::optional<unsigned>(static_cast<unsigned>(n));
+}
+
+void FeederGateway::write(const FeederCodec::Write& w, WriteReply reply, std::function<void()> then) {
+  const auto* obj = w.object;
+  ctx_.sdo->write(ctx_.device.node_id, obj->index, obj->sub, obj->type, canopen::ObjectValue{w.raw},
+                  [this, obj, raw = w.raw, reply = std::move(reply), then = std::move(then)](canopen::SdoClient::DownloadResult r) {
+                    if (r && then) return then();
+                    srv::FeederWrite_Response resp;
+                    resp.success(r.has_value());
+                    resp.raw(raw);
+                    if (!r) {
+                      resp.abort_code(r.error().abort_code);
+                      resp.message(obj->name + ": " + r.error().message);
+                      spdlog::warn("{}: {} = {:X}h refused by the device: {}", ctx_.device.name, obj->name, raw, r.error().message);
+                    } else {
+                      spdlog::info("{}: {} = {:X}h written", ctx_.device.name, obj->name, raw);
+                    }
+                    reply(resp);
+                  });
+}
+
+template <class RequestPS>
+void FeederGateway::serve(const std::string& name, std::function<void(const typename RequestPS::type&, WriteReply)> handler) {
+  // Every service: refused in the monitor role, validated against the profile on the DDS thread,
+  // and only then an SDO request.
+  using Service = ddsl::ServiceServer<RequestPS, srv::FeederWrite_ResponsePubSubType>;
+  auto served = Service::serve(ctx_.dds, ctx_.line + "/" + ctx_.device.name + "/" + name,
+                               [this, handler = std::move(handler)](const typename RequestPS::type& req, typename Service::Responder respond) {
+                                 const WriteReply reply = [respond](srv::FeederWrite_Response r) { respond(r); };
+                                 if (auto why = refusal(); !why.empty()) return reply(refused(why));
+                                 handler(req, reply);
+                               });
+  if (!served) throw std::runtime_error(ctx_.device.name + ": " + served.error().message);
+}
+
+void FeederGateway::serve_services() {
+  const auto write_or_refuse = [this](Result<FeederCodec::Write> w, const WriteReply& reply) {
+    if (!w) {
+      spdlog::warn("{}: refused: {}", ctx_.device.name, w.error().message);
+      return reply(refused(w.error().message));
+    }
+    write(*w, reply);
+  };
+
+  serve<srv::FeederCommand_RequestPubSubType>(
+      "feeder_command", [this, write_or_refuse](const srv::FeederCommand_Request& req, WriteReply reply) {
+        write_or_refuse(codec_.command(req.feeder(), req.command(), req.manufacturer_code(), feeder_count()), reply);
+      });
+  serve<srv::FeederTest_RequestPubSubType>(
+      "feeder_test", [this, write_or_refuse](const srv::FeederTest_Request& req, WriteReply reply) {
+        write_or_refuse(codec_.test(req.feeder(), req.test(), req.parameter(), feeder_count()), reply);
+      });
+  serve<srv::WeftInsertionType_RequestPubSubType>(
+      "weft_insertion_type", [this, write_or_refuse](const srv::WeftInsertionType_Request& req, WriteReply reply) {
+        write_or_refuse(codec_.weft_insertion_type(req.type()), reply);
+      });
+  serve<srv::FeederAssignment_RequestPubSubType>(
+      "feeder_assignment", [this, write_or_refuse](const srv::FeederAssignment_Request& req, WriteReply reply) {
+        if (!req.set_number() && !req.set_color()) return reply(refused("nothing to assign: set_number or set_color"));
+        std::optional<FeederCodec::Write> number, color;
+        if (req.set_number()) {
+          auto w = codec_.number_assignment(req.feeder(), req.system_number(), feeder_count());
+          if (!w) return write_or_refuse(std::move(w), reply);
+          number = *w;
+        }
+        if (req.set_color()) {
+          auto w = codec_.color_assignment(req.feeder(), req.color(), feeder_count());
+          if (!w) return write_or_refuse(std::move(w), reply);
+          color = *w;
+        }
+        // Both checked before either is written; the colour follows a successful number write.
+        if (number && color) return write(*number, reply, [this, c = *color, reply] { write(c, reply); });
+        write(number ? *number : *color, reply);
+      });
+  serve<srv::FeederFunctions_RequestPubSubType>(
+      "feeder_functions", [this](const srv::FeederFunctions_Request& req, WriteReply reply) {
+        auto obj = codec_.functions_object(req.feeder(), feeder_count());
+        if (!obj) return reply(refused(obj.error().message));
+        std::vector<FeederCodec::FunctionSetting> settings;
+        for (const auto& s : req.settings()) settings.push_back({s.function(), s.state()});
+        // Read-modify-write: only functions the feeder reports as available may change.
+        ctx_.sdo->upload(ctx_.device.node_id, (*obj)->index, (*obj)->sub,
+                         [this, o = *obj, settings = std::move(settings), reply](canopen::SdoClient::UploadResult r) {
+                           if (!r) {
+                             auto resp = refused(o->name + " not read: " + r.error().message);
+                             resp.abort_code(r.error().abort_code);
+                             return reply(resp);
+                           }
+                           auto merged = codec_.merge_functions(little_endian(*r), settings);
+                           if (!merged) return reply(refused(merged.error().message));
+                           auto w = FeederCodec::checked(*o, *merged);
+                           if (!w) return reply(refused(w.error().message));
+                           write(*w, reply);
+                         });
+      });
+  serve<srv::TriggerSource_RequestPubSubType>(
+      "trigger_source", [this](const srv::TriggerSource_Request& req, WriteReply reply) {
+        std::vector<std::string> selected(req.selected().begin(), req.selected().end());
+        const auto& supported = codec_.trigger_sources_supported();
+        ctx_.sdo->upload(ctx_.device.node_id, supported.index, supported.sub,
+                         [this, selected = std::move(selected), reply](canopen::SdoClient::UploadResult r) {
+                           if (!r) {
+                             auto resp = refused("trigger_sources_supported not read: " + r.error().message);
+                             resp.abort_code(r.error().abort_code);
+                             return reply(resp);
+                           }
+                           auto w = codec_.trigger_sources(selected, little_endian(*r));
+                           if (!w) return reply(refused(w.error().message));
+                           write(*w, reply);
+                         });
+      });
+}
+
+void FeederGateway::on_loom(const msg::LoomSetpoint& sp) {
+  if (auto why = refusal(); !why.empty()) return loom_reply(sp.request_id(), false, why);
+  auto raw = codec_.validate(sp);
+  if (!raw) {
+    spdlog::warn("{}: loom set value {} refused: {}", ctx_.device.name, sp.request_id(), raw.error().message);
+    return loom_reply(sp.request_id(), false, raw.error().message);
+  }
+  ctx_.loop.post([this, r = *raw, id = sp.request_id()] {
+    if (!ctx_.node.ready_for_pdos()) {
+      return loom_reply(id, false, ctx_.device.name + " is not started by this bridge or offline: loom set value not sent");
+    }
+    if (!loom_active_) spdlog::info("{}: the bridge now plays the loom controller (RPDOs from here on)", ctx_.device.name);
+    loom_active_ = true;
+    codec_.apply(r);
+    // Each part given is an event on its own PDO, sent even when unchanged (a trigger repeats).
+    for (auto& t : rpdos_) {
+      const bool touched = (r.loom_status && codec_.carries(t.pdo, kLoomStatus)) || (r.trigger && codec_.carries(t.pdo, kTrigger)) ||
+                           (r.picks && codec_.carries(t.pdo, kPicks));
+      if (!touched) continue;
+      t.transmitter->resend();
+      t.transmitter->on_data();
+    }
+    publish_status(ddsl::now_ns());
+    loom_reply(id, true, "");
+  });
+}
+
+void FeederGateway::loom_reply(std::uint64_t request_id, bool accepted, const std::string& reason) {
+  msg::SetpointResult r;
+  r.request_id(request_id);
+  r.accepted(accepted);
+  r.reason(reason);
+  loom_result_writer_.write(r);
+}
+
+}  // namespace lb::gateways

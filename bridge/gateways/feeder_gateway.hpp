@@ -1,0 +1,84 @@
+#pragma once
+// CiA 414-2 feeder control box on DDS (contract: docs/devices/feeder.md).
+//   CAN -> DDS: rt/<line>/<device>/status (per feeder 6009h, 6007h, 6001h polled by SDO in the master
+//   role; the FF10h bitmap; 6008h; the loom side of the bus), an `unwinding` event per TPDO1 and a
+//   `feeder_error` event per change of a feeder in EMCY FF10h, with 6007h read by SDO at once.
+//   DDS -> CAN (master role only): typed configuration services (600Eh, 600Fh, 6001h, 6011h/6012h,
+//   6002h, 6005h) as checked SDO writes, and `loom` set values sent in the loom controller's
+//   event-driven RPDOs. The bridge drives those RPDOs only after the first accepted `loom` set value:
+//   normally the loom controller does, and only one may drive a bus.
+
+#include <atomic>
+#include <cstdint>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "canopen/pdo_transmitter.hpp"
+#include "gateways/feeder_codec.hpp"
+#include "gateways/gateway.hpp"
+#include "msgs/commonPubSubTypes.h"
+#include "msgs/feederPubSubTypes.h"
+
+namespace lb::gateways {
+
+class FeederGateway : public Gateway {
+ public:
+  // Throws std::runtime_error at start-up when the profile lacks what a feeder needs.
+  explicit FeederGateway(DeviceContext context);
+
+ private:
+  using WriteReply = std::function<void(linebridge_msgs::srv::FeederWrite_Response)>;
+  // One SDO read of a poll; value is nullopt when the device refused or did not answer.
+  struct Read {
+    std::uint16_t index;
+    std::uint8_t sub;
+    // May add reads that follow (the per-feeder reads once the count is known).
+    std::function<void(std::optional<std::uint64_t> value, std::vector<Read>& more)> apply;
+  };
+
+  void on_pdo(std::size_t pdo, const can::CanFrame& frame);
+  void on_emergency(const canopen::Emergency& e);
+  void poll();
+  void read_chain(std::shared_ptr<std::vector<Read>> reads, std::size_t next);
+  void publish_error_event(unsigned feeder, bool in_error, std::uint32_t bitmap, std::int64_t stamp_ns);
+  void publish_status(std::int64_t stamp_ns);
+  linebridge_msgs::msg::FeederEntry& entry(unsigned feeder);
+
+  void serve_services();
+  template <class RequestPS>
+  void serve(const std::string& name, std::function<void(const typename RequestPS::type&, WriteReply)> handler);
+  // Validated on the DDS thread; empty when the bus takes commands.
+  std::string refusal() const;
+  std::optional<unsigned> feeder_count() const;
+  void write(const FeederCodec::Write& w, WriteReply reply, std::function<void()> then = {});
+
+  void on_loom(const linebridge_msgs::msg::LoomSetpoint& sp);
+  void loom_reply(std::uint64_t request_id, bool accepted, const std::string& reason);
+
+  DeviceContext ctx_;
+  FeederCodec codec_;  // loop thread, except the const validation (any thread)
+  struct Rpdo {
+    std::size_t pdo;  // index into codec_.pdos()
+    std::unique_ptr<canopen::PdoTransmitter> transmitter;
+  };
+  std::vector<Rpdo> rpdos_;  // master role: sent only once loom play began
+
+  ddsl::Writer<linebridge_msgs::msg::FeederStatusPubSubType> status_writer_;
+  ddsl::Writer<linebridge_msgs::msg::FeederUnwindingPubSubType> unwinding_writer_;
+  ddsl::Writer<linebridge_msgs::msg::FeederErrorPubSubType> error_writer_;
+  ddsl::Writer<linebridge_msgs::msg::SetpointResultPubSubType> loom_result_writer_;
+
+  std::atomic<int> feeder_count_{-1};  // 6009h sub 0 as last read; -1 unknown (DDS threads read it)
+
+  // Loop-thread state.
+  canopen::BusLoop::TimerId poll_timer_{};
+  bool polling_ = false;
+  bool loom_active_ = false;
+  std::uint32_t bitmap_ = 0;
+  linebridge_msgs::msg::FeederStatus status_;
+};
+
+}  // namespace lb::gateways

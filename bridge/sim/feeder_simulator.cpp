@@ -1,0 +1,291 @@
+#include "sim/feeder_simulator.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <stdexcept>
+
+#include "canopen/sdo_abort.hpp"
+#include "sim/device_dictionary.hpp"
+
+namespace lb::sim {
+
+using canopen::NmtState;
+using profiles::PdoDirection;
+
+namespace {
+
+// A pre-measuring feeder reports one winding this often while the loom runs.
+constexpr auto kWindingPeriod = std::chrono::milliseconds(100);
+constexpr std::uint8_t kErrorRegisterGeneric = 0x01;
+
+// Arrays with one element per feeder: sub 0 tells how many feeders the box has.
+constexpr const char* kPerFeeder[] = {"feeder_functions", "single_weft_filling_parameter", "feeder_error_condition",
+                                      "feeder_status", "feeder_command", "feeder_test",
+                                      "system_feeder_number_assignment", "feeder_color_assignment"};
+
+std::uint64_t little_endian(std::span<const std::uint8_t> v) {
+  std::uint64_t raw = 0;
+  for (std::size_t i = 0; i < v.size() && i < 8; ++i) raw |= std::uint64_t{v[i]} << (8 * i);
+  return raw;
+}
+
+std::uint64_t code_of(const profiles::ObjectDef& obj, std::string_view name) {
+  const auto c = obj.values.code(name);
+  if (!c) throw std::runtime_error("profile object " + obj.name + " has no code '" + std::string(name) + "'");
+  return *c;
+}
+
+}  // namespace
+
+FeederSimulator::FeederSimulator(canopen::BusLoop& loop, const profiles::DeviceConfig& device, const profiles::Profile& profile)
+    : loop_(loop),
+      device_(device),
+      profile_(profile),
+      nmt_(loop, device.node_id, device.simulation.heartbeat_period, [this] { reset_application(); }),
+      sdo_(loop, device.node_id, make_device_dictionary(device, profile)) {
+  loom_status_ = image_.slot(object("loom_status").index);
+  unwinding_time_ = image_.slot(object("feeder_unwinding_time").index);
+  for (const auto& pdo : device_.pdos) {
+    if (!pdo.enabled) continue;
+    for (const auto& e : pdo.mapping) {
+      if (!e.is_dummy()) image_.slot(e.index, e.sub);
+    }
+  }
+  for (const auto& pdo : device_.pdos) {
+    auto mapping = canopen::PdoMapping::create(pdo.mapping);
+    if (!mapping) throw std::runtime_error(device_.name + " " + pdo.name + ": " + mapping.error().message);
+    if (!pdo.enabled) continue;
+    if (pdo.direction == PdoDirection::tx) {
+      if (tpdo1_) continue;  // the profile has one TPDO (6010h)
+      tpdo1_binding_ = std::make_unique<canopen::PdoBinding>(std::move(*mapping), image_);
+      tpdo1_ = std::make_unique<canopen::PdoTransmitter>(
+          loop_, canopen::PdoTransmitter::Settings{pdo.can_id, pdo.extended, pdo.transmission_type, pdo.inhibit, pdo.event_timer},
+          [this](can::CanFrame& f) { f.len = tpdo1_binding_->pack_from(image_, std::span<std::uint8_t, 8>(f.data)); },
+          [this] { return nmt_.state() == NmtState::operational; });
+      continue;
+    }
+    const std::size_t i = rpdos_.size();
+    rpdos_.emplace_back(std::move(*mapping), image_);
+    const auto handler = [this, i](const can::CanFrame& f) { on_rpdo(i, f); };
+    if (pdo.extended) loop_.on_extended_frame(pdo.can_id, handler);
+    else loop_.on_frame(pdo.can_id, handler);
+  }
+  unwind_timer_ = loop_.create_timer([this] { unwind(); });
+  loop_.arm_timer(unwind_timer_, kWindingPeriod, kWindingPeriod);
+  link_dictionary();
+  reset_application();
+}
+
+const profiles::ObjectDef& FeederSimulator::object(std::string_view name) const {
+  const auto* def = profile_.object(name);
+  if (def == nullptr) throw std::runtime_error(device_.name + ": profile has no object " + std::string(name));
+  return *def;
+}
+
+const profiles::BitSet& FeederSimulator::bitset(std::string_view name) const {
+  const auto* set = profile_.bitset(name);
+  if (set == nullptr) throw std::runtime_error(device_.name + ": profile has no bit set " + std::string(name));
+  return *set;
+}
+
+std::uint64_t FeederSimulator::get(std::uint16_t index, std::uint8_t sub) const {
+  const auto* e = sdo_.dictionary().find(index, sub);
+  return e == nullptr ? 0 : little_endian(e->value);
+}
+
+void FeederSimulator::put(std::uint16_t index, std::uint8_t sub, std::uint64_t raw) {
+  const auto* e = sdo_.dictionary().find(index, sub);
+  if (e == nullptr) return;
+  std::vector<std::uint8_t> bytes(e->value.size());
+  for (std::size_t i = 0; i < bytes.size(); ++i) bytes[i] = static_cast<std::uint8_t>(raw >> (8 * i));
+  (void)sdo_.dictionary().set(index, sub, std::move(bytes));
+}
+
+void FeederSimulator::start() {
+  spdlog::info("sim {}: feeder control box node {} with {} feeders booting ({}); fault injection: SDO write {:04X}h",
+               device_.name, device_.node_id, kFeeders, profile_.key(), kFaultInjection);
+  nmt_.boot();
+}
+
+void FeederSimulator::reset_application() {
+  for (const auto* array : kPerFeeder) put(object(std::string(array) + "_count").index, 0, kFeeders);
+  const auto operational = code_of(object("feeder_status_1"), "operational_mode");
+  // Plausible functions: brush release and yarn quality not available, S winding, the rest off or
+  // not active except the yarn break sensor.
+  const auto& fns = bitset("feeder_functions");
+  std::uint64_t functions = 0;
+  const std::pair<const char*, const char*> defaults[] = {
+      {"brush_release", "not_available"},     {"winding_direction", "s"},
+      {"angle_trigger_monitoring", "off"},     {"yarn_break_sensor", "active"},
+      {"input_knot_detection_sensor", "not_active"}, {"yarn_quality_sensor", "not_available"},
+      {"rotation_direction_sensor", "not_active"},   {"tks_sensor", "not_available"}};
+  for (const auto& [field, state] : defaults) {
+    const auto* f = fns.field(field);
+    if (f != nullptr && f->values.code(state)) functions = f->insert(functions, *f->values.code(state));
+  }
+  for (unsigned n = 1; n <= kFeeders; ++n) {
+    const auto sub = static_cast<std::uint8_t>(n);
+    put(object("feeder_status_1").index, sub, operational);
+    put(object("feeder_error_condition_1").index, sub, 0);
+    put(object("feeder_functions_1").index, sub, functions);
+    put(object("system_feeder_number_assignment_1").index, sub, n);  // spec defaults: 01h, 02h, ...
+    put(object("feeder_color_assignment_1").index, sub, n);
+  }
+  const auto& sources = bitset("trigger_sources_supported");
+  std::uint64_t supported = 0;
+  for (const auto* name : {"brush_release_via_canopen", "angle_trigger_via_canopen", "pick_release_trigger_via_canopen"}) {
+    if (auto b = sources.bit(name)) supported |= std::uint64_t{1} << *b;
+  }
+  const auto& supported_obj = object("trigger_sources_supported");
+  put(supported_obj.index, supported_obj.sub, supported);
+  put(object("trigger_sources_selected").index, object("trigger_sources_selected").sub, 0x01);  // spec default
+  put(object("trigger_signal_source_count").index, 0, 2);
+  put(object("pick_insertion_count").index, 0, 5);
+  bitmap_ = 0;
+  loom_running_ = false;
+  image_.set(loom_status_, 0);
+  image_.set(unwinding_time_, 0);
+}
+
+void FeederSimulator::link_dictionary() {
+  auto& od = sdo_.dictionary();
+  if (auto r = od.add(kFaultInjection, 0, canopen::DataType::unsigned16, canopen::ObjectAccess::rw); !r) {
+    throw std::runtime_error(device_.name + ": " + r.error().message);
+  }
+  (void)od.set_on_write(kFaultInjection, 0, [this](std::span<const std::uint8_t> v) { return on_fault_injection(little_endian(v)); });
+  for (unsigned n = 1; n <= kFeeders; ++n) {
+    const auto sub = static_cast<std::uint8_t>(n);
+    (void)od.set_on_write(object("feeder_command_1").index, sub,
+                          [this, n](std::span<const std::uint8_t> v) { return on_command(n, little_endian(v)); });
+    (void)od.set_on_write(object("feeder_functions_1").index, sub,
+                          [this, n](std::span<const std::uint8_t> v) { return on_functions(n, little_endian(v)); });
+  }
+  const auto& selected = object("trigger_sources_selected");
+  const auto& supported = object("trigger_sources_supported");
+  (void)od.set_on_write(selected.index, selected.sub, [this, &supported](std::span<const std::uint8_t> v) -> std::optional<std::uint32_t> {
+    if ((little_endian(v) & ~get(supported.index, supported.sub)) != 0) return canopen::sdo_abort::value_range_exceeded;
+    return std::nullopt;
+  });
+  (void)od.set_on_write(0x1017, 0, [this](std::span<const std::uint8_t> v) -> std::optional<std::uint32_t> {
+    nmt_.set_heartbeat_period(std::chrono::milliseconds(v[0] | v[1] << 8));
+    return std::nullopt;
+  });
+}
+
+std::optional<std::uint32_t> FeederSimulator::on_fault_injection(std::uint64_t value) {
+  const unsigned feeder = value & 0xFF;
+  const std::uint64_t condition = value >> 8;
+  if (feeder > kFeeders) return canopen::sdo_abort::value_range_exceeded;
+  if (feeder == 0) {
+    for (unsigned n = 1; n <= kFeeders; ++n) clear(n);
+  } else if (condition == 0) {
+    clear(feeder);
+  } else {
+    raise(feeder, condition);
+  }
+  return std::nullopt;
+}
+
+std::optional<std::uint32_t> FeederSimulator::on_command(unsigned feeder, std::uint64_t command) {
+  const auto& cmd = object("feeder_command_1");
+  const auto& status = object("feeder_status_1");
+  const auto sub = static_cast<std::uint8_t>(feeder);
+  if (!cmd.values.name(command)) return canopen::sdo_abort::value_range_exceeded;  // 60h..FFh reserved
+  if (command == code_of(cmd, "reset")) {
+    clear(feeder);
+    put(status.index, sub, code_of(status, "operational_mode"));
+  } else if ((bitmap_ >> (feeder - 1) & 1U) != 0) {
+    return canopen::sdo_abort::cannot_store_device_state;  // a feeder in error takes only reset
+  } else if (command == code_of(cmd, "operation_mode")) {
+    put(status.index, sub, code_of(status, "operational_mode"));
+  } else if (command == code_of(cmd, "non_operation_mode") || command == code_of(cmd, "stop_mode")) {
+    put(status.index, sub, code_of(status, "non_operational_mode"));
+  } else if (command == code_of(cmd, "start")) {
+    put(status.index, sub, code_of(status, "filling_up_to_maximum_sensor"));
+  }
+  spdlog::info("sim {}: feeder {} command {:02X}h ({})", device_.name, feeder, command, *cmd.values.name(command));
+  return std::nullopt;
+}
+
+std::optional<std::uint32_t> FeederSimulator::on_functions(unsigned feeder, std::uint64_t word) {
+  // "Only those functions and sensors that are marked as supported can be changed."
+  const std::uint64_t current = get(object("feeder_functions_1").index, static_cast<std::uint8_t>(feeder));
+  for (const auto& f : bitset("feeder_functions").bits) {
+    const auto now = f.extract(current), wanted = f.extract(word);
+    if (!f.values.name(wanted)) return canopen::sdo_abort::value_range_exceeded;
+    if (now != wanted && f.values.name(now) == "not_available") return canopen::sdo_abort::value_range_exceeded;
+  }
+  return std::nullopt;
+}
+
+void FeederSimulator::raise(unsigned feeder, std::uint64_t condition) {
+  const auto sub = static_cast<std::uint8_t>(feeder);
+  const auto& status = object("feeder_status_1");
+  // The first error of a feeder is its main error: a second one does not replace it.
+  if ((bitmap_ >> (feeder - 1) & 1U) == 0) put(object("feeder_error_condition_1").index, sub, condition);
+  put(status.index, sub, code_of(status, "error_mode"));
+  bitmap_ |= 1U << (feeder - 1);
+  spdlog::info("sim {}: feeder {} fault {:02X}h injected: EMCY FF10h bitmap {:08X}h", device_.name, feeder, condition, bitmap_);
+  send_emergency(0xFF10, bitmap_);
+}
+
+void FeederSimulator::clear(unsigned feeder) {
+  if ((bitmap_ >> (feeder - 1) & 1U) == 0) return;
+  const auto sub = static_cast<std::uint8_t>(feeder);
+  const auto& status = object("feeder_status_1");
+  put(object("feeder_error_condition_1").index, sub, 0);
+  put(status.index, sub, code_of(status, "operational_mode"));
+  bitmap_ &= ~(1U << (feeder - 1));
+  spdlog::info("sim {}: feeder {} fault cleared: EMCY FF10h bitmap {:08X}h", device_.name, feeder, bitmap_);
+  send_emergency(0xFF10, bitmap_);
+  if (bitmap_ == 0) send_emergency(0x0000, 0);  // no error left (CiA 301 error reset)
+}
+
+void FeederSimulator::send_emergency(std::uint16_t code, std::uint32_t bitmap) {
+  const std::uint8_t reg = bitmap != 0 ? kErrorRegisterGeneric : 0;
+  put(0x1001, 0, reg);
+  (void)loop_.send(can::make_frame(canopen::cob::emcy_base + device_.node_id,
+                                   {static_cast<std::uint8_t>(code), static_cast<std::uint8_t>(code >> 8), reg,
+                                    static_cast<std::uint8_t>(bitmap), static_cast<std::uint8_t>(bitmap >> 8),
+                                    static_cast<std::uint8_t>(bitmap >> 16), static_cast<std::uint8_t>(bitmap >> 24), 0}));
+}
+
+void FeederSimulator::on_rpdo(std::size_t rpdo, const can::CanFrame& frame) {
+  if (nmt_.state() != NmtState::operational) return;
+  if (!rpdos_[rpdo].unpack_into(frame.payload(), image_)) {
+    if (short_rpdos_++ % 100 == 0) spdlog::warn("sim {}: RPDO {:03X}h shorter than its mapping ignored", device_.name, frame.id);
+    return;
+  }
+  const auto& loom = object("loom_status");
+  bool carries_loom_status = false;
+  for (const auto& e : rpdos_[rpdo].mapping().entries()) carries_loom_status = carries_loom_status || e.index == loom.index;
+  if (!carries_loom_status) return;
+  const auto status = image_.get(loom_status_);
+  if (status == code_of(loom, "new_speed_only")) return;  // "no change of loom status"
+  const bool running = status == code_of(loom, "start_advice") || status == code_of(loom, "slow_motion_forward") ||
+                       status == code_of(loom, "slow_motion_backward");
+  if (running != loom_running_) spdlog::info("sim {}: loom {}", device_.name, running ? "running" : "stopped");
+  loom_running_ = running;
+}
+
+void FeederSimulator::unwind() {
+  if (!loom_running_ || !tpdo1_ || nmt_.state() != NmtState::operational) return;
+  const auto& status = object("feeder_status_1");
+  const auto operational = code_of(status, "operational_mode");
+  // The next feeder in operation inserts the weft (one feeder selected at a time).
+  for (unsigned tries = 0; tries < kFeeders; ++tries) {
+    next_feeder_ = next_feeder_ % kFeeders + 1;
+    if (get(status.index, static_cast<std::uint8_t>(next_feeder_)) == operational) break;
+    if (tries + 1 == kFeeders) return;
+  }
+  winding_ = winding_ % 50 + 1;
+  const auto& u = bitset("feeder_unwinding_time");
+  std::uint64_t word = u.field("feeder_selected")->insert(0, next_feeder_);
+  word = u.field("winding_number")->insert(word, winding_);
+  word = u.field("coil_unwinding_time")->insert(word, 250 + 3 * winding_);  // 25.3..40 ms, raw 0.1 ms
+  image_.set(unwinding_time_, word);
+  tpdo1_->resend();  // every winding is an event, even with the same word
+  tpdo1_->on_data();
+}
+
+}  // namespace lb::sim

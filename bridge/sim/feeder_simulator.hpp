@@ -1,0 +1,73 @@
+#pragma once
+// The device side of a CiA 414-2 feeder control box with a few feeders (sub 0 of the per-feeder
+// arrays says how many): feeder status that follows feeder commands (600Eh), feeder functions
+// that refuse changes of what is not available (6001h), supported trigger sources (6005h), the
+// loom controller's RPDOs (event-driven, applied at once), and TPDO1 unwinding-time events while
+// the loom runs (600Ah start advice or slow motion).
+//
+// Fault injection (manufacturer-specific 2001h, UNSIGNED16, rw, written by SDO): low byte = feeder
+// (1..count), high byte = the 6007h condition to raise (e.g. 0x0402: feeder 2, yarn broken). The
+// feeder goes to error mode, 6007h sub n takes the condition and an EMCY FF10h carries the new
+// bitmap. A condition of 0 clears that feeder, feeder 0 clears all; a feeder command "reset"
+// (600Eh = 04h) clears that feeder too. Every clearing sends FF10h with the remaining bitmap and,
+// once it is empty, an EMCY 0000h (error reset). Conditions the table does not define are raised
+// as given, so a bridge's handling of undefined codes can be tested.
+
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <vector>
+
+#include "canopen/pdo_transmitter.hpp"
+#include "canopen/process_image.hpp"
+#include "canopen/sdo_server.hpp"
+#include "profiles/line_config.hpp"
+#include "sim/device_simulator.hpp"
+#include "sim/nmt_slave.hpp"
+
+namespace lb::sim {
+
+class FeederSimulator : public DeviceSimulator {
+ public:
+  static constexpr unsigned kFeeders = 4;
+  static constexpr std::uint16_t kFaultInjection = 0x2001;
+
+  FeederSimulator(canopen::BusLoop& loop, const profiles::DeviceConfig& device, const profiles::Profile& profile);
+  void start() override;
+
+ private:
+  const profiles::ObjectDef& object(std::string_view name) const;
+  const profiles::BitSet& bitset(std::string_view name) const;
+  std::uint64_t get(std::uint16_t index, std::uint8_t sub) const;
+  void put(std::uint16_t index, std::uint8_t sub, std::uint64_t raw);
+  void reset_application();
+  void link_dictionary();
+  std::optional<std::uint32_t> on_fault_injection(std::uint64_t value);
+  std::optional<std::uint32_t> on_command(unsigned feeder, std::uint64_t command);
+  std::optional<std::uint32_t> on_functions(unsigned feeder, std::uint64_t word);
+  void raise(unsigned feeder, std::uint64_t condition);
+  void clear(unsigned feeder);
+  void send_emergency(std::uint16_t code, std::uint32_t bitmap);
+  void on_rpdo(std::size_t rpdo, const can::CanFrame& frame);
+  void unwind();
+
+  canopen::BusLoop& loop_;
+  const profiles::DeviceConfig& device_;
+  const profiles::Profile& profile_;
+  NmtSlave nmt_;
+  canopen::SdoServer sdo_;
+  canopen::ProcessImage image_;  // the PDO objects: loom side (RPDOs) and 6010h (TPDO1)
+  std::vector<canopen::PdoBinding> rpdos_;
+  std::unique_ptr<canopen::PdoBinding> tpdo1_binding_;
+  std::unique_ptr<canopen::PdoTransmitter> tpdo1_;
+  std::size_t loom_status_, unwinding_time_;
+  canopen::BusLoop::TimerId unwind_timer_{};
+
+  bool loom_running_ = false;
+  std::uint32_t bitmap_ = 0;  // feeders in error, bit k = feeder k+1
+  unsigned next_feeder_ = 0;
+  unsigned winding_ = 0;
+  std::uint64_t short_rpdos_ = 0;
+};
+
+}  // namespace lb::sim

@@ -1,0 +1,524 @@
+#!/usr/bin/env bash
+# Runs the linebridge benchmarks and prints one table: figure, value, target, pass/fail, and the
+# command that reproduces it. Everything runs inside launch_scripts/netns-run.sh (private network
+# namespace and /dev/shm): the DDS participants, the virtual buses, the real `linebridge`.
+#
+#   launch_scripts/bench.sh [--quick] [--runs K] [--only FIGURES] [--build-dir DIR] [--no-build]
+#                           [--out DIR] [--buses "1 2 4 8 ..."] [--no-pin] [--nice N]
+#
+#   --quick          fewer samples and shorter steps (about 1 min instead of about 4)
+#   --runs K         measure every figure K times; the table shows the median and the range
+#   --only FIGURES   comma-separated subset of: can2dds,dds2can,throughput,memory,startup
+#   --build-dir DIR  where the build is (default build-bench); it is configured (Release) and
+#                    built first unless --no-build
+#   --out DIR        keep raw latencies, logs and the exact commands there (default: a new
+#                    directory under /tmp, printed at the end)
+#   --buses LIST     bus counts the throughput search tries, ascending (stops at the first loss)
+#   --no-pin         do not pin the bridge to one core in the throughput and memory steps
+#   --nice N         run everything (bridge, floors, harness) at this niceness, e.g. -10 to keep a
+#                    shared machine's other work from dominating the latency tails
+#
+# Figures (method and limits: BENCHMARKS.md):
+#   can2dds     saw TPDOs from another process on a virtual bus -> the bridge -> a DDS subscriber
+#               in a third process; in the same run the floor: the bare bus hop and the bare
+#               Fast DDS hop (same type, QoS, rate); the overhead is bridge minus floor.
+#   dds2can     a set value written by another process -> its RPDO1 on the bus; floor: a bare
+#               relay (Fast DDS reader that sends the frame from its listener).
+#   throughput  N buses x 30 saws, 8000 frames/s each: the largest N with no frame lost and no
+#               sample missing; the bridge's CPU use over the loaded interval.
+#   memory      VmRSS / VmHWM of the bridge with 8 buses x 30 saws, under full load.
+#   startup     process start -> first status sample at an already running subscriber.
+set -euo pipefail
+
+usage() { sed -n '2,30p' "$0" | sed 's/^# \{0,1\}//'; exit 2; }
+
+root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+orig_args=("$@")
+quick=0
+runs=1
+only="can2dds,dds2can,throughput,memory,startup"
+build_dir="$root/build-bench"
+do_build=1
+out_dir=""
+buses_list=""
+pin=1
+niceness=0
+while (($#)); do
+  case "$1" in
+    --quick) quick=1 ;;
+    --runs) runs=${2:?}; shift ;;
+    --only) only=${2:?}; shift ;;
+    --build-dir) build_dir=$(realpath -m "${2:?}"); shift ;;
+    --no-build) do_build=0 ;;
+    --out) out_dir=$(realpath -m "${2:?}"); shift ;;
+    --buses) buses_list=${2:?}; shift ;;
+    --no-pin) pin=0 ;;
+    --nice) niceness=${2:?}; shift ;;
+    -h|--help) usage ;;
+    *) echo "bench.sh: unknown argument $1" >&2; usage ;;
+  esac
+  shift
+done
+[[ $runs =~ ^[1-9][0-9]*$ ]] || { echo "bench.sh: --runs takes a positive number" >&2; exit 2; }
+for f in ${only//,/ }; do
+  [[ $f =~ ^(can2dds|dds2can|throughput|memory|startup)$ ]] || { echo "bench.sh: unknown figure $f" >&2; exit 2; }
+done
+
+# Outside the namespace: build (no DDS here), then re-enter through the wrapper.
+if [ "${LINEBRIDGE_NETNS:-}" != "1" ]; then
+  if ((do_build)); then
+    "$root/launch_scripts/setup.sh" >&2
+    if [ ! -f "$build_dir/CMakeCache.txt" ]; then
+      cmake -S "$root" -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=Release -DLINEBRIDGE_WERROR=ON >&2
+    fi
+    cmake --build "$build_dir" --target linebridge linebridge-sim bench-config bench-inject bench-can-sink \
+      bench-status-pub bench-status-sub bench-setpoint bench-relay bench-startup bench-stats >&2
+  fi
+  [ -n "$out_dir" ] || out_dir=$(mktemp -d /tmp/linebridge-bench.XXXXXX)
+  mkdir -p "$out_dir"
+  exec nice -n "$niceness" "$root/launch_scripts/netns-run.sh" "$0" "${orig_args[@]}" --no-build --build-dir "$build_dir" --out "$out_dir"
+fi
+
+# ------------------------------------------------------------------------------------------------
+# Settings. Full: >= 100,000 latency samples per set (the issue's minimum); quick: a smoke run.
+bin="$build_dir/bench"
+bridge_bin="$build_dir/bridge/app/linebridge"
+sim_bin="$build_dir/bridge/app/linebridge-sim"
+for b in "$bridge_bin" "$sim_bin" "$bin/bench-inject" "$bin/bench-stats"; do
+  [ -x "$b" ] || { echo "bench.sh: $b missing: build first (or drop --no-build)" >&2; exit 1; }
+done
+devices=30
+lat_rate=3000            # 30 saws x (TPDO1 + TPDO2) every 20 ms SYNC
+full_rate=8000           # frames/s of a saturated 1 Mbit/s bus
+# Latency sets are measured in chunks, bridge and floor alternating, so that a burst of load from
+# elsewhere on a shared machine hits all of them alike instead of one whole set.
+if ((quick)); then
+  chunks=2; lat_samples=5000; lat_warmup=600; sp_samples=500; sp_warmup=50; step_s=4; startup_reps="3 1"
+  quick_flag=" --quick"
+else
+  chunks=5; lat_samples=20000; lat_warmup=600; sp_samples=1000; sp_warmup=100; step_s=10; startup_reps="10 3"
+  quick_flag=""
+fi
+[ -n "$buses_list" ] || buses_list="1 2 4 6 8 10 12 16"
+mem_buses=8
+cores=$(nproc)
+pin_cmd=()
+if ((pin)) && ((cores >= 2)); then pin_cmd=(taskset -c $((cores - 1))); fi
+clk_tck=$(getconf CLK_TCK)
+mkdir -p "$out_dir"
+commands="$out_dir/commands.txt"
+: >"$commands"
+
+# ------------------------------------------------------------------------------------------------
+# Processes: every one we start is remembered by PID and stopped by PID, nothing else.
+declare -a started=()
+cleanup() {
+  local pid
+  for pid in "${started[@]}"; do kill -TERM "$pid" 2>/dev/null || true; done
+  for pid in "${started[@]}"; do wait "$pid" 2>/dev/null || true; done
+}
+trap cleanup EXIT
+
+# start LOG CMD... : runs CMD in the background (stdout to LOG.out, stderr to LOG.err); sets $pid.
+start() {
+  local log=$1; shift
+  printf '%s\n' "$*" >>"$commands"
+  "$@" >"$log.out" 2>"$log.err" &
+  pid=$!
+  started+=("$pid")
+}
+
+# wait_file FILE PID [SECONDS]: until FILE exists; fails if PID died or the time ran out.
+wait_file() {
+  local file=$1 who=$2 limit=${3:-120} waited=0
+  while [ ! -e "$file" ]; do
+    if ! kill -0 "$who" 2>/dev/null; then echo "bench.sh: process $who exited before $file" >&2; return 1; fi
+    sleep 0.02
+    waited=$((waited + 1))
+    if ((waited > limit * 50)); then echo "bench.sh: timeout waiting for $file" >&2; return 1; fi
+  done
+}
+
+# finish PID: waits for it and returns its exit status without tripping set -e.
+finish() { local rc=0; wait "$1" || rc=$?; return $rc; }
+stop() { kill -TERM "$1" 2>/dev/null || true; finish "$1" || true; }
+
+# utime + stime in ticks; empty when the process is gone.
+cpu_ticks() { awk '{ sub(/.*\) /, ""); print $12 + $13 }' "/proc/$1/stat" 2>/dev/null || true; }
+# cpu_percent T0_TICKS T1_TICKS T0_NS T1_NS: % of one core over the interval (empty if unknown).
+cpu_percent() {
+  [ -n "$1" ] && [ -n "$2" ] || return 0
+  awk -v a="$1" -v b="$2" -v s="$3" -v e="$4" -v hz="$clk_tck" 'BEGIN { printf "%.1f", (b - a) / hz / ((e - s) / 1e9) * 100 }'
+}
+now_ns() { date +%s%N; }
+mem_kib() { awk -v k="$2:" '$1 == k { print $2 }' "/proc/$1/status"; }
+get() { sed -n "s/^$2=//p" "$1" | tail -1; }  # get FILE KEY (key=value reports)
+
+domain=10
+next_domain() { domain=$((domain + 1)); }
+
+# ------------------------------------------------------------------------------------------------
+# One run of each figure. Each writes key=value lines to $vals (appended), raw data to its dir.
+
+bus_floor() {  # DIR PREFIX
+  local d=$1 p=$2 inj
+  start "$d/inject" "$bin/bench-inject" --buses 1 --devices $devices --rate $lat_rate --count $((lat_samples + lat_warmup)) \
+    --prefix "$p" --ready "$d/inject.ready" --go "$d/go" --stop "$d/stop" --linger 120
+  inj=$pid
+  wait_file "$d/inject.ready" $inj
+  start "$d/sink" "$bin/bench-can-sink" --prefix "$p" --expect $((lat_samples + lat_warmup)) --warmup $lat_warmup \
+    --ready "$d/sink.ready" --out "$d/bus.lat"
+  local sink=$pid
+  wait_file "$d/sink.ready" $sink
+  touch "$d/go"
+  finish $sink || echo "bench.sh: bus floor: frames missing (see $d/sink.out)" >&2
+  touch "$d/stop"
+  finish $inj || true
+}
+
+dds_floor() {  # DIR
+  local d=$1 sub pub
+  next_domain
+  start "$d/sub" "$bin/bench-status-sub" --buses 1 --devices $devices --domain $domain --expect $((lat_samples + lat_warmup)) \
+    --warmup $lat_warmup --ready "$d/sub.ready" --out "$d/dds.lat"
+  sub=$pid
+  start "$d/pub" "$bin/bench-status-pub" --devices $devices --domain $domain --rate $lat_rate --count $((lat_samples + lat_warmup)) \
+    --ready "$d/pub.ready" --go "$d/go" --stop "$d/stop" --linger 120
+  pub=$pid
+  wait_file "$d/sub.ready" $sub
+  wait_file "$d/pub.ready" $pub
+  touch "$d/go"
+  finish $sub || echo "bench.sh: DDS floor: samples missing (see $d/sub.out)" >&2
+  touch "$d/stop"
+  finish $pub || true
+}
+
+bridge_can2dds() {  # DIR PREFIX -> appends cpu
+  local d=$1 p=$2 inj sub br
+  next_domain
+  "$bin/bench-config" --buses 1 --devices $devices --domain $domain --prefix "$p" --role monitor >"$d/line.yaml"
+  start "$d/inject" "$bin/bench-inject" --buses 1 --devices $devices --rate $lat_rate --count $((lat_samples + lat_warmup)) \
+    --prefix "$p" --ready "$d/inject.ready" --go "$d/go" --stop "$d/stop" --linger 120
+  inj=$pid
+  wait_file "$d/inject.ready" $inj
+  start "$d/sub" "$bin/bench-status-sub" --buses 1 --devices $devices --domain $domain --expect $((lat_samples + lat_warmup)) \
+    --warmup $lat_warmup --diagnostics --ready "$d/sub.ready" --out "$d/bridge.lat"
+  sub=$pid
+  start "$d/bridge" "$bridge_bin" --config "$d/line.yaml"
+  br=$pid
+  wait_file "$d/sub.ready" $sub
+  sleep 0.5
+  local c0 t0 c1 t1
+  c0=$(cpu_ticks $br); t0=$(now_ns)
+  touch "$d/go"
+  while [ ! -s "$d/inject.out" ] && kill -0 $inj 2>/dev/null; do sleep 0.05; done
+  c1=$(cpu_ticks $br); t1=$(now_ns)
+  finish $sub || echo "bench.sh: can2dds: samples missing (see $d/sub.out)" >&2
+  touch "$d/stop"
+  finish $inj || true
+  stop $br
+  echo "chunk_cpu_pct=$(cpu_percent "$c0" "$c1" "$t0" "$t1")" >>"$vals"
+  local stamped
+  stamped=$(get "$d/sub.out" sub_stamped)
+  echo "chunk_missing=$(( lat_samples + lat_warmup - ${stamped:-0} ))" >>"$vals"
+}
+
+fig_can2dds() {  # RUN
+  local d="$out_dir/can2dds/run$1" c
+  vals="$d/values"; mkdir -p "$d"; : >"$vals"
+  for ((c = 1; c <= chunks; c++)); do
+    mkdir -p "$d/bus/c$c" "$d/dds/c$c" "$d/bridge/c$c"
+    bus_floor "$d/bus/c$c" "c2d-bus-$1-$c"
+    dds_floor "$d/dds/c$c"
+    bridge_can2dds "$d/bridge/c$c" "c2d-br-$1-$c"
+  done
+  cat "$d"/bus/c*/bus.lat >"$d/bus.lat"
+  cat "$d"/dds/c*/dds.lat >"$d/dds.lat"
+  cat "$d"/bridge/c*/bridge.lat >"$d/bridge.lat"
+  "$bin/bench-stats" overhead "$d/bridge.lat" "$d/bus.lat" "$d/dds.lat" | sed 's/^/can2dds_/' >>"$vals"
+  "$bin/bench-stats" summary "$d/bus.lat" | sed 's/^lat_/can2dds_bus_/' >>"$vals"
+  "$bin/bench-stats" summary "$d/dds.lat" | sed 's/^lat_/can2dds_dds_/' >>"$vals"
+  # Per chunk: CPU (mean over chunks) and missing samples (sum).
+  sed -n 's/^chunk_cpu_pct=//p' "$vals" | awk '{ s += $1 } END { if (NR) printf "can2dds_bridge_cpu_pct=%.1f\n", s / NR }' >>"$vals"
+  sed -n 's/^chunk_missing=//p' "$vals" | awk '{ s += $1 } END { printf "can2dds_missing=%d\n", s }' >>"$vals"
+}
+
+setpoint_bridge() {  # DIR PREFIX: the bridge in the master role (the saw booted and online, as
+  # set values require), RPDO1 event-driven so the frame leaves when the value is applied instead
+  # of at the next SYNC.
+  local d=$1 p=$2 sp sim br
+  next_domain
+  "$bin/bench-config" --buses 1 --devices 1 --domain $domain --prefix "$p" --role master --rpdo-event >"$d/line.yaml"
+  start "$d/setpoint" "$bin/bench-setpoint" --prefix "$p" --domain $domain --count $sp_samples --warmup $sp_warmup \
+    --ready "$d/setpoint.ready" --go "$d/go" --out "$d/bridge.lat"
+  sp=$pid
+  wait_file "$d/setpoint.ready" $sp
+  start "$d/sim" "$sim_bin" --config "$d/line.yaml"
+  sim=$pid
+  start "$d/bridge" "$bridge_bin" --config "$d/line.yaml"
+  br=$pid
+  touch "$d/go"
+  finish $sp || echo "bench.sh: dds2can: set values lost (see $d/setpoint.out)" >&2
+  stop $br
+  stop $sim
+  local lost
+  lost=$(get "$d/setpoint.out" setpoint_lost)
+  echo "chunk_lost=${lost:-$sp_samples}" >>"$vals"
+}
+
+setpoint_relay() {  # DIR PREFIX: the same client against a bare relay
+  local d=$1 p=$2 sp relay
+  next_domain
+  start "$d/setpoint" "$bin/bench-setpoint" --prefix "$p" --domain $domain --count $sp_samples --warmup $sp_warmup \
+    --ready "$d/setpoint.ready" --go "$d/go" --out "$d/relay.lat"
+  sp=$pid
+  wait_file "$d/setpoint.ready" $sp
+  start "$d/relay" "$bin/bench-relay" --prefix "$p" --domain $domain --ready "$d/relay.ready"
+  relay=$pid
+  wait_file "$d/relay.ready" $relay
+  touch "$d/go"
+  finish $sp || echo "bench.sh: dds2can floor: set values lost (see $d/setpoint.out)" >&2
+  stop $relay
+}
+
+fig_dds2can() {  # RUN
+  local d="$out_dir/dds2can/run$1" c
+  vals="$d/values"; mkdir -p "$d"; : >"$vals"
+  for ((c = 1; c <= chunks; c++)); do
+    mkdir -p "$d/bridge/c$c" "$d/relay/c$c"
+    setpoint_bridge "$d/bridge/c$c" "d2c-br-$1-$c"
+    setpoint_relay "$d/relay/c$c" "d2c-relay-$1-$c"
+  done
+  cat "$d"/bridge/c*/bridge.lat >"$d/bridge.lat"
+  cat "$d"/relay/c*/relay.lat >"$d/relay.lat"
+  "$bin/bench-stats" overhead "$d/bridge.lat" "$d/relay.lat" | sed 's/^/dds2can_/' >>"$vals"
+  sed -n 's/^chunk_lost=//p' "$vals" | awk '{ s += $1 } END { printf "dds2can_lost=%d\n", s }' >>"$vals"
+}
+
+# throughput_step DIR N -> key=value lines in DIR/step, exit 0 when nothing was lost.
+throughput_step() {
+  local d=$1 n=$2 inj sub br count=$((full_rate * step_s))
+  mkdir -p "$d"
+  next_domain
+  local p="tp-$n-$RANDOM"
+  "$bin/bench-config" --buses "$n" --devices $devices --domain $domain --prefix "$p" --role monitor >"$d/line.yaml"
+  start "$d/inject" "$bin/bench-inject" --buses "$n" --devices $devices --rate $full_rate --count $count \
+    --prefix "$p" --ready "$d/inject.ready" --go "$d/go" --stop "$d/stop" --linger 120
+  inj=$pid
+  wait_file "$d/inject.ready" $inj
+  start "$d/sub" "$bin/bench-status-sub" --buses "$n" --devices $devices --domain $domain --expect $((count * n)) \
+    --diagnostics --ready "$d/sub.ready" --out "$d/loaded.lat" --timeout $((step_s * 4 + 120))
+  sub=$pid
+  start "$d/bridge" "${pin_cmd[@]}" "$bridge_bin" --config "$d/line.yaml"
+  br=$pid
+  wait_file "$d/sub.ready" $sub 180
+  sleep 0.5
+  local c0 s0 i0 t0 c1 s1 i1 t1
+  c0=$(cpu_ticks $br); s0=$(cpu_ticks $sub); i0=$(cpu_ticks $inj); t0=$(now_ns)
+  touch "$d/go"
+  while [ ! -s "$d/inject.out" ] && kill -0 $inj 2>/dev/null; do sleep 0.05; done
+  c1=$(cpu_ticks $br); s1=$(cpu_ticks $sub); i1=$(cpu_ticks $inj); t1=$(now_ns)
+  local rss hwm
+  finish $sub || true
+  rss=$(mem_kib $br VmRSS); hwm=$(mem_kib $br VmHWM)
+  touch "$d/stop"
+  finish $inj || true
+  stop $br
+  local sent dropped rate frames_in err stamped
+  sent=$(get "$d/inject.out" inject_frames_sent); dropped=$(get "$d/inject.out" inject_tx_dropped)
+  rate=$(get "$d/inject.out" inject_rate_per_bus)
+  frames_in=$(get "$d/sub.out" bridge_frames_in); err=$(get "$d/sub.out" bridge_error_frames)
+  stamped=$(get "$d/sub.out" sub_stamped)
+  {
+    echo "buses=$n"
+    echo "offered=$((count * n))"
+    echo "sent=${sent:-0}"
+    echo "harness_dropped=${dropped:-0}"
+    echo "rate_per_bus=${rate:-0}"
+    echo "bridge_frames_in=${frames_in:-0}"
+    echo "bridge_overflows=${err:-0}"
+    echo "samples=${stamped:-0}"
+    echo "bridge_cpu_pct=$(cpu_percent "$c0" "$c1" "$t0" "$t1")"
+    echo "sub_cpu_pct=$(cpu_percent "$s0" "$s1" "$t0" "$t1")"
+    echo "inject_cpu_pct=$(cpu_percent "$i0" "$i1" "$t0" "$t1")"
+    echo "rss_kib=${rss:-0}"
+    echo "hwm_kib=${hwm:-0}"
+    echo "loaded_p50_us=$(get "$d/sub.out" sub_p50_us)"
+    echo "loaded_p99_us=$(get "$d/sub.out" sub_p99_us)"
+  } >"$d/step"
+  [ "${sent:-0}" = "$((count * n))" ] && [ "${frames_in:-x}" = "$sent" ] && [ "${err:-x}" = 0 ] && [ "${stamped:-x}" = "$sent" ] &&
+    awk -v r="${rate:-0}" -v t=$full_rate 'BEGIN { exit !(r >= 0.99 * t) }'
+}
+
+# What one bus at full load costs without the bridge, on the core the bridge gets: a bare Fast DDS
+# writer of the 30 status topics at the frame rate, and a bare reader of the bus.
+throughput_floor() {  # DIR
+  local d=$1 sub pub inj sink count=$((full_rate * step_s)) p="tpf-$RANDOM"
+  mkdir -p "$d/dds" "$d/bus"
+  next_domain
+  start "$d/dds/sub" "$bin/bench-status-sub" --buses 1 --devices $devices --domain $domain --expect $count \
+    --ready "$d/dds/sub.ready" --idle 2
+  sub=$pid
+  start "$d/dds/pub" "${pin_cmd[@]}" "$bin/bench-status-pub" --devices $devices --domain $domain --rate $full_rate \
+    --count $count --ready "$d/dds/pub.ready" --go "$d/dds/go" --stop "$d/dds/stop" --linger 120
+  pub=$pid
+  wait_file "$d/dds/sub.ready" $sub
+  wait_file "$d/dds/pub.ready" $pub
+  touch "$d/dds/go"
+  finish $sub || true
+  touch "$d/dds/stop"
+  finish $pub || true
+  start "$d/bus/inject" "$bin/bench-inject" --buses 1 --devices $devices --rate $full_rate --count $count \
+    --prefix "$p" --ready "$d/bus/inject.ready" --go "$d/bus/go" --stop "$d/bus/stop" --linger 120
+  inj=$pid
+  wait_file "$d/bus/inject.ready" $inj
+  start "$d/bus/sink" "${pin_cmd[@]}" "$bin/bench-can-sink" --prefix "$p" \
+    --expect $count --ready "$d/bus/sink.ready"
+  sink=$pid
+  wait_file "$d/bus/sink.ready" $sink
+  touch "$d/bus/go"
+  finish $sink || true
+  touch "$d/bus/stop"
+  finish $inj || true
+  echo "throughput_floor_dds_cpu_pct=$(get "$d/dds/pub.out" pub_cpu_pct)" >>"$vals"
+  echo "throughput_floor_bus_cpu_pct=$(get "$d/bus/sink.out" sink_cpu_pct)" >>"$vals"
+  echo "throughput_floor_dds_missing=$(get "$d/dds/sub.out" sub_missing)" >>"$vals"
+}
+
+fig_throughput() {  # RUN
+  local d="$out_dir/throughput/run$1" n best=0 best_cpu="" per_bus=""
+  mkdir -p "$d"
+  vals="$d/values"; : >"$vals"
+  throughput_floor "$d/floor"
+  for n in $buses_list; do
+    if throughput_step "$d/n$n" "$n"; then
+      best=$n
+      best_cpu=$(get "$d/n$n/step" bridge_cpu_pct)
+      echo "throughput: $n bus(es) x $devices saws at $full_rate frames/s: no loss, bridge CPU $best_cpu %" >&2
+    else
+      echo "throughput: $n bus(es): loss (details: $d/n$n/step)" >&2
+      echo "throughput_first_fail=$n" >>"$vals"
+      echo "throughput_fail_cpu_pct=$(get "$d/n$n/step" bridge_cpu_pct)" >>"$vals"
+      break
+    fi
+  done
+  echo "throughput_max_buses=$best" >>"$vals"
+  [ -z "$best_cpu" ] || echo "throughput_cpu_pct=$best_cpu" >>"$vals"
+  per_bus=$(get "$d/n1/step" bridge_cpu_pct)
+  [ -z "$per_bus" ] || echo "throughput_cpu_pct_1bus=$per_bus" >>"$vals"
+}
+
+fig_memory() {  # RUN: reuses the throughput run's 8-bus step when there is one
+  local d="$out_dir/memory/run$1" step="$out_dir/throughput/run$1/n$mem_buses/step"
+  mkdir -p "$d"
+  vals="$d/values"; : >"$vals"
+  if [ ! -f "$step" ]; then
+    throughput_step "$d/n$mem_buses" $mem_buses || true
+    step="$d/n$mem_buses/step"
+  fi
+  echo "memory_rss_mib=$(awk -v k="$(get "$step" rss_kib)" 'BEGIN { printf "%.1f", k / 1024 }')" >>"$vals"
+  echo "memory_hwm_mib=$(awk -v k="$(get "$step" hwm_kib)" 'BEGIN { printf "%.1f", k / 1024 }')" >>"$vals"
+}
+
+fig_startup() {  # RUN: each size several times (discovery makes the spread worth seeing)
+  local d="$out_dir/startup/run$1"
+  mkdir -p "$d"
+  vals="$d/values"; : >"$vals"
+  local spec b n k reps i=0
+  for spec in 1x1 ${mem_buses}x$devices; do
+    b=${spec%x*}; n=${spec#*x}
+    i=$((i + 1))
+    reps=$(echo $startup_reps | cut -d' ' -f$i)
+    for ((k = 1; k <= reps; k++)); do
+      next_domain
+      local base="$d/$spec-$k"
+      "$bin/bench-config" --buses "$b" --devices "$n" --domain $domain --prefix "st-$spec-$1-$k" --role master >"$base.yaml"
+      printf '%s\n' "$bin/bench-startup --buses $b --devices $n --domain $domain --log $base.bridge.log -- $bridge_bin --config $base.yaml" >>"$commands"
+      "$bin/bench-startup" --buses "$b" --devices "$n" --domain $domain --log "$base.bridge.log" -- \
+        "$bridge_bin" --config "$base.yaml" >"$base.out" 2>"$base.err" || true
+      echo "startup_${spec}_first_ms=$(get "$base.out" startup_first_ms)" >>"$vals"
+      echo "startup_${spec}_all_ms=$(get "$base.out" startup_all_ms)" >>"$vals"
+      echo "startup_${spec}_rss_mib=$(awk -v k="$(get "$base.out" startup_rss_kib)" 'BEGIN { printf "%.1f", k / 1024 }')" >>"$vals"
+    done
+  done
+}
+
+# ------------------------------------------------------------------------------------------------
+want() { [[ ",$only," == *",$1,"* ]]; }
+begin=$(date +%s)
+load_before=$(cut -d' ' -f1-3 /proc/loadavg)
+for ((r = 1; r <= runs; r++)); do
+  for f in can2dds dds2can throughput memory startup; do
+    if want $f; then
+      echo "== $f, run $r of $runs" >&2
+      "fig_$f" $r
+    fi
+  done
+done
+
+# ------------------------------------------------------------------------------------------------
+# The table: median over the runs, and the range when there is more than one.
+# stat FIGURE KEY -> "median" or "median (min-max)"; empty when never measured.
+stat() {
+  cat "$out_dir/$1"/run*/values 2>/dev/null | sed -n "s/^$2=//p" | grep -v '^$' | sort -g |
+    awk -v runs="$runs" '{ v[NR] = $1 } END {
+      if (NR == 0) exit
+      m = (NR % 2) ? v[(NR + 1) / 2] : (v[NR / 2] + v[NR / 2 + 1]) / 2
+      if (NR > 1) printf "%g (%g-%g)", m, v[1], v[NR]; else printf "%g", m }'
+}
+median() { stat "$1" "$2" | awk '{ print $1 }'; }
+verdict() {  # VALUE OP LIMIT
+  [ -n "$1" ] || { echo "n/a"; return; }
+  awk -v v="$1" -v l="$3" -v op="$2" 'BEGIN { ok = (op == "<=") ? v <= l : v >= l; print ok ? "PASS" : "FAIL" }'
+}
+
+table="$out_dir/table.md"
+nice_flag=""
+[ "$niceness" = 0 ] || nice_flag=" --nice $niceness"
+cmd() { echo "launch_scripts/bench.sh --only $1$quick_flag --runs $runs$nice_flag"; }
+{
+  echo "| figure | value | target | result | reproduce |"
+  echo "| --- | --- | --- | --- | --- |"
+  if want can2dds; then
+    echo "| CAN->DDS latency, bridge p50 / p99 / p99.9 / max (µs) | $(stat can2dds can2dds_bridge_p50_us) / $(stat can2dds can2dds_bridge_p99_us) / $(stat can2dds can2dds_bridge_p999_us) / $(stat can2dds can2dds_bridge_max_us) | | | \`$(cmd can2dds)\` |"
+    echo "| CAN->DDS floor: bus hop + DDS hop p50 / p99 / p99.9 (µs) | $(stat can2dds can2dds_floor_p50_us) / $(stat can2dds can2dds_floor_p99_us) / $(stat can2dds can2dds_floor_p999_us) | | | \`$(cmd can2dds)\` |"
+    echo "| CAN->DDS bare bus hop p50 / p99 (µs); bare DDS hop p50 / p99 (µs) | $(stat can2dds can2dds_bus_p50_us) / $(stat can2dds can2dds_bus_p99_us); $(stat can2dds can2dds_dds_p50_us) / $(stat can2dds can2dds_dds_p99_us) | | | \`$(cmd can2dds)\` |"
+    echo "| CAN->DDS overhead over the floor, p50 (µs) | $(stat can2dds can2dds_overhead_p50_us) | <= 20 | $(verdict "$(median can2dds can2dds_overhead_p50_us)" "<=" 20) | \`$(cmd can2dds)\` |"
+    echo "| CAN->DDS overhead over the floor, p99 (µs) | $(stat can2dds can2dds_overhead_p99_us) | <= 100 | $(verdict "$(median can2dds can2dds_overhead_p99_us)" "<=" 100) | \`$(cmd can2dds)\` |"
+    echo "| CAN->DDS samples (n per set), missing | $(stat can2dds can2dds_bridge_n), $(stat can2dds can2dds_missing) | 0 missing | $(verdict "$(median can2dds can2dds_missing)" "<=" 0) | \`$(cmd can2dds)\` |"
+    echo "| Bridge CPU at $lat_rate frames/s, 1 bus x $devices saws (% of a core) | $(stat can2dds can2dds_bridge_cpu_pct) | | | \`$(cmd can2dds)\` |"
+  fi
+  if want dds2can; then
+    echo "| DDS->CAN latency, bridge p50 / p99 / p99.9 / max (µs) | $(stat dds2can dds2can_bridge_p50_us) / $(stat dds2can dds2can_bridge_p99_us) / $(stat dds2can dds2can_bridge_p999_us) / $(stat dds2can dds2can_bridge_max_us) | | | \`$(cmd dds2can)\` |"
+    echo "| DDS->CAN floor: bare relay p50 / p99 / p99.9 (µs) | $(stat dds2can dds2can_floor_p50_us) / $(stat dds2can dds2can_floor_p99_us) / $(stat dds2can dds2can_floor_p999_us) | | | \`$(cmd dds2can)\` |"
+    echo "| DDS->CAN overhead over the floor, p50 (µs) | $(stat dds2can dds2can_overhead_p50_us) | <= 20 | $(verdict "$(median dds2can dds2can_overhead_p50_us)" "<=" 20) | \`$(cmd dds2can)\` |"
+    echo "| DDS->CAN overhead over the floor, p99 (µs) | $(stat dds2can dds2can_overhead_p99_us) | <= 100 | $(verdict "$(median dds2can dds2can_overhead_p99_us)" "<=" 100) | \`$(cmd dds2can)\` |"
+    echo "| DDS->CAN set values (n per set), lost | $(stat dds2can dds2can_bridge_n), $(stat dds2can dds2can_lost) | 0 lost | $(verdict "$(median dds2can dds2can_lost)" "<=" 0) | \`$(cmd dds2can)\` |"
+  fi
+  if want throughput; then
+    echo "| Buses x $devices saws at $full_rate frames/s, no frame lost, no sample missing (bridge pinned to 1 core) | $(stat throughput throughput_max_buses) (tried: $buses_list) | >= 8 | $(verdict "$(median throughput throughput_max_buses)" ">=" 8) | \`$(cmd throughput)\` |"
+    echo "| CPU for 1 bus at full load (% of a core): bridge; floor = bare Fast DDS writer + bare bus reader | $(stat throughput throughput_cpu_pct_1bus); $(stat throughput throughput_floor_dds_cpu_pct) + $(stat throughput throughput_floor_bus_cpu_pct) | | | \`$(cmd throughput)\` |"
+    echo "| Bridge CPU at the largest loss-free N (% of a core) | $(stat throughput throughput_cpu_pct) | | | \`$(cmd throughput)\` |"
+    echo "| First N with loss; bridge CPU there (% of a core) | $(stat throughput throughput_first_fail); $(stat throughput throughput_fail_cpu_pct) | | | \`$(cmd throughput)\` |"
+  fi
+  if want memory; then
+    echo "| Resident memory, $mem_buses x $devices saws at full load: VmRSS / VmHWM (MiB) | $(stat memory memory_rss_mib) / $(stat memory memory_hwm_mib) | <= 64 | $(verdict "$(median memory memory_hwm_mib)" "<=" 64) | \`$(cmd memory)\` |"
+  fi
+  if want startup; then
+    echo "| Start-up, 1 bus x 1 saw: process start -> first status sample (ms), median (range) of all starts | $(stat startup startup_1x1_first_ms) | <= 1000 | $(verdict "$(median startup startup_1x1_first_ms)" "<=" 1000) | \`$(cmd startup)\` |"
+    echo "| Start-up, $mem_buses x $devices saws: -> first status sample (ms) | $(stat startup startup_${mem_buses}x${devices}_first_ms) | <= 1000 | $(verdict "$(median startup startup_${mem_buses}x${devices}_first_ms)" "<=" 1000) | \`$(cmd startup)\` |"
+    echo "| Start-up, $mem_buses x $devices saws: -> every saw's first status sample (ms) | $(stat startup startup_${mem_buses}x${devices}_all_ms) | | | \`$(cmd startup)\` |"
+    echo "| Resident memory idle after start-up, 1x1 / ${mem_buses}x$devices, master role (MiB) | $(stat startup startup_1x1_rss_mib) / $(stat startup startup_${mem_buses}x${devices}_rss_mib) | | | \`$(cmd startup)\` |"
+  fi
+} >"$table"
+
+{
+  echo "linebridge benchmarks, $(date -u '+%Y-%m-%d %H:%M UTC'), $runs run(s)$quick_flag, $(($(date +%s) - begin)) s"
+  echo "machine: $(lscpu | sed -n 's/^Model name: *//p' | head -1), $cores cores, $(uname -r), $(awk '/MemTotal/ { printf "%.0f GiB", $2 / 1048576 }' /proc/meminfo) RAM"
+  echo "niceness of every bench process: $(nice)"
+  echo "load average (1/5/15 min) before: $load_before, after: $(cut -d' ' -f1-3 /proc/loadavg)"
+  echo
+  column -t -s '|' -o '|' "$table"
+  echo
+  echo "raw data, logs and every process's command line: $out_dir (commands.txt)"
+} | tee "$out_dir/summary.txt"

@@ -1,0 +1,311 @@
+// A feeder control box end to end: the real simulator (4 feeders) and the real bridge as separate
+// processes on a virtual bus, this test as DDS participant and passive bus member. Master role:
+// per-feeder status by SDO, an injected fault -> EMCY FF10h -> feeder_error event with the 6007h
+// detail read by SDO, cleared by a feeder command; invalid commands refused before CAN; the bridge
+// as loom controller. Monitor role: hand-built loom-controller RPDOs decoded, nothing transmitted.
+// Runs inside launch_scripts/netns-run.sh (CTest does that).
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <fstream>
+#include <set>
+#include <thread>
+
+#include "dds/participant.hpp"
+#include "dds/service.hpp"
+#include "dds/topic_names.hpp"
+#include "msgs/commonPubSubTypes.h"
+#include "msgs/feederPubSubTypes.h"
+#include "support/bus_spy.hpp"
+#include "support/child_process.hpp"
+#include "support/collector.hpp"
+
+namespace msg = linebridge_msgs::msg;
+namespace srv = linebridge_msgs::srv;
+using namespace std::chrono_literals;
+using lb::ddsl::QosKind;
+
+namespace {
+
+constexpr std::uint8_t kNode = 10;
+using CommandClient = lb::ddsl::ServiceClient<srv::FeederCommand_RequestPubSubType, srv::FeederWrite_ResponsePubSubType>;
+using FunctionsClient = lb::ddsl::ServiceClient<srv::FeederFunctions_RequestPubSubType, srv::FeederWrite_ResponsePubSubType>;
+using SdoWriteClient = lb::ddsl::ServiceClient<srv::SdoWrite_RequestPubSubType, srv::SdoWrite_ResponsePubSubType>;
+
+std::string device_yaml(const std::string& bus) {
+  return "devices:\n"
+         "  - name: feeders\n"
+         "    bus: " + bus + "\n"
+         "    node_id: 10\n"
+         "    profile: cia414-2\n"
+         "    version: '1.1'\n"
+         "    heartbeat_timeout_ms: 400\n"
+         "    simulation: {heartbeat_period_ms: 100}\n";
+}
+
+// SDO downloads (initiate, any size) of the bridge to the box for one object.
+std::size_t sdo_downloads(lb::test::BusSpy& spy, std::uint16_t index) {
+  std::size_t n = 0;
+  for (const auto& f : spy.frames(0x600 + kNode)) {
+    if ((f.data[0] & 0xE0) == 0x20 && f.data[1] == (index & 0xFF) && f.data[2] == (index >> 8)) ++n;
+  }
+  return n;
+}
+
+srv::FeederWrite_Response command(CommandClient& c, std::uint8_t feeder, const std::string& name) {
+  srv::FeederCommand_Request req;
+  req.feeder(feeder);
+  req.command(name);
+  auto r = c.call(req, 10s);
+  EXPECT_TRUE(r) << r.error().message;
+  return r ? *r : srv::FeederWrite_Response{};
+}
+
+}  // namespace
+
+TEST(FeederLine, StatusFaultEventsCommandsAndLoomPlay) {
+  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
+  const std::string tag = std::to_string(::getpid());
+  const std::string bus = "virtual:it-feed-" + tag;
+  const std::string tmp = ::testing::TempDir();
+  const std::string cfg = tmp + "/feeder_line_" + tag + ".yaml";
+  std::ofstream(cfg) << "line: itest\ndds: {domain: 7, localhost_only: true}\nbuses:\n"
+                        "  - {name: loom, interface: '" + bus + "', role: master, sync_period_ms: 20}\n" + device_yaml("loom");
+
+  lb::test::BusSpy spy(bus);
+  lb::test::ChildProcess sim({LB_BIN_SIM, "--config", cfg}, tmp + "/feed_sim_" + tag + ".log");
+  lb::test::ChildProcess bridge({LB_BIN_BRIDGE, "--config", cfg}, tmp + "/feed_bridge_" + tag + ".log");
+  const auto logs = [&] { return "--- bridge ---\n" + bridge.log() + "--- sim ---\n" + sim.log(); };
+
+  auto dds = lb::ddsl::Participant::create({7, true, "feeder-test"});
+  ASSERT_TRUE(dds) << dds.error().message;
+  const auto topic = [](const char* t) { return lb::ddsl::topic_name("itest", "feeders", t); };
+  lb::test::Collector<msg::FeederStatusPubSubType> status;
+  lb::test::Collector<msg::FeederErrorPubSubType> errors;
+  lb::test::Collector<msg::FeederUnwindingPubSubType> unwinding;
+  lb::test::Collector<msg::SetpointResultPubSubType> loom_results;
+  ASSERT_TRUE(status.subscribe(**dds, topic("status"), QosKind::state));
+  ASSERT_TRUE(errors.subscribe(**dds, topic("feeder_error"), QosKind::event));
+  ASSERT_TRUE(unwinding.subscribe(**dds, topic("unwinding"), QosKind::event));
+  ASSERT_TRUE(loom_results.subscribe(**dds, topic("loom_result"), QosKind::reply));
+
+  // Status per feeder: the four feeders polled by SDO, decoded by the profile's tables.
+  ASSERT_TRUE(status.wait_last(20s, [](const msg::FeederStatus& s) {
+    if (!s.health().online() || s.health().nmt_state() != msg::NMT_OPERATIONAL || !s.feeder_count_read() ||
+        s.feeder_count() != 4 || s.feeders().size() != 4) {
+      return false;
+    }
+    for (const auto& f : s.feeders()) {
+      if (!f.status_read() || !f.functions_read() || !f.error_condition_read()) return false;
+    }
+    return true;
+  })) << logs();
+  {
+    const auto s = status.samples().back();
+    for (std::size_t i = 0; i < 4; ++i) {
+      const auto& f = s.feeders()[i];
+      EXPECT_EQ(f.number(), i + 1);
+      EXPECT_EQ(f.status().name(), "operational_mode");
+      EXPECT_TRUE(f.status().valid());
+      EXPECT_EQ(f.error_condition().name(), "no_error");
+      EXPECT_EQ(f.functions().winding_direction().state(), "s");
+      EXPECT_EQ(f.functions().yarn_break_sensor().state(), "active");
+      EXPECT_FALSE(f.functions().brush_release().available());
+      EXPECT_FALSE(f.in_error());
+    }
+    EXPECT_TRUE(s.control_box_error_read());
+    EXPECT_EQ(s.control_box_error().name(), "no_error");
+    EXPECT_FALSE(s.loom().seen()) << "no loom controller yet";
+  }
+
+  // Fault injection (simulator 2001h): feeder 2, yarn broken (04h) -> EMCY FF10h bitmap 2.
+  auto sdo_write = SdoWriteClient::create(**dds, "itest/feeders/sdo_write");
+  ASSERT_TRUE(sdo_write);
+  srv::SdoWrite_Request inject;
+  inject.index(0x2001);
+  inject.sub_index(0);
+  inject.value().data_type("UNSIGNED16");
+  inject.value().unsigned_value(0x0402);
+  auto injected = (*sdo_write)->call(inject, 10s);
+  ASSERT_TRUE(injected) << injected.error().message;
+  ASSERT_TRUE(injected->success()) << injected->message();
+  ASSERT_TRUE(errors.wait(10s, [](const auto& v) { return !v.empty(); })) << logs();
+  {
+    const auto e = errors.samples().front();
+    EXPECT_EQ(e.feeder(), 2);
+    EXPECT_TRUE(e.in_error());
+    EXPECT_EQ(e.bitmap(), 0x2u);
+    EXPECT_TRUE(e.detail_read()) << e.remark();
+    EXPECT_EQ(e.condition().name(), "yarn_broken");
+    EXPECT_EQ(e.condition().raw(), 0x04);
+  }
+  ASSERT_TRUE(status.wait_last(5s, [](const msg::FeederStatus& s) {
+    return s.error_bitmap() == 0x2 && s.feeders().size() == 4 && s.feeders()[1].in_error() && !s.feeders()[0].in_error();
+  })) << logs();
+  ASSERT_TRUE(status.wait_last(5s, [](const msg::FeederStatus& s) {
+    return s.feeders().size() == 4 && s.feeders()[1].status().name() == "error_mode";
+  })) << "the next poll reads the feeder in error mode\n" << logs();
+
+  // Feeder commands: invalid ones refused with the reason and never on CAN; reset clears the fault.
+  auto commands = CommandClient::create(**dds, "itest/feeders/feeder_command");
+  ASSERT_TRUE(commands);
+  const auto unknown = command(**commands, 2, "fly");
+  EXPECT_FALSE(unknown.success());
+  EXPECT_NE(unknown.message().find("unknown feeder command"), std::string::npos) << unknown.message();
+  const auto beyond = command(**commands, 9, "reset");
+  EXPECT_FALSE(beyond.success());
+  EXPECT_NE(beyond.message().find("reports 4"), std::string::npos) << beyond.message();
+  EXPECT_EQ(sdo_downloads(spy, 0x600E), 0u) << "a refused command reached CAN";
+  const auto reset = command(**commands, 2, "reset");
+  EXPECT_TRUE(reset.success()) << reset.message();
+  EXPECT_EQ(reset.raw(), 0x04u);
+  EXPECT_EQ(sdo_downloads(spy, 0x600E), 1u);
+  ASSERT_TRUE(errors.wait(10s, [](const auto& v) { return v.size() >= 2; })) << logs();
+  {
+    const auto e = errors.samples()[1];
+    EXPECT_EQ(e.feeder(), 2);
+    EXPECT_FALSE(e.in_error());
+    EXPECT_EQ(e.bitmap(), 0u);
+    EXPECT_TRUE(e.detail_read());
+    EXPECT_EQ(e.condition().name(), "no_error");
+  }
+  ASSERT_TRUE(status.wait_last(5s, [](const msg::FeederStatus& s) {
+    return s.error_bitmap() == 0 && s.health().active_errors().empty() && s.feeders().size() == 4 && !s.feeders()[1].in_error();
+  })) << logs();
+
+  // Function settings: read-modify-write; a function the feeder lacks is refused with the reason.
+  auto functions = FunctionsClient::create(**dds, "itest/feeders/feeder_functions");
+  ASSERT_TRUE(functions);
+  srv::FeederFunctions_Request fr;
+  fr.feeder(1);
+  srv::FeederFunctionSetting setting;
+  setting.function("tks_sensor");
+  setting.state("active");
+  fr.settings({setting});
+  auto lacking = (*functions)->call(fr, 10s);
+  ASSERT_TRUE(lacking) << lacking.error().message;
+  EXPECT_FALSE(lacking->success());
+  EXPECT_NE(lacking->message().find("not available"), std::string::npos) << lacking->message();
+  setting.function("yarn_break_sensor");
+  setting.state("not_active");
+  fr.settings({setting});
+  auto changed = (*functions)->call(fr, 10s);
+  ASSERT_TRUE(changed) << changed.error().message;
+  EXPECT_TRUE(changed->success()) << changed->message();
+  ASSERT_TRUE(status.wait_last(5s, [](const msg::FeederStatus& s) {
+    return s.feeders().size() == 4 && s.feeders()[0].functions().yarn_break_sensor().state() == "not_active";
+  })) << logs();
+
+  // The bridge as loom controller: start advice in RPDO2 (event-driven), then unwinding events.
+  auto loom = (*dds)->writer<msg::LoomSetpointPubSubType>(topic("loom"), QosKind::command);
+  ASSERT_TRUE(loom);
+  const auto deadline = std::chrono::steady_clock::now() + 10s;
+  while ((loom->matched() == 0 || (*dds)->matched_writers(topic("loom_result")) == 0) && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(20ms);
+  }
+  msg::LoomSetpoint bad;
+  bad.request_id(1);
+  bad.pick_insertion({0x00, 0x07, 0xDD, 0xA3, 0x55});
+  loom->write(bad);
+  ASSERT_TRUE(loom_results.wait_last(5s, [](const msg::SetpointResult& r) { return r.request_id() == 1; })) << logs();
+  EXPECT_FALSE(loom_results.samples().back().accepted());
+  EXPECT_NE(loom_results.samples().back().reason().find("pick_insertion[2]"), std::string::npos);
+  EXPECT_TRUE(spy.frames(0x200 + kNode).empty()) << "a refused pick insertion reached CAN";
+
+  msg::LoomSetpoint run;
+  run.request_id(2);
+  run.loom_status("start_advice");
+  run.maximum_speed_per_min(1000);
+  run.loom_width_m(1.9);
+  loom->write(run);
+  ASSERT_TRUE(loom_results.wait_last(5s, [](const msg::SetpointResult& r) { return r.request_id() == 2; })) << logs();
+  EXPECT_TRUE(loom_results.samples().back().accepted()) << loom_results.samples().back().reason();
+  ASSERT_TRUE(unwinding.wait(10s, [](const auto& v) { return v.size() >= 5; })) << logs();
+  const auto rpdo2 = spy.frames(0x300 + kNode);
+  ASSERT_FALSE(rpdo2.empty());
+  EXPECT_EQ(std::vector<std::uint8_t>(rpdo2.front().data.begin(), rpdo2.front().data.begin() + rpdo2.front().len),
+            (std::vector<std::uint8_t>{0x01, 0xE8, 0x03, 0xBE, 0x00}));
+  std::set<int> feeders;
+  for (const auto& u : unwinding.samples()) {
+    EXPECT_TRUE(u.in_range());
+    EXPECT_GE(u.winding_number(), 1);
+    EXPECT_GT(u.coil_unwinding_time_ms(), 0.0);
+    feeders.insert(u.feeder_selected());
+  }
+  EXPECT_GE(feeders.size(), 2u) << "the feeders take turns";
+  EXPECT_TRUE(status.wait_last(5s, [](const msg::FeederStatus& s) { return s.loom().seen() && s.loom().loom_status().name() == "start_advice"; }));
+
+  dds->reset();
+  EXPECT_EQ(bridge.stop(), 0) << logs();
+}
+
+TEST(FeederLine, MonitorRoleDecodesLoomControllerAndNeverTransmits) {
+  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
+  const std::string tag = std::to_string(::getpid());
+  const std::string bus = "virtual:mon-feed-" + tag;
+  const std::string tmp = ::testing::TempDir();
+  const std::string line_cfg = tmp + "/feed_mon_line_" + tag + ".yaml";
+  std::ofstream(line_cfg) << "line: fmon\nbuses:\n  - {name: m, interface: '" + bus + "', role: master}\n" + device_yaml("m");
+  const std::string bridge_cfg = tmp + "/feed_mon_bridge_" + tag + ".yaml";
+  std::ofstream(bridge_cfg) << "line: fmon\ndds: {domain: 8}\nbuses:\n  - {name: m, interface: '" + bus + "', role: monitor}\n" +
+                                   device_yaml("m");
+
+  lb::test::BusSpy spy(bus);
+  lb::test::ChildProcess devices({LB_BIN_SIM, "--config", line_cfg, "--role", "devices"}, tmp + "/feed_mon_sim_" + tag + ".log");
+  lb::test::ChildProcess bridge({LB_BIN_BRIDGE, "--config", bridge_cfg}, tmp + "/feed_mon_bridge_" + tag + ".log");
+  const auto logs = [&] { return "--- bridge ---\n" + bridge.log() + "--- devices ---\n" + devices.log(); };
+
+  auto dds = lb::ddsl::Participant::create({8, true, "feeder-monitor-test"});
+  ASSERT_TRUE(dds) << dds.error().message;
+  const auto topic = [](const char* t) { return lb::ddsl::topic_name("fmon", "feeders", t); };
+  lb::test::Collector<msg::FeederStatusPubSubType> status;
+  lb::test::Collector<msg::FeederErrorPubSubType> errors;
+  ASSERT_TRUE(status.subscribe(**dds, topic("status"), QosKind::state));
+  ASSERT_TRUE(errors.subscribe(**dds, topic("feeder_error"), QosKind::event));
+  ASSERT_TRUE(status.wait_last(10s, [](const msg::FeederStatus& s) { return s.health().online(); })) << logs();
+
+  // The loom controller's RPDOs, built by hand (spec 4.2-4.5): start advice, 1000 1/min, 190 cm;
+  // picks empty, single 7, single 16, double 10+3, reserved DDh; angle trigger.
+  spy.clear();
+  ASSERT_TRUE(spy.send(lb::can::make_frame(0x300 + kNode, {0x01, 0xE8, 0x03, 0xBE, 0x00})));
+  ASSERT_TRUE(spy.send(lb::can::make_frame(0x200 + kNode, {0x00, 0x07, 0x10, 0xA3, 0xDD})));
+  ASSERT_TRUE(spy.send(lb::can::make_frame(0x500 + kNode, {0x01})));
+  ASSERT_TRUE(status.wait_last(10s, [](const msg::FeederStatus& s) {
+    return s.loom().seen() && s.loom().pick_insertion().size() == 5 && s.loom().pick_insertion()[4].raw() == 0xDD &&
+           s.loom().trigger_signal().name() == "angle_trigger";
+  })) << logs();
+  const auto l = status.samples().back().loom();
+  EXPECT_EQ(l.loom_status().name(), "start_advice");
+  EXPECT_EQ(l.maximum_speed_per_min(), 1000);
+  EXPECT_DOUBLE_EQ(l.loom_width_m(), 1.9);
+  EXPECT_EQ(l.pick_insertion()[1].kind(), "single_pick");
+  EXPECT_EQ(l.pick_insertion()[2].colours().at(0), 16);
+  EXPECT_EQ(l.pick_insertion()[3].kind(), "double_pick");
+  EXPECT_FALSE(l.pick_insertion()[4].valid()) << "DDh is reserved";
+  EXPECT_EQ(l.pick_insertion()[4].kind(), "");
+
+  // An EMCY FF10h (feeder 3): an event, but the detail cannot be read without transmitting.
+  ASSERT_TRUE(spy.send(lb::can::make_frame(0x080 + kNode, {0x10, 0xFF, 0x01, 0x04, 0x00, 0x00, 0x00, 0x00})));
+  ASSERT_TRUE(errors.wait(10s, [](const auto& v) { return !v.empty(); })) << logs();
+  EXPECT_EQ(errors.samples().front().feeder(), 3);
+  EXPECT_TRUE(errors.samples().front().in_error());
+  EXPECT_FALSE(errors.samples().front().detail_read());
+  EXPECT_NE(errors.samples().front().remark().find("monitor role"), std::string::npos);
+
+  // Commands are refused with the reason.
+  auto commands = CommandClient::create(**dds, "fmon/feeders/feeder_command");
+  ASSERT_TRUE(commands);
+  const auto refused = command(**commands, 1, "reset");
+  EXPECT_FALSE(refused.success());
+  EXPECT_NE(refused.message().find("monitor role"), std::string::npos) << refused.message();
+
+  // Nothing but the test's own frames and the box's heartbeats on the bus.
+  std::this_thread::sleep_for(500ms);
+  std::set<std::uint32_t> ids;
+  for (const auto& f : spy.frames()) ids.insert(f.id);
+  EXPECT_EQ(ids, (std::set<std::uint32_t>{0x700u + kNode})) << logs();
+  EXPECT_EQ(bridge.log().find("transmission refused"), std::string::npos) << logs();
+  dds->reset();
+  EXPECT_EQ(bridge.stop(), 0);
+}
