@@ -42,60 +42,40 @@ fdds::DomainParticipantQos participant_qos(const ParticipantOptions& options) {
   return qos;
 }
 
-fdds::DataWriterQos writer_qos(QosKind kind) {
-  fdds::DataWriterQos qos = fdds::DATAWRITER_QOS_DEFAULT;
-  qos.reliability().kind = fdds::RELIABLE_RELIABILITY_QOS;
-  qos.reliable_writer_qos().times.heartbeatPeriod = kHeartbeatPeriod;
+// What each kind means; writers and readers of a kind get the same, so they always match.
+struct KindQos {
+  fdds::DurabilityQosPolicyKind durability;
+  fdds::HistoryQosPolicyKind history;
+  int depth;
+};
+
+KindQos kind_qos(QosKind kind) {
   switch (kind) {
-    case QosKind::state:
-      qos.durability().kind = fdds::TRANSIENT_LOCAL_DURABILITY_QOS;
-      qos.history().kind = fdds::KEEP_LAST_HISTORY_QOS;
-      qos.history().depth = 1;
-      break;
-    case QosKind::command:
-      qos.durability().kind = fdds::VOLATILE_DURABILITY_QOS;
-      qos.history().kind = fdds::KEEP_LAST_HISTORY_QOS;
-      qos.history().depth = 16;
-      break;
-    case QosKind::event:
-      qos.durability().kind = fdds::VOLATILE_DURABILITY_QOS;
-      qos.history().kind = fdds::KEEP_ALL_HISTORY_QOS;
-      break;
-    case QosKind::reply:
-      qos.durability().kind = fdds::TRANSIENT_LOCAL_DURABILITY_QOS;
-      qos.history().kind = fdds::KEEP_LAST_HISTORY_QOS;
-      qos.history().depth = 16;
-      break;
+    case QosKind::state: return {fdds::TRANSIENT_LOCAL_DURABILITY_QOS, fdds::KEEP_LAST_HISTORY_QOS, 1};
+    case QosKind::command: return {fdds::VOLATILE_DURABILITY_QOS, fdds::KEEP_LAST_HISTORY_QOS, 16};
+    case QosKind::event: return {fdds::VOLATILE_DURABILITY_QOS, fdds::KEEP_ALL_HISTORY_QOS, 1};
+    case QosKind::reply: return {fdds::TRANSIENT_LOCAL_DURABILITY_QOS, fdds::KEEP_LAST_HISTORY_QOS, 16};
   }
+  return {fdds::VOLATILE_DURABILITY_QOS, fdds::KEEP_LAST_HISTORY_QOS, 1};
+}
+
+template <class Qos>
+Qos with_kind(Qos qos, QosKind kind) {
+  const KindQos k = kind_qos(kind);
+  qos.reliability().kind = fdds::RELIABLE_RELIABILITY_QOS;
+  qos.durability().kind = k.durability;
+  qos.history().kind = k.history;
+  qos.history().depth = k.depth;
   return qos;
 }
 
-fdds::DataReaderQos reader_qos(QosKind kind) {
-  fdds::DataReaderQos qos = fdds::DATAREADER_QOS_DEFAULT;
-  qos.reliability().kind = fdds::RELIABLE_RELIABILITY_QOS;
-  switch (kind) {
-    case QosKind::state:
-      qos.durability().kind = fdds::TRANSIENT_LOCAL_DURABILITY_QOS;
-      qos.history().kind = fdds::KEEP_LAST_HISTORY_QOS;
-      qos.history().depth = 1;
-      break;
-    case QosKind::command:
-      qos.durability().kind = fdds::VOLATILE_DURABILITY_QOS;
-      qos.history().kind = fdds::KEEP_LAST_HISTORY_QOS;
-      qos.history().depth = 16;
-      break;
-    case QosKind::event:
-      qos.durability().kind = fdds::VOLATILE_DURABILITY_QOS;
-      qos.history().kind = fdds::KEEP_ALL_HISTORY_QOS;
-      break;
-    case QosKind::reply:
-      qos.durability().kind = fdds::TRANSIENT_LOCAL_DURABILITY_QOS;
-      qos.history().kind = fdds::KEEP_LAST_HISTORY_QOS;
-      qos.history().depth = 16;
-      break;
-  }
+fdds::DataWriterQos writer_qos(QosKind kind) {
+  auto qos = with_kind(fdds::DATAWRITER_QOS_DEFAULT, kind);
+  qos.reliable_writer_qos().times.heartbeatPeriod = kHeartbeatPeriod;
   return qos;
 }
+
+fdds::DataReaderQos reader_qos(QosKind kind) { return with_kind(fdds::DATAREADER_QOS_DEFAULT, kind); }
 
 }  // namespace
 

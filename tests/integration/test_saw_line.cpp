@@ -19,6 +19,7 @@
 #include "dds/topic_names.hpp"
 #include "msgs/commonPubSubTypes.h"
 #include "msgs/sawPubSubTypes.h"
+#include "support/bus_spy.hpp"
 #include "support/child_process.hpp"
 
 namespace msg = linebridge_msgs::msg;
@@ -46,53 +47,6 @@ struct Observed {
   }
 };
 
-// Frames seen by a passive member of the virtual bus.
-class BusSpy {
- public:
-  explicit BusSpy(const std::string& uri) : bus_(lb::can::open_bus(uri).value()) {
-    thread_ = std::thread([this] {
-      while (!stop_) {
-        pollfd p{bus_->fd(), POLLIN, 0};
-        if (::poll(&p, 1, 50) <= 0) continue;
-        std::lock_guard lock(m_);
-        while (true) {
-          auto r = bus_->receive();
-          if (!r || !r->has_value()) break;
-          frames_.push_back(**r);
-        }
-      }
-    });
-  }
-  ~BusSpy() {
-    stop_ = true;
-    thread_.join();
-  }
-  std::vector<lb::can::CanFrame> frames(std::uint32_t id) {
-    std::lock_guard lock(m_);
-    std::vector<lb::can::CanFrame> out;
-    for (const auto& f : frames_) {
-      if (f.id == id) out.push_back(f);
-    }
-    return out;
-  }
-  void clear() {
-    std::lock_guard lock(m_);
-    frames_.clear();
-  }
-  // Sends from the spy's own member (the receive thread holds m_ only while reading).
-  lb::Result<void> send(const lb::can::CanFrame& f) {
-    std::lock_guard lock(m_);
-    return bus_->send(f);
-  }
-
- private:
-  std::unique_ptr<lb::can::Bus> bus_;
-  std::mutex m_;
-  std::vector<lb::can::CanFrame> frames_;
-  std::atomic<bool> stop_{false};
-  std::thread thread_;
-};
-
 class SawLine : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -112,7 +66,7 @@ class SawLine : public ::testing::Test {
                                    "    version: '3.1'\n"
                                    "    heartbeat_timeout_ms: 400\n"
                                    "    simulation: {max_speed_m_per_min: 60, acceleration_m_per_min_s: 6000, heartbeat_period_ms: 100}\n";
-    spy_ = std::make_unique<BusSpy>(bus_uri_);
+    spy_ = std::make_unique<lb::test::BusSpy>(bus_uri_);
     sim_ = std::make_unique<lb::test::ChildProcess>(std::vector<std::string>{LB_BIN_SIM, "--config", config_path_},
                                                     ::testing::TempDir() + "/sim_" + tag + ".log");
     bridge_ = std::make_unique<lb::test::ChildProcess>(
@@ -209,7 +163,7 @@ class SawLine : public ::testing::Test {
   }
 
   std::string bus_uri_, config_path_;
-  std::unique_ptr<BusSpy> spy_;
+  std::unique_ptr<lb::test::BusSpy> spy_;
   std::unique_ptr<lb::test::ChildProcess> sim_, bridge_;
   std::unique_ptr<lb::ddsl::Participant> dds_;
   lb::ddsl::Writer<msg::SawSetpointPubSubType> setpoint_;
