@@ -17,6 +17,9 @@ using eprosima::fastrtps::rtps::Locator_t;
 // and lost-packet recovery slow for an HMI.
 const eprosima::fastrtps::Duration_t kHeartbeatPeriod{0, 100'000'000};
 
+// How many unacknowledged samples a keep-all (event) topic holds per endpoint before a writer blocks.
+constexpr int kKeepAllLimit = 1000;
+
 fdds::DomainParticipantQos participant_qos(const ParticipantOptions& options) {
   fdds::DomainParticipantQos qos = fdds::PARTICIPANT_QOS_DEFAULT;
   qos.name(options.name);
@@ -59,13 +62,37 @@ KindQos kind_qos(QosKind kind) {
   return {fdds::VOLATILE_DURABILITY_QOS, fdds::KEEP_LAST_HISTORY_QOS, 1};
 }
 
+// Every topic is unkeyed (one instance), so the history needs no more room than its depth, and it
+// starts with room for one sample and grows on demand. Fast DDS's defaults (10 instances, 100
+// samples preallocated at the type's largest size, a data-sharing pool per endpoint sized for
+// 5000 samples) cost over 100 KiB per endpoint, and a bridge has thousands of endpoints on a full line.
+template <class Qos>
+void set_history(Qos& qos, fdds::HistoryQosPolicyKind kind, int depth) {
+  qos.history().kind = kind;
+  qos.history().depth = depth;
+  auto& limits = qos.resource_limits();
+  limits.max_instances = 1;
+  if (kind == fdds::KEEP_LAST_HISTORY_QOS) {
+    limits.max_samples = depth;
+    limits.max_samples_per_instance = depth;
+    limits.allocated_samples = 1;
+  } else {
+    // Keep-all: the bound a slow reader can hold back, growing from a few on demand.
+    limits.max_samples = kKeepAllLimit;
+    limits.max_samples_per_instance = kKeepAllLimit;
+    limits.allocated_samples = 1;
+  }
+  // The shared-memory transport still carries data between processes on one host; data sharing
+  // would add a fixed-size pool per endpoint on top of it.
+  qos.data_sharing().off();
+}
+
 template <class Qos>
 Qos with_kind(Qos qos, QosKind kind) {
   const KindQos k = kind_qos(kind);
   qos.reliability().kind = fdds::RELIABLE_RELIABILITY_QOS;
   qos.durability().kind = k.durability;
-  qos.history().kind = k.history;
-  qos.history().depth = k.depth;
+  set_history(qos, k.history, k.depth);
   return qos;
 }
 
@@ -129,7 +156,7 @@ fdds::DataWriter* Participant::create_writer(fdds::Topic* topic, QosKind kind) {
 fdds::DataReader* Participant::create_reader(fdds::Topic* topic, QosKind kind, int keep_last,
                                              fdds::DataReaderListener* listener) {
   auto qos = reader_qos(kind);
-  if (keep_last > 0 && qos.history().kind == fdds::KEEP_LAST_HISTORY_QOS) qos.history().depth = keep_last;
+  if (keep_last > 0 && qos.history().kind == fdds::KEEP_LAST_HISTORY_QOS) set_history(qos, fdds::KEEP_LAST_HISTORY_QOS, keep_last);
   auto* r = subscriber_->create_datareader(topic, qos, listener);
   if (r != nullptr) {
     std::lock_guard lock(mutex_);
