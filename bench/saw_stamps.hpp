@@ -7,6 +7,7 @@
 // In the status sample a TPDO2 shows as a new product speed and a TPDO1 as a new counter value;
 // the bare DDS writer of the floor fills its samples exactly as the bridge decodes these frames.
 
+#include <array>
 #include <cmath>
 #include <cstdint>
 #include <optional>
@@ -66,8 +67,11 @@ inline void apply_tpdo(linebridge_msgs::msg::SawStatus& s, std::uint32_t k, std:
   }
 }
 
-// Per device, on the receiving side: which frame a status sample reflects, and its send stamp.
-// Samples that reflect no new frame (the bridge's initial sample, NMT or EMCY changes) give none.
+// Per device, on the receiving side: which frames a status sample reflects, and their send stamps.
+// The bridge may merge a device's TPDO1 and TPDO2 into one sample (a burst, see PdoBurst), so a
+// sample reflects up to two frames; samples that reflect no new frame (the bridge's initial sample,
+// NMT or EMCY changes) give none. A frame whose values never show (overwritten before they were
+// published) is never counted, so it shows as missing.
 class StampDecoder {
  public:
   struct Hit {
@@ -75,20 +79,24 @@ class StampDecoder {
     bool tpdo2;
     std::uint32_t k;  // TPDO2 only
   };
+  struct Hits {
+    std::array<Hit, 2> hit{};
+    int n = 0;
+  };
 
-  std::optional<Hit> next(const linebridge_msgs::msg::SawStatus& s) {
+  Hits next(const linebridge_msgs::msg::SawStatus& s) {
+    Hits h;
     const auto k = static_cast<std::uint32_t>(std::llround(s.product_speed_m_per_min() / kSpeedScale));
     if (k != last_k_) {
       last_k_ = k;
       const auto raw = static_cast<std::int32_t>(std::llround(s.actual_saw_counter_m() / kSawCounterScale));
-      last_counter_ = s.counter_value();
-      return Hit{static_cast<std::uint32_t>(raw), true, k};
+      h.hit[static_cast<std::size_t>(h.n++)] = Hit{static_cast<std::uint32_t>(raw), true, k};
     }
     if (s.counter_value() != last_counter_) {
       last_counter_ = s.counter_value();
-      return Hit{last_counter_, false, 0};
+      h.hit[static_cast<std::size_t>(h.n++)] = Hit{last_counter_, false, 0};
     }
-    return std::nullopt;
+    return h;
   }
 
  private:

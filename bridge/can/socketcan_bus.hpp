@@ -19,6 +19,9 @@
 #include "can/bus.hpp"
 #include "can/unique_fd.hpp"
 
+struct can_frame;  // <linux/can.h>
+struct msghdr;     // <sys/socket.h>
+
 namespace lb::can {
 
 class SocketCanBus final : public Bus {
@@ -33,6 +36,7 @@ class SocketCanBus final : public Bus {
   static Result<std::unique_ptr<SocketCanBus>> open(std::string_view ifname);
 
   SocketCanBus(PrivateTag, std::string uri, std::string ifname, UniqueFd epoll, UniqueFd retry_timer);
+  ~SocketCanBus() override;
 
   const std::string& uri() const override { return uri_; }
   int fd() const override { return epoll_.get(); }
@@ -47,13 +51,18 @@ class SocketCanBus final : public Bus {
   // Opens and binds a socket when the interface exists and is up.
   Attach attach(std::string* why);
   void link_lost();
+  // One received frame and its ancillary data (timestamp, receive-queue drops) as a CanFrame.
+  CanFrame decode(const ::can_frame& raw, ::msghdr& msg);
   void set_retry_timer(bool armed);
 
   std::string uri_;
   std::string ifname_;
   UniqueFd epoll_;
   UniqueFd retry_timer_;
+  struct RxBatch;
+
   UniqueFd sock_;  // empty while the link is down
+  std::unique_ptr<RxBatch> rx_;  // frames read by one recvmmsg, handed out one per receive()
   bool opened_once_ = false;
   std::uint32_t socket_dropped_ = 0;  // the current socket's SO_RXQ_OVFL count
   BusStats stats_;

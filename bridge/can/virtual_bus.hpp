@@ -78,8 +78,11 @@ class VirtualBus final : public Bus {
   std::string address_;  // abstract unix address, leading NUL included
   UniqueFd epoll_;
   UniqueFd retry_timer_;
+  struct RxBatch;
+
   std::unique_ptr<Hub> hub_;
   UniqueFd sock_;  // connection to the hub; empty while none is reachable
+  std::unique_ptr<RxBatch> rx_;  // messages read by one recvmmsg, handed out one per receive()
   BusStats stats_;
 };
 

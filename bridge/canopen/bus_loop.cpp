@@ -148,16 +148,49 @@ void BusLoop::run() {
 }
 
 void BusLoop::drain_bus() {
-  for (;;) {
+  in_burst_ = true;
+  for (int in_burst = 0;; ++in_burst) {
+    if (in_burst == kBurstFrames) {
+      run_flushes();
+      in_burst = 0;
+    }
     auto r = bus_->receive();
     if (!r) {
       spdlog::warn("{}: receive failed: {}", bus_->uri(), r.error().message);
-      return;
+      break;
     }
-    if (!r->has_value()) return;
+    if (!r->has_value()) break;
     if (!(*r)->error) bits_in_ += frame_bits(**r);
     dispatch(**r);
   }
+  in_burst_ = false;
+  run_flushes();
+}
+
+BusLoop::FlushId BusLoop::create_flush(Task callback) {
+  flushes_.push_back(Flush{std::move(callback), false});
+  return flushes_.size() - 1;
+}
+
+void BusLoop::request_flush(FlushId id) {
+  auto& f = flushes_.at(id);
+  if (!in_burst_) {
+    f.callback();
+    return;
+  }
+  if (f.requested) return;
+  f.requested = true;
+  requested_flushes_.push_back(id);
+}
+
+void BusLoop::run_flushes() {
+  // By index: a callback may request flushes (they join this round) but never creates one.
+  for (std::size_t i = 0; i < requested_flushes_.size(); ++i) {
+    auto& f = flushes_[requested_flushes_[i]];
+    f.requested = false;
+    f.callback();
+  }
+  requested_flushes_.clear();
 }
 
 void BusLoop::run_posted() {

@@ -22,6 +22,7 @@ class BusLoop {
   using FrameHandler = std::function<void(const can::CanFrame&)>;
   using Task = std::function<void()>;
   using TimerId = std::size_t;
+  using FlushId = std::size_t;
 
   explicit BusLoop(std::unique_ptr<can::Bus> bus);
   ~BusLoop();
@@ -36,6 +37,17 @@ class BusLoop {
   // period zero = one-shot. Re-arming replaces the previous schedule. Loop thread (or before start).
   void arm_timer(TimerId id, std::chrono::nanoseconds first, std::chrono::nanoseconds period = {});
   void disarm_timer(TimerId id);
+
+  // Work deferred to the end of a burst of received frames: a gateway that decodes several PDOs of
+  // one device in one burst publishes one sample for all of them instead of one per frame, which is
+  // what keeps a fully loaded bus affordable (a DDS write costs several times a frame's decoding).
+  // A burst is what one wake-up finds pending, at most kBurstFrames frames, so a quiet bus flushes
+  // after every frame and adds no latency. Registration: before start() or on the loop thread.
+  static constexpr int kBurstFrames = 64;
+  FlushId create_flush(Task callback);
+  // Loop thread: runs the callback once after the frames being dispatched now; at once when called
+  // outside frame dispatch. Requests before that run coalesce into one call.
+  void request_flush(FlushId id);
 
   // Any thread: runs the task on the loop thread, in posting order.
   void post(Task task);
@@ -63,6 +75,7 @@ class BusLoop {
   void drain_bus();
   void run_posted();
   void dispatch(const can::CanFrame& frame);
+  void run_flushes();
 
   std::unique_ptr<can::Bus> bus_;
   int epoll_fd_ = -1;
@@ -71,6 +84,13 @@ class BusLoop {
   std::array<std::vector<FrameHandler>, cob::kStandardIdCount> handlers_;
   std::vector<std::pair<std::uint32_t, FrameHandler>> extended_handlers_;  // few: a linear scan
   std::vector<FrameHandler> other_handlers_;
+  struct Flush {
+    Task callback;
+    bool requested = false;
+  };
+  std::vector<Flush> flushes_;
+  std::vector<FlushId> requested_flushes_;
+  bool in_burst_ = false;
   std::uint64_t error_frames_logged_ = 0;
   std::uint64_t bits_in_ = 0;
   std::uint64_t bits_out_ = 0;

@@ -19,6 +19,7 @@
 #include "gateways/device_health.hpp"
 #include "gateways/gateway.hpp"
 #include "gateways/momentary_commands.hpp"
+#include "gateways/pdo_burst.hpp"
 #include "msgs/commonPubSubTypes.h"
 
 namespace lb::gateways {
@@ -43,6 +44,7 @@ class DriveGateway : public Gateway {
   Codec codec_;  // loop thread, except validate() (const, any thread)
   std::vector<std::unique_ptr<canopen::PdoTransmitter>> rpdos_;  // master role: what the bridge sends
   MomentaryCommands commands_;
+  PdoBurst burst_;
   ddsl::Writer<typename Dds::StatusTopic> status_writer_;
   ddsl::Writer<linebridge_msgs::msg::SetpointResultPubSubType> result_writer_;
   Status status_;  // loop thread
@@ -58,7 +60,8 @@ DriveGateway<Dds>::DriveGateway(DeviceContext context)
           [this] {
             for (auto& t : rpdos_) t->on_data();
             publish_status(ddsl::now_ns());
-          }) {
+          }),
+      burst_(context.loop, [this](std::int64_t stamp_ns) { publish_status(stamp_ns); }) {
   namespace msg = linebridge_msgs::msg;
   const std::string& dev = ctx_.device.name;
   for (std::size_t i = 0; i < codec_.pdos().size(); ++i) {
@@ -111,6 +114,7 @@ DriveGateway<Dds>::DriveGateway(DeviceContext context)
 template <class Dds>
 void DriveGateway<Dds>::on_pdo(std::size_t pdo, const can::CanFrame& frame) {
   auto& stats = ctx_.node.stats();
+  burst_.admit(pdo);
   if (auto r = codec_.receive(pdo, frame.payload()); !r) {
     // Counted and reported, never decoded: a short PDO would otherwise publish garbage.
     if (stats.pdo_length_errors++ % 1000 == 0) {
@@ -129,7 +133,7 @@ void DriveGateway<Dds>::on_pdo(std::size_t pdo, const can::CanFrame& frame) {
       spdlog::info("{}: set echo agrees with the set value again", ctx_.device.name);
     }
   }
-  publish_status(frame.timestamp_ns);
+  burst_.add(pdo, frame.timestamp_ns);
 }
 
 template <class Dds>
@@ -168,6 +172,7 @@ void DriveGateway<Dds>::reply(std::uint64_t request_id, bool accepted, const std
 
 template <class Dds>
 void DriveGateway<Dds>::publish_status(std::int64_t stamp_ns) {
+  burst_.published();
   const auto stamp = ddsl::to_stamp(stamp_ns);
   status_.stamp().sec(stamp.sec);
   status_.stamp().nanosec(stamp.nanosec);

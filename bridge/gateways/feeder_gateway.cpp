@@ -52,7 +52,10 @@ void stamp(M& m, std::int64_t ns) {
 
 }  // namespace
 
-FeederGateway::FeederGateway(DeviceContext context) : ctx_(context), codec_(context.profile, context.device.pdos) {
+FeederGateway::FeederGateway(DeviceContext context)
+    : ctx_(context),
+      codec_(context.profile, context.device.pdos),
+      burst_(context.loop, [this](std::int64_t stamp_ns) { publish_status(stamp_ns); }) {
   const std::string& dev = ctx_.device.name;
   for (std::size_t i = 0; i < codec_.pdos().size(); ++i) {
     const auto& pdo = *codec_.pdos()[i].def;
@@ -113,6 +116,7 @@ FeederGateway::FeederGateway(DeviceContext context) : ctx_(context), codec_(cont
 
 void FeederGateway::on_pdo(std::size_t pdo, const can::CanFrame& frame) {
   auto& stats = ctx_.node.stats();
+  burst_.admit(pdo);
   if (auto r = codec_.receive(pdo, frame.payload()); !r) {
     if (stats.pdo_length_errors++ % 1000 == 0) {
       spdlog::warn("{}: {} ({:03X}h) not decoded: {} ({} so far)", ctx_.device.name, codec_.pdos()[pdo].def->name, frame.id,
@@ -128,7 +132,7 @@ void FeederGateway::on_pdo(std::size_t pdo, const can::CanFrame& frame) {
     unwinding_writer_.write(u);
     return;
   }
-  publish_status(frame.timestamp_ns);  // a loom controller's RPDO (monitor role)
+  burst_.add(pdo, frame.timestamp_ns);  // a loom controller's RPDO (monitor role)
 }
 
 void FeederGateway::on_emergency(const canopen::Emergency& e) {
@@ -253,6 +257,7 @@ msg::FeederEntry& FeederGateway::entry(unsigned feeder) {
 }
 
 void FeederGateway::publish_status(std::int64_t stamp_ns) {
+  burst_.published();
   stamp(status_, stamp_ns);
   fill_health(ctx_.node, status_.health());
   status_.error_bitmap(bitmap_);

@@ -19,6 +19,7 @@
 #include "canopen/pdo_transmitter.hpp"
 #include "gateways/feeder_codec.hpp"
 #include "gateways/gateway.hpp"
+#include "gateways/pdo_burst.hpp"
 #include "msgs/commonPubSubTypes.h"
 #include "msgs/feederPubSubTypes.h"
 
@@ -60,6 +61,7 @@ class FeederGateway : public Gateway {
 
   DeviceContext ctx_;
   FeederCodec codec_;  // loop thread, except the const validation (any thread)
+  PdoBurst burst_;
   struct Rpdo {
     std::size_t pdo;  // index into codec_.pdos()
     std::unique_ptr<canopen::PdoTransmitter> transmitter;

@@ -31,7 +31,8 @@ SawGateway::SawGateway(DeviceContext context)
           [this] {
             for (auto& t : rpdos_) t->on_data();
             publish_status(ddsl::now_ns());
-          }) {
+          }),
+      burst_(context.loop, [this](std::int64_t stamp_ns) { publish_status(stamp_ns); }) {
   const std::string& dev = ctx_.device.name;
   for (std::size_t i = 0; i < codec_.pdos().size(); ++i) {
     const auto& pdo = *codec_.pdos()[i].def;
@@ -82,6 +83,7 @@ SawGateway::SawGateway(DeviceContext context)
 
 void SawGateway::on_pdo(std::size_t pdo, const can::CanFrame& frame) {
   auto& stats = ctx_.node.stats();
+  burst_.admit(pdo);
   if (auto r = codec_.receive(pdo, frame.payload()); !r) {
     // Counted and reported, never decoded: a short PDO would otherwise publish garbage.
     if (stats.pdo_length_errors++ % 1000 == 0) {
@@ -91,7 +93,7 @@ void SawGateway::on_pdo(std::size_t pdo, const can::CanFrame& frame) {
     return;
   }
   ++stats.pdos_received;
-  publish_status(frame.timestamp_ns);
+  burst_.add(pdo, frame.timestamp_ns);
 }
 
 void SawGateway::on_setpoint(const msg::SawSetpoint& sp) {
@@ -128,6 +130,7 @@ void SawGateway::reply(std::uint64_t request_id, bool accepted, const std::strin
 }
 
 void SawGateway::publish_status(std::int64_t stamp_ns) {
+  burst_.published();
   const auto stamp = ddsl::to_stamp(stamp_ns);
   status_.stamp().sec(stamp.sec);
   status_.stamp().nanosec(stamp.nanosec);

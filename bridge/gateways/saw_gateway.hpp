@@ -11,6 +11,7 @@
 #include "canopen/pdo_transmitter.hpp"
 #include "gateways/gateway.hpp"
 #include "gateways/momentary_commands.hpp"
+#include "gateways/pdo_burst.hpp"
 #include "gateways/saw_codec.hpp"
 #include "msgs/commonPubSubTypes.h"
 #include "msgs/sawPubSubTypes.h"
@@ -33,6 +34,7 @@ class SawGateway : public Gateway {
   SawCodec codec_;  // loop thread, except validate() (const, any thread)
   std::vector<std::unique_ptr<canopen::PdoTransmitter>> rpdos_;  // master role: what the bridge sends
   MomentaryCommands commands_;
+  PdoBurst burst_;
 
   ddsl::Writer<linebridge_msgs::msg::SawStatusPubSubType> status_writer_;
   ddsl::Writer<linebridge_msgs::msg::SawCutPubSubType> cut_writer_;

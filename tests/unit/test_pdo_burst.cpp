@@ -1,0 +1,149 @@
+// One status sample per burst of PDOs (BusLoop flushes + PdoBurst), on a real bus loop over a
+// virtual bus, with frames injected by a second bus member.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <future>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+#include "canopen/bus_loop.hpp"
+#include "gateways/pdo_burst.hpp"
+#include "support/bus_spy.hpp"
+
+using namespace std::chrono_literals;
+using lb::canopen::BusLoop;
+using lb::gateways::PdoBurst;
+
+namespace {
+
+constexpr std::uint32_t kTpdo1 = 0x181;
+constexpr std::uint32_t kTpdo2 = 0x281;
+
+// What a gateway would publish: the PDO values it had decoded when it published.
+struct Sample {
+  std::vector<std::uint8_t> values;  // the first data byte of every PDO decoded so far, by index
+  std::int64_t stamp_ns;
+};
+
+class Burst : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const std::string uri = "virtual:burst-" + std::to_string(::getpid()) + "-" +
+                            ::testing::UnitTest::GetInstance()->current_test_info()->name();
+    spy_ = std::make_unique<lb::test::BusSpy>(uri);
+    loop_ = std::make_unique<BusLoop>(lb::can::open_bus(uri).value());
+    burst_ = std::make_unique<PdoBurst>(*loop_, [this](std::int64_t stamp) { publish(stamp); });
+    loop_->on_frame(kTpdo1, [this](const lb::can::CanFrame& f) { on_pdo(0, f); });
+    loop_->on_frame(kTpdo2, [this](const lb::can::CanFrame& f) { on_pdo(1, f); });
+    loop_->start();
+  }
+  void TearDown() override { loop_->stop(); }
+
+  // As SawGateway::on_pdo: admit, decode, add.
+  void on_pdo(std::size_t index, const lb::can::CanFrame& f) {
+    burst_->admit(index);
+    image_[index] = f.data[0];
+    burst_->add(index, f.timestamp_ns);
+  }
+  void publish(std::int64_t stamp) {
+    burst_->published();
+    std::lock_guard lock(m_);
+    samples_.push_back({{image_[0], image_[1]}, stamp});
+  }
+
+  void send(std::uint32_t id, std::uint8_t value) {
+    lb::can::CanFrame f;
+    f.id = id;
+    f.len = 1;
+    f.data[0] = value;
+    ASSERT_TRUE(spy_->send(f));
+  }
+  // Holds the loop thread while `inject` sends, so that everything sent arrives as one burst.
+  void as_one_burst(const std::function<void()>& inject) {
+    std::promise<void> release;
+    std::promise<void> holding;
+    loop_->post([&] {
+      holding.set_value();
+      release.get_future().wait();
+    });
+    holding.get_future().wait();
+    inject();
+    std::this_thread::sleep_for(100ms);  // through the hub into the loop's socket
+    release.set_value();
+    std::this_thread::sleep_for(100ms);
+  }
+  std::vector<Sample> samples() {
+    std::lock_guard lock(m_);
+    return samples_;
+  }
+
+  std::unique_ptr<lb::test::BusSpy> spy_;
+  std::unique_ptr<BusLoop> loop_;
+  std::unique_ptr<PdoBurst> burst_;
+  std::array<std::uint8_t, 2> image_{};  // loop thread
+  std::mutex m_;
+  std::vector<Sample> samples_;
+};
+
+TEST_F(Burst, DifferentPdosOfOneBurstMakeOneSample) {
+  as_one_burst([&] {
+    send(kTpdo1, 11);
+    send(kTpdo2, 21);
+  });
+  const auto s = samples();
+  ASSERT_EQ(s.size(), 1U);
+  EXPECT_EQ(s[0].values, (std::vector<std::uint8_t>{11, 21}));
+  EXPECT_GT(s[0].stamp_ns, 0);
+}
+
+TEST_F(Burst, APdoAgainInTheBurstPublishesTheWaitingOneFirst) {
+  as_one_burst([&] {
+    send(kTpdo1, 11);
+    send(kTpdo2, 21);
+    send(kTpdo1, 12);
+    send(kTpdo1, 13);
+  });
+  const auto s = samples();
+  // Every value of TPDO1 was published once: 11 with 21, then 12, then 13 at the burst's end.
+  ASSERT_EQ(s.size(), 3U);
+  EXPECT_EQ(s[0].values, (std::vector<std::uint8_t>{11, 21}));
+  EXPECT_EQ(s[1].values, (std::vector<std::uint8_t>{12, 21}));
+  EXPECT_EQ(s[2].values, (std::vector<std::uint8_t>{13, 21}));
+  EXPECT_LE(s[0].stamp_ns, s[1].stamp_ns);
+  EXPECT_LE(s[1].stamp_ns, s[2].stamp_ns);
+}
+
+TEST_F(Burst, AQuietBusPublishesEveryFrame) {
+  for (std::uint8_t v = 1; v <= 5; ++v) {
+    send(v % 2 != 0 ? kTpdo1 : kTpdo2, v);
+    std::this_thread::sleep_for(30ms);
+  }
+  std::this_thread::sleep_for(100ms);
+  EXPECT_EQ(samples().size(), 5U);
+}
+
+TEST_F(Burst, ALongBurstOfOnePdoLosesNoValue) {
+  const int frames = 3 * BusLoop::kBurstFrames;
+  as_one_burst([&] {
+    for (int i = 0; i < frames; ++i) send(kTpdo2, static_cast<std::uint8_t>(i));
+  });
+  // One PDO again and again: each value goes out, none is overwritten.
+  const auto s = samples();
+  ASSERT_EQ(s.size(), static_cast<std::size_t>(frames));
+  for (int i = 0; i < frames; ++i) EXPECT_EQ(s[static_cast<std::size_t>(i)].values[1], static_cast<std::uint8_t>(i));
+}
+
+TEST_F(Burst, AFlushRequestedOutsideABurstRunsAtOnce) {
+  std::promise<std::size_t> seen;
+  loop_->post([&] {
+    burst_->add(0, 42);  // e.g. a PDO decoded on behalf of a posted task
+    seen.set_value(samples().size());
+  });
+  EXPECT_EQ(seen.get_future().get(), 1U);
+  EXPECT_EQ(samples()[0].stamp_ns, 42);
+}
+
+}  // namespace
