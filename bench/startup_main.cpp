@@ -1,5 +1,6 @@
 // bench-startup: start-up time of a bridge process, from the moment it is spawned to the first
-// status sample an application receives (and to the last device's first sample), with the
+// status sample an application receives (and to the last device's first sample; with --online and
+// a simulator playing the devices, also to the first samples with live data), with the
 // application's participant and readers already up, as on a running line. Also reports the
 // bridge's resident memory once it has settled, then stops it with SIGTERM.
 #include <CLI/CLI.hpp>
@@ -38,6 +39,11 @@ struct FirstSamples {
   std::int64_t first_ns = 0;
   std::int64_t all_ns = 0;
   std::vector<bool> seen;
+  // The same for samples with live data: the device online (heartbeat seen, booted by the bridge).
+  std::size_t devices_online = 0;
+  std::int64_t first_online_ns = 0;
+  std::int64_t all_online_ns = 0;
+  std::vector<bool> online;
 };
 
 pid_t spawn(std::vector<std::string> argv, const std::string& log) {
@@ -73,11 +79,14 @@ int main(int argc, char** argv) {
   cli.add_option("--settle", settle_s, "seconds after the last first sample before reading memory")->capture_default_str();
   cli.add_option("--quiet-ms", quiet_ms, "wait this long after subscribing before starting the bridge")->capture_default_str();
   cli.add_option("--log", log, "the bridge's output")->capture_default_str();
+  bool online = false;
+  cli.add_flag("--online", online, "also wait for every device's first sample with live data (a simulator plays them)");
   cli.add_option("command", command, "the bridge command line (after --)")->required();
   CLI11_PARSE(cli, argc, argv);
 
   FirstSamples first;  // outlives the participant's listeners
   first.seen.assign(static_cast<std::size_t>(buses * devices), false);
+  first.online.assign(first.seen.size(), false);
   auto dds = lb::ddsl::Participant::create({static_cast<std::uint32_t>(domain), true, "bench-startup"});
   if (!dds) {
     std::fprintf(stderr, "bench-startup: %s\n", dds.error().message.c_str());
@@ -88,13 +97,19 @@ int main(int argc, char** argv) {
       const auto index = static_cast<std::size_t>(b * devices + d);
       auto sub = (*dds)->subscribe<msg::SawStatusPubSubType>(
           lb::ddsl::topic_name(bench::kLine, bench::device_name(b, d), "status"), lb::ddsl::QosKind::state,
-          [&first, index](const msg::SawStatus&, const lb::ddsl::fdds::SampleInfo&) {
+          [&first, index](const msg::SawStatus& s, const lb::ddsl::fdds::SampleInfo&) {
             const auto now = bench::realtime_ns();
             std::lock_guard lock(first.m);
-            if (first.seen[index]) return;
-            first.seen[index] = true;
-            if (first.devices_seen++ == 0) first.first_ns = now;
-            if (first.devices_seen == first.seen.size()) first.all_ns = now;
+            if (!first.seen[index]) {
+              first.seen[index] = true;
+              if (first.devices_seen++ == 0) first.first_ns = now;
+              if (first.devices_seen == first.seen.size()) first.all_ns = now;
+            }
+            if (s.health().online() && !first.online[index]) {
+              first.online[index] = true;
+              if (first.devices_online++ == 0) first.first_online_ns = now;
+              if (first.devices_online == first.online.size()) first.all_online_ns = now;
+            }
             first.cv.notify_all();
           });
       if (!sub) {
@@ -116,7 +131,10 @@ int main(int argc, char** argv) {
   {
     std::unique_lock lock(first.m);
     all = first.cv.wait_for(lock, std::chrono::duration<double>(timeout_s),
-                            [&] { return first.devices_seen == first.seen.size(); });
+                            [&] {
+                              return first.devices_seen == first.seen.size() &&
+                                     (!online || first.devices_online == first.online.size());
+                            });
   }
   std::this_thread::sleep_for(std::chrono::duration<double>(settle_s));
   const auto mem = bench::read_memory(pid);
@@ -127,7 +145,15 @@ int main(int argc, char** argv) {
   std::lock_guard lock(first.m);
   std::string report = fmt::format("startup_devices={}\nstartup_devices_seen={}\n", first.seen.size(), first.devices_seen);
   if (first.devices_seen > 0) report += fmt::format("startup_first_ms={:.1f}\n", static_cast<double>(first.first_ns - t0) / 1e6);
-  if (all) report += fmt::format("startup_all_ms={:.1f}\n", static_cast<double>(first.all_ns - t0) / 1e6);
+  if (first.devices_seen == first.seen.size()) {
+    report += fmt::format("startup_all_ms={:.1f}\n", static_cast<double>(first.all_ns - t0) / 1e6);
+  }
+  if (first.devices_online > 0) {
+    report += fmt::format("startup_first_online_ms={:.1f}\n", static_cast<double>(first.first_online_ns - t0) / 1e6);
+  }
+  if (first.devices_online == first.online.size()) {
+    report += fmt::format("startup_all_online_ms={:.1f}\n", static_cast<double>(first.all_online_ns - t0) / 1e6);
+  }
   report += fmt::format("startup_rss_kib={}\nstartup_hwm_kib={}\nstartup_exit={}\n", mem.rss_kib, mem.hwm_kib,
                         WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status));
   std::fputs(report.c_str(), stdout);

@@ -113,8 +113,12 @@ fi
 [ -n "$buses_list" ] || buses_list="1 2 3 4 6 8 10 12 16"
 mem_buses=8
 cores=$(nproc)
-pin_cmd=()
-if ((pin)) && ((cores >= 2)); then pin_cmd=(taskset -c $((cores - 1))); fi
+pin_cmd=()      # the bridge (and what stands for it in a floor): the last core, alone
+harness_cmd=()  # the load and the readers: every other core, so they never take the bridge's
+if ((pin)) && ((cores >= 2)); then
+  pin_cmd=(taskset -c $((cores - 1)))
+  harness_cmd=(taskset -c 0-$((cores - 2)))
+fi
 clk_tck=$(getconf CLK_TCK)
 mkdir -p "$out_dir"
 commands="$out_dir/commands.txt"
@@ -327,11 +331,11 @@ throughput_step() {
   next_domain
   local p="tp-$n-$RANDOM"
   "$bin/bench-config" --buses "$n" --devices $devices --domain $domain --prefix "$p" --role monitor >"$d/line.yaml"
-  start "$d/inject" "$bin/bench-inject" --buses "$n" --devices $devices --rate $full_rate --count $count \
+  start "$d/inject" "${harness_cmd[@]}" "$bin/bench-inject" --buses "$n" --devices $devices --rate $full_rate --count $count \
     --prefix "$p" --ready "$d/inject.ready" --go "$d/go" --stop "$d/stop" --linger 120
   inj=$pid
   wait_file "$d/inject.ready" $inj
-  start "$d/sub" "$bin/bench-status-sub" --buses "$n" --devices $devices --domain $domain --expect $((count * n)) \
+  start "$d/sub" "${harness_cmd[@]}" "$bin/bench-status-sub" --buses "$n" --devices $devices --domain $domain --expect $((count * n)) \
     --diagnostics --ready "$d/sub.ready" --out "$d/loaded.lat" --timeout $((step_s * 4 + 120))
   sub=$pid
   start "$d/bridge" "${pin_cmd[@]}" "$bridge_bin" --config "$d/line.yaml"
@@ -374,6 +378,7 @@ throughput_step() {
     echo "bridge_frames_in=${frames_in:-0}"
     echo "bridge_overflows=${err:-0}"
     echo "samples=${stamped:-0}"
+    echo "samples_published=$(get "$d/sub.out" sub_samples)"
     echo "bridge_cpu_pct=$(cpu_percent "$c0" "$c1" "$t0" "$t1")"
     echo "sub_cpu_pct=$(cpu_percent "$s0" "$s1" "$t0" "$t1")"
     echo "inject_cpu_pct=$(cpu_percent "$i0" "$i1" "$t0" "$t1")"
@@ -443,8 +448,12 @@ fig_throughput() {  # RUN
         failed=$n
         echo "throughput_first_fail=$n" >>"$vals"
         echo "throughput_fail_cpu_pct=$(get "$d/n$n/step" bridge_cpu_pct)" >>"$vals"
+        echo "throughput_fail_inject_cpu_pct=$(get "$d/n$n/step" inject_cpu_pct)" >>"$vals"
+        echo "throughput_fail_sub_cpu_pct=$(get "$d/n$n/step" sub_cpu_pct)" >>"$vals"
       fi
     fi
+    echo "throughput_cpu_pct_n$n=$(get "$d/n$n/step" bridge_cpu_pct)" >>"$vals"
+    echo "throughput_frames_per_sample_n$n=$(awk -v f="$(get "$d/n$n/step" samples)" -v s="$(get "$d/n$n/step" samples_published)" 'BEGIN { if (s > 0) printf "%.2f", f / s }')" >>"$vals"
     [ "$(get "$d/n$n/step" frames_ok)" = 1 ] || break
     best_frames=$n
   done
@@ -480,11 +489,20 @@ fig_startup() {  # RUN: each size several times (discovery makes the spread wort
       next_domain
       local base="$d/$spec-$k"
       "$bin/bench-config" --buses "$b" --devices "$n" --domain $domain --prefix "st-$spec-$1-$k" --role master >"$base.yaml"
-      printf '%s\n' "$bin/bench-startup --buses $b --devices $n --domain $domain --log $base.bridge.log -- $bridge_bin --config $base.yaml" >>"$commands"
-      "$bin/bench-startup" --buses "$b" --devices "$n" --domain $domain --log "$base.bridge.log" -- \
+      # The simulator plays the saws (and hosts the buses) before the bridge starts, as on a line
+      # whose devices are powered: the first samples announce the devices, the first online ones
+      # carry their live data after the bridge booted them.
+      start "$base.sim" "$sim_bin" --config "$base.yaml"
+      local sim=$pid
+      sleep 1
+      printf '%s\n' "$bin/bench-startup --online --buses $b --devices $n --domain $domain --log $base.bridge.log -- $bridge_bin --config $base.yaml" >>"$commands"
+      "$bin/bench-startup" --online --buses "$b" --devices "$n" --domain $domain --log "$base.bridge.log" -- \
         "$bridge_bin" --config "$base.yaml" >"$base.out" 2>"$base.err" || true
+      stop $sim
       echo "startup_${spec}_first_ms=$(get "$base.out" startup_first_ms)" >>"$vals"
       echo "startup_${spec}_all_ms=$(get "$base.out" startup_all_ms)" >>"$vals"
+      echo "startup_${spec}_first_online_ms=$(get "$base.out" startup_first_online_ms)" >>"$vals"
+      echo "startup_${spec}_all_online_ms=$(get "$base.out" startup_all_online_ms)" >>"$vals"
       echo "startup_${spec}_rss_mib=$(awk -v k="$(get "$base.out" startup_rss_kib)" 'BEGIN { printf "%.1f", k / 1024 }')" >>"$vals"
     done
   done
@@ -550,7 +568,11 @@ cmd() { echo "launch_scripts/bench.sh --only $1$quick_flag --runs $runs$nice_fla
     echo "| Buses x $devices saws at $full_rate frames/s with no frame lost at the bridge (samples may be missing) | $(stat throughput throughput_max_buses_frames) | | | \`$(cmd throughput)\` |"
     echo "| CPU for 1 bus at full load (% of a core): bridge; floor = bare Fast DDS writer + bare bus reader | $(stat throughput throughput_cpu_pct_1bus); $(stat throughput throughput_floor_dds_cpu_pct) + $(stat throughput throughput_floor_bus_cpu_pct) | | | \`$(cmd throughput)\` |"
     echo "| Bridge CPU at the largest loss-free N (% of a core) | $(stat throughput throughput_cpu_pct) | | | \`$(cmd throughput)\` |"
-    echo "| First N with loss; bridge CPU there (% of a core) | $(stat throughput throughput_first_fail); $(stat throughput throughput_fail_cpu_pct) | | | \`$(cmd throughput)\` |"
+    echo "| First N with loss; CPU there (% of a core): bridge / injector / subscriber (these two share the other core(s)) | $(stat throughput throughput_first_fail); $(stat throughput throughput_fail_cpu_pct) / $(stat throughput throughput_fail_inject_cpu_pct) / $(stat throughput throughput_fail_sub_cpu_pct) | | | \`$(cmd throughput)\` |"
+    local_row="" ; for n in $buses_list; do v=$(stat throughput throughput_cpu_pct_n$n); [ -z "$v" ] || local_row+="$n: $v; "; done
+    echo "| Bridge CPU by N buses (% of its core) | ${local_row%; } | | | \`$(cmd throughput)\` |"
+    local_row="" ; for n in $buses_list; do v=$(stat throughput throughput_frames_per_sample_n$n); [ -z "$v" ] || local_row+="$n: $v; "; done
+    echo "| Frames per status sample by N (PDO bursts merged, none overwritten) | ${local_row%; } | | | \`$(cmd throughput)\` |"
   fi
   if want memory; then
     echo "| Resident memory, $mem_buses x $devices saws at full load: VmRSS / VmHWM (MiB) | $(stat memory memory_rss_mib) / $(stat memory memory_hwm_mib) | <= 64 | $(verdict "$(median memory memory_hwm_mib)" "<=" 64) | \`$(cmd memory)\` |"
@@ -559,6 +581,8 @@ cmd() { echo "launch_scripts/bench.sh --only $1$quick_flag --runs $runs$nice_fla
     echo "| Start-up, 1 bus x 1 saw: process start -> first status sample (ms), median (range) of all starts | $(stat startup startup_1x1_first_ms) | <= 1000 | $(verdict "$(median startup startup_1x1_first_ms)" "<=" 1000) | \`$(cmd startup)\` |"
     echo "| Start-up, $mem_buses x $devices saws: -> first status sample (ms) | $(stat startup startup_${mem_buses}x${devices}_first_ms) | <= 1000 | $(verdict "$(median startup startup_${mem_buses}x${devices}_first_ms)" "<=" 1000) | \`$(cmd startup)\` |"
     echo "| Start-up, $mem_buses x $devices saws: -> every saw's first status sample (ms) | $(stat startup startup_${mem_buses}x${devices}_all_ms) | | | \`$(cmd startup)\` |"
+    echo "| Start-up with the devices powered (simulator): -> first sample with live data (device booted, online), 1x1 / ${mem_buses}x$devices (ms) | $(stat startup startup_1x1_first_online_ms) / $(stat startup startup_${mem_buses}x${devices}_first_online_ms) | | | \`$(cmd startup)\` |"
+    echo "| Start-up with the devices powered: -> every saw online, 1x1 / ${mem_buses}x$devices (ms) | $(stat startup startup_1x1_all_online_ms) / $(stat startup startup_${mem_buses}x${devices}_all_online_ms) | | | \`$(cmd startup)\` |"
     echo "| Resident memory idle after start-up, 1x1 / ${mem_buses}x$devices, master role (MiB) | $(stat startup startup_1x1_rss_mib) / $(stat startup startup_${mem_buses}x${devices}_rss_mib) | | | \`$(cmd startup)\` |"
   fi
 } >"$table"
