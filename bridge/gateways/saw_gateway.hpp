@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "canopen/pdo_transmitter.hpp"
+#include "gateways/command_service.hpp"
 #include "gateways/gateway.hpp"
 #include "gateways/momentary_commands.hpp"
 #include "gateways/saw_codec.hpp"
@@ -22,6 +23,8 @@ class SawGateway : public Gateway {
   // Throws std::runtime_error at start-up when the profile lacks what a saw needs.
   explicit SawGateway(DeviceContext context);
 
+  const CommandService* commands() const override { return &command_service_; }
+
  private:
   void on_pdo(std::size_t pdo, const can::CanFrame& frame);
 
@@ -33,6 +36,7 @@ class SawGateway : public Gateway {
   SawCodec codec_;  // loop thread, except validate() (const, any thread)
   std::vector<std::unique_ptr<canopen::PdoTransmitter>> rpdos_;  // master role: what the bridge sends
   MomentaryCommands commands_;
+  CommandService command_service_;  // presses commands_
 
   ddsl::Writer<linebridge_msgs::msg::SawStatusPubSubType> status_writer_;
   ddsl::Writer<linebridge_msgs::msg::SawCutPubSubType> cut_writer_;
