@@ -7,6 +7,7 @@
 
 #include "canopen/data_type.hpp"
 #include "dds/service.hpp"
+#include "dds/topic_names.hpp"
 #include "msgs/commonPubSubTypes.h"
 
 namespace lb::app {
@@ -15,9 +16,11 @@ namespace srv = linebridge_msgs::srv;
 
 namespace {
 
+// The request's device field is filled in here: every call names its target device.
 template <class Req, class Rep>
-Result<typename Rep::type> call(const ServiceTarget& t, const std::string& name, const typename Req::type& request) {
-  auto client = ddsl::ServiceClient<Req, Rep>::create(t.dds, t.path + name);
+Result<typename Rep::type> call(const ServiceTarget& t, const std::string& name, typename Req::type request) {
+  request.device(t.device);
+  auto client = ddsl::ServiceClient<Req, Rep>::create(t.dds, ddsl::line_service_path(t.line, name));
   if (!client) return client.error();
   return (*client)->call(request, t.timeout);
 }

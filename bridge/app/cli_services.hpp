@@ -1,6 +1,7 @@
 #pragma once
 // linebridge-cli's service calls: nmt, sdo-read, sdo-write, param get/set, command. Each prints the
-// bridge's answer and returns the process exit code (0 success, 1 refused or failed).
+// bridge's answer and returns the process exit code (0 success, 1 refused or failed). The services
+// are line-wide (<line>/bridge/<service>); the request names the device.
 
 #include <chrono>
 #include <string>
@@ -11,7 +12,8 @@ namespace lb::app {
 
 struct ServiceTarget {
   ddsl::Participant& dds;
-  std::string path;  // "<line>/<device>/"
+  std::string line;
+  std::string device;
   std::chrono::milliseconds timeout;
 };
 

@@ -40,6 +40,7 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
     bridge->buses_.push_back(std::move(rt));
   }
 
+  std::vector<gateways::ManagementServices::Device> managed;  // configuration order
   for (const auto& dev : config.devices) {
     auto& rt = *std::find_if(bridge->buses_.begin(), bridge->buses_.end(),
                              [&](const BusRuntime& b) { return b.config->name == dev.bus; });
@@ -53,7 +54,13 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
     } catch (const std::runtime_error& e) {
       return make_error(e.what());
     }
+    managed.push_back({dev.name, dev.resolved_profile->device + ", " + dev.resolved_profile->key(), rt.services.back().get(),
+                       rt.gateways.back()->commands()});
   }
+  // After every device: a request may name any of them from the moment the services are matched.
+  auto management = gateways::ManagementServices::serve(*bridge->dds_, config.line, std::move(managed));
+  if (!management) return management.error();
+  bridge->management_ = std::move(*management);
 
   std::vector<gateways::DiagnosticsGateway::Bus> diag;
   for (const auto& rt : bridge->buses_) {

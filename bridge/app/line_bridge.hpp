@@ -1,6 +1,7 @@
 #pragma once
 // The gateway process's core: from a line configuration, one bus loop per bus (with SYNC and NMT
-// in the master role), one gateway per device, one DDS participant for all of them.
+// in the master role), one gateway per device, the line-wide device-management services, one DDS
+// participant for all of them.
 
 #include <memory>
 #include <vector>
@@ -14,6 +15,7 @@
 #include "gateways/device_services.hpp"
 #include "gateways/diagnostics_gateway.hpp"
 #include "gateways/gateway.hpp"
+#include "gateways/management_services.hpp"
 #include "profiles/line_config.hpp"
 
 namespace lb::app {
@@ -45,6 +47,9 @@ class LineBridge {
   const profiles::LineConfig& config_;
   std::unique_ptr<ddsl::Participant> dds_;
   std::vector<BusRuntime> buses_;
+  // The line-wide nmt/sdo/command/parameter services; they call into the buses' device handlers,
+  // and the participant (reset first in the destructor) stops calling them before anything goes.
+  std::unique_ptr<gateways::ManagementServices> management_;
   std::unique_ptr<gateways::DiagnosticsGateway> diagnostics_;
 };
 

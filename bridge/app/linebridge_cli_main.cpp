@@ -262,7 +262,7 @@ int main(int argc, char** argv) {
     }
     return 0;
   }
-  const bool bridge_topic = echo_cmd->parsed() && device == "bridge" && echo.topic == "diagnostics";
+  const bool bridge_topic = echo_cmd->parsed() && device == lb::ddsl::kBridgeNamespace && echo.topic == "diagnostics";
   const auto* dev = config->device(device);
   if (dev == nullptr && !bridge_topic) return fmt::print(stderr, "no device {} in line {} (try: list)\n", device, config->line), 2;
   const bool saw_only = set_cmd->parsed() || (echo_cmd->parsed() && (echo.topic == "status" || echo.topic == "cut"));
@@ -272,7 +272,7 @@ int main(int argc, char** argv) {
   }
   auto dds = lb::ddsl::Participant::create({config->dds.domain, config->dds.localhost_only, "linebridge-cli"});
   if (!dds) return fmt::print(stderr, "{}\n", dds.error().message), 1;
-  const lb::app::ServiceTarget target{**dds, config->line + "/" + device + "/",
+  const lb::app::ServiceTarget target{**dds, config->line, device,
                                       std::chrono::milliseconds(static_cast<long>(timeout_s * 1000))};
   if (nmt_cmd->parsed()) return lb::app::call_nmt(target, nmt_command);
   if (read_cmd->parsed()) return lb::app::call_sdo_read(target, index, static_cast<std::uint8_t>(sub), type);

@@ -17,6 +17,11 @@ namespace lb::ddsl {
 
 using SampleIdentity = eprosima::fastrtps::rtps::SampleIdentity;
 
+// How a request's handler answers when it is not the server itself (a router hands requests on
+// to per-device handlers): called once, from any thread. A ServiceServer's Responder converts.
+template <class Reply>
+using Respond = std::function<void(const Reply&)>;
+
 // Server side. The handler runs on a Fast DDS thread; it may answer at once or later, from any
 // thread, through the Responder it is given (answering twice is harmless, never is a bug).
 template <class RequestPS, class ReplyPS>
@@ -40,7 +45,8 @@ class ServiceServer {
   };
   using Handler = std::function<void(const Request&, Responder)>;
 
-  // path: "<line>/<device>/<service>". Errors only at start-up.
+  // path: "<line>/<device>/<service>", or "<line>/bridge/<service>" for a line-wide service.
+  // Errors only at start-up.
   static Result<void> serve(Participant& dds, const std::string& path, Handler handler) {
     auto writer = dds.writer<ReplyPS>(reply_topic(path), QosKind::reply);
     if (!writer) return writer.error();

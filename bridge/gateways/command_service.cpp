@@ -2,11 +2,6 @@
 
 #include <spdlog/spdlog.h>
 
-#include <stdexcept>
-
-#include "dds/service.hpp"
-#include "msgs/commonPubSubTypes.h"
-
 namespace lb::gateways {
 
 namespace srv = linebridge_msgs::srv;
@@ -19,35 +14,29 @@ std::vector<CommandBit> resolve_commands(const profiles::BitSet& control_word, c
   return out;
 }
 
-void serve_commands(const DeviceContext& ctx, std::vector<CommandBit> commands, MomentaryCommands& pulses) {
-  using Service = ddsl::ServiceServer<srv::Command_RequestPubSubType, srv::Command_ResponsePubSubType>;
-  auto served = Service::serve(
-      ctx.dds, ctx.line + "/" + ctx.device.name + "/command",
-      [ctx, commands = std::move(commands), &pulses](const srv::Command_Request& req, Service::Responder respond) {
-        const auto reply = [respond](bool ok, std::string message) {
-          srv::Command_Response r;
-          r.success(ok);
-          r.message(std::move(message));
-          respond(r);
-        };
-        const CommandBit* cmd = nullptr;
-        std::string known;
-        for (const auto& c : commands) {
-          if (c.name == req.command()) cmd = &c;
-          known += (known.empty() ? "" : ", ") + c.name;
-        }
-        if (cmd == nullptr) return reply(false, "unknown command '" + req.command() + "' (" + known + ")");
-        if (!ctx.is_master()) {
-          return reply(false, "bus " + ctx.bus.name + " is in the monitor role: the bridge never transmits there");
-        }
-        ctx.loop.post([ctx, bit = cmd->bit, name = cmd->name, &pulses, reply] {
-          if (!ctx.node.online()) return reply(false, ctx.device.name + " is offline (no heartbeat): command not sent");
-          pulses.pulse(bit);
-          spdlog::info("{}: command {} (control word bit {}) held for 100 ms", ctx.device.name, name, bit);
-          reply(true, "");
-        });
-      });
-  if (!served) throw std::runtime_error(ctx.device.name + ": " + served.error().message);
+void CommandService::handle(const srv::Command_Request& req, ddsl::Respond<srv::Command_Response> respond) const {
+  const auto reply = [respond](bool ok, std::string message) {
+    srv::Command_Response r;
+    r.success(ok);
+    r.message(std::move(message));
+    respond(r);
+  };
+  const CommandBit* cmd = nullptr;
+  std::string known;
+  for (const auto& c : commands_) {
+    if (c.name == req.command()) cmd = &c;
+    known += (known.empty() ? "" : ", ") + c.name;
+  }
+  if (cmd == nullptr) return reply(false, ctx_.device.name + ": unknown command '" + req.command() + "' (" + known + ")");
+  if (!ctx_.is_master()) {
+    return reply(false, "bus " + ctx_.bus.name + " is in the monitor role: the bridge never transmits there");
+  }
+  ctx_.loop.post([this, bit = cmd->bit, name = cmd->name, reply] {
+    if (!ctx_.node.online()) return reply(false, ctx_.device.name + " is offline (no heartbeat): command not sent");
+    pulses_.pulse(bit);
+    spdlog::info("{}: command {} (control word bit {}) held for 100 ms", ctx_.device.name, name, bit);
+    reply(true, "");
+  });
 }
 
 }  // namespace lb::gateways

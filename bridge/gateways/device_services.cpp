@@ -5,7 +5,6 @@
 #include <stdexcept>
 
 #include "canopen/sdo_abort.hpp"
-#include "dds/service.hpp"
 #include "dds/topic_names.hpp"
 
 namespace lb::gateways {
@@ -63,7 +62,6 @@ void stamp(T& m, std::int64_t ns) {
 
 DeviceServices::DeviceServices(DeviceContext context) : ctx_(context) {
   const std::string& dev = ctx_.device.name;
-  const std::string path = ctx_.line + "/" + dev + "/";
   const auto fail = [&dev](const Error& e) { throw std::runtime_error(dev + ": " + e.message); };
 
   auto ew = ctx_.dds.writer<msg::EmergencyPubSubType>(ddsl::topic_name(ctx_.line, dev, "emergency"), ddsl::QosKind::event);
@@ -91,125 +89,101 @@ DeviceServices::DeviceServices(DeviceContext context) : ctx_(context) {
         ctx_.loop, ctx_.node, *ctx_.sdo, std::move(writes), ctx_.device.boot_retry,
         canopen::BootSequence::Listener{.on_state = {}, .on_identity = [this](const canopen::DeviceIdentity& id) { publish_info(id); }});
   }
-
-  using Nmt = ddsl::ServiceServer<srv::Nmt_RequestPubSubType, srv::Nmt_ResponsePubSubType>;
-  auto nmt = Nmt::serve(ctx_.dds, path + "nmt", [this](const srv::Nmt_Request& req, Nmt::Responder respond) {
-    on_nmt(req, [respond](bool ok, std::string message) {
-      srv::Nmt_Response r;
-      r.success(ok);
-      r.message(std::move(message));
-      respond(r);
-    });
-  });
-  if (!nmt) fail(nmt.error());
-
-  using Read = ddsl::ServiceServer<srv::SdoRead_RequestPubSubType, srv::SdoRead_ResponsePubSubType>;
-  auto read = Read::serve(ctx_.dds, path + "sdo_read", [this](const srv::SdoRead_Request& req, Read::Responder respond) {
-    srv::SdoRead_Response r;
-    const auto type = canopen::parse_data_type(req.data_type());
-    if (!type) {
-      r.message("unknown data type '" + req.data_type() + "' (INTEGER8..64, UNSIGNED8..64, REAL32, REAL64, VISIBLE_STRING, OCTET_STRING)");
-      return respond(r);
-    }
-    if (auto why = refusal(); !why.empty()) return r.message(why), respond(r);
-    ctx_.sdo->read(ctx_.device.node_id, req.index(), req.sub_index(), *type,
-                   [respond, t = *type](canopen::SdoClient::ReadResult result) {
-                     srv::SdoRead_Response reply;
-                     if (result) {
-                       reply.success(true);
-                       reply.value(to_msg(t, *result));
-                     } else {
-                       reply.abort_code(result.error().abort_code);
-                       reply.message(result.error().message);
-                     }
-                     respond(reply);
-                   });
-  });
-  if (!read) fail(read.error());
-
-  using Write = ddsl::ServiceServer<srv::SdoWrite_RequestPubSubType, srv::SdoWrite_ResponsePubSubType>;
-  auto write = Write::serve(ctx_.dds, path + "sdo_write", [this](const srv::SdoWrite_Request& req, Write::Responder respond) {
-    srv::SdoWrite_Response r;
-    const auto type = canopen::parse_data_type(req.value().data_type());
-    if (!type) {
-      r.message("unknown data type '" + req.value().data_type() + "'");
-      return respond(r);
-    }
-    if (auto why = refusal(); !why.empty()) return r.message(why), respond(r);
-    auto value = from_msg(*type, req.value());
-    if (!value) return r.message(value.error().message), respond(r);
-    ctx_.sdo->write(ctx_.device.node_id, req.index(), req.sub_index(), *type, *value,
-                    [respond](canopen::SdoClient::DownloadResult result) {
-                      srv::SdoWrite_Response reply;
-                      reply.success(result.has_value());
-                      if (!result) {
-                        reply.abort_code(result.error().abort_code);
-                        reply.message(result.error().message);
-                      }
-                      respond(reply);
-                    });
-  });
-  if (!write) fail(write.error());
-  serve_parameters(path);
 }
 
-void DeviceServices::serve_parameters(const std::string& path) {
-  using Get = ddsl::ServiceServer<srv::GetParameter_RequestPubSubType, srv::GetParameter_ResponsePubSubType>;
-  using Set = ddsl::ServiceServer<srv::SetParameter_RequestPubSubType, srv::SetParameter_ResponsePubSubType>;
-  const auto fail = [this](const Error& e) { throw std::runtime_error(ctx_.device.name + ": " + e.message); };
+void DeviceServices::sdo_read(const srv::SdoRead_Request& req, ddsl::Respond<srv::SdoRead_Response> respond) {
+  srv::SdoRead_Response r;
+  const auto type = canopen::parse_data_type(req.data_type());
+  if (!type) {
+    r.message("unknown data type '" + req.data_type() + "' (INTEGER8..64, UNSIGNED8..64, REAL32, REAL64, VISIBLE_STRING, OCTET_STRING)");
+    return respond(r);
+  }
+  if (auto why = refusal(); !why.empty()) return r.message(why), respond(r);
+  ctx_.sdo->read(ctx_.device.node_id, req.index(), req.sub_index(), *type,
+                 [respond, t = *type](canopen::SdoClient::ReadResult result) {
+                   srv::SdoRead_Response reply;
+                   if (result) {
+                     reply.success(true);
+                     reply.value(to_msg(t, *result));
+                   } else {
+                     reply.abort_code(result.error().abort_code);
+                     reply.message(result.error().message);
+                   }
+                   respond(reply);
+                 });
+}
 
-  auto get = Get::serve(ctx_.dds, path + "get_parameter", [this](const srv::GetParameter_Request& req, Get::Responder respond) {
-    srv::GetParameter_Response r;
-    const auto* obj = ctx_.profile.object(req.parameter());
-    if (obj == nullptr) return r.message("profile " + ctx_.profile.key() + " has no object '" + req.parameter() + "'"), respond(r);
-    if (!obj->readable()) return r.message(req.parameter() + " is write-only"), respond(r);
-    if (auto why = refusal(); !why.empty()) return r.message(why), respond(r);
-    ctx_.sdo->upload(ctx_.device.node_id, obj->index, obj->sub, [respond, obj](canopen::SdoClient::UploadResult result) {
-      srv::GetParameter_Response reply;
-      if (!result) {
-        reply.abort_code(result.error().abort_code);
-        reply.message(result.error().message);
-        return respond(reply);
-      }
-      std::uint64_t raw = 0;
-      for (std::size_t i = 0; i < result->size() && i < 8; ++i) raw |= std::uint64_t{(*result)[i]} << (8 * i);
-      reply.success(true);
-      reply.value(obj->to_engineering(raw));
-      reply.unit(obj->eng_unit);
-      reply.raw(canopen::is_signed_integer(obj->type) ? canopen::sign_extend(raw, canopen::bit_size(obj->type))
-                                                      : static_cast<std::int64_t>(raw));
-      respond(reply);
-    });
-  });
-  if (!get) fail(get.error());
+void DeviceServices::sdo_write(const srv::SdoWrite_Request& req, ddsl::Respond<srv::SdoWrite_Response> respond) {
+  srv::SdoWrite_Response r;
+  const auto type = canopen::parse_data_type(req.value().data_type());
+  if (!type) {
+    r.message("unknown data type '" + req.value().data_type() + "'");
+    return respond(r);
+  }
+  if (auto why = refusal(); !why.empty()) return r.message(why), respond(r);
+  auto value = from_msg(*type, req.value());
+  if (!value) return r.message(value.error().message), respond(r);
+  ctx_.sdo->write(ctx_.device.node_id, req.index(), req.sub_index(), *type, *value,
+                  [respond](canopen::SdoClient::DownloadResult result) {
+                    srv::SdoWrite_Response reply;
+                    reply.success(result.has_value());
+                    if (!result) {
+                      reply.abort_code(result.error().abort_code);
+                      reply.message(result.error().message);
+                    }
+                    respond(reply);
+                  });
+}
 
-  auto set = Set::serve(ctx_.dds, path + "set_parameter", [this](const srv::SetParameter_Request& req, Set::Responder respond) {
-    srv::SetParameter_Response r;
-    const auto* obj = ctx_.profile.object(req.parameter());
-    if (obj == nullptr) return r.message("profile " + ctx_.profile.key() + " has no object '" + req.parameter() + "'"), respond(r);
-    if (!obj->writable()) {
-      return r.message(req.parameter() + " is " + std::string(profiles::to_string(obj->access)) + ", not writable"), respond(r);
+void DeviceServices::get_parameter(const srv::GetParameter_Request& req, ddsl::Respond<srv::GetParameter_Response> respond) {
+  srv::GetParameter_Response r;
+  const auto* obj = ctx_.profile.object(req.parameter());
+  if (obj == nullptr) return r.message("profile " + ctx_.profile.key() + " has no object '" + req.parameter() + "'"), respond(r);
+  if (!obj->readable()) return r.message(req.parameter() + " is write-only"), respond(r);
+  if (auto why = refusal(); !why.empty()) return r.message(why), respond(r);
+  ctx_.sdo->upload(ctx_.device.node_id, obj->index, obj->sub, [respond, obj](canopen::SdoClient::UploadResult result) {
+    srv::GetParameter_Response reply;
+    if (!result) {
+      reply.abort_code(result.error().abort_code);
+      reply.message(result.error().message);
+      return respond(reply);
     }
-    if (auto why = refusal(); !why.empty()) return r.message(why), respond(r);
-    auto raw = obj->to_raw(req.value());  // range of the profile, rounded to the raw unit
-    if (!raw) return r.message(raw.error().message), respond(r);
-    const auto bits = canopen::bit_size(obj->type);
-    const bool is_signed = canopen::is_signed_integer(obj->type);
-    const std::int64_t shown = is_signed ? canopen::sign_extend(*raw, bits) : static_cast<std::int64_t>(*raw);
-    const canopen::ObjectValue value = is_signed ? canopen::ObjectValue{shown} : canopen::ObjectValue{*raw};
-    ctx_.sdo->write(ctx_.device.node_id, obj->index, obj->sub, obj->type, value,
-                    [respond, shown](canopen::SdoClient::DownloadResult result) {
-                      srv::SetParameter_Response reply;
-                      reply.success(result.has_value());
-                      reply.raw(shown);
-                      if (!result) {
-                        reply.abort_code(result.error().abort_code);
-                        reply.message(result.error().message);
-                      }
-                      respond(reply);
-                    });
+    std::uint64_t raw = 0;
+    for (std::size_t i = 0; i < result->size() && i < 8; ++i) raw |= std::uint64_t{(*result)[i]} << (8 * i);
+    reply.success(true);
+    reply.value(obj->to_engineering(raw));
+    reply.unit(obj->eng_unit);
+    reply.raw(canopen::is_signed_integer(obj->type) ? canopen::sign_extend(raw, canopen::bit_size(obj->type))
+                                                    : static_cast<std::int64_t>(raw));
+    respond(reply);
   });
-  if (!set) fail(set.error());
+}
+
+void DeviceServices::set_parameter(const srv::SetParameter_Request& req, ddsl::Respond<srv::SetParameter_Response> respond) {
+  srv::SetParameter_Response r;
+  const auto* obj = ctx_.profile.object(req.parameter());
+  if (obj == nullptr) return r.message("profile " + ctx_.profile.key() + " has no object '" + req.parameter() + "'"), respond(r);
+  if (!obj->writable()) {
+    return r.message(req.parameter() + " is " + std::string(profiles::to_string(obj->access)) + ", not writable"), respond(r);
+  }
+  if (auto why = refusal(); !why.empty()) return r.message(why), respond(r);
+  auto raw = obj->to_raw(req.value());  // range of the profile, rounded to the raw unit
+  if (!raw) return r.message(raw.error().message), respond(r);
+  const auto bits = canopen::bit_size(obj->type);
+  const bool is_signed = canopen::is_signed_integer(obj->type);
+  const std::int64_t shown = is_signed ? canopen::sign_extend(*raw, bits) : static_cast<std::int64_t>(*raw);
+  const canopen::ObjectValue value = is_signed ? canopen::ObjectValue{shown} : canopen::ObjectValue{*raw};
+  ctx_.sdo->write(ctx_.device.node_id, obj->index, obj->sub, obj->type, value,
+                  [respond, shown](canopen::SdoClient::DownloadResult result) {
+                    srv::SetParameter_Response reply;
+                    reply.success(result.has_value());
+                    reply.raw(shown);
+                    if (!result) {
+                      reply.abort_code(result.error().abort_code);
+                      reply.message(result.error().message);
+                    }
+                    respond(reply);
+                  });
 }
 
 std::string DeviceServices::refusal() const {
@@ -219,11 +193,17 @@ std::string DeviceServices::refusal() const {
   return {};
 }
 
-void DeviceServices::on_nmt(const srv::Nmt_Request& request, std::function<void(bool, std::string)> reply) {
+void DeviceServices::nmt(const srv::Nmt_Request& request, ddsl::Respond<srv::Nmt_Response> respond) {
+  const auto reply = [respond](bool ok, std::string message) {
+    srv::Nmt_Response r;
+    r.success(ok);
+    r.message(std::move(message));
+    respond(r);
+  };
   const auto command = to_command(request.command());
   if (!command) return reply(false, "unknown NMT command " + std::to_string(static_cast<int>(request.command())));
   if (auto why = refusal(); !why.empty()) return reply(false, why);
-  ctx_.loop.post([this, c = *command, reply = std::move(reply)] {
+  ctx_.loop.post([this, c = *command, reply] {
     auto r = ctx_.node.command(c);
     if (!r) return reply(false, r.error().message);
     spdlog::info("{}: NMT command {:02X}h sent on request", ctx_.device.name, static_cast<int>(c));

@@ -1,8 +1,11 @@
 #pragma once
-// What every device offers on DDS whatever its profile: its emergencies, its identity (info), and
-// the nmt, sdo_read, sdo_write, get_parameter and set_parameter services (the last two: profile
-// objects by name, in engineering units, checked against the profile's access and range). In the master role it also owns the device's boot
-// sequence (presence check, SDO configuration, NMT start, identity).
+// What every device offers on DDS whatever its profile: its emergencies and its identity (info)
+// on its own topics, and the work behind the nmt, sdo_read, sdo_write, get_parameter and
+// set_parameter services (the last two: profile objects by name, in engineering units, checked
+// against the profile's access and range). Those services are line-wide (ManagementServices
+// serves them once per bridge and hands each request to the named device's handler here): a
+// Fast DDS endpoint pair per service and device would cost ~40 KiB each. In the master role it
+// also owns the device's boot sequence (presence check, SDO configuration, NMT start, identity).
 // Device-type gateways add status, set values and typed configuration.
 
 #include <functional>
@@ -10,6 +13,7 @@
 #include <string>
 
 #include "canopen/boot_sequence.hpp"
+#include "dds/service.hpp"
 #include "gateways/device_context.hpp"
 #include "msgs/commonPubSubTypes.h"
 
@@ -25,11 +29,21 @@ class DeviceServices {
   // "started", "not answering: ...", "monitored" (monitor role): loop thread.
   std::string boot_state() const { return boot_ ? boot_->state() : "monitored"; }
 
+  // This device's part of the line-wide services; the request's `device` is already this one.
+  // Called on a Fast DDS thread; checks what needs only the immutable profile and configuration
+  // there and answers at once, or answers later from the bus loop thread (NMT sent, SDO done).
+  void nmt(const linebridge_msgs::srv::Nmt_Request& request, ddsl::Respond<linebridge_msgs::srv::Nmt_Response> respond);
+  void sdo_read(const linebridge_msgs::srv::SdoRead_Request& request,
+                ddsl::Respond<linebridge_msgs::srv::SdoRead_Response> respond);
+  void sdo_write(const linebridge_msgs::srv::SdoWrite_Request& request,
+                 ddsl::Respond<linebridge_msgs::srv::SdoWrite_Response> respond);
+  void get_parameter(const linebridge_msgs::srv::GetParameter_Request& request,
+                     ddsl::Respond<linebridge_msgs::srv::GetParameter_Response> respond);
+  void set_parameter(const linebridge_msgs::srv::SetParameter_Request& request,
+                     ddsl::Respond<linebridge_msgs::srv::SetParameter_Response> respond);
+
  private:
-  using Reply = std::function<void(bool ok, std::uint32_t abort_code, std::string message)>;
-  void on_nmt(const linebridge_msgs::srv::Nmt_Request& request, std::function<void(bool, std::string)> reply);
   std::string refusal() const;  // why this bus takes no commands, or empty
-  void serve_parameters(const std::string& path);  // get_parameter / set_parameter
   void publish_info(const canopen::DeviceIdentity& id);
 
   DeviceContext ctx_;

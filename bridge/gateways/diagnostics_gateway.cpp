@@ -13,7 +13,8 @@ DiagnosticsGateway::DiagnosticsGateway(ddsl::Participant& dds, const std::string
                                        std::chrono::milliseconds period)
     : line_(line), buses_(std::move(buses)), period_(period), previous_(buses_.size()),
       bus_snapshots_(buses_.size()), node_snapshots_(buses_.size()) {
-  auto w = dds.writer<msg::DiagnosticsPubSubType>(ddsl::topic_name(line, "bridge", "diagnostics"), ddsl::QosKind::state);
+  auto w = dds.writer<msg::DiagnosticsPubSubType>(ddsl::topic_name(line, ddsl::kBridgeNamespace, "diagnostics"),
+                                                  ddsl::QosKind::state);
   if (!w) throw std::runtime_error("diagnostics: " + w.error().message);
   writer_ = *w;
 }

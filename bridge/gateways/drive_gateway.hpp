@@ -2,7 +2,8 @@
 // A CiA 420 drive (puller, corrugator) on DDS, as the saw is: TPDOs decoded into
 // rt/<line>/<device>/status, set values from rt/<line>/<device>/setpoint validated and sent in
 // RPDO1 at every SYNC (master role) or the line controller's RPDO1 decoded (monitor role), and the
-// momentary control bits on the command service. Dds: using Codec, StatusTopic, SetpointTopic.
+// momentary control bits for the line-wide command service.
+// Dds: using Codec, StatusTopic, SetpointTopic.
 // Instantiated once per device type (puller_gateway.cpp, corrugator_gateway.cpp).
 
 #include <spdlog/spdlog.h>
@@ -34,6 +35,8 @@ class DriveGateway : public Gateway {
   // Throws std::runtime_error at start-up when the profile lacks what the device needs.
   explicit DriveGateway(DeviceContext context);
 
+  const CommandService* commands() const override { return &command_service_; }
+
  private:
   void on_pdo(std::size_t pdo, const can::CanFrame& frame);
   void on_setpoint(const Setpoint& sp);
@@ -45,6 +48,7 @@ class DriveGateway : public Gateway {
   std::vector<std::unique_ptr<canopen::PdoTransmitter>> rpdos_;  // master role: what the bridge sends
   MomentaryCommands commands_;
   PdoBurst burst_;
+  CommandService command_service_;  // presses commands_
   ddsl::Writer<typename Dds::StatusTopic> status_writer_;
   ddsl::Writer<linebridge_msgs::msg::SetpointResultPubSubType> result_writer_;
   Status status_;  // loop thread
@@ -61,7 +65,9 @@ DriveGateway<Dds>::DriveGateway(DeviceContext context)
             for (auto& t : rpdos_) t->on_data();
             publish_status(ddsl::now_ns());
           }),
-      burst_(context.loop, [this](std::int64_t stamp_ns) { publish_status(stamp_ns); }) {
+      burst_(context.loop, [this](std::int64_t stamp_ns) { publish_status(stamp_ns); }),
+      command_service_(context, resolve_commands(codec_.bitset("control_word"), Codec::DeviceTraits::momentary_commands()),
+                       commands_) {
   namespace msg = linebridge_msgs::msg;
   const std::string& dev = ctx_.device.name;
   for (std::size_t i = 0; i < codec_.pdos().size(); ++i) {
@@ -94,7 +100,6 @@ DriveGateway<Dds>::DriveGateway(DeviceContext context)
       [this](const Setpoint& sp, const ddsl::fdds::SampleInfo&) { on_setpoint(sp); });
   if (!sub) fail(sub.error());
 
-  serve_commands(ctx_, resolve_commands(codec_.bitset("control_word"), Codec::DeviceTraits::momentary_commands()), commands_);
   ctx_.node.on_change([this](canopen::NmtState, bool) {
     for (auto& t : rpdos_) t->resend();  // a (re)started device gets the image at once
     publish_status(ddsl::now_ns());

@@ -8,9 +8,15 @@
 
 namespace lb::gateways {
 
+class CommandService;
+
 class Gateway {
  public:
   virtual ~Gateway() = default;
+
+  // The device's momentary commands for the line-wide `command` service, or null for a device
+  // type that has none (a feeder's commands are its own typed services).
+  virtual const CommandService* commands() const { return nullptr; }
 };
 
 // The gateway for the device type its profile names ("saw", ...); throws at start-up for a device

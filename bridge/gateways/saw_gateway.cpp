@@ -5,7 +5,6 @@
 #include <stdexcept>
 
 #include "dds/topic_names.hpp"
-#include "gateways/command_service.hpp"
 #include "gateways/device_health.hpp"
 
 namespace lb::gateways {
@@ -32,7 +31,11 @@ SawGateway::SawGateway(DeviceContext context)
             for (auto& t : rpdos_) t->on_data();
             publish_status(ddsl::now_ns());
           }),
-      burst_(context.loop, [this](std::int64_t stamp_ns) { publish_status(stamp_ns); }) {
+      burst_(context.loop, [this](std::int64_t stamp_ns) { publish_status(stamp_ns); }),
+      command_service_(context,
+                       resolve_commands(codec_.control_word(), {"manual_cut", "tip_pulse", "stop_immediately", "f1_stop",
+                                                                "f1_start", "f2_stop", "f2_start", "f3_stop", "f3_start"}),
+                       commands_) {
   const std::string& dev = ctx_.device.name;
   for (std::size_t i = 0; i < codec_.pdos().size(); ++i) {
     const auto& pdo = *codec_.pdos()[i].def;
@@ -60,10 +63,6 @@ SawGateway::SawGateway(DeviceContext context)
       [this](const msg::SawSetpoint& sp, const ddsl::fdds::SampleInfo&) { on_setpoint(sp); });
   if (!sub) throw std::runtime_error(dev + ": " + sub.error().message);
 
-  serve_commands(ctx_,
-                 resolve_commands(codec_.control_word(), {"manual_cut", "tip_pulse", "stop_immediately", "f1_stop",
-                                                          "f1_start", "f2_stop", "f2_start", "f3_stop", "f3_start"}),
-                 commands_);
   ctx_.node.on_change([this](canopen::NmtState, bool) {
     // A device (re)started gets the current image at once from event-driven RPDOs too.
     for (auto& t : rpdos_) t->resend();

@@ -9,6 +9,7 @@
 #include <vector>
 
 #include "canopen/pdo_transmitter.hpp"
+#include "gateways/command_service.hpp"
 #include "gateways/gateway.hpp"
 #include "gateways/momentary_commands.hpp"
 #include "gateways/pdo_burst.hpp"
@@ -23,6 +24,8 @@ class SawGateway : public Gateway {
   // Throws std::runtime_error at start-up when the profile lacks what a saw needs.
   explicit SawGateway(DeviceContext context);
 
+  const CommandService* commands() const override { return &command_service_; }
+
  private:
   void on_pdo(std::size_t pdo, const can::CanFrame& frame);
 
@@ -35,6 +38,7 @@ class SawGateway : public Gateway {
   std::vector<std::unique_ptr<canopen::PdoTransmitter>> rpdos_;  // master role: what the bridge sends
   MomentaryCommands commands_;
   PdoBurst burst_;
+  CommandService command_service_;  // presses commands_
 
   ddsl::Writer<linebridge_msgs::msg::SawStatusPubSubType> status_writer_;
   ddsl::Writer<linebridge_msgs::msg::SawCutPubSubType> cut_writer_;

@@ -212,6 +212,9 @@ DeviceConfig parse_device(const YamlSource& src, const YAML::Node& n, const Line
   DeviceConfig dev;
   dev.name = src.required<std::string>(n, "name", "device");
   check_name(src, n["name"], dev.name);
+  // rt/<line>/bridge/... and <line>/bridge/<service> are the bridge's own (diagnostics, the
+  // line-wide services, lb::ddsl::kBridgeNamespace): a device of that name would meet them.
+  if (dev.name == "bridge") src.fail(n["name"], "device name 'bridge' is reserved for the bridge's own topics and services");
   if (line.device(dev.name) != nullptr) src.fail(n["name"], "device name '" + dev.name + "' is used twice");
   dev.bus = src.required<std::string>(n, "bus", "device " + dev.name);
   if (line.bus(dev.bus) == nullptr) src.fail(n["bus"], "device " + dev.name + ": no bus named '" + dev.bus + "'");

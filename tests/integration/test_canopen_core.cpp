@@ -8,7 +8,6 @@
 
 #include <chrono>
 #include <fstream>
-#include <map>
 #include <stdexcept>
 #include <thread>
 
@@ -76,9 +75,9 @@ class CanopenCore : public ::testing::Test {
   }
 
   void TearDown() override {
-    reads_.clear();  // clients before the participant they live in
-    writes_.clear();
-    nmts_.clear();
+    reads_.reset();  // clients before the participant they live in
+    writes_.reset();
+    nmts_.reset();
     dds_.reset();
     if (bridge_) {
       EXPECT_EQ(bridge_->stop(), 0) << "the bridge did not exit cleanly\n" << logs();
@@ -95,8 +94,9 @@ class CanopenCore : public ::testing::Test {
   }
 
   srv::SdoRead_Response sdo_read(const std::string& device, std::uint16_t index, std::uint8_t sub, const std::string& type) {
-    auto& client = client_for(reads_, device, "sdo_read");
+    auto& client = client_for(reads_, "sdo_read");
     srv::SdoRead_Request req;
+    req.device(device);
     req.index(index);
     req.sub_index(sub);
     req.data_type(type);
@@ -105,8 +105,9 @@ class CanopenCore : public ::testing::Test {
     return r ? *r : srv::SdoRead_Response{};
   }
   srv::SdoWrite_Response sdo_write(const std::string& device, std::uint16_t index, std::uint8_t sub, srv::ObjectValue v) {
-    auto& client = client_for(writes_, device, "sdo_write");
+    auto& client = client_for(writes_, "sdo_write");
     srv::SdoWrite_Request req;
+    req.device(device);
     req.index(index);
     req.sub_index(sub);
     req.value(std::move(v));
@@ -115,19 +116,20 @@ class CanopenCore : public ::testing::Test {
     return r ? *r : srv::SdoWrite_Response{};
   }
   srv::Nmt_Response nmt(const std::string& device, srv::NmtCommand c) {
-    auto& client = client_for(nmts_, device, "nmt");
+    auto& client = client_for(nmts_, "nmt");
     srv::Nmt_Request req;
+    req.device(device);
     req.command(c);
     auto r = client.call(req, 20s);
     EXPECT_TRUE(r) << (r ? "" : r.error().message);
     return r ? *r : srv::Nmt_Response{};
   }
-  // One client per service and device for the whole test: discovery once, not per call.
+  // One client per line-wide service for the whole test (requests name the device): discovery
+  // once, not per call.
   template <class Client>
-  Client& client_for(std::map<std::string, std::unique_ptr<Client>>& cache, const std::string& device, const std::string& service) {
-    auto& slot = cache[device];
+  Client& client_for(std::unique_ptr<Client>& slot, const std::string& service) {
     if (!slot) {
-      auto c = Client::create(*dds_, "core/" + device + "/" + service);
+      auto c = Client::create(*dds_, lb::ddsl::line_service_path("core", service));
       if (!c) throw std::runtime_error(c.error().message);
       slot = std::move(*c);
     }
@@ -152,9 +154,9 @@ class CanopenCore : public ::testing::Test {
   std::unique_ptr<lb::test::BusSpy> spy_;
   std::unique_ptr<lb::test::ChildProcess> sim_, bridge_;
   std::unique_ptr<lb::ddsl::Participant> dds_;
-  std::map<std::string, std::unique_ptr<ReadClient>> reads_;
-  std::map<std::string, std::unique_ptr<WriteClient>> writes_;
-  std::map<std::string, std::unique_ptr<NmtClient>> nmts_;
+  std::unique_ptr<ReadClient> reads_;
+  std::unique_ptr<WriteClient> writes_;
+  std::unique_ptr<NmtClient> nmts_;
   lb::test::Collector<msg::SawStatusPubSubType> saw1_, saw2_;
   lb::test::Collector<msg::DeviceInfoPubSubType> info_;
   lb::test::Collector<msg::EmergencyPubSubType> emcy_;
@@ -237,6 +239,37 @@ TEST_F(CanopenCore, SdoAbortsTimeoutsAndSegmentedStrings) {
   r = sdo_read("saw1", 0x1000, 0, "NOT_A_TYPE");
   EXPECT_FALSE(r.success());
   EXPECT_NE(r.message().find("unknown data type"), std::string::npos) << r.message();
+}
+
+// The services are line-wide (core/bridge/<service>): one client reaches every device of both
+// buses by the request's device field, and a name the bridge does not serve is refused with the
+// names it does serve.
+TEST_F(CanopenCore, LineWideServicesRouteByDeviceName) {
+  ASSERT_TRUE(saw2_.wait_last(10s, [](const msg::SawStatus& s) { return operational(s); })) << logs();
+  // 1018h sub 4, serial number: 51000000h + node-ID in the simulator, so each answer is its device's.
+  const auto serial1 = sdo_read("saw1", 0x1018, 4, "UNSIGNED32");
+  ASSERT_TRUE(serial1.success()) << serial1.message();
+  EXPECT_EQ(serial1.value().unsigned_value(), 0x51000005u);
+  const auto serial2 = sdo_read("saw2", 0x1018, 4, "UNSIGNED32");
+  ASSERT_TRUE(serial2.success()) << serial2.message();
+  EXPECT_EQ(serial2.value().unsigned_value(), 0x51000006u);
+
+  const auto unknown = sdo_read("saw7", 0x1018, 4, "UNSIGNED32");
+  EXPECT_FALSE(unknown.success());
+  EXPECT_EQ(unknown.abort_code(), 0u);
+  EXPECT_NE(unknown.message().find("no device 'saw7' on line core"), std::string::npos) << unknown.message();
+  EXPECT_NE(unknown.message().find("devices: saw1, saw2, ghost"), std::string::npos) << unknown.message();
+  const auto to_unknown = sdo_write("saw7", 0x6006, 0, unsigned32(1));
+  EXPECT_FALSE(to_unknown.success());
+  EXPECT_NE(to_unknown.message().find("no device 'saw7'"), std::string::npos) << to_unknown.message();
+
+  // A request without a device is refused and reaches no device: no NMT reset (81h) on the bus.
+  spy_->clear();
+  const auto nameless = nmt("", srv::NMT_RESET_NODE);
+  EXPECT_FALSE(nameless.success());
+  EXPECT_NE(nameless.message().find("names no device"), std::string::npos) << nameless.message();
+  std::this_thread::sleep_for(300ms);
+  for (const auto& f : spy_->frames(0x000)) EXPECT_NE(f.data[0], 0x81) << "an NMT reset reached the bus";
 }
 
 TEST_F(CanopenCore, DeviceRebootedMidRunIsReconfiguredAndRestarted) {

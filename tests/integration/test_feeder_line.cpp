@@ -32,6 +32,7 @@ constexpr std::uint8_t kNode = 10;
 using CommandClient = lb::ddsl::ServiceClient<srv::FeederCommand_RequestPubSubType, srv::FeederWrite_ResponsePubSubType>;
 using FunctionsClient = lb::ddsl::ServiceClient<srv::FeederFunctions_RequestPubSubType, srv::FeederWrite_ResponsePubSubType>;
 using SdoWriteClient = lb::ddsl::ServiceClient<srv::SdoWrite_RequestPubSubType, srv::SdoWrite_ResponsePubSubType>;
+using PressClient = lb::ddsl::ServiceClient<srv::Command_RequestPubSubType, srv::Command_ResponsePubSubType>;
 
 std::string device_yaml(const std::string& bus) {
   return "devices:\n"
@@ -120,9 +121,10 @@ TEST(FeederLine, StatusFaultEventsCommandsAndLoomPlay) {
   }
 
   // Fault injection (simulator 2001h): feeder 2, yarn broken (04h) -> EMCY FF10h bitmap 2.
-  auto sdo_write = SdoWriteClient::create(**dds, "itest/feeders/sdo_write");
+  auto sdo_write = SdoWriteClient::create(**dds, lb::ddsl::line_service_path("itest", "sdo_write"));  // line-wide
   ASSERT_TRUE(sdo_write);
   srv::SdoWrite_Request inject;
+  inject.device("feeders");
   inject.index(0x2001);
   inject.sub_index(0);
   inject.value().data_type("UNSIGNED16");
@@ -157,6 +159,18 @@ TEST(FeederLine, StatusFaultEventsCommandsAndLoomPlay) {
   EXPECT_FALSE(beyond.success());
   EXPECT_NE(beyond.message().find("reports 4"), std::string::npos) << beyond.message();
   EXPECT_EQ(sdo_downloads(spy, 0x600E), 0u) << "a refused command reached CAN";
+  // The line-wide momentary-command service (saws, pullers, corrugators) refuses the feeder box:
+  // its commands are the typed feeder services.
+  auto press = PressClient::create(**dds, lb::ddsl::line_service_path("itest", "command"));
+  ASSERT_TRUE(press);
+  srv::Command_Request start;
+  start.device("feeders");
+  start.command("start");
+  const auto pressed = (*press)->call(start, 10s);
+  ASSERT_TRUE(pressed) << pressed.error().message;
+  EXPECT_FALSE(pressed->success());
+  EXPECT_NE(pressed->message().find("feeders (feeder, cia414-2@1.1) has no momentary commands"), std::string::npos)
+      << pressed->message();
   const auto reset = command(**commands, 2, "reset");
   EXPECT_TRUE(reset.success()) << reset.message();
   EXPECT_EQ(reset.raw(), 0x04u);
@@ -236,6 +250,10 @@ TEST(FeederLine, StatusFaultEventsCommandsAndLoomPlay) {
   EXPECT_GE(feeders.size(), 2u) << "the feeders take turns";
   EXPECT_TRUE(status.wait_last(5s, [](const msg::FeederStatus& s) { return s.loom().seen() && s.loom().loom_status().name() == "start_advice"; }));
 
+  sdo_write->reset();  // service clients before the participant they live in
+  commands->reset();
+  press->reset();
+  functions->reset();
   dds->reset();
   EXPECT_EQ(bridge.stop(), 0) << logs();
 }
@@ -299,6 +317,7 @@ TEST(FeederLine, MonitorRoleDecodesLoomControllerAndNeverTransmits) {
   const auto refused = command(**commands, 1, "reset");
   EXPECT_FALSE(refused.success());
   EXPECT_NE(refused.message().find("monitor role"), std::string::npos) << refused.message();
+  commands->reset();  // before the participant it lives in
 
   // Nothing but the test's own frames and the box's heartbeats on the bus.
   std::this_thread::sleep_for(500ms);

@@ -64,24 +64,40 @@ TEST(MonitorRole, DecodesBothDirectionsAndNeverTransmits) {
 
   // Phase 1: every way of making the bridge transmit is refused with the reason...
   spy.clear();
-  auto nmt = lb::ddsl::ServiceClient<srv::Nmt_RequestPubSubType, srv::Nmt_ResponsePubSubType>::create(**dds, "mon/saw1/nmt");
+  // The services are line-wide (mon/bridge/<service>); the request names the device.
+  auto nmt = lb::ddsl::ServiceClient<srv::Nmt_RequestPubSubType, srv::Nmt_ResponsePubSubType>::create(
+      **dds, lb::ddsl::line_service_path("mon", "nmt"));
   ASSERT_TRUE(nmt);
   srv::Nmt_Request start;
+  start.device("saw1");
   start.command(srv::NMT_START);
   auto n = (*nmt)->call(start, 10s);
   ASSERT_TRUE(n) << n.error().message;
   EXPECT_FALSE(n->success());
   EXPECT_NE(n->message().find("monitor role"), std::string::npos) << n->message();
 
-  auto read = lb::ddsl::ServiceClient<srv::SdoRead_RequestPubSubType, srv::SdoRead_ResponsePubSubType>::create(**dds, "mon/saw1/sdo_read");
+  auto read = lb::ddsl::ServiceClient<srv::SdoRead_RequestPubSubType, srv::SdoRead_ResponsePubSubType>::create(
+      **dds, lb::ddsl::line_service_path("mon", "sdo_read"));
   ASSERT_TRUE(read);
   srv::SdoRead_Request rq;
+  rq.device("saw1");
   rq.index(0x1000);
   rq.data_type("UNSIGNED32");
   auto r = (*read)->call(rq, 10s);
   ASSERT_TRUE(r) << r.error().message;
   EXPECT_FALSE(r->success());
   EXPECT_NE(r->message().find("monitor role"), std::string::npos) << r->message();
+
+  auto press = lb::ddsl::ServiceClient<srv::Command_RequestPubSubType, srv::Command_ResponsePubSubType>::create(
+      **dds, lb::ddsl::line_service_path("mon", "command"));
+  ASSERT_TRUE(press);
+  srv::Command_Request cut;
+  cut.device("saw1");
+  cut.command("manual_cut");
+  auto c = (*press)->call(cut, 10s);
+  ASSERT_TRUE(c) << c.error().message;
+  EXPECT_FALSE(c->success());
+  EXPECT_NE(c->message().find("monitor role"), std::string::npos) << c->message();
 
   auto sp_writer = (*dds)->writer<msg::SawSetpointPubSubType>(lb::ddsl::topic_name("mon", "saw1", "setpoint"), QosKind::command);
   ASSERT_TRUE(sp_writer);
@@ -115,6 +131,7 @@ TEST(MonitorRole, DecodesBothDirectionsAndNeverTransmits) {
   EXPECT_EQ(bridge.log().find("transmission refused"), std::string::npos) << "the bridge tried to transmit\n" << logs();
   nmt.value().reset();  // service clients before the participant they live in
   read.value().reset();
+  press.value().reset();
   dds->reset();
   EXPECT_EQ(bridge.stop(), 0);
 }

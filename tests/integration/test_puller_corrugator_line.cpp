@@ -8,7 +8,6 @@
 #include <chrono>
 #include <cmath>
 #include <fstream>
-#include <map>
 #include <memory>
 #include <string>
 #include <thread>
@@ -88,17 +87,16 @@ class PullerCorrugatorLine : public ::testing::Test {
 
     // Every service client before the devices come up: by the time a test calls one, discovery has
     // matched both directions (a reply written before the server matched a new client is lost).
-    for (const char* dev : {"puller1", "corr1", "puller3"}) {
-      auto c = CommandClient::create(*dds_, std::string("itest/") + dev + "/command");
-      auto g = GetClient::create(*dds_, std::string("itest/") + dev + "/get_parameter");
-      auto p = SetClient::create(*dds_, std::string("itest/") + dev + "/set_parameter");
-      auto w = WriteClient::create(*dds_, std::string("itest/") + dev + "/sdo_write");
-      ASSERT_TRUE(c && g && p && w);
-      commands_[dev] = std::move(*c);
-      gets_[dev] = std::move(*g);
-      sets_[dev] = std::move(*p);
-      writes_[dev] = std::move(*w);
-    }
+    // The services are line-wide (itest/bridge/<service>): one client each serves every device.
+    auto c = CommandClient::create(*dds_, lb::ddsl::line_service_path("itest", "command"));
+    auto g = GetClient::create(*dds_, lb::ddsl::line_service_path("itest", "get_parameter"));
+    auto p = SetClient::create(*dds_, lb::ddsl::line_service_path("itest", "set_parameter"));
+    auto w = WriteClient::create(*dds_, lb::ddsl::line_service_path("itest", "sdo_write"));
+    ASSERT_TRUE(c && g && p && w);
+    commands_ = std::move(*c);
+    gets_ = std::move(*g);
+    sets_ = std::move(*p);
+    writes_ = std::move(*w);
     const auto operational = [](const auto& s) {
       return s.health().online() && s.health().nmt_state() == msg::NMT_OPERATIONAL;
     };
@@ -115,10 +113,10 @@ class PullerCorrugatorLine : public ::testing::Test {
   }
 
   void TearDown() override {
-    commands_.clear();
-    gets_.clear();
-    sets_.clear();
-    writes_.clear();
+    commands_.reset();  // clients before the participant they live in
+    gets_.reset();
+    sets_.reset();
+    writes_.reset();
     dds_.reset();
     if (bridge_) {
       EXPECT_EQ(bridge_->stop(), 0) << "the bridge did not exit cleanly on SIGTERM\n" << logs();
@@ -153,34 +151,38 @@ class PullerCorrugatorLine : public ::testing::Test {
   }
   srv::Command_Response command(const std::string& device, const std::string& name) {
     srv::Command_Request req;
+    req.device(device);
     req.command(name);
-    auto r = commands_.at(device)->call(req, 5s);
+    auto r = commands_->call(req, 5s);
     EXPECT_TRUE(r) << r.error().message;
     return r ? *r : srv::Command_Response{};
   }
   srv::GetParameter_Response get(const std::string& device, const std::string& parameter) {
     srv::GetParameter_Request req;
+    req.device(device);
     req.parameter(parameter);
-    auto r = gets_.at(device)->call(req, 5s);
+    auto r = gets_->call(req, 5s);
     EXPECT_TRUE(r) << r.error().message;
     return r ? *r : srv::GetParameter_Response{};
   }
   srv::SetParameter_Response set(const std::string& device, const std::string& parameter, double value) {
     srv::SetParameter_Request req;
+    req.device(device);
     req.parameter(parameter);
     req.value(value);
-    auto r = sets_.at(device)->call(req, 5s);
+    auto r = sets_->call(req, 5s);
     EXPECT_TRUE(r) << r.error().message;
     return r ? *r : srv::SetParameter_Response{};
   }
   srv::SdoWrite_Response sdo_write(const std::string& device, std::uint16_t index, const std::string& type, std::int64_t v) {
     srv::SdoWrite_Request req;
+    req.device(device);
     req.index(index);
     req.sub_index(0);
     req.value().data_type(type);
     if (type.rfind("INTEGER", 0) == 0) req.value().integer_value(v);
     else req.value().unsigned_value(static_cast<std::uint64_t>(v));
-    auto r = writes_.at(device)->call(req, 5s);
+    auto r = writes_->call(req, 5s);
     EXPECT_TRUE(r) << r.error().message;
     return r ? *r : srv::SdoWrite_Response{};
   }
@@ -194,10 +196,10 @@ class PullerCorrugatorLine : public ::testing::Test {
   lb::test::Collector<msg::SetpointResultPubSubType> results_;
   lb::ddsl::Writer<msg::PullerSetpointPubSubType> puller_setpoint_, puller30_setpoint_;
   lb::ddsl::Writer<msg::CorrugatorSetpointPubSubType> corrugator_setpoint_;
-  std::map<std::string, std::unique_ptr<CommandClient>> commands_;
-  std::map<std::string, std::unique_ptr<GetClient>> gets_;
-  std::map<std::string, std::unique_ptr<SetClient>> sets_;
-  std::map<std::string, std::unique_ptr<WriteClient>> writes_;
+  std::unique_ptr<CommandClient> commands_;
+  std::unique_ptr<GetClient> gets_;
+  std::unique_ptr<SetClient> sets_;
+  std::unique_ptr<WriteClient> writes_;
   std::uint64_t request_id_ = 100;
 };
 

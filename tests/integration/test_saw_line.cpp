@@ -162,6 +162,22 @@ class SawLine : public ::testing::Test {
     return seen_.status.size();
   }
 
+  // linebridge-cli with this line's configuration, run to its end: exit code and output.
+  struct CliRun {
+    int exit_code;
+    std::string output;
+  };
+  CliRun cli(const std::vector<std::string>& args) {
+    std::vector<std::string> argv{LB_BIN_CLI, "--config", config_path_};
+    argv.insert(argv.end(), args.begin(), args.end());
+    lb::test::ChildProcess p(argv, ::testing::TempDir() + "/cli_" + std::to_string(::getpid()) + "_" +
+                                       std::to_string(++cli_runs_) + ".log");
+    const auto deadline = Clock::now() + 20s;
+    while (p.running() && Clock::now() < deadline) std::this_thread::sleep_for(20ms);
+    const int status = p.stop();
+    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, p.log()};
+  }
+
   std::string bus_uri_, config_path_;
   std::unique_ptr<lb::test::BusSpy> spy_;
   std::unique_ptr<lb::test::ChildProcess> sim_, bridge_;
@@ -169,6 +185,7 @@ class SawLine : public ::testing::Test {
   lb::ddsl::Writer<msg::SawSetpointPubSubType> setpoint_;
   Observed seen_;
   std::uint64_t request_id_ = 100;
+  int cli_runs_ = 0;
 };
 
 bool near_length(double measured, double length) {
@@ -273,4 +290,39 @@ TEST_F(SawLine, ShortPdoIsCountedNotDecoded) {
   }
   EXPECT_TRUE(bridge_->running());
   EXPECT_NE(bridge_->log().find("not decoded"), std::string::npos) << logs();
+}
+
+// The CLI's device commands go through the line-wide services (itest/bridge/<service>, the
+// request names the device) and keep their user-facing form.
+TEST_F(SawLine, CliCommandsReachTheSawThroughTheLineWideServices) {
+  const auto name = cli({"sdo-read", "saw1", "0x1008", "0", "VISIBLE_STRING"});
+  EXPECT_EQ(name.exit_code, 0) << name.output << logs();
+  EXPECT_NE(name.output.find("1008h:00h = \"linebridge simulated saw saw1 (cia420-4 version 3.1)\""), std::string::npos)
+      << name.output;
+
+  const auto before = status_count();
+  const auto cut = cli({"press", "saw1", "manual_cut"});
+  EXPECT_EQ(cut.exit_code, 0) << cut.output << logs();
+  EXPECT_NE(cut.output.find("manual_cut pressed (held 100 ms)"), std::string::npos) << cut.output;
+  // The status shows the bit while it is held.
+  EXPECT_TRUE(seen_.wait(5s, [&] {
+    for (std::size_t i = before; i < seen_.status.size(); ++i) {
+      if (seen_.status[i].control_word().manual_cut()) return true;
+    }
+    return false;
+  })) << logs();
+
+  // Refused by the bridge (exit 1, the reason printed); a device the configuration does not have
+  // is refused by the CLI itself (exit 2) before anything is sent.
+  const auto unknown_object = cli({"get", "saw1", "no_such_object"});
+  EXPECT_EQ(unknown_object.exit_code, 1) << unknown_object.output;
+  EXPECT_NE(unknown_object.output.find("refused: profile cia420-4@3.1 has no object 'no_such_object'"), std::string::npos)
+      << unknown_object.output;
+  const auto unknown_command = cli({"press", "saw1", "jump"});
+  EXPECT_EQ(unknown_command.exit_code, 1) << unknown_command.output;
+  EXPECT_NE(unknown_command.output.find("refused: saw1: unknown command 'jump' (manual_cut, "), std::string::npos)
+      << unknown_command.output;
+  const auto unknown_device = cli({"nmt", "saw9", "reset-node"});
+  EXPECT_EQ(unknown_device.exit_code, 2) << unknown_device.output;
+  EXPECT_NE(unknown_device.output.find("no device saw9 in line itest"), std::string::npos) << unknown_device.output;
 }

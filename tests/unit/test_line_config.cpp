@@ -100,6 +100,9 @@ TEST(LineConfig, OtherMistakes) {
   EXPECT_NE(error_of(replace(kGood, "virtual:x", "udp:x")).find("interface must be socketcan:<ifname>, virtual:<name> or log:<file>"),
             std::string::npos);
   EXPECT_NE(error_of(replace(kGood, "name: saw1", "name: saw-1")).find("'saw-1' is not a valid name"), std::string::npos);
+  EXPECT_NE(error_of(replace(kGood, "name: saw1", "name: bridge")).find("line.yaml:14:11: device name 'bridge' is reserved"),
+            std::string::npos)
+      << error_of(replace(kGood, "name: saw1", "name: bridge"));
   EXPECT_NE(error_of(replace(kGood, "max_speed_m_per_min: 12.5", "max_speed: 12.5")).find("unknown key 'max_speed' in simulation"),
             std::string::npos);
   EXPECT_NE(error_of(kGood + "  - {name: saw2, bus: ext, node_id: 3, profile: cia420-4, version: \"3.1\"}\n")
