@@ -14,7 +14,9 @@
 #   --out DIR        keep raw latencies, logs and the exact commands there (default: a new
 #                    directory under /tmp, printed at the end)
 #   --buses LIST     bus counts the throughput search tries, ascending (stops at the first loss)
-#   --no-pin         do not pin the bridge to one core in the throughput and memory steps
+#   --no-pin         do not pin: by default the bridge (and what stands in for it in a floor: the
+#                    bus sink, the bare DDS writer, the bare relays) runs alone on the last core and
+#                    the harness (injector, subscriber, set-value writer, simulator) on the others
 #   --nice N         run everything (bridge, floors, harness) at this niceness, e.g. -10 to keep a
 #                    shared machine's other work from dominating the latency tails
 #   --profile        record the bridge with perf (call graphs) during every throughput step;
@@ -177,11 +179,11 @@ next_domain() { domain=$((domain + 1)); }
 
 bus_floor() {  # DIR PREFIX
   local d=$1 p=$2 inj
-  start "$d/inject" "$bin/bench-inject" --buses 1 --devices $devices --rate $lat_rate --count $((lat_samples + lat_warmup)) \
+  start "$d/inject" "${harness_cmd[@]}" "$bin/bench-inject" --buses 1 --devices $devices --rate $lat_rate --count $((lat_samples + lat_warmup)) \
     --prefix "$p" --ready "$d/inject.ready" --go "$d/go" --stop "$d/stop" --linger 120
   inj=$pid
   wait_file "$d/inject.ready" $inj
-  start "$d/sink" "$bin/bench-can-sink" --prefix "$p" --expect $((lat_samples + lat_warmup)) --warmup $lat_warmup \
+  start "$d/sink" "${pin_cmd[@]}" "$bin/bench-can-sink" --prefix "$p" --expect $((lat_samples + lat_warmup)) --warmup $lat_warmup \
     --ready "$d/sink.ready" --out "$d/bus.lat"
   local sink=$pid
   wait_file "$d/sink.ready" $sink
@@ -194,10 +196,10 @@ bus_floor() {  # DIR PREFIX
 dds_floor() {  # DIR
   local d=$1 sub pub
   next_domain
-  start "$d/sub" "$bin/bench-status-sub" --buses 1 --devices $devices --domain $domain --expect $((lat_samples + lat_warmup)) \
+  start "$d/sub" "${harness_cmd[@]}" "$bin/bench-status-sub" --buses 1 --devices $devices --domain $domain --expect $((lat_samples + lat_warmup)) \
     --warmup $lat_warmup --ready "$d/sub.ready" --out "$d/dds.lat"
   sub=$pid
-  start "$d/pub" "$bin/bench-status-pub" --devices $devices --domain $domain --rate $lat_rate --count $((lat_samples + lat_warmup)) \
+  start "$d/pub" "${pin_cmd[@]}" "$bin/bench-status-pub" --devices $devices --domain $domain --rate $lat_rate --count $((lat_samples + lat_warmup)) \
     --ready "$d/pub.ready" --go "$d/go" --stop "$d/stop" --linger 120
   pub=$pid
   wait_file "$d/sub.ready" $sub
@@ -213,19 +215,19 @@ path_can2dds() {
   local d=$1 p=$2 what=$3 inj sub br
   next_domain
   "$bin/bench-config" --buses 1 --devices $devices --domain $domain --prefix "$p" --role monitor >"$d/line.yaml"
-  start "$d/inject" "$bin/bench-inject" --buses 1 --devices $devices --rate $lat_rate --count $((lat_samples + lat_warmup)) \
+  start "$d/inject" "${harness_cmd[@]}" "$bin/bench-inject" --buses 1 --devices $devices --rate $lat_rate --count $((lat_samples + lat_warmup)) \
     --prefix "$p" --ready "$d/inject.ready" --go "$d/go" --stop "$d/stop" --linger 120
   inj=$pid
   wait_file "$d/inject.ready" $inj
   local diag=()
   [ "$what" = relay ] || diag=(--diagnostics)
-  start "$d/sub" "$bin/bench-status-sub" --buses 1 --devices $devices --domain $domain --expect $((lat_samples + lat_warmup)) \
+  start "$d/sub" "${harness_cmd[@]}" "$bin/bench-status-sub" --buses 1 --devices $devices --domain $domain --expect $((lat_samples + lat_warmup)) \
     --warmup $lat_warmup "${diag[@]}" --ready "$d/sub.ready" --out "$d/$what.lat"
   sub=$pid
   if [ "$what" = relay ]; then
-    start "$d/relay" "$bin/bench-can-relay" --prefix "$p" --devices $devices --domain $domain
+    start "$d/relay" "${pin_cmd[@]}" "$bin/bench-can-relay" --prefix "$p" --devices $devices --domain $domain
   else
-    start "$d/bridge" "$bridge_bin" --config "$d/line.yaml"
+    start "$d/bridge" "${pin_cmd[@]}" "$bridge_bin" --config "$d/line.yaml"
   fi
   br=$pid
   wait_file "$d/sub.ready" $sub
@@ -274,13 +276,13 @@ setpoint_bridge() {  # DIR PREFIX: the bridge in the master role (the saw booted
   local d=$1 p=$2 sp sim br
   next_domain
   "$bin/bench-config" --buses 1 --devices 1 --domain $domain --prefix "$p" --role master --rpdo-event >"$d/line.yaml"
-  start "$d/setpoint" "$bin/bench-setpoint" --prefix "$p" --domain $domain --count $sp_samples --warmup $sp_warmup \
+  start "$d/setpoint" "${harness_cmd[@]}" "$bin/bench-setpoint" --prefix "$p" --domain $domain --count $sp_samples --warmup $sp_warmup \
     --ready "$d/setpoint.ready" --go "$d/go" --out "$d/bridge.lat"
   sp=$pid
   wait_file "$d/setpoint.ready" $sp
-  start "$d/sim" "$sim_bin" --config "$d/line.yaml"
+  start "$d/sim" "${harness_cmd[@]}" "$sim_bin" --config "$d/line.yaml"
   sim=$pid
-  start "$d/bridge" "$bridge_bin" --config "$d/line.yaml"
+  start "$d/bridge" "${pin_cmd[@]}" "$bridge_bin" --config "$d/line.yaml"
   br=$pid
   touch "$d/go"
   finish $sp || echo "bench.sh: dds2can: set values lost (see $d/setpoint.out)" >&2
@@ -295,11 +297,11 @@ setpoint_relay() {  # DIR PREFIX [--handoff]: the same client against a bare rel
   local d=$1 p=$2 sp relay
   shift 2
   next_domain
-  start "$d/setpoint" "$bin/bench-setpoint" --prefix "$p" --domain $domain --count $sp_samples --warmup $sp_warmup \
+  start "$d/setpoint" "${harness_cmd[@]}" "$bin/bench-setpoint" --prefix "$p" --domain $domain --count $sp_samples --warmup $sp_warmup \
     --ready "$d/setpoint.ready" --go "$d/go" --out "$d/relay.lat"
   sp=$pid
   wait_file "$d/setpoint.ready" $sp
-  start "$d/relay" "$bin/bench-relay" --prefix "$p" --domain $domain --ready "$d/relay.ready" "$@"
+  start "$d/relay" "${pin_cmd[@]}" "$bin/bench-relay" --prefix "$p" --domain $domain --ready "$d/relay.ready" "$@"
   relay=$pid
   wait_file "$d/relay.ready" $relay
   touch "$d/go"
