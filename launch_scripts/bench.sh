@@ -19,6 +19,7 @@
 #                    the harness (injector, subscriber, set-value writer, simulator) on the others
 #   --nice N         run everything (bridge, floors, harness) at this niceness, e.g. -10 to keep a
 #                    shared machine's other work from dominating the latency tails
+#   --report-only    measure nothing: print the table again from the data in --out DIR
 #   --profile        record the bridge with perf (call graphs) during every throughput step;
 #                    perf.data and a report per step in the output directory
 #
@@ -37,7 +38,7 @@
 #   startup     process start -> first status sample at an already running subscriber.
 set -euo pipefail
 
-usage() { sed -n '2,35p' "$0" | sed 's/^# \{0,1\}//'; exit 2; }
+usage() { sed -n '2,40p' "$0" | sed 's/^# \{0,1\}//'; exit 2; }
 
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 orig_args=("$@")
@@ -51,6 +52,7 @@ buses_list=""
 pin=1
 niceness=0
 profile=0
+report_only=0
 while (($#)); do
   case "$1" in
     --quick) quick=1 ;;
@@ -63,6 +65,7 @@ while (($#)); do
     --no-pin) pin=0 ;;
     --nice) niceness=${2:?}; shift ;;
     --profile) profile=1 ;;
+    --report-only) report_only=1; do_build=0 ;;
     -h|--help) usage ;;
     *) echo "bench.sh: unknown argument $1" >&2; usage ;;
   esac
@@ -514,14 +517,19 @@ fig_startup() {  # RUN: each size several times (discovery makes the spread wort
 want() { [[ ",$only," == *",$1,"* ]]; }
 begin=$(date +%s)
 load_before=$(cut -d' ' -f1-3 /proc/loadavg)
-for ((r = 1; r <= runs; r++)); do
-  for f in can2dds dds2can throughput memory startup; do
-    if want $f; then
-      echo "== $f, run $r of $runs" >&2
-      "fig_$f" $r
-    fi
+if ((report_only)); then
+  runs=$(find "$out_dir" -mindepth 2 -maxdepth 2 -type d -name 'run*' | sed 's/.*run//' | sort -n | tail -1)
+  [ -n "$runs" ] || { echo "bench.sh: no measurements in $out_dir" >&2; exit 1; }
+else
+  for ((r = 1; r <= runs; r++)); do
+    for f in can2dds dds2can throughput memory startup; do
+      if want $f; then
+        echo "== $f, run $r of $runs" >&2
+        "fig_$f" $r
+      fi
+    done
   done
-done
+fi
 
 # ------------------------------------------------------------------------------------------------
 # The table: median over the runs, and the range when there is more than one.
@@ -531,7 +539,7 @@ stat() {
     awk -v runs="$runs" '{ v[NR] = $1 } END {
       if (NR == 0) exit
       m = (NR % 2) ? v[(NR + 1) / 2] : (v[NR / 2] + v[NR / 2 + 1]) / 2
-      if (NR > 1) printf "%g (%g-%g)", m, v[1], v[NR]; else printf "%g", m }'
+      if (NR > 1) printf "%g (%g-%g)", m, v[1], v[NR]; else printf "%g", m }' || true
 }
 median() { stat "$1" "$2" | awk '{ print $1 }'; }
 verdict() {  # VALUE OP LIMIT
@@ -590,10 +598,14 @@ cmd() { echo "launch_scripts/bench.sh --only $1$quick_flag --runs $runs$nice_fla
 } >"$table"
 
 {
-  echo "linebridge benchmarks, $(date -u '+%Y-%m-%d %H:%M UTC'), $runs run(s)$quick_flag, $(($(date +%s) - begin)) s"
+  if ((report_only)); then
+    echo "linebridge benchmarks: table re-printed from $out_dir ($runs run(s)), measured $(date -u -r "$out_dir/commands.txt" '+%Y-%m-%d %H:%M UTC')"
+  else
+    echo "linebridge benchmarks, $(date -u '+%Y-%m-%d %H:%M UTC'), $runs run(s)$quick_flag, $(($(date +%s) - begin)) s"
+  fi
   echo "machine: $(lscpu | sed -n 's/^Model name: *//p' | head -1), $cores cores, $(uname -r), $(awk '/MemTotal/ { printf "%.0f GiB", $2 / 1048576 }' /proc/meminfo) RAM"
   echo "niceness of every bench process: $(nice)"
-  echo "load average (1/5/15 min) before: $load_before, after: $(cut -d' ' -f1-3 /proc/loadavg)"
+  ((report_only)) || echo "load average (1/5/15 min) before: $load_before, after: $(cut -d' ' -f1-3 /proc/loadavg)"
   echo
   column -t -s '|' -o '|' "$table"
   echo
