@@ -99,11 +99,6 @@ Qos with_kind(Qos qos, QosKind kind) {
 fdds::DataWriterQos writer_qos(QosKind kind) {
   auto qos = with_kind(fdds::DATAWRITER_QOS_DEFAULT, kind);
   qos.reliable_writer_qos().times.heartbeatPeriod = kHeartbeatPeriod;
-  // A depth-1 history is full after every write, and Fast DDS then piggybacks a heartbeat on the
-  // sample, which every reader answers with an ACKNACK: 15 % of a loaded bridge's CPU went to
-  // those. A state sample that is lost is repaired at the next periodic heartbeat or replaced by
-  // the next sample; the other kinds keep the piggyback.
-  if (kind == QosKind::state) qos.reliable_writer_qos().disable_heartbeat_piggyback = true;
   return qos;
 }
 
