@@ -1,6 +1,8 @@
 #pragma once
 // Small helpers shared by the bus implementations; not part of the layer's interface.
 
+#include <sys/epoll.h>
+
 #include <cstdint>
 #include <cstdio>
 #include <ctime>
@@ -12,6 +14,14 @@
 #include "can/can_frame.hpp"
 
 namespace lb::can::detail {
+
+// Level-triggered readability of fd, reported with fd as its data.
+inline bool epoll_add(int epoll_fd, int fd) {
+  epoll_event ev{};
+  ev.events = EPOLLIN;
+  ev.data.fd = fd;
+  return ::epoll_ctl(epoll_fd, EPOLL_CTL_ADD, fd, &ev) == 0;
+}
 
 inline std::string errno_text(int err) { return std::generic_category().message(err); }
 

@@ -28,13 +28,6 @@ constexpr long kRetryIntervalNs = 100'000'000;
 
 bool link_error(int err) { return err == ENETDOWN || err == ENODEV || err == ENXIO; }
 
-bool epoll_add(int epoll_fd, int fd) {
-  epoll_event ev{};
-  ev.events = EPOLLIN;
-  ev.data.fd = fd;
-  return ::epoll_ctl(epoll_fd, EPOLL_CTL_ADD, fd, &ev) == 0;
-}
-
 }  // namespace
 
 Result<std::unique_ptr<SocketCanBus>> SocketCanBus::open(std::string_view ifname) {
@@ -44,7 +37,7 @@ Result<std::unique_ptr<SocketCanBus>> SocketCanBus::open(std::string_view ifname
   }
   UniqueFd epoll{::epoll_create1(EPOLL_CLOEXEC)};
   UniqueFd timer{::timerfd_create(CLOCK_MONOTONIC, TFD_NONBLOCK | TFD_CLOEXEC)};
-  if (!epoll || !timer || !epoll_add(epoll.get(), timer.get())) {
+  if (!epoll || !timer || !detail::epoll_add(epoll.get(), timer.get())) {
     return make_error(uri + ": cannot create descriptors: " + errno_text(errno));
   }
   auto bus = std::make_unique<SocketCanBus>(PrivateTag{}, std::move(uri), std::string(ifname), std::move(epoll),
@@ -114,7 +107,7 @@ SocketCanBus::Attach SocketCanBus::attach(std::string* why) {
     // Gone between the look-up and bind: just not yet. A non-CAN interface at start: a real error.
     return opened_once_ && link_error(err) ? Attach::not_yet : Attach::failed;
   }
-  if (!epoll_add(epoll_.get(), sock.get())) {
+  if (!detail::epoll_add(epoll_.get(), sock.get())) {
     *why = uri_ + ": epoll_ctl failed: " + errno_text(errno);
     return Attach::failed;
   }

@@ -38,7 +38,6 @@ constexpr auto kJoinRetryPause = std::chrono::milliseconds(2);
 constexpr long kRetryIntervalNs = 10'000'000;
 // Messages read from one member before the hub looks at the others again (fairness, not order).
 constexpr int kPumpBatch = 64;
-constexpr unsigned kHubBatch = 32;  // messages per recvmmsg/sendmmsg
 
 // In the welcome message: a member never talks to a hub with another wire format.
 constexpr std::uint32_t kWireMagic = 0x4C42'5601;  // "LBV", version 1
@@ -124,12 +123,22 @@ UniqueFd seqpacket_socket() {
   return s;
 }
 
-bool epoll_add(int epoll_fd, int fd) {
-  epoll_event ev{};
-  ev.events = EPOLLIN;
-  ev.data.fd = fd;
-  return ::epoll_ctl(epoll_fd, EPOLL_CTL_ADD, fd, &ev) == 0;
-}
+// Messages for one recvmmsg or sendmmsg, with the headers that point into them: a member reads
+// its frames this way, and the hub reads and forwards them, so that at full load neither makes a
+// system call per frame.
+struct WireBatch {
+  static constexpr unsigned kSize = 32;
+  std::array<WireMsg, kSize> msgs{};
+  std::array<iovec, kSize> iov{};
+  std::array<mmsghdr, kSize> hdr{};
+  WireBatch() {
+    for (unsigned i = 0; i < kSize; ++i) {
+      iov[i] = {&msgs[i], sizeof(WireMsg)};
+      hdr[i].msg_hdr.msg_iov = &iov[i];
+      hdr[i].msg_hdr.msg_iovlen = 1;
+    }
+  }
+};
 
 }  // namespace
 
@@ -142,8 +151,8 @@ class VirtualBus::Hub {
   static Result<std::unique_ptr<Hub>> start(UniqueFd listener, const std::string& uri) {
     UniqueFd epoll{::epoll_create1(EPOLL_CLOEXEC)};
     UniqueFd wake{::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC)};
-    if (!epoll || !wake || !epoll_add(epoll.get(), listener.get()) ||
-        !epoll_add(epoll.get(), wake.get())) {
+    if (!epoll || !wake || !detail::epoll_add(epoll.get(), listener.get()) ||
+        !detail::epoll_add(epoll.get(), wake.get())) {
       return make_error(uri + ": cannot set up the hub: " + errno_text(errno));
     }
     try {
@@ -173,19 +182,6 @@ class VirtualBus::Hub {
   bool running() const { return running_.load(std::memory_order_relaxed); }
 
  private:
-  // Messages of one recvmmsg or sendmmsg, with the headers that point into them.
-  struct Batch {
-    std::array<WireMsg, kHubBatch> msgs{};
-    std::array<iovec, kHubBatch> iov{};
-    std::array<mmsghdr, kHubBatch> hdr{};
-    Batch() {
-      for (unsigned i = 0; i < kHubBatch; ++i) {
-        iov[i] = {&msgs[i], sizeof(WireMsg)};
-        hdr[i].msg_hdr.msg_iov = &iov[i];
-        hdr[i].msg_hdr.msg_iovlen = 1;
-      }
-    }
-  };
   struct Member {
     UniqueFd fd;
     bool overflowed = false;  // frames were dropped for it since the last one delivered
@@ -233,7 +229,7 @@ class VirtualBus::Hub {
       welcome.id = kWireMagic;
       if (::send(fd.get(), &welcome, sizeof welcome, MSG_DONTWAIT | MSG_NOSIGNAL) != kMsgSize)
         continue;
-      if (!epoll_add(epoll_.get(), fd.get())) continue;
+      if (!detail::epoll_add(epoll_.get(), fd.get())) continue;
       members_.push_back(Member{std::move(fd)});
     }
   }
@@ -245,7 +241,7 @@ class VirtualBus::Hub {
                                  [fd](const Member& m) { return m.fd.get() == fd; });
     if (it == members_.end()) return;
     for (int read = 0; read < kPumpBatch && !it->gone;) {
-      const int n = ::recvmmsg(fd, in_.hdr.data(), kHubBatch, MSG_DONTWAIT, nullptr);
+      const int n = ::recvmmsg(fd, in_.hdr.data(), WireBatch::kSize, MSG_DONTWAIT, nullptr);
       if (n < 0 && errno == EINTR) continue;
       if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) return;
       if (n <= 0) {
@@ -318,8 +314,8 @@ class VirtualBus::Hub {
   UniqueFd epoll_;
   UniqueFd wake_;
   std::vector<Member> members_;  // touched by the hub thread only
-  Batch in_;   // hub thread only
-  Batch out_;  // hub thread only
+  WireBatch in_;   // hub thread only
+  WireBatch out_;  // hub thread only
   std::atomic<bool> running_{true};
   std::thread thread_;  // last: starts once everything above exists
 };
@@ -334,7 +330,7 @@ Result<std::unique_ptr<VirtualBus>> VirtualBus::open(std::string_view name) {
   }
   UniqueFd epoll{::epoll_create1(EPOLL_CLOEXEC)};
   UniqueFd timer{::timerfd_create(CLOCK_MONOTONIC, TFD_NONBLOCK | TFD_CLOEXEC)};
-  if (!epoll || !timer || !epoll_add(epoll.get(), timer.get())) {
+  if (!epoll || !timer || !detail::epoll_add(epoll.get(), timer.get())) {
     return make_error(uri + ": cannot create descriptors: " + errno_text(errno));
   }
   std::string address(1, '\0');
@@ -360,23 +356,11 @@ Result<std::unique_ptr<VirtualBus>> VirtualBus::open(std::string_view name) {
   }
 }
 
-// One system call fetches up to kSize pending messages: under load, a bus of 8000 frames/s costs
-// a recv per frame otherwise, which on a virtual machine is most of the cost of taking a frame.
+// What one recvmmsg fetched, handed out one frame per receive().
 struct VirtualBus::RxBatch {
-  static constexpr unsigned kSize = 32;
-  std::array<WireMsg, kSize> msgs{};
-  std::array<iovec, kSize> iov{};
-  std::array<mmsghdr, kSize> hdr{};
-  unsigned count = 0;  // messages in msgs
+  WireBatch batch;
+  unsigned count = 0;  // messages in batch
   unsigned next = 0;   // the next one to hand out
-
-  RxBatch() {
-    for (unsigned i = 0; i < kSize; ++i) {
-      iov[i] = {&msgs[i], sizeof(WireMsg)};
-      hdr[i].msg_hdr.msg_iov = &iov[i];
-      hdr[i].msg_hdr.msg_iovlen = 1;
-    }
-  }
 };
 
 VirtualBus::VirtualBus(PrivateTag, std::string uri, std::string address, UniqueFd epoll,
@@ -419,7 +403,7 @@ Result<bool> VirtualBus::join() {
     if (err == ECONNREFUSED || err == EAGAIN || err == ENOENT) return false;
     return make_error(uri_ + ": cannot connect to the hub: " + errno_text(err));
   }
-  if (!epoll_add(epoll_.get(), sock.get()))
+  if (!detail::epoll_add(epoll_.get(), sock.get()))
     return make_error(uri_ + ": epoll_ctl failed: " + errno_text(errno));
   sock_ = std::move(sock);
   set_retry_timer(false);
@@ -474,8 +458,8 @@ void VirtualBus::set_retry_timer(bool armed) {
 Result<std::optional<CanFrame>> VirtualBus::receive() {
   for (;;) {
     while (rx_->next < rx_->count) {
-      const WireMsg& msg = rx_->msgs[rx_->next];
-      const auto len = rx_->hdr[rx_->next].msg_len;
+      const WireMsg& msg = rx_->batch.msgs[rx_->next];
+      const auto len = rx_->batch.hdr[rx_->next].msg_len;
       ++rx_->next;
       if (len == 0) {  // EOF: the hub went away. Elect or join the next one; no frame this time.
         rx_->next = rx_->count = 0;
@@ -494,7 +478,7 @@ Result<std::optional<CanFrame>> VirtualBus::receive() {
       if (auto r = rejoin(); !r) return r.error();
       if (!sock_) return std::optional<CanFrame>{};
     }
-    const int n = ::recvmmsg(sock_.get(), rx_->hdr.data(), RxBatch::kSize, MSG_DONTWAIT, nullptr);
+    const int n = ::recvmmsg(sock_.get(), rx_->batch.hdr.data(), WireBatch::kSize, MSG_DONTWAIT, nullptr);
     if (n > 0) {
       rx_->count = static_cast<unsigned>(n);
       continue;

@@ -21,6 +21,8 @@
 #include "gateways/gateway.hpp"
 #include "gateways/momentary_commands.hpp"
 #include "gateways/pdo_burst.hpp"
+#include "gateways/pdo_receive.hpp"
+#include "gateways/set_value_path.hpp"
 #include "msgs/commonPubSubTypes.h"
 
 namespace lb::gateways {
@@ -118,17 +120,7 @@ DriveGateway<Dds>::DriveGateway(DeviceContext context)
 
 template <class Dds>
 void DriveGateway<Dds>::on_pdo(std::size_t pdo, const can::CanFrame& frame) {
-  auto& stats = ctx_.node.stats();
-  burst_.admit(pdo);
-  if (auto r = codec_.receive(pdo, frame.payload()); !r) {
-    // Counted and reported, never decoded: a short PDO would otherwise publish garbage.
-    if (stats.pdo_length_errors++ % 1000 == 0) {
-      spdlog::warn("{}: {} ({:03X}h) not decoded: {} ({} so far)", ctx_.device.name, codec_.pdos()[pdo].def->name,
-                   frame.id, r.error().message, stats.pdo_length_errors);
-    }
-    return;
-  }
-  ++stats.pdos_received;
+  if (!receive_pdo(ctx_, codec_, burst_, pdo, frame)) return;
   if (codec_.set_echo_mismatch() != echo_mismatch_logged_) {
     echo_mismatch_logged_ = codec_.set_echo_mismatch();
     if (echo_mismatch_logged_) {
@@ -143,27 +135,16 @@ void DriveGateway<Dds>::on_pdo(std::size_t pdo, const can::CanFrame& frame) {
 
 template <class Dds>
 void DriveGateway<Dds>::on_setpoint(const Setpoint& sp) {
-  // DDS thread: validation reads only the profile; the image belongs to the loop thread.
-  if (!ctx_.is_master()) {
-    return reply(sp.request_id(), false, "bus " + ctx_.bus.name + " is in the monitor role: the bridge never transmits there");
-  }
-  auto raw = codec_.validate(sp);
-  if (!raw) {
-    spdlog::warn("{}: set value {} refused: {}", ctx_.device.name, sp.request_id(), raw.error().message);
-    return reply(sp.request_id(), false, raw.error().message);
-  }
-  ctx_.loop.post([this, r = *raw, id = sp.request_id()] {
-    if (!ctx_.node.online()) {
-      spdlog::warn("{}: set value {} refused: device offline", ctx_.device.name, id);
-      return reply(id, false, ctx_.device.name + " is offline (no heartbeat): set value not applied");
-    }
-    codec_.apply(r);
-    for (auto& t : rpdos_) t->on_data();
-    publish_status(ddsl::now_ns());
-    spdlog::info("{}: set values: extruder {}, speed {} % (control word {:04X}h)", ctx_.device.name,
-                 r.extruder_running ? "running" : "stopped", codec_.speed_set_percent(), codec_.control_word());
-    reply(id, true, "");
-  });
+  take_set_value(
+      ctx_, sp.request_id(), [&] { return codec_.validate(sp); },
+      [this](const auto& r) {
+        codec_.apply(r);
+        for (auto& t : rpdos_) t->on_data();
+        publish_status(ddsl::now_ns());
+        spdlog::info("{}: set values: extruder {}, speed {} % (control word {:04X}h)", ctx_.device.name,
+                     r.extruder_running ? "running" : "stopped", codec_.speed_set_percent(), codec_.control_word());
+      },
+      [this](std::uint64_t id, bool accepted, const std::string& reason) { reply(id, accepted, reason); });
 }
 
 template <class Dds>

@@ -9,6 +9,7 @@
 #include "dds/service.hpp"
 #include "dds/topic_names.hpp"
 #include "gateways/device_health.hpp"
+#include "gateways/pdo_receive.hpp"
 
 namespace lb::gateways {
 
@@ -115,20 +116,11 @@ FeederGateway::FeederGateway(DeviceContext context)
 // ---- CAN -> DDS ----
 
 void FeederGateway::on_pdo(std::size_t pdo, const can::CanFrame& frame) {
-  auto& stats = ctx_.node.stats();
-  burst_.admit(pdo);
-  if (auto r = codec_.receive(pdo, frame.payload()); !r) {
-    if (stats.pdo_length_errors++ % 1000 == 0) {
-      spdlog::warn("{}: {} ({:03X}h) not decoded: {} ({} so far)", ctx_.device.name, codec_.pdos()[pdo].def->name, frame.id,
-                   r.error().message, stats.pdo_length_errors);
-    }
-    return;
-  }
-  ++stats.pdos_received;
+  if (!receive_pdo(ctx_, codec_, burst_, pdo, frame)) return;
   if (codec_.pdos()[pdo].def->direction == PdoDirection::tx && codec_.carries(pdo, kUnwinding)) {
     auto u = codec_.last_unwinding();
     stamp(u, frame.timestamp_ns);
-    if (!u.in_range()) ++stats.range_warnings;  // published all the same: actual values are never dropped
+    if (!u.in_range()) ++ctx_.node.stats().range_warnings;  // published all the same: actual values are never dropped
     unwinding_writer_.write(u);
     return;
   }

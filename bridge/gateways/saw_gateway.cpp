@@ -6,6 +6,8 @@
 
 #include "dds/topic_names.hpp"
 #include "gateways/device_health.hpp"
+#include "gateways/pdo_receive.hpp"
+#include "gateways/set_value_path.hpp"
 
 namespace lb::gateways {
 
@@ -81,43 +83,21 @@ SawGateway::SawGateway(DeviceContext context)
 }
 
 void SawGateway::on_pdo(std::size_t pdo, const can::CanFrame& frame) {
-  auto& stats = ctx_.node.stats();
-  burst_.admit(pdo);
-  if (auto r = codec_.receive(pdo, frame.payload()); !r) {
-    // Counted and reported, never decoded: a short PDO would otherwise publish garbage.
-    if (stats.pdo_length_errors++ % 1000 == 0) {
-      spdlog::warn("{}: {} ({:03X}h) not decoded: {} ({} so far)", ctx_.device.name, codec_.pdos()[pdo].def->name,
-                   frame.id, r.error().message, stats.pdo_length_errors);
-    }
-    return;
-  }
-  ++stats.pdos_received;
-  burst_.add(pdo, frame.timestamp_ns);
+  if (receive_pdo(ctx_, codec_, burst_, pdo, frame)) burst_.add(pdo, frame.timestamp_ns);
 }
 
 void SawGateway::on_setpoint(const msg::SawSetpoint& sp) {
-  // DDS thread: validation reads only the profile; the image belongs to the loop thread.
-  if (!ctx_.is_master()) {
-    return reply(sp.request_id(), false, "bus " + ctx_.bus.name + " is in the monitor role: the bridge never transmits there");
-  }
-  auto raw = codec_.validate(sp);
-  if (!raw) {
-    spdlog::warn("{}: set value {} refused: {}", ctx_.device.name, sp.request_id(), raw.error().message);
-    return reply(sp.request_id(), false, raw.error().message);
-  }
-  ctx_.loop.post([this, r = *raw, id = sp.request_id()] {
-    if (!ctx_.node.online()) {
-      spdlog::warn("{}: set value {} refused: device offline", ctx_.device.name, id);
-      return reply(id, false, ctx_.device.name + " is offline (no heartbeat): set value not applied");
-    }
-    codec_.apply(r);
-    for (auto& t : rpdos_) t->on_data();
-    publish_status(ddsl::now_ns());
-    spdlog::info("{}: set values: program {}, sync speed {} %, product length {} m (control word {:04X}h)",
-                 ctx_.device.name, status_.control_word().saw_program_on() ? "on" : "off",
-                 status_.sync_speed_set_percent(), status_.product_length_set_m(), status_.control_word().raw());
-    reply(id, true, "");
-  });
+  take_set_value(
+      ctx_, sp.request_id(), [&] { return codec_.validate(sp); },
+      [this](const SawCodec::RawSetpoint& r) {
+        codec_.apply(r);
+        for (auto& t : rpdos_) t->on_data();
+        publish_status(ddsl::now_ns());
+        spdlog::info("{}: set values: program {}, sync speed {} %, product length {} m (control word {:04X}h)",
+                     ctx_.device.name, status_.control_word().saw_program_on() ? "on" : "off",
+                     status_.sync_speed_set_percent(), status_.product_length_set_m(), status_.control_word().raw());
+      },
+      [this](std::uint64_t id, bool accepted, const std::string& reason) { reply(id, accepted, reason); });
 }
 
 void SawGateway::reply(std::uint64_t request_id, bool accepted, const std::string& reason) {

@@ -14,6 +14,7 @@
 #include "gateways/corrugator_codec.hpp"
 #include "profiles/line_config.hpp"
 #include "profiles/profile_registry.hpp"
+#include "support/codec_pdo.hpp"
 
 namespace msg = linebridge_msgs::msg;
 using lb::gateways::CorrugatorCodec;
@@ -27,13 +28,7 @@ class CorrugatorCodecTest : public ::testing::Test {
         profile_(*registry_.find("cia420-3", "3.1")),
         pdos_(lb::profiles::default_pdos(profile_, 7)) {}
 
-  std::size_t pdo(const std::string& name) const {
-    for (std::size_t i = 0; i < codec_.pdos().size(); ++i) {
-      if (codec_.pdos()[i].def->name == name) return i;
-    }
-    ADD_FAILURE() << "no PDO " << name;
-    return 0;
-  }
+  std::size_t pdo(const std::string& name) const { return lb::test::pdo_index(codec_, name); }
   msg::CorrugatorStatus status() const {
     msg::CorrugatorStatus s;
     codec_.fill(s);

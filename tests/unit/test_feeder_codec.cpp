@@ -12,6 +12,7 @@
 #include "gateways/feeder_codec.hpp"
 #include "profiles/line_config.hpp"
 #include "profiles/profile_registry.hpp"
+#include "support/codec_pdo.hpp"
 
 namespace msg = linebridge_msgs::msg;
 using lb::gateways::FeederCodec;
@@ -25,13 +26,7 @@ class FeederCodecTest : public ::testing::Test {
         profile_(*registry_.find("cia414-2", "1.1")),
         pdos_(lb::profiles::default_pdos(profile_, 10)) {}
 
-  std::size_t pdo(const std::string& name) const {
-    for (std::size_t i = 0; i < codec_.pdos().size(); ++i) {
-      if (codec_.pdos()[i].def->name == name) return i;
-    }
-    ADD_FAILURE() << "no PDO " << name;
-    return 0;
-  }
+  std::size_t pdo(const std::string& name) const { return lb::test::pdo_index(codec_, name); }
   void receive(const std::string& name, std::vector<std::uint8_t> bytes) {
     ASSERT_TRUE(codec_.receive(pdo(name), bytes)) << name;
   }

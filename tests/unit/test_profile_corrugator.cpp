@@ -10,8 +10,8 @@
 #include <vector>
 
 #include "canopen/pdo_mapping.hpp"
-#include "canopen/process_image.hpp"
 #include "profiles/profile_registry.hpp"
+#include "support/profile_image.hpp"
 
 using lb::canopen::DataType;
 using lb::canopen::PdoEntry;
@@ -19,47 +19,12 @@ using lb::profiles::Access;
 using lb::profiles::PdoDirection;
 using lb::profiles::PdoValidity;
 using lb::profiles::Profile;
+using lb::test::entries;
+using lb::test::Image;
+using lb::test::Bits;
+using lb::test::expect_bits;
 
 namespace {
-
-// The bridge's path for a frame: mapping -> binding -> process image.
-struct Image {
-  lb::canopen::ProcessImage image;
-  std::optional<lb::canopen::PdoBinding> binding;
-
-  Image(const Profile& p, const std::string& pdo_name) {
-    const auto* pdo = p.pdo(pdo_name);
-    EXPECT_NE(pdo, nullptr) << pdo_name;
-    if (pdo == nullptr) return;
-    for (const auto& e : pdo->mapping) image.slot(e.index, e.sub);
-    auto mapping = lb::canopen::PdoMapping::create(pdo->mapping);
-    EXPECT_TRUE(mapping);
-    if (mapping) binding.emplace(std::move(*mapping), image);
-  }
-  bool unpack(std::span<const std::uint8_t> frame) { return binding && binding->unpack_into(frame, image).has_value(); }
-  std::uint64_t raw(std::uint16_t index, std::uint8_t sub = 0) const { return image.get(image.find(index, sub)); }
-  void set(std::uint16_t index, std::uint64_t raw) { image.set(image.find(index, 0), raw); }
-  std::vector<std::uint8_t> pack() const {
-    std::array<std::uint8_t, 8> out{};
-    const auto n = binding->pack_from(image, out);
-    return {out.begin(), out.begin() + n};
-  }
-};
-
-std::vector<PdoEntry> entries(std::initializer_list<std::uint32_t> values) {
-  std::vector<PdoEntry> out;
-  for (auto v : values) out.push_back(PdoEntry::from_u32(v));
-  return out;
-}
-
-using Bits = std::vector<std::pair<const char*, unsigned>>;
-
-void expect_bits(const Profile& p, const char* set_name, const Bits& bits) {
-  const auto* set = p.bitset(set_name);
-  ASSERT_NE(set, nullptr) << set_name;
-  EXPECT_EQ(set->bits.size(), bits.size()) << set_name;
-  for (const auto& [name, bit] : bits) EXPECT_EQ(set->bit(name), bit) << set_name << "." << name;
-}
 
 class CorrugatorProfile : public ::testing::Test {
  protected:

@@ -15,6 +15,7 @@
 #include "gateways/puller_codec.hpp"
 #include "profiles/line_config.hpp"
 #include "profiles/profile_registry.hpp"
+#include "support/codec_pdo.hpp"
 
 namespace msg = linebridge_msgs::msg;
 using lb::gateways::PullerCodec;
@@ -28,13 +29,7 @@ class PullerCodecTest : public ::testing::TestWithParam<const char*> {
         profile_(*registry_.find("cia420-2", GetParam())),
         pdos_(lb::profiles::default_pdos(profile_, 6)) {}
 
-  std::size_t pdo(const std::string& name) const {
-    for (std::size_t i = 0; i < codec_.pdos().size(); ++i) {
-      if (codec_.pdos()[i].def->name == name) return i;
-    }
-    ADD_FAILURE() << "no PDO " << name;
-    return 0;
-  }
+  std::size_t pdo(const std::string& name) const { return lb::test::pdo_index(codec_, name); }
   msg::PullerStatus status() const {
     msg::PullerStatus s;
     codec_.fill(s);

@@ -1,0 +1,38 @@
+#pragma once
+// The path of a set value from its DDS listener to the device's RPDO image, the same for every
+// gateway whose device takes set values. On the DDS thread: refused on a monitor bus, or when
+// validate() refuses (it reads only the immutable profile, so it needs no lock). On the bus loop:
+// refused while the device is offline, else apply(raw) and answered as accepted.
+
+#include <spdlog/spdlog.h>
+
+#include <cstdint>
+#include <string>
+
+#include "gateways/device_context.hpp"
+
+namespace lb::gateways {
+
+// validate: () -> Result<Raw>; apply: (const Raw&) on the loop thread;
+// reply: (request_id, accepted, reason) from either thread.
+template <class Validate, class Apply, class Reply>
+void take_set_value(const DeviceContext& ctx, std::uint64_t id, Validate validate, Apply apply, Reply reply) {
+  if (!ctx.is_master()) {
+    return reply(id, false, "bus " + ctx.bus.name + " is in the monitor role: the bridge never transmits there");
+  }
+  auto raw = validate();
+  if (!raw) {
+    spdlog::warn("{}: set value {} refused: {}", ctx.device.name, id, raw.error().message);
+    return reply(id, false, raw.error().message);
+  }
+  ctx.loop.post([&ctx, id, r = *raw, apply, reply] {
+    if (!ctx.node.online()) {
+      spdlog::warn("{}: set value {} refused: device offline", ctx.device.name, id);
+      return reply(id, false, ctx.device.name + " is offline (no heartbeat): set value not applied");
+    }
+    apply(r);
+    reply(id, true, "");
+  });
+}
+
+}  // namespace lb::gateways
