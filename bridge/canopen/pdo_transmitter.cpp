@@ -33,6 +33,15 @@ void PdoTransmitter::resend() {
   on_data();
 }
 
+void PdoTransmitter::reconfigure(Settings settings) {
+  settings_ = settings;
+  sync_count_ = 0;
+  pending_ = false;
+  have_last_ = false;
+  loop_.disarm_timer(inhibit_timer_);
+  loop_.disarm_timer(event_timer_);
+}
+
 bool PdoTransmitter::data_changed() {
   can::CanFrame f;
   pack_(f);

@@ -36,6 +36,10 @@ class PdoTransmitter {
   void on_sync();  // a SYNC went out (master) or came in (device)
   void on_data();  // the image may have changed: event-driven and acyclic types look
   void resend();   // forget what was sent: the next trigger sends even unchanged data
+  // Loop thread: a new identifier, type or timing (a device's PDO parameters written, a mapping
+  // adopted at boot). The SYNC count restarts, timers stop and what was sent is forgotten.
+  void reconfigure(Settings settings);
+  const Settings& settings() const { return settings_; }
 
  private:
   bool data_changed();

@@ -86,14 +86,67 @@ BusConfig parse_bus(const YamlSource& src, const YAML::Node& n) {
   return bus;
 }
 
+Identity parse_identity(const YamlSource& src, const YAML::Node& n, std::string_view what) {
+  src.expect_map(n, what);
+  src.check_keys(n, what, {"device_type", "vendor_id", "product_code", "revision", "serial_number"});
+  Identity id;
+  id.device_type = src.optional<std::uint32_t>(n, "device_type");
+  id.vendor_id = src.optional<std::uint32_t>(n, "vendor_id");
+  id.product_code = src.optional<std::uint32_t>(n, "product_code");
+  id.revision = src.optional<std::uint32_t>(n, "revision");
+  id.serial_number = src.optional<std::uint32_t>(n, "serial_number");
+  return id;
+}
+
+std::vector<canopen::PdoEntry> parse_mapping_entries(const YamlSource& src, const YAML::Node& m) {
+  src.expect_sequence(m, "mapping");
+  std::vector<canopen::PdoEntry> entries;
+  for (const auto& e : m) entries.push_back(canopen::PdoEntry::from_u32(src.as<std::uint32_t>(e, "mapping")));
+  if (auto checked = canopen::PdoMapping::create(entries); !checked) src.fail(m, checked.error().message);
+  return entries;
+}
+
+// simulation.pdos: {<name>: {cob_id, transmission_type, inhibit_time_100us, event_timer_ms, mapping}}
+std::vector<SimulatedPdo> parse_simulated_pdos(const YamlSource& src, const YAML::Node& n, const Profile& profile) {
+  src.expect_map(n, "simulation pdos");
+  std::vector<SimulatedPdo> pdos;
+  for (const auto& kv : n) {
+    SimulatedPdo p;
+    p.name = src.as<std::string>(kv.first, "pdo");
+    if (profile.pdo(p.name) == nullptr) src.fail(kv.first, "simulation pdos: profile " + profile.key() + " has no PDO '" + p.name + "'");
+    const YAML::Node& o = kv.second;
+    src.check_keys(o, "simulation pdo", {"cob_id", "transmission_type", "inhibit_time_100us", "event_timer_ms", "mapping"});
+    p.cob_id = src.optional<std::uint32_t>(o, "cob_id");
+    if (o["transmission_type"]) p.transmission_type = bounded<std::uint8_t>(src, o, "transmission_type", 0, 0, 255, "simulation pdo");
+    if (o["inhibit_time_100us"]) p.inhibit_time_100us = bounded<std::uint16_t>(src, o, "inhibit_time_100us", 0, 0, 65535, "simulation pdo");
+    if (o["event_timer_ms"]) p.event_timer_ms = bounded<std::uint16_t>(src, o, "event_timer_ms", 0, 0, 65535, "simulation pdo");
+    if (o["mapping"]) p.mapping = parse_mapping_entries(src, o["mapping"]);
+    pdos.push_back(std::move(p));
+  }
+  return pdos;
+}
+
 SimulationConfig parse_simulation(const YamlSource& src, const YAML::Node& n, const Profile& profile) {
   src.check_keys(n, "simulation", {"max_speed_m_per_min", "acceleration_m_per_min_s", "scaling_pulses_per_m",
-                                   "heartbeat_period_ms", "controller_values"});
+                                   "heartbeat_period_ms", "controller_values", "identity", "pdos", "ignore_writes"});
   SimulationConfig sim;
   sim.max_speed_m_per_min = positive(src, n, "max_speed_m_per_min", sim.max_speed_m_per_min);
   sim.acceleration_m_per_min_s = positive(src, n, "acceleration_m_per_min_s", sim.acceleration_m_per_min_s);
   sim.scaling_pulses_per_m = bounded<std::uint32_t>(src, n, "scaling_pulses_per_m", sim.scaling_pulses_per_m, 1, 100'000'000, "simulation");
-  sim.heartbeat_period = std::chrono::milliseconds(bounded<int>(src, n, "heartbeat_period_ms", 100, 1, 65535, "simulation"));
+  // 0: the device sends no heartbeat until a master writes 1017h.
+  sim.heartbeat_period = std::chrono::milliseconds(bounded<int>(src, n, "heartbeat_period_ms", 100, 0, 65535, "simulation"));
+  if (n["identity"]) sim.identity = parse_identity(src, n["identity"], "simulation identity");
+  if (n["pdos"]) sim.pdos = parse_simulated_pdos(src, n["pdos"], profile);
+  if (const auto ignore = n["ignore_writes"]) {
+    src.expect_sequence(ignore, "ignore_writes");
+    for (const auto& w : ignore) {
+      src.check_keys(w, "ignore_writes entry", {"index", "sub"});
+      if (!w["index"]) src.fail(w, "ignore_writes entry: missing required key 'index'");
+      const auto index = bounded<std::uint32_t>(src, w, "index", 0, 0x1000, 0xFFFF, "ignore_writes");
+      const auto sub = bounded<std::uint32_t>(src, w, "sub", 0, 0, 255, "ignore_writes");
+      sim.ignore_writes.push_back(index << 8 | sub);
+    }
+  }
   if (const auto values = n["controller_values"]) {
     src.expect_map(values, "controller_values");
     for (const auto& kv : values) {
@@ -174,6 +227,7 @@ std::vector<DevicePdo> resolve_pdos(const YamlSource& src, const YAML::Node* ove
     src.check_keys(o, "pdo override", {"cob_id", "transmission_type", "inhibit_time_100us", "event_timer_ms", "mapping"});
     if (o["cob_id"]) {
       const auto entry = src.as<std::uint32_t>(o["cob_id"], "cob_id");
+      it->validity_given = true;
       it->enabled = (entry & 0x8000'0000U) == 0;
       it->extended = (entry & 0x2000'0000U) != 0;
       it->can_id = entry & (it->extended ? 0x1FFF'FFFFU : 0x7FFU);
@@ -184,6 +238,10 @@ std::vector<DevicePdo> resolve_pdos(const YamlSource& src, const YAML::Node* ove
     it->transmission_type = bounded<std::uint8_t>(src, o, "transmission_type", it->transmission_type, 0, 255, "pdo " + name);
     if (it->transmission_type > 240 && it->transmission_type < 252) {
       src.fail(o["transmission_type"], "transmission_type " + std::to_string(it->transmission_type) + " is reserved (CiA 301)");
+    }
+    if (it->direction == PdoDirection::rx && it->transmission_type > 240 && it->transmission_type < 254) {
+      src.fail(o["transmission_type"], "transmission_type " + std::to_string(it->transmission_type) +
+                                           " is for TPDOs only: an RPDO is 0..240 (synchronous) or 254/255 (event-driven)");
     }
     it->inhibit = std::chrono::microseconds(100 * bounded<int>(src, o, "inhibit_time_100us", 0, 0, 65535, "pdo " + name));
     it->event_timer = std::chrono::milliseconds(bounded<int>(src, o, "event_timer_ms", 0, 0, 65535, "pdo " + name));
@@ -196,6 +254,12 @@ std::vector<DevicePdo> resolve_pdos(const YamlSource& src, const YAML::Node* ove
           const ObjectDef* obj = profile.object(entry.index, entry.sub);
           if (obj == nullptr) src.fail(e, "mapping entry names an object profile " + profile.key() + " does not define");
           if (canopen::bit_size(obj->type) != entry.bits) src.fail(e, "mapping entry length differs from " + obj->name + "'s type");
+          if (it->direction == PdoDirection::tx && !obj->readable()) src.fail(e, "a TPDO cannot carry " + obj->name + ", which is write-only");
+          if (it->direction == PdoDirection::rx && !obj->writable()) {
+            src.fail(e, "an RPDO cannot carry " + obj->name + ", which is " + std::string(to_string(obj->access)));
+          }
+        } else if (it->direction == PdoDirection::tx) {
+          src.fail(e, "dummy entries (0001h..0007h) skip bits of a received PDO: a TPDO cannot carry them (CiA 301)");
         }
         it->mapping.push_back(entry);
       }
@@ -208,7 +272,8 @@ std::vector<DevicePdo> resolve_pdos(const YamlSource& src, const YAML::Node* ove
 DeviceConfig parse_device(const YamlSource& src, const YAML::Node& n, const LineConfig& line,
                           const ProfileRegistry& registry) {
   src.check_keys(n, "device", {"name", "bus", "node_id", "profile", "version", "heartbeat_timeout_ms", "configure",
-                               "boot_retry_ms", "pdos", "simulation"});
+                               "boot_retry_ms", "pdos", "simulation", "identity", "pdo_config", "on_state_unknown",
+                               "heartbeat_producer_ms"});
   DeviceConfig dev;
   dev.name = src.required<std::string>(n, "name", "device");
   check_name(src, n["name"], dev.name);
@@ -246,6 +311,27 @@ DeviceConfig parse_device(const YamlSource& src, const YAML::Node& n, const Line
   const YAML::Node pdo_overrides = n["pdos"];
   dev.pdos = resolve_pdos(src, pdo_overrides ? &pdo_overrides : nullptr, *dev.resolved_profile, dev.node_id, dev.name);
   if (n["simulation"]) dev.simulation = parse_simulation(src, n["simulation"], *dev.resolved_profile);
+  if (n["identity"]) dev.identity = parse_identity(src, n["identity"], "identity");
+  if (const auto mode = src.optional<std::string>(n, "pdo_config")) {
+    if (*mode == "configure") dev.pdo_config = PdoConfigMode::configure;
+    else if (*mode == "adopt") dev.pdo_config = PdoConfigMode::adopt;
+    else src.fail(n["pdo_config"], "pdo_config must be configure (make the device match the line) or adopt (take the device's PDOs), not '" + *mode + "'");
+  }
+  if (const auto action = src.optional<std::string>(n, "on_state_unknown")) {
+    if (*action == "reboot") dev.on_state_unknown = StateUnknownAction::reboot;
+    else if (*action == "reset_node") dev.on_state_unknown = StateUnknownAction::reset_node;
+    else src.fail(n["on_state_unknown"], "on_state_unknown must be reboot or reset_node, not '" + *action + "'");
+  }
+  if (n["heartbeat_producer_ms"]) {
+    const auto producer = bounded<int>(src, n, "heartbeat_producer_ms", 0, 1, 65535, "device " + dev.name);
+    dev.heartbeat_producer = std::chrono::milliseconds(producer);
+    // A consumer time at or below the producer time reports the device lost between two beats.
+    if (dev.heartbeat_timeout.count() <= producer) {
+      src.fail(n["heartbeat_producer_ms"], "device " + dev.name + ": heartbeat_producer_ms " + std::to_string(producer) +
+                                               " must be below heartbeat_timeout_ms " + std::to_string(dev.heartbeat_timeout.count()) +
+                                               " (CiA 302: the consumer time needs a margin, e.g. 1.5 x the producer time)");
+    }
+  }
   return dev;
 }
 
@@ -258,6 +344,8 @@ std::vector<DevicePdo> default_pdos(const Profile& profile, std::uint8_t node_id
     pdo.name = def.name;
     pdo.direction = def.direction;
     pdo.can_id = def.cob_id(node_id);
+    pdo.enabled = def.validity != PdoValidity::not_valid;
+    pdo.validity_given = def.validity != PdoValidity::either;
     pdo.transmission_type = def.transmission_type;
     pdo.mapping = def.mapping;
     pdos.push_back(std::move(pdo));
@@ -266,6 +354,10 @@ std::vector<DevicePdo> default_pdos(const Profile& profile, std::uint8_t node_id
 }
 
 std::string_view to_string(BusRole role) { return role == BusRole::master ? "master" : "monitor"; }
+std::string_view to_string(PdoConfigMode mode) { return mode == PdoConfigMode::configure ? "configure" : "adopt"; }
+std::string_view to_string(StateUnknownAction action) {
+  return action == StateUnknownAction::reboot ? "reboot" : "reset_node";
+}
 
 const BusConfig* LineConfig::bus(std::string_view name) const {
   for (const auto& b : buses) {

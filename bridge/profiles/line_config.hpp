@@ -4,6 +4,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -33,6 +34,27 @@ struct BusConfig {
   std::chrono::milliseconds sdo_timeout{1000};
 };
 
+// Identity values (1000h device type, 1018h sub 1..4). Expected ones, in a device's configuration:
+// each given value is checked at every boot (CiA 302-2 1F84h..1F88h), the rest are not.
+struct Identity {
+  std::optional<std::uint32_t> device_type;
+  std::optional<std::uint32_t> vendor_id;
+  std::optional<std::uint32_t> product_code;
+  std::optional<std::uint32_t> revision;
+  std::optional<std::uint32_t> serial_number;
+};
+
+// A simulated device's own PDO defaults where they differ from its profile's (its "factory"
+// configuration): what a master finds before it writes anything.
+struct SimulatedPdo {
+  std::string name;
+  std::optional<std::uint32_t> cob_id;  // the full CiA 301 entry
+  std::optional<std::uint8_t> transmission_type;
+  std::optional<std::uint16_t> inhibit_time_100us;
+  std::optional<std::uint16_t> event_timer_ms;
+  std::optional<std::vector<canopen::PdoEntry>> mapping;  // any objects: the simulator checks them
+};
+
 // Only read by linebridge-sim: how the simulated device behaves.
 struct SimulationConfig {
   double max_speed_m_per_min = 30.0;       // line speed at 100 % sync speed
@@ -42,6 +64,12 @@ struct SimulationConfig {
   // What linebridge-sim sends this device when it plays the line controller (--role controller):
   // raw values of the device's RPDO objects by profile object name; others are sent as 0.
   std::vector<std::pair<std::string, std::uint64_t>> controller_values;
+  // What the device answers in 1000h and 1018h instead of the simulator's own values.
+  Identity identity;
+  std::vector<SimulatedPdo> pdos;
+  // Objects (index << 8 | sub) whose SDO writes the device confirms and then ignores, as a faulty
+  // device may: a master that reads back notices.
+  std::vector<std::uint32_t> ignore_writes;
 };
 
 // One SDO write of a device's boot configuration (written in this order before NMT start).
@@ -65,6 +93,10 @@ struct DevicePdo {
   std::chrono::milliseconds event_timer{0};  // event-driven: resend at least this often (0 = never)
   std::vector<canopen::PdoEntry> mapping;
 
+  // False where the profile lets a device start with the PDO valid or not (COB-ID bit 31: feeder
+  // TPDO1) and the line configuration does not say: then the device's choice is taken as it is.
+  bool validity_given = true;
+
   bool synchronous() const { return transmission_type <= 240; }
   bool event_driven() const { return transmission_type >= 254; }
   // The 32-bit COB-ID entry (1400h/1800h sub 1) as CiA 301 writes it.
@@ -76,6 +108,21 @@ struct DevicePdo {
 // The profile's PDOs as a device at node_id has them before any override.
 std::vector<DevicePdo> default_pdos(const Profile& profile, std::uint8_t node_id);
 
+// How the bridge treats a device's PDO parameters at boot.
+enum class PdoConfigMode {
+  configure,  // make the device match the line (profile defaults + overrides), or refuse to start it
+  adopt,      // take the device's PDO parameters as they are and decode and send by them
+};
+std::string_view to_string(PdoConfigMode mode);
+
+// What the bridge does when it no longer knows what a device's object dictionary holds (its
+// heartbeat came back after a loss, or it reports pre-operational or stopped unasked).
+enum class StateUnknownAction {
+  reboot,      // run the whole boot again (identity, configuration, start)
+  reset_node,  // NMT reset node: the device restarts and its boot-up starts the boot
+};
+std::string_view to_string(StateUnknownAction action);
+
 struct DeviceConfig {
   std::string name;
   std::string bus;
@@ -86,6 +133,11 @@ struct DeviceConfig {
   std::vector<SdoWrite> configure;               // boot configuration (master role)
   std::vector<DevicePdo> pdos;                    // the profile's PDOs with this device's overrides
   std::chrono::milliseconds boot_retry{5000};   // a device that does not answer is tried again
+  Identity identity;                            // expected identity, checked at every boot
+  PdoConfigMode pdo_config = PdoConfigMode::configure;
+  StateUnknownAction on_state_unknown = StateUnknownAction::reboot;
+  // Written to 1017h at every boot, after `configure`; nullopt: the device's own value is kept.
+  std::optional<std::chrono::milliseconds> heartbeat_producer;
   SimulationConfig simulation;
   const Profile* resolved_profile = nullptr;  // points into the registry the config was loaded with
 };

@@ -109,6 +109,31 @@ const BitField* BitSet::field(std::string_view field_name) const {
   return nullptr;
 }
 
+std::string_view to_string(PdoAccess access) {
+  switch (access) {
+    case PdoAccess::rw: return "rw";
+    case PdoAccess::rw_preop: return "rw (constant in NMT operational state)";
+    case PdoAccess::valid_bit: return "only its valid bit writable";
+    case PdoAccess::fixed: return "const";
+    case PdoAccess::none: return "not implemented";
+  }
+  return "?";
+}
+
+unsigned PdoDef::number() const {
+  unsigned n = 0;
+  for (std::size_t i = 4; i < name.size(); ++i) n = n * 10 + static_cast<unsigned>(name[i] - '0');
+  return n;
+}
+
+std::uint16_t PdoDef::communication_index() const {
+  return static_cast<std::uint16_t>((direction == PdoDirection::tx ? 0x1800 : 0x1400) + number() - 1);
+}
+
+std::uint16_t PdoDef::mapping_index() const {
+  return static_cast<std::uint16_t>((direction == PdoDirection::tx ? 0x1A00 : 0x1600) + number() - 1);
+}
+
 unsigned PdoDef::mapped_bits() const {
   unsigned total = 0;
   for (const auto& e : mapping) total += e.bits;

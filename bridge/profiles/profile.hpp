@@ -119,8 +119,35 @@ struct PdoTail {
   unsigned bits = 0;
 };
 
+// What a master may write of one entry of a PDO's communication or mapping parameter, as the
+// profile's tables of 1400h..1BFFh say. CiA 301 leaves all of it rw; device profiles fix parts so
+// that devices stay plug-and-play (CiA 420: the default mapping entries const, the COB-IDs ro).
+enum class PdoAccess {
+  rw,         // writable
+  rw_preop,   // "rw (constant in NMT operational state)": writable while not operational
+  valid_bit,  // COB-ID only: bit 31 (valid / not valid) may be written, the identifier is fixed
+  fixed,      // const or ro: the device's value cannot be changed
+  none,       // the device does not implement the entry (e.g. a feeder RPDO's inhibit time)
+};
+std::string_view to_string(PdoAccess access);
+
+struct PdoRules {
+  PdoAccess cob_id = PdoAccess::rw;
+  PdoAccess transmission_type = PdoAccess::rw;
+  PdoAccess inhibit_time = PdoAccess::rw;
+  PdoAccess event_timer = PdoAccess::rw;
+  PdoAccess mapping_count = PdoAccess::rw;  // sub 0 of the mapping parameter
+  PdoAccess mapping = PdoAccess::rw;        // the entries sub 1..n
+  // The values sub 0 may take ("00h, 02h to 03h"); empty: 0 up to the entries the device has.
+  std::vector<std::uint8_t> mapping_counts;
+  // Entries after the profile's default ones whose object the manufacturer chooses (CiA 420-4 3.1
+  // TPDO1 sub 3: "one and only one manufacturer-specific process data"): their value is the
+  // device's, mapped or not by sub 0.
+  unsigned manufacturer_entries = 0;
+};
+
 struct PdoDef {
-  std::string name;  // tpdo1, rpdo1, ...
+  std::string name;  // tpdo1, rpdo1, ...: the number says which 1400h../1800h.. objects it is
   PdoDirection direction = PdoDirection::tx;
   std::uint32_t cob_id_base = 0;  // predefined connection set base; the node-ID is added
   std::uint8_t transmission_type = 1;
@@ -128,8 +155,14 @@ struct PdoDef {
   PdoValidity validity = PdoValidity::valid;
   bool mandatory = true;  // the profile's category of the PDO
   std::optional<PdoTail> manufacturer_data;
+  PdoRules rules;
 
   std::uint32_t cob_id(std::uint8_t node_id) const { return cob_id_base + node_id; }
+  // 1..512 from the name (tpdo3 -> 3); communication parameter 1400h/1800h + number - 1, mapping
+  // parameter 1600h/1A00h + number - 1.
+  unsigned number() const;
+  std::uint16_t communication_index() const;
+  std::uint16_t mapping_index() const;
   unsigned mapped_bits() const;
   // The manufacturer-specific tail of a received frame (little-endian, after the mapped objects);
   // nullopt when the profile defines none or the frame is too short to carry it.

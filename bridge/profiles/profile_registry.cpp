@@ -255,12 +255,22 @@ class ProfileLoader {
   void pdo(const YAML::Node& n) {
     src_.check_keys(n, "pdo",
                     {"name", "direction", "cob_id", "transmission_type", "mapping", "valid", "mandatory",
-                     "manufacturer_data"});
+                     "manufacturer_data", "access", "mapping_counts", "manufacturer_entries"});
     PdoDef pdo;
     pdo.name = src_.required<std::string>(n, "name", "pdo");
     const auto dir = src_.required<std::string>(n, "direction", "pdo");
     if (dir != "tx" && dir != "rx") src_.fail(n["direction"], "direction must be tx (device sends) or rx (device receives)");
     pdo.direction = dir == "tx" ? PdoDirection::tx : PdoDirection::rx;
+    // The name is the CiA 301 number: tpdo3 is 1802h/1A02h, rpdo1 1400h/1600h.
+    const std::string prefix = dir == "tx" ? "tpdo" : "rpdo";
+    const auto number = pdo.name.rfind(prefix, 0) == 0 ? parse_number(std::string_view(pdo.name).substr(4)) : std::nullopt;
+    if (!number || *number < 1 || *number > 512 || pdo.name[4] == '0') {
+      src_.fail(n["name"], "a " + std::string(dir == "tx" ? "TPDO" : "RPDO") + " is named " + prefix +
+                               "1.." + prefix + "512 (its CiA 301 number), not '" + pdo.name + "'");
+    }
+    for (const auto& other : p_.pdos) {
+      if (other.name == pdo.name) src_.fail(n["name"], "pdo '" + pdo.name + "' is defined twice");
+    }
     pdo.cob_id_base = in_range<std::uint32_t>(src_, n, "cob_id", 0x001, 0x7FF);
     pdo.transmission_type = in_range<std::uint8_t>(src_, n, "transmission_type", 0, 255);
     if (const YAML::Node v = n["valid"]) {
@@ -304,7 +314,53 @@ class ProfileLoader {
       }
       pdo.manufacturer_data = std::move(tail);
     }
+    if (const YAML::Node a = n["access"]) pdo.rules = pdo_rules(a);
+    if (const YAML::Node counts = n["mapping_counts"]) {
+      src_.expect_sequence(counts, "mapping_counts");
+      for (const auto& c : counts) {
+        const auto v = src_.as<unsigned>(c, "mapping_counts");
+        if (v > 64) src_.fail(c, "mapping_counts: a PDO maps at most 64 objects");
+        pdo.rules.mapping_counts.push_back(static_cast<std::uint8_t>(v));
+      }
+    }
+    if (n["manufacturer_entries"]) pdo.rules.manufacturer_entries = in_range<unsigned>(src_, n, "manufacturer_entries", 0, 63);
+    const auto most = static_cast<unsigned>(pdo.mapping.size()) + pdo.rules.manufacturer_entries;
+    for (const auto c : pdo.rules.mapping_counts) {
+      if (c > most) {
+        src_.fail(n["mapping_counts"], "mapping_counts: " + std::to_string(c) + " entries, but the PDO has " +
+                                           std::to_string(pdo.mapping.size()) + " default and " +
+                                           std::to_string(pdo.rules.manufacturer_entries) + " manufacturer-specific ones");
+      }
+    }
     p_.pdos.push_back(std::move(pdo));
+  }
+
+  // access: {cob_id, transmission_type, inhibit_time, event_timer, mapping_count, mapping}, each
+  // rw, rw_preop, const, ro or none (cob_id also valid_bit); what is not given stays CiA 301's rw.
+  PdoRules pdo_rules(const YAML::Node& a) const {
+    src_.check_keys(a, "pdo access", {"cob_id", "transmission_type", "inhibit_time", "event_timer", "mapping_count", "mapping"});
+    PdoRules r;
+    const auto entry = [&](std::string_view key, PdoAccess& out, bool may_be_absent) {
+      const YAML::Node v = a[std::string(key)];
+      if (!v) return;
+      const auto text = src_.as<std::string>(v, key);
+      if (text == "rw") out = PdoAccess::rw;
+      else if (text == "rw_preop") out = PdoAccess::rw_preop;
+      else if (text == "const" || text == "ro") out = PdoAccess::fixed;
+      else if (text == "valid_bit" && key == "cob_id") out = PdoAccess::valid_bit;
+      else if (text == "none" && may_be_absent) out = PdoAccess::none;
+      else {
+        src_.fail(v, "access of " + std::string(key) + " must be rw, rw_preop, const or ro" +
+                         (key == "cob_id" ? ", or valid_bit" : "") + (may_be_absent ? ", or none" : "") + ", not '" + text + "'");
+      }
+    };
+    entry("cob_id", r.cob_id, false);
+    entry("transmission_type", r.transmission_type, false);
+    entry("inhibit_time", r.inhibit_time, true);
+    entry("event_timer", r.event_timer, true);
+    entry("mapping_count", r.mapping_count, false);
+    entry("mapping", r.mapping, false);
+    return r;
   }
 
   const YamlSource& src_;

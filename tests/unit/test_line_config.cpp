@@ -172,7 +172,7 @@ objects:
   ASSERT_FALSE(r);
   EXPECT_NE(r.error().message.find("p.yaml:10:15: bit 16 does not exist in a 16-bit word"), std::string::npos)
       << r.error().message;
-  r = lb::profiles::parse_profile(base + "pdos:\n  - {name: t, direction: tx, cob_id: 0x180, transmission_type: 1, mapping: [0x60300020]}\n", "p.yaml");
+  r = lb::profiles::parse_profile(base + "pdos:\n  - {name: tpdo1, direction: tx, cob_id: 0x180, transmission_type: 1, mapping: [0x60300020]}\n", "p.yaml");
   ASSERT_FALSE(r);
   EXPECT_NE(r.error().message.find("mapping entry length differs"), std::string::npos) << r.error().message;
   r = lb::profiles::parse_profile(replace(base, "UNSIGNED16", "UNSIGNED17"), "p.yaml");
