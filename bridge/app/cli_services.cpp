@@ -119,4 +119,39 @@ int call_command(const ServiceTarget& t, const std::string& name) {
   return report(r->success(), name + " pressed (held 100 ms)", r->message());
 }
 
+int call_identity(const ServiceTarget& t) {
+  struct Field {
+    std::uint16_t index;
+    std::uint8_t sub;
+    const char* key;
+    const char* comment;
+  };
+  static const Field kFields[] = {
+      {0x1000, 0, "device_type", "1000h"},
+      {0x1018, 1, "vendor_id", "1018h sub 1"},
+      {0x1018, 2, "product_code", "1018h sub 2"},
+      {0x1018, 3, "revision", "1018h sub 3: leave it out to accept any revision"},
+      {0x1018, 4, "serial_number", "1018h sub 4: this one unit; leave it out to accept any unit of the model"},
+  };
+  std::string lines;
+  for (const auto& f : kFields) {
+    srv::SdoRead_Request req;
+    req.index(f.index);
+    req.sub_index(f.sub);
+    req.data_type("UNSIGNED32");
+    auto r = call<srv::SdoRead_RequestPubSubType, srv::SdoRead_ResponsePubSubType>(t, "sdo_read", req);
+    if (!r) return report(false, "", r.error().message);
+    if (!r->success()) {
+      if (f.sub >= 2 && r->abort_code() == 0x0609'0011) {  // optional entries (CiA 301)
+        lines += fmt::format("      # {}: the device has no {}\n", f.key, f.comment);
+        continue;
+      }
+      return report(false, "", fmt::format("{:04X}h sub {}: {}", f.index, f.sub, r->message()), r->abort_code());
+    }
+    lines += fmt::format("      {}: 0x{:08X}   # {}\n", f.key, r->value().unsigned_value(), f.comment);
+  }
+  fmt::print("# {} as it answers now; under its entry in the line file:\n    identity:\n{}", t.device, lines);
+  return 0;
+}
+
 }  // namespace lb::app

@@ -24,5 +24,8 @@ int call_sdo_write(const ServiceTarget& t, std::uint16_t index, std::uint8_t sub
 int call_get_parameter(const ServiceTarget& t, const std::string& name);
 int call_set_parameter(const ServiceTarget& t, const std::string& name, double value);
 int call_command(const ServiceTarget& t, const std::string& name);
+// Reads 1000h and 1018h sub 1..4 and prints them as the `identity:` lines of the device's entry in
+// a line file, so an integrator pins the device at hand.
+int call_identity(const ServiceTarget& t);
 
 }  // namespace lb::app

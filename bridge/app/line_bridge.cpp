@@ -97,7 +97,7 @@ void LineBridge::start() {
     rt.loop->start();
     rt.loop->post([&rt] {
       if (rt.heartbeat) rt.heartbeat->start();
-      for (auto& node : rt.nodes) node->start();
+      for (auto& services : rt.services) services->start();
       if (rt.sync) rt.sync->start();
     });
     spdlog::info("bus {} on {} started as {}", rt.config->name, rt.config->interface, profiles::to_string(rt.config->role));

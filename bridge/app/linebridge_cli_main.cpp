@@ -241,11 +241,15 @@ int main(int argc, char** argv) {
   }
   put_cmd->add_option("value", parameter_value)->required();
 
+  auto* identity_cmd = cli.add_subcommand(
+      "identity", "read a device's identity (1000h, 1018h) and print it as the identity: lines of its line-file entry");
+  identity_cmd->add_option("device", device, "device name")->required();
+
   std::string command_name;
   auto* press_cmd = cli.add_subcommand("press", "a momentary command, held 100 ms: press DEVICE COMMAND (e.g. manual_cut)");
   press_cmd->add_option("device", device, "device name")->required();
   press_cmd->add_option("command", command_name)->required();
-  for (auto* c : {nmt_cmd, read_cmd, write_cmd, get_cmd, put_cmd, press_cmd}) {
+  for (auto* c : {nmt_cmd, read_cmd, write_cmd, get_cmd, put_cmd, press_cmd, identity_cmd}) {
     c->add_option("--timeout", timeout_s, "seconds to wait for the bridge")->capture_default_str();
   }
   CLI11_PARSE(cli, argc, argv);
@@ -280,5 +284,6 @@ int main(int argc, char** argv) {
   if (get_cmd->parsed()) return lb::app::call_get_parameter(target, parameter);
   if (put_cmd->parsed()) return lb::app::call_set_parameter(target, parameter, parameter_value);
   if (press_cmd->parsed()) return lb::app::call_command(target, command_name);
+  if (identity_cmd->parsed()) return lb::app::call_identity(target);
   return echo_cmd->parsed() ? run_echo(**dds, config->line, device, echo) : run_set(**dds, config->line, device, set);
 }

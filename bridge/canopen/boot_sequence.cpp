@@ -3,124 +3,407 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
-#include <array>
+#include "canopen/sdo_abort.hpp"
 
 namespace lb::canopen {
 
 namespace {
 
-struct IdentityObject {
-  std::uint16_t index;
-  std::uint8_t sub;
-  DataType type;
-  const char* name;
-};
+std::string hex32(std::uint32_t v) { return fmt::format("{:04X} {:04X}h", v >> 16, v & 0xFFFF); }
 
-// 1000h is read first, as the presence check; 1018h sub 1 is mandatory, the rest optional.
-constexpr std::array<IdentityObject, 7> kIdentity{{
-    {0x1018, 1, DataType::unsigned32, "vendor-ID"},
-    {0x1018, 2, DataType::unsigned32, "product code"},
-    {0x1018, 3, DataType::unsigned32, "revision number"},
-    {0x1018, 4, DataType::unsigned32, "serial number"},
-    {0x1008, 0, DataType::visible_string, "device name"},
-    {0x1009, 0, DataType::visible_string, "hardware version"},
-    {0x100A, 0, DataType::visible_string, "software version"},
-}};
+DataType unsigned_type(unsigned bits) {
+  return bits == 8 ? DataType::unsigned8 : bits == 16 ? DataType::unsigned16 : DataType::unsigned32;
+}
 
-std::uint32_t as_u32(const ObjectValue& v) {
-  if (const auto* u = std::get_if<std::uint64_t>(&v)) return static_cast<std::uint32_t>(*u);
-  return 0;
+std::int64_t now_ns() {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+}
+
+// One identity value against its expectation (CiA 302-2: D vendor-ID, M product code, N revision,
+// O serial number); nullopt when it matches or is not checked.
+std::optional<BootError> compare_identity(char code, const char* what, const char* key, std::uint8_t sub,
+                                          std::optional<std::uint32_t> expected, std::uint32_t actual, std::uint8_t node) {
+  if (!expected || *expected == actual) return std::nullopt;
+  return BootError{code, "identity", 0x1018, sub, hex32(*expected), hex32(actual), 0,
+                   fmt::format("node {}: {} (1018h sub {}) is {}, the line expects {} (identity.{}): this is not the "
+                               "device the line configures at this node-ID",
+                               node, what, sub, hex32(actual), hex32(*expected), key)};
 }
 
 }  // namespace
 
-BootSequence::BootSequence(BusLoop& loop, RemoteNode& node, SdoClient& sdo, std::vector<Write> writes,
-                           std::chrono::milliseconds retry_interval, Listener listener)
-    : loop_(loop), node_(node), sdo_(sdo), writes_(std::move(writes)), retry_interval_(retry_interval),
-      listener_(std::move(listener)) {
-  retry_timer_ = loop_.create_timer([this] { begin(); });
-  node_.on_boot_up([this] { begin(); });
-}
-
-void BootSequence::begin() {
-  const std::uint64_t gen = ++generation_;
-  loop_.disarm_timer(retry_timer_);
-  set_state("checking presence");
-  sdo_.read(node_.node_id(), 0x1000, 0, DataType::unsigned32, [this, gen](SdoClient::ReadResult r) {
-    if (gen != generation_) return;
-    if (!r) return fail(gen, "not answering: " + r.error().message);
-    write_next(gen, 0);
+BootSequence::BootSequence(BusLoop& loop, RemoteNode& node, SdoClient& sdo, Settings settings)
+    : loop_(loop), node_(node), sdo_(sdo), settings_(std::move(settings)) {
+  heartbeat_timer_ = loop_.create_timer([this] {
+    if (!waiting_for_heartbeat_) return;
+    waiting_for_heartbeat_ = false;
+    const auto producer = report_.heartbeat_producer_ms;
+    fail({'K', "heartbeat", 0x1017, 0, "a heartbeat", "none", 0,
+          fmt::format("node {}: no heartbeat within {} ms after its configuration (1017h = {}): not started",
+                      node_.node_id(), node_.heartbeat_timeout().count(),
+                      producer ? fmt::format("{} ms", *producer) : std::string("unknown"))});
   });
 }
 
-void BootSequence::write_next(std::uint64_t gen, std::size_t i) {
-  if (i == writes_.size()) return started(gen);
-  set_state("configuring (" + std::to_string(i + 1) + "/" + std::to_string(writes_.size()) + ")");
-  const auto& w = writes_[i];
-  sdo_.write(node_.node_id(), w.index, w.sub, w.type, w.value, [this, gen, i](SdoClient::DownloadResult r) {
-    if (gen != generation_) return;
-    if (!r) {
-      const auto& w2 = writes_[i];
-      return fail(gen, fmt::format("configuration write {:04X}h:{:02X}h = {} refused: {}", w2.index, w2.sub,
-                                   to_string(w2.value), r.error().message));
+void BootSequence::run(Done done) {
+  cancel();
+  running_ = true;
+  done_ = std::move(done);
+  report_ = {};
+  planned_pdos_.clear();
+  node_.set_configured(false);
+  report_.was_operational = node_.online() && node_.state() == NmtState::operational;
+  // A stopped device answers no SDO (CiA 301): pre-operational first. An operational one is left
+  // running while it is checked (CiA 302-2 L): a restarted bridge must not stop a running line.
+  if (node_.online() && node_.state() == NmtState::stopped) {
+    spdlog::info("{}: node {} is stopped: NMT enter pre-operational before its boot", loop_.bus().uri(), node_.node_id());
+    (void)node_.command(NmtCommand::enter_pre_operational);
+  }
+  set_step("reading device type and identity");
+  batch({SdoRequest::read(0x1000, 0, DataType::unsigned32), SdoRequest::read(0x1018, 1, DataType::unsigned32),
+         SdoRequest::read(0x1018, 2, DataType::unsigned32, true), SdoRequest::read(0x1018, 3, DataType::unsigned32, true),
+         SdoRequest::read(0x1018, 4, DataType::unsigned32, true)},
+        [this](Replies r) { check_identity(r); });
+}
+
+void BootSequence::cancel() {
+  ++generation_;
+  running_ = false;
+  waiting_for_heartbeat_ = false;
+  loop_.disarm_timer(heartbeat_timer_);
+}
+
+void BootSequence::batch(std::vector<SdoRequest> requests, std::function<void(Replies)> then) {
+  const auto gen = generation_;
+  run_sdo_batch(sdo_, node_.node_id(), std::move(requests), [this, gen] { return gen != generation_; },
+                std::move(then));
+}
+
+void BootSequence::check_identity(const Replies& r) {
+  const std::uint8_t node = node_.node_id();
+  const auto& failed = r.back().error;
+  if (failed && r.size() == 1) {
+    return fail({'B', "device type", 0x1000, 0, "an answer", "none", failed->abort_code,
+                 fmt::format("node {} does not answer 1000h: {}", node, failed->message)});
+  }
+  const auto type = static_cast<std::uint32_t>(unsigned_value(r[0]));
+  auto& id = report_.identity;
+  id.device_type = type;
+  const auto& want = settings_.identity;
+  if ((type & 0xFFFF) != want.profile_number) {
+    return fail({'C', "device type", 0x1000, 0, fmt::format("profile {}", want.profile_number),
+                 fmt::format("{} (profile {})", hex32(type), type & 0xFFFF), 0,
+                 fmt::format("node {}: device type {} is profile {}, the line configures a profile {} device here",
+                             node, hex32(type), type & 0xFFFF, want.profile_number)});
+  }
+  if (want.device_type && *want.device_type != type) {
+    return fail({'C', "device type", 0x1000, 0, hex32(*want.device_type), hex32(type), 0,
+                 fmt::format("node {}: device type (1000h) is {}, the line expects {} (identity.device_type)", node,
+                             hex32(type), hex32(*want.device_type))});
+  }
+  if (failed) {
+    const std::uint8_t sub = static_cast<std::uint8_t>(r.size() - 1);
+    return fail({"DMNO"[sub - 1], "identity", 0x1018, sub, "an answer", "abort", failed->abort_code,
+                 fmt::format("node {}: identity 1018h sub {} cannot be read: {}", node, sub, failed->message)});
+  }
+  id.vendor_id = static_cast<std::uint32_t>(unsigned_value(r[1]));
+  id.product_code = static_cast<std::uint32_t>(unsigned_value(r[2]));
+  id.revision_number = static_cast<std::uint32_t>(unsigned_value(r[3]));
+  id.serial_number = static_cast<std::uint32_t>(unsigned_value(r[4]));
+  const std::pair<std::optional<std::uint32_t>, const char*> absent[] = {
+      {want.product_code, "product code"}, {want.revision, "revision number"}, {want.serial_number, "serial number"}};
+  for (std::size_t i = 0; i < 3; ++i) {
+    if (!r[i + 2].absent) continue;
+    id.remarks += std::string(absent[i].second) + ": not implemented; ";
+    if (absent[i].first) {
+      const char code = "MNO"[i];
+      const auto sub = static_cast<std::uint8_t>(i + 2);
+      return fail({code, "identity", 0x1018, sub, hex32(*absent[i].first), "absent", sdo_abort::no_such_sub_index,
+                   fmt::format("node {}: the line expects {} {} but the device has no 1018h sub {}", node,
+                               absent[i].second, hex32(*absent[i].first), sub)});
     }
-    write_next(gen, i + 1);
-  });
+  }
+  for (auto e : {compare_identity('D', "vendor-ID", "vendor_id", 1, want.vendor_id, id.vendor_id, node),
+                 compare_identity('M', "product code", "product_code", 2, want.product_code, id.product_code, node),
+                 compare_identity('N', "revision number", "revision", 3, want.revision, id.revision_number, node),
+                 compare_identity('O', "serial number", "serial_number", 4, want.serial_number, id.serial_number, node)}) {
+    if (e) return fail(std::move(*e));
+  }
+  set_step("reading PDO parameters");
+  read_pdos({settings_.pdos.begin(), settings_.pdos.end()},
+            [this](std::vector<DevicePdo> devices) { configure_pdos(std::move(devices)); });
 }
 
-void BootSequence::started(std::uint64_t gen) {
-  if (auto r = node_.command(NmtCommand::start); !r) return fail(gen, "NMT start failed: " + r.error().message);
-  set_state("started");
-  spdlog::info("{}: node {} configured ({} SDO writes) and started", loop_.bus().uri(), node_.node_id(), writes_.size());
-  read_identity(gen, std::make_shared<DeviceIdentity>(), 0);
-}
-
-void BootSequence::read_identity(std::uint64_t gen, std::shared_ptr<DeviceIdentity> id, std::size_t step) {
-  if (step == 0) {
-    sdo_.read(node_.node_id(), 0x1000, 0, DataType::unsigned32, [this, gen, id](SdoClient::ReadResult r) {
-      if (gen != generation_) return;
-      if (r) id->device_type = as_u32(*r);
-      else id->remarks += "1000h: " + r.error().message + "; ";
-      read_identity(gen, id, 1);
-    });
-    return;
+// Two rounds: the communication parameters and each mapping's sub 0, then the entries sub 0 says
+// are mapped and those up to what the master wants (present or not: a fixed entry that is already
+// there is mapped by writing sub 0 alone).
+void BootSequence::read_pdos(std::vector<PdoSpec> specs, std::function<void(std::vector<DevicePdo>)> then) {
+  std::vector<SdoRequest> first;
+  for (const auto& s : specs) {
+    first.push_back(SdoRequest::read(s.communication_index, 1, DataType::unsigned32, s.optional));
+    first.push_back(SdoRequest::read(s.communication_index, 2, DataType::unsigned8, s.optional));
+    first.push_back(SdoRequest::read(s.communication_index, 3, DataType::unsigned16, true));
+    first.push_back(SdoRequest::read(s.communication_index, 5, DataType::unsigned16, true));
+    first.push_back(SdoRequest::read(s.mapping_index, 0, DataType::unsigned8, s.optional));
   }
-  if (step > kIdentity.size()) {
-    id->read_at_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(
-                         std::chrono::system_clock::now().time_since_epoch()).count();
-    if (listener_.on_identity) listener_.on_identity(*id);
-    return;
-  }
-  const auto& obj = kIdentity[step - 1];
-  sdo_.read(node_.node_id(), obj.index, obj.sub, obj.type, [this, gen, id, step, obj](SdoClient::ReadResult r) {
-    if (gen != generation_) return;
-    if (!r) {
-      id->remarks += std::string(obj.name) + ": " + r.error().message + "; ";
-    } else {
-      switch (step) {
-        case 1: id->vendor_id = as_u32(*r); break;
-        case 2: id->product_code = as_u32(*r); break;
-        case 3: id->revision_number = as_u32(*r); break;
-        case 4: id->serial_number = as_u32(*r); break;
-        case 5: id->device_name = std::get<std::string>(*r); break;
-        case 6: id->hardware_version = std::get<std::string>(*r); break;
-        default: id->software_version = std::get<std::string>(*r); break;
+  const auto read_failed = [this](const std::vector<SdoRequest>& requests, const Replies& r) {
+    const auto& q = requests[r.size() - 1];
+    fail({'J', "PDO configuration", q.index, q.sub, "an answer", "abort", r.back().error->abort_code,
+          fmt::format("node {}: PDO parameter {:04X}h sub {} cannot be read: {}", node_.node_id(), q.index, q.sub,
+                      r.back().error->message)});
+  };
+  batch(first, [this, specs, first, read_failed, then = std::move(then)](Replies r) {
+    if (r.back().error) return read_failed(first, r);
+    std::vector<DevicePdo> devices(specs.size());
+    std::vector<SdoRequest> second;
+    std::vector<std::pair<std::size_t, std::size_t>> owner;  // (pdo, mapped count) of each entry read
+    for (std::size_t i = 0; i < specs.size(); ++i) {
+      const SdoReply* c = &r[i * 5];
+      auto& d = devices[i];
+      if (c[0].absent) {
+        d.absent = true;
+        continue;
+      }
+      d.parameters.cob_id = static_cast<std::uint32_t>(unsigned_value(c[0]));
+      d.parameters.transmission_type = static_cast<std::uint8_t>(unsigned_value(c[1]));
+      d.has_inhibit_time = !c[2].absent;
+      d.parameters.inhibit_time = static_cast<std::uint16_t>(unsigned_value(c[2]));
+      d.has_event_timer = !c[3].absent;
+      d.parameters.event_timer = static_cast<std::uint16_t>(unsigned_value(c[3]));
+      const auto mapped = static_cast<std::size_t>(unsigned_value(c[4]));
+      if (mapped > PdoMapping::kMaxEntries) {
+        return fail({'J', "PDO configuration", specs[i].mapping_index, 0, "0..64", std::to_string(mapped), 0,
+                     fmt::format("node {}: {:04X}h sub 0 says {} objects are mapped: more than a PDO can carry",
+                                 node_.node_id(), specs[i].mapping_index, mapped)});
+      }
+      const auto upto = std::max(mapped, specs[i].wanted.mapping.size());
+      for (std::size_t sub = 1; sub <= upto; ++sub) {
+        second.push_back(SdoRequest::read(specs[i].mapping_index, static_cast<std::uint8_t>(sub), DataType::unsigned32,
+                                          sub > mapped));
+        owner.emplace_back(i, mapped);
       }
     }
-    read_identity(gen, id, step + 1);
+    batch(second, [this, second, owner, devices = std::move(devices), read_failed, then](Replies entries) mutable {
+      if (!entries.empty() && entries.back().error) return read_failed(second, entries);
+      for (std::size_t k = 0; k < entries.size(); ++k) {
+        auto& d = devices[owner[k].first];
+        const auto entry = PdoEntry::from_u32(static_cast<std::uint32_t>(unsigned_value(entries[k])));
+        if (d.parameters.mapping.size() < owner[k].second) d.parameters.mapping.push_back(entry);
+        else if (!entries[k].absent) d.unmapped.push_back(entry);
+      }
+      then(std::move(devices));
+    });
   });
 }
 
-void BootSequence::fail(std::uint64_t gen, const std::string& why) {
-  if (gen != generation_) return;
-  set_state(why);
-  spdlog::warn("{}: node {} {}; trying again in {} ms", loop_.bus().uri(), node_.node_id(), why, retry_interval_.count());
-  loop_.arm_timer(retry_timer_, retry_interval_);
+void BootSequence::configure_pdos(std::vector<DevicePdo> devices) {
+  std::vector<SdoRequest> writes;
+  std::vector<PdoSpec> written;
+  std::vector<PdoParameters> planned;
+  bool needs_not_operational = false;
+  planned_pdos_.clear();
+  for (std::size_t i = 0; i < devices.size(); ++i) {
+    const PdoSpec& line = settings_.pdos[i];
+    const PdoSpec spec = settings_.adopt_device_pdos ? adopt_device_pdo(line, devices[i]) : line;
+    auto plan = plan_pdo(spec, devices[i]);
+    if (!plan) {
+      const auto& m = plan.error();
+      const bool fixed_mapping = m.index == spec.mapping_index;
+      return fail({'J', "PDO configuration", m.index, m.sub, m.expected, m.actual, 0,
+                   fmt::format("node {}: {}{}", node_.node_id(), m.message,
+                               !settings_.adopt_device_pdos && fixed_mapping
+                                   ? " (pdo_config: adopt takes the device's mapping instead)"
+                                   : "")});
+    }
+    for (const auto& w : plan->writes) {
+      writes.push_back(SdoRequest::write(w.index, w.sub, unsigned_type(w.bits), std::uint64_t{w.value}));
+    }
+    if (!plan->writes.empty()) {
+      written.push_back(spec);
+      planned.push_back(plan->result);
+    }
+    needs_not_operational = needs_not_operational || plan->needs_not_operational;
+    const auto& p = plan->result;
+    const auto& w = line.wanted;
+    const bool adopted = settings_.adopt_device_pdos &&
+                         (p.mapping != w.mapping || p.transmission_type != w.transmission_type ||
+                          (spec.transmit && (p.inhibit_time != w.inhibit_time || p.event_timer != w.event_timer)));
+    planned_pdos_.push_back({spec.name, plan->result, adopted});
+  }
+  if (writes.empty()) return write_configuration();
+  if (needs_not_operational && node_.state() == NmtState::operational) {
+    spdlog::info("{}: node {}: NMT enter pre-operational to change a PDO mapping", loop_.bus().uri(), node_.node_id());
+    (void)node_.command(NmtCommand::enter_pre_operational);
+  }
+  set_step(fmt::format("writing PDO parameters ({} writes)", writes.size()));
+  batch(writes, [this, writes, written = std::move(written), planned = std::move(planned)](Replies r) mutable {
+    if (r.back().error) {
+      const auto& q = writes[r.size() - 1];
+      return fail({'J', "PDO configuration", q.index, q.sub, to_string(q.value), "refused", r.back().error->abort_code,
+                   fmt::format("node {}: PDO parameter {:04X}h sub {} = {} refused: {}", node_.node_id(), q.index, q.sub,
+                               to_string(q.value), r.back().error->message)});
+    }
+    verify_pdos(std::move(written), std::move(planned));
+  });
 }
 
-void BootSequence::set_state(std::string state) {
-  state_ = std::move(state);
-  if (listener_.on_state) listener_.on_state(state_);
+void BootSequence::verify_pdos(std::vector<PdoSpec> specs, std::vector<PdoParameters> planned) {
+  set_step("reading back PDO parameters");
+  read_pdos(specs, [this, specs, planned](std::vector<DevicePdo> devices) {
+    for (std::size_t i = 0; i < devices.size(); ++i) {
+      if (auto m = verify_pdo(specs[i], planned[i], devices[i])) {
+        return fail({'J', "PDO configuration", m->index, m->sub, m->expected, m->actual, 0,
+                     fmt::format("node {}: {}", node_.node_id(), m->message)});
+      }
+    }
+    write_configuration();
+  });
 }
+
+void BootSequence::write_configuration() {
+  std::vector<SdoRequest> writes;
+  for (const auto& w : settings_.writes) writes.push_back(SdoRequest::write(w.index, w.sub, w.type, w.value));
+  if (settings_.heartbeat_producer_ms) {
+    writes.push_back(SdoRequest::write(0x1017, 0, DataType::unsigned16, std::uint64_t{*settings_.heartbeat_producer_ms}));
+  }
+  if (writes.empty()) return verify_configuration();
+  set_step(fmt::format("writing the configuration ({} writes)", writes.size()));
+  batch(writes, [this, writes](Replies r) {
+    if (r.back().error) {
+      const auto& q = writes[r.size() - 1];
+      return fail({'J', "configuration", q.index, q.sub, to_string(q.value), "refused", r.back().error->abort_code,
+                   fmt::format("node {}: configuration write {:04X}h:{:02X}h = {} refused: {}", node_.node_id(), q.index,
+                               q.sub, to_string(q.value), r.back().error->message)});
+    }
+    verify_configuration();
+  });
+}
+
+// What was written reads back the same (a device may confirm a write and ignore it), and 1017h
+// is read in any case: the heartbeat supervision depends on it.
+void BootSequence::verify_configuration() {
+  std::vector<SdoRequest> reads;
+  std::vector<Write> checked;
+  for (const auto& w : settings_.writes) {
+    if (!w.verify) continue;
+    reads.push_back(SdoRequest::read(w.index, w.sub, w.type));
+    checked.push_back(w);
+  }
+  reads.push_back(SdoRequest::read(0x1017, 0, DataType::unsigned16, true));
+  set_step("reading back the configuration");
+  batch(reads, [this, checked, reads](Replies r) {
+    if (r.back().error) {
+      const auto& q = reads[r.size() - 1];
+      return fail({'J', "configuration", q.index, q.sub, "an answer", "abort", r.back().error->abort_code,
+                   fmt::format("node {}: {:04X}h:{:02X}h cannot be read back: {} (set verify: false on a configure "
+                               "entry the device cannot read back)",
+                               node_.node_id(), q.index, q.sub, r.back().error->message)});
+    }
+    for (std::size_t i = 0; i < checked.size(); ++i) {
+      if (r[i].value && *r[i].value == checked[i].value) continue;
+      const auto actual = r[i].value ? to_string(*r[i].value) : std::string("nothing");
+      return fail({'J', "configuration", checked[i].index, checked[i].sub, to_string(checked[i].value), actual, 0,
+                   fmt::format("node {}: {:04X}h:{:02X}h was written as {} and the device confirmed it, but it reads "
+                               "back {} (the device ignored the write)",
+                               node_.node_id(), checked[i].index, checked[i].sub, to_string(checked[i].value), actual)});
+    }
+    const auto& hb = r.back();
+    if (!hb.absent) {
+      const auto producer = static_cast<std::uint16_t>(unsigned_value(hb));
+      report_.heartbeat_producer_ms = producer;
+      if (settings_.heartbeat_producer_ms && producer != *settings_.heartbeat_producer_ms) {
+        return fail({'J', "configuration", 0x1017, 0, std::to_string(*settings_.heartbeat_producer_ms), std::to_string(producer), 0,
+                     fmt::format("node {}: 1017h was written as {} ms and the device confirmed it, but it reads back {} ms",
+                                 node_.node_id(), *settings_.heartbeat_producer_ms, producer)});
+      }
+    }
+    use_pdos();
+  });
+}
+
+void BootSequence::use_pdos() {
+  if (auto r = node_.use_pdos(planned_pdos_); !r) {
+    return fail({'J', "PDO configuration", 0, 0, "PDOs the bridge can use", "refused", 0,
+                 fmt::format("node {}: {}", node_.node_id(), r.error().message)});
+  }
+  report_.pdos = planned_pdos_;
+  await_heartbeat();
+}
+
+void BootSequence::await_heartbeat() {
+  const auto timeout = node_.heartbeat_timeout().count();
+  if (const auto producer = report_.heartbeat_producer_ms) {
+    if (*producer == 0) {
+      report_.warnings.push_back(fmt::format(
+          "1017h is 0: the device sends no heartbeat, so the bridge cannot supervise it (set heartbeat_producer_ms)"));
+    } else if (timeout * 2 < *producer * 3) {
+      report_.warnings.push_back(fmt::format(
+          "heartbeat_timeout_ms {} does not fit the device's heartbeat of {} ms (1017h): a consumer time of at least "
+          "1.5 x the producer time ({} ms) tolerates a late beat",
+          timeout, *producer, (*producer * 3 + 1) / 2));
+    }
+  }
+  for (const auto& w : report_.warnings) spdlog::warn("{}: node {}: {}", loop_.bus().uri(), node_.node_id(), w);
+  if (node_.online()) return start();
+  set_step("waiting for its heartbeat");
+  waiting_for_heartbeat_ = true;
+  loop_.arm_timer(heartbeat_timer_, node_.heartbeat_timeout());
+}
+
+void BootSequence::heartbeat_back() {
+  if (!waiting_for_heartbeat_) return;
+  waiting_for_heartbeat_ = false;
+  loop_.disarm_timer(heartbeat_timer_);
+  start();
+}
+
+void BootSequence::start() {
+  if (auto r = node_.command(NmtCommand::start); !r) {
+    return fail({0, "start", 0, 0, "", "", 0, fmt::format("node {}: NMT start could not be sent: {}", node_.node_id(), r.error().message)});
+  }
+  node_.set_configured(true);
+  report_.started = true;
+  set_step("started");
+  std::size_t writes = settings_.writes.size() + (settings_.heartbeat_producer_ms ? 1 : 0);
+  spdlog::info("{}: node {} checked, configured ({} PDOs verified, {} configuration writes) and started{}", loop_.bus().uri(),
+               node_.node_id(), planned_pdos_.size(), writes, report_.was_operational ? " (it was already operational)" : "");
+  read_names();
+}
+
+void BootSequence::read_names() {
+  batch({SdoRequest::read(0x1008, 0, DataType::visible_string, true),
+         SdoRequest::read(0x1009, 0, DataType::visible_string, true),
+         SdoRequest::read(0x100A, 0, DataType::visible_string, true)},
+        [this](Replies r) {
+          auto& id = report_.identity;
+          const char* names[] = {"device name", "hardware version", "software version"};
+          std::string* fields[] = {&id.device_name, &id.hardware_version, &id.software_version};
+          for (std::size_t i = 0; i < 3; ++i) {
+            if (i < r.size() && r[i].value) {
+              if (const auto* s = std::get_if<std::string>(&*r[i].value)) *fields[i] = *s;
+            } else {
+              id.remarks += std::string(names[i]) + ": " + (i < r.size() && r[i].error ? r[i].error->message : "not implemented") + "; ";
+            }
+          }
+          id.read_at_ns = now_ns();
+          running_ = false;
+          if (done_) done_(report_);
+        });
+}
+
+void BootSequence::fail(BootError error) {
+  running_ = false;
+  waiting_for_heartbeat_ = false;
+  loop_.disarm_timer(heartbeat_timer_);
+  node_.set_configured(false);
+  report_.identity.read_at_ns = now_ns();
+  set_step(error.code != 0 ? fmt::format("failed ({}): {}", error.code, error.message) : "failed: " + error.message);
+  spdlog::warn("{}: boot of node {} failed{}: {}", loop_.bus().uri(), node_.node_id(),
+               error.code != 0 ? fmt::format(" (CiA 302-2 error {})", error.code) : std::string(), error.message);
+  report_.error = std::move(error);
+  if (done_) done_(report_);
+}
+
+void BootSequence::set_step(std::string step) { step_ = std::move(step); }
 
 }  // namespace lb::canopen

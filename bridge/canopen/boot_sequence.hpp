@@ -1,22 +1,31 @@
 #pragma once
-// Brings one device into service (master role), at start-up and after every boot-up:
-//   1. read 1000h device type: is anyone there?
-//   2. the SDO writes of its configuration, in order;
-//   3. NMT start;
-//   4. read its identity (1018h, 1008h/1009h/100Ah) and report it.
-// All steps are asynchronous on the bus loop, so a device that does not answer delays nobody else;
-// it is reported and tried again after the retry interval. A new boot-up restarts the sequence.
+// Brings one device into service the CiA 302-2 way ("boot slave"), master role:
+//   1. device type 1000h (is anyone there, and of the right profile?);
+//   2. identity 1018h sub 1..4 against the expected values;
+//   3. PDO configuration: every PDO's communication and mapping parameters read and compared with
+//      what the master will decode and send; what differs is written in the CiA 301 order where
+//      the profile lets a master write it, and read back; what differs where the profile fixes it
+//      fails the boot (or, in adopt mode, the device's parameters are taken);
+//   4. the line's configuration writes, read back, then the heartbeat producer time 1017h;
+//   5. a heartbeat from the device;
+//   6. NMT start. Only now does the device count as configured and get RPDOs.
+// Then it reads 1008h/1009h/100Ah for the record. Each attempt ends with a report: started, or
+// failed with the CiA 302-2 error letter, the object, both values and the abort code. When to
+// boot (start-up, boot-up, lost state) is ErrorControl's decision. Every step is asynchronous on
+// the bus loop, so a device that does not answer delays nobody else.
 
 #include <chrono>
 #include <cstdint>
 #include <functional>
-#include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "canopen/bus_loop.hpp"
 #include "canopen/object_value.hpp"
+#include "canopen/pdo_parameters.hpp"
 #include "canopen/remote_node.hpp"
+#include "canopen/sdo_batch.hpp"
 #include "canopen/sdo_client.hpp"
 
 namespace lb::canopen {
@@ -34,6 +43,40 @@ struct DeviceIdentity {
   std::int64_t read_at_ns = 0;
 };
 
+// What the device at a node-ID must be (CiA 302-2 1F84h..1F88h): 1000h bits 0..15 always, each
+// other value where it is given.
+struct ExpectedIdentity {
+  std::uint16_t profile_number = 0;
+  std::optional<std::uint32_t> device_type;
+  std::optional<std::uint32_t> vendor_id;
+  std::optional<std::uint32_t> product_code;
+  std::optional<std::uint32_t> revision;
+  std::optional<std::uint32_t> serial_number;
+};
+
+// Why a boot failed, in CiA 302-2 terms: B no answer to 1000h, C device type, D vendor-ID,
+// M product code, N revision, O serial number, J configuration download, K no heartbeat.
+struct BootError {
+  char code = 0;
+  std::string step;  // "device type", "identity", "PDO configuration", "configuration", "heartbeat"
+  std::uint16_t index = 0;
+  std::uint8_t sub = 0;
+  std::string expected;
+  std::string actual;
+  std::uint32_t abort_code = 0;
+  std::string message;  // the whole story in one line
+};
+
+struct BootReport {
+  bool started = false;
+  std::optional<BootError> error;
+  DeviceIdentity identity;
+  std::optional<std::uint16_t> heartbeat_producer_ms;  // 1017h as the device has it after the boot
+  std::vector<PdoInUse> pdos;
+  std::vector<std::string> warnings;
+  bool was_operational = false;  // CiA 302-2 L: it was running when the boot began
+};
+
 class BootSequence {
  public:
   struct Write {
@@ -41,35 +84,60 @@ class BootSequence {
     std::uint8_t sub;
     DataType type;
     ObjectValue value;
+    bool verify = true;  // read back after writing
   };
-  struct Listener {
-    std::function<void(const std::string& state)> on_state;      // "configuring", "started", "not answering: ..."
-    std::function<void(const DeviceIdentity&)> on_identity;
+  struct Settings {
+    ExpectedIdentity identity;
+    std::vector<PdoSpec> pdos;
+    bool adopt_device_pdos = false;
+    std::vector<Write> writes;
+    std::optional<std::uint16_t> heartbeat_producer_ms;  // written to 1017h when given
   };
+  using Done = std::function<void(const BootReport&)>;
 
-  // Installs itself as the node's boot handler. Before the loop starts.
-  BootSequence(BusLoop& loop, RemoteNode& node, SdoClient& sdo, std::vector<Write> writes,
-               std::chrono::milliseconds retry_interval, Listener listener);
+  // Before the loop starts or on the loop thread.
+  BootSequence(BusLoop& loop, RemoteNode& node, SdoClient& sdo, Settings settings);
+  BootSequence(const BootSequence&) = delete;
+  BootSequence& operator=(const BootSequence&) = delete;
 
-  const std::string& state() const { return state_; }  // loop thread
+  // Loop thread. Starts an attempt, abandoning one that runs; `done` follows exactly once per
+  // attempt that is not abandoned.
+  void run(Done done);
+  void cancel();  // abandons the running attempt silently
+  bool running() const { return running_; }
+  // The device's heartbeat came back while the attempt waits for it.
+  void heartbeat_back();
+  const std::string& step() const { return step_; }
+  const BootReport& report() const { return report_; }
 
  private:
-  void begin();
-  void write_next(std::uint64_t generation, std::size_t i);
-  void started(std::uint64_t generation);
-  void read_identity(std::uint64_t generation, std::shared_ptr<DeviceIdentity> id, std::size_t step);
-  void fail(std::uint64_t generation, const std::string& why);
-  void set_state(std::string state);
+  using Replies = std::vector<SdoReply>;
+  void batch(std::vector<SdoRequest> requests, std::function<void(Replies)> then);
+  void check_identity(const Replies& r);
+  void read_pdos(std::vector<PdoSpec> specs, std::function<void(std::vector<DevicePdo>)> then);
+  void configure_pdos(std::vector<DevicePdo> devices);
+  void verify_pdos(std::vector<PdoSpec> specs, std::vector<PdoParameters> planned);
+  void write_configuration();
+  void verify_configuration();
+  void use_pdos();
+  void await_heartbeat();
+  void start();
+  void read_names();
+  void fail(BootError error);
+  void set_step(std::string step);
 
   BusLoop& loop_;
   RemoteNode& node_;
   SdoClient& sdo_;
-  std::vector<Write> writes_;
-  std::chrono::milliseconds retry_interval_;
-  Listener listener_;
-  BusLoop::TimerId retry_timer_;
-  std::uint64_t generation_ = 0;  // a restarted sequence makes the callbacks of the old one no-ops
-  std::string state_ = "waiting";
+  Settings settings_;
+  Done done_;
+  BusLoop::TimerId heartbeat_timer_;
+  std::uint64_t generation_ = 0;  // a new attempt makes the callbacks of the old one no-ops
+  bool running_ = false;
+  bool waiting_for_heartbeat_ = false;
+  std::string step_ = "waiting";
+  BootReport report_;
+  std::vector<PdoInUse> planned_pdos_;
 };
 
 }  // namespace lb::canopen

@@ -25,6 +25,7 @@ void HeartbeatConsumer::on_frame(const can::CanFrame& frame) {
   online_ = true;
   if (state == NmtState::boot_up && listener_.on_boot_up) listener_.on_boot_up();
   if (changed && listener_.on_change) listener_.on_change(state_, online_);
+  if (listener_.on_heartbeat) listener_.on_heartbeat(state_);
 }
 
 void HeartbeatConsumer::on_timeout() {

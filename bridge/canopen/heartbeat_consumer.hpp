@@ -16,6 +16,7 @@ class HeartbeatConsumer {
   struct Listener {
     std::function<void()> on_boot_up;                        // the node (re)booted
     std::function<void(NmtState state, bool online)> on_change;  // state or online flag changed
+    std::function<void(NmtState state)> on_heartbeat;            // every heartbeat, after on_change
   };
 
   HeartbeatConsumer(BusLoop& loop, std::uint8_t node_id, std::chrono::milliseconds timeout, Listener listener);

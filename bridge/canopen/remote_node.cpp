@@ -4,47 +4,104 @@
 
 namespace lb::canopen {
 
+namespace {
+
+NmtState state_after(NmtCommand cmd) {
+  switch (cmd) {
+    case NmtCommand::start: return NmtState::operational;
+    case NmtCommand::stop: return NmtState::stopped;
+    case NmtCommand::enter_pre_operational: return NmtState::pre_operational;
+    case NmtCommand::reset_node:
+    case NmtCommand::reset_communication: break;
+  }
+  return NmtState::unknown;  // a reset: the boot-up tells
+}
+
+}  // namespace
+
+std::string_view to_string(RemoteNode::Event event) {
+  switch (event) {
+    case RemoteNode::Event::boot_up: return "boot-up";
+    case RemoteNode::Event::lost: return "heartbeat lost";
+    case RemoteNode::Event::returned: return "heartbeat (back)";
+    case RemoteNode::Event::unexpected_state: return "state not commanded";
+  }
+  return "?";
+}
+
 RemoteNode::RemoteNode(BusLoop& loop, std::uint8_t node_id, std::chrono::milliseconds heartbeat_timeout,
                        bool may_transmit)
     : loop_(loop),
       may_transmit_(may_transmit),
+      heartbeat_timeout_(heartbeat_timeout),
       heartbeat_(loop, node_id, heartbeat_timeout,
                  HeartbeatConsumer::Listener{
                      .on_boot_up = [this] { booted(); },
                      .on_change = [this](NmtState s, bool o) { changed(s, o); },
+                     .on_heartbeat = [this](NmtState s) { heartbeat(s); },
                  }) {
   loop_.on_frame(cob::emcy_base + node_id, [this](const can::CanFrame& f) { on_emcy_frame(f); });
-}
-
-void RemoteNode::start() {
-  if (!may_transmit_) return;
-  if (boot_handler_) {
-    boot_handler_();
-  } else {
-    (void)command(NmtCommand::start);
-  }
 }
 
 Result<void> RemoteNode::command(NmtCommand cmd) {
   if (!may_transmit_) return make_error("the bus is in the monitor role: the bridge sends no NMT commands there");
   if (auto r = loop_.send(make_nmt_command(cmd, node_id())); !r) return r;
-  // Only a start makes the node ours to send RPDOs to; any other command hands it back.
-  started_ = cmd == NmtCommand::start;
+  commanded_ = state_after(cmd);
+  confirmed_ = false;
+  commanded_at_ = std::chrono::steady_clock::now();
+  return {};
+}
+
+Result<void> RemoteNode::use_pdos(std::span<const PdoInUse> pdos) {
+  for (const auto& l : pdo_listeners_) {
+    if (auto r = l(pdos); !r) return r;
+  }
+  pdos_.assign(pdos.begin(), pdos.end());
   return {};
 }
 
 void RemoteNode::booted() {
   ++stats_.boot_ups;
-  started_ = false;
+  configured_ = false;
+  commanded_ = NmtState::unknown;
   spdlog::info("{}: node {} booted (boot-up #{})", loop_.bus().uri(), node_id(), stats_.boot_ups);
-  start();
+  emit(Event::boot_up, NmtState::boot_up);
 }
 
 void RemoteNode::changed(NmtState state, bool online) {
-  // A device we started that reports pre-operational missed the start or was switched back by
-  // someone else: start it again, once per state change.
-  if (may_transmit_ && started_ && online && state == NmtState::pre_operational) (void)command(NmtCommand::start);
+  const bool came_online = online && !was_online_;
+  const bool went_offline = !online && was_online_;
+  was_online_ = online;
   for (const auto& l : listeners_) l(state, online);
+  if (went_offline) {
+    configured_ = false;
+    emit(Event::lost, state);
+  } else if (came_online) {
+    emit(Event::returned, state);
+  }
+}
+
+// A device told to be operational that reports pre-operational or stopped may have been reset
+// without its boot-up reaching the master: its configuration may be gone. The state reported
+// right after a command may predate it, so a difference counts once a heartbeat has confirmed the
+// command, or once a whole heartbeat timeout has passed without.
+void RemoteNode::heartbeat(NmtState state) {
+  if (commanded_ == NmtState::unknown || state == NmtState::boot_up) return;
+  if (state == commanded_) {
+    confirmed_ = true;
+    return;
+  }
+  if (!confirmed_ && std::chrono::steady_clock::now() - commanded_at_ < heartbeat_timeout_) return;
+  spdlog::warn("{}: node {} reports {} but was told to be {}: its configuration may be gone", loop_.bus().uri(),
+               node_id(), to_string(state), to_string(commanded_));
+  configured_ = false;
+  commanded_ = NmtState::unknown;
+  emit(Event::unexpected_state, state);
+}
+
+void RemoteNode::emit(Event event, NmtState state) {
+  if (!may_transmit_) return;  // a monitor only watches
+  for (const auto& l : event_listeners_) l(event, state);
 }
 
 void RemoteNode::on_emcy_frame(const can::CanFrame& frame) {

@@ -1,11 +1,13 @@
 #pragma once
-// The master's view of one device: heartbeat supervision, emergencies and active errors, counters
-// for diagnostics, and, in the master role, NMT commands — start at start-up, after every boot-up
-// and whenever a started device reports pre-operational.
+// The master's view of one device: heartbeat supervision, the NMT state it was told to be in,
+// emergencies and active errors, counters for diagnostics, and the PDOs its last boot left in use.
+// It reports what makes the device's state unknown to the master (a boot-up, a lost heartbeat, a
+// state it was not told to take); what to do about it is the error control's business.
 
 #include <chrono>
 #include <cstdint>
 #include <functional>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -14,6 +16,7 @@
 #include "canopen/emcy.hpp"
 #include "canopen/heartbeat_consumer.hpp"
 #include "canopen/nmt.hpp"
+#include "canopen/pdo_parameters.hpp"
 
 namespace lb::canopen {
 
@@ -27,8 +30,18 @@ class RemoteNode {
     std::uint64_t emergencies = 0;
     std::uint64_t range_warnings = 0;
   };
+  // What makes the master lose track of the device's object dictionary.
+  enum class Event {
+    boot_up,           // a boot-up message: the device starts from its power-on values
+    lost,              // no heartbeat within the timeout
+    returned,          // a heartbeat while it was offline (the first one, or again after a loss)
+    unexpected_state,  // it reports a state the master did not command (pre-operational, stopped)
+  };
   using ChangeListener = std::function<void(NmtState state, bool online)>;
   using EmergencyListener = std::function<void(const Emergency&)>;
+  using EventListener = std::function<void(Event event, NmtState reported)>;
+  // Told the PDOs a boot found before the device is started; a refusal fails the boot.
+  using PdoListener = std::function<Result<void>(std::span<const PdoInUse> pdos)>;
 
   // may_transmit = false for the monitor role: the node is observed, never commanded.
   RemoteNode(BusLoop& loop, std::uint8_t node_id, std::chrono::milliseconds heartbeat_timeout, bool may_transmit);
@@ -36,20 +49,33 @@ class RemoteNode {
   // Registration before the loop starts.
   void on_change(ChangeListener listener) { listeners_.push_back(std::move(listener)); }
   void on_emergency(EmergencyListener listener) { emcy_listeners_.push_back(std::move(listener)); }
-  // Replaces the plain NMT start after a boot-up (e.g. configure by SDO first, then start).
-  void on_boot_up(std::function<void()> handler) { boot_handler_ = std::move(handler); }
+  void on_event(EventListener listener) { event_listeners_.push_back(std::move(listener)); }
+  void on_pdos(PdoListener listener) { pdo_listeners_.push_back(std::move(listener)); }
 
-  void start();  // loop thread: the first boot handling (or NMT start)
-  // Loop thread. Refused with the reason on a monitor bus.
+  // Loop thread. Refused with the reason on a monitor bus. Records the state the device must take.
   Result<void> command(NmtCommand command);
+  // Loop thread: the boot passed (the device holds the configuration), or a boot begins or failed:
+  // then what the device was told before no longer counts (it is pre-operational while booted).
+  void set_configured(bool configured) {
+    configured_ = configured;
+    if (!configured) commanded_ = NmtState::unknown;
+  }
+  // Loop thread, by the boot: the PDOs from now on; the first listener's refusal is returned.
+  Result<void> use_pdos(std::span<const PdoInUse> pdos);
 
   std::uint8_t node_id() const { return heartbeat_.node_id(); }
   NmtState state() const { return heartbeat_.state(); }
   bool online() const { return heartbeat_.online(); }
   std::int64_t last_heartbeat_ns() const { return heartbeat_.last_heartbeat_ns(); }
+  std::chrono::milliseconds heartbeat_timeout() const { return heartbeat_timeout_; }
   bool may_transmit() const { return may_transmit_; }
-  // Started by this bridge and alive: the condition for sending it RPDOs.
-  bool ready_for_pdos() const { return started_ && online() && state() == NmtState::operational; }
+  bool configured() const { return configured_; }
+  NmtState commanded_state() const { return commanded_; }
+  // Configured by this bridge, told to be operational and alive: the condition for sending RPDOs.
+  bool ready_for_pdos() const {
+    return configured_ && commanded_ == NmtState::operational && online() && state() == NmtState::operational;
+  }
+  const std::vector<PdoInUse>& pdos() const { return pdos_; }
   const ActiveErrors& errors() const { return errors_; }
   Stats& stats() { return stats_; }
   const Stats& stats() const { return stats_; }
@@ -57,17 +83,28 @@ class RemoteNode {
  private:
   void booted();
   void changed(NmtState state, bool online);
+  void heartbeat(NmtState state);
+  void emit(Event event, NmtState state);
   void on_emcy_frame(const can::CanFrame& frame);
 
   BusLoop& loop_;
   bool may_transmit_;
-  bool started_ = false;
+  std::chrono::milliseconds heartbeat_timeout_;
+  bool configured_ = false;
+  NmtState commanded_ = NmtState::unknown;  // unknown: not commanded since its last boot-up
+  bool confirmed_ = false;                  // a heartbeat reported the commanded state since
+  std::chrono::steady_clock::time_point commanded_at_{};
+  bool was_online_ = false;
   Stats stats_;
   ActiveErrors errors_;
-  std::function<void()> boot_handler_;
+  std::vector<PdoInUse> pdos_;
   std::vector<ChangeListener> listeners_;
   std::vector<EmergencyListener> emcy_listeners_;
+  std::vector<EventListener> event_listeners_;
+  std::vector<PdoListener> pdo_listeners_;
   HeartbeatConsumer heartbeat_;
 };
+
+std::string_view to_string(RemoteNode::Event event);
 
 }  // namespace lb::canopen

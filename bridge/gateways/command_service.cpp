@@ -33,6 +33,10 @@ void CommandService::handle(const srv::Command_Request& req, ddsl::Respond<srv::
   }
   ctx_.loop.post([this, bit = cmd->bit, name = cmd->name, reply] {
     if (!ctx_.node.online()) return reply(false, ctx_.device.name + " is offline (no heartbeat): command not sent");
+    if (!ctx_.node.ready_for_pdos()) {
+      return reply(false, ctx_.device.name + " is not started by this bridge (its boot has not passed, or it was told to "
+                                             "stop): command not sent");
+    }
     pulses_.pulse(bit);
     spdlog::info("{}: command {} (control word bit {}) held for 100 ms", ctx_.device.name, name, bit);
     reply(true, "");

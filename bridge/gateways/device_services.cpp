@@ -6,6 +6,7 @@
 
 #include "canopen/sdo_abort.hpp"
 #include "dds/topic_names.hpp"
+#include "gateways/pdo_specs.hpp"
 
 namespace lb::gateways {
 
@@ -83,12 +84,30 @@ DeviceServices::DeviceServices(DeviceContext context) : ctx_(context) {
   });
 
   if (ctx_.is_master() && ctx_.sdo != nullptr) {
-    std::vector<canopen::BootSequence::Write> writes;
-    for (const auto& w : ctx_.device.configure) writes.push_back({w.index, w.sub, w.type, w.value});
-    boot_ = std::make_unique<canopen::BootSequence>(
-        ctx_.loop, ctx_.node, *ctx_.sdo, std::move(writes), ctx_.device.boot_retry,
-        canopen::BootSequence::Listener{.on_state = {}, .on_identity = [this](const canopen::DeviceIdentity& id) { publish_info(id); }});
+    const auto& d = ctx_.device;
+    canopen::BootSequence::Settings boot;
+    boot.identity = {static_cast<std::uint16_t>(ctx_.profile.device_type & 0xFFFF), d.identity.device_type,
+                     d.identity.vendor_id, d.identity.product_code, d.identity.revision, d.identity.serial_number};
+    boot.pdos = pdo_specs(ctx_.profile, d);
+    boot.adopt_device_pdos = d.pdo_config == profiles::PdoConfigMode::adopt;
+    for (const auto& w : d.configure) boot.writes.push_back({w.index, w.sub, w.type, w.value, w.verify});
+    if (d.heartbeat_producer) boot.heartbeat_producer_ms = static_cast<std::uint16_t>(d.heartbeat_producer->count());
+    boot_ = std::make_unique<canopen::BootSequence>(ctx_.loop, ctx_.node, *ctx_.sdo, std::move(boot));
+    canopen::ErrorControl::Settings control;
+    control.on_state_unknown = d.on_state_unknown == profiles::StateUnknownAction::reset_node
+                                   ? canopen::RecoveryAction::reset_node
+                                   : canopen::RecoveryAction::reboot;
+    control.retry = d.boot_retry;
+    control_ = std::make_unique<canopen::ErrorControl>(ctx_.loop, ctx_.node, *boot_, control,
+                                                       [this](const canopen::BootReport& r) {
+                                                         report_ = r;
+                                                         publish_info(r);
+                                                       });
   }
+}
+
+void DeviceServices::start() {
+  if (control_) control_->start();
 }
 
 void DeviceServices::sdo_read(const srv::SdoRead_Request& req, ddsl::Respond<srv::SdoRead_Response> respond) {
@@ -204,6 +223,12 @@ void DeviceServices::nmt(const srv::Nmt_Request& request, ddsl::Respond<srv::Nmt
   if (!command) return reply(false, "unknown NMT command " + std::to_string(static_cast<int>(request.command())));
   if (auto why = refusal(); !why.empty()) return reply(false, why);
   ctx_.loop.post([this, c = *command, reply] {
+    // A device whose boot did not pass (or whose state became unknown since) may have lost its
+    // configuration: starting it would hand it RPDOs it may misread. Its boot starts it.
+    if (c == canopen::NmtCommand::start && !ctx_.node.configured()) {
+      return reply(false, ctx_.device.name + " has not passed its boot (" + boot_state() +
+                              "): NMT start refused; the bridge starts it when its boot passes (reset-node boots it again)");
+    }
     auto r = ctx_.node.command(c);
     if (!r) return reply(false, r.error().message);
     spdlog::info("{}: NMT command {:02X}h sent on request", ctx_.device.name, static_cast<int>(c));
@@ -211,7 +236,8 @@ void DeviceServices::nmt(const srv::Nmt_Request& request, ddsl::Respond<srv::Nmt
   });
 }
 
-void DeviceServices::publish_info(const canopen::DeviceIdentity& id) {
+void DeviceServices::publish_info(const canopen::BootReport& report) {
+  const auto& id = report.identity;
   msg::DeviceInfo m;
   stamp(m, id.read_at_ns);
   m.node_id(ctx_.device.node_id);
@@ -225,19 +251,48 @@ void DeviceServices::publish_info(const canopen::DeviceIdentity& id) {
   m.hardware_version(id.hardware_version);
   m.software_version(id.software_version);
   // 1000h bits 0..15 tell only the profile family (420 or 414); the part comes from the config.
-  const auto expected = ctx_.profile.device_type & 0xFFFF;
-  m.profile_matches((id.device_type & 0xFFFF) == expected);
+  m.profile_matches(id.device_type != 0 && (id.device_type & 0xFFFF) == (ctx_.profile.device_type & 0xFFFF));
   std::string remarks = id.remarks;
-  if (!m.profile_matches()) {
-    remarks += fmt::format("device type {:08X}h is profile {}, the configuration says {} ({})", id.device_type,
-                           id.device_type & 0xFFFF, expected, ctx_.profile.key());
-    spdlog::warn("{}: {}", ctx_.device.name, remarks);
-  }
+  for (const auto& w : report.warnings) remarks += w + "; ";
   m.remarks(remarks);
-  spdlog::info("{}: identity: vendor {:08X}h product {:08X}h rev {:08X}h serial {:08X}h, \"{}\" hw \"{}\" sw \"{}\"",
-               ctx_.device.name, id.vendor_id, id.product_code, id.revision_number, id.serial_number, id.device_name,
-               id.hardware_version, id.software_version);
+  m.started(report.started);
+  if (report.error) m.boot_error(to_msg(*report.error));
+  m.pdo_config(std::string(profiles::to_string(ctx_.device.pdo_config)));
+  for (const auto& p : report.pdos) m.pdos().push_back(to_msg(p));
+  m.heartbeat_producer_ms(report.heartbeat_producer_ms ? *report.heartbeat_producer_ms : -1);
+  if (report.started) {
+    spdlog::info("{}: identity: vendor {:08X}h product {:08X}h rev {:08X}h serial {:08X}h, \"{}\" hw \"{}\" sw \"{}\"",
+                 ctx_.device.name, id.vendor_id, id.product_code, id.revision_number, id.serial_number, id.device_name,
+                 id.hardware_version, id.software_version);
+  } else if (report.error) {
+    spdlog::warn("{}: not started: {}", ctx_.device.name, report.error->message);
+  }
   info_writer_.write(m);
+}
+
+msg::BootError to_msg(const canopen::BootError& e) {
+  msg::BootError m;
+  if (e.code != 0) m.code(std::string(1, e.code));
+  m.step(e.step);
+  m.index(e.index);
+  m.sub_index(e.sub);
+  m.expected(e.expected);
+  m.actual(e.actual);
+  m.abort_code(e.abort_code);
+  m.message(e.message);
+  return m;
+}
+
+msg::PdoInfo to_msg(const canopen::PdoInUse& p) {
+  msg::PdoInfo m;
+  m.name(p.name);
+  m.cob_id(p.parameters.cob_id);
+  m.transmission_type(p.parameters.transmission_type);
+  m.inhibit_time_100us(p.parameters.inhibit_time);
+  m.event_timer_ms(p.parameters.event_timer);
+  for (const auto& e : p.parameters.mapping) m.mapping().push_back(e.to_u32());
+  m.adopted(p.adopted);
+  return m;
 }
 
 }  // namespace lb::gateways

@@ -13,6 +13,7 @@
 #include <string>
 
 #include "canopen/boot_sequence.hpp"
+#include "canopen/error_control.hpp"
 #include "dds/service.hpp"
 #include "gateways/device_context.hpp"
 #include "msgs/commonPubSubTypes.h"
@@ -26,8 +27,13 @@ class DeviceServices {
   DeviceServices(const DeviceServices&) = delete;
   DeviceServices& operator=(const DeviceServices&) = delete;
 
-  // "started", "not answering: ...", "monitored" (monitor role): loop thread.
-  std::string boot_state() const { return boot_ ? boot_->state() : "monitored"; }
+  // Loop thread: the first boot (master role).
+  void start();
+  // Loop thread: "started", "failed (K): ...", a pending retry, "monitored" (monitor role).
+  std::string boot_state() const { return control_ ? control_->state() : "monitored"; }
+  // Loop thread: what the last finished boot found (empty before the first one).
+  const canopen::BootReport& boot_report() const { return report_; }
+  canopen::ErrorControl::Counters boot_counters() const { return control_ ? control_->counters() : canopen::ErrorControl::Counters{}; }
 
   // This device's part of the line-wide services; the request's `device` is already this one.
   // Called on a Fast DDS thread; checks what needs only the immutable profile and configuration
@@ -44,12 +50,18 @@ class DeviceServices {
 
  private:
   std::string refusal() const;  // why this bus takes no commands, or empty
-  void publish_info(const canopen::DeviceIdentity& id);
+  void publish_info(const canopen::BootReport& report);
 
   DeviceContext ctx_;
   ddsl::Writer<linebridge_msgs::msg::EmergencyPubSubType> emergency_writer_;
   ddsl::Writer<linebridge_msgs::msg::DeviceInfoPubSubType> info_writer_;
   std::unique_ptr<canopen::BootSequence> boot_;
+  std::unique_ptr<canopen::ErrorControl> control_;
+  canopen::BootReport report_;  // loop thread
 };
+
+// The boot's findings as their DDS types.
+linebridge_msgs::msg::BootError to_msg(const canopen::BootError& error);
+linebridge_msgs::msg::PdoInfo to_msg(const canopen::PdoInUse& pdo);
 
 }  // namespace lb::gateways

@@ -74,6 +74,11 @@ void DiagnosticsGateway::snapshot(std::size_t i) {
     n.online(d.node->online());
     n.nmt_state(to_msg(d.node->state()));
     n.boot_state(d.services->boot_state());
+    if (const auto& e = d.services->boot_report().error) n.boot_error(to_msg(*e));
+    const auto counters = d.services->boot_counters();
+    n.boots(counters.boots);
+    n.boot_failures(counters.boot_failures);
+    n.state_unknown(counters.state_unknown);
     const auto last = d.node->last_heartbeat_ns();
     n.last_heartbeat_age_s(last == 0 ? -1.0 : static_cast<double>(now_ns - last) / 1e9);
     const auto& s = d.node->stats();

@@ -22,6 +22,7 @@
 #include "gateways/momentary_commands.hpp"
 #include "gateways/pdo_burst.hpp"
 #include "gateways/pdo_receive.hpp"
+#include "gateways/pdo_wiring.hpp"
 #include "gateways/set_value_path.hpp"
 #include "msgs/commonPubSubTypes.h"
 
@@ -47,7 +48,7 @@ class DriveGateway : public Gateway {
 
   DeviceContext ctx_;
   Codec codec_;  // loop thread, except validate() (const, any thread)
-  std::vector<std::unique_ptr<canopen::PdoTransmitter>> rpdos_;  // master role: what the bridge sends
+  PdoWiring<Codec> pdos_;
   MomentaryCommands commands_;
   PdoBurst burst_;
   CommandService command_service_;  // presses commands_
@@ -61,10 +62,11 @@ template <class Dds>
 DriveGateway<Dds>::DriveGateway(DeviceContext context)
     : ctx_(context),
       codec_(context.profile, context.device.pdos),
+      pdos_(ctx_, codec_, [this](std::size_t pdo, const can::CanFrame& f) { on_pdo(pdo, f); }),
       commands_(
           context.loop, [this](unsigned bit, bool on) { codec_.set_control_bit(bit, on); },
           [this] {
-            for (auto& t : rpdos_) t->on_data();
+            pdos_.on_data();
             publish_status(ddsl::now_ns());
           }),
       burst_(context.loop, [this](std::int64_t stamp_ns) { publish_status(stamp_ns); }),
@@ -72,22 +74,6 @@ DriveGateway<Dds>::DriveGateway(DeviceContext context)
                        commands_) {
   namespace msg = linebridge_msgs::msg;
   const std::string& dev = ctx_.device.name;
-  for (std::size_t i = 0; i < codec_.pdos().size(); ++i) {
-    const auto& pdo = *codec_.pdos()[i].def;
-    if (!pdo.enabled) continue;  // COB-ID bit 31: this PDO does not exist on the bus
-    if (pdo.direction == profiles::PdoDirection::tx || !ctx_.is_master()) {
-      const auto handler = [this, i](const can::CanFrame& f) { on_pdo(i, f); };
-      if (pdo.extended) ctx_.loop.on_extended_frame(pdo.can_id, handler);
-      else ctx_.loop.on_frame(pdo.can_id, handler);
-      continue;
-    }
-    rpdos_.push_back(std::make_unique<canopen::PdoTransmitter>(
-        ctx_.loop,
-        canopen::PdoTransmitter::Settings{pdo.can_id, pdo.extended, pdo.transmission_type, pdo.inhibit, pdo.event_timer},
-        [this, i](can::CanFrame& f) { f.len = codec_.pack(i, std::span<std::uint8_t, 8>(f.data)); },
-        [this] { return ctx_.node.ready_for_pdos(); }, [this] { ++ctx_.node.stats().pdos_sent; }));
-  }
-
   const auto fail = [&dev](const Error& e) { throw std::runtime_error(dev + ": " + e.message); };
   auto status = ctx_.dds.writer<typename Dds::StatusTopic>(ddsl::topic_name(ctx_.line, dev, "status"),
                                                                      ddsl::QosKind::state);
@@ -103,14 +89,12 @@ DriveGateway<Dds>::DriveGateway(DeviceContext context)
   if (!sub) fail(sub.error());
 
   ctx_.node.on_change([this](canopen::NmtState, bool) {
-    for (auto& t : rpdos_) t->resend();  // a (re)started device gets the image at once
+    pdos_.resend();  // a (re)started device gets the image at once
     publish_status(ddsl::now_ns());
   });
   ctx_.node.on_emergency([this](const canopen::Emergency& e) { publish_status(e.timestamp_ns); });
   if (ctx_.sync != nullptr) {
-    ctx_.sync->on_sync([this] {
-      for (auto& t : rpdos_) t->on_sync();
-    });
+    ctx_.sync->on_sync([this] { pdos_.on_sync(); });
   }
   spdlog::info("{}: {} ({}) node {} on bus {} as {}{}", dev, Codec::DeviceTraits::device, ctx_.profile.key(),
                ctx_.device.node_id, ctx_.bus.name, profiles::to_string(ctx_.bus.role),
@@ -139,7 +123,7 @@ void DriveGateway<Dds>::on_setpoint(const Setpoint& sp) {
       ctx_, sp.request_id(), [&] { return codec_.validate(sp); },
       [this](const auto& r) {
         codec_.apply(r);
-        for (auto& t : rpdos_) t->on_data();
+        pdos_.on_data();
         publish_status(ddsl::now_ns());
         spdlog::info("{}: set values: extruder {}, speed {} % (control word {:04X}h)", ctx_.device.name,
                      r.extruder_running ? "running" : "stopped", codec_.speed_set_percent(), codec_.control_word());

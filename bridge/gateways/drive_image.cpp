@@ -3,6 +3,7 @@
 #include <stdexcept>
 
 #include "canopen/data_type.hpp"
+#include "gateways/pdo_binding.hpp"
 
 namespace lb::gateways {
 
@@ -52,7 +53,8 @@ DriveImage::DriveImage(const profiles::Profile& profile, std::span<const profile
   if (!bit) throw std::runtime_error("profile " + profile_.key() + ": control_word has no bit 'extruder_running'");
   bit_extruder_running_ = *bit;
 
-  for (const auto& pdo : pdos) {
+  defs_.assign(pdos.begin(), pdos.end());
+  for (const auto& pdo : defs_) {
     auto mapping = canopen::PdoMapping::create(pdo.mapping);
     if (!mapping) throw std::runtime_error("profile " + profile_.key() + " " + pdo.name + ": " + mapping.error().message);
     Pdo p{&pdo, canopen::PdoBinding(std::move(*mapping), image_), std::nullopt, false};
@@ -61,6 +63,20 @@ DriveImage::DriveImage(const profiles::Profile& profile, std::span<const profile
     if (def != nullptr && pdo.direction == profiles::PdoDirection::tx) p.manufacturer_data = def->manufacturer_data;
     pdos_.push_back(std::move(p));
   }
+}
+
+Result<void> DriveImage::use_pdo(std::size_t pdo, const profiles::DevicePdo& actual) {
+  if (actual.mapping == defs_[pdo].mapping) {  // the line's own mapping, checked at start-up
+    defs_[pdo] = actual;
+    return {};
+  }
+  auto binding = bind_device_pdo(profile_, image_, actual);
+  if (!binding) return binding.error();
+  defs_[pdo] = actual;
+  auto& p = pdos_[pdo];
+  p.binding = std::move(*binding);
+  p.carries_echo = actual.direction == profiles::PdoDirection::tx && maps(p.binding.mapping(), *speed_echo_.def);
+  return {};
 }
 
 DriveImage::Object DriveImage::bind(const std::string& name) {

@@ -38,7 +38,13 @@ class DriveImage {
   DriveImage(const profiles::Profile& profile, std::span<const profiles::DevicePdo> pdos, std::string_view device,
              SetEchoMonitor::Settings echo = {});
 
+  DriveImage(const DriveImage&) = delete;
+  DriveImage& operator=(const DriveImage&) = delete;
+
   const std::vector<Pdo>& pdos() const { return pdos_; }
+  // The PDO as the device has it (its boot found it): refused, and nothing changed, when the
+  // bridge could not decode or send by it.
+  Result<void> use_pdo(std::size_t pdo, const profiles::DevicePdo& actual);
   // A received PDO (TPDO, or an RPDO seen on a monitor bus) into the image; refused untouched when
   // shorter than its mapping.
   Result<void> receive(std::size_t pdo, std::span<const std::uint8_t> payload);
@@ -78,6 +84,7 @@ class DriveImage {
   canopen::ProcessImage image_;
   Object status_word_, control_word_, speed_actual_, load_actual_, speed_echo_, product_speed_, speed_set_;
   unsigned bit_extruder_running_ = 0;
+  std::vector<profiles::DevicePdo> defs_;  // what each PDO is decoded and sent by; never resized
   std::vector<Pdo> pdos_;
   std::optional<std::uint16_t> manufacturer_status_word_;
   SetEchoMonitor echo_;

@@ -6,6 +6,8 @@
 #include <cmath>
 #include <stdexcept>
 
+#include "gateways/pdo_binding.hpp"
+
 namespace lb::gateways {
 
 namespace msg = linebridge_msgs::msg;
@@ -65,11 +67,24 @@ FeederCodec::FeederCodec(const profiles::Profile& profile, std::span<const profi
   trigger_signal_ = bind("trigger_signal");
   for (std::size_t i = 0; i < picks_.size(); ++i) picks_[i] = bind("pick_insertion_" + std::to_string(i + 1));
 
-  for (const auto& pdo : pdos) {
+  defs_.assign(pdos.begin(), pdos.end());
+  for (const auto& pdo : defs_) {
     auto mapping = canopen::PdoMapping::create(pdo.mapping);
     if (!mapping) throw std::runtime_error("profile " + profile_.key() + " " + pdo.name + ": " + mapping.error().message);
     pdos_.push_back({&pdo, canopen::PdoBinding(std::move(*mapping), image_)});
   }
+}
+
+Result<void> FeederCodec::use_pdo(std::size_t pdo, const profiles::DevicePdo& actual) {
+  if (actual.mapping == defs_[pdo].mapping) {  // the line's own mapping, checked at start-up
+    defs_[pdo] = actual;
+    return {};
+  }
+  auto binding = bind_device_pdo(profile_, image_, actual);
+  if (!binding) return binding.error();
+  defs_[pdo] = actual;
+  pdos_[pdo].binding = std::move(*binding);
+  return {};
 }
 
 const ObjectDef& FeederCodec::object(std::string_view name) const {

@@ -45,7 +45,13 @@ class FeederCodec {
   FeederCodec(const profiles::Profile& profile, std::span<const profiles::DevicePdo> pdos);
 
   const profiles::Profile& profile() const { return profile_; }
+  FeederCodec(const FeederCodec&) = delete;
+  FeederCodec& operator=(const FeederCodec&) = delete;
+
   const std::vector<Pdo>& pdos() const { return pdos_; }
+  // The PDO as the device has it (its boot found it): refused, and nothing changed, when the
+  // bridge could not decode or send by it.
+  Result<void> use_pdo(std::size_t pdo, const profiles::DevicePdo& actual);
   // A received PDO (TPDO1, or a loom controller's RPDO on a monitor bus) into the image.
   Result<void> receive(std::size_t pdo, std::span<const std::uint8_t> payload);
   std::uint8_t pack(std::size_t pdo, std::span<std::uint8_t, 8> out) const {
@@ -126,6 +132,7 @@ class FeederCodec {
   const profiles::ObjectDef* selected_;
   Object unwinding_time_, loom_status_, weft_filling_word_, trigger_signal_;
   std::array<Object, 5> picks_;
+  std::vector<profiles::DevicePdo> defs_;  // what each PDO is decoded and sent by; never resized
   std::vector<Pdo> pdos_;
   bool loom_seen_ = false;  // an RPDO was received or the image was set
 };

@@ -56,27 +56,12 @@ void stamp(M& m, std::int64_t ns) {
 FeederGateway::FeederGateway(DeviceContext context)
     : ctx_(context),
       codec_(context.profile, context.device.pdos),
-      burst_(context.loop, [this](std::int64_t stamp_ns) { publish_status(stamp_ns); }) {
+      burst_(context.loop, [this](std::int64_t stamp_ns) { publish_status(stamp_ns); }),
+      // The loom controller's RPDOs are event-driven (255): they go out when a loom set value
+      // changes them, and never before the first one (loom_active_).
+      pdos_(ctx_, codec_, [this](std::size_t pdo, const can::CanFrame& f) { on_pdo(pdo, f); },
+            [this] { return loom_active_; }) {
   const std::string& dev = ctx_.device.name;
-  for (std::size_t i = 0; i < codec_.pdos().size(); ++i) {
-    const auto& pdo = *codec_.pdos()[i].def;
-    if (!pdo.enabled) continue;  // COB-ID bit 31: this PDO does not exist on the bus
-    if (pdo.direction == PdoDirection::tx || !ctx_.is_master()) {
-      const auto handler = [this, i](const can::CanFrame& f) { on_pdo(i, f); };
-      if (pdo.extended) ctx_.loop.on_extended_frame(pdo.can_id, handler);
-      else ctx_.loop.on_frame(pdo.can_id, handler);
-      continue;
-    }
-    // The loom controller's RPDOs are event-driven (255): they go out when a loom set value
-    // changes them, and never before the first one (loom_active_).
-    rpdos_.push_back({i, std::make_unique<canopen::PdoTransmitter>(
-                             ctx_.loop,
-                             canopen::PdoTransmitter::Settings{pdo.can_id, pdo.extended, pdo.transmission_type, pdo.inhibit,
-                                                               pdo.event_timer},
-                             [this, i](can::CanFrame& f) { f.len = codec_.pack(i, std::span<std::uint8_t, 8>(f.data)); },
-                             [this] { return loom_active_ && ctx_.node.ready_for_pdos(); },
-                             [this] { ++ctx_.node.stats().pdos_sent; })});
-  }
 
   const std::string& line = ctx_.line;
   using ddsl::QosKind;
@@ -94,7 +79,7 @@ FeederGateway::FeederGateway(DeviceContext context)
   ctx_.node.on_change([this](canopen::NmtState, bool online) {
     // A restarted control box gets the loom status again (it is a state; triggers and picks are
     // events and are not repeated).
-    for (auto& r : rpdos_) {
+    for (auto& r : pdos_.rpdos()) {
       if (!codec_.carries(r.pdo, kLoomStatus)) continue;
       r.transmitter->resend();
       r.transmitter->on_data();
@@ -103,6 +88,7 @@ FeederGateway::FeederGateway(DeviceContext context)
     publish_status(ddsl::now_ns());
   });
   ctx_.node.on_emergency([this](const canopen::Emergency& e) { on_emergency(e); });
+  if (ctx_.sync != nullptr) ctx_.sync->on_sync([this] { pdos_.on_sync(); });  // a line may make them synchronous
   if (ctx_.is_master() && ctx_.sdo != nullptr) {
     poll_timer_ = ctx_.loop.create_timer([this] { poll(); });
     ctx_.loop.arm_timer(poll_timer_, kPollPeriod, kPollPeriod);
@@ -398,7 +384,7 @@ void FeederGateway::on_loom(const msg::LoomSetpoint& sp) {
     loom_active_ = true;
     codec_.apply(r);
     // Each part given is an event on its own PDO, sent even when unchanged (a trigger repeats).
-    for (auto& t : rpdos_) {
+    for (auto& t : pdos_.rpdos()) {
       const bool touched = (r.loom_status && codec_.carries(t.pdo, kLoomStatus)) || (r.trigger && codec_.carries(t.pdo, kTrigger)) ||
                            (r.picks && codec_.carries(t.pdo, kPicks));
       if (!touched) continue;

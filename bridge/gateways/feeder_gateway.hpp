@@ -20,6 +20,7 @@
 #include "gateways/feeder_codec.hpp"
 #include "gateways/gateway.hpp"
 #include "gateways/pdo_burst.hpp"
+#include "gateways/pdo_wiring.hpp"
 #include "msgs/commonPubSubTypes.h"
 #include "msgs/feederPubSubTypes.h"
 
@@ -62,11 +63,7 @@ class FeederGateway : public Gateway {
   DeviceContext ctx_;
   FeederCodec codec_;  // loop thread, except the const validation (any thread)
   PdoBurst burst_;
-  struct Rpdo {
-    std::size_t pdo;  // index into codec_.pdos()
-    std::unique_ptr<canopen::PdoTransmitter> transmitter;
-  };
-  std::vector<Rpdo> rpdos_;  // master role: sent only once loom play began
+  PdoWiring<FeederCodec> pdos_;  // the loom controller's RPDOs: sent only once loom play began
 
   ddsl::Writer<linebridge_msgs::msg::FeederStatusPubSubType> status_writer_;
   ddsl::Writer<linebridge_msgs::msg::FeederUnwindingPubSubType> unwinding_writer_;

@@ -2,6 +2,8 @@
 
 #include <stdexcept>
 
+#include "gateways/pdo_binding.hpp"
+
 namespace lb::gateways {
 
 namespace msg = linebridge_msgs::msg;
@@ -61,11 +63,24 @@ SawCodec::SawCodec(const profiles::Profile& profile, std::span<const profiles::D
   bit_saw_cutting_ = required_bit(sw, "saw_cutting", profile_.key());
   bit_count_mode_ = cw.bit("count_mode");
 
-  for (const auto& pdo : pdos) {
+  defs_.assign(pdos.begin(), pdos.end());
+  for (const auto& pdo : defs_) {
     auto mapping = canopen::PdoMapping::create(pdo.mapping);
     if (!mapping) throw std::runtime_error("profile " + profile_.key() + " " + pdo.name + ": " + mapping.error().message);
     pdos_.push_back({&pdo, canopen::PdoBinding(std::move(*mapping), image_)});
   }
+}
+
+Result<void> SawCodec::use_pdo(std::size_t pdo, const profiles::DevicePdo& actual) {
+  if (actual.mapping == defs_[pdo].mapping) {  // the line's own mapping, checked at start-up
+    defs_[pdo] = actual;
+    return {};
+  }
+  auto binding = bind_device_pdo(profile_, image_, actual);
+  if (!binding) return binding.error();
+  defs_[pdo] = actual;
+  pdos_[pdo].binding = std::move(*binding);
+  return {};
 }
 
 SawCodec::Object SawCodec::bind(std::string_view name) {

@@ -29,10 +29,15 @@ class SawCodec {
   };
 
   // Throws std::runtime_error (start-up) when the profile lacks an object or bit a saw needs.
-  // pdos: the device's PDOs (profile defaults with overrides); they must outlive the codec.
+  // pdos: the device's PDOs (profile defaults with overrides).
   SawCodec(const profiles::Profile& profile, std::span<const profiles::DevicePdo> pdos);
+  SawCodec(const SawCodec&) = delete;
+  SawCodec& operator=(const SawCodec&) = delete;
 
   const std::vector<Pdo>& pdos() const { return pdos_; }
+  // The PDO as the device has it (its boot found it): refused, and nothing changed, when the
+  // bridge could not decode or send by it.
+  Result<void> use_pdo(std::size_t pdo, const profiles::DevicePdo& actual);
   // Writes a received PDO (TPDO, or an RPDO seen on a monitor bus) into the image.
   Result<void> receive(std::size_t pdo, std::span<const std::uint8_t> payload) {
     return pdos_[pdo].binding.unpack_into(payload, image_);
@@ -69,6 +74,7 @@ class SawCodec {
   NamedBits<linebridge_msgs::msg::SawControlWord> control_bits_;
   unsigned bit_program_on_ = 0, bit_change_of_length_ = 0, bit_saw_cutting_ = 0;
   std::optional<unsigned> bit_count_mode_;  // from saw 3.1 on
+  std::vector<profiles::DevicePdo> defs_;  // what each PDO is decoded and sent by; never resized
   std::vector<Pdo> pdos_;
 };
 

@@ -27,10 +27,11 @@ T checked(Result<T> r, const std::string& what) {
 SawGateway::SawGateway(DeviceContext context)
     : ctx_(context),
       codec_(context.profile, context.device.pdos),
+      pdos_(ctx_, codec_, [this](std::size_t pdo, const can::CanFrame& f) { on_pdo(pdo, f); }),
       commands_(
           context.loop, [this](unsigned bit, bool on) { codec_.set_control_bit(bit, on); },
           [this] {
-            for (auto& t : rpdos_) t->on_data();
+            pdos_.on_data();
             publish_status(ddsl::now_ns());
           }),
       burst_(context.loop, [this](std::int64_t stamp_ns) { publish_status(stamp_ns); }),
@@ -39,22 +40,6 @@ SawGateway::SawGateway(DeviceContext context)
                                                                 "f1_start", "f2_stop", "f2_start", "f3_stop", "f3_start"}),
                        commands_) {
   const std::string& dev = ctx_.device.name;
-  for (std::size_t i = 0; i < codec_.pdos().size(); ++i) {
-    const auto& pdo = *codec_.pdos()[i].def;
-    if (!pdo.enabled) continue;  // COB-ID bit 31: this PDO does not exist on the bus
-    if (pdo.direction == PdoDirection::tx || !ctx_.is_master()) {
-      const auto handler = [this, i](const can::CanFrame& f) { on_pdo(i, f); };
-      if (pdo.extended) ctx_.loop.on_extended_frame(pdo.can_id, handler);
-      else ctx_.loop.on_frame(pdo.can_id, handler);
-      continue;
-    }
-    rpdos_.push_back(std::make_unique<canopen::PdoTransmitter>(
-        ctx_.loop,
-        canopen::PdoTransmitter::Settings{pdo.can_id, pdo.extended, pdo.transmission_type, pdo.inhibit, pdo.event_timer},
-        [this, i](can::CanFrame& f) { f.len = codec_.pack(i, std::span<std::uint8_t, 8>(f.data)); },
-        [this] { return ctx_.node.ready_for_pdos(); }, [this] { ++ctx_.node.stats().pdos_sent; }));
-  }
-
   const std::string& line = ctx_.line;
   status_writer_ = checked(ctx_.dds.writer<msg::SawStatusPubSubType>(ddsl::topic_name(line, dev, "status"), ddsl::QosKind::state), dev);
   cut_writer_ = checked(ctx_.dds.writer<msg::SawCutPubSubType>(ddsl::topic_name(line, dev, "cut"), ddsl::QosKind::event), dev);
@@ -67,14 +52,12 @@ SawGateway::SawGateway(DeviceContext context)
 
   ctx_.node.on_change([this](canopen::NmtState, bool) {
     // A device (re)started gets the current image at once from event-driven RPDOs too.
-    for (auto& t : rpdos_) t->resend();
+    pdos_.resend();
     publish_status(ddsl::now_ns());
   });
   ctx_.node.on_emergency([this](const canopen::Emergency& e) { publish_status(e.timestamp_ns); });
   if (ctx_.sync != nullptr) {
-    ctx_.sync->on_sync([this] {
-      for (auto& t : rpdos_) t->on_sync();
-    });
+    ctx_.sync->on_sync([this] { pdos_.on_sync(); });
   }
   spdlog::info("{}: saw ({}) node {} on bus {} as {}{}", dev, ctx_.profile.key(), ctx_.device.node_id, ctx_.bus.name,
                profiles::to_string(ctx_.bus.role),
@@ -91,7 +74,7 @@ void SawGateway::on_setpoint(const msg::SawSetpoint& sp) {
       ctx_, sp.request_id(), [&] { return codec_.validate(sp); },
       [this](const SawCodec::RawSetpoint& r) {
         codec_.apply(r);
-        for (auto& t : rpdos_) t->on_data();
+        pdos_.on_data();
         publish_status(ddsl::now_ns());
         spdlog::info("{}: set values: program {}, sync speed {} %, product length {} m (control word {:04X}h)",
                      ctx_.device.name, status_.control_word().saw_program_on() ? "on" : "off",

@@ -13,6 +13,7 @@
 #include "gateways/gateway.hpp"
 #include "gateways/momentary_commands.hpp"
 #include "gateways/pdo_burst.hpp"
+#include "gateways/pdo_wiring.hpp"
 #include "gateways/saw_codec.hpp"
 #include "msgs/commonPubSubTypes.h"
 #include "msgs/sawPubSubTypes.h"
@@ -35,7 +36,7 @@ class SawGateway : public Gateway {
 
   DeviceContext ctx_;
   SawCodec codec_;  // loop thread, except validate() (const, any thread)
-  std::vector<std::unique_ptr<canopen::PdoTransmitter>> rpdos_;  // master role: what the bridge sends
+  PdoWiring<SawCodec> pdos_;
   MomentaryCommands commands_;
   PdoBurst burst_;
   CommandService command_service_;  // presses commands_

@@ -30,6 +30,10 @@ void take_set_value(const DeviceContext& ctx, std::uint64_t id, Validate validat
       spdlog::warn("{}: set value {} refused: device offline", ctx.device.name, id);
       return reply(id, false, ctx.device.name + " is offline (no heartbeat): set value not applied");
     }
+    if (!ctx.node.configured()) {
+      spdlog::warn("{}: set value {} refused: the device has not passed its boot", ctx.device.name, id);
+      return reply(id, false, ctx.device.name + " has not passed its boot (see its info topic): set value not applied");
+    }
     apply(r);
     reply(id, true, "");
   });

@@ -168,7 +168,7 @@ std::vector<SdoWrite> parse_configure(const YamlSource& src, const YAML::Node& l
   src.expect_sequence(list, "configure");
   std::vector<SdoWrite> writes;
   for (const auto& w : list) {
-    src.check_keys(w, "configure entry", {"object", "index", "sub", "type", "value"});
+    src.check_keys(w, "configure entry", {"object", "index", "sub", "type", "value", "verify"});
     SdoWrite write;
     if (w["object"]) {
       const auto name = src.as<std::string>(w["object"], "object");
@@ -178,6 +178,7 @@ std::vector<SdoWrite> parse_configure(const YamlSource& src, const YAML::Node& l
       write.index = obj->index;
       write.sub = obj->sub;
       write.type = obj->type;
+      write.verify = obj->readable();
     } else {
       write.index = bounded<std::uint16_t>(src, w, "index", 0, 0x1000, 0xFFFF, "configure entry");
       if (!w["index"]) src.fail(w, "configure entry: give either object or index, sub and type");
@@ -202,6 +203,7 @@ std::vector<SdoWrite> parse_configure(const YamlSource& src, const YAML::Node& l
       src.fail(w, "configure entry: " + std::string(canopen::to_string(write.type)) + " values are not supported here");
     }
     if (auto bytes = canopen::encode(write.type, write.value); !bytes) src.fail(v, "configure entry: " + bytes.error().message);
+    if (const auto verify = src.optional<bool>(w, "verify")) write.verify = *verify;
     writes.push_back(std::move(write));
   }
   return writes;

@@ -79,6 +79,7 @@ struct SdoWrite {
   canopen::DataType type = canopen::DataType::unsigned8;
   canopen::ObjectValue value;
   std::string text;  // as written in the file, for logs
+  bool verify = true;  // read back after writing (false: write-only objects, or `verify: false`)
 };
 
 // A PDO as one device uses it: the profile's default with the line configuration's overrides.

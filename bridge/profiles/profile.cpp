@@ -109,17 +109,6 @@ const BitField* BitSet::field(std::string_view field_name) const {
   return nullptr;
 }
 
-std::string_view to_string(PdoAccess access) {
-  switch (access) {
-    case PdoAccess::rw: return "rw";
-    case PdoAccess::rw_preop: return "rw (constant in NMT operational state)";
-    case PdoAccess::valid_bit: return "only its valid bit writable";
-    case PdoAccess::fixed: return "const";
-    case PdoAccess::none: return "not implemented";
-  }
-  return "?";
-}
-
 unsigned PdoDef::number() const {
   unsigned n = 0;
   for (std::size_t i = 4; i < name.size(); ++i) n = n * 10 + static_cast<unsigned>(name[i] - '0');

@@ -13,6 +13,7 @@
 #include "base/result.hpp"
 #include "canopen/data_type.hpp"
 #include "canopen/pdo_mapping.hpp"
+#include "canopen/pdo_rules.hpp"
 
 namespace lb::profiles {
 
@@ -119,32 +120,9 @@ struct PdoTail {
   unsigned bits = 0;
 };
 
-// What a master may write of one entry of a PDO's communication or mapping parameter, as the
-// profile's tables of 1400h..1BFFh say. CiA 301 leaves all of it rw; device profiles fix parts so
-// that devices stay plug-and-play (CiA 420: the default mapping entries const, the COB-IDs ro).
-enum class PdoAccess {
-  rw,         // writable
-  rw_preop,   // "rw (constant in NMT operational state)": writable while not operational
-  valid_bit,  // COB-ID only: bit 31 (valid / not valid) may be written, the identifier is fixed
-  fixed,      // const or ro: the device's value cannot be changed
-  none,       // the device does not implement the entry (e.g. a feeder RPDO's inhibit time)
-};
-std::string_view to_string(PdoAccess access);
-
-struct PdoRules {
-  PdoAccess cob_id = PdoAccess::rw;
-  PdoAccess transmission_type = PdoAccess::rw;
-  PdoAccess inhibit_time = PdoAccess::rw;
-  PdoAccess event_timer = PdoAccess::rw;
-  PdoAccess mapping_count = PdoAccess::rw;  // sub 0 of the mapping parameter
-  PdoAccess mapping = PdoAccess::rw;        // the entries sub 1..n
-  // The values sub 0 may take ("00h, 02h to 03h"); empty: 0 up to the entries the device has.
-  std::vector<std::uint8_t> mapping_counts;
-  // Entries after the profile's default ones whose object the manufacturer chooses (CiA 420-4 3.1
-  // TPDO1 sub 3: "one and only one manufacturer-specific process data"): their value is the
-  // device's, mapped or not by sub 0.
-  unsigned manufacturer_entries = 0;
-};
+// PDO parameter access is a CANopen notion (canopen/pdo_rules.hpp); a profile states it per PDO.
+using canopen::PdoAccess;
+using canopen::PdoRules;
 
 struct PdoDef {
   std::string name;  // tpdo1, rpdo1, ...: the number says which 1400h../1800h.. objects it is

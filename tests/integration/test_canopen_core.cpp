@@ -188,14 +188,16 @@ TEST_F(CanopenCore, DeviceThatNeverAnswersIsReportedAndRetriedWithoutBlockingOth
     const auto* ghost = node(d, "ghost");
     const auto* saw = node(d, "saw1");
     return ghost != nullptr && saw != nullptr && !ghost->online() &&
-           ghost->boot_state().find("not answering") != std::string::npos && saw->online() && saw->boot_state() == "started";
+           ghost->boot_state().find("failed (B)") != std::string::npos && ghost->boot_error().code() == "B" &&
+           ghost->boot_error().abort_code() == 0x05040000u && saw->online() && saw->boot_state() == "started";
   })) << logs();
   // Retried: the bridge tried at least twice in the meantime.
   const auto deadline = std::chrono::steady_clock::now() + 5s;
   auto count = [this] {
     const auto log = bridge_->log();
     std::size_t n = 0;
-    for (auto pos = log.find("node 9 not answering"); pos != std::string::npos; pos = log.find("node 9 not answering", pos + 1)) ++n;
+    const std::string what = "node 9 does not answer 1000h";
+    for (auto pos = log.find(what); pos != std::string::npos; pos = log.find(what, pos + 1)) ++n;
     return n;
   };
   while (count() < 2 && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(100ms);

@@ -1,69 +1,85 @@
-// PDOs as a line configuration reshapes them: a remapped TPDO on a 29-bit identifier sent every
-// 2nd SYNC, an event-driven TPDO with inhibit time and event timer, an event-driven RPDO. The real
-// bridge and simulator read the same overrides; the values still decode right, and the frames on
-// the bus follow the transmission types.
+// PDO overrides in a line file reach the device: the bridge reads every PDO's parameters at boot
+// and writes what differs where the profile lets a master write it (CiA 301 sequence, read back).
+// The simulator starts from its profile's defaults and learns the rest only over CAN, so what the
+// frames show here was really written. Expected values come from the spec tables, written by hand.
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <chrono>
-#include <fstream>
 #include <thread>
 
-#include "dds/participant.hpp"
-#include "dds/topic_names.hpp"
-#include "msgs/commonPubSubTypes.h"
+#include "msgs/pullerPubSubTypes.h"
 #include "msgs/sawPubSubTypes.h"
-#include "support/bus_spy.hpp"
-#include "support/child_process.hpp"
-#include "support/collector.hpp"
+#include "support/line_harness.hpp"
 
 namespace msg = linebridge_msgs::msg;
 using namespace std::chrono_literals;
+using lb::ddsl::QosKind;
 
-TEST(PdoOverrides, RemappedExtendedAndEventDrivenPdos) {
+namespace {
+
+template <class Writer>
+bool wait_matched(lb::test::LineHarness& line, Writer& writer, const std::string& result_topic) {
+  const auto deadline = std::chrono::steady_clock::now() + 10s;
+  while (writer.matched() == 0 || line.dds().matched_writers(result_topic) == 0) {
+    if (std::chrono::steady_clock::now() > deadline) return false;
+    std::this_thread::sleep_for(20ms);
+  }
+  return true;
+}
+
+const msg::PdoInfo* pdo(const msg::DeviceInfo& info, const std::string& name) {
+  for (const auto& p : info.pdos()) {
+    if (p.name() == name) return &p;
+  }
+  return nullptr;
+}
+
+}  // namespace
+
+// Saw 3.1: only the transmission parameters are rw (tables 3, 7, 11); the bridge writes them and
+// the saw's PDOs follow them on the bus.
+TEST(PdoOverrides, TransmissionTypesReachTheSawAndItsFramesFollowThem) {
   ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
-  const std::string tag = std::to_string(::getpid());
-  const std::string bus = "virtual:pdo-" + tag;
-  const std::string tmp = ::testing::TempDir();
-  const std::string cfg = tmp + "/pdo_" + tag + ".yaml";
-  std::ofstream(cfg) << "line: pdo\ndds: {domain: 6}\nbuses:\n  - {name: p, interface: '" + bus + "'}\n"
-                        "devices:\n"
-                        "  - name: saw1\n"
-                        "    bus: p\n"
-                        "    node_id: 5\n"
-                        "    profile: cia420-4\n"
-                        "    version: '3.1'\n"
-                        "    pdos:\n"
-                        "      tpdo1: {transmission_type: 254, inhibit_time_100us: 500, event_timer_ms: 300}\n"
-                        "      tpdo2: {cob_id: 0x20000285, transmission_type: 2, mapping: [0x60070020, 0x60010020]}\n"
-                        "      rpdo1: {transmission_type: 255}\n"
-                        "    simulation: {max_speed_m_per_min: 60, acceleration_m_per_min_s: 6000}\n";
-  lb::test::BusSpy spy(bus);
-  lb::test::ChildProcess sim({LB_BIN_SIM, "--config", cfg}, tmp + "/pdo_sim_" + tag + ".log");
-  lb::test::ChildProcess bridge({LB_BIN_BRIDGE, "--config", cfg}, tmp + "/pdo_bridge_" + tag + ".log");
-  const auto logs = [&] { return "--- bridge ---\n" + bridge.log() + "--- sim ---\n" + sim.log(); };
-
-  auto dds = lb::ddsl::Participant::create({6, true, "pdo-test"});
-  ASSERT_TRUE(dds) << dds.error().message;
+  lb::test::LineHarness line("pdo", 6);
+  line.start("  - name: saw1\n"
+             "    bus: b\n"
+             "    node_id: 5\n"
+             "    profile: cia420-4\n"
+             "    version: '3.1'\n"
+             "    pdos:\n"
+             "      tpdo1: {transmission_type: 254, inhibit_time_100us: 500, event_timer_ms: 300}\n"
+             "      tpdo2: {transmission_type: 2}\n"
+             "      rpdo1: {transmission_type: 255}\n"
+             "    simulation: {max_speed_m_per_min: 60, acceleration_m_per_min_s: 6000}\n");
   lb::test::Collector<msg::SawStatusPubSubType> status;
   lb::test::Collector<msg::SetpointResultPubSubType> results;
-  ASSERT_TRUE(status.subscribe(**dds, lb::ddsl::topic_name("pdo", "saw1", "status"), lb::ddsl::QosKind::state));
-  ASSERT_TRUE(results.subscribe(**dds, lb::ddsl::topic_name("pdo", "saw1", "setpoint_result"), lb::ddsl::QosKind::reply));
-  auto writer = (*dds)->writer<msg::SawSetpointPubSubType>(lb::ddsl::topic_name("pdo", "saw1", "setpoint"), lb::ddsl::QosKind::command);
+  lb::test::Collector<msg::DeviceInfoPubSubType> info;
+  ASSERT_TRUE(status.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
+  ASSERT_TRUE(results.subscribe(line.dds(), line.topic("saw1", "setpoint_result"), QosKind::reply));
+  ASSERT_TRUE(info.subscribe(line.dds(), line.topic("saw1", "info"), QosKind::state));
+  auto writer = line.dds().writer<msg::SawSetpointPubSubType>(line.topic("saw1", "setpoint"), QosKind::command);
   ASSERT_TRUE(writer);
   ASSERT_TRUE(status.wait_last(15s, [](const msg::SawStatus& s) {
     return s.health().online() && s.health().nmt_state() == msg::NMT_OPERATIONAL;
-  })) << logs();
-  const auto deadline = std::chrono::steady_clock::now() + 10s;
-  while ((writer->matched() == 0 || (*dds)->matched_writers(lb::ddsl::topic_name("pdo", "saw1", "setpoint_result")) == 0) &&
-         std::chrono::steady_clock::now() < deadline) {
-    std::this_thread::sleep_for(20ms);
-  }
+  })) << line.logs();
+  ASSERT_TRUE(wait_matched(line, *writer, line.topic("saw1", "setpoint_result")));
+
+  // In the device now (1800h sub 2/3/5, 1801h sub 2, 1400h sub 2), and reported on info.
+  EXPECT_EQ(line.read_unsigned("saw1", 0x1800, 2, "UNSIGNED8"), 254u);
+  EXPECT_EQ(line.read_unsigned("saw1", 0x1800, 3, "UNSIGNED16"), 500u);
+  EXPECT_EQ(line.read_unsigned("saw1", 0x1800, 5, "UNSIGNED16"), 300u);
+  EXPECT_EQ(line.read_unsigned("saw1", 0x1801, 2, "UNSIGNED8"), 2u);
+  EXPECT_EQ(line.read_unsigned("saw1", 0x1400, 2, "UNSIGNED8"), 255u);
+  ASSERT_TRUE(info.wait_last(5s, [](const msg::DeviceInfo& i) { return i.started(); })) << line.logs();
+  const auto* tpdo2 = pdo(info.samples().back(), "tpdo2");
+  ASSERT_NE(tpdo2, nullptr);
+  EXPECT_EQ(tpdo2->transmission_type(), 2);
+  EXPECT_FALSE(tpdo2->adopted());
 
   // Quiet line: the event-driven RPDO1 is not repeated at every SYNC.
-  spy.clear();
+  line.spy().clear();
   std::this_thread::sleep_for(1000ms);
-  EXPECT_TRUE(spy.frames(0x205).empty()) << "event-driven RPDO1 without a change";
+  EXPECT_TRUE(line.spy().frames(0x205).empty()) << "event-driven RPDO1 without a change";
 
   msg::SawSetpoint sp;
   sp.request_id(1);
@@ -71,9 +87,9 @@ TEST(PdoOverrides, RemappedExtendedAndEventDrivenPdos) {
   sp.sync_speed_percent(100);
   sp.product_length_m(0.5);
   writer->write(sp);
-  ASSERT_TRUE(results.wait_last(5s, [](const msg::SetpointResult& r) { return r.request_id() == 1 && r.accepted(); })) << logs();
-
-  // Values decode right through the swapped TPDO2 mapping: 60 m/min, and the saw cuts at 0.5 m.
+  ASSERT_TRUE(results.wait_last(5s, [](const msg::SetpointResult& r) { return r.request_id() == 1 && r.accepted(); }))
+      << line.logs();
+  // 60 m/min, and the saw cuts at 0.5 m.
   ASSERT_TRUE(status.wait(10s, [](const std::vector<msg::SawStatus>& v) {
     bool cut = false;
     for (std::size_t i = 1; i < v.size(); ++i) {
@@ -83,39 +99,91 @@ TEST(PdoOverrides, RemappedExtendedAndEventDrivenPdos) {
       }
     }
     return cut && v.back().product_speed_m_per_min() == 60.0;
-  })) << logs();
+  })) << line.logs();
 
-  spy.clear();
+  line.spy().clear();
   std::this_thread::sleep_for(1000ms);
-  const auto frames = spy.frames();
-  std::size_t syncs = 0, tpdo2_ext = 0, tpdo2_std = 0, tpdo1 = 0, rpdo1 = 0;
-  for (const auto& f : frames) {
-    if (f.id == 0x080 && !f.extended) ++syncs;
-    if (f.id == 0x285) ++(f.extended ? tpdo2_ext : tpdo2_std);
-    if (f.id == 0x185 && !f.extended) ++tpdo1;
-    if (f.id == 0x205 && !f.extended) ++rpdo1;
+  std::size_t syncs = 0, tpdo2_frames = 0, tpdo1_frames = 0, rpdo1_frames = 0;
+  for (const auto& f : line.spy().frames()) {
+    if (f.extended) continue;
+    if (f.id == 0x080) ++syncs;
+    if (f.id == 0x285) ++tpdo2_frames;
+    if (f.id == 0x185) ++tpdo1_frames;
+    if (f.id == 0x205) ++rpdo1_frames;
   }
   EXPECT_GE(syncs, 40u);
-  EXPECT_EQ(tpdo2_std, 0u) << "TPDO2 moved to a 29-bit identifier";
-  EXPECT_NEAR(static_cast<double>(tpdo2_ext), syncs / 2.0, 3.0) << "TPDO2 after every 2nd SYNC";
+  EXPECT_NEAR(static_cast<double>(tpdo2_frames), syncs / 2.0, 3.0) << "TPDO2 after every 2nd SYNC";
   // TPDO1 carries the pulse counter, which changes at every SYNC: event-driven, it goes out at
   // most once per inhibit time of 50 ms, so about 20 a second instead of 50.
-  EXPECT_GE(tpdo1, 10u);
-  EXPECT_LE(tpdo1, 22u);
-  EXPECT_LT(tpdo1, syncs);
-  EXPECT_EQ(rpdo1, 0u) << "no set value changed in this second";
+  EXPECT_GE(tpdo1_frames, 10u);
+  EXPECT_LE(tpdo1_frames, 22u);
+  EXPECT_EQ(rpdo1_frames, 0u) << "no set value changed in this second";
 
   // A new set value: RPDO1 goes out at once, once.
-  spy.clear();
+  line.spy().clear();
   sp.request_id(2);
   sp.product_length_m(0.4);
   writer->write(sp);
   ASSERT_TRUE(results.wait_last(5s, [](const msg::SetpointResult& r) { return r.request_id() == 2 && r.accepted(); }));
   std::this_thread::sleep_for(300ms);
-  const auto sent = spy.frames(0x205);
-  ASSERT_EQ(sent.size(), 1u) << logs();
+  const auto sent = line.spy().frames(0x205);
+  ASSERT_EQ(sent.size(), 1u) << line.logs();
   EXPECT_EQ(sent[0].data[4], 0xA0);  // 0.4 m = 4000 = 0FA0h
   EXPECT_EQ(sent[0].data[5], 0x0F);
-  dds->reset();
-  EXPECT_EQ(bridge.stop(), 0) << logs();
+  EXPECT_EQ(line.bridge().stop(), 0) << line.logs();
+}
+
+// Puller 1.0: the text leaves its mappings CiA 301 rw. A line file that puts the product speed
+// first in TPDO2 gets it written with the CiA 301 sequence (sub 0 = 0, entries, sub 0 = 2), and
+// the puller's frames and the status decode by the new layout.
+TEST(PdoOverrides, RemappedTpdoIsWrittenToTheDeviceAndDecodes) {
+  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
+  lb::test::LineHarness line("remap", 7);
+  line.start("  - name: puller1\n"
+             "    bus: b\n"
+             "    node_id: 6\n"
+             "    profile: cia420-2\n"
+             "    version: '1.0'\n"
+             "    pdos:\n"
+             "      tpdo2: {mapping: [0x60080020, 0x60040010]}\n"
+             "    simulation: {max_speed_m_per_min: 30, acceleration_m_per_min_s: 600}\n");
+  lb::test::Collector<msg::PullerStatusPubSubType> status;
+  lb::test::Collector<msg::SetpointResultPubSubType> results;
+  ASSERT_TRUE(status.subscribe(line.dds(), line.topic("puller1", "status"), QosKind::state));
+  ASSERT_TRUE(results.subscribe(line.dds(), line.topic("puller1", "setpoint_result"), QosKind::reply));
+  auto writer = line.dds().writer<msg::PullerSetpointPubSubType>(line.topic("puller1", "setpoint"), QosKind::command);
+  ASSERT_TRUE(writer);
+  ASSERT_TRUE(status.wait_last(15s, [](const msg::PullerStatus& s) {
+    return s.health().online() && s.health().nmt_state() == msg::NMT_OPERATIONAL;
+  })) << line.logs();
+  ASSERT_TRUE(wait_matched(line, *writer, line.topic("puller1", "setpoint_result")));
+  EXPECT_EQ(line.read_unsigned("puller1", 0x1A01, 0, "UNSIGNED8"), 2u);
+  EXPECT_EQ(line.read_unsigned("puller1", 0x1A01, 1, "UNSIGNED32"), 0x60080020u);
+  EXPECT_EQ(line.read_unsigned("puller1", 0x1A01, 2, "UNSIGNED32"), 0x60040010u);
+
+  msg::PullerSetpoint sp;
+  sp.request_id(1);
+  sp.extruder_running(true);
+  sp.speed_set_percent(50);
+  writer->write(sp);
+  ASSERT_TRUE(results.wait_last(5s, [](const msg::SetpointResult& r) { return r.request_id() == 1 && r.accepted(); }));
+  ASSERT_TRUE(line.command("puller1", "motor_start").success()) << line.logs();
+  // 50 % of 30 m/min = 15 m/min (6008h: 150000 x 0.1 mm/min); the set echo 6004h is 50.00 %.
+  ASSERT_TRUE(status.wait_last(10s, [](const msg::PullerStatus& s) {
+    return s.product_speed_m_per_min() > 14.99 && s.product_speed_m_per_min() < 15.01 &&
+           s.speed_set_echo_percent() > 49.99 && s.speed_set_echo_percent() < 50.01;
+  })) << line.logs();
+  line.spy().clear();
+  std::this_thread::sleep_for(200ms);
+  const auto frames = line.spy().frames(0x286);
+  ASSERT_FALSE(frames.empty());
+  const auto& f = frames.back();
+  ASSERT_EQ(f.len, 6);
+  // Bytes 0..3 product speed 000249F0h, bytes 4..5 the set echo 1388h: the new order.
+  EXPECT_EQ(f.data[0], 0xF0);
+  EXPECT_EQ(f.data[1], 0x49);
+  EXPECT_EQ(f.data[2], 0x02);
+  EXPECT_EQ(f.data[3], 0x00);
+  EXPECT_EQ(f.data[4], 0x88);
+  EXPECT_EQ(f.data[5], 0x13);
 }

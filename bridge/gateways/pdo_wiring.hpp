@@ -1,0 +1,109 @@
+#pragma once
+// A device's PDOs on its bus loop, the same for every gateway: the TPDOs it sends (and, on a
+// monitor bus, the RPDOs a line controller sends it) handed to the gateway by PDO index; the
+// RPDOs the bridge sends from the codec's image by their transmission type, only while the device
+// may take them (master role); and the PDOs the device's boot left in use taken over before the
+// device is started (pdo_config: adopt, or a PDO the device does not have).
+// Codec: pdos() (each with `def`, the DevicePdo it decodes by), pack(i, out), use_pdo(i, DevicePdo).
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <cstddef>
+#include <functional>
+#include <memory>
+#include <span>
+#include <vector>
+
+#include "canopen/pdo_transmitter.hpp"
+#include "gateways/device_context.hpp"
+#include "gateways/pdo_specs.hpp"
+
+namespace lb::gateways {
+
+template <class Codec>
+class PdoWiring {
+ public:
+  using Receive = std::function<void(std::size_t pdo, const can::CanFrame& frame)>;
+  using Gate = std::function<bool()>;
+  struct Rpdo {
+    std::size_t pdo;  // index in the codec
+    std::unique_ptr<canopen::PdoTransmitter> transmitter;
+    bool valid_on_device = true;
+  };
+
+  // Before the loop starts. gate: the gateway's own condition for sending (besides the device's).
+  PdoWiring(const DeviceContext& ctx, Codec& codec, Receive receive, Gate gate = {})
+      : ctx_(ctx), codec_(codec), gate_(std::move(gate)) {
+    for (std::size_t i = 0; i < codec_.pdos().size(); ++i) {
+      const auto& pdo = *codec_.pdos()[i].def;
+      if (!pdo.enabled) continue;  // COB-ID bit 31: this PDO does not exist on the bus
+      if (pdo.direction == profiles::PdoDirection::tx || !ctx_.is_master()) {
+        const auto handler = [receive, i](const can::CanFrame& f) { receive(i, f); };
+        if (pdo.extended) ctx_.loop.on_extended_frame(pdo.can_id, handler);
+        else ctx_.loop.on_frame(pdo.can_id, handler);
+        continue;
+      }
+      const std::size_t k = rpdos_.size();
+      rpdos_.push_back({i, std::make_unique<canopen::PdoTransmitter>(
+                               ctx_.loop, settings(pdo),
+                               [this, i](can::CanFrame& f) { f.len = codec_.pack(i, std::span<std::uint8_t, 8>(f.data)); },
+                               [this, k] { return may_send(k); }, [this] { ++ctx_.node.stats().pdos_sent; })});
+    }
+    if (ctx_.is_master()) ctx_.node.on_pdos([this](std::span<const canopen::PdoInUse> pdos) { return use(pdos); });
+  }
+
+  // Loop thread.
+  void on_sync() {
+    for (auto& r : rpdos_) r.transmitter->on_sync();
+  }
+  void on_data() {
+    for (auto& r : rpdos_) r.transmitter->on_data();
+  }
+  void resend() {
+    for (auto& r : rpdos_) r.transmitter->resend();
+  }
+  std::vector<Rpdo>& rpdos() { return rpdos_; }
+
+ private:
+  static canopen::PdoTransmitter::Settings settings(const profiles::DevicePdo& p) {
+    return {p.can_id, p.extended, p.transmission_type, p.inhibit, p.event_timer};
+  }
+
+  bool may_send(std::size_t k) const {
+    return rpdos_[k].valid_on_device && ctx_.node.ready_for_pdos() && (!gate_ || gate_());
+  }
+
+  Result<void> use(std::span<const canopen::PdoInUse> pdos) {
+    for (const auto& found : pdos) {
+      for (std::size_t i = 0; i < codec_.pdos().size(); ++i) {
+        const auto& configured = *codec_.pdos()[i].def;
+        if (configured.name != found.name) continue;
+        const auto actual = in_use(configured, found.parameters);
+        const bool remapped = actual.mapping != configured.mapping;
+        if (auto r = codec_.use_pdo(i, actual); !r) return r;
+        if (remapped) {
+          spdlog::info("{}: {} decoded and sent by the device's own mapping ({} objects)", ctx_.device.name, found.name,
+                       actual.mapping.size());
+        }
+        for (auto& r : rpdos_) {
+          if (r.pdo != i) continue;
+          r.valid_on_device = actual.enabled;
+          const auto s = settings(actual);
+          const auto& old = r.transmitter->settings();
+          if (s.transmission_type != old.transmission_type || s.can_id != old.can_id || s.extended != old.extended) {
+            r.transmitter->reconfigure(s);
+          }
+        }
+      }
+    }
+    return {};
+  }
+
+  const DeviceContext& ctx_;
+  Codec& codec_;
+  Gate gate_;
+  std::vector<Rpdo> rpdos_;
+};
+
+}  // namespace lb::gateways
