@@ -87,10 +87,8 @@ class SimulatedNode {
   // node), with the hook that serves its writes. Throws std::runtime_error.
   void add_command(std::uint16_t index, canopen::DataType type, canopen::ObjectDictionary::WriteHook hook);
 
-  // Loop thread: an application event of a TPDO (see DevicePdos::event); the image changed
-  // outside a SYNC (event-driven TPDOs look).
+  // Loop thread: an application event of a TPDO (see DevicePdos::event).
   void event(std::string_view tpdo) { (void)pdos_.event(tpdo); }
-  void data_changed() { pdos_.data_changed(); }
   // EMCY on 1014h; the error register (1001h) becomes `error_register`.
   void send_emergency(std::uint16_t code, std::uint8_t error_register, std::array<std::uint8_t, 5> manufacturer);
 
