@@ -62,13 +62,15 @@ int main(int argc, char** argv) {
       if (dev.bus != bus_cfg.name || (!only.empty() && std::find(only.begin(), only.end(), dev.name) == only.end())) continue;
       on_bus.push_back(&dev);
       if (!play_devices) continue;
+      // A device the line file describes but no device could be (a factory mapping of objects it
+      // cannot map, ...) stops start-up: it fails at construction or at power-on.
       try {
         devices.push_back(lb::sim::make_simulator(*loop, dev));
+        devices.back()->start();
       } catch (const std::runtime_error& e) {
         spdlog::error("{}", e.what());
         return 1;
       }
-      devices.back()->start();
     }
     if (role != "devices" && !on_bus.empty()) {
       controllers.push_back(std::make_unique<lb::sim::LineController>(*loop, bus_cfg, on_bus));

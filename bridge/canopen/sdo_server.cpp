@@ -61,7 +61,7 @@ Result<void> ObjectDictionary::add(std::uint16_t index, std::uint8_t sub, DataTy
     return make_error(fmt::format("{:04X}h:{:02X}: {} takes {} bytes, the initial value has {}", index, sub,
                                   to_string(type), size, value.size()));
   }
-  entries_[key(index, sub)] = Entry{type, access, std::move(value), min, max, {}};
+  entries_[key(index, sub)] = Entry{type, access, std::move(value), min, max, {}, {}, false};
   return {};
 }
 
@@ -69,6 +69,20 @@ Result<void> ObjectDictionary::set_on_write(std::uint16_t index, std::uint8_t su
   auto it = entries_.find(key(index, sub));
   if (it == entries_.end()) return make_error(fmt::format("{:04X}h:{:02X}: no such object", index, sub));
   it->second.on_write = std::move(hook);
+  return {};
+}
+
+Result<void> ObjectDictionary::set_on_read(std::uint16_t index, std::uint8_t sub, ReadHook hook) {
+  auto it = entries_.find(key(index, sub));
+  if (it == entries_.end()) return make_error(fmt::format("{:04X}h:{:02X}: no such object", index, sub));
+  it->second.on_read = std::move(hook);
+  return {};
+}
+
+Result<void> ObjectDictionary::ignore_writes(std::uint16_t index, std::uint8_t sub) {
+  auto it = entries_.find(key(index, sub));
+  if (it == entries_.end()) return make_error(fmt::format("{:04X}h:{:02X}: no such object", index, sub));
+  it->second.ignore_writes = true;
   return {};
 }
 
@@ -102,6 +116,7 @@ Result<ObjectDictionary::Bytes, std::uint32_t> ObjectDictionary::read(std::uint1
   auto e = lookup(index, sub);
   if (!e) return e.error();
   if ((*e)->access == ObjectAccess::wo) return sdo_abort::read_of_write_only;
+  if ((*e)->on_read) return (*e)->on_read();
   return (*e)->value;
 }
 
@@ -119,6 +134,7 @@ Result<void, std::uint32_t> ObjectDictionary::write(std::uint16_t index, std::ui
                                                     std::span<const std::uint8_t> value) {
   if (auto ok = check_write(index, sub, value.size()); !ok) return ok.error();
   Entry& e = entries_.at(key(index, sub));
+  if (e.ignore_writes) return {};
   if (auto code = out_of_range(e, value)) return *code;
   if (e.on_write) {
     if (auto code = e.on_write(value)) return *code;
@@ -138,6 +154,7 @@ struct SdoServer::Core {
   ObjectDictionary od;
   // Set by the destructor, which may run on another thread once the loop stopped.
   std::atomic<bool> closed{false};
+  std::function<bool()> answering;  // loop thread
 
   // The one transfer a server has at a time (CiA 301): loop thread only.
   Mode mode = Mode::idle;
@@ -183,6 +200,10 @@ struct SdoServer::Core {
 
   void on_request(const can::CanFrame& f) {
     if (closed.load()) return;
+    if (answering && !answering()) {
+      mode = Mode::idle;  // silent: whatever was in progress is lost, as the client will see
+      return;
+    }
     const std::uint8_t cmd = f.data[0];
     const unsigned ccs = cmd >> 5;
     // Initiate, abort and unknown requests carry the multiplexor; segments refer to the transfer.
@@ -291,6 +312,8 @@ SdoServer::SdoServer(BusLoop& loop, std::uint8_t node_id, ObjectDictionary dicti
 SdoServer::~SdoServer() { core_->closed.store(true); }
 
 std::uint8_t SdoServer::node_id() const { return core_->node; }
+void SdoServer::set_gate(std::function<bool()> answering) { core_->answering = std::move(answering); }
+void SdoServer::reset() { core_->mode = Core::Mode::idle; }
 ObjectDictionary& SdoServer::dictionary() { return core_->od; }
 const ObjectDictionary& SdoServer::dictionary() const { return core_->od; }
 

@@ -1,6 +1,7 @@
 #pragma once
 // The device side of SDO, for the simulators: an object dictionary and a server that answers
 // expedited and segmented uploads and downloads of it on 600h+n / 580h+n, with CiA 301 aborts.
+// A device whose state forbids SDO (NMT stopped) closes the server's gate: it then answers nothing.
 
 #include <cstdint>
 #include <functional>
@@ -24,6 +25,9 @@ class ObjectDictionary {
   // Runs for an SDO write that passed the type and range checks, before it is stored: an abort code
   // refuses it (e.g. 08000022h, not in the present device state), nullopt accepts it.
   using WriteHook = std::function<std::optional<std::uint32_t>(std::span<const std::uint8_t> value)>;
+  // Serves an SDO read with the application's current value (sdo_size(type) bytes for fixed-size
+  // types), for values the application keeps elsewhere; the stored value is then not used.
+  using ReadHook = std::function<Bytes()>;
 
   struct Entry {
     DataType type = DataType::unsigned8;
@@ -32,6 +36,8 @@ class ObjectDictionary {
     std::optional<std::int64_t> min;  // raw limits for SDO writes (compared as the type's value)
     std::optional<std::int64_t> max;
     WriteHook on_write;
+    ReadHook on_read;
+    bool ignore_writes = false;
   };
 
   // Adds an entry or replaces it. An empty value of a fixed-size type is all zero bytes; a value of
@@ -39,7 +45,11 @@ class ObjectDictionary {
   Result<void> add(std::uint16_t index, std::uint8_t sub, DataType type, ObjectAccess access, Bytes value = {},
                    std::optional<std::int64_t> min = {}, std::optional<std::int64_t> max = {});
   Result<void> set_on_write(std::uint16_t index, std::uint8_t sub, WriteHook hook);
+  Result<void> set_on_read(std::uint16_t index, std::uint8_t sub, ReadHook hook);
+  // A faulty device: an SDO write the access allows is confirmed, then neither checked nor kept.
+  Result<void> ignore_writes(std::uint16_t index, std::uint8_t sub);
 
+  // The entry's description; its `value` is stale for entries served by a read hook.
   const Entry* find(std::uint16_t index, std::uint8_t sub) const;
   // The application's own access: no access rights, limits or hook; only the size is checked.
   Result<void> set(std::uint16_t index, std::uint8_t sub, Bytes value);
@@ -70,6 +80,11 @@ class SdoServer {
   SdoServer& operator=(const SdoServer&) = delete;
 
   std::uint8_t node_id() const;
+  // Loop thread (or before the loop starts): while `answering` returns false, requests get no
+  // answer at all (a master's transfer times out) and a transfer in progress is forgotten.
+  void set_gate(std::function<bool()> answering);
+  // Loop thread: forgets a transfer in progress (the device's communication was reset).
+  void reset();
   // The device's values: loop thread only, once the loop runs.
   ObjectDictionary& dictionary();
   const ObjectDictionary& dictionary() const;

@@ -1,8 +1,10 @@
 #include "sim/device_dictionary.hpp"
 
+#include <algorithm>
 #include <stdexcept>
 
 #include "canopen/object_value.hpp"
+#include "sim/pdo_parameters.hpp"
 
 namespace lb::sim {
 
@@ -34,7 +36,21 @@ void add(canopen::ObjectDictionary& od, std::uint16_t index, std::uint8_t sub, D
   }
 }
 
+bool has_manufacturer_entries(const profiles::Profile& profile, profiles::PdoDirection direction) {
+  return std::any_of(profile.pdos.begin(), profile.pdos.end(), [direction](const profiles::PdoDef& p) {
+    return p.direction == direction && (p.rules.manufacturer_entries > 0 || p.manufacturer_data);
+  });
+}
+
 }  // namespace
+
+std::uint32_t product_code(std::string_view device_type) {
+  if (device_type == "puller") return 0x0420'0002;
+  if (device_type == "corrugator") return 0x0420'0003;
+  if (device_type == "saw") return 0x0420'0004;
+  if (device_type == "feeder") return 0x0414'0002;
+  return 0;
+}
 
 std::string simulated_device_name(const profiles::DeviceConfig& device, const profiles::Profile& profile) {
   return "linebridge simulated " + profile.device + " " + device.name + " (" + profile.id + " version " + profile.version + ")";
@@ -52,39 +68,29 @@ canopen::ObjectDictionary make_device_dictionary(const profiles::DeviceConfig& d
     }
   }
 
-  add(od, 0x1000, 0, DataType::unsigned32, ObjectAccess::ro, std::uint64_t{profile.device_type});
+  const auto& id = device.simulation.identity;
+  add(od, 0x1000, 0, DataType::unsigned32, ObjectAccess::ro, std::uint64_t{id.device_type.value_or(profile.device_type)});
   add(od, 0x1001, 0, DataType::unsigned8, ObjectAccess::ro, std::uint64_t{0});
+  add(od, 0x1005, 0, DataType::unsigned32, ObjectAccess::ro, std::uint64_t{canopen::cob::sync});
   add(od, 0x1008, 0, DataType::visible_string, ObjectAccess::const_, simulated_device_name(device, profile));
   add(od, 0x1009, 0, DataType::visible_string, ObjectAccess::const_, std::string("sim-1"));
   add(od, 0x100A, 0, DataType::visible_string, ObjectAccess::const_, std::string("linebridge-sim 0.1"));
+  add(od, 0x1014, 0, DataType::unsigned32, ObjectAccess::ro, std::uint64_t{canopen::cob::emcy_base + device.node_id});
   add(od, 0x1017, 0, DataType::unsigned16, ObjectAccess::rw,
       static_cast<std::uint64_t>(device.simulation.heartbeat_period.count()));
-  // Manufacturer-specific: a free text the line can store in the device (segmented both ways).
-  add(od, 0x2000, 0, DataType::visible_string, ObjectAccess::rw, std::string());
   add(od, 0x1018, 0, DataType::unsigned8, ObjectAccess::const_, std::uint64_t{4});
-  add(od, 0x1018, 1, DataType::unsigned32, ObjectAccess::ro, std::uint64_t{0x4C42'0000});  // "LB"
-  add(od, 0x1018, 2, DataType::unsigned32, ObjectAccess::ro, std::uint64_t{profile.device_type});
-  add(od, 0x1018, 3, DataType::unsigned32, ObjectAccess::ro, std::uint64_t{0x0001'0000});
-  add(od, 0x1018, 4, DataType::unsigned32, ObjectAccess::ro, std::uint64_t{0x5100'0000U + device.node_id});
-
-  // PDO parameters as CiA 301 lays them out: RPDOn at 1400h/1600h, TPDOn at 1800h/1A00h.
-  std::uint16_t rx = 0, tx = 0;
-  for (const auto& pdo : profile.pdos) {
-    const bool is_tx = pdo.direction == profiles::PdoDirection::tx;
-    const std::uint16_t n = is_tx ? tx++ : rx++;
-    const std::uint16_t comm = static_cast<std::uint16_t>((is_tx ? 0x1800 : 0x1400) + n);
-    const std::uint16_t map = static_cast<std::uint16_t>((is_tx ? 0x1A00 : 0x1600) + n);
-    const std::uint64_t cob_id = (is_tx ? 0x4000'0000U : 0U) | pdo.cob_id(device.node_id);
-    add(od, comm, 0, DataType::unsigned8, ObjectAccess::const_, std::uint64_t{5});
-    add(od, comm, 1, DataType::unsigned32, ObjectAccess::rw, cob_id);
-    add(od, comm, 2, DataType::unsigned8, ObjectAccess::rw, std::uint64_t{pdo.transmission_type});
-    add(od, comm, 3, DataType::unsigned16, ObjectAccess::rw, std::uint64_t{0});
-    add(od, comm, 5, DataType::unsigned16, ObjectAccess::rw, std::uint64_t{0});
-    add(od, map, 0, DataType::unsigned8, ObjectAccess::rw, std::uint64_t{pdo.mapping.size()});
-    for (std::size_t i = 0; i < pdo.mapping.size(); ++i) {
-      add(od, map, static_cast<std::uint8_t>(i + 1), DataType::unsigned32, ObjectAccess::rw,
-          std::uint64_t{pdo.mapping[i].to_u32()});
-    }
+  add(od, 0x1018, 1, DataType::unsigned32, ObjectAccess::ro, std::uint64_t{id.vendor_id.value_or(0x4C42'0000)});  // "LB"
+  add(od, 0x1018, 2, DataType::unsigned32, ObjectAccess::ro, std::uint64_t{id.product_code.value_or(product_code(profile.device))});
+  add(od, 0x1018, 3, DataType::unsigned32, ObjectAccess::ro, std::uint64_t{id.revision.value_or(0x0001'0000)});
+  add(od, 0x1018, 4, DataType::unsigned32, ObjectAccess::ro,
+      std::uint64_t{id.serial_number.value_or(0x5100'0000U + device.node_id)});
+  add(od, kDeviceText, 0, DataType::visible_string, ObjectAccess::rw, std::string());
+  add(od, kSimulationControl, 0, DataType::unsigned8, ObjectAccess::wo, std::uint64_t{0});
+  if (has_manufacturer_entries(profile, profiles::PdoDirection::tx)) {
+    add(od, kSecondStatusWord, 0, DataType::unsigned16, ObjectAccess::ro, std::uint64_t{0});
+  }
+  if (has_manufacturer_entries(profile, profiles::PdoDirection::rx)) {
+    add(od, kSecondControlWord, 0, DataType::unsigned16, ObjectAccess::rw, std::uint64_t{0});
   }
   return od;
 }

@@ -1,14 +1,37 @@
 #pragma once
-// The object dictionary a simulated device serves by SDO: every object of its profile, plus the
-// CiA 301 communication objects a master reads or writes (device type, identity, names, heartbeat
-// time, PDO communication and mapping parameters).
+// The object dictionary of a simulated device, as it comes out of power-on: every object of its
+// profile, the CiA 301 communication objects a master reads or writes, the identity, and the
+// manufacturer-specific objects below. The PDO parameters (1400h..1BFFh) are added by DevicePdos,
+// which owns their values; SimulatedNode serves the process values from its image.
+//
+//   1000h  device type: the profile's, or simulation.identity.device_type
+//   1001h  error register          1005h  COB-ID SYNC 0000 0080h      1014h  COB-ID EMCY 80h + node-ID
+//   1008h/1009h/100Ah  device name, hardware and software version (visible strings)
+//   1017h  heartbeat producer time, power-on value simulation.heartbeat_period_ms (0: none)
+//   1018h  identity, sub 0 = 4; each value replaced by simulation.identity where given:
+//          vendor-ID 4C42 0000h ("LB"), product code by device type (see product_code()),
+//          revision 0001 0000h, serial number 5100 0000h + node-ID
+//   2000h  VISIBLE_STRING rw: a free text the line can store in the device (segmented both ways)
+//   2002h  UNSIGNED8 wo: simulation control, 1 = reset node, 2 = reset communication, both
+//          without the boot-up message (simulated_node.hpp)
+//   2110h  UNSIGNED16 ro: second status word, where a TPDO has a manufacturer-specific entry
+//   2111h  UNSIGNED16 rw: second control word, where an RPDO has a manufacturer-specific entry
 
+#include <cstdint>
 #include <string>
+#include <string_view>
 
 #include "canopen/sdo_server.hpp"
 #include "profiles/line_config.hpp"
 
 namespace lb::sim {
+
+inline constexpr std::uint16_t kDeviceText = 0x2000;
+inline constexpr std::uint16_t kSimulationControl = 0x2002;
+
+// The simulator's product codes (1018h sub 2): 0420 0002h puller, 0420 0003h corrugator,
+// 0420 0004h saw (CiA 420 part number in the high word), 0414 0002h feeder; 0 for other types.
+std::uint32_t product_code(std::string_view device_type);
 
 // Throws std::runtime_error (start-up) on a profile the dictionary cannot represent.
 canopen::ObjectDictionary make_device_dictionary(const profiles::DeviceConfig& device, const profiles::Profile& profile);

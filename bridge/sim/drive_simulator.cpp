@@ -25,7 +25,7 @@ std::uint64_t raw16(double value) { return static_cast<std::uint64_t>(static_cas
 DriveSimulator::DriveSimulator(canopen::BusLoop& loop, const profiles::DeviceConfig& device, const profiles::Profile& profile)
     : device_(device),
       profile_(profile),
-      node_(loop, device, profile, {[this] { reset(); }, [this](double dt) { step(dt); }}) {
+      node_(loop, device, profile, {[this] { reset(); }, [this](double dt) { step(dt); }, {}, {}}) {
   const std::string d = profile_.device;  // "puller" or "corrugator": the object name prefix
   status_word_ = node_.slot("status_word");
   control_word_ = node_.slot("control_word");
@@ -61,7 +61,6 @@ DriveSimulator::DriveSimulator(canopen::BusLoop& loop, const profiles::DeviceCon
     }
   }
   add_local_objects();
-  node_.reset();
 }
 
 DriveSimulator::Switch DriveSimulator::make_switch(const std::string& on, const std::string& off, const std::string& running,
@@ -75,30 +74,15 @@ DriveSimulator::Switch DriveSimulator::make_switch(const std::string& on, const 
 }
 
 void DriveSimulator::add_local_objects() {
-  auto& od = node_.dictionary();
-  const auto add = [&od, this](std::uint16_t index, canopen::DataType type, std::optional<std::int64_t> min,
-                               std::optional<std::int64_t> max, canopen::ObjectDictionary::WriteHook hook) {
-    if (auto r = od.add(index, 0, type, canopen::ObjectAccess::rw, {}, min, max); !r) {
-      throw std::runtime_error(device_.name + ": " + r.error().message);
-    }
-    (void)od.set_on_write(index, 0, std::move(hook));
-  };
-  add(kLocalModeIndex, canopen::DataType::unsigned8, 0, 1, [this](std::span<const std::uint8_t> v) -> std::optional<std::uint32_t> {
-    local_mode_ = v[0] != 0;
-    spdlog::info("sim {}: {} mode", device_.name, local_mode_ ? "local" : "remote");
+  local_mode_ = node_.add_object(kLocalModeIndex, canopen::DataType::unsigned8, canopen::ObjectAccess::rw, 0, 1);
+  local_speed_ = node_.add_object(kLocalSpeedIndex, canopen::DataType::integer16, canopen::ObjectAccess::rw, -10000, 10000);
+  node_.check_writes(kLocalModeIndex, 0, [this](std::span<const std::uint8_t> v) -> std::optional<std::uint32_t> {
+    spdlog::info("sim {}: {} mode", device_.name, v[0] != 0 ? "local" : "remote");
     return std::nullopt;
   });
-  add(kLocalSpeedIndex, canopen::DataType::integer16, -10000, 10000,
-      [this](std::span<const std::uint8_t> v) -> std::optional<std::uint32_t> {
-        local_speed_ = static_cast<std::int16_t>(v[0] | v[1] << 8);
-        return std::nullopt;
-      });
 }
 
-void DriveSimulator::start() {
-  spdlog::info("sim {}: {} node {} booting ({})", device_.name, profile_.device, device_.node_id, profile_.key());
-  node_.boot();
-}
+void DriveSimulator::start() { node_.boot(); }
 
 void DriveSimulator::reset() {
   auto& image = node_.image();
@@ -115,8 +99,6 @@ void DriveSimulator::reset() {
   drive_.running = clamp_.running = false;
   for (auto& f : functions_) f.running = false;
   last_cw_ = 0;
-  local_mode_ = false;
-  local_speed_ = 0;
   speed_percent_ = 0;
   product_since_cut_m_ = 0;
   step(0.0);  // status, echo and values consistent before the first SYNC
@@ -137,7 +119,8 @@ void DriveSimulator::step(double dt_s) {
   last_cw_ = cw;
 
   // The speed ramps to the set value in force (remote: 6002h, local: 2101h) while the drive runs.
-  const std::int64_t set = local_mode_ ? local_speed_ : canopen::sign_extend(image.get(speed_set_), 16);
+  const bool local = image.get(local_mode_) != 0;
+  const std::int64_t set = canopen::sign_extend(image.get(local ? local_speed_ : speed_set_), 16);
   const double target = drive_.running ? static_cast<double>(set) / 100.0 : 0.0;
   const double max_mm_per_min = static_cast<double>(image.get(speed_set_max_));  // 6003h, settable by SDO
   const double max_delta = max_mm_per_min > 0
@@ -158,7 +141,7 @@ void DriveSimulator::step(double dt_s) {
                      flag(clamp_.running, clamp_.running_bit) | flag(speed_percent_ < 0, sw_reverse_) |
                      flag(drive_.running, sw_master_extruder_enabled_) | flag(now < cut_pulse_until_, sw_cut_pulse_);
   for (const auto& f : functions_) sw |= flag(f.running, f.running_bit) | flag(!has(cw, f.off_button), f.ready_bit);
-  const auto mode = local_mode_ ? mode_local_ : mode_remote_;
+  const auto mode = local ? mode_local_ : mode_remote_;
   if (mode) sw = (sw & ~mode_mask_) | *mode;
 
   image.set(status_word_, sw);

@@ -10,6 +10,7 @@
 //   2101h INTEGER16  local speed set value, 0.01 %, -10000..10000
 // In local mode the device runs and echoes (6004h) the local set value, as CiA 420-2 3.0 says a
 // puller in local mode does; a profile with a speed set mode bit (3.0 status word) reports it.
+// Both are process values of the device: reset node clears them, a master may map them.
 
 #include <chrono>
 #include <cstdint>
@@ -55,9 +56,9 @@ class DriveSimulator : public DeviceSimulator {
   std::optional<std::uint64_t> mode_remote_, mode_local_;  // 3.0 status word: speed set mode codes
   std::uint64_t mode_mask_ = 0;
 
+  std::size_t local_mode_, local_speed_;  // 2100h, 2101h in the node's image
+
   std::uint64_t last_cw_ = 0;
-  bool local_mode_ = false;
-  std::int16_t local_speed_ = 0;  // 0.01 %
   double speed_percent_ = 0;
   double product_since_cut_m_ = 0;
   Clock::time_point cut_pulse_until_{};

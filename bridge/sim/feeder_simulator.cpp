@@ -2,15 +2,13 @@
 
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <stdexcept>
 
 #include "canopen/sdo_abort.hpp"
 #include "sim/device_dictionary.hpp"
 
 namespace lb::sim {
-
-using canopen::NmtState;
-using profiles::PdoDirection;
 
 namespace {
 
@@ -41,39 +39,14 @@ FeederSimulator::FeederSimulator(canopen::BusLoop& loop, const profiles::DeviceC
     : loop_(loop),
       device_(device),
       profile_(profile),
-      nmt_(loop, device.node_id, device.simulation.heartbeat_period, [this] { reset_application(); }),
-      sdo_(loop, device.node_id, make_device_dictionary(device, profile)) {
-  loom_status_ = image_.slot(object("loom_status").index);
-  unwinding_time_ = image_.slot(object("feeder_unwinding_time").index);
-  for (const auto& pdo : device_.pdos) {
-    if (!pdo.enabled) continue;
-    for (const auto& e : pdo.mapping) {
-      if (!e.is_dummy()) image_.slot(e.index, e.sub);
-    }
-  }
-  for (const auto& pdo : device_.pdos) {
-    auto mapping = canopen::PdoMapping::create(pdo.mapping);
-    if (!mapping) throw std::runtime_error(device_.name + " " + pdo.name + ": " + mapping.error().message);
-    if (!pdo.enabled) continue;
-    if (pdo.direction == PdoDirection::tx) {
-      if (tpdo1_) continue;  // the profile has one TPDO (6010h)
-      tpdo1_binding_ = std::make_unique<canopen::PdoBinding>(std::move(*mapping), image_);
-      tpdo1_ = std::make_unique<canopen::PdoTransmitter>(
-          loop_, canopen::PdoTransmitter::Settings{pdo.can_id, pdo.extended, pdo.transmission_type, pdo.inhibit, pdo.event_timer},
-          [this](can::CanFrame& f) { f.len = tpdo1_binding_->pack_from(image_, std::span<std::uint8_t, 8>(f.data)); },
-          [this] { return nmt_.state() == NmtState::operational; });
-      continue;
-    }
-    const std::size_t i = rpdos_.size();
-    rpdos_.emplace_back(std::move(*mapping), image_);
-    const auto handler = [this, i](const can::CanFrame& f) { on_rpdo(i, f); };
-    if (pdo.extended) loop_.on_extended_frame(pdo.can_id, handler);
-    else loop_.on_frame(pdo.can_id, handler);
-  }
+      node_(loop, device, profile,
+            // CiA 414-2 4.6: "At each winding inserted the pre-measuring feeder transmits this TPDO."
+            {[this] { reset(); }, {}, [this](std::span<const canopen::PdoEntry> mapped) { on_rpdo(mapped); }, {"tpdo1"}}) {
+  loom_status_ = node_.slot("loom_status");
+  unwinding_time_ = node_.slot("feeder_unwinding_time");
+  add_objects();
   unwind_timer_ = loop_.create_timer([this] { unwind(); });
   loop_.arm_timer(unwind_timer_, kWindingPeriod, kWindingPeriod);
-  link_dictionary();
-  reset_application();
 }
 
 const profiles::ObjectDef& FeederSimulator::object(std::string_view name) const {
@@ -88,27 +61,14 @@ const profiles::BitSet& FeederSimulator::bitset(std::string_view name) const {
   return *set;
 }
 
-std::uint64_t FeederSimulator::get(std::uint16_t index, std::uint8_t sub) const {
-  const auto* e = sdo_.dictionary().find(index, sub);
-  return e == nullptr ? 0 : little_endian(e->value);
-}
-
-void FeederSimulator::put(std::uint16_t index, std::uint8_t sub, std::uint64_t raw) {
-  const auto* e = sdo_.dictionary().find(index, sub);
-  if (e == nullptr) return;
-  std::vector<std::uint8_t> bytes(e->value.size());
-  for (std::size_t i = 0; i < bytes.size(); ++i) bytes[i] = static_cast<std::uint8_t>(raw >> (8 * i));
-  (void)sdo_.dictionary().set(index, sub, std::move(bytes));
-}
-
 void FeederSimulator::start() {
-  spdlog::info("sim {}: feeder control box node {} with {} feeders booting ({}); fault injection: SDO write {:04X}h",
-               device_.name, device_.node_id, kFeeders, profile_.key(), kFaultInjection);
-  nmt_.boot();
+  spdlog::info("sim {}: feeder control box with {} feeders; fault injection: SDO write {:04X}h", device_.name, kFeeders,
+               kFaultInjection);
+  node_.boot();
 }
 
-void FeederSimulator::reset_application() {
-  for (const auto* array : kPerFeeder) put(object(std::string(array) + "_count").index, 0, kFeeders);
+void FeederSimulator::reset() {
+  for (const auto* array : kPerFeeder) node_.set(object(std::string(array) + "_count").index, 0, kFeeders);
   const auto operational = code_of(object("feeder_status_1"), "operational_mode");
   // Plausible functions: brush release and yarn quality not available, S winding, the rest off or
   // not active except the yarn break sensor.
@@ -125,11 +85,11 @@ void FeederSimulator::reset_application() {
   }
   for (unsigned n = 1; n <= kFeeders; ++n) {
     const auto sub = static_cast<std::uint8_t>(n);
-    put(object("feeder_status_1").index, sub, operational);
-    put(object("feeder_error_condition_1").index, sub, 0);
-    put(object("feeder_functions_1").index, sub, functions);
-    put(object("system_feeder_number_assignment_1").index, sub, n);  // spec defaults: 01h, 02h, ...
-    put(object("feeder_color_assignment_1").index, sub, n);
+    node_.set(object("feeder_status_1").index, sub, operational);
+    node_.set(object("feeder_error_condition_1").index, sub, 0);
+    node_.set(object("feeder_functions_1").index, sub, functions);
+    node_.set(object("system_feeder_number_assignment_1").index, sub, n);  // spec defaults: 01h, 02h, ...
+    node_.set(object("feeder_color_assignment_1").index, sub, n);
   }
   const auto& sources = bitset("trigger_sources_supported");
   std::uint64_t supported = 0;
@@ -137,37 +97,30 @@ void FeederSimulator::reset_application() {
     if (auto b = sources.bit(name)) supported |= std::uint64_t{1} << *b;
   }
   const auto& supported_obj = object("trigger_sources_supported");
-  put(supported_obj.index, supported_obj.sub, supported);
-  put(object("trigger_sources_selected").index, object("trigger_sources_selected").sub, 0x01);  // spec default
-  put(object("trigger_signal_source_count").index, 0, 2);
-  put(object("pick_insertion_count").index, 0, 5);
+  node_.set(supported_obj.index, supported_obj.sub, supported);
+  node_.set(object("trigger_sources_selected").index, object("trigger_sources_selected").sub, 0x01);  // spec default
+  node_.set(object("trigger_signal_source_count").index, 0, 2);
+  node_.set(object("pick_insertion_count").index, 0, 5);
   bitmap_ = 0;
   loom_running_ = false;
-  image_.set(loom_status_, 0);
-  image_.set(unwinding_time_, 0);
+  node_.image().set(loom_status_, 0);
+  node_.image().set(unwinding_time_, 0);
 }
 
-void FeederSimulator::link_dictionary() {
-  auto& od = sdo_.dictionary();
-  if (auto r = od.add(kFaultInjection, 0, canopen::DataType::unsigned16, canopen::ObjectAccess::rw); !r) {
-    throw std::runtime_error(device_.name + ": " + r.error().message);
-  }
-  (void)od.set_on_write(kFaultInjection, 0, [this](std::span<const std::uint8_t> v) { return on_fault_injection(little_endian(v)); });
+void FeederSimulator::add_objects() {
+  node_.add_command(kFaultInjection, canopen::DataType::unsigned16,
+                    [this](std::span<const std::uint8_t> v) { return on_fault_injection(little_endian(v)); });
   for (unsigned n = 1; n <= kFeeders; ++n) {
     const auto sub = static_cast<std::uint8_t>(n);
-    (void)od.set_on_write(object("feeder_command_1").index, sub,
-                          [this, n](std::span<const std::uint8_t> v) { return on_command(n, little_endian(v)); });
-    (void)od.set_on_write(object("feeder_functions_1").index, sub,
-                          [this, n](std::span<const std::uint8_t> v) { return on_functions(n, little_endian(v)); });
+    node_.check_writes(object("feeder_command_1").index, sub,
+                       [this, n](std::span<const std::uint8_t> v) { return on_command(n, little_endian(v)); });
+    node_.check_writes(object("feeder_functions_1").index, sub,
+                       [this, n](std::span<const std::uint8_t> v) { return on_functions(n, little_endian(v)); });
   }
   const auto& selected = object("trigger_sources_selected");
   const auto& supported = object("trigger_sources_supported");
-  (void)od.set_on_write(selected.index, selected.sub, [this, &supported](std::span<const std::uint8_t> v) -> std::optional<std::uint32_t> {
-    if ((little_endian(v) & ~get(supported.index, supported.sub)) != 0) return canopen::sdo_abort::value_range_exceeded;
-    return std::nullopt;
-  });
-  (void)od.set_on_write(0x1017, 0, [this](std::span<const std::uint8_t> v) -> std::optional<std::uint32_t> {
-    nmt_.set_heartbeat_period(std::chrono::milliseconds(v[0] | v[1] << 8));
+  node_.check_writes(selected.index, selected.sub, [this, &supported](std::span<const std::uint8_t> v) -> std::optional<std::uint32_t> {
+    if ((little_endian(v) & ~node_.get(supported.index, supported.sub)) != 0) return canopen::sdo_abort::value_range_exceeded;
     return std::nullopt;
   });
 }
@@ -193,15 +146,15 @@ std::optional<std::uint32_t> FeederSimulator::on_command(unsigned feeder, std::u
   if (!cmd.values.name(command)) return canopen::sdo_abort::value_range_exceeded;  // 60h..FFh reserved
   if (command == code_of(cmd, "reset")) {
     clear(feeder);
-    put(status.index, sub, code_of(status, "operational_mode"));
+    node_.set(status.index, sub, code_of(status, "operational_mode"));
   } else if ((bitmap_ >> (feeder - 1) & 1U) != 0) {
     return canopen::sdo_abort::cannot_store_device_state;  // a feeder in error takes only reset
   } else if (command == code_of(cmd, "operation_mode")) {
-    put(status.index, sub, code_of(status, "operational_mode"));
+    node_.set(status.index, sub, code_of(status, "operational_mode"));
   } else if (command == code_of(cmd, "non_operation_mode") || command == code_of(cmd, "stop_mode")) {
-    put(status.index, sub, code_of(status, "non_operational_mode"));
+    node_.set(status.index, sub, code_of(status, "non_operational_mode"));
   } else if (command == code_of(cmd, "start")) {
-    put(status.index, sub, code_of(status, "filling_up_to_maximum_sensor"));
+    node_.set(status.index, sub, code_of(status, "filling_up_to_maximum_sensor"));
   }
   spdlog::info("sim {}: feeder {} command {:02X}h ({})", device_.name, feeder, command, *cmd.values.name(command));
   return std::nullopt;
@@ -209,7 +162,7 @@ std::optional<std::uint32_t> FeederSimulator::on_command(unsigned feeder, std::u
 
 std::optional<std::uint32_t> FeederSimulator::on_functions(unsigned feeder, std::uint64_t word) {
   // "Only those functions and sensors that are marked as supported can be changed."
-  const std::uint64_t current = get(object("feeder_functions_1").index, static_cast<std::uint8_t>(feeder));
+  const std::uint64_t current = node_.get(object("feeder_functions_1").index, static_cast<std::uint8_t>(feeder));
   for (const auto& f : bitset("feeder_functions").bits) {
     const auto now = f.extract(current), wanted = f.extract(word);
     if (!f.values.name(wanted)) return canopen::sdo_abort::value_range_exceeded;
@@ -222,8 +175,8 @@ void FeederSimulator::raise(unsigned feeder, std::uint64_t condition) {
   const auto sub = static_cast<std::uint8_t>(feeder);
   const auto& status = object("feeder_status_1");
   // The first error of a feeder is its main error: a second one does not replace it.
-  if ((bitmap_ >> (feeder - 1) & 1U) == 0) put(object("feeder_error_condition_1").index, sub, condition);
-  put(status.index, sub, code_of(status, "error_mode"));
+  if ((bitmap_ >> (feeder - 1) & 1U) == 0) node_.set(object("feeder_error_condition_1").index, sub, condition);
+  node_.set(status.index, sub, code_of(status, "error_mode"));
   bitmap_ |= 1U << (feeder - 1);
   spdlog::info("sim {}: feeder {} fault {:02X}h injected: EMCY FF10h bitmap {:08X}h", device_.name, feeder, condition, bitmap_);
   send_emergency(0xFF10, bitmap_);
@@ -233,8 +186,8 @@ void FeederSimulator::clear(unsigned feeder) {
   if ((bitmap_ >> (feeder - 1) & 1U) == 0) return;
   const auto sub = static_cast<std::uint8_t>(feeder);
   const auto& status = object("feeder_status_1");
-  put(object("feeder_error_condition_1").index, sub, 0);
-  put(status.index, sub, code_of(status, "operational_mode"));
+  node_.set(object("feeder_error_condition_1").index, sub, 0);
+  node_.set(status.index, sub, code_of(status, "operational_mode"));
   bitmap_ &= ~(1U << (feeder - 1));
   spdlog::info("sim {}: feeder {} fault cleared: EMCY FF10h bitmap {:08X}h", device_.name, feeder, bitmap_);
   send_emergency(0xFF10, bitmap_);
@@ -242,25 +195,17 @@ void FeederSimulator::clear(unsigned feeder) {
 }
 
 void FeederSimulator::send_emergency(std::uint16_t code, std::uint32_t bitmap) {
-  const std::uint8_t reg = bitmap != 0 ? kErrorRegisterGeneric : 0;
-  put(0x1001, 0, reg);
-  (void)loop_.send(can::make_frame(canopen::cob::emcy_base + device_.node_id,
-                                   {static_cast<std::uint8_t>(code), static_cast<std::uint8_t>(code >> 8), reg,
-                                    static_cast<std::uint8_t>(bitmap), static_cast<std::uint8_t>(bitmap >> 8),
-                                    static_cast<std::uint8_t>(bitmap >> 16), static_cast<std::uint8_t>(bitmap >> 24), 0}));
+  node_.send_emergency(code, bitmap != 0 ? kErrorRegisterGeneric : 0,
+                       {static_cast<std::uint8_t>(bitmap), static_cast<std::uint8_t>(bitmap >> 8),
+                        static_cast<std::uint8_t>(bitmap >> 16), static_cast<std::uint8_t>(bitmap >> 24), 0});
 }
 
-void FeederSimulator::on_rpdo(std::size_t rpdo, const can::CanFrame& frame) {
-  if (nmt_.state() != NmtState::operational) return;
-  if (!rpdos_[rpdo].unpack_into(frame.payload(), image_)) {
-    if (short_rpdos_++ % 100 == 0) spdlog::warn("sim {}: RPDO {:03X}h shorter than its mapping ignored", device_.name, frame.id);
-    return;
-  }
+void FeederSimulator::on_rpdo(std::span<const canopen::PdoEntry> mapped) {
   const auto& loom = object("loom_status");
-  bool carries_loom_status = false;
-  for (const auto& e : rpdos_[rpdo].mapping().entries()) carries_loom_status = carries_loom_status || e.index == loom.index;
+  const bool carries_loom_status =
+      std::any_of(mapped.begin(), mapped.end(), [&](const canopen::PdoEntry& e) { return e.index == loom.index && e.sub == loom.sub; });
   if (!carries_loom_status) return;
-  const auto status = image_.get(loom_status_);
+  const auto status = node_.image().get(loom_status_);
   if (status == code_of(loom, "new_speed_only")) return;  // "no change of loom status"
   const bool running = status == code_of(loom, "start_advice") || status == code_of(loom, "slow_motion_forward") ||
                        status == code_of(loom, "slow_motion_backward");
@@ -269,13 +214,13 @@ void FeederSimulator::on_rpdo(std::size_t rpdo, const can::CanFrame& frame) {
 }
 
 void FeederSimulator::unwind() {
-  if (!loom_running_ || !tpdo1_ || nmt_.state() != NmtState::operational) return;
+  if (!loom_running_ || node_.state() != canopen::NmtState::operational) return;
   const auto& status = object("feeder_status_1");
   const auto operational = code_of(status, "operational_mode");
   // The next feeder in operation inserts the weft (one feeder selected at a time).
   for (unsigned tries = 0; tries < kFeeders; ++tries) {
     next_feeder_ = next_feeder_ % kFeeders + 1;
-    if (get(status.index, static_cast<std::uint8_t>(next_feeder_)) == operational) break;
+    if (node_.get(status.index, static_cast<std::uint8_t>(next_feeder_)) == operational) break;
     if (tries + 1 == kFeeders) return;
   }
   winding_ = winding_ % 50 + 1;
@@ -283,9 +228,8 @@ void FeederSimulator::unwind() {
   std::uint64_t word = u.field("feeder_selected")->insert(0, next_feeder_);
   word = u.field("winding_number")->insert(word, winding_);
   word = u.field("coil_unwinding_time")->insert(word, 250 + 3 * winding_);  // 25.3..40 ms, raw 0.1 ms
-  image_.set(unwinding_time_, word);
-  tpdo1_->resend();  // every winding is an event, even with the same word
-  tpdo1_->on_data();
+  node_.image().set(unwinding_time_, word);
+  node_.event("tpdo1");  // every winding is an event, even with the same word
 }
 
 }  // namespace lb::sim

@@ -1,9 +1,9 @@
 #pragma once
-// The device side of a CiA 414-2 feeder control box with a few feeders (sub 0 of the per-feeder
+// The dynamics of a CiA 414-2 feeder control box with a few feeders (sub 0 of the per-feeder
 // arrays says how many): feeder status that follows feeder commands (600Eh), feeder functions
 // that refuse changes of what is not available (6001h), supported trigger sources (6005h), the
 // loom controller's RPDOs (event-driven, applied at once), and TPDO1 unwinding-time events while
-// the loom runs (600Ah start advice or slow motion).
+// the loom runs (600Ah start advice or slow motion). Its CANopen side is SimulatedNode's.
 //
 // Fault injection (manufacturer-specific 2001h, UNSIGNED16, rw, written by SDO): low byte = feeder
 // (1..count), high byte = the 6007h condition to raise (e.g. 0x0402: feeder 2, yarn broken). The
@@ -13,17 +13,14 @@
 // once it is empty, an EMCY 0000h (error reset). Conditions the table does not define are raised
 // as given, so a bridge's handling of undefined codes can be tested.
 
-#include <chrono>
 #include <cstdint>
-#include <memory>
-#include <vector>
+#include <optional>
+#include <span>
+#include <string_view>
 
-#include "canopen/pdo_transmitter.hpp"
-#include "canopen/process_image.hpp"
-#include "canopen/sdo_server.hpp"
 #include "profiles/line_config.hpp"
 #include "sim/device_simulator.hpp"
-#include "sim/nmt_slave.hpp"
+#include "sim/simulated_node.hpp"
 
 namespace lb::sim {
 
@@ -38,28 +35,21 @@ class FeederSimulator : public DeviceSimulator {
  private:
   const profiles::ObjectDef& object(std::string_view name) const;
   const profiles::BitSet& bitset(std::string_view name) const;
-  std::uint64_t get(std::uint16_t index, std::uint8_t sub) const;
-  void put(std::uint16_t index, std::uint8_t sub, std::uint64_t raw);
-  void reset_application();
-  void link_dictionary();
+  void reset();
+  void add_objects();  // 2001h and the checks of SDO writes to feeder commands, functions, trigger sources
   std::optional<std::uint32_t> on_fault_injection(std::uint64_t value);
   std::optional<std::uint32_t> on_command(unsigned feeder, std::uint64_t command);
   std::optional<std::uint32_t> on_functions(unsigned feeder, std::uint64_t word);
   void raise(unsigned feeder, std::uint64_t condition);
   void clear(unsigned feeder);
   void send_emergency(std::uint16_t code, std::uint32_t bitmap);
-  void on_rpdo(std::size_t rpdo, const can::CanFrame& frame);
+  void on_rpdo(std::span<const canopen::PdoEntry> mapped);
   void unwind();
 
   canopen::BusLoop& loop_;
   const profiles::DeviceConfig& device_;
   const profiles::Profile& profile_;
-  NmtSlave nmt_;
-  canopen::SdoServer sdo_;
-  canopen::ProcessImage image_;  // the PDO objects: loom side (RPDOs) and 6010h (TPDO1)
-  std::vector<canopen::PdoBinding> rpdos_;
-  std::unique_ptr<canopen::PdoBinding> tpdo1_binding_;
-  std::unique_ptr<canopen::PdoTransmitter> tpdo1_;
+  SimulatedNode node_;
   std::size_t loom_status_, unwinding_time_;
   canopen::BusLoop::TimerId unwind_timer_{};
 
@@ -67,7 +57,6 @@ class FeederSimulator : public DeviceSimulator {
   std::uint32_t bitmap_ = 0;  // feeders in error, bit k = feeder k+1
   unsigned next_feeder_ = 0;
   unsigned winding_ = 0;
-  std::uint64_t short_rpdos_ = 0;
 };
 
 }  // namespace lb::sim

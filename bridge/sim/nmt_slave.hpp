@@ -1,6 +1,6 @@
 #pragma once
-// The device side of NMT and heartbeat: boot-up message, state machine driven by NMT commands,
-// heartbeat producer. Every simulated device has one.
+// The device side of NMT and heartbeat (CiA 301): boot-up message, the state machine driven by
+// NMT commands (to this node or to all), resets, heartbeat producer. Every simulated device has one.
 
 #include <chrono>
 #include <cstdint>
@@ -13,25 +13,35 @@ namespace lb::sim {
 
 class NmtSlave {
  public:
-  // on_reset runs before the new boot-up on "reset node" (application values to defaults).
-  NmtSlave(canopen::BusLoop& loop, std::uint8_t node_id, std::chrono::milliseconds heartbeat_period,
-           std::function<void()> on_reset_node);
+  enum class Reset { node, communication };
+  struct Hooks {
+    // Restores the power-on values the reset covers (and sets the heartbeat period), before the
+    // boot-up message.
+    std::function<void(Reset)> reset;
+    std::function<void(canopen::NmtState from, canopen::NmtState to)> state_changed;
+  };
 
-  void boot();  // loop thread (or before the loop starts): boot-up, then pre-operational
-  // 1017h written: a period of 0 stops the heartbeat (CiA 301).
+  // Registers on the NMT identifier: before the loop starts.
+  NmtSlave(canopen::BusLoop& loop, std::uint8_t node_id, Hooks hooks);
+
+  // Loop thread (or before the loop starts): the reset, the boot-up message unless `announce` is
+  // false (a device whose boot-up was lost), then pre-operational.
+  void reset(Reset kind, bool announce = true);
+  // 1017h: a period of 0 stops the heartbeat (CiA 301); the next one comes a period from now.
   void set_heartbeat_period(std::chrono::milliseconds period);
   canopen::NmtState state() const { return state_; }
   std::uint8_t node_id() const { return node_id_; }
 
  private:
   void on_command(const can::CanFrame& frame);
+  void enter(canopen::NmtState state);
   void send_heartbeat();
 
   canopen::BusLoop& loop_;
   std::uint8_t node_id_;
-  std::chrono::milliseconds heartbeat_period_;
-  std::function<void()> on_reset_node_;
+  Hooks hooks_;
   canopen::BusLoop::TimerId heartbeat_timer_;
+  std::chrono::milliseconds heartbeat_period_{0};
   canopen::NmtState state_ = canopen::NmtState::boot_up;
 };
 

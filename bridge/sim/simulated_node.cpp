@@ -6,15 +6,36 @@
 #include <stdexcept>
 #include <string>
 
+#include "canopen/sdo_abort.hpp"
 #include "sim/device_dictionary.hpp"
 
 namespace lb::sim {
 
 using canopen::NmtState;
-using profiles::PdoDirection;
+using Reset = NmtSlave::Reset;
 
 namespace {
+
 constexpr double kMaxStep = 0.1;  // s: a stalled loop must not make the simulation jump
+constexpr auto kShortRpdoEmcyGap = std::chrono::seconds(1);
+constexpr std::uint16_t kEmcyPdoLength = 0x8210;  // PDO not processed due to length error
+
+std::uint64_t little_endian(std::span<const std::uint8_t> v) {
+  std::uint64_t raw = 0;
+  for (std::size_t i = 0; i < v.size() && i < 8; ++i) raw |= std::uint64_t{v[i]} << (8 * i);
+  return raw;
+}
+
+canopen::ObjectDictionary::Bytes bytes_of(std::uint64_t raw, std::size_t size) {
+  canopen::ObjectDictionary::Bytes out(size);
+  for (std::size_t i = 0; i < size; ++i) out[i] = static_cast<std::uint8_t>(raw >> (8 * i));
+  return out;
+}
+
+bool is_string(canopen::DataType type) {
+  return type == canopen::DataType::visible_string || type == canopen::DataType::octet_string;
+}
+
 }  // namespace
 
 SimulatedNode::SimulatedNode(canopen::BusLoop& loop, const profiles::DeviceConfig& device, const profiles::Profile& profile,
@@ -23,42 +44,112 @@ SimulatedNode::SimulatedNode(canopen::BusLoop& loop, const profiles::DeviceConfi
       device_(device),
       profile_(profile),
       app_(std::move(application)),
-      nmt_(loop, device.node_id, device.simulation.heartbeat_period, [this] { reset(); }),
-      sdo_(loop, device.node_id, make_device_dictionary(device, profile)) {
-  // Every object gets its slot before any PDO is bound: a binding skips objects not in the image.
-  for (const auto& o : profile_.objects) {
-    if (o.type != canopen::DataType::visible_string && o.type != canopen::DataType::octet_string) {
-      (void)image_.slot(o.index, o.sub);
-    }
-  }
-  tpdo_bindings_.reserve(device_.pdos.size());  // the transmitters keep pointers into it
-  for (const auto& pdo : device_.pdos) {
-    auto mapping = canopen::PdoMapping::create(pdo.mapping);
-    if (!mapping) throw std::runtime_error(device_.name + " " + pdo.name + ": " + mapping.error().message);
-    if (!pdo.enabled) continue;
-    canopen::PdoBinding binding(std::move(*mapping), image_);
-    if (pdo.direction == PdoDirection::tx) {
-      const auto* b = &tpdo_bindings_.emplace_back(std::move(binding));
-      tpdos_.push_back(std::make_unique<canopen::PdoTransmitter>(
-          loop_, canopen::PdoTransmitter::Settings{pdo.can_id, pdo.extended, pdo.transmission_type, pdo.inhibit, pdo.event_timer},
-          [this, b](can::CanFrame& f) { f.len = b->pack_from(image_, std::span<std::uint8_t, 8>(f.data)); },
-          [this] { return nmt_.state() == NmtState::operational; }));
-    } else {
-      rpdos_.push_back({&pdo, std::move(binding), std::nullopt});
-    }
-  }
-  for (std::size_t i = 0; i < rpdos_.size(); ++i) {
-    const auto handler = [this, i](const can::CanFrame& f) {
-      if (nmt_.state() != NmtState::operational) return;
-      Rpdo& r = rpdos_[i];
-      if (r.def->synchronous()) r.pending = f;
-      else apply_rpdo(r, f);  // event-driven: takes effect at once
-    };
-    if (rpdos_[i].def->extended) loop_.on_extended_frame(rpdos_[i].def->can_id, handler);
-    else loop_.on_frame(rpdos_[i].def->can_id, handler);
-  }
+      nmt_(loop, device.node_id, {[this](Reset kind) { on_reset(kind); }, [this](NmtState from, NmtState to) { on_state(from, to); }}),
+      sdo_(loop, device.node_id, make_device_dictionary(device, profile)),
+      pdos_(loop, device, profile, image_, sdo_.dictionary(),
+            {[this] { return nmt_.state() == NmtState::operational; },
+             [this](std::span<const canopen::PdoEntry> mapped) {
+               if (app_.received) app_.received(mapped);
+             },
+             [this](const profiles::PdoDef& pdo, std::size_t length, std::size_t needed) { on_short_rpdo(pdo, length, needed); }},
+            app_.event_tpdos) {
+  // No SDO answer at all in NMT stopped: a master's request times out (CiA 301).
+  sdo_.set_gate([this] { return nmt_.state() != NmtState::stopped; });
+  link_image_objects();
+  link_communication_objects();
   loop_.on_frame(canopen::cob::sync, [this](const can::CanFrame&) { on_sync(); });
-  link_dictionary();
+}
+
+void SimulatedNode::link_image_objects() {
+  auto& od = sdo_.dictionary();
+  for (const auto& o : profile_.objects) {
+    if (!is_string(o.type)) serve_from_image(o.index, o.sub, image_.slot(o.index, o.sub));
+  }
+  for (const std::uint16_t index : {kSecondStatusWord, kSecondControlWord}) {
+    if (od.find(index, 0) != nullptr) serve_from_image(index, 0, image_.slot(index, 0));
+  }
+  if (od.find(kSecondStatusWord, 0) != nullptr) second_status_word_ = image_.find(kSecondStatusWord, 0);
+}
+
+void SimulatedNode::serve_from_image(std::uint16_t index, std::uint8_t sub, std::size_t slot) {
+  image_slots_.push_back(slot);
+  auto& od = sdo_.dictionary();
+  const auto* entry = od.find(index, sub);
+  if (entry == nullptr) throw std::runtime_error(device_.name + ": no dictionary entry for an image object");
+  const std::size_t size = canopen::bit_size(entry->type) / 8;
+  (void)od.set_on_read(index, sub, [this, slot, size] { return bytes_of(image_.get(slot), size); });
+  (void)od.set_on_write(index, sub, [this, slot](std::span<const std::uint8_t> v) -> std::optional<std::uint32_t> {
+    image_.set(slot, little_endian(v));
+    pdos_.data_changed();
+    return std::nullopt;
+  });
+}
+
+void SimulatedNode::link_communication_objects() {
+  auto& od = sdo_.dictionary();
+  (void)od.set_on_read(0x1001, 0, [this] { return canopen::ObjectDictionary::Bytes{error_register_}; });
+  (void)od.set_on_read(0x1017, 0, [this] { return bytes_of(static_cast<std::uint64_t>(heartbeat_period_.count()), 2); });
+  (void)od.set_on_write(0x1017, 0, [this](std::span<const std::uint8_t> v) -> std::optional<std::uint32_t> {
+    heartbeat_period_ = std::chrono::milliseconds(little_endian(v));
+    nmt_.set_heartbeat_period(heartbeat_period_);
+    return std::nullopt;
+  });
+  (void)od.set_on_write(kSimulationControl, 0, [this](std::span<const std::uint8_t> v) -> std::optional<std::uint32_t> {
+    const auto command = little_endian(v);
+    if (command != 1 && command != 2) return canopen::sdo_abort::value_range_exceeded;
+    const Reset kind = command == 1 ? Reset::node : Reset::communication;
+    // After this write's confirmation went out: a posted task runs after the current frame.
+    loop_.post([this, kind] {
+      spdlog::info("sim {}: simulation control: reset {} without boot-up message", device_.name,
+                   kind == Reset::node ? "node" : "communication");
+      nmt_.reset(kind, false);
+    });
+    return std::nullopt;
+  });
+}
+
+void SimulatedNode::boot() {
+  // The faults name any object, the application's too: they exist by now.
+  for (const auto key : device_.simulation.ignore_writes) {
+    const auto index = static_cast<std::uint16_t>(key >> 8);
+    const auto sub = static_cast<std::uint8_t>(key);
+    if (auto r = sdo_.dictionary().ignore_writes(index, sub); !r) {
+      throw std::runtime_error(device_.name + ": simulation ignore_writes: " + r.error().message);
+    }
+    spdlog::info("sim {}: SDO writes of {:04X}h sub {} are confirmed and ignored (simulation ignore_writes)", device_.name,
+                 index, sub);
+  }
+  spdlog::info("sim {}: {} node {} powered on ({})", device_.name, profile_.device, device_.node_id, profile_.key());
+  nmt_.reset(Reset::node);
+}
+
+void SimulatedNode::on_reset(Reset kind) {
+  if (kind == Reset::node) {
+    for (const std::size_t s : image_slots_) image_.set(s, 0);
+    // ARRAY objects: sub 0 tells how many elements the device has (all the profile allows).
+    for (const auto& o : profile_.objects) {
+      if (o.sub == 0) continue;
+      const std::size_t count = image_.find(o.index, 0);
+      if (count != canopen::ProcessImage::npos) image_.set(count, std::max<std::uint64_t>(image_.get(count), o.sub));
+    }
+    error_register_ = 0;
+    auto& od = sdo_.dictionary();
+    (void)od.set(kDeviceText, 0, {});
+    for (const auto index : commands_) (void)od.set(index, 0, canopen::ObjectDictionary::Bytes(od.find(index, 0)->value.size()));
+    if (app_.reset) app_.reset();
+  }
+  pdos_.reset();
+  sdo_.reset();
+  heartbeat_period_ = device_.simulation.heartbeat_period;
+  nmt_.set_heartbeat_period(heartbeat_period_);
+  last_sync_.reset();
+  spdlog::debug("sim {}: reset {}: power-on values restored", device_.name, kind == Reset::node ? "node" : "communication");
+}
+
+void SimulatedNode::on_state(NmtState from, NmtState to) {
+  if (from == NmtState::operational) pdos_.left_operational();
+  if (to == NmtState::operational) pdos_.started();
+  spdlog::debug("sim {}: NMT {} -> {}", device_.name, canopen::to_string(from), canopen::to_string(to));
 }
 
 std::size_t SimulatedNode::slot(std::string_view object) const {
@@ -73,50 +164,54 @@ std::optional<unsigned> SimulatedNode::bit(std::string_view set, std::string_vie
   return s != nullptr ? s->bit(name) : std::nullopt;
 }
 
-void SimulatedNode::reset() {
-  for (const auto& o : profile_.objects) {
-    const std::size_t s = image_.find(o.index, o.sub);
-    if (s != canopen::ProcessImage::npos) image_.set(s, 0);
-  }
-  // ARRAY objects: sub 0 tells how many elements the device has (all the profile allows).
-  for (const auto& o : profile_.objects) {
-    if (o.sub == 0) continue;
-    const std::size_t count = image_.find(o.index, 0);
-    if (count != canopen::ProcessImage::npos) image_.set(count, std::max<std::uint64_t>(image_.get(count), o.sub));
-  }
-  last_sync_.reset();
-  if (app_.reset) app_.reset();
-  publish_to_dictionary();
+std::uint64_t SimulatedNode::get(std::uint16_t index, std::uint8_t sub) const {
+  const std::size_t s = image_.find(index, sub);
+  return s == canopen::ProcessImage::npos ? 0 : image_.get(s);
 }
 
-void SimulatedNode::link_dictionary() {
-  auto& od = sdo_.dictionary();
-  for (const auto& o : profile_.objects) {
-    const std::size_t s = image_.find(o.index, o.sub);
-    if (s == canopen::ProcessImage::npos || !o.writable()) continue;
-    (void)od.set_on_write(o.index, o.sub, [this, s](std::span<const std::uint8_t> v) -> std::optional<std::uint32_t> {
-      std::uint64_t raw = 0;
-      for (std::size_t i = 0; i < v.size() && i < 8; ++i) raw |= std::uint64_t{v[i]} << (8 * i);
-      image_.set(s, raw);
-      return std::nullopt;
-    });
+void SimulatedNode::set(std::uint16_t index, std::uint8_t sub, std::uint64_t raw) {
+  const std::size_t s = image_.find(index, sub);
+  if (s != canopen::ProcessImage::npos) image_.set(s, raw);
+}
+
+std::size_t SimulatedNode::add_object(std::uint16_t index, canopen::DataType type, canopen::ObjectAccess access,
+                                      std::optional<std::int64_t> min, std::optional<std::int64_t> max) {
+  if (auto r = sdo_.dictionary().add(index, 0, type, access, {}, min, max); !r) {
+    throw std::runtime_error(device_.name + ": " + r.error().message);
   }
-  (void)od.set_on_write(0x1017, 0, [this](std::span<const std::uint8_t> v) -> std::optional<std::uint32_t> {
-    nmt_.set_heartbeat_period(std::chrono::milliseconds(v[0] | v[1] << 8));
-    return std::nullopt;
+  const std::size_t s = image_.slot(index, 0);
+  serve_from_image(index, 0, s);
+  return s;
+}
+
+void SimulatedNode::check_writes(std::uint16_t index, std::uint8_t sub, canopen::ObjectDictionary::WriteHook check) {
+  const std::size_t s = image_.find(index, sub);
+  if (s == canopen::ProcessImage::npos) {
+    throw std::runtime_error(device_.name + ": a write check for an object outside the image");
+  }
+  (void)sdo_.dictionary().set_on_write(index, sub, [this, s, check = std::move(check)](std::span<const std::uint8_t> v) {
+    if (auto code = check(v)) return code;
+    image_.set(s, little_endian(v));
+    pdos_.data_changed();
+    return std::optional<std::uint32_t>{};
   });
 }
 
-void SimulatedNode::publish_to_dictionary() {
+void SimulatedNode::add_command(std::uint16_t index, canopen::DataType type, canopen::ObjectDictionary::WriteHook hook) {
   auto& od = sdo_.dictionary();
-  for (const auto& o : profile_.objects) {
-    const std::size_t s = image_.find(o.index, o.sub);
-    if (s == canopen::ProcessImage::npos) continue;
-    const std::size_t n = canopen::bit_size(o.type) / 8;
-    std::vector<std::uint8_t> bytes(n);
-    for (std::size_t i = 0; i < n; ++i) bytes[i] = static_cast<std::uint8_t>(image_.get(s) >> (8 * i));
-    (void)od.set(o.index, o.sub, std::move(bytes));
-  }
+  if (auto r = od.add(index, 0, type, canopen::ObjectAccess::rw); !r) throw std::runtime_error(device_.name + ": " + r.error().message);
+  (void)od.set_on_write(index, 0, std::move(hook));
+  commands_.push_back(index);
+}
+
+void SimulatedNode::send_emergency(std::uint16_t code, std::uint8_t error_register, std::array<std::uint8_t, 5> manufacturer) {
+  error_register_ = error_register;
+  can::CanFrame f;
+  f.id = canopen::cob::emcy_base + device_.node_id;  // 1014h
+  f.len = 8;
+  f.data = {static_cast<std::uint8_t>(code), static_cast<std::uint8_t>(code >> 8), error_register, manufacturer[0],
+            manufacturer[1], manufacturer[2], manufacturer[3], manufacturer[4]};
+  (void)loop_.send(f);
 }
 
 void SimulatedNode::on_sync() {
@@ -124,23 +219,21 @@ void SimulatedNode::on_sync() {
   const double dt = last_sync_ ? std::min(std::chrono::duration<double>(now - *last_sync_).count(), kMaxStep) : 0.0;
   last_sync_ = now;
   if (nmt_.state() != NmtState::operational) return;
-  for (auto& r : rpdos_) {
-    if (!r.pending) continue;
-    apply_rpdo(r, *r.pending);
-    r.pending.reset();
-  }
+  pdos_.apply_pending();
   if (app_.step) app_.step(dt);
-  publish_to_dictionary();
-  for (auto& t : tpdos_) {
-    t->on_sync();
-    t->on_data();
-  }
+  if (second_status_word_) image_.set(*second_status_word_, (image_.get(*second_status_word_) + 1) & 0xFFFF);
+  pdos_.on_sync();
 }
 
-void SimulatedNode::apply_rpdo(Rpdo& rpdo, const can::CanFrame& frame) {
-  if (!rpdo.binding.unpack_into(frame.payload(), image_)) {
-    if (short_rpdos_++ % 100 == 0) spdlog::warn("sim {}: {} shorter than its mapping ignored", device_.name, rpdo.def->name);
-  }
+void SimulatedNode::on_short_rpdo(const profiles::PdoDef& pdo, std::size_t length, std::size_t needed) {
+  ++short_rpdos_;
+  const auto now = std::chrono::steady_clock::now();
+  if (last_short_emcy_ && now - *last_short_emcy_ < kShortRpdoEmcyGap) return;
+  last_short_emcy_ = now;
+  spdlog::warn("sim {}: {} with {} bytes not applied, its mapping needs {} ({} so far): EMCY 8210h", device_.name,
+               pdo.name, length, needed, short_rpdos_);
+  send_emergency(kEmcyPdoLength, error_register_,
+                 {static_cast<std::uint8_t>(pdo.number()), static_cast<std::uint8_t>(length), static_cast<std::uint8_t>(needed), 0, 0});
 }
 
 }  // namespace lb::sim

@@ -1,20 +1,42 @@
 #pragma once
-// The CANopen side every simulated CiA 420 device shares, so a device simulator is only its
-// dynamics: a process image holding every object of the profile, NMT and heartbeat, an SDO server
-// over the whole dictionary (writes of profile objects reach the image at once), synchronous RPDOs
-// applied at the next SYNC, and TPDOs sent after each SYNC.
+// The CiA 301 device side every simulated device shares, so that a device simulator is only its
+// dynamics. A simulated device knows its profile's defaults, its `simulation:` section (its
+// "hardware": identity, factory PDO parameters, faults) and what reaches it over CAN, nothing of
+// what the line configuration tells the bridge (pdos, configure, identity, ...).
+//
+//  - Object dictionary (device_dictionary.hpp) served by SDO, except in NMT stopped, where the
+//    server is silent. Every numeric profile object (and every application object a simulator
+//    adds) lives in one process image: SDO reads and writes, PDOs and the simulation all see the
+//    same value.
+//  - PDOs as CiA 301 and the profile let a master configure them (device_pdos.hpp).
+//  - NMT (nmt_slave.hpp): reset node restores every power-on value, application objects as the
+//    simulator's reset defines them and every communication object (PDO parameters, 1017h);
+//    reset communication only the communication objects. Both drop pending RPDOs and the SDO
+//    transfer in progress, then send the boot-up. Leaving operational drops pending RPDOs.
+//  - SYNC while operational: pending synchronous RPDOs take effect, the application steps, the
+//    second status word (2110h) counts, then the TPDOs go.
+//  - An RPDO shorter than its mapping is not applied: counted, logged, and EMCY 8210h at most
+//    once a second (manufacturer bytes: the PDO's number, the length received, the length needed).
+//  - Simulation control 2002h (UNSIGNED8, wo), for tests of a master: 1 = reset node, 2 = reset
+//    communication, both without the boot-up message (a device whose boot-up a master missed).
+//    The write is confirmed first; the device is then pre-operational with its power-on values
+//    and sends heartbeats if its power-on 1017h is not 0.
+//  - `simulation.ignore_writes`: those objects confirm an SDO write and keep their value.
 
+#include <array>
 #include <chrono>
+#include <cstdint>
 #include <functional>
-#include <memory>
 #include <optional>
+#include <span>
+#include <string>
 #include <string_view>
 #include <vector>
 
-#include "canopen/pdo_transmitter.hpp"
 #include "canopen/process_image.hpp"
 #include "canopen/sdo_server.hpp"
 #include "profiles/line_config.hpp"
+#include "sim/device_pdos.hpp"
 #include "sim/nmt_slave.hpp"
 
 namespace lb::sim {
@@ -22,51 +44,79 @@ namespace lb::sim {
 class SimulatedNode {
  public:
   struct Application {
-    std::function<void()> reset;            // power-on and NMT reset node: application values to defaults
-    std::function<void(double dt_s)> step;  // every SYNC when operational: RPDOs applied, TPDOs follow
+    std::function<void()> reset;            // power-on and reset node, after the image went to 0
+    std::function<void(double dt_s)> step;  // every SYNC while operational: after the RPDOs, before the TPDOs
+    // An RPDO's values reached the image (synchronous ones at the SYNC, before the step).
+    std::function<void(std::span<const canopen::PdoEntry> mapped)> received;
+    // TPDOs whose event (types 254/255) is the application's (SimulatedNode::event), as the
+    // profile defines it, rather than a change of their data.
+    std::vector<std::string> event_tpdos;
   };
 
-  // Throws std::runtime_error (start-up) on a PDO the profile cannot map. Call reset() once the
-  // application is ready for it (the application's reset usually needs the node's slots).
+  // Before the loop starts. Throws std::runtime_error (start-up) on a profile or simulation
+  // section the device cannot have.
   SimulatedNode(canopen::BusLoop& loop, const profiles::DeviceConfig& device, const profiles::Profile& profile,
                 Application application);
   SimulatedNode(const SimulatedNode&) = delete;
   SimulatedNode& operator=(const SimulatedNode&) = delete;
 
-  void boot() { nmt_.boot(); }
-  void reset();
+  // Power-on: every value to its power-on value, boot-up, pre-operational. Once, when the
+  // application and its objects are complete (loop thread or before the loop starts); throws
+  // std::runtime_error when a power-on PDO mapping names an object the device cannot map or
+  // simulation.ignore_writes an object it does not have.
+  void boot();
 
-  canopen::ProcessImage& image() { return image_; }
-  canopen::ObjectDictionary& dictionary() { return sdo_.dictionary(); }
   canopen::NmtState state() const { return nmt_.state(); }
+  canopen::ProcessImage& image() { return image_; }
   // Slot of a profile object; throws std::runtime_error when the profile has none of that name.
   std::size_t slot(std::string_view object) const;
   // A flag of a profile bit set; nullopt when the profile (version) lacks it.
   std::optional<unsigned> bit(std::string_view set, std::string_view name) const;
+  // A value of the image by object, 0 for an object the image does not hold.
+  std::uint64_t get(std::uint16_t index, std::uint8_t sub) const;
+  void set(std::uint16_t index, std::uint8_t sub, std::uint64_t raw);
+
+  // Construction time: a manufacturer-specific object of the application, in the image (SDO
+  // reads and writes, mappable into PDOs, 0 after reset node). Throws std::runtime_error.
+  std::size_t add_object(std::uint16_t index, canopen::DataType type, canopen::ObjectAccess access,
+                         std::optional<std::int64_t> min = {}, std::optional<std::int64_t> max = {});
+  // Construction time: a check of SDO writes to an object of the image, before the value is
+  // stored: an abort code refuses the write. Throws std::runtime_error for objects not in the image.
+  void check_writes(std::uint16_t index, std::uint8_t sub, canopen::ObjectDictionary::WriteHook check);
+  // Construction time: a command object outside the image (not mappable; 0 again after reset
+  // node), with the hook that serves its writes. Throws std::runtime_error.
+  void add_command(std::uint16_t index, canopen::DataType type, canopen::ObjectDictionary::WriteHook hook);
+
+  // Loop thread: an application event of a TPDO (see DevicePdos::event).
+  void event(std::string_view tpdo) { (void)pdos_.event(tpdo); }
+  // EMCY on 1014h; the error register (1001h) becomes `error_register`.
+  void send_emergency(std::uint16_t code, std::uint8_t error_register, std::array<std::uint8_t, 5> manufacturer);
 
  private:
-  struct Rpdo {
-    const profiles::DevicePdo* def;
-    canopen::PdoBinding binding;
-    std::optional<can::CanFrame> pending;  // synchronous: applied at the next SYNC
-  };
+  void on_reset(NmtSlave::Reset kind);
+  void on_state(canopen::NmtState from, canopen::NmtState to);
   void on_sync();
-  void apply_rpdo(Rpdo& rpdo, const can::CanFrame& frame);
-  void link_dictionary();
-  void publish_to_dictionary();
+  void on_short_rpdo(const profiles::PdoDef& pdo, std::size_t length, std::size_t needed);
+  void link_image_objects();
+  void link_communication_objects();
+  void serve_from_image(std::uint16_t index, std::uint8_t sub, std::size_t slot);
 
   canopen::BusLoop& loop_;
   const profiles::DeviceConfig& device_;
   const profiles::Profile& profile_;
   Application app_;
   canopen::ProcessImage image_;
+  std::vector<std::size_t> image_slots_;  // every slot of the image, for reset node
+  std::vector<std::uint16_t> commands_;   // add_command's objects, for reset node
   NmtSlave nmt_;
   canopen::SdoServer sdo_;
-  std::vector<canopen::PdoBinding> tpdo_bindings_;
-  std::vector<std::unique_ptr<canopen::PdoTransmitter>> tpdos_;
-  std::vector<Rpdo> rpdos_;
+  DevicePdos pdos_;
+  std::optional<std::size_t> second_status_word_;  // 2110h, where a TPDO has a manufacturer entry
+  std::chrono::milliseconds heartbeat_period_{0};  // 1017h
+  std::uint8_t error_register_ = 0;                // 1001h
   std::optional<std::chrono::steady_clock::time_point> last_sync_;
   std::uint64_t short_rpdos_ = 0;
+  std::optional<std::chrono::steady_clock::time_point> last_short_emcy_;
 };
 
 }  // namespace lb::sim

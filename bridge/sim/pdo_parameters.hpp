@@ -1,0 +1,84 @@
+#pragma once
+// One PDO's CiA 301 parameters as a device keeps them (communication 1400h/1800h + n, mapping
+// 1600h/1A00h + n), the device's power-on values, and the checks a device makes when a master
+// writes them. Pure values and functions: DevicePdos applies them on the bus.
+//
+// Abort codes of refused writes (CiA 301, and the profile's table of what a master may write):
+//   06010002h  an entry the profile makes const or ro (the dictionary refuses it by its access);
+//   06090030h  a COB-ID change the profile or CiA 301 does not allow (only bit 31 where only the
+//              valid bit is writable; identifier or bit 29 of a valid PDO; an 11-bit identifier
+//              above 7FFh or a restricted one); a reserved transmission type; a mapping count
+//              beyond the entries the PDO has or outside the profile's list;
+//   08000022h  mapping written in a state that forbids it ("rw (constant in NMT operational
+//              state)": while operational; rw: while operational and the PDO is valid);
+//   06010000h  a mapping entry written while sub 0 is not 0;
+//   06020000h  a mapping entry naming an object the dictionary lacks;
+//   06040041h  an object that cannot be mapped (not a process value of the device, a string, not
+//              readable in a TPDO, not writable in an RPDO, a dummy in a TPDO, a wrong length);
+//   06040042h  entries 1..n longer than 64 bits.
+
+#include <cstdint>
+#include <optional>
+#include <vector>
+
+#include "canopen/pdo_mapping.hpp"
+#include "canopen/process_image.hpp"
+#include "canopen/sdo_server.hpp"
+#include "profiles/line_config.hpp"
+
+namespace lb::sim {
+
+namespace cob_bits {
+inline constexpr std::uint32_t invalid = 0x8000'0000;   // bit 31: the PDO does not exist (not valid)
+inline constexpr std::uint32_t no_rtr = 0x4000'0000;    // bit 30: TPDO no RTR; reserved for RPDOs
+inline constexpr std::uint32_t extended = 0x2000'0000;  // bit 29: 29-bit identifier
+inline constexpr std::uint32_t identifier = 0x1FFF'FFFF;
+}  // namespace cob_bits
+
+struct PdoParameters {
+  std::uint32_t cob_id = 0;  // sub 1: the whole CiA 301 entry
+  std::uint8_t transmission_type = 1;
+  std::uint16_t inhibit_time = 0;  // sub 3, 100 µs
+  std::uint16_t event_timer = 0;   // sub 5, ms
+  std::uint8_t count = 0;          // mapping sub 0: entries 1..count are mapped
+  std::vector<std::uint32_t> entries;  // mapping subs 1..n the device has, mapped or not
+
+  bool valid() const { return (cob_id & cob_bits::invalid) == 0; }
+  bool extended() const { return (cob_id & cob_bits::extended) != 0; }
+  std::uint32_t can_id() const { return cob_id & (extended() ? cob_bits::identifier : 0x7FFU); }
+  bool synchronous() const { return transmission_type <= 240; }
+  std::vector<canopen::PdoEntry> mapped() const;  // entries 1..count
+};
+
+// The manufacturer-specific objects the simulated devices map where a profile leaves an entry to
+// the manufacturer (CiA 420-3/-4 3.1: "one and only one manufacturer-specific process data").
+inline constexpr std::uint16_t kSecondStatusWord = 0x2110;   // UNSIGNED16 ro, TPDOs: counts SYNCs while operational
+inline constexpr std::uint16_t kSecondControlWord = 0x2111;  // UNSIGNED16 rw, RPDOs: kept, not interpreted
+
+// A PDO's parameters as the device comes out of power-on: the profile's default (COB-ID with bit
+// 30 as the specs write it, the default mapping, its manufacturer-specific entries after it,
+// present but not counted), replaced by the device's own `simulation.pdos` where given. Checks
+// what needs no dictionary (identifier, transmission type); throws std::runtime_error.
+PdoParameters power_on_parameters(const profiles::PdoDef& def, const profiles::DeviceConfig& device);
+
+// Highest sub-index of the communication parameter: 5 with an event timer, 3 with only an inhibit
+// time, else 2 (sub 4 is reserved; sub 6, the SYNC start value, is not implemented).
+std::uint8_t highest_communication_sub(const profiles::PdoRules& rules);
+
+// Each returns the abort code of a refused write, nullopt for an accepted one. `operational`:
+// the device's NMT state is operational.
+std::optional<std::uint32_t> check_cob_id(profiles::PdoDirection direction, profiles::PdoAccess access,
+                                          std::uint32_t current, std::uint32_t wanted);
+std::optional<std::uint32_t> check_transmission_type(profiles::PdoDirection direction, std::uint8_t type);
+// 08000022h when the device's state forbids the write now: "rw (constant in NMT operational state)"
+// while operational; a mapping (sub 0 or an entry) with rw access while operational and valid.
+std::optional<std::uint32_t> check_state(profiles::PdoAccess access, bool mapping, bool operational, bool pdo_valid);
+std::optional<std::uint32_t> check_mapping_count(const PdoParameters& pdo, const profiles::PdoRules& rules,
+                                                 std::uint8_t count);
+// An entry (also one of the power-on mapping): the object must be a process value of the device
+// (in `image`, described by `dictionary`) that the direction can carry, with its exact length.
+std::optional<std::uint32_t> check_mapping_entry(profiles::PdoDirection direction, std::uint32_t entry,
+                                                 const canopen::ObjectDictionary& dictionary,
+                                                 const canopen::ProcessImage& image);
+
+}  // namespace lb::sim
