@@ -322,6 +322,15 @@ TEST_F(SawLine, CliCommandsReachTheSawThroughTheLineWideServices) {
   EXPECT_EQ(unknown_command.exit_code, 1) << unknown_command.output;
   EXPECT_NE(unknown_command.output.find("refused: saw1: unknown command 'jump' (manual_cut, "), std::string::npos)
       << unknown_command.output;
+  // The identity as line-file lines, from the device itself (the simulator's saw at node 5: vendor
+  // 4C42 0000h, product 0420 0004h, serial 5100 0005h), ready to paste under the device's entry.
+  const auto identity = cli({"identity", "saw1"});
+  EXPECT_EQ(identity.exit_code, 0) << identity.output << logs();
+  EXPECT_NE(identity.output.find("    identity:\n      device_type: 0x000001A4"), std::string::npos) << identity.output;
+  EXPECT_NE(identity.output.find("      vendor_id: 0x4C420000"), std::string::npos) << identity.output;
+  EXPECT_NE(identity.output.find("      product_code: 0x04200004"), std::string::npos) << identity.output;
+  EXPECT_NE(identity.output.find("      serial_number: 0x51000005"), std::string::npos) << identity.output;
+
   const auto unknown_device = cli({"nmt", "saw9", "reset-node"});
   EXPECT_EQ(unknown_device.exit_code, 2) << unknown_device.output;
   EXPECT_NE(unknown_device.output.find("no device saw9 in line itest"), std::string::npos) << unknown_device.output;

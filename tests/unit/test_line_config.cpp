@@ -180,3 +180,79 @@ objects:
   EXPECT_NE(r.error().message.find("unknown data type 'UNSIGNED17'"), std::string::npos) << r.error().message;
   ASSERT_TRUE(lb::profiles::parse_profile(base, "p.yaml"));
 }
+
+TEST(LineConfig, MasterBootKeys) {
+  const auto registry = ProfileRegistry::builtin();
+  const std::string yaml = replace(kGood, "    heartbeat_timeout_ms: 300\n",
+                                   "    heartbeat_timeout_ms: 300\n"
+                                   "    identity: {device_type: 0x1A4, vendor_id: 0x4C420000, serial_number: 7}\n"
+                                   "    pdo_config: adopt\n"
+                                   "    on_state_unknown: reset_node\n"
+                                   "    heartbeat_producer_ms: 200\n"
+                                   "    configure:\n"
+                                   "      - {object: saw_sync_speed_set_maximum, value: 45000}\n"
+                                   "      - {index: 0x1010, sub: 1, type: UNSIGNED32, value: 1, verify: false}\n");
+  auto r = parse_line_config(yaml, "line.yaml", registry);
+  ASSERT_TRUE(r) << r.error().message;
+  const auto& d = r->devices[0];
+  EXPECT_EQ(d.identity.device_type, 0x1A4u);
+  EXPECT_EQ(d.identity.vendor_id, 0x4C420000u);
+  EXPECT_FALSE(d.identity.product_code.has_value());
+  EXPECT_FALSE(d.identity.revision.has_value());
+  EXPECT_EQ(d.identity.serial_number, 7u);
+  EXPECT_EQ(d.pdo_config, lb::profiles::PdoConfigMode::adopt);
+  EXPECT_EQ(d.on_state_unknown, lb::profiles::StateUnknownAction::reset_node);
+  ASSERT_TRUE(d.heartbeat_producer.has_value());
+  EXPECT_EQ(d.heartbeat_producer->count(), 200);
+  ASSERT_EQ(d.configure.size(), 2u);
+  EXPECT_TRUE(d.configure[0].verify);
+  EXPECT_FALSE(d.configure[1].verify);
+
+  // Defaults: configure the device, reboot it on an unknown state, keep its own 1017h.
+  auto plain = parse_line_config(kGood, "line.yaml", registry);
+  ASSERT_TRUE(plain);
+  EXPECT_EQ(plain->devices[0].pdo_config, lb::profiles::PdoConfigMode::configure);
+  EXPECT_EQ(plain->devices[0].on_state_unknown, lb::profiles::StateUnknownAction::reboot);
+  EXPECT_FALSE(plain->devices[0].heartbeat_producer.has_value());
+}
+
+TEST(LineConfig, MasterBootMistakes) {
+  const std::string at = "    heartbeat_timeout_ms: 300\n";
+  EXPECT_NE(error_of(replace(kGood, at, at + "    heartbeat_producer_ms: 300\n"))
+                .find("heartbeat_producer_ms 300 must be below heartbeat_timeout_ms 300"),
+            std::string::npos);
+  EXPECT_NE(error_of(replace(kGood, at, at + "    pdo_config: take\n")).find("pdo_config must be configure"),
+            std::string::npos);
+  EXPECT_NE(error_of(replace(kGood, at, at + "    on_state_unknown: start\n")).find("on_state_unknown must be reboot or reset_node"),
+            std::string::npos);
+  EXPECT_NE(error_of(replace(kGood, at, at + "    identity: {vendor: 1}\n")).find("unknown key 'vendor'"), std::string::npos);
+  // CiA 301: an RPDO is synchronous (0..240) or event-driven (254/255); dummies only in RPDOs.
+  EXPECT_NE(error_of(replace(kGood, at, at + "    pdos: {rpdo1: {transmission_type: 252}}\n")).find("is for TPDOs only"),
+            std::string::npos);
+  EXPECT_NE(error_of(replace(kGood, at, at + "    pdos: {tpdo1: {mapping: [0x00050010]}}\n")).find("a TPDO cannot carry them"),
+            std::string::npos);
+}
+
+TEST(LineConfig, SimulationDeviceKeys) {
+  const auto registry = ProfileRegistry::builtin();
+  const std::string yaml = replace(kGood, "      max_speed_m_per_min: 12.5\n",
+                                   "      max_speed_m_per_min: 12.5\n"
+                                   "      heartbeat_period_ms: 0\n"
+                                   "      identity: {product_code: 0x04200002}\n"
+                                   "      pdos: {tpdo2: {mapping: [0x60070020, 0x60010020], transmission_type: 3}}\n"
+                                   "      ignore_writes: [{index: 0x1801, sub: 2}]\n");
+  auto r = parse_line_config(yaml, "line.yaml", registry);
+  ASSERT_TRUE(r) << r.error().message;
+  const auto& sim = r->devices[0].simulation;
+  EXPECT_EQ(sim.heartbeat_period.count(), 0);
+  EXPECT_EQ(sim.identity.product_code, 0x04200002u);
+  ASSERT_EQ(sim.pdos.size(), 1u);
+  EXPECT_EQ(sim.pdos[0].name, "tpdo2");
+  EXPECT_EQ(sim.pdos[0].transmission_type, 3);
+  ASSERT_TRUE(sim.pdos[0].mapping.has_value());
+  EXPECT_EQ(sim.pdos[0].mapping->front().index, 0x6007);
+  EXPECT_EQ(sim.ignore_writes, (std::vector<std::uint32_t>{0x180102}));
+  // The bridge's view of the PDOs stays the profile's: the simulation section is the device's.
+  EXPECT_EQ(r->devices[0].pdos[1].mapping.front().index, 0x6001);
+  EXPECT_NE(error_of(replace(yaml, "pdos: {tpdo2:", "pdos: {tpdo9:")).find("has no PDO 'tpdo9'"), std::string::npos);
+}

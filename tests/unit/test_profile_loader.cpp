@@ -313,3 +313,83 @@ TEST(ProfileLoaderErrors, Pdos) {
   EXPECT_ERROR(objects + "  - {name: tpdo1, direction: tx, cob_id: 0x180, transmission_type: 1, mapping: [0x60000020], mandatory: 2}\n",
                "t.yaml:9:105: 'mandatory' has a value of the wrong type: '2'");
 }
+
+TEST(ProfileLoaderErrors, PdoNamesAndAccess) {
+  const std::string objects = "  - {index: 0x6000, name: a, type: UNSIGNED32, access: ro}\npdos:\n";
+  const std::string pdo = "  - {name: tpdo1, direction: tx, cob_id: 0x180, transmission_type: 1, mapping: [0x60000020]";
+  EXPECT_ERROR(objects + "  - {name: status, direction: tx, cob_id: 0x180, transmission_type: 1, mapping: [0x60000020]}\n",
+               "t.yaml:8:12: a TPDO is named tpdo1..tpdo512 (its CiA 301 number), not 'status'");
+  EXPECT_ERROR(objects + "  - {name: rpdo1, direction: tx, cob_id: 0x180, transmission_type: 1, mapping: [0x60000020]}\n",
+               "t.yaml:8:12: a TPDO is named tpdo1..tpdo512 (its CiA 301 number), not 'rpdo1'");
+  EXPECT_ERROR(objects + pdo + ", access: {mapping: sometimes}}\n",
+               "t.yaml:8:112: access of mapping must be rw, rw_preop, const or ro, not 'sometimes'");
+  EXPECT_ERROR(objects + pdo + ", access: {mapping: none}}\n",
+               "t.yaml:8:112: access of mapping must be rw, rw_preop, const or ro, not 'none'");
+  EXPECT_ERROR(objects + pdo + ", mapping_counts: [0, 3]}\n",
+               "t.yaml:8:110: mapping_counts: 3 entries, but the PDO has 1 default and 0 manufacturer-specific ones");
+  const auto p = load(objects.substr(0, objects.size() - 6) + "pdos:\n" + pdo +
+                      ",\n     access: {cob_id: valid_bit, inhibit_time: none, mapping_count: rw_preop, mapping: const},\n"
+                      "     mapping_counts: [0, 1, 2], manufacturer_entries: 1}\n");
+  const auto& r = p.pdo("tpdo1")->rules;
+  EXPECT_EQ(r.cob_id, lb::profiles::PdoAccess::valid_bit);
+  EXPECT_EQ(r.transmission_type, lb::profiles::PdoAccess::rw);  // not given: CiA 301's rw
+  EXPECT_EQ(r.inhibit_time, lb::profiles::PdoAccess::none);
+  EXPECT_EQ(r.event_timer, lb::profiles::PdoAccess::rw);
+  EXPECT_EQ(r.mapping_count, lb::profiles::PdoAccess::rw_preop);
+  EXPECT_EQ(r.mapping, lb::profiles::PdoAccess::fixed);
+  EXPECT_EQ(r.mapping_counts, (std::vector<std::uint8_t>{0, 1, 2}));
+  EXPECT_EQ(r.manufacturer_entries, 1u);
+  EXPECT_EQ(p.pdo("tpdo1")->communication_index(), 0x1800);
+  EXPECT_EQ(p.pdo("tpdo1")->mapping_index(), 0x1A00);
+}
+
+// The built-in profiles' PDO access, against the specs' tables written out by hand: what a
+// master may write decides what the bridge's boot writes and what it refuses.
+TEST(BuiltinProfiles, PdoAccessAsTheSpecTablesSay) {
+  using A = lb::profiles::PdoAccess;
+  const auto registry = lb::profiles::ProfileRegistry::builtin();
+  struct Row {
+    const char* profile;
+    const char* version;
+    const char* pdo;
+    A cob_id, type, mapping_count, mapping;
+    std::vector<std::uint8_t> counts;
+    unsigned manufacturer;
+    std::uint16_t comm, map;
+  };
+  const Row rows[] = {
+      // CiA 420-4 3.1 tables 3/5, 7/9, 11/13.
+      {"cia420-4", "3.1", "tpdo1", A::fixed, A::rw, A::rw_preop, A::fixed, {0, 2, 3}, 1, 0x1800, 0x1A00},
+      {"cia420-4", "3.1", "tpdo2", A::fixed, A::rw, A::fixed, A::fixed, {}, 0, 0x1801, 0x1A01},
+      {"cia420-4", "3.1", "rpdo1", A::fixed, A::rw, A::fixed, A::fixed, {}, 0, 0x1400, 0x1600},
+      // CiA 420-3 3.1: TPDO1 COB-ID rw but only valid / not valid; 1A00h sub 0 00h, 03h..04h.
+      {"cia420-3", "3.1", "tpdo1", A::valid_bit, A::rw, A::rw_preop, A::fixed, {0, 3, 4}, 1, 0x1800, 0x1A00},
+      {"cia420-3", "3.1", "tpdo2", A::fixed, A::rw, A::fixed, A::fixed, {}, 0, 0x1801, 0x1A01},
+      {"cia420-3", "3.1", "rpdo1", A::fixed, A::rw, A::rw_preop, A::fixed, {0, 2, 3}, 1, 0x1400, 0x1600},
+      // CiA 420-2 1.0 and 420-4 1.0 section 2: COB-ID ro, transmission type rw, mapping not restricted.
+      {"cia420-2", "1.0", "tpdo2", A::fixed, A::rw, A::rw, A::rw, {}, 0, 0x1801, 0x1A01},
+      {"cia420-4", "1.0", "rpdo1", A::fixed, A::rw, A::rw, A::rw, {}, 0, 0x1400, 0x1600},
+      // CiA 414-2 4.2-4.6: COB-IDs and transmission types rw, mappings constant.
+      {"cia414-2", "1.1", "rpdo3", A::rw, A::rw, A::fixed, A::fixed, {}, 0, 0x1402, 0x1602},
+      {"cia414-2", "1.1", "tpdo1", A::rw, A::rw, A::fixed, A::fixed, {}, 0, 0x1800, 0x1A00},
+  };
+  for (const auto& row : rows) {
+    SCOPED_TRACE(std::string(row.profile) + "@" + row.version + " " + row.pdo);
+    const auto* profile = registry.find(row.profile, row.version);
+    ASSERT_NE(profile, nullptr);
+    const auto* pdo = profile->pdo(row.pdo);
+    ASSERT_NE(pdo, nullptr);
+    EXPECT_EQ(pdo->rules.cob_id, row.cob_id);
+    EXPECT_EQ(pdo->rules.transmission_type, row.type);
+    EXPECT_EQ(pdo->rules.mapping_count, row.mapping_count);
+    EXPECT_EQ(pdo->rules.mapping, row.mapping);
+    EXPECT_EQ(pdo->rules.mapping_counts, row.counts);
+    EXPECT_EQ(pdo->rules.manufacturer_entries, row.manufacturer);
+    EXPECT_EQ(pdo->communication_index(), row.comm);
+    EXPECT_EQ(pdo->mapping_index(), row.map);
+  }
+  // A feeder RPDO's communication parameter has sub 0 = 02h: no inhibit time, no event timer.
+  const auto* rpdo1 = registry.find("cia414-2", "1.1")->pdo("rpdo1");
+  EXPECT_EQ(rpdo1->rules.inhibit_time, A::none);
+  EXPECT_EQ(rpdo1->rules.event_timer, A::none);
+}
