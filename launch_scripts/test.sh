@@ -20,10 +20,10 @@ if [ "${LINEBRIDGE_TSAN:-1}" != 0 ]; then
   tsan="${build}-tsan"
   cmake -S . -B "$tsan" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLINEBRIDGE_WERROR=ON -DLINEBRIDGE_SANITIZE=thread
   cmake --build "$tsan" --target linebridge linebridge-sim integration_saw integration_core integration_monitor \
-    integration_pdo unit_sdo unit_pdo_transmitter
+    integration_pdo integration_master_boot unit_sdo unit_pdo_transmitter
   echo "== ThreadSanitizer: integration tests"
   (cd "$tsan" && TSAN_OPTIONS="suppressions=$root/tests/tsan.supp second_deadlock_stack=1" \
-    ctest --output-on-failure --timeout 300 -j 1 -R 'SawLine|CanopenCore|MonitorRole|PdoOverrides|Transmitter|^Sdo') ||
+    ctest --output-on-failure --timeout 300 -j 1 -R 'SawLine|CanopenCore|MonitorRole|PdoOverrides|MasterBoot|Transmitter|^Sdo') ||
     tsan_status=$?
 fi
 
