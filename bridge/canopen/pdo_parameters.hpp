@@ -17,6 +17,7 @@ namespace lb::canopen {
 inline constexpr std::uint32_t kCobIdNotValid = 0x8000'0000U;
 inline constexpr std::uint32_t kCobIdNoRtr = 0x4000'0000U;
 inline constexpr std::uint32_t kCobIdExtended = 0x2000'0000U;
+inline constexpr std::uint32_t kCobIdIdentifier = 0x1FFF'FFFFU;  // bits 28..0 (11-bit identifiers: 10..0)
 
 struct PdoParameters {
   std::uint32_t cob_id = 0;  // the whole 32-bit entry: bit 31 not valid, bit 30 no RTR, bit 29 29-bit
@@ -27,7 +28,7 @@ struct PdoParameters {
 
   bool valid() const { return (cob_id & kCobIdNotValid) == 0; }
   bool extended() const { return (cob_id & kCobIdExtended) != 0; }
-  std::uint32_t can_id() const { return cob_id & (extended() ? 0x1FFF'FFFFU : 0x7FFU); }
+  std::uint32_t can_id() const { return cob_id & (extended() ? kCobIdIdentifier : 0x7FFU); }
   friend bool operator==(const PdoParameters&, const PdoParameters&) = default;
 };
 

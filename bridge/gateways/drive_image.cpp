@@ -66,15 +66,8 @@ DriveImage::DriveImage(const profiles::Profile& profile, std::span<const profile
 }
 
 Result<void> DriveImage::use_pdo(std::size_t pdo, const profiles::DevicePdo& actual) {
-  if (actual.mapping == defs_[pdo].mapping) {  // the line's own mapping, checked at start-up
-    defs_[pdo] = actual;
-    return {};
-  }
-  auto binding = bind_device_pdo(profile_, image_, actual);
-  if (!binding) return binding.error();
-  defs_[pdo] = actual;
   auto& p = pdos_[pdo];
-  p.binding = std::move(*binding);
+  if (auto r = use_device_pdo(profile_, image_, defs_[pdo], p.binding, actual); !r) return r;
   p.carries_echo = actual.direction == profiles::PdoDirection::tx && maps(p.binding.mapping(), *speed_echo_.def);
   return {};
 }

@@ -76,15 +76,7 @@ FeederCodec::FeederCodec(const profiles::Profile& profile, std::span<const profi
 }
 
 Result<void> FeederCodec::use_pdo(std::size_t pdo, const profiles::DevicePdo& actual) {
-  if (actual.mapping == defs_[pdo].mapping) {  // the line's own mapping, checked at start-up
-    defs_[pdo] = actual;
-    return {};
-  }
-  auto binding = bind_device_pdo(profile_, image_, actual);
-  if (!binding) return binding.error();
-  defs_[pdo] = actual;
-  pdos_[pdo].binding = std::move(*binding);
-  return {};
+  return use_device_pdo(profile_, image_, defs_[pdo], pdos_[pdo].binding, actual);
 }
 
 const ObjectDef& FeederCodec::object(std::string_view name) const {

@@ -40,4 +40,19 @@ inline Result<canopen::PdoBinding> bind_device_pdo(const profiles::Profile& prof
   return canopen::PdoBinding(std::move(*mapping), image);
 }
 
+// A codec's PDO (`def`, `binding`) taking the parameters its device's boot found: a mapping that is
+// the line's own was checked at start-up; another one is bound after the checks above, and on a
+// refusal nothing changes.
+inline Result<void> use_device_pdo(const profiles::Profile& profile, const canopen::ProcessImage& image,
+                                   profiles::DevicePdo& def, canopen::PdoBinding& binding,
+                                   const profiles::DevicePdo& actual) {
+  if (actual.mapping != def.mapping) {
+    auto bound = bind_device_pdo(profile, image, actual);
+    if (!bound) return bound.error();
+    binding = std::move(*bound);
+  }
+  def = actual;
+  return {};
+}
+
 }  // namespace lb::gateways

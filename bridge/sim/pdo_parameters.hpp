@@ -22,17 +22,19 @@
 #include <vector>
 
 #include "canopen/pdo_mapping.hpp"
+#include "canopen/pdo_parameters.hpp"
 #include "canopen/process_image.hpp"
 #include "canopen/sdo_server.hpp"
 #include "profiles/line_config.hpp"
 
 namespace lb::sim {
 
+// The COB-ID entry's bits are canopen's (pdo_parameters.hpp), the same for device and master.
 namespace cob_bits {
-inline constexpr std::uint32_t invalid = 0x8000'0000;   // bit 31: the PDO does not exist (not valid)
-inline constexpr std::uint32_t no_rtr = 0x4000'0000;    // bit 30: TPDO no RTR; reserved for RPDOs
-inline constexpr std::uint32_t extended = 0x2000'0000;  // bit 29: 29-bit identifier
-inline constexpr std::uint32_t identifier = 0x1FFF'FFFF;
+inline constexpr std::uint32_t invalid = canopen::kCobIdNotValid;
+inline constexpr std::uint32_t no_rtr = canopen::kCobIdNoRtr;
+inline constexpr std::uint32_t extended = canopen::kCobIdExtended;
+inline constexpr std::uint32_t identifier = canopen::kCobIdIdentifier;
 }  // namespace cob_bits
 
 struct PdoParameters {

@@ -23,6 +23,18 @@ namespace {
 
 bool operational(const msg::SawStatus& s) { return s.health().online() && s.health().nmt_state() == msg::NMT_OPERATIONAL; }
 
+// A status history in which the device left operational after sample `from`, then came back.
+auto left_and_came_back(std::size_t from) {
+  return [from](const std::vector<msg::SawStatus>& v) {
+    bool left = false;
+    for (std::size_t i = from; i < v.size(); ++i) {
+      if (!operational(v[i])) left = true;
+      if (left && operational(v[i])) return true;
+    }
+    return false;
+  };
+}
+
 const msg::NodeDiagnostics* node(const msg::Diagnostics& d, const std::string& device) {
   for (const auto& n : d.nodes()) {
     if (n.device() == device) return &n;
@@ -240,14 +252,7 @@ TEST(MasterBoot, SilentResetIsReconfiguredWithinOneHeartbeatTimeout) {
   line.spy().clear();
   ASSERT_TRUE(line.spy().send(silent_reset_request(5)));
   // Back operational after having left it.
-  ASSERT_TRUE(status.wait(5s, [n = status.size()](const std::vector<msg::SawStatus>& v) {
-    bool left = false;
-    for (std::size_t i = n; i < v.size(); ++i) {
-      if (!operational(v[i])) left = true;
-      if (left && operational(v[i])) return true;
-    }
-    return false;
-  })) << line.logs();
+  ASSERT_TRUE(status.wait(5s, left_and_came_back(status.size()))) << line.logs();
   std::this_thread::sleep_for(200ms);
   const auto frames = line.spy().frames();
   std::int64_t first_preop = 0, configured = 0, started = 0;
@@ -310,14 +315,7 @@ TEST(MasterBoot, ResetNodePolicyResetsADeviceWhoseStateIsUnknown) {
   ASSERT_TRUE(status.wait_last(15s, operational)) << line.logs();
   line.spy().clear();
   ASSERT_TRUE(line.spy().send(silent_reset_request(5)));
-  ASSERT_TRUE(status.wait(5s, [n = status.size()](const std::vector<msg::SawStatus>& v) {
-    bool left = false;
-    for (std::size_t i = n; i < v.size(); ++i) {
-      if (!operational(v[i])) left = true;
-      if (left && operational(v[i])) return true;
-    }
-    return false;
-  })) << line.logs();
+  ASSERT_TRUE(status.wait(5s, left_and_came_back(status.size()))) << line.logs();
   const auto frames = line.spy().frames();
   EXPECT_TRUE(has_nmt(frames, 0x81, 5)) << "no NMT reset node";
   bool boot_up = false;
