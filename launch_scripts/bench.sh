@@ -570,12 +570,20 @@ fig_security() {  # RUN
       [ "$mode" = plain ] || secure_pki="$d/pki"
       mkdir -p "$d/$mode/dds/c$c" "$d/$mode/bridge/c$c" "$d/$mode/setpoint/c$c"
       dds_floor "$d/$mode/dds/c$c"
+      vals="$d/$mode.chunks"  # the per-chunk lines of the two paths, per mode
       path_can2dds "$d/$mode/bridge/c$c" "sec-$mode-$1-$c" bridge
       setpoint_bridge "$d/$mode/setpoint/c$c" "sec-sp-$mode-$1-$c"
+      vals="$d/values"
       startup_1x1 "$d/$mode/startup/c$c"
     done
   done
   secure_pki=""
+  for mode in plain secured; do
+    sed -n 's/^chunk_bridge_cpu_pct=//p' "$d/$mode.chunks" |
+      awk -v k="security_${mode}_bridge_cpu_pct" '{ s += $1 } END { if (NR) printf "%s=%.1f\n", k, s / NR }' >>"$vals"
+    sed -n 's/^chunk_\(bridge_missing\|lost\)=//p' "$d/$mode.chunks" |
+      awk -v k="security_${mode}_missing" '{ s += $1 } END { printf "%s=%d\n", k, s }' >>"$vals"
+  done
   for mode in plain secured; do
     cat "$d/$mode"/dds/c*/dds.lat >"$d/$mode.dds.lat"
     cat "$d/$mode"/bridge/c*/bridge.lat >"$d/$mode.can2dds.lat"
@@ -678,6 +686,8 @@ cmd() { echo "launch_scripts/bench.sh --only $1$quick_flag --runs $runs$nice_fla
       k=${what%%:*}
       echo "| Security: ${what#*:}, p50 / p99 / p99.9 (µs): unsecured; secured | $(stat security security_plain_${k}_p50_us) / $(stat security security_plain_${k}_p99_us) / $(stat security security_plain_${k}_p999_us); $(stat security security_secured_${k}_p50_us) / $(stat security security_secured_${k}_p99_us) / $(stat security security_secured_${k}_p999_us) | | | \`$(cmd security)\` |"
     done
+    echo "| Security: bridge CPU, CAN->DDS at $lat_rate frames/s, 1 bus x $devices saws (% of a core): unsecured; secured | $(stat security security_plain_bridge_cpu_pct); $(stat security security_secured_bridge_cpu_pct) | | | \`$(cmd security)\` |"
+    echo "| Security: CAN->DDS samples missing + DDS->CAN set values lost: unsecured; secured | $(stat security security_plain_missing); $(stat security security_secured_missing) | 0 | $(verdict "$(median security security_secured_missing)" "<=" 0) | \`$(cmd security)\` |"
     echo "| Security: start-up 1 saw, process start -> first status sample (ms): unsecured; secured | $(stat security security_plain_startup_first_ms); $(stat security security_secured_startup_first_ms) | | | \`$(cmd security)\` |"
     echo "| Security: start-up 1 saw, process start -> saw online (ms): unsecured; secured | $(stat security security_plain_startup_online_ms); $(stat security security_secured_startup_online_ms) | | | \`$(cmd security)\` |"
   fi

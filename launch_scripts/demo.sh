@@ -54,20 +54,12 @@ observer=()
 if ((secure)); then
   pki="$logdir/pki"
   say "DDS Security: a PKI for the demo line (launch_scripts/pki.sh; keys in $pki, made now, never shipped)"
-  ./launch_scripts/pki.sh init --config config/lines/demo.yaml --dir "$pki" >/dev/null
+  # pki.sh init prints the dds.security block for the line file; it goes in after localhost_only.
+  ./launch_scripts/pki.sh init --config config/lines/demo.yaml --dir "$pki" | sed -n '/^  security:/,$p' >"$logdir/security.yaml"
   ./launch_scripts/pki.sh issue --config config/lines/demo.yaml --dir "$pki" --name op1 --role operator --devices saw1
   ./launch_scripts/pki.sh issue --config config/lines/demo.yaml --dir "$pki" --name hmi --role observer
   secured="$logdir/demo-secured.yaml"
-  # The demo line with a dds.security block (what pki.sh init prints), after localhost_only.
-  sed "/^  localhost_only:/r /dev/stdin" config/lines/demo.yaml >"$secured" <<EOF
-  security:
-    identity_ca: $pki/ca/identity_ca.pem
-    permissions_ca: $pki/ca/permissions_ca.pem
-    governance: $pki/governance.p7s
-    certificate: $pki/bridge/cert.pem
-    private_key: $pki/bridge/key.pem
-    permissions: $pki/bridge/permissions.p7s
-EOF
+  sed "/^  localhost_only:/r $logdir/security.yaml" config/lines/demo.yaml >"$secured"
   "$bin/linebridge-security" --config "$secured" check
   line=(--config "$secured")
   operator=(--identity "$pki/op1")
