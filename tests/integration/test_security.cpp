@@ -59,7 +59,7 @@ std::set<std::array<std::uint8_t, 8>> payloads(lb::test::BusSpy& spy, std::uint3
   return out;
 }
 
-msg::SawSetpoint setpoint(std::uint64_t id, double percent, double length_m) {
+msg::SawSetpoint saw_setpoint(std::uint64_t id, double percent, double length_m) {
   msg::SawSetpoint sp;
   sp.request_id(id);
   sp.saw_program_on(true);
@@ -267,7 +267,7 @@ TEST_F(SecuredLine, ObserverCannotPublishASetValueOnEitherSide) {
   ASSERT_TRUE(w) << "the local check was expected to pass";
   spy_->clear();
   for (int i = 0; i < 30; ++i) {
-    w->write(setpoint(1000 + i, 80, 0.7));
+    w->write(saw_setpoint(1000 + i, 80, 0.7));
     std::this_thread::sleep_for(100ms);
   }
   EXPECT_EQ(w->matched(), 0) << "the bridge matched a writer its permissions do not allow";
@@ -301,7 +301,7 @@ TEST_F(SecuredLine, UnauthenticatedAndForeignParticipantsReceiveNothingAndChange
     return status_samples_;
   }();
   for (int i = 0; i < 30; ++i) {
-    for (auto& w : writers) w.write(setpoint(2000 + i, 90, 0.9));
+    for (auto& w : writers) w.write(saw_setpoint(2000 + i, 90, 0.9));
     std::this_thread::sleep_for(100ms);
   }
   auto client = lb::ddsl::ServiceClient<srv::Nmt_RequestPubSubType, srv::Nmt_ResponsePubSubType>::create(
