@@ -154,12 +154,20 @@ class ServiceClient {
     return false;
   }
   Result<Writer<RequestPS>> writer_for(const std::string& partition) {
-    std::lock_guard lock(mutex_);
-    if (auto it = writers_.find(partition); it != writers_.end()) return it->second;
+    {
+      std::lock_guard lock(mutex_);
+      if (auto it = writers_.find(partition); it != writers_.end()) return it->second;
+    }
+    // Created without the lock: received() takes it on a Fast DDS thread.
     auto writer = partition.empty() ? dds_.writer<RequestPS>(request_topic(path_), QosKind::command)
                                     : dds_.writer<RequestPS>(request_topic(path_), QosKind::command, partition);
     if (!writer) return writer.error();
-    writers_.emplace(partition, *writer);
+    std::lock_guard lock(mutex_);
+    const auto [it, added] = writers_.emplace(partition, *writer);
+    if (!added) {
+      dds_.remove_writer(writer->entity());  // another call made one meanwhile
+      return it->second;
+    }
     guids_.insert(writer->guid());
     return *writer;
   }
