@@ -26,6 +26,7 @@ die() { echo "pki.sh: $*" >&2; exit 2; }
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 [ $# -ge 1 ] || usage
 cmd=$1; shift
+[[ $cmd =~ ^(init|issue|sign)$ ]] || usage
 config="" dir="" org="linebridge" days=365 name="" role="" devices=""
 files=()
 while (($#)); do
