@@ -22,6 +22,7 @@
 #include "names.hpp"
 #include "rendezvous.hpp"
 #include "saw_stamps.hpp"
+#include "security_option.hpp"
 
 namespace bench = lb::bench;
 namespace msg = linebridge_msgs::msg;
@@ -76,6 +77,8 @@ int main(int argc, char** argv) {
   cli.add_option("--out", out, "write every latency (ns), one per line");
   cli.add_option("--ready", ready_file, "created once the bus is open");
   cli.add_option("--go", go_file, "start once this file exists");
+  bench::SecurityOption security;
+  security.add(cli);
   CLI11_PARSE(cli, argc, argv);
 
   // The bus first: this process hosts the hub, whoever starts next.
@@ -85,7 +88,7 @@ int main(int argc, char** argv) {
     return 1;
   }
   bench::signal_file(ready_file);
-  auto dds = lb::ddsl::Participant::create({static_cast<std::uint32_t>(domain), true, "bench-setpoint"});
+  auto dds = lb::ddsl::Participant::create(security.options(domain, "bench-setpoint"));
   if (!dds) {
     std::fprintf(stderr, "bench-setpoint: %s\n", dds.error().message.c_str());
     return 1;

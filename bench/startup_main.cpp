@@ -25,6 +25,7 @@
 #include "msgs/sawPubSubTypes.h"
 #include "names.hpp"
 #include "proc_stats.hpp"
+#include "security_option.hpp"
 
 namespace bench = lb::bench;
 namespace msg = linebridge_msgs::msg;
@@ -82,12 +83,14 @@ int main(int argc, char** argv) {
   bool online = false;
   cli.add_flag("--online", online, "also wait for every device's first sample with live data (a simulator plays them)");
   cli.add_option("command", command, "the bridge command line (after --)")->required();
+  bench::SecurityOption security;
+  security.add(cli);
   CLI11_PARSE(cli, argc, argv);
 
   FirstSamples first;  // outlives the participant's listeners
   first.seen.assign(static_cast<std::size_t>(buses * devices), false);
   first.online.assign(first.seen.size(), false);
-  auto dds = lb::ddsl::Participant::create({static_cast<std::uint32_t>(domain), true, "bench-startup"});
+  auto dds = lb::ddsl::Participant::create(security.options(domain, "bench-startup"));
   if (!dds) {
     std::fprintf(stderr, "bench-startup: %s\n", dds.error().message.c_str());
     return 1;

@@ -18,6 +18,7 @@
 #include "proc_stats.hpp"
 #include "rendezvous.hpp"
 #include "saw_stamps.hpp"
+#include "security_option.hpp"
 
 namespace bench = lb::bench;
 namespace msg = linebridge_msgs::msg;
@@ -39,9 +40,11 @@ int main(int argc, char** argv) {
   cli.add_option("--go", go_file, "start writing once this file exists");
   cli.add_option("--stop", stop_file, "after writing, stay until this file exists (or --linger)");
   cli.add_option("--linger", linger_s, "at most this long after writing, seconds")->capture_default_str();
+  bench::SecurityOption security;
+  security.add(cli);
   CLI11_PARSE(cli, argc, argv);
 
-  auto dds = lb::ddsl::Participant::create({static_cast<std::uint32_t>(domain), true, "bench-status-pub"});
+  auto dds = lb::ddsl::Participant::create(security.options(domain, "bench-status-pub"));
   if (!dds) {
     std::fprintf(stderr, "bench-status-pub: %s\n", dds.error().message.c_str());
     return 1;

@@ -22,6 +22,7 @@
 #include "names.hpp"
 #include "rendezvous.hpp"
 #include "saw_stamps.hpp"
+#include "security_option.hpp"
 
 namespace bench = lb::bench;
 namespace msg = linebridge_msgs::msg;
@@ -68,13 +69,15 @@ int main(int argc, char** argv) {
   cli.add_option("--out", out, "write every latency (ns), one per line");
   cli.add_option("--ready", ready_file, "created once every status topic has a matched writer");
   cli.add_option("--name", name, "participant name")->capture_default_str();
+  bench::SecurityOption security;
+  security.add(cli);
   CLI11_PARSE(cli, argc, argv);
 
   // Declared before the participant, so they outlive every listener call.
   Tally tally;
   tally.latencies.reserve(expect);
   std::vector<bench::StampDecoder> decoders(static_cast<std::size_t>(buses * devices));
-  auto dds = lb::ddsl::Participant::create({static_cast<std::uint32_t>(domain), true, name});
+  auto dds = lb::ddsl::Participant::create(security.options(domain, name));
   if (!dds) {
     std::fprintf(stderr, "bench-status-sub: %s\n", dds.error().message.c_str());
     return 1;

@@ -8,7 +8,7 @@
 #
 #   --quick          fewer samples and shorter steps (about 2 min instead of about 6 per run)
 #   --runs K         measure every figure K times; the table shows the median and the range
-#   --only FIGURES   comma-separated subset of: can2dds,dds2can,throughput,memory,startup
+#   --only FIGURES   comma-separated subset of: can2dds,dds2can,throughput,memory,startup,security
 #   --build-dir DIR  where the build is (default build-bench); it is configured (Release) and
 #                    built first unless --no-build
 #   --out DIR        keep raw latencies, logs and the exact commands there (default: a new
@@ -36,6 +36,10 @@
 #               and what one bus costs a bare Fast DDS writer and a bare bus reader.
 #   memory      VmRSS / VmHWM of the bridge with 8 buses x 30 saws under full load.
 #   startup     process start -> first status sample at an already running subscriber.
+#   security    DDS Security's cost, secured and unsecured side by side, alternating in chunks:
+#               the bare Fast DDS hop, CAN->DDS and DDS->CAN through the bridge, and start-up
+#               (1 saw) of a line secured by launch_scripts/pki.sh (PKI-DH, access control,
+#               discovery, liveliness, metadata and data ENCRYPT) against the same line unsecured.
 set -euo pipefail
 
 usage() { sed -n '2,40p' "$0" | sed 's/^# \{0,1\}//'; exit 2; }
@@ -44,7 +48,7 @@ root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 orig_args=("$@")
 quick=0
 runs=1
-only="can2dds,dds2can,throughput,memory,startup"
+only="can2dds,dds2can,throughput,memory,startup,security"
 build_dir="$root/build-bench"
 do_build=1
 out_dir=""
@@ -73,7 +77,7 @@ while (($#)); do
 done
 [[ $runs =~ ^[1-9][0-9]*$ ]] || { echo "bench.sh: --runs takes a positive number" >&2; exit 2; }
 for f in ${only//,/ }; do
-  [[ $f =~ ^(can2dds|dds2can|throughput|memory|startup)$ ]] || { echo "bench.sh: unknown figure $f" >&2; exit 2; }
+  [[ $f =~ ^(can2dds|dds2can|throughput|memory|startup|security)$ ]] || { echo "bench.sh: unknown figure $f" >&2; exit 2; }
 done
 
 # Outside the namespace: build (no DDS here), then re-enter through the wrapper.
@@ -87,7 +91,7 @@ if [ "${LINEBRIDGE_NETNS:-}" != "1" ]; then
       cmake -S "$root" -B "$build_dir" -G Ninja -DCMAKE_BUILD_TYPE=Release -DLINEBRIDGE_WERROR=ON \
         -DCMAKE_CXX_FLAGS=-Wno-error=restrict >&2
     fi
-    cmake --build "$build_dir" --target linebridge linebridge-sim bench-config bench-inject bench-can-sink \
+    cmake --build "$build_dir" --target linebridge linebridge-sim linebridge-security bench-config bench-inject bench-can-sink \
       bench-status-pub bench-status-sub bench-setpoint bench-relay bench-can-relay bench-startup bench-stats >&2
   fi
   [ -n "$out_dir" ] || out_dir=$(mktemp -d /tmp/linebridge-bench.XXXXXX)
@@ -175,7 +179,19 @@ mem_kib() { awk -v k="$2:" '$1 == k { print $2 }' "/proc/$1/status"; }
 get() { sed -n "s/^$2=//p" "$1" | tail -1; }  # get FILE KEY (key=value reports)
 
 domain=10
-next_domain() { domain=$((domain + 1)); }
+# The security figure's secured steps: every participant gets an identity of this PKI (pki.sh), and
+# all of them use its one domain, since the governance and the grants name it.
+secure_pki=""
+secure_domain=200
+next_domain() {
+  if [ -n "$secure_pki" ]; then domain=$secure_domain; else domain=$((domain + 1)); fi
+}
+# secured IDENTITY: sets $sec to the bench programs' security options (empty when unsecured), and
+# $sec_cfg to bench-config's.
+secured() {
+  sec=(); sec_cfg=()
+  [ -z "$secure_pki" ] || { sec=(--pki "$secure_pki" --identity "$1"); sec_cfg=(--pki "$secure_pki"); }
+}
 
 # ------------------------------------------------------------------------------------------------
 # One run of each figure. Each writes key=value lines to $vals (appended), raw data to its dir.
@@ -199,11 +215,13 @@ bus_floor() {  # DIR PREFIX
 dds_floor() {  # DIR
   local d=$1 sub pub
   next_domain
+  secured observer
   start "$d/sub" "${harness_cmd[@]}" "$bin/bench-status-sub" --buses 1 --devices $devices --domain $domain --expect $((lat_samples + lat_warmup)) \
-    --warmup $lat_warmup --ready "$d/sub.ready" --out "$d/dds.lat"
+    --warmup $lat_warmup --ready "$d/sub.ready" --out "$d/dds.lat" "${sec[@]}"
   sub=$pid
+  secured bridge  # a bare writer of the bridge's status topics
   start "$d/pub" "${pin_cmd[@]}" "$bin/bench-status-pub" --devices $devices --domain $domain --rate $lat_rate --count $((lat_samples + lat_warmup)) \
-    --ready "$d/pub.ready" --go "$d/go" --stop "$d/stop" --linger 120
+    --ready "$d/pub.ready" --go "$d/go" --stop "$d/stop" --linger 120 "${sec[@]}"
   pub=$pid
   wait_file "$d/sub.ready" $sub
   wait_file "$d/pub.ready" $pub
@@ -217,7 +235,8 @@ dds_floor() {  # DIR
 path_can2dds() {
   local d=$1 p=$2 what=$3 inj sub br
   next_domain
-  "$bin/bench-config" --buses 1 --devices $devices --domain $domain --prefix "$p" --role monitor >"$d/line.yaml"
+  secured observer
+  "$bin/bench-config" --buses 1 --devices $devices --domain $domain --prefix "$p" --role monitor "${sec_cfg[@]}" >"$d/line.yaml"
   start "$d/inject" "${harness_cmd[@]}" "$bin/bench-inject" --buses 1 --devices $devices --rate $lat_rate --count $((lat_samples + lat_warmup)) \
     --prefix "$p" --ready "$d/inject.ready" --go "$d/go" --stop "$d/stop" --linger 120
   inj=$pid
@@ -225,7 +244,7 @@ path_can2dds() {
   local diag=()
   [ "$what" = relay ] || diag=(--diagnostics)
   start "$d/sub" "${harness_cmd[@]}" "$bin/bench-status-sub" --buses 1 --devices $devices --domain $domain --expect $((lat_samples + lat_warmup)) \
-    --warmup $lat_warmup "${diag[@]}" --ready "$d/sub.ready" --out "$d/$what.lat"
+    --warmup $lat_warmup "${diag[@]}" --ready "$d/sub.ready" --out "$d/$what.lat" "${sec[@]}"
   sub=$pid
   if [ "$what" = relay ]; then
     start "$d/relay" "${pin_cmd[@]}" "$bin/bench-can-relay" --prefix "$p" --devices $devices --domain $domain
@@ -278,9 +297,10 @@ setpoint_bridge() {  # DIR PREFIX: the bridge in the master role (the saw booted
   # of at the next SYNC.
   local d=$1 p=$2 sp sim br
   next_domain
-  "$bin/bench-config" --buses 1 --devices 1 --domain $domain --prefix "$p" --role master --rpdo-event >"$d/line.yaml"
+  secured engineer  # set values of every device
+  "$bin/bench-config" --buses 1 --devices 1 --domain $domain --prefix "$p" --role master --rpdo-event "${sec_cfg[@]}" >"$d/line.yaml"
   start "$d/setpoint" "${harness_cmd[@]}" "$bin/bench-setpoint" --prefix "$p" --domain $domain --count $sp_samples --warmup $sp_warmup \
-    --ready "$d/setpoint.ready" --go "$d/go" --out "$d/bridge.lat"
+    --ready "$d/setpoint.ready" --go "$d/go" --out "$d/bridge.lat" "${sec[@]}"
   sp=$pid
   wait_file "$d/setpoint.ready" $sp
   start "$d/sim" "${harness_cmd[@]}" "$sim_bin" --config "$d/line.yaml"
@@ -513,6 +533,71 @@ fig_startup() {  # RUN: each size several times (discovery makes the spread wort
   done
 }
 
+# startup_1x1 DIR: one start of the bridge (1 saw, the simulator already playing it) -> its first
+# status sample, and its first sample with the saw online, at a running subscriber.
+startup_1x1() {
+  local d=$1 sim
+  mkdir -p "$d"
+  next_domain
+  secured observer
+  "$bin/bench-config" --buses 1 --devices 1 --domain $domain --prefix "stsec-$RANDOM" --role master "${sec_cfg[@]}" >"$d/line.yaml"
+  start "$d/sim" "$sim_bin" --config "$d/line.yaml"
+  sim=$pid
+  sleep 1
+  printf '%s\n' "$bin/bench-startup --online --buses 1 --devices 1 --domain $domain ${sec[*]} --log $d/bridge.log -- $bridge_bin --config $d/line.yaml" >>"$commands"
+  "$bin/bench-startup" --online --buses 1 --devices 1 --domain $domain "${sec[@]}" --log "$d/bridge.log" -- \
+    "$bridge_bin" --config "$d/line.yaml" >"$d/out" 2>"$d/err" || true
+  stop $sim
+}
+
+# A PKI for the secured steps (pki.sh, as an integrator makes one): the bridge, an observer, an
+# engineer (set values of every device).
+security_pki() {  # DIR
+  local d=$1
+  "$bin/bench-config" --buses 1 --devices 1 --domain $secure_domain --prefix pki >"$d.line.yaml"
+  LINEBRIDGE_BIN="$build_dir/bridge/app" "$root/launch_scripts/pki.sh" init --config "$d.line.yaml" --dir "$d" >/dev/null
+  LINEBRIDGE_BIN="$build_dir/bridge/app" "$root/launch_scripts/pki.sh" issue --config "$d.line.yaml" --dir "$d" --name observer --role observer 2>/dev/null
+  LINEBRIDGE_BIN="$build_dir/bridge/app" "$root/launch_scripts/pki.sh" issue --config "$d.line.yaml" --dir "$d" --name engineer --role engineer 2>/dev/null
+}
+
+fig_security() {  # RUN
+  local d="$out_dir/security/run$1" c mode
+  vals="$d/values"; mkdir -p "$d"; : >"$vals"
+  security_pki "$d/pki"
+  for ((c = 1; c <= chunks; c++)); do
+    for mode in plain secured; do
+      secure_pki=""
+      [ "$mode" = plain ] || secure_pki="$d/pki"
+      mkdir -p "$d/$mode/dds/c$c" "$d/$mode/bridge/c$c" "$d/$mode/setpoint/c$c"
+      dds_floor "$d/$mode/dds/c$c"
+      vals="$d/$mode.chunks"  # the per-chunk lines of the two paths, per mode
+      path_can2dds "$d/$mode/bridge/c$c" "sec-$mode-$1-$c" bridge
+      setpoint_bridge "$d/$mode/setpoint/c$c" "sec-sp-$mode-$1-$c"
+      vals="$d/values"
+      startup_1x1 "$d/$mode/startup/c$c"
+    done
+  done
+  secure_pki=""
+  for mode in plain secured; do
+    sed -n 's/^chunk_bridge_cpu_pct=//p' "$d/$mode.chunks" |
+      awk -v k="security_${mode}_bridge_cpu_pct" '{ s += $1 } END { if (NR) printf "%s=%.1f\n", k, s / NR }' >>"$vals"
+    sed -n 's/^chunk_\(bridge_missing\|lost\)=//p' "$d/$mode.chunks" |
+      awk -v k="security_${mode}_missing" '{ s += $1 } END { printf "%s=%d\n", k, s }' >>"$vals"
+  done
+  for mode in plain secured; do
+    cat "$d/$mode"/dds/c*/dds.lat >"$d/$mode.dds.lat"
+    cat "$d/$mode"/bridge/c*/bridge.lat >"$d/$mode.can2dds.lat"
+    cat "$d/$mode"/setpoint/c*/bridge.lat >"$d/$mode.dds2can.lat"
+    "$bin/bench-stats" summary "$d/$mode.dds.lat" | sed "s/^lat_/security_${mode}_dds_/" >>"$vals"
+    "$bin/bench-stats" summary "$d/$mode.can2dds.lat" | sed "s/^lat_/security_${mode}_can2dds_/" >>"$vals"
+    "$bin/bench-stats" summary "$d/$mode.dds2can.lat" | sed "s/^lat_/security_${mode}_dds2can_/" >>"$vals"
+    for c in "$d/$mode"/startup/c*; do
+      echo "security_${mode}_startup_first_ms=$(get "$c/out" startup_first_ms)" >>"$vals"
+      echo "security_${mode}_startup_online_ms=$(get "$c/out" startup_all_online_ms)" >>"$vals"
+    done
+  done
+}
+
 # ------------------------------------------------------------------------------------------------
 want() { [[ ",$only," == *",$1,"* ]]; }
 begin=$(date +%s)
@@ -522,7 +607,7 @@ if ((report_only)); then
   [ -n "$runs" ] || { echo "bench.sh: no measurements in $out_dir" >&2; exit 1; }
 else
   for ((r = 1; r <= runs; r++)); do
-    for f in can2dds dds2can throughput memory startup; do
+    for f in can2dds dds2can throughput memory startup security; do
       if want $f; then
         echo "== $f, run $r of $runs" >&2
         "fig_$f" $r
@@ -594,6 +679,17 @@ cmd() { echo "launch_scripts/bench.sh --only $1$quick_flag --runs $runs$nice_fla
     echo "| Start-up with the devices powered (simulator): -> first sample with live data (device booted, online), 1x1 / ${mem_buses}x$devices (ms) | $(stat startup startup_1x1_first_online_ms) / $(stat startup startup_${mem_buses}x${devices}_first_online_ms) | | | \`$(cmd startup)\` |"
     echo "| Start-up with the devices powered: -> every saw online, 1x1 / ${mem_buses}x$devices (ms) | $(stat startup startup_1x1_all_online_ms) / $(stat startup startup_${mem_buses}x${devices}_all_online_ms) | | | \`$(cmd startup)\` |"
     echo "| Resident memory idle after start-up, 1x1 / ${mem_buses}x$devices, master role (MiB) | $(stat startup startup_1x1_rss_mib) / $(stat startup startup_${mem_buses}x${devices}_rss_mib) | | | \`$(cmd startup)\` |"
+  fi
+  if want security; then
+    for what in "dds:bare Fast DDS hop, $devices status topics at $lat_rate samples/s" "can2dds:CAN->DDS through the bridge" \
+                "dds2can:DDS->CAN set value through the bridge"; do
+      k=${what%%:*}
+      echo "| Security: ${what#*:}, p50 / p99 / p99.9 (µs): unsecured; secured | $(stat security security_plain_${k}_p50_us) / $(stat security security_plain_${k}_p99_us) / $(stat security security_plain_${k}_p999_us); $(stat security security_secured_${k}_p50_us) / $(stat security security_secured_${k}_p99_us) / $(stat security security_secured_${k}_p999_us) | | | \`$(cmd security)\` |"
+    done
+    echo "| Security: bridge CPU, CAN->DDS at $lat_rate frames/s, 1 bus x $devices saws (% of a core): unsecured; secured | $(stat security security_plain_bridge_cpu_pct); $(stat security security_secured_bridge_cpu_pct) | | | \`$(cmd security)\` |"
+    echo "| Security: CAN->DDS samples missing + DDS->CAN set values lost: unsecured; secured | $(stat security security_plain_missing); $(stat security security_secured_missing) | 0 | $(verdict "$(median security security_secured_missing)" "<=" 0) | \`$(cmd security)\` |"
+    echo "| Security: start-up 1 saw, process start -> first status sample (ms): unsecured; secured | $(stat security security_plain_startup_first_ms); $(stat security security_secured_startup_first_ms) | | | \`$(cmd security)\` |"
+    echo "| Security: start-up 1 saw, process start -> saw online (ms): unsecured; secured | $(stat security security_plain_startup_online_ms); $(stat security security_secured_startup_online_ms) | | | \`$(cmd security)\` |"
   fi
 } >"$table"
 

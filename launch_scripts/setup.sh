@@ -9,6 +9,7 @@ packages=(
   libyaml-cpp-dev libspdlog-dev libfmt-dev libgtest-dev libcli11-dev
   iproute2 util-linux procps
   can-utils qemu-system-x86 busybox-static xz-utils
+  openssl libssl-dev libtinyxml2-dev
 )
 
 missing=()

@@ -9,11 +9,10 @@
 
 namespace lb::app {
 
-Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfig& config) {
+Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfig& config,
+                                                        std::unique_ptr<ddsl::Participant> dds) {
   auto bridge = std::make_unique<LineBridge>(config);
-  auto dds = ddsl::Participant::create({config.dds.domain, config.dds.localhost_only, "linebridge/" + config.line});
-  if (!dds) return dds.error();
-  bridge->dds_ = std::move(*dds);
+  bridge->dds_ = std::move(dds);
 
   for (const auto& bus_cfg : config.buses) {
     const bool master = bus_cfg.role == profiles::BusRole::master;

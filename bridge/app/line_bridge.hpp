@@ -22,8 +22,11 @@ namespace lb::app {
 
 class LineBridge {
  public:
-  // Opens every bus and creates every gateway, or fails with the reason; nothing runs yet.
-  static Result<std::unique_ptr<LineBridge>> create(const profiles::LineConfig& config);
+  // Opens every bus and creates every gateway on `dds`, or fails with the reason; nothing runs yet.
+  // The caller creates the participant (app/dds_options.hpp), so it can tell a security refusal
+  // (a configuration error) from other start-up failures.
+  static Result<std::unique_ptr<LineBridge>> create(const profiles::LineConfig& config,
+                                                    std::unique_ptr<ddsl::Participant> dds);
   explicit LineBridge(const profiles::LineConfig& config) : config_(config) {}
   ~LineBridge();
   LineBridge(const LineBridge&) = delete;

@@ -10,6 +10,7 @@
 #include <optional>
 #include <thread>
 
+#include "app/dds_options.hpp"
 #include "app/line_config_source.hpp"
 #include "app/run_until_signal.hpp"
 #include "app/cli_services.hpp"
@@ -187,6 +188,10 @@ int main(int argc, char** argv) {
   cli.require_subcommand(1);
   std::string config_path;
   cli.add_option("-c,--config", config_path, "line configuration (YAML); default: the built-in demo line");
+  std::string identity_dir;
+  cli.add_option("--identity", identity_dir,
+                 "secured line: this client's identity folder (cert.pem, key.pem, permissions.p7s; launch_scripts/pki.sh)")
+      ->envname("LINEBRIDGE_IDENTITY");
 
   std::string device;
   EchoOptions echo;
@@ -274,8 +279,10 @@ int main(int argc, char** argv) {
     return fmt::print(stderr, "{}: the CLI shows and sets saws only so far (this is a {})\n", device,
                       dev->resolved_profile->device), 2;
   }
-  auto dds = lb::ddsl::Participant::create({config->dds.domain, config->dds.localhost_only, "linebridge-cli"});
-  if (!dds) return fmt::print(stderr, "{}\n", dds.error().message), 1;
+  auto options = lb::app::client_participant_options(*config, "linebridge-cli", identity_dir);
+  if (!options) return fmt::print(stderr, "{}\n", options.error().message), 2;
+  auto dds = lb::ddsl::Participant::create_checked(*options);
+  if (!dds) return fmt::print(stderr, "{}\n", dds.error().message), dds.error().configuration ? 2 : 1;
   const lb::app::ServiceTarget target{**dds, config->line, device,
                                       std::chrono::milliseconds(static_cast<long>(timeout_s * 1000))};
   if (nmt_cmd->parsed()) return lb::app::call_nmt(target, nmt_command);

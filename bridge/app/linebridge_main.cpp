@@ -2,6 +2,7 @@
 #include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
 
+#include "app/dds_options.hpp"
 #include "app/line_bridge.hpp"
 #include "app/line_config_source.hpp"
 #include "app/run_until_signal.hpp"
@@ -25,14 +26,24 @@ int main(int argc, char** argv) {
     spdlog::error("{}", config.error().message);
     return 2;
   }
-  auto bridge = lb::app::LineBridge::create(*config);
+  // DDS first: a secured participant that cannot prove security is in force is a configuration
+  // error (exit 2), like a bad security file; nothing runs unsecured by mistake.
+  const auto dds_options = lb::app::bridge_participant_options(*config);
+  auto dds = lb::ddsl::Participant::create_checked(dds_options);
+  if (!dds) {
+    spdlog::error("{}", dds.error().message);
+    return dds.error().configuration ? 2 : 1;
+  }
+  if (dds_options.security) spdlog::info("{}", lb::app::security_summary(dds_options));
+  auto bridge = lb::app::LineBridge::create(*config, std::move(*dds));
   if (!bridge) {
     spdlog::error("start-up failed: {}", bridge.error().message);
     return 1;
   }
   (*bridge)->start();
-  spdlog::info("line {}: {} bus(es), {} device(s), DDS domain {}{}", config->line, config->buses.size(),
-               config->devices.size(), config->dds.domain, config->dds.localhost_only ? " (localhost only)" : "");
+  spdlog::info("line {}: {} bus(es), {} device(s), DDS domain {}{}{}", config->line, config->buses.size(),
+               config->devices.size(), config->dds.domain, config->dds.localhost_only ? " (localhost only)" : "",
+               config->dds.security ? ", secured" : "");
   const int sig = lb::app::run_until_signal(std::chrono::milliseconds(static_cast<long>(duration_s * 1000)));
   spdlog::info("stopping ({})", sig != 0 ? "signal" : "duration elapsed");
   (*bridge)->stop();

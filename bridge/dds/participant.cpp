@@ -6,6 +6,9 @@
 #include <fastrtps/utils/IPLocator.h>
 
 #include <chrono>
+#include <filesystem>
+
+#include "dds/security_proof.hpp"
 
 namespace lb::ddsl {
 namespace {
@@ -20,7 +23,7 @@ const eprosima::fastrtps::Duration_t kHeartbeatPeriod{0, 100'000'000};
 // How many unacknowledged samples a keep-all (event) topic holds per endpoint before a writer blocks.
 constexpr int kKeepAllLimit = 1000;
 
-fdds::DomainParticipantQos participant_qos(const ParticipantOptions& options) {
+fdds::DomainParticipantQos base_qos(const ParticipantOptions& options) {
   fdds::DomainParticipantQos qos = fdds::PARTICIPANT_QOS_DEFAULT;
   qos.name(options.name);
   // Short-lived participants (the CLI, HMI tools) come and go: announce often enough that a
@@ -43,6 +46,29 @@ fdds::DomainParticipantQos participant_qos(const ParticipantOptions& options) {
     qos.wire_protocol().builtin.initialPeersList.push_back(peer);
   }
   return qos;
+}
+
+// Fast DDS takes file URIs only ("file://" + path; a bare path is refused).
+std::string file_uri(const std::string& path) { return "file://" + std::filesystem::absolute(path).string(); }
+
+void add_security(fdds::DomainParticipantQos& qos, const SecurityFiles& files) {
+  auto& props = qos.properties().properties();
+  const auto set = [&props](const std::string& name, const std::string& value) {
+    for (auto& p : props) {
+      if (p.name() == name) return void(p.value() = value);
+    }
+    props.emplace_back(name, value);
+  };
+  set("dds.sec.auth.plugin", "builtin.PKI-DH");
+  set("dds.sec.auth.builtin.PKI-DH.identity_ca", file_uri(files.identity_ca));
+  set("dds.sec.auth.builtin.PKI-DH.identity_certificate", file_uri(files.certificate));
+  set("dds.sec.auth.builtin.PKI-DH.private_key", file_uri(files.private_key));
+  set("dds.sec.access.plugin", "builtin.Access-Permissions");
+  set("dds.sec.access.builtin.Access-Permissions.permissions_ca", file_uri(files.permissions_ca));
+  set("dds.sec.access.builtin.Access-Permissions.governance", file_uri(files.governance));
+  set("dds.sec.access.builtin.Access-Permissions.permissions", file_uri(files.permissions));
+  set("dds.sec.crypto.plugin", "builtin.AES-GCM-GMAC");
+  for (const auto& [name, value] : files.properties) set(name, value);
 }
 
 // What each kind means; writers and readers of a kind get the same, so they always match.
@@ -106,20 +132,75 @@ fdds::DataReaderQos reader_qos(QosKind kind) { return with_kind(fdds::DATAREADER
 
 }  // namespace
 
+fdds::DomainParticipantQos participant_qos(const ParticipantOptions& options) {
+  auto qos = base_qos(options);
+  if (options.security) add_security(qos, *options.security);
+  return qos;
+}
+
 std::int64_t now_ns() {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch())
       .count();
 }
 
 Result<std::unique_ptr<Participant>> Participant::create(const ParticipantOptions& options) {
+  auto p = create_checked(options);
+  if (!p) return make_error(p.error().message);
+  return std::move(*p);
+}
+
+Result<std::unique_ptr<Participant>, CreateError> Participant::create_checked(const ParticipantOptions& options) {
   auto p = std::make_unique<Participant>(Key{});
+  if (options.security) {
+    if (auto files = check_security_files(*options.security, options.domain); !files) {
+      return CreateError{files.error().message, true};
+    }
+    p->writer_partitions_ = std::make_unique<WriterPartitions>();
+  }
   auto* factory = fdds::DomainParticipantFactory::get_instance();
-  p->participant_ = factory->create_participant(options.domain, participant_qos(options));
-  if (p->participant_ == nullptr) return make_error("cannot create DDS participant on domain " + std::to_string(options.domain));
+  p->participant_ =
+      factory->create_participant(options.domain, participant_qos(options), p->writer_partitions_.get(), fdds::StatusMask::none());
+  if (p->participant_ == nullptr) {
+    if (!options.security) return CreateError{"cannot create DDS participant on domain " + std::to_string(options.domain)};
+    return CreateError{"Fast DDS refused the secured participant on domain " + std::to_string(options.domain) +
+                           " although its files passed linebridge's checks (see Fast DDS's messages above; a property "
+                           "given in dds.security.properties?)",
+                       true};
+  }
+  if (options.security) {
+    if (auto proof = prove_security_active(*p->participant_); !proof) return CreateError{proof.error().message, true};
+    p->secured_ = true;
+  }
   p->publisher_ = p->participant_->create_publisher(fdds::PUBLISHER_QOS_DEFAULT);
   p->subscriber_ = p->participant_->create_subscriber(fdds::SUBSCRIBER_QOS_DEFAULT);
-  if (p->publisher_ == nullptr || p->subscriber_ == nullptr) return make_error("cannot create DDS publisher/subscriber");
+  if (p->publisher_ == nullptr || p->subscriber_ == nullptr) return CreateError{"cannot create DDS publisher/subscriber"};
   return p;
+}
+
+bool Participant::writer_in_partition(const eprosima::fastrtps::rtps::GUID_t& writer, std::string_view partition) const {
+  return writer_partitions_ != nullptr && writer_partitions_->contains(writer, partition);
+}
+
+fdds::Publisher* Participant::publisher_in(const std::string& partition) {
+  if (partition.empty()) return publisher_;
+  std::lock_guard lock(mutex_);
+  auto& pub = partition_publishers_[partition];
+  if (pub == nullptr) {
+    fdds::PublisherQos qos = fdds::PUBLISHER_QOS_DEFAULT;
+    qos.partition().push_back(partition.c_str());
+    pub = participant_->create_publisher(qos);
+  }
+  return pub;
+}
+
+fdds::Subscriber* Participant::any_partition_subscriber() {
+  std::lock_guard lock(mutex_);
+  if (any_partition_subscriber_ == nullptr) {
+    fdds::SubscriberQos qos = fdds::SUBSCRIBER_QOS_DEFAULT;
+    qos.partition().push_back("*");
+    any_partition_subscriber_ = participant_->create_subscriber(qos);
+  }
+  return any_partition_subscriber_;
 }
 
 Participant::~Participant() {
@@ -144,8 +225,10 @@ Result<fdds::Topic*> Participant::topic_for_type(const std::string& name, fdds::
   return topic;
 }
 
-fdds::DataWriter* Participant::create_writer(fdds::Topic* topic, QosKind kind) {
-  auto* w = publisher_->create_datawriter(topic, writer_qos(kind));
+fdds::DataWriter* Participant::create_writer(fdds::Topic* topic, QosKind kind, const std::string& partition) {
+  fdds::Publisher* pub = publisher_in(partition);
+  if (pub == nullptr) return nullptr;
+  auto* w = pub->create_datawriter(topic, writer_qos(kind));
   if (w != nullptr) {
     std::lock_guard lock(mutex_);
     writers_[topic->get_name()].push_back(w);
@@ -154,10 +237,12 @@ fdds::DataWriter* Participant::create_writer(fdds::Topic* topic, QosKind kind) {
 }
 
 fdds::DataReader* Participant::create_reader(fdds::Topic* topic, QosKind kind, int keep_last,
-                                             fdds::DataReaderListener* listener) {
+                                             fdds::DataReaderListener* listener, bool any_partition) {
   auto qos = reader_qos(kind);
   if (keep_last > 0 && qos.history().kind == fdds::KEEP_LAST_HISTORY_QOS) set_history(qos, fdds::KEEP_LAST_HISTORY_QOS, keep_last);
-  auto* r = subscriber_->create_datareader(topic, qos, listener);
+  fdds::Subscriber* sub = any_partition ? any_partition_subscriber() : subscriber_;
+  if (sub == nullptr) return nullptr;
+  auto* r = sub->create_datareader(topic, qos, listener);
   if (r != nullptr) {
     std::lock_guard lock(mutex_);
     readers_[topic->get_name()].push_back(r);
@@ -171,7 +256,7 @@ void Participant::remove_reader(fdds::DataReader* reader) {
     for (auto& [name, readers] : readers_) std::erase(readers, reader);
   }
   // Returns once no listener call is running on it, so its listener can be freed after.
-  subscriber_->delete_datareader(reader);
+  const_cast<fdds::Subscriber*>(reader->get_subscriber())->delete_datareader(reader);
 }
 
 void Participant::remove_writer(fdds::DataWriter* writer) {
@@ -179,7 +264,7 @@ void Participant::remove_writer(fdds::DataWriter* writer) {
     std::lock_guard lock(mutex_);
     for (auto& [name, writers] : writers_) std::erase(writers, writer);
   }
-  publisher_->delete_datawriter(writer);
+  const_cast<fdds::Publisher*>(writer->get_publisher())->delete_datawriter(writer);
 }
 
 int Participant::matched_readers(const std::string& topic) const {

@@ -17,10 +17,14 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "base/result.hpp"
+#include "dds/security_files.hpp"
+#include "dds/writer_partitions.hpp"
 
 namespace lb::ddsl {
 
@@ -41,7 +45,21 @@ struct ParticipantOptions {
   std::uint32_t domain = 0;
   bool localhost_only = true;  // UDPv4 on 127.0.0.1 + shared memory, initial peer 127.0.0.1
   std::string name = "linebridge";
+  // DDS Security (PKI-DH, Access-Permissions, AES-GCM-GMAC), fail-closed: the files are checked
+  // first and the participant proves after creation that security is in force, or it is not created.
+  std::optional<SecurityFiles> security = std::nullopt;
 };
+
+// Why a participant was not created. `configuration`: the options are wrong (a security file,
+// security not in force), not the machine; executables exit with their configuration-error code.
+struct CreateError {
+  std::string message;
+  bool configuration = false;
+};
+
+// The QoS Participant::create gives Fast DDS, security properties included, without the checks
+// and the proof: for tests that must drive Fast DDS directly (a client that bypasses its own checks).
+fdds::DomainParticipantQos participant_qos(const ParticipantOptions& options);
 
 // ROS 2 style service topic names: rq/<path>Request and rr/<path>Reply.
 inline std::string request_topic(const std::string& path) { return "rq/" + path + "Request"; }
@@ -93,6 +111,7 @@ class Participant {
  public:
   explicit Participant(Key) {}
   static Result<std::unique_ptr<Participant>> create(const ParticipantOptions& options);
+  static Result<std::unique_ptr<Participant>, CreateError> create_checked(const ParticipantOptions& options);
   ~Participant();
   Participant(const Participant&) = delete;
   Participant& operator=(const Participant&) = delete;
@@ -103,6 +122,20 @@ class Participant {
     if (!t) return t.error();
     auto* w = create_writer(*t, kind);
     if (w == nullptr) return make_error("cannot create DDS writer on " + topic);
+    return Writer<PubSubType>(w);
+  }
+
+  // A writer in one DDS partition (a device's, for line-wide requests in a secured line). Fails
+  // when the permissions do not grant publishing on the topic in that partition.
+  template <class PubSubType>
+  Result<Writer<PubSubType>> writer(const std::string& topic, QosKind kind, const std::string& partition) {
+    auto t = topic_for<PubSubType>(topic);
+    if (!t) return t.error();
+    auto* w = create_writer(*t, kind, partition);
+    if (w == nullptr) {
+      return make_error("cannot create DDS writer on " + topic + " in partition '" + partition + "'" +
+                        (secured_ ? " (do this identity's permissions grant it?)" : ""));
+    }
     return Writer<PubSubType>(w);
   }
 
@@ -149,7 +182,27 @@ class Participant {
     if (reader == nullptr) return make_error("cannot create DDS reader on " + topic);
     return std::make_unique<Subscription>(*this, reader, std::move(listener));
   }
+  // A reader of writers in any DDS partition ("*"), for the line-wide requests of a secured line;
+  // writer_in_partition() tells which partitions a sample's writer was matched with.
+  template <class PubSubType>
+  Result<void> subscribe_any_partition(const std::string& topic, QosKind kind, SampleCallback<PubSubType> callback) {
+    auto t = topic_for<PubSubType>(topic);
+    if (!t) return t.error();
+    auto listener = std::make_unique<TypedListener<PubSubType>>(std::move(callback));
+    if (create_reader(*t, kind, 0, listener.get(), true) == nullptr) {
+      return make_error("cannot create DDS reader on " + topic + " in every partition");
+    }
+    std::lock_guard lock(mutex_);
+    listeners_.push_back(std::move(listener));
+    return {};
+  }
   void remove_writer(fdds::DataWriter* writer);
+
+  // Created with DDS Security (and proven to be in force).
+  bool secured() const { return secured_; }
+  // Secured participants: whether a remote writer was matched in this partition and is still in
+  // it (writer_partitions.hpp). Always false on an unsecured participant.
+  bool writer_in_partition(const eprosima::fastrtps::rtps::GUID_t& writer, std::string_view partition) const;
 
   // Number of matched remote readers/writers on a topic: tests and clients wait on it before their
   // first sample, because DDS discovery is asynchronous.
@@ -179,14 +232,22 @@ class Participant {
     return topic_for_type(name, fdds::TypeSupport(std::make_unique<PubSubType>().release()));
   }
   Result<fdds::Topic*> topic_for_type(const std::string& name, fdds::TypeSupport type);
-  fdds::DataWriter* create_writer(fdds::Topic* topic, QosKind kind);
-  fdds::DataReader* create_reader(fdds::Topic* topic, QosKind kind, int keep_last, fdds::DataReaderListener* listener);
+  fdds::DataWriter* create_writer(fdds::Topic* topic, QosKind kind, const std::string& partition = {});
+  fdds::DataReader* create_reader(fdds::Topic* topic, QosKind kind, int keep_last, fdds::DataReaderListener* listener,
+                                  bool any_partition = false);
   void remove_reader(fdds::DataReader* reader);
+  fdds::Publisher* publisher_in(const std::string& partition);
+  fdds::Subscriber* any_partition_subscriber();
 
+  // Declared before the participant's entities: Fast DDS calls it until the participant is deleted.
+  std::unique_ptr<WriterPartitions> writer_partitions_;
+  bool secured_ = false;
   fdds::DomainParticipant* participant_ = nullptr;
   fdds::Publisher* publisher_ = nullptr;
   fdds::Subscriber* subscriber_ = nullptr;
   mutable std::mutex mutex_;
+  std::map<std::string, fdds::Publisher*> partition_publishers_;
+  fdds::Subscriber* any_partition_subscriber_ = nullptr;
   std::map<std::string, fdds::Topic*> topics_;
   std::map<std::string, std::vector<fdds::DataWriter*>> writers_;
   std::map<std::string, std::vector<fdds::DataReader*>> readers_;

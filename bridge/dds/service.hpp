@@ -3,11 +3,13 @@
 // ROS 2 style, replies correlated with requests by the request's sample identity.
 
 #include <chrono>
+#include <concepts>
 #include <condition_variable>
 #include <functional>
 #include <map>
 #include <memory>
 #include <mutex>
+#include <set>
 #include <string>
 #include <thread>
 
@@ -21,6 +23,19 @@ using SampleIdentity = eprosima::fastrtps::rtps::SampleIdentity;
 // to per-device handlers): called once, from any thread. A ServiceServer's Responder converts.
 template <class Reply>
 using Respond = std::function<void(const Reply&)>;
+
+// A line-wide request: it names its device (first field), so in a secured line it travels in that
+// device's DDS partition and the server answers it only from a writer matched in that partition
+// (security_policy.hpp), and its reply can refuse.
+template <class Request>
+concept NamesDevice = requires(const Request& r) {
+  { r.device() } -> std::convertible_to<std::string>;
+};
+template <class Reply>
+concept Refusable = requires(Reply r) {
+  r.success(false);
+  r.message(std::string());
+};
 
 // Server side. The handler runs on a Fast DDS thread; it may answer at once or later, from any
 // thread, through the Responder it is given (answering twice is harmless, never is a bug).
@@ -50,10 +65,32 @@ class ServiceServer {
   static Result<void> serve(Participant& dds, const std::string& path, Handler handler) {
     auto writer = dds.writer<ReplyPS>(reply_topic(path), QosKind::reply);
     if (!writer) return writer.error();
+    if constexpr (NamesDevice<Request> && Refusable<Reply>) {
+      if (dds.secured()) return serve_by_partition(dds, path, *writer, std::move(handler));
+    }
     return dds.subscribe<RequestPS>(request_topic(path), QosKind::command,
                                     [w = *writer, h = std::move(handler)](const Request& req, const fdds::SampleInfo& info) {
                                       h(req, Responder(w, info.sample_identity));
                                     });
+  }
+
+ private:
+  // The permissions decide which partitions a client's writer may be in (Fast DDS checks them on
+  // both sides at matching); the request's device must be one of them.
+  static Result<void> serve_by_partition(Participant& dds, const std::string& path, Writer<ReplyPS> w, Handler h) {
+    return dds.subscribe_any_partition<RequestPS>(
+        request_topic(path), QosKind::command, [&dds, w, h = std::move(h)](const Request& req, const fdds::SampleInfo& info) {
+          Responder respond(w, info.sample_identity);
+          const std::string device = req.device();
+          if (!dds.writer_in_partition(info.sample_identity.writer_guid(), device)) {
+            Reply refusal;
+            refusal.success(false);
+            refusal.message("refused: a request for device '" + device + "' is taken only from a writer in the DDS partition '" +
+                            device + "' (secured line; the partition must be granted by the requester's permissions)");
+            return respond(refusal);
+          }
+          h(req, respond);
+        });
   }
 };
 
@@ -66,9 +103,10 @@ class ServiceClient {
 
   static Result<std::unique_ptr<ServiceClient>> create(Participant& dds, const std::string& path) {
     auto client = std::make_unique<ServiceClient>(dds, path);
-    auto writer = dds.writer<RequestPS>(request_topic(path), QosKind::command);
-    if (!writer) return writer.error();
-    client->writer_ = *writer;
+    if (!client->partitioned()) {
+      auto writer = client->writer_for("");
+      if (!writer) return writer.error();
+    }
     auto* raw = client.get();  // the subscription ends before the client does (member order)
     auto sub = dds.subscribe_scoped<ReplyPS>(reply_topic(path), QosKind::reply,
                                              [raw](const Reply& rep, const fdds::SampleInfo& info) { raw->received(rep, info); });
@@ -79,7 +117,7 @@ class ServiceClient {
   ServiceClient(Participant& dds, std::string path) : dds_(dds), path_(std::move(path)) {}
   ~ServiceClient() {
     subscription_.reset();  // no reply callback after this line
-    if (writer_.entity() != nullptr) dds_.remove_writer(writer_.entity());
+    for (auto& [partition, writer] : writers_) dds_.remove_writer(writer.entity());
   }
   ServiceClient(const ServiceClient&) = delete;
   ServiceClient& operator=(const ServiceClient&) = delete;
@@ -87,12 +125,18 @@ class ServiceClient {
   // Waits for the server to be discovered (both directions), sends, waits for the matching reply.
   Result<Reply> call(const Request& request, std::chrono::milliseconds timeout) {
     const auto deadline = std::chrono::steady_clock::now() + timeout;
-    while (writer_.matched() == 0 || dds_.matched_writers(reply_topic(path_)) == 0) {
+    std::string partition;
+    if constexpr (NamesDevice<Request>) {
+      if (partitioned()) partition = request.device();
+    }
+    auto writer = writer_for(partition);
+    if (!writer) return writer.error();
+    while (writer->matched() == 0 || dds_.matched_writers(reply_topic(path_)) == 0) {
       if (std::chrono::steady_clock::now() > deadline) return make_error("no server for " + path_ + " (is the bridge running?)");
       std::this_thread::sleep_for(std::chrono::milliseconds(10));
     }
     eprosima::fastrtps::rtps::WriteParams params;
-    if (!writer_.write(request, params)) return make_error("cannot send the request on " + request_topic(path_));
+    if (!writer->write(request, params)) return make_error("cannot send the request on " + request_topic(path_));
     const SampleIdentity id = params.sample_identity();
     std::unique_lock lock(mutex_);
     if (!cv_.wait_until(lock, deadline, [&] { return replies_.count(id) != 0; })) {
@@ -104,20 +148,44 @@ class ServiceClient {
   }
 
  private:
-  void received(const Reply& reply, const fdds::SampleInfo& info) {
-    // Replies to other clients' requests arrive too; only ours are kept.
-    if (info.related_sample_identity.writer_guid() != writer_guid()) return;
+  // In a secured line a line-wide request goes out in its device's partition: one writer each.
+  bool partitioned() const {
+    if constexpr (NamesDevice<Request>) return dds_.secured();
+    return false;
+  }
+  Result<Writer<RequestPS>> writer_for(const std::string& partition) {
     {
       std::lock_guard lock(mutex_);
+      if (auto it = writers_.find(partition); it != writers_.end()) return it->second;
+    }
+    // Created without the lock: received() takes it on a Fast DDS thread.
+    auto writer = partition.empty() ? dds_.writer<RequestPS>(request_topic(path_), QosKind::command)
+                                    : dds_.writer<RequestPS>(request_topic(path_), QosKind::command, partition);
+    if (!writer) return writer.error();
+    std::lock_guard lock(mutex_);
+    const auto [it, added] = writers_.emplace(partition, *writer);
+    if (!added) {
+      dds_.remove_writer(writer->entity());  // another call made one meanwhile
+      return it->second;
+    }
+    guids_.insert(writer->guid());
+    return *writer;
+  }
+
+  void received(const Reply& reply, const fdds::SampleInfo& info) {
+    {
+      std::lock_guard lock(mutex_);
+      // Replies to other clients' requests arrive too; only ours are kept.
+      if (guids_.count(info.related_sample_identity.writer_guid()) == 0) return;
       replies_[info.related_sample_identity] = reply;
     }
     cv_.notify_all();
   }
-  eprosima::fastrtps::rtps::GUID_t writer_guid() const { return writer_.guid(); }
 
   Participant& dds_;
   std::string path_;
-  Writer<RequestPS> writer_;
+  std::map<std::string, Writer<RequestPS>> writers_;  // by partition ("" = the default one)
+  std::set<eprosima::fastrtps::rtps::GUID_t> guids_;
   std::mutex mutex_;
   std::condition_variable cv_;
   std::map<SampleIdentity, Reply> replies_;

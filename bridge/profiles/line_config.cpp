@@ -1,6 +1,8 @@
 #include "profiles/line_config.hpp"
 
 #include <algorithm>
+#include <array>
+#include <filesystem>
 #include <fstream>
 #include <regex>
 #include <sstream>
@@ -40,11 +42,51 @@ double positive(const YamlSource& src, const YAML::Node& map, std::string_view k
   return v;
 }
 
+// The Fast DDS properties the file keys set: they are checked before start-up, so they cannot be
+// replaced by a property that is not.
+constexpr std::array kFileProperties{
+    "dds.sec.auth.builtin.PKI-DH.identity_ca",          "dds.sec.auth.builtin.PKI-DH.identity_certificate",
+    "dds.sec.auth.builtin.PKI-DH.private_key",          "dds.sec.access.builtin.Access-Permissions.permissions_ca",
+    "dds.sec.access.builtin.Access-Permissions.governance", "dds.sec.access.builtin.Access-Permissions.permissions"};
+
+DdsSecurityConfig parse_dds_security(const YamlSource& src, const YAML::Node& n) {
+  src.check_keys(n, "dds.security",
+                 {"identity_ca", "certificate", "private_key", "permissions_ca", "governance", "permissions", "properties"});
+  // Relative paths are taken from the line file's folder, wherever the bridge is started.
+  const std::filesystem::path base = std::filesystem::path(src.name()).parent_path();
+  const auto file = [&](const char* key) {
+    const auto text = src.required<std::string>(n, key, "dds.security");
+    if (text.empty()) src.fail(n[key], std::string("dds.security: ") + key + " is empty");
+    if (text.rfind("file:", 0) == 0) src.fail(n[key], std::string("dds.security: ") + key + " is a path, not a URI: '" + text + "'");
+    return std::filesystem::absolute(base / text).lexically_normal().string();
+  };
+  DdsSecurityConfig s;
+  s.identity_ca = file("identity_ca");
+  s.certificate = file("certificate");
+  s.private_key = file("private_key");
+  s.permissions_ca = file("permissions_ca");
+  s.governance = file("governance");
+  s.permissions = file("permissions");
+  if (const YAML::Node props = n["properties"]) {
+    src.expect_map(props, "dds.security.properties");
+    for (const auto& kv : props) {
+      const auto key = kv.first.as<std::string>();
+      if (key.rfind("dds.sec.", 0) != 0) src.fail(kv.first, "dds.security.properties: '" + key + "' is not a dds.sec.* property");
+      if (std::find(kFileProperties.begin(), kFileProperties.end(), key) != kFileProperties.end()) {
+        src.fail(kv.first, "dds.security.properties: '" + key + "' names a file: give it with its own dds.security key");
+      }
+      s.properties.emplace_back(key, src.as<std::string>(kv.second, key));
+    }
+  }
+  return s;
+}
+
 DdsConfig parse_dds(const YamlSource& src, const YAML::Node& n) {
-  src.check_keys(n, "dds", {"domain", "localhost_only"});
+  src.check_keys(n, "dds", {"domain", "localhost_only", "security"});
   DdsConfig dds;
   dds.domain = bounded<std::uint32_t>(src, n, "domain", 0, 0, 232, "dds");  // DDS/RTPS port mapping limit
   dds.localhost_only = src.optional<bool>(n, "localhost_only").value_or(true);
+  if (n["security"]) dds.security = parse_dds_security(src, n["security"]);
   return dds;
 }
 

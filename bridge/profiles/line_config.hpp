@@ -17,9 +17,22 @@ namespace lb::profiles {
 enum class BusRole { master, monitor };
 std::string_view to_string(BusRole role);
 
+// dds.security: the files of the bridge's own identity (paths made absolute, relative ones taken
+// from the line file's folder) and extra Fast DDS security properties.
+struct DdsSecurityConfig {
+  std::string identity_ca;
+  std::string certificate;
+  std::string private_key;
+  std::string permissions_ca;
+  std::string governance;
+  std::string permissions;
+  std::vector<std::pair<std::string, std::string>> properties;
+};
+
 struct DdsConfig {
   std::uint32_t domain = 0;
   bool localhost_only = true;
+  std::optional<DdsSecurityConfig> security;  // absent: an unsecured domain
 };
 
 struct BusConfig {

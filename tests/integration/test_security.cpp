@@ -1,0 +1,575 @@
+// DDS Security end to end: the real simulator and the real bridge on a secured line (a PKI made
+// here by launch_scripts/pki.sh), this test as secured (and unsecured, and rogue) DDS participants
+// with the identities of each role, and a bus spy that sees what really reaches CAN.
+// Runs inside launch_scripts/netns-run.sh (CTest does that). Secured matching can take ~1.1 s
+// (the handshake's resend timer), so nothing here assumes sub-second discovery.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <fastdds/dds/domain/DomainParticipantFactory.hpp>
+#include <fastdds/dds/publisher/Publisher.hpp>
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <cstdio>
+#include <filesystem>
+#include <fstream>
+#include <mutex>
+#include <set>
+#include <thread>
+
+#include "dds/participant.hpp"
+#include "dds/service.hpp"
+#include "dds/topic_names.hpp"
+#include "msgs/commonPubSubTypes.h"
+#include "msgs/sawPubSubTypes.h"
+#include "support/bus_spy.hpp"
+#include "support/child_process.hpp"
+#include "support/test_pki.hpp"
+
+namespace msg = linebridge_msgs::msg;
+namespace srv = linebridge_msgs::srv;
+namespace fdds = eprosima::fastdds::dds;
+using namespace std::chrono_literals;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+constexpr std::uint32_t kDomain = 21;
+constexpr std::uint32_t kRpdo1Saw1 = 0x205;  // saw1 is node 5, saw2 node 6
+constexpr std::uint32_t kRpdo1Saw2 = 0x206;
+constexpr std::uint32_t kSdoRequestSaw1 = 0x605;
+
+bool eventually(Clock::duration timeout, const std::function<bool()>& cond) {
+  const auto end = Clock::now() + timeout;
+  while (!cond()) {
+    if (Clock::now() > end) return false;
+    std::this_thread::sleep_for(20ms);
+  }
+  return true;
+}
+
+std::string topic(const char* device, const char* t) { return lb::ddsl::topic_name("sec", device, t); }
+
+// The distinct payloads of a COB-ID the spy saw: one means "never changed".
+std::set<std::array<std::uint8_t, 8>> payloads(lb::test::BusSpy& spy, std::uint32_t id) {
+  std::set<std::array<std::uint8_t, 8>> out;
+  for (const auto& f : spy.frames(id)) out.insert(f.data);
+  return out;
+}
+
+msg::SawSetpoint saw_setpoint(std::uint64_t id, double percent, double length_m) {
+  msg::SawSetpoint sp;
+  sp.request_id(id);
+  sp.saw_program_on(true);
+  sp.sync_speed_percent(percent);
+  sp.product_length_m(length_m);
+  return sp;
+}
+
+struct CliRun {
+  int exit_code;
+  std::string output;
+};
+
+class SecuredLine : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    ASSERT_TRUE(std::getenv("LINEBRIDGE_NETNS") != nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
+    tag_ = std::to_string(::getpid());
+    dir_ = std::filesystem::path(::testing::TempDir() + "/security_" + tag_).lexically_normal().string();
+    std::filesystem::create_directories(dir_);
+    bus_uri_ = "virtual:it-sec-" + tag_;
+    const std::string plain = dir_ + "/plain.yaml";
+    std::ofstream(plain) << line_yaml("");
+    pki_ = std::make_unique<lb::test::TestPki>(plain, dir_ + "/pki");
+    config_path_ = dir_ + "/line.yaml";
+    std::ofstream(config_path_) << line_yaml(pki_->security_yaml());
+  }
+
+  void TearDown() override {
+    if (bridge_) {
+      EXPECT_EQ(bridge_->stop(), 0) << "the bridge did not exit cleanly on SIGTERM\n" << logs();
+    }
+    if (sim_) sim_->stop();
+  }
+
+  std::string line_yaml(const std::string& security) const {
+    return "line: sec\n"
+           "dds:\n"
+           "  domain: " + std::to_string(kDomain) + "\n"
+           "  localhost_only: true\n" + security +
+           "buses:\n"
+           "  - {name: ext, interface: '" + bus_uri_ + "', role: master, sync_period_ms: 20}\n"
+           "devices:\n"
+           "  - {name: saw1, bus: ext, node_id: 5, profile: cia420-4, version: '3.1', heartbeat_timeout_ms: 400,\n"
+           "     simulation: {heartbeat_period_ms: 100}}\n"
+           "  - {name: saw2, bus: ext, node_id: 6, profile: cia420-4, version: '3.1', heartbeat_timeout_ms: 400,\n"
+           "     simulation: {heartbeat_period_ms: 100}}\n";
+  }
+
+  // The simulator, the bridge on the secured line, and an observer that has seen both saws online.
+  void start_line() {
+    spy_ = std::make_unique<lb::test::BusSpy>(bus_uri_);
+    sim_ = std::make_unique<lb::test::ChildProcess>(std::vector<std::string>{LB_BIN_SIM, "--config", config_path_},
+                                                    dir_ + "/sim.log");
+    bridge_ = std::make_unique<lb::test::ChildProcess>(std::vector<std::string>{LB_BIN_BRIDGE, "--config", config_path_},
+                                                       dir_ + "/bridge.log");
+    ASSERT_TRUE(sim_->started() && bridge_->started());
+    observer_ = secured("observer", pki_->issue("observer", "observer"));
+    ASSERT_TRUE(observer_);
+    for (const char* saw : {"saw1", "saw2"}) {
+      ASSERT_TRUE(observer_->subscribe<msg::SawStatusPubSubType>(topic(saw, "status"), lb::ddsl::QosKind::state,
+                                                                 [this, saw](const msg::SawStatus& s, const auto&) {
+                                                                   std::lock_guard lock(m_);
+                                                                   online_[saw] = s.health().online() &&
+                                                                                  s.health().nmt_state() == msg::NMT_OPERATIONAL;
+                                                                   ++status_samples_;
+                                                                 }));
+    }
+    ASSERT_TRUE(eventually(20s, [this] {
+      std::lock_guard lock(m_);
+      return online_["saw1"] && online_["saw2"];
+    })) << "the secured observer never saw both saws online\n"
+        << logs();
+  }
+
+  std::unique_ptr<lb::ddsl::Participant> secured(const std::string& name, const std::string& identity) {
+    auto p = lb::ddsl::Participant::create_checked(pki_->options(kDomain, identity, name));
+    EXPECT_TRUE(p) << (p ? "" : p.error().message);
+    if (!p) return nullptr;
+    EXPECT_TRUE((*p)->secured());
+    return std::move(*p);
+  }
+
+  CliRun cli(const std::string& identity, const std::vector<std::string>& args) {
+    std::vector<std::string> argv{LB_BIN_CLI, "--config", config_path_, "--identity", identity};
+    argv.insert(argv.end(), args.begin(), args.end());
+    lb::test::ChildProcess p(argv, dir_ + "/cli_" + std::to_string(++cli_runs_) + ".log");
+    eventually(30s, [&] { return !p.running(); });
+    const int status = p.stop();
+    return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, p.log()};
+  }
+
+  std::string logs() const {
+    return "--- bridge log ---\n" + (bridge_ ? bridge_->log() : "") + "--- sim log ---\n" + (sim_ ? sim_->log() : "") +
+           "--- pki log ---\n" + lb::test::read_text(pki_->dir() + "/pki.log");
+  }
+
+  std::string tag_, dir_, bus_uri_, config_path_;
+  std::unique_ptr<lb::test::TestPki> pki_;
+  std::unique_ptr<lb::test::BusSpy> spy_;
+  std::unique_ptr<lb::test::ChildProcess> sim_, bridge_;
+  std::unique_ptr<lb::ddsl::Participant> observer_;
+  std::mutex m_;
+  std::map<std::string, bool> online_;
+  int status_samples_ = 0;
+  int cli_runs_ = 0;
+};
+
+// A request to a line-wide service from a writer this test controls, and its reply (if any).
+template <class ReqPS, class RepPS>
+std::optional<typename RepPS::type> request(lb::ddsl::Participant& dds, lb::ddsl::Writer<ReqPS>& writer,
+                                            const std::string& service, const typename ReqPS::type& req,
+                                            Clock::duration timeout) {
+  std::mutex m;
+  std::condition_variable cv;
+  std::optional<typename RepPS::type> reply;
+  eprosima::fastrtps::rtps::WriteParams params;
+  lb::ddsl::SampleIdentity sent;
+  auto sub = dds.subscribe_scoped<RepPS>(lb::ddsl::reply_topic(lb::ddsl::line_service_path("sec", service)),
+                                         lb::ddsl::QosKind::reply,
+                                         [&](const typename RepPS::type& r, const fdds::SampleInfo& info) {
+                                           std::lock_guard lock(m);
+                                           if (info.related_sample_identity == sent) reply = r;
+                                           cv.notify_all();
+                                         });
+  if (!sub) return std::nullopt;
+  eventually(10s, [&] { return dds.matched_writers(lb::ddsl::reply_topic(lb::ddsl::line_service_path("sec", service))) > 0; });
+  {
+    std::lock_guard lock(m);
+    writer.write(req, params);
+    sent = params.sample_identity();
+  }
+  std::unique_lock lock(m);
+  cv.wait_for(lock, timeout, [&] { return reply.has_value(); });
+  return reply;
+}
+
+}  // namespace
+
+// ------------------------------------------------------------------------------------------------
+// What each role may do, on the real line.
+
+TEST_F(SecuredLine, OperatorSetsAndCommandsItsOwnSawOnly) {
+  ASSERT_NO_FATAL_FAILURE(start_line());
+  const auto op = pki_->issue("op1", "operator", "saw1");
+  spy_->clear();
+  const auto set = cli(op, {"set", "saw1", "--program", "on", "--sync-speed-percent", "50", "--product-length-m", "1.0"});
+  EXPECT_EQ(set.exit_code, 0) << set.output << logs();
+  EXPECT_TRUE(eventually(2s, [&] { return payloads(*spy_, kRpdo1Saw1).size() > 1; })) << "the set value never reached CAN";
+
+  const auto press = cli(op, {"press", "saw1", "manual_cut"});
+  EXPECT_EQ(press.exit_code, 0) << press.output;
+
+  // saw2 is not the operator's: the set value and the command never leave the client.
+  spy_->clear();
+  const auto other_set = cli(op, {"set", "saw2", "--program", "on", "--timeout", "4"});
+  EXPECT_NE(other_set.exit_code, 0) << other_set.output;
+  EXPECT_NE(other_set.output.find("cannot create DDS writer on rt/sec/saw2/setpoint"), std::string::npos) << other_set.output;
+  const auto other_press = cli(op, {"press", "saw2", "manual_cut", "--timeout", "4"});
+  EXPECT_NE(other_press.exit_code, 0) << other_press.output;
+  EXPECT_NE(other_press.output.find("partition 'saw2'"), std::string::npos) << other_press.output;
+  std::this_thread::sleep_for(300ms);
+  EXPECT_EQ(payloads(*spy_, kRpdo1Saw2).size(), 1u) << "RPDO1 of saw2 changed";
+}
+
+TEST_F(SecuredLine, OperatorCannotCallSdoWriteEngineerCan) {
+  ASSERT_NO_FATAL_FAILURE(start_line());
+  const auto op = pki_->issue("op1", "operator", "saw1");
+  const auto eng = pki_->issue("eng1", "engineer");
+  spy_->clear();
+  const auto refused = cli(op, {"sdo-write", "saw1", "0x2000", "0", "UNSIGNED8", "1", "--timeout", "4"});
+  EXPECT_NE(refused.exit_code, 0) << refused.output;
+  EXPECT_NE(refused.output.find("cannot create DDS"), std::string::npos) << refused.output;
+  EXPECT_NE(refused.output.find("sdo_write"), std::string::npos) << refused.output;
+  const auto get = cli(op, {"get", "saw1", "saw_cut_depth", "--timeout", "4"});
+  EXPECT_NE(get.exit_code, 0) << get.output;
+  std::this_thread::sleep_for(300ms);
+  EXPECT_TRUE(spy_->frames(kSdoRequestSaw1).empty()) << "an SDO request reached saw1";
+
+  // The same request from an engineer: the control that shows the refusal was the role's.
+  const auto read = cli(eng, {"sdo-read", "saw1", "0x1008", "0", "VISIBLE_STRING"});
+  EXPECT_EQ(read.exit_code, 0) << read.output << logs();
+  EXPECT_FALSE(spy_->frames(kSdoRequestSaw1).empty());
+}
+
+TEST_F(SecuredLine, ObserverCannotPublishASetValueOnEitherSide) {
+  ASSERT_NO_FATAL_FAILURE(start_line());
+  // Local side: Fast DDS does not create the writer.
+  auto setpoint = observer_->writer<msg::SawSetpointPubSubType>(topic("saw1", "setpoint"), lb::ddsl::QosKind::command);
+  EXPECT_FALSE(setpoint) << "an observer could create a set-value writer";
+
+  // Remote side: an observer whose own check passes (its permissions also allow set values, but on
+  // another domain: Fast DDS's local check ignores a rule's domains, the remote one does not), as
+  // a client that patched its check out would be. The bridge never matches it.
+  const auto rogue = pki_->issue("rogue", "observer");
+  std::string xml = lb::test::read_text(rogue + "/permissions.xml");
+  const std::string extra = "      <allow_rule>\n        <domains><id>99</id></domains>\n        <publish><topics><topic>rt/sec/*</topic>"
+                            "</topics></publish>\n      </allow_rule>\n";
+  xml.insert(xml.find("      <allow_rule>"), extra);
+  std::ofstream(rogue + "/permissions.xml") << xml;
+  pki_->sign(rogue + "/permissions.xml");
+  auto r = secured("rogue", rogue);
+  ASSERT_TRUE(r);
+  auto w = r->writer<msg::SawSetpointPubSubType>(topic("saw1", "setpoint"), lb::ddsl::QosKind::command);
+  ASSERT_TRUE(w) << "the local check was expected to pass";
+  spy_->clear();
+  for (int i = 0; i < 30; ++i) {
+    w->write(saw_setpoint(1000 + i, 80, 0.7));
+    std::this_thread::sleep_for(100ms);
+  }
+  EXPECT_EQ(w->matched(), 0) << "the bridge matched a writer its permissions do not allow";
+  EXPECT_EQ(payloads(*spy_, kRpdo1Saw1), (std::set<std::array<std::uint8_t, 8>>{{}})) << "RPDO1 of saw1 changed";
+}
+
+TEST_F(SecuredLine, UnauthenticatedAndForeignParticipantsReceiveNothingAndChangeNothing) {
+  ASSERT_NO_FATAL_FAILURE(start_line());
+  // Another CA altogether: its own identity CA, permissions CA and governance (an engineer there).
+  lb::test::TestPki foreign(dir_ + "/plain.yaml", dir_ + "/foreign");
+  auto made = lb::ddsl::Participant::create_checked(foreign.options(kDomain, foreign.issue("eng", "engineer"), "stranger"));
+  ASSERT_TRUE(made) << made.error().message;
+  auto stranger = std::move(*made);
+  auto plain = lb::ddsl::Participant::create({kDomain, true, "intruder"});
+  ASSERT_TRUE(plain);
+
+  std::atomic<int> received{0};
+  std::vector<lb::ddsl::Writer<msg::SawSetpointPubSubType>> writers;
+  for (auto* p : {stranger.get(), plain->get()}) {
+    ASSERT_TRUE(p->subscribe<msg::SawStatusPubSubType>(topic("saw1", "status"), lb::ddsl::QosKind::state,
+                                                        [&](const auto&, const auto&) { ++received; }));
+    ASSERT_TRUE(p->subscribe<msg::DiagnosticsPubSubType>(topic("bridge", "diagnostics"), lb::ddsl::QosKind::state,
+                                                          [&](const auto&, const auto&) { ++received; }));
+    auto w = p->writer<msg::SawSetpointPubSubType>(topic("saw1", "setpoint"), lb::ddsl::QosKind::command);
+    ASSERT_TRUE(w);
+    writers.push_back(*w);
+  }
+  spy_->clear();
+  const int status_before = [&] {
+    std::lock_guard lock(m_);
+    return status_samples_;
+  }();
+  for (int i = 0; i < 30; ++i) {
+    for (auto& w : writers) w.write(saw_setpoint(2000 + i, 90, 0.9));
+    std::this_thread::sleep_for(100ms);
+  }
+  auto client = lb::ddsl::ServiceClient<srv::Nmt_RequestPubSubType, srv::Nmt_ResponsePubSubType>::create(
+      **plain, lb::ddsl::line_service_path("sec", "nmt"));
+  ASSERT_TRUE(client);
+  srv::Nmt_Request stop;
+  stop.device("saw1");
+  stop.command(srv::NMT_STOP);
+  EXPECT_FALSE((*client)->call(stop, 2s)) << "an unauthenticated participant reached the NMT service";
+
+  EXPECT_EQ(received.load(), 0) << "status or diagnostics reached an unauthenticated or foreign participant";
+  for (auto& w : writers) EXPECT_EQ(w.matched(), 0);
+  EXPECT_EQ(payloads(*spy_, kRpdo1Saw1), (std::set<std::array<std::uint8_t, 8>>{{}})) << "RPDO1 of saw1 changed";
+  EXPECT_TRUE(spy_->frames(0x000).empty()) << "an NMT command reached the bus";
+  std::lock_guard lock(m_);
+  EXPECT_GT(status_samples_, status_before) << "the secured observer stopped receiving: the test proves nothing";
+  EXPECT_TRUE(online_["saw1"]);
+}
+
+// ------------------------------------------------------------------------------------------------
+// Per-device rights on the line-wide services: the DDS partition named after the device.
+
+TEST_F(SecuredLine, ALineWideRequestCountsOnlyInItsDevicesPartition) {
+  ASSERT_NO_FATAL_FAILURE(start_line());
+  const auto op = pki_->issue("op1", "operator", "saw1");
+  auto dds = secured("op-test", op);
+  ASSERT_TRUE(dds);
+  const std::string path = lb::ddsl::line_service_path("sec", "command");
+  auto in_saw1 = dds->writer<srv::Command_RequestPubSubType>(lb::ddsl::request_topic(path), lb::ddsl::QosKind::command, "saw1");
+  ASSERT_TRUE(in_saw1);
+  ASSERT_TRUE(eventually(10s, [&] { return in_saw1->matched() > 0; })) << logs();
+
+  // Local side: the operator may not publish in saw2's partition.
+  EXPECT_FALSE(dds->writer<srv::Command_RequestPubSubType>(lb::ddsl::request_topic(path), lb::ddsl::QosKind::command, "saw2"));
+
+  // The bridge side: a request in saw1's partition that names saw2 is refused.
+  spy_->clear();
+  srv::Command_Request req;
+  req.device("saw2");
+  req.command("manual_cut");
+  auto reply = request<srv::Command_RequestPubSubType, srv::Command_ResponsePubSubType>(*dds, *in_saw1, "command", req, 5s);
+  ASSERT_TRUE(reply) << "no answer\n" << logs();
+  EXPECT_FALSE(reply->success());
+  EXPECT_NE(reply->message().find("partition 'saw2'"), std::string::npos) << reply->message();
+  req.device("saw1");
+  reply = request<srv::Command_RequestPubSubType, srv::Command_ResponsePubSubType>(*dds, *in_saw1, "command", req, 5s);
+  ASSERT_TRUE(reply);
+  EXPECT_TRUE(reply->success()) << reply->message();
+  std::this_thread::sleep_for(300ms);
+  EXPECT_EQ(payloads(*spy_, kRpdo1Saw2).size(), 1u) << "saw2's control word changed";
+  EXPECT_GT(payloads(*spy_, kRpdo1Saw1).size(), 1u) << "saw1's manual cut never reached CAN";
+}
+
+// The remote side of the partition check, and a writer that changes its partition after matching.
+// A client whose own check passes for saw2's partition (its permissions allow "*" on another
+// domain: Fast DDS's local check ignores a rule's domains, the remote one does not), as a client
+// that patched its check out would be: the bridge never matches that writer. And an honest writer
+// of saw1 that moves to saw2's partition once matched: Fast DDS 2.9.1 re-checks the new partition,
+// logs the failure and keeps the writer matched; the bridge's record of what was checked at
+// discovery (writer_partitions.hpp) is what refuses its requests.
+TEST_F(SecuredLine, TheBridgeJudgesPartitionsOnItsOwnSide) {
+  ASSERT_NO_FATAL_FAILURE(start_line());
+  const std::string path = lb::ddsl::line_service_path("sec", "command");
+  const std::string request_topic = lb::ddsl::request_topic(path);
+  const auto rogue = pki_->issue("rogue", "operator", "saw1");
+  {
+    std::string xml = lb::test::read_text(rogue + "/permissions.xml");
+    xml.insert(xml.find("      <allow_rule>"),
+               "      <allow_rule>\n        <domains><id>99</id></domains>\n        <publish><topics><topic>" + request_topic +
+                   "</topic></topics><partitions><partition>*</partition></partitions></publish>\n      </allow_rule>\n");
+    std::ofstream(rogue + "/permissions.xml") << xml;
+    pki_->sign(rogue + "/permissions.xml");
+  }
+  auto dds = secured("rogue", rogue);
+  ASSERT_TRUE(dds);
+  auto in_saw2 = dds->writer<srv::Command_RequestPubSubType>(request_topic, lb::ddsl::QosKind::command, "saw2");
+  ASSERT_TRUE(in_saw2) << "the local check was expected to pass";
+  auto in_saw1 = dds->writer<srv::Command_RequestPubSubType>(request_topic, lb::ddsl::QosKind::command, "saw1");
+  ASSERT_TRUE(in_saw1);
+
+  // The honest operator's writer, through Fast DDS itself: its publisher's partition will change.
+  const auto op = pki_->issue("op1", "operator", "saw1");
+  auto* factory = fdds::DomainParticipantFactory::get_instance();
+  auto* raw = factory->create_participant(kDomain, lb::ddsl::participant_qos(pki_->options(kDomain, op, "op-raw")));
+  ASSERT_NE(raw, nullptr);
+  fdds::TypeSupport type(new srv::Command_RequestPubSubType());  // TypeSupport owns it
+  type.register_type(raw);
+  auto* t = raw->create_topic(request_topic, type.get_type_name(), fdds::TOPIC_QOS_DEFAULT);
+  ASSERT_NE(t, nullptr);
+  fdds::PublisherQos pq = fdds::PUBLISHER_QOS_DEFAULT;
+  pq.partition().push_back("saw1");
+  auto* mover_pub = raw->create_publisher(pq);
+  fdds::DataWriterQos wq = fdds::DATAWRITER_QOS_DEFAULT;
+  wq.reliability().kind = fdds::RELIABLE_RELIABILITY_QOS;
+  wq.history().kind = fdds::KEEP_LAST_HISTORY_QOS;
+  wq.history().depth = 16;
+  wq.data_sharing().off();
+  auto* mover = mover_pub->create_datawriter(t, wq);
+  ASSERT_NE(mover, nullptr);
+  const auto matched = [](fdds::DataWriter* w) {
+    fdds::PublicationMatchedStatus st;
+    w->get_publication_matched_status(st);
+    return st.current_count;
+  };
+  ASSERT_TRUE(eventually(10s, [&] { return matched(mover) > 0 && in_saw1->matched() > 0; })) << logs();
+
+  // Every answer, by the writer it answers.
+  std::mutex m;
+  std::map<eprosima::fastrtps::rtps::GUID_t, std::vector<srv::Command_Response>> answers;
+  auto sub = dds->subscribe_scoped<srv::Command_ResponsePubSubType>(
+      lb::ddsl::reply_topic(path), lb::ddsl::QosKind::reply, [&](const srv::Command_Response& r, const fdds::SampleInfo& info) {
+        std::lock_guard lock(m);
+        answers[info.related_sample_identity.writer_guid()].push_back(r);
+      });
+  ASSERT_TRUE(sub);
+  ASSERT_TRUE(eventually(10s, [&] { return dds->matched_writers(lb::ddsl::reply_topic(path)) > 0; }));
+
+  fdds::PublisherQos moved = mover_pub->get_qos();
+  moved.partition().clear();
+  moved.partition().push_back("saw2");
+  ASSERT_EQ(mover_pub->set_qos(moved), eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK);
+  std::this_thread::sleep_for(1500ms);  // the change reaches the bridge by discovery
+
+  spy_->clear();
+  srv::Command_Request saw2;
+  saw2.device("saw2");
+  saw2.command("manual_cut");
+  srv::Command_Request saw1 = saw2;
+  saw1.device("saw1");
+  for (int i = 0; i < 5; ++i) {
+    in_saw2->write(saw2);
+    mover->write(&saw2);
+    std::this_thread::sleep_for(200ms);
+  }
+  in_saw1->write(saw1);  // the control: the same client in a granted partition is answered
+  ASSERT_TRUE(eventually(5s, [&] {
+    std::lock_guard lock(m);
+    return !answers[in_saw1->guid()].empty();
+  })) << logs();
+  std::this_thread::sleep_for(500ms);
+  EXPECT_EQ(payloads(*spy_, kRpdo1Saw2).size(), 1u) << "a request for saw2 reached CAN\n" << logs();
+  std::lock_guard lock(m);
+  EXPECT_TRUE(answers[in_saw1->guid()].front().success()) << answers[in_saw1->guid()].front().message();
+  EXPECT_TRUE(answers[in_saw2->guid()].empty()) << "the bridge matched a writer in a partition the grant does not allow";
+  for (const auto& a : answers[mover->guid()]) {
+    EXPECT_FALSE(a.success());
+    EXPECT_NE(a.message().find("partition 'saw2'"), std::string::npos) << a.message();
+  }
+  std::printf("writer moved to saw2 after matching: %zu answer(s) from the bridge, %s\n", answers[mover->guid()].size(),
+              answers[mover->guid()].empty() ? "Fast DDS unmatched it" : "Fast DDS kept it matched, the bridge refused");
+  raw->delete_contained_entities();
+  factory->delete_participant(raw);
+}
+
+// ------------------------------------------------------------------------------------------------
+// Fail-closed start-up.
+
+class BridgeRefuses : public SecuredLine {
+ protected:
+  // Runs the bridge on `yaml` until it exits (it must, at once): exit code and log.
+  CliRun run_bridge(const std::string& yaml) {
+    const std::string path = dir_ + "/refused_" + std::to_string(++runs_) + ".yaml";
+    std::ofstream(path) << yaml;
+    lb::test::ChildProcess p({LB_BIN_BRIDGE, "--config", path}, path + ".log");
+    const bool exited = eventually(20s, [&] { return !p.running(); });
+    const int status = p.stop();
+    return {exited && WIFEXITED(status) ? WEXITSTATUS(status) : -1, p.log()};
+  }
+  // The line with one security key replaced.
+  std::string with(const std::string& key, const std::string& value) const {
+    std::string sec = pki_->security_yaml();
+    const auto at = sec.find("    " + key + ": ");
+    const auto end = sec.find('\n', at);
+    sec.replace(at, end - at, "    " + key + ": " + value);
+    return line_yaml(sec);
+  }
+  int runs_ = 0;
+};
+
+struct Misspelled {
+  const char* property;
+  const char* value;
+  const char* expected;
+};
+
+class MisspelledPlugin : public BridgeRefuses, public ::testing::WithParamInterface<Misspelled> {};
+
+TEST_P(MisspelledPlugin, BridgeRefusesToStartUnsecured) {
+  const auto& p = GetParam();
+  const auto r = run_bridge(line_yaml(pki_->security_yaml() + "    properties: {" + p.property + ": " + p.value + "}\n"));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find(p.expected), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find(p.value), std::string::npos) << "the refusal should show the value\n" << r.output;
+  // The control: the same line without the typo starts (and is stopped here).
+  if (std::string(p.property) == "dds.sec.auth.plugin") {
+    lb::test::ChildProcess good({LB_BIN_BRIDGE, "--config", config_path_, "--duration", "2"}, dir_ + "/good.log");
+    ASSERT_TRUE(eventually(20s, [&] { return !good.running(); }));
+    const int status = good.stop();
+    EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << good.log();
+    EXPECT_NE(good.log().find("DDS security in force"), std::string::npos) << good.log();
+  }
+}
+
+INSTANTIATE_TEST_SUITE_P(
+    Security, MisspelledPlugin,
+    ::testing::Values(Misspelled{"dds.sec.auth.plugin", "builtin.PKI_DH", "authentication is not in force"},
+                      Misspelled{"dds.sec.access.plugin", "builtin.Access-Permission", "access control is not in force"},
+                      Misspelled{"dds.sec.crypto.plugin", "builtin.AES-GCM", "encryption is not in force"}),
+    [](const auto& param) { return std::string(param.index == 0 ? "Auth" : param.index == 1 ? "Access" : "Crypto"); });
+
+TEST_F(BridgeRefuses, EachBrokenFileIsNamedWithItsReason) {
+  const std::string pki = pki_->dir();
+  const auto other = lb::test::TestPki(dir_ + "/plain.yaml", dir_ + "/other");  // another pair of CAs
+  const auto eng = pki_->issue("eng1", "engineer");
+  // Bridge permissions variants, each signed by the right CA unless said otherwise.
+  const std::string bridge_xml = lb::test::read_text(pki + "/bridge/permissions.xml");
+  const auto variant = [&](const std::string& name, std::string xml) {
+    std::ofstream(pki + "/" + name + ".xml") << xml;
+    pki_->sign(pki + "/" + name + ".xml");
+    return pki + "/" + name + ".p7s";
+  };
+  const auto replaced = [](std::string s, const std::string& from, const std::string& to) {
+    s.replace(s.find(from), from.size(), to);
+    return s;
+  };
+  const auto between = [](const std::string& s, const std::string& a, const std::string& b) {
+    const auto i = s.find(a) + a.size();
+    return s.substr(i, s.find(b, i) - i);
+  };
+  const std::string not_after = between(bridge_xml, "<not_after>", "</not_after>");
+  const std::string subject = between(bridge_xml, "<subject_name>", "</subject_name>");  // CN=bridge,O=linebridge
+  const auto expired = variant("expired", replaced(replaced(bridge_xml, not_after, "2020-01-02T00:00:00"),
+                                                   between(bridge_xml, "<not_before>", "</not_before>"), "2019-01-01T00:00:00"));
+  const auto reordered = variant("reordered", replaced(bridge_xml, subject, "O=linebridge,CN=bridge"));
+  pki_->openssl("smime -sign -in bridge/permissions.xml -out notext.p7s -signer ca/permissions_ca.pem -inkey ca/permissions_ca.key");
+  pki_->openssl("smime -sign -text -in bridge/permissions.xml -out edited.p7s -signer ca/permissions_ca.pem -inkey ca/permissions_ca.key");
+  {
+    std::string edited = lb::test::read_text(pki + "/edited.p7s");
+    edited = replaced(edited, "<default>DENY</default>", "<default>ALLOW</default>");
+    std::ofstream(pki + "/edited.p7s") << edited;
+  }
+
+  struct Case {
+    std::string key, value, expected;
+  };
+  const std::vector<Case> cases{
+      {"permissions", expired, "expired at 2020-01-02T00:00:00"},
+      {"permissions", reordered, "not in RFC 2253 order (as `openssl x509"},
+      {"governance", other.governance(), "not by the permissions CA"},
+      {"permissions", pki + "/bridge/permissions.xml", "an unsigned XML document"},
+      {"permissions", pki + "/notext.p7s", "signed without -text"},
+      {"permissions", pki + "/edited.p7s", "changed after it was signed"},
+      {"private_key", eng + "/key.pem", "does not belong to the certificate"},
+      {"certificate", other.dir() + "/bridge/cert.pem", "is not accepted by the identity CA"},
+      {"identity_ca", pki + "/missing.pem", "cannot read it: No such file or directory"},
+      {"permissions", eng + "/permissions.p7s", "no grant for the certificate's subject 'CN=bridge,O=linebridge'"},
+  };
+  for (const auto& c : cases) {
+    SCOPED_TRACE(c.key + " = " + c.value);
+    const auto r = run_bridge(with(c.key, c.value));
+    EXPECT_EQ(r.exit_code, 2) << r.output;
+    EXPECT_NE(r.output.find(c.key + " " + c.value + ": "), std::string::npos) << "the file is not named\n" << r.output;
+    EXPECT_NE(r.output.find(c.expected), std::string::npos) << r.output;
+  }
+  // The control: the unbroken files pass the same checks.
+  EXPECT_EQ(lb::test::shell(std::string("'") + std::filesystem::path(LB_BIN_BRIDGE).parent_path().string() +
+                                "/linebridge-security' --config '" + config_path_ + "' check",
+                            dir_ + "/check.log"),
+            0)
+      << lb::test::read_text(dir_ + "/check.log");
+}
