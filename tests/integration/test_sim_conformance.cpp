@@ -413,8 +413,11 @@ TEST_F(SimConformance, EventDrivenTpdoObeysInhibitTimeAndEventTimer) {
   const auto busy = master_->from(0x185);
   ASSERT_GE(busy.size(), 10u) << log();
   for (const auto& s : busy) EXPECT_EQ(s.frame.len, 8) << "6030h (16) + 6000h (32) + the manufacturer word (16)";
+  // Gaps are measured where the frames arrive, so delivery jitter on a loaded machine can shorten
+  // one by a few ms; without the inhibit time they would be 10 ms (one per SYNC, 150 in 1.5 s).
+  EXPECT_LE(busy.size(), 1500u / 50u + 2u) << "inhibit time 50 ms";
   for (const double gap : gaps_ms(busy)) {
-    EXPECT_GE(gap, 45.0) << "inhibit time 50 ms";
+    EXPECT_GE(gap, 35.0) << "inhibit time 50 ms";
     EXPECT_LE(gap, 300.0 + 60.0) << "event timer 300 ms";
   }
   EXPECT_NE(bytes(busy.front().frame), bytes(busy.back().frame));
@@ -430,8 +433,8 @@ TEST_F(SimConformance, EventDrivenTpdoObeysInhibitTimeAndEventTimer) {
   ASSERT_GE(quiet.size(), 4u) << log();
   ASSERT_LE(quiet.size(), 7u) << log();
   for (const double gap : gaps_ms(quiet)) {
-    EXPECT_GE(gap, 250.0);
-    EXPECT_LE(gap, 400.0);
+    EXPECT_GE(gap, 230.0);
+    EXPECT_LE(gap, 420.0);
   }
 }
 
