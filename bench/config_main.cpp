@@ -24,6 +24,8 @@ int main(int argc, char** argv) {
   cli.add_option("--sync-ms", sync_ms, "SYNC period (master role)")->check(CLI::Range(1, 10000))->capture_default_str();
   cli.add_flag("--rpdo-event", rpdo_event,
                "RPDO1 event-driven (transmission type 255): a set value goes out at once instead of at the next SYNC");
+  std::string record;
+  cli.add_option("--record", record, "bus 0 records every frame to this file (record:)");
   std::string pki;
   cli.add_option("--pki", pki, "DDS Security: the bridge's identity from this launch_scripts/pki.sh folder (default: unsecured)");
   CLI11_PARSE(cli, argc, argv);
@@ -42,6 +44,7 @@ int main(int argc, char** argv) {
     y += fmt::format("  - {{name: {}, interface: '{}', role: {}, bitrate: 1000000", lb::bench::bus_name(b),
                      lb::bench::bus_uri(prefix, b), role);
     if (role == "master") y += fmt::format(", sync_period_ms: {}", sync_ms);
+    if (b == 0 && !record.empty()) y += fmt::format(", record: '{}'", record);
     y += "}\n";
   }
   y += "devices:\n";

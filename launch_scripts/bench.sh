@@ -8,7 +8,8 @@
 #
 #   --quick          fewer samples and shorter steps (about 2 min instead of about 6 per run)
 #   --runs K         measure every figure K times; the table shows the median and the range
-#   --only FIGURES   comma-separated subset of: can2dds,dds2can,throughput,memory,startup,security
+#   --only FIGURES   comma-separated subset of: can2dds,dds2can,throughput,memory,startup,security,
+#                    jitter,soak (the last two are not in the default set: run them by name)
 #   --build-dir DIR  where the build is (default build-bench); it is configured (Release) and
 #                    built first unless --no-build
 #   --out DIR        keep raw latencies, logs and the exact commands there (default: a new
@@ -36,6 +37,13 @@
 #               and what one bus costs a bare Fast DDS writer and a bare bus reader.
 #   memory      VmRSS / VmHWM of the bridge with 8 buses x 30 saws under full load.
 #   startup     process start -> first status sample at an already running subscriber.
+#   jitter      SYNC period jitter (p50/p99/p99.9/max deviation from 20 ms) of a master bridge with
+#               30 saws at full load (8000 frames/s) and an EMCY burst (1000/s), three ways: alone;
+#               with an emergency subscriber that freezes (SIGSTOP: it neither reads nor
+#               acknowledges); recording to a slow disk (a FIFO drained at 16 KiB/s).
+#   soak        resident memory and open file descriptors of the bridge sampled every 10 s during a
+#               flood (full load, EMCY burst, hostile frames on every identifier), 10 minutes (2
+#               with --quick): start, end, highest.
 #   security    DDS Security's cost, secured and unsecured side by side, alternating in chunks:
 #               the bare Fast DDS hop, CAN->DDS and DDS->CAN through the bridge, and start-up
 #               (1 saw) of a line secured by launch_scripts/pki.sh (PKI-DH, access control,
@@ -77,7 +85,7 @@ while (($#)); do
 done
 [[ $runs =~ ^[1-9][0-9]*$ ]] || { echo "bench.sh: --runs takes a positive number" >&2; exit 2; }
 for f in ${only//,/ }; do
-  [[ $f =~ ^(can2dds|dds2can|throughput|memory|startup|security)$ ]] || { echo "bench.sh: unknown figure $f" >&2; exit 2; }
+  [[ $f =~ ^(can2dds|dds2can|throughput|memory|startup|security|jitter|soak)$ ]] || { echo "bench.sh: unknown figure $f" >&2; exit 2; }
 done
 
 # Outside the namespace: build (no DDS here), then re-enter through the wrapper.
@@ -92,7 +100,8 @@ if [ "${LINEBRIDGE_NETNS:-}" != "1" ]; then
         -DCMAKE_CXX_FLAGS=-Wno-error=restrict >&2
     fi
     cmake --build "$build_dir" --target linebridge linebridge-sim linebridge-security bench-config bench-inject bench-can-sink \
-      bench-status-pub bench-status-sub bench-setpoint bench-relay bench-can-relay bench-startup bench-stats >&2
+      bench-status-pub bench-status-sub bench-setpoint bench-relay bench-can-relay bench-startup bench-stats \
+      bench-sync-jitter bench-frozen-reader >&2
   fi
   [ -n "$out_dir" ] || out_dir=$(mktemp -d /tmp/linebridge-bench.XXXXXX)
   mkdir -p "$out_dir"
@@ -114,9 +123,11 @@ full_rate=8000           # frames/s of a saturated 1 Mbit/s bus
 # elsewhere on a shared machine hits all of them alike instead of one whole set.
 if ((quick)); then
   chunks=2; lat_samples=5000; lat_warmup=600; sp_samples=500; sp_warmup=50; step_s=4; startup_reps="3 1"
+  jitter_s=15; soak_s=120
   quick_flag=" --quick"
 else
   chunks=5; lat_samples=20000; lat_warmup=600; sp_samples=1000; sp_warmup=100; step_s=10; startup_reps="10 3"
+  jitter_s=60; soak_s=600
   quick_flag=""
 fi
 [ -n "$buses_list" ] || buses_list="1 2 3 4 6 8 10 12 16"
@@ -560,6 +571,101 @@ security_pki() {  # DIR
   LINEBRIDGE_BIN="$build_dir/bridge/app" "$root/launch_scripts/pki.sh" issue --config "$d.line.yaml" --dir "$d" --name engineer --role engineer 2>/dev/null
 }
 
+# jitter_step DIR SCENARIO: quiet | frozen | record. A master bridge (pinned) with 30 saws whose
+# TPDOs come at full load from the injector, an EMCY burst from the meter, and the scenario's
+# burden; the meter reports the SYNC periods it saw.
+jitter_step() {
+  local d=$1 scenario=$2 inj bridge meter reader="" drain="" prefix="jit-$scenario-$RANDOM" extra=()
+  mkdir -p "$d"
+  next_domain
+  if [ "$scenario" = record ]; then
+    # A "slow disk": a FIFO whose reader takes 16 KiB a second; a frame's line is ~40 bytes, so
+    # the bridge's recording (8000+ frames/s) is ~20 times faster than the disk.
+    mkfifo "$d/record.fifo"
+    start "$d/drain" python3 -c "import sys,time
+f=open(sys.argv[1],'rb',buffering=0)
+while f.read(1024): time.sleep(1/16)" "$d/record.fifo"
+    drain=$pid
+    extra=(--record "$d/record.fifo")
+  fi
+  "$bin/bench-config" --buses 1 --devices $devices --domain $domain --prefix "$prefix" --role master "${extra[@]}" >"$d/line.yaml"
+  local count=$((full_rate * (jitter_s + 8)))
+  start "$d/inject" "${harness_cmd[@]}" "$bin/bench-inject" --buses 1 --devices $devices --rate $full_rate --count $count \
+    --prefix "$prefix" --ready "$d/inject.ready" --go "$d/go" --linger 1
+  inj=$pid
+  wait_file "$d/inject.ready" $inj
+  start "$d/bridge" "${pin_cmd[@]}" "$bridge_bin" --config "$d/line.yaml" --log-level warn
+  bridge=$pid
+  if [ "$scenario" = frozen ]; then
+    start "$d/reader" "${harness_cmd[@]}" "$bin/bench-frozen-reader" --devices $devices --domain $domain --freeze-after 4
+    reader=$pid
+  fi
+  sleep 3
+  touch "$d/go"
+  sleep 2
+  "${harness_cmd[@]}" "$bin/bench-sync-jitter" --bus "virtual:$prefix-0" --duration $jitter_s \
+    --emcy-rate 1000 --emcy-devices $devices --out "$d/periods" >"$d/meter.out" 2>"$d/meter.err" || true
+  printf '%s\n' "$bin/bench-sync-jitter --bus virtual:$prefix-0 --duration $jitter_s --emcy-rate 1000 --emcy-devices $devices --out $d/periods" >>"$commands"
+  [ -z "$reader" ] || { kill -KILL "$reader" 2>/dev/null || true; finish "$reader" || true; }
+  echo "bridge_alive=$(kill -0 $bridge 2>/dev/null && echo 1 || echo 0)" >>"$d/meter.out"
+  stop $bridge
+  stop $inj
+  [ -z "$drain" ] || stop "$drain"
+}
+
+fig_jitter() {  # RUN
+  local d="$out_dir/jitter/run$1" scenario
+  mkdir -p "$d"
+  vals="$d/values"; : >"$vals"
+  for scenario in quiet frozen record; do
+    echo "jitter: $scenario" >&2
+    jitter_step "$d/$scenario" $scenario
+    for k in syncs expected_syncs p50_us p99_us p999_us max_us longest_period_us emcy_sent; do
+      echo "jitter_${scenario}_$k=$(get "$d/$scenario/meter.out" jitter_$k)" >>"$vals"
+    done
+    echo "jitter_${scenario}_bridge_alive=$(get "$d/$scenario/meter.out" bridge_alive)" >>"$vals"
+  done
+  for scenario in frozen record; do
+    echo "jitter_${scenario}_p999_over_quiet_us=$(awk -v a="$(get "$vals" jitter_${scenario}_p999_us)" -v b="$(get "$vals" jitter_quiet_p999_us)" 'BEGIN { printf "%.1f", a - b }')" >>"$vals"
+  done
+}
+
+# A flood for the soak: full load from the injector, an EMCY burst, and frames on every 11-bit
+# identifier with random lengths and data (hostile and malformed as they come).
+fig_soak() {  # RUN
+  local d="$out_dir/soak/run$1" inj bridge prefix="soak-$1-$RANDOM" t=0
+  mkdir -p "$d"
+  vals="$d/values"; : >"$vals"
+  next_domain
+  "$bin/bench-config" --buses 1 --devices $devices --domain $domain --prefix "$prefix" --role master >"$d/line.yaml"
+  start "$d/inject" "${harness_cmd[@]}" "$bin/bench-inject" --buses 1 --devices $devices --rate $full_rate \
+    --count $((full_rate * (soak_s + 20))) --prefix "$prefix" --ready "$d/inject.ready" --go "$d/go" --linger 1
+  inj=$pid
+  wait_file "$d/inject.ready" $inj
+  start "$d/bridge" "${pin_cmd[@]}" "$bridge_bin" --config "$d/line.yaml" --log-level warn
+  bridge=$pid
+  sleep 3
+  touch "$d/go"
+  start "$d/hostile" "${harness_cmd[@]}" "$bin/bench-sync-jitter" --bus "virtual:$prefix-0" --duration $((soak_s + 5)) \
+    --emcy-rate 1000 --emcy-devices $devices --hostile-rate 1000
+  local hostile=$pid
+  : >"$d/samples"
+  while ((t <= soak_s)); do
+    echo "t=$t rss_kib=$(mem_kib $bridge VmRSS) fds=$(ls /proc/$bridge/fd 2>/dev/null | wc -l)" >>"$d/samples"
+    sleep 10
+    t=$((t + 10))
+  done
+  echo "soak_bridge_alive=$(kill -0 $bridge 2>/dev/null && echo 1 || echo 0)" >>"$vals"
+  stop $hostile
+  stop $bridge
+  stop $inj
+  awk '{ split($2, r, "="); split($3, f, "=");
+         if (NR == 1) { r0 = r[2]; f0 = f[2] } r1 = r[2]; f1 = f[2];
+         if (r[2] > rmax) rmax = r[2]; if (f[2] > fmax) fmax = f[2] }
+       END { printf "soak_rss_start_mib=%.1f\nsoak_rss_end_mib=%.1f\nsoak_rss_max_mib=%.1f\nsoak_fds_start=%d\nsoak_fds_end=%d\nsoak_fds_max=%d\nsoak_samples=%d\n",
+             r0 / 1024, r1 / 1024, rmax / 1024, f0, f1, fmax, NR }' "$d/samples" >>"$vals"
+}
+
 fig_security() {  # RUN
   local d="$out_dir/security/run$1" c mode
   vals="$d/values"; mkdir -p "$d"; : >"$vals"
@@ -607,7 +713,7 @@ if ((report_only)); then
   [ -n "$runs" ] || { echo "bench.sh: no measurements in $out_dir" >&2; exit 1; }
 else
   for ((r = 1; r <= runs; r++)); do
-    for f in can2dds dds2can throughput memory startup security; do
+    for f in can2dds dds2can throughput memory startup security jitter soak; do
       if want $f; then
         echo "== $f, run $r of $runs" >&2
         "fig_$f" $r
@@ -679,6 +785,18 @@ cmd() { echo "launch_scripts/bench.sh --only $1$quick_flag --runs $runs$nice_fla
     echo "| Start-up with the devices powered (simulator): -> first sample with live data (device booted, online), 1x1 / ${mem_buses}x$devices (ms) | $(stat startup startup_1x1_first_online_ms) / $(stat startup startup_${mem_buses}x${devices}_first_online_ms) | | | \`$(cmd startup)\` |"
     echo "| Start-up with the devices powered: -> every saw online, 1x1 / ${mem_buses}x$devices (ms) | $(stat startup startup_1x1_all_online_ms) / $(stat startup startup_${mem_buses}x${devices}_all_online_ms) | | | \`$(cmd startup)\` |"
     echo "| Resident memory idle after start-up, 1x1 / ${mem_buses}x$devices, master role (MiB) | $(stat startup startup_1x1_rss_mib) / $(stat startup startup_${mem_buses}x${devices}_rss_mib) | | | \`$(cmd startup)\` |"
+  fi
+  if want jitter; then
+    for sc in "quiet:alone" "frozen:with a frozen emergency subscriber" "record:recording to a slow disk"; do
+      k=${sc%%:*}
+      echo "| SYNC jitter, 30 saws at $full_rate frames/s + 1000 EMCY/s, ${sc#*:}: deviation from 20 ms p50 / p99 / p99.9 / max (µs); SYNCs seen / expected | $(stat jitter jitter_${k}_p50_us) / $(stat jitter jitter_${k}_p99_us) / $(stat jitter jitter_${k}_p999_us) / $(stat jitter jitter_${k}_max_us); $(stat jitter jitter_${k}_syncs) / $(stat jitter jitter_${k}_expected_syncs) | | | \`$(cmd jitter)\` |"
+    done
+    echo "| SYNC jitter p99.9 with a frozen subscriber, over the same alone (µs) | $(stat jitter jitter_frozen_p999_over_quiet_us) | <= 200 | $(verdict "$(median jitter jitter_frozen_p999_over_quiet_us)" "<=" 200) | \`$(cmd jitter)\` |"
+    echo "| SYNC jitter p99.9 recording to a slow disk, over the same alone (µs) | $(stat jitter jitter_record_p999_over_quiet_us) | <= 200 | $(verdict "$(median jitter jitter_record_p999_over_quiet_us)" "<=" 200) | \`$(cmd jitter)\` |"
+  fi
+  if want soak; then
+    echo "| Soak, $soak_s s flood (full load, 1000 EMCY/s, 1000 hostile frames/s): VmRSS start / end / max (MiB) | $(stat soak soak_rss_start_mib) / $(stat soak soak_rss_end_mib) / $(stat soak soak_rss_max_mib) | flat | | \`$(cmd soak)\` |"
+    echo "| Soak: open file descriptors start / end / max; bridge alive at the end | $(stat soak soak_fds_start) / $(stat soak soak_fds_end) / $(stat soak soak_fds_max); $(stat soak soak_bridge_alive) | flat | | \`$(cmd soak)\` |"
   fi
   if want security; then
     for what in "dds:bare Fast DDS hop, $devices status topics at $lat_rate samples/s" "can2dds:CAN->DDS through the bridge" \

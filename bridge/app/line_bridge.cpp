@@ -3,8 +3,10 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <cstdlib>
 #include <stdexcept>
 
+#include "app/run_until_signal.hpp"
 #include "can/recording_bus.hpp"
 
 namespace lb::app {
@@ -28,6 +30,13 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
     BusRuntime rt{};
     rt.config = &bus_cfg;
     rt.loop = std::make_unique<canopen::BusLoop>(std::move(*bus));
+    rt.loop->on_failure([b = bridge.get(), name = bus_cfg.name](const std::string& why) {
+      {
+        std::lock_guard lock(b->failure_mutex_);
+        if (!b->failure_) b->failure_ = "bus " + name + ": " + why;
+      }
+      request_stop();
+    });
     if (master) {
       rt.sync = std::make_unique<canopen::SyncProducer>(*rt.loop, bus_cfg.sync_period);
       rt.sdo = std::make_unique<canopen::SdoClient>(*rt.loop, bus_cfg.sdo_timeout);
@@ -39,14 +48,47 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
     bridge->buses_.push_back(std::move(rt));
   }
 
+  // The set values in force survive a restart: restored into the RPDO images before their first
+  // frame. A state directory that cannot be used costs that, not the line.
+  std::string state_dir = config.state_dir;
+  if (const char* systemd = std::getenv("STATE_DIRECTORY"); state_dir.empty() && systemd != nullptr) {
+    state_dir = std::string(systemd).substr(0, std::string(systemd).find(':'));
+  }
+  if (!state_dir.empty()) {
+    auto store = gateways::SetValueStore::open(state_dir, config.line, config.restore_set_values);
+    if (store) {
+      bridge->set_values_ = std::move(*store);
+      spdlog::info("set values in force are kept in {}{}", bridge->set_values_->path(),
+                   config.restore_set_values ? " and restored at start" : " (restore_set_values: false: a start begins from zero)");
+    } else {
+      spdlog::error("set values in force will not survive a restart: {}", store.error().message);
+    }
+  } else {
+    spdlog::info("set values in force are not kept across restarts (no state_dir)");
+  }
+
+  // Master buses: another master there is noticed and, by default, yielded to.
+  for (auto& rt : bridge->buses_) {
+    if (rt.config->role != profiles::BusRole::master) continue;
+    rt.other_master = std::make_unique<canopen::OtherMasterWatch>(
+        *rt.loop, rt.config->yield_to_other_master ? canopen::OtherMasterWatch::Policy::yield : canopen::OtherMasterWatch::Policy::warn,
+        rt.config->master_node_id);
+    for (const auto& dev : config.devices) {
+      if (dev.bus != rt.config->name) continue;
+      for (const auto& p : dev.pdos) {
+        if (p.direction == profiles::PdoDirection::rx && p.enabled) rt.other_master->watch_rpdo(p.can_id, p.extended);
+      }
+    }
+  }
+
   std::vector<gateways::ManagementServices::Device> managed;  // configuration order
   for (const auto& dev : config.devices) {
     auto& rt = *std::find_if(bridge->buses_.begin(), bridge->buses_.end(),
                              [&](const BusRuntime& b) { return b.config->name == dev.bus; });
     const bool master = rt.config->role == profiles::BusRole::master;
     rt.nodes.push_back(std::make_unique<canopen::RemoteNode>(*rt.loop, dev.node_id, dev.heartbeat_timeout, master));
-    const gateways::DeviceContext ctx{*rt.loop,     *rt.nodes.back(), rt.sync.get(), rt.sdo.get(), *bridge->dds_,
-                                      config.line,  *rt.config,       dev,           *dev.resolved_profile};
+    const gateways::DeviceContext ctx{*rt.loop,     *rt.nodes.back(), rt.sync.get(), rt.sdo.get(),          *bridge->dds_,
+                                      config.line,  *rt.config,       dev,           *dev.resolved_profile, bridge->set_values_.get()};
     try {
       rt.services.push_back(std::make_unique<gateways::DeviceServices>(ctx));
       rt.gateways.push_back(gateways::make_gateway(ctx));
@@ -63,7 +105,7 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
 
   std::vector<gateways::DiagnosticsGateway::Bus> diag;
   for (const auto& rt : bridge->buses_) {
-    gateways::DiagnosticsGateway::Bus b{rt.config, rt.loop.get(), {}};
+    gateways::DiagnosticsGateway::Bus b{rt.config, rt.loop.get(), rt.other_master.get(), {}};
     for (std::size_t i = 0; i < rt.nodes.size(); ++i) {
       for (const auto& dev : config.devices) {
         if (dev.bus == rt.config->name && dev.node_id == rt.nodes[i]->node_id()) {
@@ -83,10 +125,13 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
 
 LineBridge::~LineBridge() {
   stop();
-  // SDO clients first: they complete what is pending (boot sequences, service calls), and those
+  // No DDS callback (a service request, a set value) runs from here on, so none can reach an SDO
+  // client or a gateway while they go.
+  if (dds_) dds_->stop_callbacks();
+  // SDO clients next: they complete what is pending (boot sequences, service calls), and those
   // completions still need the gateways and the DDS writers.
   for (auto& rt : buses_) rt.sdo.reset();
-  // Then DDS: no listener may call into a gateway that is being destroyed.
+  // Then DDS itself.
   dds_.reset();
 }
 
@@ -101,6 +146,11 @@ void LineBridge::start() {
     });
     spdlog::info("bus {} on {} started as {}", rt.config->name, rt.config->interface, profiles::to_string(rt.config->role));
   }
+}
+
+std::optional<std::string> LineBridge::failure() const {
+  std::lock_guard lock(failure_mutex_);
+  return failure_;
 }
 
 void LineBridge::stop() {

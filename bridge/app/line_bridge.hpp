@@ -4,10 +4,14 @@
 // participant for all of them.
 
 #include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
 #include <vector>
 
 #include "canopen/bus_loop.hpp"
 #include "canopen/heartbeat_producer.hpp"
+#include "canopen/other_master.hpp"
 #include "canopen/remote_node.hpp"
 #include "canopen/sdo_client.hpp"
 #include "canopen/sync_producer.hpp"
@@ -16,6 +20,7 @@
 #include "gateways/diagnostics_gateway.hpp"
 #include "gateways/gateway.hpp"
 #include "gateways/management_services.hpp"
+#include "gateways/set_value_store.hpp"
 #include "profiles/line_config.hpp"
 
 namespace lb::app {
@@ -34,6 +39,8 @@ class LineBridge {
 
   void start();
   void stop();  // idempotent
+  // A bus loop failed for good (the process should end with an error and be restarted): its why.
+  std::optional<std::string> failure() const;
 
  private:
   struct BusRuntime {
@@ -42,18 +49,23 @@ class LineBridge {
     std::unique_ptr<canopen::SyncProducer> sync;
     std::unique_ptr<canopen::HeartbeatProducer> heartbeat;
     std::unique_ptr<canopen::SdoClient> sdo;
+    std::unique_ptr<canopen::OtherMasterWatch> other_master;
     std::vector<std::unique_ptr<canopen::RemoteNode>> nodes;
     std::vector<std::unique_ptr<gateways::DeviceServices>> services;
     std::vector<std::unique_ptr<gateways::Gateway>> gateways;
   };
 
   const profiles::LineConfig& config_;
+  // Before the buses: their gateways keep set values in it until they are gone.
+  std::unique_ptr<gateways::SetValueStore> set_values_;
   std::unique_ptr<ddsl::Participant> dds_;
   std::vector<BusRuntime> buses_;
   // The line-wide nmt/sdo/command/parameter services; they call into the buses' device handlers,
   // and the participant (reset first in the destructor) stops calling them before anything goes.
   std::unique_ptr<gateways::ManagementServices> management_;
   std::unique_ptr<gateways::DiagnosticsGateway> diagnostics_;
+  mutable std::mutex failure_mutex_;
+  std::optional<std::string> failure_;
 };
 
 }  // namespace lb::app

@@ -45,6 +45,12 @@ int main(int argc, char** argv) {
                config->devices.size(), config->dds.domain, config->dds.localhost_only ? " (localhost only)" : "",
                config->dds.security ? ", secured" : "");
   const int sig = lb::app::run_until_signal(std::chrono::milliseconds(static_cast<long>(duration_s * 1000)));
+  if (const auto failure = (*bridge)->failure()) {
+    // Exit non-zero so the service manager restarts the bridge rather than keep a line without its loop.
+    spdlog::critical("stopping: {}", *failure);
+    (*bridge)->stop();
+    return 3;
+  }
   spdlog::info("stopping ({})", sig != 0 ? "signal" : "duration elapsed");
   (*bridge)->stop();
   return 0;

@@ -55,14 +55,44 @@ BusLoop::~BusLoop() {
 
 void BusLoop::on_frame(std::uint32_t cob_id, FrameHandler handler) {
   if (cob_id >= cob::kStandardIdCount) throw std::invalid_argument("on_frame takes 11-bit identifiers");
-  handlers_[cob_id].push_back(std::move(handler));
+  handlers_[cob_id].push_back({std::move(handler)});
 }
 
 void BusLoop::on_extended_frame(std::uint32_t id, FrameHandler handler) {
-  extended_handlers_.emplace_back(id, std::move(handler));
+  extended_handlers_.emplace_back(id, Handler{std::move(handler)});
 }
 
-void BusLoop::on_other_frame(FrameHandler handler) { other_handlers_.push_back(std::move(handler)); }
+void BusLoop::on_other_frame(FrameHandler handler) { other_handlers_.push_back({std::move(handler)}); }
+
+template <class Fn>
+bool BusLoop::guarded(Fn&& fn, std::uint32_t* failures, const char* what, std::uint32_t id) {
+  std::string error;
+  try {
+    fn();
+    return true;
+  } catch (const std::exception& e) {
+    error = e.what();
+  } catch (...) {
+    error = "an exception that is not a std::exception";
+  }
+  ++handler_failures_;
+  const std::uint32_t n = failures != nullptr ? ++*failures : 1;
+  // Bounded: the first failures of each callback, then every 1000th of the loop's.
+  if (n <= 3 || handler_failures_ % 1000 == 0) {
+    spdlog::error("{}: the {} {:03X}h threw: {} ({} failures on this bus); the bus goes on", bus_->uri(), what, id,
+                  error, handler_failures_);
+  }
+  if (failures != nullptr && n == kMaxHandlerFailures) {
+    ++handlers_disabled_;
+    spdlog::error("{}: the {} {:03X}h is switched off after {} failures", bus_->uri(), what, id, n);
+  }
+  return false;
+}
+
+void BusLoop::call(Handler& h, const can::CanFrame& frame, const char* what) {
+  if (h.failures >= kMaxHandlerFailures) return;
+  guarded([&] { h.fn(frame); }, &h.failures, what, frame.id);
+}
 
 BusLoop::TimerId BusLoop::create_timer(Task callback) {
   const int fd = ::timerfd_create(CLOCK_MONOTONIC, TFD_NONBLOCK | TFD_CLOEXEC);
@@ -96,6 +126,10 @@ void BusLoop::post(Task task) {
 }
 
 Result<void> BusLoop::send(const can::CanFrame& frame) {
+  if (held_) {
+    ++frames_held_;
+    return make_error(bus_->uri() + ": transmission held: another master is on this bus");
+  }
   auto r = bus_->send(frame);
   if (r) bits_out_ += frame_bits(frame);
   if (!r) spdlog::debug("{}: send {:03X} failed: {}", bus_->uri(), frame.id, r.error().message);
@@ -117,14 +151,29 @@ void BusLoop::stop() {
   if (thread_.joinable() && !on_loop_thread()) thread_.join();
 }
 
+// The loop's own failures end it: a loop that cannot wait or read its descriptors any more must
+// not look alive to a service manager.
 void BusLoop::run() {
+  std::string why;
+  try {
+    loop();
+    return;
+  } catch (const std::exception& e) {
+    why = e.what();
+  } catch (...) {
+    why = "an exception that is not a std::exception";
+  }
+  spdlog::critical("{}: the bus loop failed and ended: {}", bus_->uri(), why);
+  if (failure_handler_) failure_handler_(why);
+}
+
+void BusLoop::loop() {
   std::array<epoll_event, 16> events{};
   for (;;) {
     const int n = ::epoll_wait(epoll_fd_, events.data(), static_cast<int>(events.size()), -1);
     if (n < 0) {
       if (errno == EINTR) continue;
-      spdlog::critical("{}: epoll_wait failed: {}", bus_->uri(), std::strerror(errno));
-      return;
+      throw std::runtime_error(std::string("epoll_wait failed: ") + std::strerror(errno));
     }
     for (int i = 0; i < n; ++i) {
       const std::uint64_t tag = events[static_cast<std::size_t>(i)].data.u64;
@@ -138,10 +187,16 @@ void BusLoop::run() {
           if (stopping_) return;
         }
         run_posted();
+        if (backlog_) drain_bus();
       } else {
         auto& timer = *timers_[tag - kTimerTagBase];
         std::uint64_t expirations = 0;
-        if (::read(timer.fd, &expirations, sizeof expirations) == sizeof expirations) timer.callback();
+        if (::read(timer.fd, &expirations, sizeof expirations) != sizeof expirations) continue;
+        if (timer.failures >= kMaxHandlerFailures) continue;
+        if (!guarded([&timer] { timer.callback(); }, &timer.failures, "timer", static_cast<std::uint32_t>(tag - kTimerTagBase)) &&
+            timer.failures >= kMaxHandlerFailures) {
+          disarm_timer(tag - kTimerTagBase);
+        }
       }
     }
   }
@@ -149,7 +204,16 @@ void BusLoop::run() {
 
 void BusLoop::drain_bus() {
   in_burst_ = true;
-  for (int in_burst = 0;; ++in_burst) {
+  backlog_ = false;
+  for (int in_burst = 0, taken = 0;; ++in_burst, ++taken) {
+    if (taken == kFramesPerWake) {
+      // Back to epoll, so that due timers and posted work run; the wake-up brings the loop back
+      // here even when the rest of the backlog is in the bus's batch buffer, not in the kernel.
+      backlog_ = true;
+      const std::uint64_t one = 1;
+      [[maybe_unused]] auto n = ::write(wake_fd_, &one, sizeof one);
+      break;
+    }
     if (in_burst == kBurstFrames) {
       run_flushes();
       in_burst = 0;
@@ -165,6 +229,27 @@ void BusLoop::drain_bus() {
   }
   in_burst_ = false;
   run_flushes();
+  watch_link();
+}
+
+// What the bus reports of its link (SocketCAN: down, deleted, re-opened; the controller's error
+// states) is in the diagnostics; the log says when it changes, since that is when a line stops.
+void BusLoop::watch_link() {
+  const auto s = bus_->stats();
+  if (s.reopens != last_reopens_) {
+    spdlog::warn("{}: the interface is back and was opened again (re-open #{})", bus_->uri(), s.reopens);
+    last_reopens_ = s.reopens;
+  }
+  if (s.state == last_state_) return;
+  const auto level = s.state == can::BusState::down || s.state == can::BusState::bus_off ? spdlog::level::err
+                     : s.state == can::BusState::error_active                            ? spdlog::level::info
+                                                                                          : spdlog::level::warn;
+  if (s.state == can::BusState::down) {
+    spdlog::log(level, "{}: link down (interface down or gone): nothing is sent or received until it is back", bus_->uri());
+  } else if (last_state_ != can::BusState::unknown || s.state != can::BusState::error_active) {
+    spdlog::log(level, "{}: controller state {} (was {})", bus_->uri(), can::to_string(s.state), can::to_string(last_state_));
+  }
+  last_state_ = s.state;
 }
 
 BusLoop::FlushId BusLoop::create_flush(Task callback) {
@@ -175,7 +260,7 @@ BusLoop::FlushId BusLoop::create_flush(Task callback) {
 void BusLoop::request_flush(FlushId id) {
   auto& f = flushes_.at(id);
   if (!in_burst_) {
-    f.callback();
+    guarded(f.callback, nullptr, "burst flush", static_cast<std::uint32_t>(id));
     return;
   }
   if (f.requested) return;
@@ -188,7 +273,7 @@ void BusLoop::run_flushes() {
   for (std::size_t i = 0; i < requested_flushes_.size(); ++i) {
     auto& f = flushes_[requested_flushes_[i]];
     f.requested = false;
-    f.callback();
+    guarded(f.callback, nullptr, "burst flush", static_cast<std::uint32_t>(requested_flushes_[i]));
   }
   requested_flushes_.clear();
 }
@@ -199,30 +284,33 @@ void BusLoop::run_posted() {
     std::lock_guard lock(posted_mutex_);
     batch.swap(posted_);
   }
-  for (auto& task : batch) task();
+  for (auto& task : batch) guarded(task, nullptr, "posted task", 0);
 }
 
 void BusLoop::dispatch(const can::CanFrame& frame) {
   if (!frame.extended && !frame.rtr && !frame.error && frame.id < cob::kStandardIdCount) {
-    for (const auto& h : handlers_[frame.id]) h(frame);
+    auto& handlers = handlers_[frame.id];
+    if (handlers.empty()) ++frames_unclaimed_;
+    for (auto& h : handlers) call(h, frame, "handler of frame");
     return;
   }
   if (frame.extended && !frame.rtr && !frame.error) {
     bool claimed = false;
-    for (const auto& [id, h] : extended_handlers_) {
+    for (auto& [id, h] : extended_handlers_) {
       if (id == frame.id) {
-        h(frame);
+        call(h, frame, "handler of 29-bit frame");
         claimed = true;
       }
     }
     if (claimed) return;
   }
+  if (!frame.error) ++frames_unclaimed_;
   if (frame.error && error_frames_logged_++ % 100 == 0) {
     // Error class bits and data as <linux/can/error.h> defines them; counted in the bus stats.
     spdlog::warn("{}: error frame, class {:08X}h, data {:02X} ({} so far)", bus_->uri(), frame.id,
                  fmt::join(frame.payload(), " "), error_frames_logged_);
   }
-  for (const auto& h : other_handlers_) h(frame);
+  for (auto& h : other_handlers_) call(h, frame, "handler of other frame");
 }
 
 }  // namespace lb::canopen

@@ -1,11 +1,20 @@
 #pragma once
 // One thread per bus: epoll over the bus, timerfds and an eventfd for work posted from other
 // threads. Every CANopen service of a bus runs on this thread, so none of them needs a lock.
+//
+// Every callback (frame handler, timer, posted task, flush) runs behind an exception barrier: a
+// throw is logged at a bounded rate and counted (handler_failures), and a frame handler or timer
+// that keeps throwing is switched off, so one broken handler cannot stall the bus or end the
+// line. A failure of the loop itself (epoll) ends the loop and is reported to the failure
+// handler, so that the process can exit and its service manager restart it. A flooded bus is read
+// at most kFramesPerWake frames per wake-up, so timers (SYNC, heartbeat supervision) and posted
+// work are never starved.
 
 #include <array>
 #include <chrono>
 #include <cstdint>
 #include <functional>
+#include <string>
 #include <memory>
 #include <mutex>
 #include <thread>
@@ -44,6 +53,9 @@ class BusLoop {
   // A burst is what one wake-up finds pending, at most kBurstFrames frames, so a quiet bus flushes
   // after every frame and adds no latency. Registration: before start() or on the loop thread.
   static constexpr int kBurstFrames = 64;
+  static constexpr int kFramesPerWake = 256;
+  // A frame handler or timer that threw this many times is switched off.
+  static constexpr std::uint32_t kMaxHandlerFailures = 10;
   FlushId create_flush(Task callback);
   // Loop thread: runs the callback once after the frames being dispatched now; at once when called
   // outside frame dispatch. Requests before that run coalesce into one call.
@@ -53,7 +65,15 @@ class BusLoop {
   void post(Task task);
 
   // Loop thread: transmits, counting and logging failures (the caller decides nothing on them).
+  // Refused while transmission is held.
   Result<void> send(const can::CanFrame& frame);
+  // Loop thread: hold every transmission (another master owns the bus) or release it.
+  void hold_transmission(bool held) { held_ = held; }
+  bool transmission_held() const { return held_; }
+  std::uint64_t frames_held() const { return frames_held_; }  // refused while held
+
+  // Before start(): called on the loop thread when the loop ends by a failure of its own.
+  void on_failure(std::function<void(const std::string& why)> handler) { failure_handler_ = std::move(handler); }
 
   void start();
   void stop();  // idempotent; joins the thread
@@ -64,14 +84,31 @@ class BusLoop {
   // Bits on the wire without stuffing, for the bus load (loop thread).
   std::uint64_t bits_in() const { return bits_in_; }
   std::uint64_t bits_out() const { return bits_out_; }
+  // Callbacks that threw (loop thread), and the frame handlers and timers switched off for it.
+  std::uint64_t handler_failures() const { return handler_failures_; }
+  // Frames nobody on this bus handles (nodes the line does not have, identifiers no service uses).
+  std::uint64_t frames_unclaimed() const { return frames_unclaimed_; }
+  std::uint64_t handlers_disabled() const { return handlers_disabled_; }
 
  private:
   struct Timer {
     int fd = -1;
     Task callback;
+    std::uint32_t failures = 0;
+  };
+  struct Handler {
+    FrameHandler fn;
+    std::uint32_t failures = 0;
   };
 
   void run();
+  void loop();
+  // The barrier: true when fn returned normally. `failures` (may be null: one-shot work) counts the
+  // callback's throws; at kMaxHandlerFailures the caller switches it off.
+  template <class Fn>
+  bool guarded(Fn&& fn, std::uint32_t* failures, const char* what, std::uint32_t id);
+  void call(Handler& h, const can::CanFrame& frame, const char* what);
+  void watch_link();  // logs the bus's state changes and re-opens
   void drain_bus();
   void run_posted();
   void dispatch(const can::CanFrame& frame);
@@ -81,9 +118,9 @@ class BusLoop {
   int epoll_fd_ = -1;
   int wake_fd_ = -1;  // eventfd: posted tasks and stop
   std::vector<std::unique_ptr<Timer>> timers_;
-  std::array<std::vector<FrameHandler>, cob::kStandardIdCount> handlers_;
-  std::vector<std::pair<std::uint32_t, FrameHandler>> extended_handlers_;  // few: a linear scan
-  std::vector<FrameHandler> other_handlers_;
+  std::array<std::vector<Handler>, cob::kStandardIdCount> handlers_;
+  std::vector<std::pair<std::uint32_t, Handler>> extended_handlers_;  // few: a linear scan
+  std::vector<Handler> other_handlers_;
   struct Flush {
     Task callback;
     bool requested = false;
@@ -91,7 +128,16 @@ class BusLoop {
   std::vector<Flush> flushes_;
   std::vector<FlushId> requested_flushes_;
   bool in_burst_ = false;
+  bool backlog_ = false;
+  bool held_ = false;
+  std::uint64_t frames_held_ = 0;  // drain_bus() stopped at kFramesPerWake with frames possibly left
   std::uint64_t error_frames_logged_ = 0;
+  std::uint64_t handler_failures_ = 0;
+  std::uint64_t frames_unclaimed_ = 0;
+  can::BusState last_state_ = can::BusState::unknown;
+  std::uint64_t last_reopens_ = 0;
+  std::uint64_t handlers_disabled_ = 0;
+  std::function<void(const std::string&)> failure_handler_;
   std::uint64_t bits_in_ = 0;
   std::uint64_t bits_out_ = 0;
 

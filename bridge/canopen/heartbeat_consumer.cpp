@@ -13,7 +13,7 @@ HeartbeatConsumer::HeartbeatConsumer(BusLoop& loop, std::uint8_t node_id, std::c
 
 void HeartbeatConsumer::on_frame(const can::CanFrame& frame) {
   if (frame.len < 1) {
-    spdlog::warn("{}: node {}: heartbeat without data ignored", loop_.bus().uri(), node_id_);
+    if (listener_.on_malformed) listener_.on_malformed(frame);
     return;
   }
   last_heartbeat_ns_ = frame.timestamp_ns;

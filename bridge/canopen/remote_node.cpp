@@ -1,10 +1,15 @@
 #include "canopen/remote_node.hpp"
 
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
 namespace lb::canopen {
 
 namespace {
+
+std::string held_back(const LogRate& rate) {
+  return rate.held_back() == 0 ? std::string() : fmt::format(" ({} more not logged)", rate.held_back());
+}
 
 NmtState state_after(NmtCommand cmd) {
   switch (cmd) {
@@ -39,6 +44,14 @@ RemoteNode::RemoteNode(BusLoop& loop, std::uint8_t node_id, std::chrono::millise
                      .on_boot_up = [this] { booted(); },
                      .on_change = [this](NmtState s, bool o) { changed(s, o); },
                      .on_heartbeat = [this](NmtState s) { heartbeat(s); },
+                     .on_malformed =
+                         [this](const can::CanFrame& f) {
+                           ++stats_.malformed_heartbeats;
+                           if (malformed_log_.allow()) {
+                             spdlog::warn("{}: node {}: heartbeat with {} bytes ignored (CiA 301: 1){}", loop_.bus().uri(),
+                                          this->node_id(), f.len, held_back(malformed_log_));
+                           }
+                         },
                  }) {
   loop_.on_frame(cob::emcy_base + node_id, [this](const can::CanFrame& f) { on_emcy_frame(f); });
 }
@@ -107,13 +120,20 @@ void RemoteNode::emit(Event event, NmtState state) {
 void RemoteNode::on_emcy_frame(const can::CanFrame& frame) {
   const auto e = parse_emergency(frame);
   if (!e) {
-    spdlog::warn("{}: node {}: EMCY with {} bytes ignored (CiA 301: 8)", loop_.bus().uri(), node_id(), frame.len);
+    ++stats_.malformed_emergencies;
+    if (malformed_log_.allow()) {
+      spdlog::warn("{}: node {}: EMCY with {} bytes ignored (CiA 301: 8){}", loop_.bus().uri(), node_id(), frame.len,
+                   held_back(malformed_log_));
+    }
     return;
   }
   ++stats_.emergencies;
   errors_.apply(*e);
-  spdlog::log(e->is_reset() ? spdlog::level::info : spdlog::level::warn, "{}: node {} EMCY {:04X}h ({}), register {:02X}h",
-              loop_.bus().uri(), node_id(), e->error_code, emcy_family(e->error_code), e->error_register);
+  if (emcy_log_.allow()) {
+    spdlog::log(e->is_reset() ? spdlog::level::info : spdlog::level::warn, "{}: node {} EMCY {:04X}h ({}), register {:02X}h{}",
+                loop_.bus().uri(), node_id(), e->error_code, emcy_family(e->error_code), e->error_register,
+                held_back(emcy_log_));
+  }
   for (const auto& l : emcy_listeners_) l(*e);
 }
 

@@ -11,6 +11,7 @@
 #include <string>
 #include <vector>
 
+#include "base/log_rate.hpp"
 #include "base/result.hpp"
 #include "canopen/bus_loop.hpp"
 #include "canopen/emcy.hpp"
@@ -29,6 +30,8 @@ class RemoteNode {
     std::uint64_t pdo_length_errors = 0;
     std::uint64_t emergencies = 0;
     std::uint64_t range_warnings = 0;
+    std::uint64_t malformed_emergencies = 0;  // EMCYs not 8 bytes long (ignored)
+    std::uint64_t malformed_heartbeats = 0;   // heartbeats without a state byte (ignored)
   };
   // What makes the master lose track of the device's object dictionary.
   enum class Event {
@@ -102,6 +105,8 @@ class RemoteNode {
   std::vector<EmergencyListener> emcy_listeners_;
   std::vector<EventListener> event_listeners_;
   std::vector<PdoListener> pdo_listeners_;
+  LogRate emcy_log_;
+  LogRate malformed_log_;
   HeartbeatConsumer heartbeat_;
 };
 

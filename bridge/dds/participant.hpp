@@ -17,6 +17,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <shared_mutex>
 #include <optional>
 #include <string>
 #include <string_view>
@@ -34,7 +35,7 @@ namespace fdds = eprosima::fastdds::dds;
 enum class QosKind {
   state,    // reliable, transient-local, keep-last 1: late joiners get the current state
   command,  // reliable, volatile, keep-last 16: set values and requests, never replayed to late joiners
-  event,    // reliable, volatile, keep-all: every cut, every emergency
+  event,    // reliable, volatile, keep-last 1000: every cut, every emergency (a frozen reader never blocks a writer)
   // reliable, transient-local, keep-last 16: answers (service replies, set-value results). A
   // client's new reader may be matched by the client before the server's writer has matched it;
   // transient-local lets the reader still get the answer written in that gap.
@@ -147,7 +148,7 @@ class Participant {
                          int keep_last = 0) {
     auto t = topic_for<PubSubType>(topic);
     if (!t) return t.error();
-    auto listener = std::make_unique<TypedListener<PubSubType>>(std::move(callback));
+    auto listener = std::make_unique<TypedListener<PubSubType>>(std::move(callback), gate_);
     if (create_reader(*t, kind, keep_last, listener.get()) == nullptr) {
       return make_error("cannot create DDS reader on " + topic);
     }
@@ -177,7 +178,7 @@ class Participant {
                                                          SampleCallback<PubSubType> callback) {
     auto t = topic_for<PubSubType>(topic);
     if (!t) return t.error();
-    auto listener = std::make_unique<TypedListener<PubSubType>>(std::move(callback));
+    auto listener = std::make_unique<TypedListener<PubSubType>>(std::move(callback), gate_);
     auto* reader = create_reader(*t, kind, 0, listener.get());
     if (reader == nullptr) return make_error("cannot create DDS reader on " + topic);
     return std::make_unique<Subscription>(*this, reader, std::move(listener));
@@ -188,7 +189,7 @@ class Participant {
   Result<void> subscribe_any_partition(const std::string& topic, QosKind kind, SampleCallback<PubSubType> callback) {
     auto t = topic_for<PubSubType>(topic);
     if (!t) return t.error();
-    auto listener = std::make_unique<TypedListener<PubSubType>>(std::move(callback));
+    auto listener = std::make_unique<TypedListener<PubSubType>>(std::move(callback), gate_);
     if (create_reader(*t, kind, 0, listener.get(), true) == nullptr) {
       return make_error("cannot create DDS reader on " + topic + " in every partition");
     }
@@ -197,6 +198,12 @@ class Participant {
     return {};
   }
   void remove_writer(fdds::DataWriter* writer);
+
+  // Any thread but a callback's: waits for the sample callbacks running now and lets no other run
+  // after it returns (samples are then left unread). For an orderly shutdown: what the callbacks
+  // reach (SDO clients, gateways) may be destroyed afterwards while the writers still exist, so
+  // answers still pending can go out.
+  void stop_callbacks();
 
   // Created with DDS Security (and proven to be in force).
   bool secured() const { return secured_; }
@@ -210,11 +217,21 @@ class Participant {
   int matched_writers(const std::string& topic) const;
 
  private:
+  // Shared by every listener of the participant: callbacks run under its shared lock, and
+  // stop_callbacks() takes it exclusively once.
+  struct CallbackGate {
+    std::shared_mutex mutex;
+    bool closed = false;
+  };
+
   template <class PubSubType>
   class TypedListener : public fdds::DataReaderListener {
    public:
-    explicit TypedListener(SampleCallback<PubSubType> cb) : cb_(std::move(cb)) {}
+    TypedListener(SampleCallback<PubSubType> cb, std::shared_ptr<CallbackGate> gate)
+        : cb_(std::move(cb)), gate_(std::move(gate)) {}
     void on_data_available(fdds::DataReader* reader) override {
+      std::shared_lock lock(gate_->mutex);
+      if (gate_->closed) return;
       typename PubSubType::type sample;
       fdds::SampleInfo info;
       while (reader->take_next_sample(&sample, &info) == eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK) {
@@ -224,6 +241,7 @@ class Participant {
 
    private:
     SampleCallback<PubSubType> cb_;
+    std::shared_ptr<CallbackGate> gate_;
   };
 
   template <class PubSubType>
@@ -239,6 +257,7 @@ class Participant {
   fdds::Publisher* publisher_in(const std::string& partition);
   fdds::Subscriber* any_partition_subscriber();
 
+  std::shared_ptr<CallbackGate> gate_ = std::make_shared<CallbackGate>();
   // Declared before the participant's entities: Fast DDS calls it until the participant is deleted.
   std::unique_ptr<WriterPartitions> writer_partitions_;
   bool secured_ = false;

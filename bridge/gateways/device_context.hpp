@@ -8,6 +8,7 @@
 #include "canopen/sdo_client.hpp"
 #include "canopen/sync_producer.hpp"
 #include "dds/participant.hpp"
+#include "gateways/set_value_store.hpp"
 #include "profiles/line_config.hpp"
 
 namespace lb::gateways {
@@ -22,6 +23,7 @@ struct DeviceContext {
   const profiles::BusConfig& bus;
   const profiles::DeviceConfig& device;
   const profiles::Profile& profile;
+  SetValueStore* set_values = nullptr;  // master role: where the set values in force are kept (null: nowhere)
 
   bool is_master() const { return bus.role == profiles::BusRole::master; }
 };

@@ -226,7 +226,10 @@ void DeviceServices::nmt(const srv::Nmt_Request& request, ddsl::Respond<srv::Nmt
     // A device whose boot did not pass (or whose state became unknown since) may have lost its
     // configuration: starting it would hand it RPDOs it may misread. Its boot starts it.
     if (c == canopen::NmtCommand::start && !ctx_.node.configured()) {
-      return reply(false, ctx_.device.name + " has not passed its boot (" + boot_state() +
+      const auto& e = report_.error;
+      const std::string why = e ? (e->code != 0 ? fmt::format("CiA 302-2 error {}: {}", e->code, e->message) : e->message)
+                                : boot_state();
+      return reply(false, ctx_.device.name + " has not passed its boot (" + why +
                               "): NMT start refused; the bridge starts it when its boot passes (reset-node boots it again)");
     }
     auto r = ctx_.node.command(c);

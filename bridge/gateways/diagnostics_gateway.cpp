@@ -63,6 +63,16 @@ void DiagnosticsGateway::snapshot(std::size_t i) {
     b.load_percent(100.0 * static_cast<double>(bits - prev.bits) / dt / static_cast<double>(bus.config->bitrate));
   }
   prev = {now, stats.frames_in, stats.frames_out, bits};
+  b.handler_failures(bus.loop->handler_failures());
+  b.handlers_disabled(bus.loop->handlers_disabled());
+  b.frames_unclaimed(bus.loop->frames_unclaimed());
+  b.record_dropped(stats.record_errors);
+  b.frames_held(bus.loop->frames_held());
+  if (bus.other_master != nullptr) {
+    b.other_master_frames(bus.other_master->frames());
+    b.yielding_to_other_master(bus.other_master->yielding());
+    b.other_master_last(bus.other_master->last());
+  }
 
   std::vector<msg::NodeDiagnostics> nodes;
   const std::int64_t now_ns = ddsl::now_ns();
@@ -88,6 +98,8 @@ void DiagnosticsGateway::snapshot(std::size_t i) {
     n.pdo_length_errors(s.pdo_length_errors);
     n.emergencies(s.emergencies);
     n.range_warnings(s.range_warnings);
+    n.malformed_emergencies(s.malformed_emergencies);
+    n.malformed_heartbeats(s.malformed_heartbeats);
     nodes.push_back(std::move(n));
   }
   std::lock_guard lock(mutex_);
@@ -95,6 +107,8 @@ void DiagnosticsGateway::snapshot(std::size_t i) {
   node_snapshots_[i] = std::move(nodes);
 }
 
+// The loops take the mutex only to store their snapshots; the DDS write, which may take a while,
+// happens after it is released so that no bus loop ever waits for it.
 void DiagnosticsGateway::publish_loop() {
   std::unique_lock lock(mutex_);
   while (!cv_.wait_for(lock, period_, [this] { return stopping_; })) {
@@ -105,7 +119,9 @@ void DiagnosticsGateway::publish_loop() {
     d.line(line_);
     d.buses(bus_snapshots_);
     for (const auto& nodes : node_snapshots_) d.nodes().insert(d.nodes().end(), nodes.begin(), nodes.end());
+    lock.unlock();
     writer_.write(d);
+    lock.lock();
   }
 }
 

@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "canopen/bus_loop.hpp"
+#include "canopen/other_master.hpp"
 #include "canopen/remote_node.hpp"
 #include "dds/participant.hpp"
 #include "gateways/device_services.hpp"
@@ -29,6 +30,7 @@ class DiagnosticsGateway {
   struct Bus {
     const profiles::BusConfig* config;
     canopen::BusLoop* loop;
+    const canopen::OtherMasterWatch* other_master;  // master role only
     std::vector<Device> devices;
   };
 

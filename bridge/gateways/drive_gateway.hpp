@@ -96,9 +96,16 @@ DriveGateway<Dds>::DriveGateway(DeviceContext context)
   if (ctx_.sync != nullptr) {
     ctx_.sync->on_sync([this] { pdos_.on_sync(); });
   }
+  // A restarted bridge goes on with the set values in force (a running puller keeps its speed);
+  // a command held at the stop is not pressed again.
+  pdos_.restore([this] {
+    for (const auto& c : command_service_.commands()) codec_.set_control_bit(c.bit, false);
+  });
   spdlog::info("{}: {} ({}) node {} on bus {} as {}{}", dev, Codec::DeviceTraits::device, ctx_.profile.key(),
                ctx_.device.node_id, ctx_.bus.name, profiles::to_string(ctx_.bus.role),
-               ctx_.is_master() ? "; RPDO1 image starts all zero (extruder stopped, speed set value 0)" : "");
+               ctx_.is_master() ? (ctx_.set_values != nullptr ? "; RPDO1 image as kept at the last stop (zero when none)"
+                                                              : "; RPDO1 image starts all zero (extruder stopped, speed set value 0)")
+                                : "");
   publish_status(ddsl::now_ns());  // the device exists (offline) before its first heartbeat
 }
 

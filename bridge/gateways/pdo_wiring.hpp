@@ -9,6 +9,7 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <array>
 #include <cstddef>
 #include <functional>
 #include <memory>
@@ -53,12 +54,37 @@ class PdoWiring {
     if (ctx_.is_master()) ctx_.node.on_pdos([this](std::span<const canopen::PdoInUse> pdos) { return use(pdos); });
   }
 
+  // Before the loop starts, once the gateway is complete: the set values in force before the
+  // bridge's last stop (ctx.set_values) go back into the RPDOs' image before their first frame.
+  // From now on every change is kept. clear_momentary takes out what must never come back (a
+  // command bit that was held at the moment of the stop).
+  void restore(const std::function<void()>& clear_momentary) {
+    persist_ = ctx_.set_values != nullptr && ctx_.is_master();
+    if (!persist_) return;
+    bool restored = false;
+    for (auto& r : rpdos_) {
+      const auto& def = *codec_.pdos()[r.pdo].def;
+      const auto kept = ctx_.set_values->restored(ctx_.device.name, def.name);
+      if (!kept) continue;
+      if (kept->mapping != mapping_of(def)) {
+        spdlog::warn("{}: the kept set values of {} are not restored: its mapping changed since", ctx_.device.name, def.name);
+        continue;
+      }
+      if (auto ok = codec_.receive(r.pdo, kept->payload); !ok) continue;
+      restored = true;
+    }
+    if (clear_momentary) clear_momentary();
+    if (restored) spdlog::info("{}: set values in force restored from {}", ctx_.device.name, ctx_.set_values->path());
+    keep();
+  }
+
   // Loop thread.
   void on_sync() {
     for (auto& r : rpdos_) r.transmitter->on_sync();
   }
   void on_data() {
     for (auto& r : rpdos_) r.transmitter->on_data();
+    keep();
   }
   void resend() {
     for (auto& r : rpdos_) r.transmitter->resend();
@@ -68,6 +94,23 @@ class PdoWiring {
  private:
   static canopen::PdoTransmitter::Settings settings(const profiles::DevicePdo& p) {
     return {p.can_id, p.extended, p.transmission_type, p.inhibit, p.event_timer};
+  }
+
+  static std::vector<std::uint32_t> mapping_of(const profiles::DevicePdo& p) {
+    std::vector<std::uint32_t> m;
+    for (const auto& e : p.mapping) m.push_back(e.to_u32());
+    return m;
+  }
+
+  // The RPDOs' payloads as they would go out now.
+  void keep() {
+    if (!persist_) return;
+    for (auto& r : rpdos_) {
+      const auto& def = *codec_.pdos()[r.pdo].def;
+      std::array<std::uint8_t, 8> data{};
+      const auto len = codec_.pack(r.pdo, std::span<std::uint8_t, 8>(data));
+      ctx_.set_values->save(ctx_.device.name, def.name, {mapping_of(def), {data.begin(), data.begin() + len}});
+    }
   }
 
   bool may_send(std::size_t k) const {
@@ -104,6 +147,7 @@ class PdoWiring {
   Codec& codec_;
   Gate gate_;
   std::vector<Rpdo> rpdos_;
+  bool persist_ = false;
 };
 
 }  // namespace lb::gateways

@@ -92,7 +92,7 @@ DdsConfig parse_dds(const YamlSource& src, const YAML::Node& n) {
 
 BusConfig parse_bus(const YamlSource& src, const YAML::Node& n) {
   src.check_keys(n, "bus", {"name", "interface", "role", "sync_period_ms", "bitrate", "master_node_id",
-                            "master_heartbeat_ms", "sdo_timeout_ms", "record"});
+                            "master_heartbeat_ms", "sdo_timeout_ms", "record", "other_master"});
   BusConfig bus;
   bus.name = src.required<std::string>(n, "name", "bus");
   check_name(src, n["name"], bus.name);
@@ -122,6 +122,14 @@ BusConfig parse_bus(const YamlSource& src, const YAML::Node& n) {
   bus.master_heartbeat_period =
       std::chrono::milliseconds(bounded<int>(src, n, "master_heartbeat_ms", 1000, 1, 65535, "bus " + bus.name));
   bus.sdo_timeout = std::chrono::milliseconds(bounded<int>(src, n, "sdo_timeout_ms", 1000, 10, 60'000, "bus " + bus.name));
+  if (const auto policy = src.optional<std::string>(n, "other_master")) {
+    if (*policy != "yield" && *policy != "warn") {
+      src.fail(n["other_master"], "other_master must be yield (transmit nothing while another master is heard) or warn, not '" +
+                                      *policy + "'");
+    }
+    if (bus.role == BusRole::monitor) src.fail(n["other_master"], "bus " + bus.name + ": other_master is for the master role");
+    bus.yield_to_other_master = *policy == "yield";
+  }
   if (bus.master_node_id != 0 && bus.role == BusRole::monitor) {
     src.fail(n["master_node_id"], "bus " + bus.name + ": a monitor bus never transmits, so it has no master_node_id");
   }
@@ -423,10 +431,15 @@ Result<LineConfig> parse_line_config(const std::string& yaml_text, const std::st
   try {
     const YAML::Node root = src.parse(yaml_text);
     if (!root.IsMap()) src.fail(root, "a line configuration must be a mapping with line, buses and devices");
-    src.check_keys(root, "line configuration", {"line", "dds", "buses", "devices"});
+    src.check_keys(root, "line configuration", {"line", "dds", "buses", "devices", "state_dir", "restore_set_values"});
     LineConfig cfg;
     cfg.line = src.required<std::string>(root, "line", "line configuration");
     check_name(src, root["line"], cfg.line);
+    if (root["state_dir"]) {
+      cfg.state_dir = src.as<std::string>(root["state_dir"], "state_dir");
+      if (cfg.state_dir.empty()) src.fail(root["state_dir"], "state_dir: the directory is empty");
+    }
+    cfg.restore_set_values = src.optional<bool>(root, "restore_set_values").value_or(true);
     if (root["dds"]) cfg.dds = parse_dds(src, root["dds"]);
     const auto buses = src.required<YAML::Node>(root, "buses", "line configuration");
     src.expect_sequence(buses, "buses");

@@ -45,6 +45,9 @@ struct BusConfig {
   std::uint8_t master_node_id = 0;                 // the bridge's own heartbeat (master role); 0 = none
   std::chrono::milliseconds master_heartbeat_period{1000};
   std::chrono::milliseconds sdo_timeout{1000};
+  // Master role: another master heard on the bus (canopen/other_master.hpp): yield = transmit
+  // nothing while it is there; warn = report and go on.
+  bool yield_to_other_master = true;
 };
 
 // Identity values (1000h device type, 1018h sub 1..4). Expected ones, in a device's configuration:
@@ -159,6 +162,11 @@ struct DeviceConfig {
 struct LineConfig {
   std::string line;
   DdsConfig dds;
+  // Where the set values in force are kept across restarts (<state_dir>/<line>.set_values); empty:
+  // $STATE_DIRECTORY (systemd's StateDirectory=) when set, else nowhere. restore_set_values false:
+  // every start begins from zero (and still keeps them).
+  std::string state_dir;
+  bool restore_set_values = true;
   std::vector<BusConfig> buses;
   std::vector<DeviceConfig> devices;
 

@@ -71,7 +71,8 @@ TEST(PdoOverrides, TransmissionTypesReachTheSawAndItsFramesFollowThem) {
   EXPECT_EQ(line.read_unsigned("saw1", 0x1801, 2, "UNSIGNED8"), 2u);
   EXPECT_EQ(line.read_unsigned("saw1", 0x1400, 2, "UNSIGNED8"), 255u);
   ASSERT_TRUE(info.wait_last(5s, [](const msg::DeviceInfo& i) { return i.started(); })) << line.logs();
-  const auto* tpdo2 = pdo(info.samples().back(), "tpdo2");
+  const auto started = info.samples().back();
+  const auto* tpdo2 = pdo(started, "tpdo2");
   ASSERT_NE(tpdo2, nullptr);
   EXPECT_EQ(tpdo2->transmission_type(), 2);
   EXPECT_FALSE(tpdo2->adopted());

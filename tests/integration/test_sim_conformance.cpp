@@ -226,6 +226,12 @@ std::vector<double> gaps_ms(const std::vector<Seen>& frames) {
   return out;
 }
 
+double median(std::vector<double> v) {
+  if (v.empty()) return 0;
+  std::sort(v.begin(), v.end());
+  return v[v.size() / 2];
+}
+
 class SimConformance : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -413,13 +419,12 @@ TEST_F(SimConformance, EventDrivenTpdoObeysInhibitTimeAndEventTimer) {
   const auto busy = master_->from(0x185);
   ASSERT_GE(busy.size(), 10u) << log();
   for (const auto& s : busy) EXPECT_EQ(s.frame.len, 8) << "6030h (16) + 6000h (32) + the manufacturer word (16)";
-  // Gaps are measured where the frames arrive, so delivery jitter on a loaded machine can shorten
-  // one by a few ms; without the inhibit time they would be 10 ms (one per SYNC, 150 in 1.5 s).
+  // Gaps are measured where the frames arrive: on a loaded machine a late delivery shortens the
+  // next gap, so single gaps prove little. Without the inhibit time the frames would come every
+  // 10 ms (one per SYNC: 150 in 1.5 s, median gap 10 ms); with it at most one per 50 ms.
   EXPECT_LE(busy.size(), 1500u / 50u + 2u) << "inhibit time 50 ms";
-  for (const double gap : gaps_ms(busy)) {
-    EXPECT_GE(gap, 35.0) << "inhibit time 50 ms";
-    EXPECT_LE(gap, 300.0 + 60.0) << "event timer 300 ms";
-  }
+  EXPECT_GE(median(gaps_ms(busy)), 45.0) << "inhibit time 50 ms";
+  for (const double gap : gaps_ms(busy)) EXPECT_LE(gap, 300.0 + 100.0) << "event timer 300 ms";
   EXPECT_NE(bytes(busy.front().frame), bytes(busy.back().frame));
   std::set<std::vector<std::uint8_t>> tails;
   for (const auto& s : busy) tails.insert({s.frame.data.begin() + 6, s.frame.data.begin() + 8});
@@ -432,10 +437,8 @@ TEST_F(SimConformance, EventDrivenTpdoObeysInhibitTimeAndEventTimer) {
   const auto quiet = master_->from(0x185);
   ASSERT_GE(quiet.size(), 4u) << log();
   ASSERT_LE(quiet.size(), 7u) << log();
-  for (const double gap : gaps_ms(quiet)) {
-    EXPECT_GE(gap, 230.0);
-    EXPECT_LE(gap, 420.0);
-  }
+  EXPECT_GE(median(gaps_ms(quiet)), 270.0) << "event timer 300 ms";
+  EXPECT_LE(median(gaps_ms(quiet)), 360.0) << "event timer 300 ms";
 }
 
 // COB-ID bit 31 (not valid: neither sent nor taken), bit 29 (29-bit identifier, extended frames).

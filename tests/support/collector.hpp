@@ -1,10 +1,13 @@
 #pragma once
 // Every sample of a DDS topic a test subscribes to, kept in arrival order, with a way to wait for a
-// condition on them (bounded, never sleep-and-hope).
+// condition on them (bounded, never sleep-and-hope). The samples live in a state the reader's
+// callback shares: the reader outlives the collector (it goes with its participant), and a sample
+// arriving after the collector is gone must not write into freed memory.
 
 #include <chrono>
 #include <condition_variable>
 #include <functional>
+#include <memory>
 #include <mutex>
 #include <string>
 #include <vector>
@@ -22,37 +25,40 @@ class Collector {
   lb::Result<void> subscribe(lb::ddsl::Participant& dds, const std::string& topic, lb::ddsl::QosKind kind) {
     return dds.subscribe<PubSubType>(
         topic, kind,
-        [this](const Sample& s, const lb::ddsl::fdds::SampleInfo&) {
+        [state = state_](const Sample& s, const lb::ddsl::fdds::SampleInfo&) {
           {
-            std::lock_guard lock(m_);
-            samples_.push_back(s);
+            std::lock_guard lock(state->m);
+            state->samples.push_back(s);
           }
-          cv_.notify_all();
+          state->cv.notify_all();
         },
         1000);
   }
 
   // True when pred(samples) held within the timeout.
   bool wait(std::chrono::milliseconds timeout, const std::function<bool(const std::vector<Sample>&)>& pred) {
-    std::unique_lock lock(m_);
-    return cv_.wait_for(lock, timeout, [&] { return pred(samples_); });
+    std::unique_lock lock(state_->m);
+    return state_->cv.wait_for(lock, timeout, [&] { return pred(state_->samples); });
   }
   bool wait_last(std::chrono::milliseconds timeout, const std::function<bool(const Sample&)>& pred) {
     return wait(timeout, [&](const std::vector<Sample>& v) { return !v.empty() && pred(v.back()); });
   }
   std::vector<Sample> samples() {
-    std::lock_guard lock(m_);
-    return samples_;
+    std::lock_guard lock(state_->m);
+    return state_->samples;
   }
   std::size_t size() {
-    std::lock_guard lock(m_);
-    return samples_.size();
+    std::lock_guard lock(state_->m);
+    return state_->samples.size();
   }
 
  private:
-  std::mutex m_;
-  std::condition_variable cv_;
-  std::vector<Sample> samples_;
+  struct State {
+    std::mutex m;
+    std::condition_variable cv;
+    std::vector<Sample> samples;
+  };
+  std::shared_ptr<State> state_ = std::make_shared<State>();
 };
 
 }  // namespace lb::test

@@ -56,11 +56,13 @@ class LineHarness {
 
   // `devices` is the YAML of the devices: list (indented by two); the bridge and the simulator
   // read the same file unless `sim_devices` gives the simulator its own.
-  void start(const std::string& devices, const std::string& sim_devices = "", const std::string& bus_keys = "") {
+  // line_keys: top-level keys of the line file (e.g. "state_dir: /tmp/x\n").
+  void start(const std::string& devices, const std::string& sim_devices = "", const std::string& bus_keys = "",
+             const std::string& line_keys = "") {
     const auto dir = ::testing::TempDir();
     const auto write = [&](const std::string& who, const std::string& devs) {
       const auto path = dir + "/" + name_ + "_" + who + "_" + tag_ + ".yaml";
-      std::ofstream(path) << "line: " << name_ << "\ndds: {domain: " << domain_
+      std::ofstream(path) << "line: " << name_ << "\n" << line_keys << "dds: {domain: " << domain_
                           << "}\nbuses:\n  - {name: b, interface: '" << bus_ << "'" << bus_keys << "}\ndevices:\n"
                           << devs;
       return path;
@@ -81,6 +83,7 @@ class LineHarness {
                                              ::testing::TempDir() + "/" + name_ + "_bridge_" + tag_ + ".log");
   }
 
+  const std::string& bridge_config() const { return bridge_config_; }
   BusSpy& spy() { return *spy_; }
   ddsl::Participant& dds() { return *dds_; }
   ChildProcess& bridge() { return *bridge_; }

@@ -11,6 +11,7 @@
 #include <fstream>
 #include <sstream>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "can/bus.hpp"
@@ -366,10 +367,18 @@ TEST(RecordingBus, RecordsReceivedAndSentFramesAndTheRecordingReplays) {
   ASSERT_TRUE((*rec)->send(make_frame(0x205, {9, 8})));
   ASSERT_TRUE((*rec)->send(make_frame(0x080, {})));
 
-  const std::string text = read_file(path);
+  // The recording is written by a thread of its own (never on the bus loop): it reaches the file
+  // within moments, not at once.
+  std::string text;
   std::vector<std::string> lines;
-  std::istringstream in(text);
-  for (std::string l; std::getline(in, l);) lines.push_back(l);
+  for (const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(5);
+       lines.size() < 4 && std::chrono::steady_clock::now() < until;) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    text = read_file(path);
+    lines.clear();
+    std::istringstream in(text);
+    for (std::string l; std::getline(in, l);) lines.push_back(l);
+  }
   ASSERT_EQ(lines.size(), 4u) << text;
   EXPECT_NE(lines[0].find(" " + name + " 185#010203"), std::string::npos) << lines[0];
   EXPECT_NE(lines[1].find(" " + name + " 01234567#AA"), std::string::npos) << lines[1];
