@@ -24,6 +24,7 @@
 #include <vector>
 
 #include "base/result.hpp"
+#include "dds/lost_samples.hpp"
 #include "dds/security_files.hpp"
 #include "dds/writer_partitions.hpp"
 
@@ -148,7 +149,7 @@ class Participant {
                          int keep_last = 0) {
     auto t = topic_for<PubSubType>(topic);
     if (!t) return t.error();
-    auto listener = std::make_unique<TypedListener<PubSubType>>(std::move(callback), gate_);
+    auto listener = std::make_unique<TypedListener<PubSubType>>(std::move(callback), gate_, lost_for(kind), topic);
     if (create_reader(*t, kind, keep_last, listener.get()) == nullptr) {
       return make_error("cannot create DDS reader on " + topic);
     }
@@ -178,7 +179,7 @@ class Participant {
                                                          SampleCallback<PubSubType> callback) {
     auto t = topic_for<PubSubType>(topic);
     if (!t) return t.error();
-    auto listener = std::make_unique<TypedListener<PubSubType>>(std::move(callback), gate_);
+    auto listener = std::make_unique<TypedListener<PubSubType>>(std::move(callback), gate_, lost_for(kind), topic);
     auto* reader = create_reader(*t, kind, 0, listener.get());
     if (reader == nullptr) return make_error("cannot create DDS reader on " + topic);
     return std::make_unique<Subscription>(*this, reader, std::move(listener));
@@ -189,7 +190,7 @@ class Participant {
   Result<void> subscribe_any_partition(const std::string& topic, QosKind kind, SampleCallback<PubSubType> callback) {
     auto t = topic_for<PubSubType>(topic);
     if (!t) return t.error();
-    auto listener = std::make_unique<TypedListener<PubSubType>>(std::move(callback), gate_);
+    auto listener = std::make_unique<TypedListener<PubSubType>>(std::move(callback), gate_, lost_for(kind), topic);
     if (create_reader(*t, kind, 0, listener.get(), true) == nullptr) {
       return make_error("cannot create DDS reader on " + topic + " in every partition");
     }
@@ -204,6 +205,9 @@ class Participant {
   // reach (SDO clients, gateways) may be destroyed afterwards while the writers still exist, so
   // answers still pending can go out.
   void stop_callbacks();
+
+  // Set values and requests clients wrote that never reached a callback (dds/lost_samples.hpp).
+  std::uint64_t commands_lost() const { return lost_commands_->lost(); }
 
   // Created with DDS Security (and proven to be in force).
   bool secured() const { return secured_; }
@@ -227,21 +231,26 @@ class Participant {
   template <class PubSubType>
   class TypedListener : public fdds::DataReaderListener {
    public:
-    TypedListener(SampleCallback<PubSubType> cb, std::shared_ptr<CallbackGate> gate)
-        : cb_(std::move(cb)), gate_(std::move(gate)) {}
+    TypedListener(SampleCallback<PubSubType> cb, std::shared_ptr<CallbackGate> gate,
+                  std::shared_ptr<LostSamples> lost = nullptr, std::string topic = {})
+        : cb_(std::move(cb)), gate_(std::move(gate)), lost_(std::move(lost)), topic_(std::move(topic)) {}
     void on_data_available(fdds::DataReader* reader) override {
       std::shared_lock lock(gate_->mutex);
       if (gate_->closed) return;
       typename PubSubType::type sample;
       fdds::SampleInfo info;
       while (reader->take_next_sample(&sample, &info) == eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK) {
-        if (info.valid_data) cb_(sample, info);
+        if (!info.valid_data) continue;
+        if (lost_) lost_->seen(info.sample_identity, topic_);
+        cb_(sample, info);
       }
     }
 
    private:
     SampleCallback<PubSubType> cb_;
     std::shared_ptr<CallbackGate> gate_;
+    std::shared_ptr<LostSamples> lost_;  // command readers only
+    std::string topic_;
   };
 
   template <class PubSubType>
@@ -257,7 +266,10 @@ class Participant {
   fdds::Publisher* publisher_in(const std::string& partition);
   fdds::Subscriber* any_partition_subscriber();
 
+  std::shared_ptr<LostSamples> lost_for(QosKind kind) const { return kind == QosKind::command ? lost_commands_ : nullptr; }
+
   std::shared_ptr<CallbackGate> gate_ = std::make_shared<CallbackGate>();
+  std::shared_ptr<LostSamples> lost_commands_ = std::make_shared<LostSamples>();
   // Declared before the participant's entities: Fast DDS calls it until the participant is deleted.
   std::unique_ptr<WriterPartitions> writer_partitions_;
   bool secured_ = false;

@@ -11,7 +11,7 @@ namespace msg = linebridge_msgs::msg;
 
 DiagnosticsGateway::DiagnosticsGateway(ddsl::Participant& dds, const std::string& line, std::vector<Bus> buses,
                                        std::chrono::milliseconds period)
-    : line_(line), buses_(std::move(buses)), period_(period), previous_(buses_.size()),
+    : dds_(dds), line_(line), buses_(std::move(buses)), period_(period), previous_(buses_.size()),
       bus_snapshots_(buses_.size()), node_snapshots_(buses_.size()) {
   auto w = dds.writer<msg::DiagnosticsPubSubType>(ddsl::topic_name(line, ddsl::kBridgeNamespace, "diagnostics"),
                                                   ddsl::QosKind::state);
@@ -120,6 +120,7 @@ void DiagnosticsGateway::publish_loop() {
     d.buses(bus_snapshots_);
     for (const auto& nodes : node_snapshots_) d.nodes().insert(d.nodes().end(), nodes.begin(), nodes.end());
     lock.unlock();
+    d.commands_lost(dds_.commands_lost());
     writer_.write(d);
     lock.lock();
   }

@@ -51,6 +51,7 @@ class DiagnosticsGateway {
   void snapshot(std::size_t bus);  // on that bus's loop thread
   void publish_loop();
 
+  const ddsl::Participant& dds_;
   std::string line_;
   std::vector<Bus> buses_;
   std::chrono::milliseconds period_;

@@ -9,7 +9,12 @@
 
 #include <atomic>
 #include <chrono>
+#include <algorithm>
+#include <array>
 #include <filesystem>
+#include <iostream>
+#include <limits>
+#include <random>
 #include <thread>
 
 #include "msgs/sawPubSubTypes.h"
@@ -268,4 +273,233 @@ TEST(Robustness, MalformedFramesAreCountedAndFloodsLoggedAtABoundedRate) {
   EXPECT_LT(line.bridge_log_count("EMCY") - before, 40u) << "one log line per EMCY";
   EXPECT_NE(line.bridge().log().find("more not logged"), std::string::npos);
   ASSERT_TRUE(status.wait_last(5s, operational));
+}
+
+// Hostile set values (NaN, infinities, huge, negative, an unknown enumeration value), a 10 kB
+// string in a service request, and a flood of 3000 set values from three writers: each hostile one
+// is refused with its reason, nothing of it reaches the bus (every RPDO1 stays the set value in
+// force), SYNC goes on through the flood, and the bridge answers afterwards.
+TEST(Robustness, HostileRequestsAreRefusedAndNothingReachesTheBus) {
+  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
+  lb::test::LineHarness line("hostile_dds", 26);
+  line.start(saw("saw1", 5));
+  lb::test::Collector<msg::SawStatusPubSubType> status;
+  lb::test::Collector<msg::SetpointResultPubSubType> results;
+  ASSERT_TRUE(status.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
+  ASSERT_TRUE(results.subscribe(line.dds(), line.topic("saw1", "setpoint_result"), QosKind::reply));
+  auto writer = line.dds().writer<msg::SawSetpointPubSubType>(line.topic("saw1", "setpoint"), QosKind::command);
+  ASSERT_TRUE(writer);
+  ASSERT_TRUE(status.wait_last(20s, operational)) << line.logs();
+  wait_matched(line, *writer, line.topic("saw1", "setpoint_result"));
+  const auto valid = [](std::uint64_t id) {
+    msg::SawSetpoint sp;
+    sp.request_id(id);
+    sp.saw_program_on(true);
+    sp.sync_speed_percent(50);
+    sp.product_length_m(1.2);
+    return sp;
+  };
+  writer->write(valid(1));
+  ASSERT_TRUE(results.wait_last(5s, [](const msg::SetpointResult& r) { return r.request_id() == 1 && r.accepted(); }));
+  std::this_thread::sleep_for(300ms);
+  // RPDO1 of saw 3.1 (6020h control word 0005h, 6005h 5000 = 50.00 %, 6002h 12000 = 1.2 m in 0.1 mm).
+  const std::array<std::uint8_t, 8> in_force{0x05, 0x00, 0x88, 0x13, 0xE0, 0x2E, 0x00, 0x00};
+  line.spy().clear();
+
+  const double inf = std::numeric_limits<double>::infinity();
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  std::vector<msg::SawSetpoint> hostile;
+  for (double length : {nan, inf, -inf, 1e308, -1.0}) {
+    auto sp = valid(100 + hostile.size());
+    sp.product_length_m(length);
+    hostile.push_back(sp);
+  }
+  for (double speed : {nan, inf, -1e308, 1e9}) {
+    auto sp = valid(100 + hostile.size());
+    sp.sync_speed_percent(speed);
+    hostile.push_back(sp);
+  }
+  auto odd_mode = valid(100 + hostile.size());
+  odd_mode.count_mode(static_cast<msg::SawCountMode>(77));
+  hostile.push_back(odd_mode);
+  for (const auto& sp : hostile) writer->write(sp);
+  ASSERT_TRUE(results.wait(10s, [n = hostile.size()](const std::vector<msg::SetpointResult>& v) {
+    std::size_t refused = 0;
+    for (const auto& r : v) refused += r.request_id() >= 100 && r.request_id() < 100 + n && !r.accepted() && !r.reason().empty();
+    return refused == n;
+  })) << "every hostile set value refused with its reason\n" << line.logs();
+  for (const auto& r : results.samples()) {
+    if (r.request_id() >= 100 && r.request_id() < 100 + hostile.size()) {
+      EXPECT_FALSE(r.accepted()) << r.request_id();
+    }
+  }
+
+  // A 10 kB device name and data type in a line-wide service request: a refusal, not silence.
+  auto client = lb::test::LineHarness::ReadClient::create(line.dds(), lb::ddsl::line_service_path(line.line(), "sdo_read"));
+  ASSERT_TRUE(client);
+  srv::SdoRead_Request req;
+  req.device(std::string(10'000, 'x'));
+  req.index(0x1008);
+  req.sub_index(0);
+  req.data_type(std::string(10'000, 'T'));
+  const auto answer = (*client)->call(req, 10s);
+  ASSERT_TRUE(answer) << answer.error().message;
+  EXPECT_FALSE(answer->success());
+  req.device("saw1");
+  const auto answer2 = (*client)->call(req, 10s);
+  ASSERT_TRUE(answer2) << answer2.error().message;
+  EXPECT_FALSE(answer2->success()) << "a data type of 10 kB accepted";
+
+  // The flood: three writers, 1000 set values each, as fast as they can (all the value in force).
+  std::vector<std::thread> flooders;
+  for (int w = 0; w < 3; ++w) {
+    flooders.emplace_back([&line, &valid, w] {
+      auto fw = line.dds().writer<msg::SawSetpointPubSubType>(line.topic("saw1", "setpoint"), QosKind::command);
+      if (!fw) return;
+      const auto deadline = Clock::now() + 10s;
+      while (fw->matched() == 0 && Clock::now() < deadline) std::this_thread::sleep_for(10ms);
+      for (int i = 0; i < 1000; ++i) fw->write(valid(10'000 + w * 1000 + i));
+    });
+  }
+  for (auto& t : flooders) t.join();
+  writer->write(valid(99'999));
+  ASSERT_TRUE(results.wait(10s, [](const std::vector<msg::SetpointResult>& v) {
+    return std::any_of(v.begin(), v.end(), [](const msg::SetpointResult& r) { return r.request_id() == 99'999 && r.accepted(); });
+  })) << "no answer after the flood\n" << line.logs();
+  std::this_thread::sleep_for(200ms);
+  std::size_t flood_answered = 0;
+  for (const auto& r : results.samples()) flood_answered += r.request_id() >= 10'000 && r.request_id() < 13'000;
+  lb::test::Collector<msg::DiagnosticsPubSubType> diag;
+  ASSERT_TRUE(diag.subscribe(line.dds(), line.topic("bridge", "diagnostics"), QosKind::state));
+  ASSERT_TRUE(diag.wait(5s, [](const std::vector<msg::Diagnostics>& v) { return !v.empty(); }));
+  const auto lost = diag.samples().back().commands_lost();
+  std::cout << "flood: 3000 set values written, " << flood_answered << " answers seen, " << lost
+            << " counted as lost by the bridge\n";
+  // What was not answered was lost on the way to the bridge (the replies' way is not flooded):
+  // the bridge must have counted it, not dropped it in silence.
+  if (flood_answered < 3000) {
+    EXPECT_GT(lost, 0u) << "set values lost without a count";
+  }
+
+  const auto frames = line.spy().frames();
+  const auto [count, widest_ms] = syncs(frames);
+  EXPECT_GT(count, 10u);
+  EXPECT_LT(widest_ms, 1000.0) << "the bus loop stalled during the flood";
+  std::size_t rpdos = 0;
+  for (const auto& f : frames) {
+    if (f.id != 0x205 || f.extended) continue;
+    ++rpdos;
+    ASSERT_EQ(f.len, 8);
+    EXPECT_TRUE(std::equal(in_force.begin(), in_force.end(), f.data.begin())) << "a hostile set value reached the bus";
+  }
+  EXPECT_GT(rpdos, 0u);
+  ASSERT_TRUE(status.wait_last(5s, operational));
+}
+
+// Random frames at the full rate of a 500 kbit/s bus (every identifier, both formats, every length,
+// remote requests), a boot-up flood from nodes nobody configured and SDO replies nobody asked for,
+// against a master bus: the saw stays operational, SYNC keeps its period, and the frames are
+// counted rather than acted upon.
+TEST(Robustness, HostileFramesAtFullLoadDoNotDisturbTheMaster) {
+  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
+  lb::test::LineHarness line("hostile_can", 27);
+  line.start(saw("saw1", 5));
+  lb::test::Collector<msg::SawStatusPubSubType> status;
+  lb::test::Collector<msg::DiagnosticsPubSubType> diag;
+  ASSERT_TRUE(status.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
+  ASSERT_TRUE(diag.subscribe(line.dds(), line.topic("bridge", "diagnostics"), QosKind::state));
+  ASSERT_TRUE(status.wait_last(20s, operational)) << line.logs();
+  line.spy().clear();
+  std::mt19937 rng(12);
+  const auto other = [&rng] {
+    const auto n = static_cast<std::uint32_t>(1 + rng() % 127);
+    return n == 5 ? 6u : n;
+  };
+  const auto start = Clock::now();
+  std::size_t sent = 0;
+  // ~4000 frames/s for 3 s (a 500 kbit/s bus carries about 4000 8-byte frames a second).
+  for (int i = 0; Clock::now() - start < 3s; ++i) {
+    lb::can::CanFrame f;
+    switch (i % 8) {
+      // Boot-ups of nodes the line does not have, SDO replies nobody asked for.
+      case 0: f = lb::can::make_frame(0x700 + other(), {0x00}); break;
+      case 1: f = lb::can::make_frame(0x580 + other(), {0x43, 0x00, 0x10, 0x00, 1, 2, 3, 4}); break;
+      default: {
+        f.extended = rng() % 4 == 0;
+        f.id = f.extended ? rng() % 0x20000000u : rng() % 0x800u;
+        // Not the saw's own identifiers (a boot-up or heartbeat there would rightly make the bridge
+        // boot it again) and not NMT or SYNC (another master: AnotherMasterIsNoticedAndYieldedTo).
+        if (!f.extended && ((f.id & 0x7F) == 5 || f.id == 0x000 || f.id == 0x080)) f.id = 0x7FF;
+        f.rtr = rng() % 16 == 0;
+        f.len = static_cast<std::uint8_t>(rng() % 9);
+        for (auto& b : f.data) b = static_cast<std::uint8_t>(rng());
+      }
+    }
+    if (line.spy().send(f)) ++sent;
+    if (i % 4 == 0) std::this_thread::sleep_for(1ms);
+  }
+  const auto frames = line.spy().frames();
+  const auto [count, widest_ms] = syncs(frames);
+  EXPECT_GT(sent, 3000u) << "the flood did not happen: the test proves nothing";
+  EXPECT_GE(count, 110u) << "SYNCs during 3 s of hostile frames (150 at 20 ms)";
+  EXPECT_LT(widest_ms, 1000.0);
+  ASSERT_TRUE(status.wait_last(5s, operational)) << line.logs();
+  // Still answering, still a master, still the one saw.
+  ASSERT_TRUE(diag.wait_last(5s, [](const msg::Diagnostics& d) {
+    const auto* n = node(d, "saw1");
+    const auto* b = bus_of(d);
+    return n != nullptr && b != nullptr && n->online() && b->frames_unclaimed() > 100;
+  })) << line.logs();
+  EXPECT_EQ(line.bridge().running(), true);
+}
+
+// A device that freezes (its process stopped: no heartbeat, no answers) and one that dies and
+// powers up again: the bridge reports it offline, SYNC goes on meanwhile, and when it is heard
+// again it is booted again (SDO traffic before any NMT start), never just started.
+TEST(Robustness, AFrozenThenKilledSimulatorIsSupervisedAndBootedAgain) {
+  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
+  lb::test::LineHarness line("simfault", 28);
+  line.start(saw("saw1", 5));
+  lb::test::Collector<msg::SawStatusPubSubType> status;
+  ASSERT_TRUE(status.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
+  ASSERT_TRUE(status.wait_last(20s, operational)) << line.logs();
+  const auto offline = [](const msg::SawStatus& s) { return !s.health().online(); };
+  // The first SDO request to the saw (605h) and the first NMT start of it, from the frames.
+  const auto boot_then_start = [](const std::vector<lb::can::CanFrame>& frames) {
+    std::int64_t sdo = 0, start = 0;
+    for (const auto& f : frames) {
+      if (f.extended) continue;
+      if (f.id == 0x605 && sdo == 0) sdo = f.timestamp_ns;
+      if (f.id == 0x000 && f.len == 2 && f.data[0] == 0x01 && (f.data[1] == 5 || f.data[1] == 0) && start == 0) start = f.timestamp_ns;
+    }
+    return std::pair{sdo, start};
+  };
+
+  line.spy().clear();
+  ::kill(line.sim().pid(), SIGSTOP);
+  ASSERT_TRUE(status.wait_last(3s, offline)) << "a frozen device still shown online\n" << line.logs();
+  std::this_thread::sleep_for(1500ms);
+  const auto [frozen_syncs, frozen_gap] = syncs(line.spy().frames());
+  EXPECT_GE(frozen_syncs, 60u) << "SYNC stopped while the device was frozen";
+  EXPECT_LT(frozen_gap, 1000.0);
+  ::kill(line.sim().pid(), SIGCONT);
+  ASSERT_TRUE(status.wait_last(20s, operational)) << line.logs();
+  {
+    const auto [sdo, start] = boot_then_start(line.spy().frames());
+    EXPECT_NE(sdo, 0) << "the device came back and was not booted again";
+    if (start != 0) {
+      EXPECT_LT(sdo, start) << "NMT start before the boot's SDO";
+    }
+  }
+
+  line.spy().clear();
+  ::kill(line.sim().pid(), SIGKILL);
+  ASSERT_TRUE(status.wait_last(3s, offline)) << "a dead device still shown online\n" << line.logs();
+  line.start_sim();
+  ASSERT_TRUE(status.wait_last(20s, operational)) << line.logs();
+  const auto [sdo, start] = boot_then_start(line.spy().frames());
+  EXPECT_NE(sdo, 0);
+  EXPECT_NE(start, 0);
+  EXPECT_LT(sdo, start) << "NMT start before the boot's SDO";
+  EXPECT_TRUE(line.bridge().running());
 }

@@ -70,12 +70,17 @@ class LineHarness {
     bridge_config_ = write("bridge", devices);
     sim_config_ = sim_devices.empty() ? bridge_config_ : write("sim", sim_devices);
     spy_ = std::make_unique<BusSpy>(bus_);  // first member: the hub lives in this process
-    sim_ = std::make_unique<ChildProcess>(std::vector<std::string>{LB_BIN_SIM, "--config", sim_config_},
-                                          dir + "/" + name_ + "_sim_" + tag_ + ".log");
+    start_sim();
     start_bridge();
     auto dds = ddsl::Participant::create({domain_, true, name_ + "-test"});
     if (!dds) throw std::runtime_error(dds.error().message);
     dds_ = std::move(*dds);
+  }
+
+  // Again after a kill: the devices power up anew.
+  void start_sim() {
+    sim_ = std::make_unique<ChildProcess>(std::vector<std::string>{LB_BIN_SIM, "--config", sim_config_},
+                                          ::testing::TempDir() + "/" + name_ + "_sim_" + tag_ + ".log");
   }
 
   void start_bridge() {
