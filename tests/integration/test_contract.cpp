@@ -368,8 +368,8 @@ TEST(Contract, ReplayDiagnosticsAreOnTheRecordingsClockAndCountRecordedFaults) {
   EXPECT_EQ(b.bus_offs(), 1u);
   // saw1's last heartbeat is the newest (2.4 s into the recording), saw2's 1.905 s into it.
   for (const auto& n : d.nodes()) {
-    if (n.device() == "saw1") EXPECT_NEAR(n.last_heartbeat_age_s(), 0.0, 1e-3);
-    if (n.device() == "saw2") EXPECT_NEAR(n.last_heartbeat_age_s(), 0.495, 1e-3);
+    const double expected = n.device() == "saw1" ? 0.0 : 0.495;
+    EXPECT_NEAR(n.last_heartbeat_age_s(), expected, 1e-3) << n.device();
   }
   dds.reset();
   EXPECT_EQ(bridge.stop(), 0) << bridge.log();
