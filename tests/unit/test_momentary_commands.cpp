@@ -62,6 +62,8 @@ class Momentary : public ::testing::Test {
                                       std::lock_guard lock(m_);
                                       sent_.push_back({(f.data[0] >> kBit & 1U) != 0, at});
                                     }
+                                    // On the loop thread, so no SYNC after this frame sends one.
+                                    if ((f.data[0] >> kBit & 1U) != 0 && pause_after_first_bit_) sync_paused_ = true;
                                     commands_->frame_sent(at);
                                   },
                               .not_sent = [this](PdoTransmitter::Refusal) { commands_->frame_not_sent("gate closed"); }});
@@ -124,6 +126,7 @@ class Momentary : public ::testing::Test {
   std::unique_ptr<lb::canopen::SyncProducer> sync_;
   std::atomic<bool> gate_{true};
   std::atomic<bool> sync_paused_{false};
+  std::atomic<bool> pause_after_first_bit_{false};  // SYNCs stop right after the first frame with the bit
   std::uint16_t word_ = 0;  // loop thread
   std::mutex m_;
   std::vector<Sent> sent_;
@@ -150,10 +153,13 @@ TEST_F(Momentary, HeldUntilItsFramesSpanOneHundredMilliseconds) {
 // A SYNC that does not come (a stalled loop, a late timer) makes the pulse longer, never shorter:
 // the bit waits for a frame at least 100 ms after its first one.
 TEST_F(Momentary, LateSyncsLengthenThePulse) {
+  pause_after_first_bit_ = true;  // frames stop right after the first one that carries the bit
   make(1);
   auto f = press();
-  std::this_thread::sleep_for(30ms);
-  sync_paused_ = true;  // frames stop after one or two
+  // Waits on the event, not on a guess of when the loop gets to it (the machine may be loaded).
+  for (auto until = Clock::now() + 5s; !sync_paused_ && Clock::now() < until;) std::this_thread::sleep_for(1ms);
+  ASSERT_TRUE(sync_paused_) << "no frame carried the bit within 5 s";
+  pause_after_first_bit_ = false;
   std::this_thread::sleep_for(250ms);
   EXPECT_EQ(f.wait_for(0ms), std::future_status::timeout) << "answered without a frame that clears the bit";
   sync_paused_ = false;
