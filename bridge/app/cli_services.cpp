@@ -8,7 +8,9 @@
 #include "canopen/data_type.hpp"
 #include "dds/service.hpp"
 #include "dds/topic_names.hpp"
+#include "app/cli_exit.hpp"
 #include "msgs/commonPubSubTypes.h"
+#include "msgs/feederPubSubTypes.h"
 
 namespace lb::app {
 
@@ -25,13 +27,33 @@ Result<typename Rep::type> call(const ServiceTarget& t, const std::string& name,
   return (*client)->call(request, t.timeout);
 }
 
+// A device's own service (a feeder box's typed services): <line>/<device>/<service>.
+template <class Req, class Rep>
+Result<typename Rep::type> call_device(const ServiceTarget& t, const std::string& name, const typename Req::type& request) {
+  auto client = ddsl::ServiceClient<Req, Rep>::create(t.dds, t.line + "/" + t.device + "/" + name);
+  if (!client) return client.error();
+  return (*client)->call(request, t.timeout);
+}
+
 int report(bool ok, const std::string& what, const std::string& message, std::uint32_t abort_code = 0) {
   if (ok) {
     fmt::print("{}\n", what);
-    return 0;
+    return kExitOk;
   }
   fmt::print(stderr, "refused: {}{}\n", message, abort_code != 0 ? fmt::format(" (abort code {:08X}h)", abort_code) : "");
-  return 1;
+  return kExitRefused;
+}
+
+// Nothing was sent: the arguments are wrong.
+int usage(const std::string& message) {
+  fmt::print(stderr, "{}\n", message);
+  return kExitUsage;
+}
+
+// No answer at all: no bridge, a timeout, a request that could not be sent.
+int no_answer(const Error& e) {
+  fmt::print(stderr, "no answer: {}\n", e.message);
+  return kExitNoAnswer;
 }
 
 std::string value_text(const srv::ObjectValue& v) {
@@ -56,7 +78,7 @@ int call_nmt(const ServiceTarget& t, const std::string& command) {
   srv::Nmt_Request req;
   req.command(kCommands.at(command));
   auto r = call<srv::Nmt_RequestPubSubType, srv::Nmt_ResponsePubSubType>(t, "nmt", req);
-  if (!r) return report(false, "", r.error().message);
+  if (!r) return no_answer(r.error());
   return report(r->success(), "NMT " + command + " sent", r->message());
 }
 
@@ -66,7 +88,7 @@ int call_sdo_read(const ServiceTarget& t, std::uint16_t index, std::uint8_t sub,
   req.sub_index(sub);
   req.data_type(type);
   auto r = call<srv::SdoRead_RequestPubSubType, srv::SdoRead_ResponsePubSubType>(t, "sdo_read", req);
-  if (!r) return report(false, "", r.error().message);
+  if (!r) return no_answer(r.error());
   return report(r->success(), fmt::format("{:04X}h:{:02X}h = {}", index, sub, value_text(r->value())), r->message(),
                 r->abort_code());
 }
@@ -74,7 +96,7 @@ int call_sdo_read(const ServiceTarget& t, std::uint16_t index, std::uint8_t sub,
 int call_sdo_write(const ServiceTarget& t, std::uint16_t index, std::uint8_t sub, const std::string& type,
                    const std::string& value) {
   const auto dt = canopen::parse_data_type(type);
-  if (!dt) return report(false, "", "unknown data type " + type);
+  if (!dt) return usage("unknown data type " + type);
   srv::SdoWrite_Request req;
   req.index(index);
   req.sub_index(sub);
@@ -83,13 +105,13 @@ int call_sdo_write(const ServiceTarget& t, std::uint16_t index, std::uint8_t sub
     if (*dt == canopen::DataType::visible_string) req.value().string_value(value);
     else if (*dt == canopen::DataType::real32 || *dt == canopen::DataType::real64) req.value().real_value(std::stod(value));
     else if (canopen::is_signed_integer(*dt)) req.value().integer_value(std::stoll(value, nullptr, 0));
-    else if (*dt == canopen::DataType::octet_string) return report(false, "", "OCTET_STRING writes are not supported by the CLI");
+    else if (*dt == canopen::DataType::octet_string) return usage("OCTET_STRING writes are not supported by the CLI");
     else req.value().unsigned_value(std::stoull(value, nullptr, 0));
   } catch (const std::exception&) {
-    return report(false, "", "'" + value + "' is not a " + type + " value");
+    return usage("'" + value + "' is not a " + type + " value");
   }
   auto r = call<srv::SdoWrite_RequestPubSubType, srv::SdoWrite_ResponsePubSubType>(t, "sdo_write", req);
-  if (!r) return report(false, "", r.error().message);
+  if (!r) return no_answer(r.error());
   return report(r->success(), fmt::format("{:04X}h:{:02X}h written", index, sub), r->message(), r->abort_code());
 }
 
@@ -97,7 +119,7 @@ int call_get_parameter(const ServiceTarget& t, const std::string& name) {
   srv::GetParameter_Request req;
   req.parameter(name);
   auto r = call<srv::GetParameter_RequestPubSubType, srv::GetParameter_ResponsePubSubType>(t, "get_parameter", req);
-  if (!r) return report(false, "", r.error().message);
+  if (!r) return no_answer(r.error());
   return report(r->success(), fmt::format("{} = {} {} (raw {})", name, r->value(), r->unit(), r->raw()), r->message(),
                 r->abort_code());
 }
@@ -107,7 +129,7 @@ int call_set_parameter(const ServiceTarget& t, const std::string& name, double v
   req.parameter(name);
   req.value(value);
   auto r = call<srv::SetParameter_RequestPubSubType, srv::SetParameter_ResponsePubSubType>(t, "set_parameter", req);
-  if (!r) return report(false, "", r.error().message);
+  if (!r) return no_answer(r.error());
   return report(r->success(), fmt::format("{} set (raw {})", name, r->raw()), r->message(), r->abort_code());
 }
 
@@ -115,8 +137,11 @@ int call_command(const ServiceTarget& t, const std::string& name) {
   srv::Command_Request req;
   req.command(name);
   auto r = call<srv::Command_RequestPubSubType, srv::Command_ResponsePubSubType>(t, "command", req);
-  if (!r) return report(false, "", r.error().message);
-  return report(r->success(), name + " pressed (held 100 ms)", r->message());
+  if (!r) return no_answer(r.error());
+  return report(r->success(),
+                fmt::format("{}: on the bus in {} RPDO(s) over {:.1f} ms, then released{}{}", name, r->frames(), r->held_ms(),
+                            r->message().empty() ? "" : "; ", r->message()),
+                r->message());
 }
 
 int call_identity(const ServiceTarget& t) {
@@ -140,7 +165,7 @@ int call_identity(const ServiceTarget& t) {
     req.sub_index(f.sub);
     req.data_type("UNSIGNED32");
     auto r = call<srv::SdoRead_RequestPubSubType, srv::SdoRead_ResponsePubSubType>(t, "sdo_read", req);
-    if (!r) return report(false, "", r.error().message);
+    if (!r) return no_answer(r.error());
     if (!r->success()) {
       if (f.sub >= 2 && r->abort_code() == 0x0609'0011) {  // optional entries (CiA 301)
         lines += fmt::format("      # {}: the device has no {}\n", f.key, f.comment);
@@ -152,6 +177,75 @@ int call_identity(const ServiceTarget& t) {
   }
   fmt::print("# {} as it answers now; under its entry in the line file:\n    identity:\n{}", t.device, lines);
   return 0;
+}
+
+namespace {
+
+template <class Req>
+int feeder_call(const ServiceTarget& t, const std::string& service, const typename Req::type& request,
+                const std::string& what) {
+  auto r = call_device<Req, srv::FeederWrite_ResponsePubSubType>(t, service, request);
+  if (!r) return no_answer(r.error());
+  return report(r->success(), fmt::format("{} written ({:X}h)", what, r->raw()), r->message(), r->abort_code());
+}
+
+}  // namespace
+
+int call_feeder_command(const ServiceTarget& t, unsigned feeder, const std::string& command, unsigned code) {
+  srv::FeederCommand_Request req;
+  req.feeder(static_cast<std::uint8_t>(feeder));
+  req.command(command);
+  req.manufacturer_code(static_cast<std::uint8_t>(code));
+  return feeder_call<srv::FeederCommand_RequestPubSubType>(t, "feeder_command", req, fmt::format("feeder {} {}", feeder, command));
+}
+
+int call_feeder_test(const ServiceTarget& t, unsigned feeder, const std::string& test, unsigned parameter) {
+  srv::FeederTest_Request req;
+  req.feeder(static_cast<std::uint8_t>(feeder));
+  req.test(test);
+  req.parameter(static_cast<std::uint8_t>(parameter));
+  return feeder_call<srv::FeederTest_RequestPubSubType>(t, "feeder_test", req, fmt::format("feeder {} test {} {}", feeder, test, parameter));
+}
+
+int call_feeder_functions(const ServiceTarget& t, unsigned feeder, const std::vector<std::string>& settings) {
+  srv::FeederFunctions_Request req;
+  req.feeder(static_cast<std::uint8_t>(feeder));
+  for (const auto& s : settings) {
+    const auto eq = s.find('=');
+    if (eq == std::string::npos) {
+      fmt::print(stderr, "'{}': give FUNCTION=STATE, e.g. yarn_break_sensor=active\n", s);
+      return kExitUsage;
+    }
+    srv::FeederFunctionSetting setting;
+    setting.function(s.substr(0, eq));
+    setting.state(s.substr(eq + 1));
+    req.settings().push_back(setting);
+  }
+  return feeder_call<srv::FeederFunctions_RequestPubSubType>(t, "feeder_functions", req,
+                                                            fmt::format("feeder {} functions {}", feeder, fmt::join(settings, " ")));
+}
+
+int call_feeder_assignment(const ServiceTarget& t, unsigned feeder, std::optional<unsigned> number, std::optional<unsigned> color) {
+  srv::FeederAssignment_Request req;
+  req.feeder(static_cast<std::uint8_t>(feeder));
+  req.set_number(number.has_value());
+  req.system_number(static_cast<std::uint8_t>(number.value_or(0)));
+  req.set_color(color.has_value());
+  req.color(static_cast<std::uint8_t>(color.value_or(0)));
+  return feeder_call<srv::FeederAssignment_RequestPubSubType>(t, "feeder_assignment", req, fmt::format("feeder {} assignment", feeder));
+}
+
+int call_weft_insertion_type(const ServiceTarget& t, const std::string& type) {
+  srv::WeftInsertionType_Request req;
+  req.type(type);
+  return feeder_call<srv::WeftInsertionType_RequestPubSubType>(t, "weft_insertion_type", req, "weft insertion type " + type);
+}
+
+int call_trigger_source(const ServiceTarget& t, const std::vector<std::string>& selected) {
+  srv::TriggerSource_Request req;
+  for (const auto& s : selected) req.selected().push_back(s);
+  return feeder_call<srv::TriggerSource_RequestPubSubType>(t, "trigger_source", req,
+                                                          fmt::format("trigger sources [{}]", fmt::join(selected, " ")));
 }
 
 }  // namespace lb::app

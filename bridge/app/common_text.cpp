@@ -3,19 +3,67 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
+#include <ctime>
 #include <string>
 #include <vector>
 
-#include "app/saw_text.hpp"
 
 namespace lb::app {
 
 namespace msg = linebridge_msgs::msg;
 
+std::string to_text(msg::NmtState s) {
+  switch (s) {
+    case msg::NMT_BOOT_UP: return "boot-up";
+    case msg::NMT_STOPPED: return "stopped";
+    case msg::NMT_OPERATIONAL: return "operational";
+    case msg::NMT_PRE_OPERATIONAL: return "pre-operational";
+    case msg::NMT_UNKNOWN: break;
+  }
+  return "unknown";
+}
+
+std::string clock_text(const msg::Time& t) {
+  const std::time_t secs = t.sec();
+  std::tm tm{};
+  localtime_r(&secs, &tm);
+  return fmt::format("{:02}:{:02}:{:02}.{:03}", tm.tm_hour, tm.tm_min, tm.tm_sec, t.nanosec() / 1'000'000);
+}
+
+std::string state_text(const msg::DeviceHealth& h) {
+  return fmt::format("{:<15} {:<7}", to_text(h.nmt_state()), h.online() ? "online" : "OFFLINE");
+}
+
+std::string errors_text(const msg::DeviceHealth& h) {
+  std::string out;
+  if (!h.active_errors().empty()) out = fmt::format(" | EMCY active: {:04X}", fmt::join(h.active_errors(), " "));
+  if (!h.active_errors_known()) out += " | active errors UNCERTAIN: " + h.active_errors_note();
+  return out;
+}
+
+std::string other_values_text(const std::vector<msg::ProcessValue>& values) {
+  if (values.empty()) return "";
+  std::vector<std::string> parts;
+  for (const auto& v : values) {
+    parts.push_back(fmt::format("{} {}{}{} ({}, raw {})", v.name(), v.value(), v.unit().empty() ? "" : " ", v.unit(), v.pdo(),
+                                v.raw()));
+  }
+  return fmt::format(" | other: {}", fmt::join(parts, ", "));
+}
+
+std::string flags_text(std::initializer_list<std::pair<bool, const char*>> flags) {
+  std::string out;
+  for (const auto& [on, name] : flags) {
+    if (on) out += (out.empty() ? "" : " ") + std::string(name);
+  }
+  return out;
+}
+
 std::string to_text(const msg::Emergency& e) {
-  return fmt::format("{} EMCY {:04X}h ({}), error register {:02X}h, manufacturer [{:02X}], active: [{:04X}]",
+  return fmt::format("{} EMCY {:04X}h ({}), error register {:02X}h, manufacturer [{:02X}], active: [{:04X}]{}",
                      clock_text(e.stamp()), e.error_code(), e.family(), e.error_register(),
-                     fmt::join(e.manufacturer(), " "), fmt::join(e.active_errors(), " "));
+                     fmt::join(e.manufacturer(), " "), fmt::join(e.active_errors(), " "),
+                     e.active_errors_known() ? "" : " UNCERTAIN: " + e.active_errors_note());
 }
 
 std::string to_text(const msg::DeviceInfo& i) {
@@ -34,6 +82,14 @@ std::string to_text(const msg::DeviceInfo& i) {
                        p.cob_id(), p.transmission_type(), p.inhibit_time_100us(), p.event_timer_ms(),
                        fmt::join(entries, " "), p.adopted() ? " (the device's own, pdo_config: adopt)" : "");
   }
+  const auto& w = i.configuration_word();
+  if (w.read()) {
+    std::vector<std::string> flags;
+    for (const auto& f : w.flags()) flags.push_back(fmt::format("{}{}", f.on() ? "+" : "-", f.name()));
+    out += fmt::format("  configuration word 6010h {:08X}h: {}\n", w.raw(), fmt::join(flags, " "));
+  } else if (!w.remark().empty()) {
+    out += "  configuration word: " + w.remark() + "\n";
+  }
   if (!i.remarks().empty()) out += "  " + i.remarks() + "\n";
   return out;
 }
@@ -47,10 +103,16 @@ std::string to_text(const msg::BootError& e) {
 std::string to_text(const msg::Diagnostics& d) {
   std::string out = fmt::format("{} line {}\n", clock_text(d.stamp()), d.line());
   for (const auto& b : d.buses()) {
-    out += fmt::format("  bus {:<12} {:<28} {:<7} {:<13} in {:>9} ({:7.1f}/s) out {:>9} ({:7.1f}/s) load {:5.1f} % "
-                       "errors {} dropped {}\n",
+    out += fmt::format("  bus {:<12} {:<28} {:<7} {:<13} in {:>9} ({:7.1f}/s) out {:>9} ({:7.1f}/s) load {} "
+                       "error frames {} dropped {} | TEC {} REC {} bus-offs {} overflows {} rx-dropped {} tx-queue-full {} "
+                       "reopens {}{}{}\n",
                        b.name(), b.interface_uri(), b.role(), b.state(), b.frames_in(), b.frames_in_per_s(), b.frames_out(),
-                       b.frames_out_per_s(), b.load_percent(), b.error_frames(), b.tx_dropped());
+                       b.frames_out_per_s(),
+                       b.load_percent() < 0 ? std::string("n/a (fast replay)") : fmt::format("{:5.1f} %", b.load_percent()),
+                       b.error_frames(), b.tx_dropped(), b.tx_error_counter(), b.rx_error_counter(), b.bus_offs(),
+                       b.rx_overflows(), b.rx_dropped(), b.tx_queue_full(), b.reopens(),
+                       b.record_errors() != 0 ? fmt::format(" record-errors {}", b.record_errors()) : "",
+                       b.replay() ? " (replay: heartbeat ages on the recording's clock)" : "");
   }
   for (const auto& n : d.nodes()) {
     out += fmt::format("  {:<12} {:<10} node {:>3} {:<7} {:<15} heartbeat {:>6} boots {} PDOs in {} out {} short {} "

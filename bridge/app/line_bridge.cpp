@@ -88,7 +88,7 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
     const bool master = rt.config->role == profiles::BusRole::master;
     rt.nodes.push_back(std::make_unique<canopen::RemoteNode>(*rt.loop, dev.node_id, dev.heartbeat_timeout, master));
     const gateways::DeviceContext ctx{*rt.loop,     *rt.nodes.back(), rt.sync.get(), rt.sdo.get(),          *bridge->dds_,
-                                      config.line,  *rt.config,       dev,           *dev.resolved_profile, bridge->set_values_.get()};
+                                      config.line,  *rt.config,       dev,           dev.bridge_profile(), bridge->set_values_.get()};
     try {
       rt.services.push_back(std::make_unique<gateways::DeviceServices>(ctx));
       rt.gateways.push_back(gateways::make_gateway(ctx));

@@ -1,217 +1,103 @@
-// linebridge-cli: watch a device's topics and send it set values, from a terminal.
+// linebridge-cli: watch a line's devices and command them over DDS, from a terminal, whatever the
+// device type. Exit codes: app/cli_exit.hpp.
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
 #include <chrono>
-#include <condition_variable>
 #include <cstdio>
-#include <mutex>
 #include <optional>
-#include <thread>
+#include <string>
+#include <vector>
 
+#include "app/cli_echo.hpp"
+#include "app/cli_exit.hpp"
+#include "app/cli_services.hpp"
+#include "app/cli_set.hpp"
 #include "app/dds_options.hpp"
 #include "app/line_config_source.hpp"
 #include "app/run_until_signal.hpp"
-#include "app/cli_services.hpp"
-#include "app/common_text.hpp"
-#include "app/saw_text.hpp"
 #include "dds/participant.hpp"
 #include "dds/topic_names.hpp"
-#include "msgs/commonPubSubTypes.h"
-#include "msgs/sawPubSubTypes.h"
 
 namespace {
 
-namespace msg = linebridge_msgs::msg;
-using namespace std::chrono_literals;
-using Clock = std::chrono::steady_clock;
+using lb::app::kExitUsage;
 
-// Latest value of something a DDS thread delivers, waited for by the main thread.
-template <class T>
-class Mailbox {
- public:
-  void put(const T& v) {
-    {
-      std::lock_guard lock(m_);
-      value_ = v;
-    }
-    cv_.notify_all();
-  }
-  template <class Pred>
-  std::optional<T> wait(Clock::duration timeout, Pred pred) {
-    std::unique_lock lock(m_);
-    if (!cv_.wait_for(lock, timeout, [&] { return value_ && pred(*value_); })) return std::nullopt;
-    return value_;
-  }
-
- private:
-  std::mutex m_;
-  std::condition_variable cv_;
-  std::optional<T> value_;
+struct FeederArgs {
+  unsigned feeder = 0;
+  std::string name;  // command, test, weft insertion type
+  unsigned parameter = 0;
+  std::vector<std::string> items;  // function settings, trigger sources
+  std::optional<unsigned> number, color;
 };
 
-bool wait_until(Clock::duration timeout, const std::function<bool()>& cond) {
-  const auto end = Clock::now() + timeout;
-  while (!cond()) {
-    if (Clock::now() > end) return false;
-    std::this_thread::sleep_for(20ms);
+// The set options given that a device type does not take.
+bool set_options_fit(const std::string& type, CLI::App& set_cmd) {
+  const auto given = [&](const char* name) { return set_cmd.get_option(name)->count() > 0; };
+  const std::vector<std::pair<const char*, const char*>> owners = {
+      {"--program", "saw"},          {"--wall-thickening", "saw"},  {"--sync-speed-percent", "saw"},
+      {"--product-length-m", "saw"}, {"--count-mode", "saw"},       {"--extruder", "drive"},
+      {"--speed-percent", "drive"},  {"--loom-status", "feeder"},   {"--maximum-speed", "feeder"},
+      {"--loom-width-m", "feeder"},  {"--trigger-signal", "feeder"}, {"--picks", "feeder"},
+      {"--outputs", "feeder"}};
+  const std::string kind = (type == "puller" || type == "corrugator") ? "drive" : type;
+  for (const auto& [option, owner] : owners) {
+    if (given(option) && kind != owner) {
+      fmt::print(stderr, "{} is not a set value of a {} ({})\n", option, type, lb::app::set_options_of(type));
+      return false;
+    }
   }
   return true;
-}
-
-struct SetOptions {
-  std::optional<std::string> program;
-  std::optional<double> sync_speed_percent;
-  std::optional<double> product_length_m;
-  std::optional<std::string> count_mode;
-  double timeout_s = 5;
-};
-
-int run_set(lb::ddsl::Participant& dds, const std::string& line, const std::string& device, const SetOptions& o) {
-  const auto status_topic = lb::ddsl::topic_name(line, device, "status");
-  const auto result_topic = lb::ddsl::topic_name(line, device, "setpoint_result");
-  const auto setpoint_topic = lb::ddsl::topic_name(line, device, "setpoint");
-  const auto timeout = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(o.timeout_s));
-
-  Mailbox<msg::SawStatus> status;
-  Mailbox<msg::SetpointResult> result;
-  auto writer = dds.writer<msg::SawSetpointPubSubType>(setpoint_topic, lb::ddsl::QosKind::command);
-  if (!writer) return fmt::print(stderr, "{}\n", writer.error().message), 1;
-  if (auto r = dds.subscribe<msg::SawStatusPubSubType>(status_topic, lb::ddsl::QosKind::state,
-                                                        [&](const msg::SawStatus& s, const auto&) { status.put(s); });
-      !r) {
-    return fmt::print(stderr, "{}\n", r.error().message), 1;
-  }
-  if (auto r = dds.subscribe<msg::SetpointResultPubSubType>(
-          result_topic, lb::ddsl::QosKind::reply, [&](const msg::SetpointResult& s, const auto&) { result.put(s); });
-      !r) {
-    return fmt::print(stderr, "{}\n", r.error().message), 1;
-  }
-  // Fields not given keep the value in force, which the status topic reports; wait for the
-  // device to be online so the bridge will not refuse the set value as offline.
-  auto current = status.wait(timeout, [](const msg::SawStatus& s) { return s.health().online(); });
-  if (!current) {
-    fmt::print(stderr, "{}: no online status on {} within {} s (is the bridge running and the device up?)\n", device,
-               status_topic, o.timeout_s);
-    return 1;
-  }
-  if (!wait_until(timeout, [&] { return writer->matched() > 0 && dds.matched_writers(result_topic) > 0; })) {
-    fmt::print(stderr, "{}: the bridge does not subscribe {}\n", device, setpoint_topic);
-    return 1;
-  }
-  msg::SawSetpoint sp;
-  sp.request_id(static_cast<std::uint64_t>(lb::ddsl::now_ns()));
-  sp.saw_program_on(o.program ? *o.program == "on" : current->control_word().saw_program_on());
-  sp.count_mode(o.count_mode ? (*o.count_mode == "corrugated" ? msg::CORRUGATED_PIPE : msg::SMOOTH_PIPE)
-                             : current->control_word().count_mode());
-  sp.sync_speed_percent(o.sync_speed_percent.value_or(current->sync_speed_set_percent()));
-  sp.product_length_m(o.product_length_m.value_or(current->product_length_set_m()));
-  writer->write(sp);
-  auto reply = result.wait(timeout, [&](const msg::SetpointResult& r) { return r.request_id() == sp.request_id(); });
-  if (!reply) return fmt::print(stderr, "{}: no answer from the bridge within {} s\n", device, o.timeout_s), 1;
-  if (!reply->accepted()) return fmt::print(stderr, "{}: set value refused: {}\n", device, reply->reason()), 1;
-  fmt::print("{}: accepted: program {}, sync speed {} %, product length {} m\n", device,
-             sp.saw_program_on() ? "on" : "off", sp.sync_speed_percent(), sp.product_length_m());
-  return 0;
-}
-
-struct EchoOptions {
-  std::string topic = "status";
-  double rate_hz = 2;
-  double duration_s = 0;
-};
-
-int run_echo(lb::ddsl::Participant& dds, const std::string& line, const std::string& device, const EchoOptions& o) {
-  const auto topic = lb::ddsl::topic_name(line, device, o.topic);
-  std::mutex print_mutex;
-  lb::Result<void> sub = lb::make_error("");
-  // Throttle state outlives the subscription's scope: the callback runs until this function returns.
-  const auto min_gap = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(1.0 / o.rate_hz));
-  auto last_print = Clock::time_point{};
-  std::uint16_t last_word = 0;
-  bool last_online = false;
-  if (o.topic == "status") {
-    sub = dds.subscribe<msg::SawStatusPubSubType>(topic, lb::ddsl::QosKind::state, [&](const msg::SawStatus& s, const auto&) {
-      // Throttled, except that every change of a status bit or of the online flag is shown.
-      const auto now = Clock::now();
-      std::lock_guard lock(print_mutex);
-      if (now - last_print < min_gap && s.status_word().raw() == last_word && s.health().online() == last_online) return;
-      last_print = now;
-      last_word = s.status_word().raw();
-      last_online = s.health().online();
-      fmt::print("{} {}\n", device, lb::app::to_text(s));
-      std::fflush(stdout);
-    });
-  } else if (o.topic == "cut") {
-    sub = dds.subscribe<msg::SawCutPubSubType>(topic, lb::ddsl::QosKind::event, [&](const msg::SawCut& c, const auto&) {
-      std::lock_guard lock(print_mutex);
-      fmt::print("{} {}\n", device, lb::app::to_text(c));
-      std::fflush(stdout);
-    });
-  } else if (o.topic == "info") {
-    sub = dds.subscribe<msg::DeviceInfoPubSubType>(topic, lb::ddsl::QosKind::state, [&](const msg::DeviceInfo& i, const auto&) {
-      std::lock_guard lock(print_mutex);
-      fmt::print("{} {}\n", device, lb::app::to_text(i));
-      std::fflush(stdout);
-    });
-  } else if (o.topic == "emergency") {
-    sub = dds.subscribe<msg::EmergencyPubSubType>(topic, lb::ddsl::QosKind::event, [&](const msg::Emergency& e, const auto&) {
-      std::lock_guard lock(print_mutex);
-      fmt::print("{} {}\n", device, lb::app::to_text(e));
-      std::fflush(stdout);
-    });
-  } else if (o.topic == "diagnostics") {
-    sub = dds.subscribe<msg::DiagnosticsPubSubType>(topic, lb::ddsl::QosKind::state, [&](const msg::Diagnostics& d, const auto&) {
-      std::lock_guard lock(print_mutex);
-      fmt::print("{}", lb::app::to_text(d));
-      std::fflush(stdout);
-    });
-  } else {
-    sub = dds.subscribe<msg::SetpointResultPubSubType>(topic, lb::ddsl::QosKind::reply,
-                                                      [&](const msg::SetpointResult& r, const auto&) {
-                                                        std::lock_guard lock(print_mutex);
-                                                        fmt::print("{} request {}: {}{}\n", device, r.request_id(),
-                                                                   r.accepted() ? "accepted" : "refused: ", r.reason());
-                                                        std::fflush(stdout);
-                                                      });
-  }
-  if (!sub) return fmt::print(stderr, "{}\n", sub.error().message), 1;
-  lb::app::run_until_signal(std::chrono::milliseconds(static_cast<long>(o.duration_s * 1000)));
-  return 0;
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App cli{"linebridge-cli: read and set the devices of a line over DDS"};
+  CLI::App cli{"linebridge-cli: watch and command the devices of a line over DDS"};
   cli.require_subcommand(1);
+  // --config, --identity (and each subcommand's --timeout) anywhere on the command line.
+  cli.fallthrough();
   std::string config_path;
-  cli.add_option("-c,--config", config_path, "line configuration (YAML); default: the built-in demo line");
+  cli.add_option("-c,--config", config_path, "line configuration (YAML); default: the built-in demo line")
+      ->envname("LINEBRIDGE_CONFIG");
   std::string identity_dir;
   cli.add_option("--identity", identity_dir,
                  "secured line: this client's identity folder (cert.pem, key.pem, permissions.p7s; launch_scripts/pki.sh)")
       ->envname("LINEBRIDGE_IDENTITY");
 
   std::string device;
-  EchoOptions echo;
+  lb::app::EchoOptions echo;
   auto* echo_cmd = cli.add_subcommand("echo", "print a device's samples as they arrive (Ctrl-C stops)");
   echo_cmd->add_option("device", device, "device name, or 'bridge' for diagnostics")->required();
-  echo_cmd->add_option("topic", echo.topic, "status, cut, setpoint_result, info, emergency; diagnostics (device 'bridge')")
-      ->check(CLI::IsMember({"status", "cut", "setpoint_result", "info", "emergency", "diagnostics"}))
+  echo_cmd->add_option("topic", echo.topic,
+                       "saw: status, cut, setpoint_result, info, emergency; puller, corrugator: status, setpoint_result, "
+                       "info, emergency; feeder: status, unwinding, feeder_error, loom_result, info, emergency; "
+                       "bridge: diagnostics")
       ->capture_default_str();
-  echo_cmd->add_option("--rate", echo.rate_hz, "status lines per second at most (bit changes always show)")
+  echo_cmd->add_option("--rate", echo.rate_hz, "status lines per second at most (a change of status bits always shows)")
       ->check(CLI::PositiveNumber)
       ->capture_default_str();
   echo_cmd->add_option("-d,--duration", echo.duration_s, "stop after this many seconds");
 
-  SetOptions set;
-  auto* set_cmd = cli.add_subcommand("set", "send a saw set value; fields not given keep their value in force");
+  lb::app::SetOptions set;
+  auto* set_cmd = cli.add_subcommand("set", "send a device's set values; fields not given keep the value in force");
   set_cmd->add_option("device", device, "device name")->required();
   set_cmd->add_option("--program", set.program, "saw program")->check(CLI::IsMember({"on", "off"}));
+  set_cmd->add_option("--wall-thickening", set.wall_thickening, "saw: wall-thickening (6020h bit 1)")
+      ->check(CLI::IsMember({"on", "off"}));
   set_cmd->add_option("--sync-speed-percent", set.sync_speed_percent, "saw sync speed set value, 0..100 %");
-  set_cmd->add_option("--product-length-m", set.product_length_m, "product length set value in metres");
-  set_cmd->add_option("--count-mode", set.count_mode, "smooth or corrugated pipe")->check(CLI::IsMember({"smooth", "corrugated"}));
+  set_cmd->add_option("--product-length-m", set.product_length_m, "saw product length set value in metres");
+  set_cmd->add_option("--count-mode", set.count_mode, "saw: smooth or corrugated pipe")->check(CLI::IsMember({"smooth", "corrugated"}));
+  set_cmd->add_option("--extruder", set.extruder, "puller, corrugator: extruder running (6020h bit 6)")
+      ->check(CLI::IsMember({"running", "stopped"}));
+  set_cmd->add_option("--speed-percent", set.speed_percent, "puller, corrugator: speed set value 6002h, -100..100 %");
+  set_cmd->add_option("--loom-status", set.loom_status, "feeder: 600Ah by name, e.g. start_advice (with the weft filling in force)");
+  set_cmd->add_option("--maximum-speed", set.maximum_speed_per_min, "feeder: 6004h maximum speed, 1/min (with --loom-status)");
+  set_cmd->add_option("--loom-width-m", set.loom_width_m, "feeder: 6004h loom width in metres (with --loom-status)");
+  set_cmd->add_option("--trigger-signal", set.trigger_signal, "feeder: 600Bh by name, e.g. angle_trigger");
+  set_cmd->add_option("--picks", set.picks, "feeder: five 600Ch codes, e.g. --picks 0x01 0x02 0x03 0x04 0x05")->expected(5);
+  set_cmd->add_option("--outputs", set.outputs, "feeder: 600Dh output groups 1..n (RPDO3), bit k = line k+1")->expected(1, 8);
   set_cmd->add_option("--timeout", set.timeout_s, "seconds to wait for the bridge")->capture_default_str();
 
   auto* list_cmd = cli.add_subcommand("list", "list the line's buses and devices");
@@ -251,10 +137,38 @@ int main(int argc, char** argv) {
   identity_cmd->add_option("device", device, "device name")->required();
 
   std::string command_name;
-  auto* press_cmd = cli.add_subcommand("press", "a momentary command, held 100 ms: press DEVICE COMMAND (e.g. manual_cut)");
+  auto* press_cmd = cli.add_subcommand(
+      "press", "a momentary command, on the bus for at least 100 ms: press DEVICE COMMAND (e.g. manual_cut)");
   press_cmd->add_option("device", device, "device name")->required();
   press_cmd->add_option("command", command_name)->required();
-  for (auto* c : {nmt_cmd, read_cmd, write_cmd, get_cmd, put_cmd, press_cmd, identity_cmd}) {
+
+  // A feeder box's typed services.
+  FeederArgs fa;
+  auto* fcommand_cmd = cli.add_subcommand("feeder-command", "600Eh: feeder-command BOX FEEDER COMMAND (e.g. reset, operation_mode)");
+  auto* ftest_cmd = cli.add_subcommand("feeder-test", "600Fh: feeder-test BOX FEEDER TEST [PARAMETER] (motor_test 5..100 Hz, ...)");
+  auto* ffunctions_cmd = cli.add_subcommand("feeder-functions", "6001h: feeder-functions BOX FEEDER FUNCTION=STATE...");
+  auto* fassign_cmd = cli.add_subcommand("feeder-assignment", "6011h/6012h: feeder-assignment BOX FEEDER [--number N] [--color C]");
+  for (auto* c : {fcommand_cmd, ftest_cmd, ffunctions_cmd, fassign_cmd}) {
+    c->add_option("box", device, "the feeder box's device name")->required();
+    c->add_option("feeder", fa.feeder, "feeder number 1..254")->required()->check(CLI::Range(1, 254));
+  }
+  fcommand_cmd->add_option("command", fa.name)->required();
+  fcommand_cmd->add_option("--code", fa.parameter, "manufacturer_specific: its code, 09h..5Fh");
+  ftest_cmd->add_option("test", fa.name, "no_test, motor_test, pin_test, strobo_function")->required();
+  ftest_cmd->add_option("parameter", fa.parameter, "Hz, or 0/1")->check(CLI::Range(0, 255));
+  ffunctions_cmd->add_option("settings", fa.items, "e.g. yarn_break_sensor=active winding_direction=z")->required();
+  fassign_cmd->add_option("--number", fa.number, "system feeder number")->check(CLI::Range(0, 255));
+  fassign_cmd->add_option("--color", fa.color, "colour")->check(CLI::Range(0, 255));
+  auto* weft_cmd = cli.add_subcommand("weft-insertion-type", "6002h: weft-insertion-type BOX TYPE (projectile, rapier, ...)");
+  weft_cmd->add_option("box", device, "the feeder box's device name")->required();
+  weft_cmd->add_option("type", fa.name)->required();
+  auto* trigger_cmd = cli.add_subcommand("trigger-source", "6005h sub 2: trigger-source BOX [SOURCE...] (none: no source)");
+  trigger_cmd->add_option("box", device, "the feeder box's device name")->required();
+  trigger_cmd->add_option("sources", fa.items, "e.g. angle_trigger_via_canopen");
+  const std::vector<CLI::App*> feeder_cmds{fcommand_cmd, ftest_cmd, ffunctions_cmd, fassign_cmd, weft_cmd, trigger_cmd};
+
+  for (auto* c : {nmt_cmd, read_cmd, write_cmd, get_cmd, put_cmd, press_cmd, identity_cmd, fcommand_cmd, ftest_cmd,
+                  ffunctions_cmd, fassign_cmd, weft_cmd, trigger_cmd}) {
     c->add_option("--timeout", timeout_s, "seconds to wait for the bridge")->capture_default_str();
   }
   CLI11_PARSE(cli, argc, argv);
@@ -263,26 +177,32 @@ int main(int argc, char** argv) {
   lb::app::block_stop_signals();
   const auto registry = lb::profiles::ProfileRegistry::builtin();
   auto config = lb::app::load_config(config_path, registry);
-  if (!config) return fmt::print(stderr, "{}\n", config.error().message), 2;
+  if (!config) return fmt::print(stderr, "{}\n", config.error().message), kExitUsage;
   if (list_cmd->parsed()) {
     for (const auto& b : config->buses) fmt::print("bus {} on {} ({})\n", b.name, b.interface, lb::profiles::to_string(b.role));
     for (const auto& d : config->devices) {
       fmt::print("device {} on {} node {}: {} {}\n", d.name, d.bus, d.node_id, d.resolved_profile->device, d.resolved_profile->key());
     }
-    return 0;
+    return lb::app::kExitOk;
   }
-  const bool bridge_topic = echo_cmd->parsed() && device == lb::ddsl::kBridgeNamespace && echo.topic == "diagnostics";
+  const bool bridge_topic = echo_cmd->parsed() && device == lb::ddsl::kBridgeNamespace;
   const auto* dev = config->device(device);
-  if (dev == nullptr && !bridge_topic) return fmt::print(stderr, "no device {} in line {} (try: list)\n", device, config->line), 2;
-  const bool saw_only = set_cmd->parsed() || (echo_cmd->parsed() && (echo.topic == "status" || echo.topic == "cut"));
-  if (saw_only && dev->resolved_profile->device != "saw") {
-    return fmt::print(stderr, "{}: the CLI shows and sets saws only so far (this is a {})\n", device,
-                      dev->resolved_profile->device), 2;
+  if (dev == nullptr && !bridge_topic) {
+    return fmt::print(stderr, "no device {} in line {} (try: list)\n", device, config->line), kExitUsage;
   }
+  const std::string device_type = bridge_topic ? std::string(lb::ddsl::kBridgeNamespace) : dev->resolved_profile->device;
+  if (echo_cmd->parsed() && bridge_topic && echo.topic == "status") echo.topic = "diagnostics";
+  if (set_cmd->parsed() && !set_options_fit(device_type, *set_cmd)) return kExitUsage;
+  for (auto* c : feeder_cmds) {
+    if (c->parsed() && device_type != "feeder") {
+      return fmt::print(stderr, "{}: {} is for a feeder box; {} is a {}\n", c->get_name(), device, device, device_type), kExitUsage;
+    }
+  }
+
   auto options = lb::app::client_participant_options(*config, "linebridge-cli", identity_dir);
-  if (!options) return fmt::print(stderr, "{}\n", options.error().message), 2;
+  if (!options) return fmt::print(stderr, "{}\n", options.error().message), kExitUsage;
   auto dds = lb::ddsl::Participant::create_checked(*options);
-  if (!dds) return fmt::print(stderr, "{}\n", dds.error().message), dds.error().configuration ? 2 : 1;
+  if (!dds) return fmt::print(stderr, "{}\n", dds.error().message), dds.error().configuration ? kExitUsage : lb::app::kExitNoAnswer;
   const lb::app::ServiceTarget target{**dds, config->line, device,
                                       std::chrono::milliseconds(static_cast<long>(timeout_s * 1000))};
   if (nmt_cmd->parsed()) return lb::app::call_nmt(target, nmt_command);
@@ -292,5 +212,12 @@ int main(int argc, char** argv) {
   if (put_cmd->parsed()) return lb::app::call_set_parameter(target, parameter, parameter_value);
   if (press_cmd->parsed()) return lb::app::call_command(target, command_name);
   if (identity_cmd->parsed()) return lb::app::call_identity(target);
-  return echo_cmd->parsed() ? run_echo(**dds, config->line, device, echo) : run_set(**dds, config->line, device, set);
+  if (fcommand_cmd->parsed()) return lb::app::call_feeder_command(target, fa.feeder, fa.name, fa.parameter);
+  if (ftest_cmd->parsed()) return lb::app::call_feeder_test(target, fa.feeder, fa.name, fa.parameter);
+  if (ffunctions_cmd->parsed()) return lb::app::call_feeder_functions(target, fa.feeder, fa.items);
+  if (fassign_cmd->parsed()) return lb::app::call_feeder_assignment(target, fa.feeder, fa.number, fa.color);
+  if (weft_cmd->parsed()) return lb::app::call_weft_insertion_type(target, fa.name);
+  if (trigger_cmd->parsed()) return lb::app::call_trigger_source(target, fa.items);
+  if (echo_cmd->parsed()) return lb::app::run_echo(**dds, config->line, device, device_type, echo);
+  return lb::app::run_set(**dds, config->line, device, device_type, set);
 }

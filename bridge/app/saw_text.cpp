@@ -3,57 +3,46 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
-#include <ctime>
 
 namespace lb::app {
 
 namespace msg = linebridge_msgs::msg;
 
-std::string to_text(msg::NmtState s) {
-  switch (s) {
-    case msg::NMT_BOOT_UP: return "boot-up";
-    case msg::NMT_STOPPED: return "stopped";
-    case msg::NMT_OPERATIONAL: return "operational";
-    case msg::NMT_PRE_OPERATIONAL: return "pre-operational";
-    case msg::NMT_UNKNOWN: break;
-  }
-  return "unknown";
-}
-
-std::string clock_text(const msg::Time& t) {
-  const std::time_t secs = t.sec();
-  std::tm tm{};
-  localtime_r(&secs, &tm);
-  return fmt::format("{:02}:{:02}:{:02}.{:03}", tm.tm_hour, tm.tm_min, tm.tm_sec, t.nanosec() / 1'000'000);
-}
+std::string to_text(msg::SawCountMode m) { return m == msg::CORRUGATED_PIPE ? "corrugated pipe" : "smooth pipe"; }
 
 std::string to_text(const msg::SawStatus& s) {
   const auto& w = s.status_word();
-  std::string bits;
-  const auto add = [&bits](bool on, const char* name) {
-    if (on) bits += bits.empty() ? name : std::string(" ") + name;
-  };
-  add(w.saw_ready(), "ready");
-  add(w.saw_cutting(), "CUTTING");
-  add(w.sample_request(), "sample-request");
-  add(w.manual_cut_by_saw(), "manual-cut");
-  add(w.fault(), "FAULT");
-  add(w.alarm(), "ALARM");
-  add(w.f1_running(), "f1-running");
-  add(w.f2_running(), "f2-running");
-  add(w.f3_running(), "f3-running");
-  add(w.saw_program_enabled(), "program-enabled");
-  add(w.cut_from_limit_switch(), "limit-switch");
-  add(w.start_saw_program_requested(), "start-requested");
+  const std::string bits = flags_text({{w.saw_ready(), "ready"},
+                                       {w.saw_cutting(), "CUTTING"},
+                                       {w.sample_request(), "sample-request"},
+                                       {w.manual_cut_by_saw(), "manual-cut"},
+                                       {w.fault(), "FAULT"},
+                                       {w.alarm(), "ALARM"},
+                                       {w.f1_running(), "f1-running"},
+                                       {w.f2_running(), "f2-running"},
+                                       {w.f3_running(), "f3-running"},
+                                       {w.saw_program_enabled(), "program-enabled"},
+                                       {w.cut_from_limit_switch(), "limit-switch"},
+                                       {w.start_saw_program_requested(), "start-requested"}});
   const auto& c = s.control_word();
+  const std::string pressed = flags_text({{c.manual_cut(), "manual_cut"},
+                                          {c.tip_pulse(), "tip_pulse"},
+                                          {c.stop_immediately(), "stop_immediately"},
+                                          {c.f1_stop(), "f1_stop"},
+                                          {c.f1_start(), "f1_start"},
+                                          {c.f2_stop(), "f2_stop"},
+                                          {c.f2_start(), "f2_start"},
+                                          {c.f3_stop(), "f3_stop"},
+                                          {c.f3_start(), "f3_start"}});
   return fmt::format(
-      "{} {:<15} {:<7} | saw counter {:8.4f} m  speed {:7.3f} m/min  pulses {:>10} | status {:04X}h [{}] | "
-      "set: program {}, {} pipe, length {:.4f} m, sync {:.2f} %{}{}",
-      clock_text(s.stamp()), to_text(s.health().nmt_state()), s.health().online() ? "online" : "OFFLINE", s.actual_saw_counter_m(),
-      s.product_speed_m_per_min(), s.counter_value(), w.raw(), bits, c.saw_program_on() ? "on" : "off",
-      c.count_mode() == msg::CORRUGATED_PIPE ? "corrugated" : "smooth", s.product_length_set_m(),
-      s.sync_speed_set_percent(), s.pdo_length_errors() ? fmt::format(" | {} short PDOs", s.pdo_length_errors()) : "",
-      s.health().active_errors().empty() ? "" : fmt::format(" | EMCY active: {:04X}", fmt::join(s.health().active_errors(), " ")));
+      "{} {} | saw counter {:8.4f} m  speed {:7.3f} m/min  pulses {:>10} | status {:04X}h [{}] | "
+      "set: program {}, {}, wall-thickening {}, length {:.4f} m, sync {:.2f} %{}{}{}{}",
+      clock_text(s.stamp()), state_text(s.health()), s.actual_saw_counter_m(), s.product_speed_m_per_min(),
+      s.counter_value(), w.raw(), bits, c.saw_program_on() ? "on" : "off", to_text(c.count_mode()),
+      c.wall_thickening() ? "on" : "off", s.product_length_set_m(), s.sync_speed_set_percent(),
+      pressed.empty() ? "" : ", pressed [" + pressed + "]",
+      s.pdo_length_errors() ? fmt::format(" | {} short PDOs", s.pdo_length_errors()) : "", errors_text(s.health()),
+      other_values_text(s.other_values()));
 }
 
 std::string to_text(const msg::SawCut& c) {

@@ -3,13 +3,13 @@
 
 #include <string>
 
+#include "app/common_text.hpp"
 #include "msgs/saw.h"
 
 namespace lb::app {
 
 std::string to_text(const linebridge_msgs::msg::SawStatus& s);
 std::string to_text(const linebridge_msgs::msg::SawCut& c);
-std::string to_text(linebridge_msgs::msg::NmtState s);
-std::string clock_text(const linebridge_msgs::msg::Time& t);  // local HH:MM:SS.mmm
+std::string to_text(linebridge_msgs::msg::SawCountMode m);
 
 }  // namespace lb::app

@@ -1,5 +1,7 @@
 #include "canopen/emcy.hpp"
 
+#include <fmt/format.h>
+
 #include <algorithm>
 
 namespace lb::canopen {
@@ -48,13 +50,51 @@ std::string_view emcy_family(std::uint16_t code) {
 
 void ActiveErrors::apply(const Emergency& e) {
   error_register_ = e.error_register;
-  if (e.is_reset()) {
-    codes_.clear();
+  if (!e.is_reset()) {
+    add(e.error_code);
     return;
   }
-  if (std::find(codes_.begin(), codes_.end(), e.error_code) == codes_.end() && codes_.size() < kMax) {
-    codes_.push_back(e.error_code);
+  if (e.error_register == 0) {
+    codes_.clear();
+    known_ = true;
+    needs_reading_ = false;
+    note_.clear();
+    return;
   }
+  // "Error reset" while the register still reports errors: some were cleared, others remain.
+  known_ = false;
+  needs_reading_ = true;
+  note_ = fmt::format("EMCY 0000h (error reset) with error register {:02X}h: errors remain and the EMCY does not say "
+                      "which",
+                      e.error_register);
+}
+
+void ActiveErrors::reset_by_boot_up() {
+  codes_.clear();
+  error_register_ = 0;
+  known_ = true;
+  needs_reading_ = false;
+  note_.clear();
+}
+
+void ActiveErrors::replace(std::vector<std::uint16_t> codes, std::uint8_t error_register, std::string note) {
+  codes_.clear();
+  for (const auto c : codes) add(c);
+  error_register_ = error_register;
+  known_ = true;
+  needs_reading_ = false;
+  note_ = std::move(note);
+}
+
+void ActiveErrors::mark_uncertain(std::string why, std::optional<std::uint8_t> error_register) {
+  if (error_register) error_register_ = *error_register;
+  known_ = false;
+  needs_reading_ = false;
+  note_ = std::move(why);
+}
+
+void ActiveErrors::add(std::uint16_t code) {
+  if (std::find(codes_.begin(), codes_.end(), code) == codes_.end() && codes_.size() < kMax) codes_.push_back(code);
 }
 
 }  // namespace lb::canopen

@@ -134,4 +134,11 @@ std::string to_string(const ObjectValue& value) {
       value);
 }
 
+std::uint64_t integer_bits(const ObjectValue& value) {
+  if (const auto* u = std::get_if<std::uint64_t>(&value)) return *u;
+  if (const auto* i = std::get_if<std::int64_t>(&value)) return static_cast<std::uint64_t>(*i);
+  if (const auto* d = std::get_if<double>(&value)) return static_cast<std::uint64_t>(static_cast<std::int64_t>(*d));
+  return 0;
+}
+
 }  // namespace lb::canopen

@@ -31,4 +31,8 @@ Result<ObjectValue> decode(DataType type, std::span<const std::uint8_t> bytes);
 // For logs and the CLI: 42, -7, 1.5, "text" (non-printables escaped), [01 A2 FF].
 std::string to_string(const ObjectValue& value);
 
+// An integer value's bits as read (a negative INTEGERn as its two's complement), for scaling and
+// bit sets; 0 for strings, a REAL truncated.
+std::uint64_t integer_bits(const ObjectValue& value);
+
 }  // namespace lb::canopen

@@ -4,8 +4,8 @@
 
 namespace lb::canopen {
 
-PdoTransmitter::PdoTransmitter(BusLoop& loop, Settings settings, Pack pack, Gate may_send, Sent sent)
-    : loop_(loop), settings_(settings), pack_(std::move(pack)), may_send_(std::move(may_send)), sent_(std::move(sent)) {
+PdoTransmitter::PdoTransmitter(BusLoop& loop, Settings settings, Hooks hooks)
+    : loop_(loop), settings_(settings), hooks_(std::move(hooks)) {
   inhibit_timer_ = loop_.create_timer([this] {
     if (pending_) send();
   });
@@ -44,36 +44,54 @@ void PdoTransmitter::reconfigure(Settings settings) {
 
 bool PdoTransmitter::data_changed() {
   can::CanFrame f;
-  pack_(f);
+  hooks_.pack(f);
   return !have_last_ || f.len != last_.len || !std::equal(f.data.begin(), f.data.begin() + f.len, last_.data.begin());
 }
 
 void PdoTransmitter::send_when_inhibit_allows() {
-  const auto now = std::chrono::steady_clock::now();
-  const auto earliest = last_sent_ + settings_.inhibit;
-  if (settings_.inhibit.count() > 0 && have_last_ && now < earliest) {
-    pending_ = true;
-    loop_.arm_timer(inhibit_timer_, earliest - now);
-    return;
+  // From the last frame really sent, whatever made this one due: a resend after an NMT or online
+  // change is still a frame of this PDO on the bus, and the inhibit time protects the bus.
+  if (settings_.inhibit.count() > 0 && last_sent_) {
+    const auto now = std::chrono::steady_clock::now();
+    const auto earliest = *last_sent_ + settings_.inhibit;
+    if (now < earliest) {
+      pending_ = true;
+      loop_.arm_timer(inhibit_timer_, earliest - now);
+      return;
+    }
   }
   send();
 }
 
 void PdoTransmitter::send() {
   pending_ = false;
-  if (!may_send_()) return;
+  if (!hooks_.may_send()) return refused(Refusal::gate);
+  if (hooks_.before_send) hooks_.before_send();
   can::CanFrame f;
   f.id = settings_.can_id;
   f.extended = settings_.extended;
-  pack_(f);
-  if (!loop_.send(f)) return;  // counted by the bus; the next trigger tries again
+  hooks_.pack(f);
+  if (!loop_.send(f)) return refused(Refusal::bus);  // counted by the bus
+  const auto at = std::chrono::steady_clock::now();
   last_ = f;
   have_last_ = true;
-  last_sent_ = std::chrono::steady_clock::now();
+  last_sent_ = at;
+  arm_event_timer();
+  if (hooks_.sent) hooks_.sent(f, at);
+}
+
+void PdoTransmitter::refused(Refusal why) {
+  // The next trigger tries again: unchanged data still counts as unsent (last_ is the last frame
+  // sent), and an event-driven PDO's event timer keeps running, so a refused send does not
+  // silence it until its data changes.
+  arm_event_timer();
+  if (hooks_.not_sent) hooks_.not_sent(why);
+}
+
+void PdoTransmitter::arm_event_timer() {
   if (settings_.transmission_type >= 254 && settings_.event_timer.count() > 0) {
     loop_.arm_timer(event_timer_, settings_.event_timer);
   }
-  if (sent_) sent_();
 }
 
 }  // namespace lb::canopen

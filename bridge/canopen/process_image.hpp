@@ -16,9 +16,11 @@ class ProcessImage {
  public:
   static constexpr std::size_t npos = static_cast<std::size_t>(-1);
 
-  // Construction time: the slot of an object, created on first use.
+  // The slot of an object, created on first use: at construction, or on the owner's thread before
+  // the PDOs that need it are bound (a mapping adopted at boot). Slots never move.
   std::size_t slot(std::uint16_t index, std::uint8_t sub = 0);
   std::size_t find(std::uint16_t index, std::uint8_t sub = 0) const;  // npos when absent
+  std::size_t size() const { return values_.size(); }
 
   std::uint64_t get(std::size_t slot) const { return values_[slot]; }
   void set(std::size_t slot, std::uint64_t raw) { values_[slot] = raw; }

@@ -78,6 +78,8 @@ void RemoteNode::booted() {
   configured_ = false;
   commanded_ = NmtState::unknown;
   spdlog::info("{}: node {} booted (boot-up #{})", loop_.bus().uri(), node_id(), stats_.boot_ups);
+  // CiA 301: a device starts without active errors; what it reported before is gone.
+  update_errors([](ActiveErrors& e) { e.reset_by_boot_up(); });
   emit(Event::boot_up, NmtState::boot_up);
 }
 

@@ -45,6 +45,8 @@ class RemoteNode {
   using EventListener = std::function<void(Event event, NmtState reported)>;
   // Told the PDOs a boot found before the device is started; a refusal fails the boot.
   using PdoListener = std::function<Result<void>(std::span<const PdoInUse> pdos)>;
+  // The active-error list changed other than by an EMCY (a boot-up, a reading from the device).
+  using ErrorsListener = std::function<void()>;
 
   // may_transmit = false for the monitor role: the node is observed, never commanded.
   RemoteNode(BusLoop& loop, std::uint8_t node_id, std::chrono::milliseconds heartbeat_timeout, bool may_transmit);
@@ -54,6 +56,7 @@ class RemoteNode {
   void on_emergency(EmergencyListener listener) { emcy_listeners_.push_back(std::move(listener)); }
   void on_event(EventListener listener) { event_listeners_.push_back(std::move(listener)); }
   void on_pdos(PdoListener listener) { pdo_listeners_.push_back(std::move(listener)); }
+  void on_errors(ErrorsListener listener) { errors_listeners_.push_back(std::move(listener)); }
 
   // Loop thread. Refused with the reason on a monitor bus. Records the state the device must take.
   Result<void> command(NmtCommand command);
@@ -80,6 +83,13 @@ class RemoteNode {
   }
   const std::vector<PdoInUse>& pdos() const { return pdos_; }
   const ActiveErrors& errors() const { return errors_; }
+  // Loop thread: changes the active-error list (with what the device lists, say) and tells the
+  // errors listeners.
+  template <class Change>
+  void update_errors(Change change) {
+    change(errors_);
+    for (const auto& l : errors_listeners_) l();
+  }
   Stats& stats() { return stats_; }
   const Stats& stats() const { return stats_; }
 
@@ -107,6 +117,7 @@ class RemoteNode {
   std::vector<PdoListener> pdo_listeners_;
   LogRate emcy_log_;
   LogRate malformed_log_;
+  std::vector<ErrorsListener> errors_listeners_;
   HeartbeatConsumer heartbeat_;
 };
 

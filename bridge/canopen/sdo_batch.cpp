@@ -55,11 +55,6 @@ void run_sdo_batch(SdoClient& sdo, std::uint8_t node, std::vector<SdoRequest> re
   next(b);
 }
 
-std::uint64_t unsigned_value(const SdoReply& reply) {
-  if (!reply.value) return 0;
-  if (const auto* u = std::get_if<std::uint64_t>(&*reply.value)) return *u;
-  if (const auto* i = std::get_if<std::int64_t>(&*reply.value)) return static_cast<std::uint64_t>(*i);
-  return 0;
-}
+std::uint64_t unsigned_value(const SdoReply& reply) { return reply.value ? integer_bits(*reply.value) : 0; }
 
 }  // namespace lb::canopen

@@ -29,6 +29,8 @@ struct Request {
   std::uint8_t sub = 0;
   bool upload = true;
   SdoClient::Bytes data;  // download: the value to send
+  std::optional<std::size_t> expect;  // upload: the size of the type read, when the caller knows it
+  std::size_t max_waiting = 0;        // limited (a service call): refused when this many wait; 0 = not limited
   SdoClient::UploadDone on_upload;
   SdoClient::DownloadDone on_download;
 };
@@ -111,10 +113,36 @@ class SdoClient::Core {
                                 "client destroyed"))();
       return;
     }
+    if (!refusal && r.max_waiting > 0) {
+      const auto& queue = nodes_[node].queue;
+      const auto waiting = static_cast<std::size_t>(
+          std::count_if(queue.begin(), queue.end(), [](const Request& q) { return q.max_waiting > 0; }));
+      if (waiting >= r.max_waiting) {
+        refusal = SdoError{0, fmt::format("SDO node {} {:04X}h:{:02X}: refused, not sent: {} requests already wait for this "
+                                          "device (limit {}); try again when they are answered",
+                                          node, r.index, r.sub, waiting, r.max_waiting)};
+      }
+    }
     if (refusal) {
       ready_.push_back(failure(r, std::move(*refusal)));
     } else {
       nodes_[node].queue.push_back(std::move(r));
+    }
+  }
+
+  // Any thread: the limited requests waiting for node fail (on the loop thread, like any answer).
+  void cancel_waiting(std::uint8_t node, const std::string& reason) {
+    std::lock_guard lock(mutex_);
+    if (closed_) return;
+    auto& queue = nodes_[node].queue;
+    for (auto it = queue.begin(); it != queue.end();) {
+      if (it->max_waiting == 0) {
+        ++it;
+        continue;
+      }
+      ready_.push_back(failure(*it, SdoError{0, fmt::format("SDO node {} {:04X}h:{:02X}: not sent: {}", node, it->index,
+                                                            it->sub, reason)}));
+      it = queue.erase(it);
     }
   }
 
@@ -311,7 +339,10 @@ class SdoClient::Core {
     const Payload& d = f.data;
     const std::uint8_t cmd = d[0];
     if (f.len != can::CanFrame::kMaxLen) {
-      return abort(node, sdo_abort::general_error, fmt::format("response of {} bytes, SDO frames have 8", f.len));
+      // Not an SDO frame (CiA 301: always 8 bytes), so not the server's answer: a faulty or foreign
+      // frame on 580h + n must not break the transfer, which goes on waiting for the real one.
+      spdlog::debug("{}: {}-byte frame on the SDO response identifier of node {} ignored", loop_.bus().uri(), f.len, node);
+      return;
     }
     if (cmd == 0x80) return fail(node, get_u32(d), SdoErrorOrigin::server);
     const auto other_object = [&] {
@@ -322,8 +353,10 @@ class SdoClient::Core {
         if ((cmd & 0xE0) != 0x40) return unexpected(node, cmd);
         if (other_object()) return abort(node, sdo_abort::general_error, "response names another object");
         if (cmd & 0x02) {
-          // Expedited; without the size flag the four bytes are all data.
-          const std::size_t n = (cmd & 0x01) ? 4 - ((cmd >> 2) & 0x03) : 4;
+          // Expedited. Without the size flag the number of bytes is unspecified (CiA 301): a
+          // caller that knows its type takes that many, anyone else all four.
+          const std::size_t unsized = t.request.expect && *t.request.expect < 4 ? *t.request.expect : 4;
+          const std::size_t n = (cmd & 0x01) ? 4 - ((cmd >> 2) & 0x03) : unsized;
           Bytes value(d.begin() + 4, d.begin() + 4 + static_cast<std::ptrdiff_t>(n));
           return finish(node, completion(t.request, UploadResult(std::move(value))));
         }
@@ -428,11 +461,19 @@ SdoClient::~SdoClient() {
   for (auto& c : pending) c();
 }
 
-void SdoClient::upload(std::uint8_t node, std::uint16_t index, std::uint8_t sub, UploadDone done) {
+void SdoClient::upload(std::uint8_t node, std::uint16_t index, std::uint8_t sub, UploadDone done,
+                       std::optional<Limit> limit) {
+  upload_expecting(node, index, sub, std::nullopt, std::move(done), limit);
+}
+
+void SdoClient::upload_expecting(std::uint8_t node, std::uint16_t index, std::uint8_t sub,
+                                 std::optional<std::size_t> size, UploadDone done, std::optional<Limit> limit) {
   Request r;
   r.index = index;
   r.sub = sub;
   r.upload = true;
+  r.expect = size;
+  r.max_waiting = limit ? std::max<std::size_t>(limit->max_waiting, 1) : 0;
   r.on_upload = std::move(done);
   std::optional<SdoError> refusal;
   if (node < 1 || node > kMaxNode) {
@@ -443,12 +484,14 @@ void SdoClient::upload(std::uint8_t node, std::uint16_t index, std::uint8_t sub,
   loop_.post([core = core_] { core->kick(); });
 }
 
-void SdoClient::download(std::uint8_t node, std::uint16_t index, std::uint8_t sub, Bytes data, DownloadDone done) {
+void SdoClient::download(std::uint8_t node, std::uint16_t index, std::uint8_t sub, Bytes data, DownloadDone done,
+                         std::optional<Limit> limit) {
   Request r;
   r.index = index;
   r.sub = sub;
   r.upload = false;
   r.data = std::move(data);
+  r.max_waiting = limit ? std::max<std::size_t>(limit->max_waiting, 1) : 0;
   r.on_download = std::move(done);
   std::optional<SdoError> refusal;
   if (node < 1 || node > kMaxNode) {
@@ -462,22 +505,27 @@ void SdoClient::download(std::uint8_t node, std::uint16_t index, std::uint8_t su
   loop_.post([core = core_] { core->kick(); });
 }
 
-void SdoClient::read(std::uint8_t node, std::uint16_t index, std::uint8_t sub, DataType type, ReadDone done) {
-  upload(node, index, sub, [node, index, sub, type, done = std::move(done)](UploadResult r) {
-    if (!done) return;
-    if (!r) return done(ReadResult(r.error()));
-    auto value = decode(type, *r);
-    if (!value) {
-      return done(ReadResult(make_sdo_error(node, index, sub, sdo_abort::length_mismatch, SdoErrorOrigin::local,
-                                            "reply not a " + std::string(to_string(type)) + ": " +
-                                                value.error().message)));
-    }
-    done(ReadResult(std::move(*value)));
-  });
+void SdoClient::read(std::uint8_t node, std::uint16_t index, std::uint8_t sub, DataType type, ReadDone done,
+                     std::optional<Limit> limit) {
+  const std::size_t size = sdo_size(type);
+  upload_expecting(
+      node, index, sub, size == 0 ? std::nullopt : std::optional<std::size_t>(size),
+      [node, index, sub, type, done = std::move(done)](UploadResult r) {
+        if (!done) return;
+        if (!r) return done(ReadResult(r.error()));
+        auto value = decode(type, *r);
+        if (!value) {
+          return done(ReadResult(make_sdo_error(node, index, sub, sdo_abort::length_mismatch, SdoErrorOrigin::local,
+                                                "reply not a " + std::string(to_string(type)) + ": " +
+                                                    value.error().message)));
+        }
+        done(ReadResult(std::move(*value)));
+      },
+      limit);
 }
 
 void SdoClient::write(std::uint8_t node, std::uint16_t index, std::uint8_t sub, DataType type,
-                      const ObjectValue& value, DownloadDone done) {
+                      const ObjectValue& value, DownloadDone done, std::optional<Limit> limit) {
   auto bytes = encode(type, value);
   if (!bytes) {
     Request r;
@@ -491,7 +539,13 @@ void SdoClient::write(std::uint8_t node, std::uint16_t index, std::uint8_t sub, 
     loop_.post([core = core_] { core->kick(); });
     return;
   }
-  download(node, index, sub, std::move(*bytes), std::move(done));
+  download(node, index, sub, std::move(*bytes), std::move(done), limit);
+}
+
+void SdoClient::cancel_waiting(std::uint8_t node, const std::string& reason) {
+  if (node < 1 || node > kMaxNode) return;
+  core_->cancel_waiting(node, reason);
+  loop_.post([core = core_] { core->kick(); });
 }
 
 void SdoClient::require_service_thread(const char* what) const {

@@ -18,6 +18,8 @@
 #include <functional>
 #include <future>
 #include <memory>
+#include <optional>
+#include <string>
 #include <vector>
 
 #include "base/result.hpp"
@@ -40,6 +42,14 @@ class SdoClient {
 
   static constexpr std::chrono::milliseconds kDefaultTimeout{1000};
 
+  // A request from outside the bridge's own work (a DDS service call): refused at once, never
+  // queued, when `max_waiting` such requests already wait for the node, so a flood of calls cannot
+  // build a queue that runs long after its callers gave up. Refusals of limited requests that were
+  // never sent (queue full, cancel_waiting) carry abort code 0: nothing was aborted on the bus.
+  struct Limit {
+    std::size_t max_waiting = 8;
+  };
+
   // Registers on 581h..5FFh and creates one timer: before the loop starts or on the loop thread.
   // The loop must outlive the client.
   explicit SdoClient(BusLoop& loop, std::chrono::milliseconds timeout = kDefaultTimeout);
@@ -47,14 +57,23 @@ class SdoClient {
   SdoClient(const SdoClient&) = delete;
   SdoClient& operator=(const SdoClient&) = delete;
 
-  // Any thread. node 1..127.
-  void upload(std::uint8_t node, std::uint16_t index, std::uint8_t sub, UploadDone done);
-  void download(std::uint8_t node, std::uint16_t index, std::uint8_t sub, Bytes data, DownloadDone done);
+  // Any thread. node 1..127. An upload takes the server's bytes as they come; an expedited answer
+  // without size indication counts as 4 bytes.
+  void upload(std::uint8_t node, std::uint16_t index, std::uint8_t sub, UploadDone done,
+              std::optional<Limit> limit = std::nullopt);
+  void download(std::uint8_t node, std::uint16_t index, std::uint8_t sub, Bytes data, DownloadDone done,
+                std::optional<Limit> limit = std::nullopt);
   // Typed: the value decoded as / encoded from type. A reply of the wrong size fails with
   // 06070010h, a value the type cannot hold with 08000000h; both local, before anything is sent.
-  void read(std::uint8_t node, std::uint16_t index, std::uint8_t sub, DataType type, ReadDone done);
+  // An expedited answer without size indication (CiA 301: "unspecified number of bytes") gives
+  // the type's own size for types of 1 to 3 bytes.
+  void read(std::uint8_t node, std::uint16_t index, std::uint8_t sub, DataType type, ReadDone done,
+            std::optional<Limit> limit = std::nullopt);
   void write(std::uint8_t node, std::uint16_t index, std::uint8_t sub, DataType type, const ObjectValue& value,
-             DownloadDone done);
+             DownloadDone done, std::optional<Limit> limit = std::nullopt);
+  // Any thread: every limited request still waiting for node (not the one in flight) fails at once
+  // with `reason` (a device that went offline: they could only time out one after another).
+  void cancel_waiting(std::uint8_t node, const std::string& reason);
 
   // For service threads that wait for the answer. Never on the loop thread (std::logic_error):
   // waiting there would block the very thread that completes the future.
@@ -69,6 +88,8 @@ class SdoClient {
  private:
   class Core;
   void require_service_thread(const char* what) const;
+  void upload_expecting(std::uint8_t node, std::uint16_t index, std::uint8_t sub, std::optional<std::size_t> size,
+                        UploadDone done, std::optional<Limit> limit);
 
   BusLoop& loop_;
   std::chrono::milliseconds timeout_;

@@ -15,9 +15,9 @@ std::vector<CommandBit> resolve_commands(const profiles::BitSet& control_word, c
 }
 
 void CommandService::handle(const srv::Command_Request& req, ddsl::Respond<srv::Command_Response> respond) const {
-  const auto reply = [respond](bool ok, std::string message) {
+  const auto refuse = [respond](std::string message) {
     srv::Command_Response r;
-    r.success(ok);
+    r.success(false);
     r.message(std::move(message));
     respond(r);
   };
@@ -27,19 +27,31 @@ void CommandService::handle(const srv::Command_Request& req, ddsl::Respond<srv::
     if (c.name == req.command()) cmd = &c;
     known += (known.empty() ? "" : ", ") + c.name;
   }
-  if (cmd == nullptr) return reply(false, ctx_.device.name + ": unknown command '" + req.command() + "' (" + known + ")");
+  if (cmd == nullptr) return refuse(ctx_.device.name + ": unknown command '" + req.command() + "' (" + known + ")");
   if (!ctx_.is_master()) {
-    return reply(false, "bus " + ctx_.bus.name + " is in the monitor role: the bridge never transmits there");
+    return refuse("bus " + ctx_.bus.name + " is in the monitor role: the bridge never transmits there");
   }
-  ctx_.loop.post([this, bit = cmd->bit, name = cmd->name, reply] {
-    if (!ctx_.node.online()) return reply(false, ctx_.device.name + " is offline (no heartbeat): command not sent");
+  ctx_.loop.post([this, bit = cmd->bit, name = cmd->name, refuse, respond] {
+    // Refused at once when no frame could carry it; otherwise answered when the pulse is over.
+    if (!ctx_.node.online()) return refuse(ctx_.device.name + " is offline (no heartbeat): " + name + " not sent");
     if (!ctx_.node.ready_for_pdos()) {
-      return reply(false, ctx_.device.name + " is not started by this bridge (its boot has not passed, or it was told to "
-                                             "stop): command not sent");
+      return refuse(ctx_.device.name + " is not started by this bridge (its boot has not passed, or it was told to "
+                                       "stop): " + name + " not sent");
     }
-    pulses_.pulse(bit);
-    spdlog::info("{}: command {} (control word bit {}) held for 100 ms", ctx_.device.name, name, bit);
-    reply(true, "");
+    pulses_.press(bit, [device = ctx_.device.name, name, bit, respond](const MomentaryCommands::Outcome& o) {
+      srv::Command_Response r;
+      r.success(o.on_bus);
+      r.frames(o.frames);
+      r.held_ms(std::chrono::duration<double, std::milli>(o.held).count());
+      r.message(o.message);
+      if (o.on_bus) {
+        spdlog::info("{}: command {} (control word bit {}) on the bus in {} RPDO(s) over {:.1f} ms, then released{}{}", device,
+                     name, bit, o.frames, r.held_ms(), o.message.empty() ? "" : "; ", o.message);
+      } else {
+        spdlog::warn("{}: command {} (control word bit {}) not held on the bus: {}", device, name, bit, o.message);
+      }
+      respond(r);
+    });
   });
 }
 

@@ -12,6 +12,8 @@ inline void fill_health(const canopen::RemoteNode& node, linebridge_msgs::msg::D
   health.online(node.online());
   health.error_register(node.errors().error_register());
   health.active_errors(node.errors().codes());
+  health.active_errors_known(node.errors().known());
+  health.active_errors_note(node.errors().note());
 }
 
 }  // namespace lb::gateways

@@ -1,12 +1,16 @@
 #include "gateways/device_services.hpp"
 
+#include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <spdlog/spdlog.h>
 
 #include <stdexcept>
 
+#include "canopen/error_field.hpp"
 #include "canopen/sdo_abort.hpp"
 #include "dds/topic_names.hpp"
 #include "gateways/pdo_specs.hpp"
+#include "gateways/sdo_admission.hpp"
 
 namespace lb::gateways {
 
@@ -52,6 +56,21 @@ srv::ObjectValue to_msg(DataType type, const canopen::ObjectValue& value) {
   return v;
 }
 
+// The completion of a service's SDO write: success, or the abort code and message.
+template <class Reply, class Respond>
+canopen::SdoClient::DownloadDone sdo_written(Respond respond, std::int64_t raw) {
+  return [respond, raw](canopen::SdoClient::DownloadResult result) {
+    Reply reply;
+    reply.success(result.has_value());
+    if constexpr (requires { reply.raw(raw); }) reply.raw(raw);
+    if (!result) {
+      reply.abort_code(result.error().abort_code);
+      reply.message(result.error().message);
+    }
+    respond(reply);
+  };
+}
+
 template <class T>
 void stamp(T& m, std::int64_t ns) {
   const auto s = ddsl::to_stamp(ns);
@@ -72,16 +91,17 @@ DeviceServices::DeviceServices(DeviceContext context) : ctx_(context) {
   if (!iw) fail(iw.error());
   info_writer_ = *iw;
 
-  ctx_.node.on_emergency([this](const canopen::Emergency& e) {
-    msg::Emergency m;
-    stamp(m, e.timestamp_ns);
-    m.error_code(e.error_code);
-    m.error_register(e.error_register);
-    m.manufacturer(e.manufacturer);
-    m.family(std::string(canopen::emcy_family(e.error_code)));
-    m.active_errors(ctx_.node.errors().codes());
-    emergency_writer_.write(m);
-  });
+  ctx_.node.on_emergency([this](const canopen::Emergency& e) { on_emergency(e); });
+  configuration_bits_ = ctx_.profile.bitset("configuration_word");
+  set_configuration_word(std::nullopt, configuration_bits_ == nullptr ? "profile " + ctx_.profile.key() + " has no configuration word"
+                                                                      : "not read yet (read after the device's boot passed)");
+  if (ctx_.is_master() && ctx_.sdo != nullptr) {
+    // Service requests still waiting for a device that went offline could only time out one
+    // after the other: they are answered at once.
+    ctx_.node.on_change([this](canopen::NmtState, bool online) {
+      if (!online) ctx_.sdo->cancel_waiting(ctx_.device.node_id, ctx_.device.name + " went offline (no heartbeat)");
+    });
+  }
 
   if (ctx_.is_master() && ctx_.sdo != nullptr) {
     const auto& d = ctx_.device;
@@ -99,10 +119,83 @@ DeviceServices::DeviceServices(DeviceContext context) : ctx_(context) {
                                    : canopen::RecoveryAction::reboot;
     control.retry = d.boot_retry;
     control_ = std::make_unique<canopen::ErrorControl>(ctx_.loop, ctx_.node, *boot_, control,
-                                                       [this](const canopen::BootReport& r) {
-                                                         report_ = r;
-                                                         publish_info(r);
-                                                       });
+                                                       [this](const canopen::BootReport& r) { booted(r); });
+  }
+}
+
+void DeviceServices::on_emergency(const canopen::Emergency& e) {
+  const auto& errors = ctx_.node.errors();
+  msg::Emergency m;
+  stamp(m, e.timestamp_ns);
+  m.error_code(e.error_code);
+  m.error_register(e.error_register);
+  m.manufacturer(e.manufacturer);
+  m.family(std::string(canopen::emcy_family(e.error_code)));
+  m.active_errors(errors.codes());
+  m.active_errors_known(errors.known());
+  m.active_errors_note(errors.note());
+  emergency_writer_.write(m);
+  if (reading_errors_) reread_errors_ = true;  // what is being read may predate this EMCY
+  if (errors.needs_reading()) {
+    if (ctx_.is_master() && ctx_.sdo != nullptr) return read_errors();
+    ctx_.node.update_errors([](canopen::ActiveErrors& a) {
+      a.mark_uncertain(a.note() + "; in the monitor role the bridge cannot read the device's 1003h");
+    });
+  }
+}
+
+void DeviceServices::read_errors() {
+  if (reading_errors_) {  // the reading under way may predate what made this one necessary
+    reread_errors_ = true;
+    return;
+  }
+  reading_errors_ = true;
+  reread_errors_ = false;
+  canopen::read_error_field(*ctx_.sdo, ctx_.device.node_id, {}, [this](canopen::ErrorFieldReading reading) {
+    reading_errors_ = false;
+    if (reread_errors_) return read_errors();
+    ctx_.node.update_errors([&reading](canopen::ActiveErrors& a) { canopen::apply(a, reading); });
+    const auto& errors = ctx_.node.errors();
+    spdlog::info("{}: active errors from the device: [{:04X}]{}{}", ctx_.device.name, fmt::join(errors.codes(), " "),
+                 errors.known() ? "" : ", uncertain: ", errors.known() ? "" : errors.note());
+  });
+}
+
+// After every boot attempt; one that passed first reads what the device says about itself (its
+// active errors, 6010h), so `info` and the status tell the truth from then on.
+void DeviceServices::booted(const canopen::BootReport& report) {
+  report_ = report;
+  const auto seq = ++boots_reported_;
+  if (!report.started || ctx_.sdo == nullptr) return publish_info();
+  read_errors();
+  if (configuration_bits_ == nullptr) return publish_info();
+  ctx_.sdo->read(ctx_.device.node_id, configuration_bits_->index, configuration_bits_->sub,
+                 ctx_.profile.object(configuration_bits_->index, configuration_bits_->sub)->type,
+                 [this, seq](canopen::SdoClient::ReadResult r) {
+                   if (seq != boots_reported_) return;  // a newer boot began meanwhile
+                   if (r) set_configuration_word(canopen::integer_bits(*r), "");
+                   else set_configuration_word(std::nullopt, "6010h not read: " + r.error().message);
+                   publish_info();
+                 });
+}
+
+void DeviceServices::set_configuration_word(std::optional<std::uint64_t> raw, const std::string& remark) {
+  auto& w = configuration_word_;
+  w.read(raw.has_value());
+  w.remark(remark);
+  w.flags().clear();
+  if (!raw) {
+    w.raw(0);
+    return;
+  }
+  w.raw(static_cast<std::uint32_t>(*raw));
+  for (const auto& f : configuration_bits_->bits) {
+    if (f.width != 1) continue;
+    msg::NamedFlag flag;
+    flag.name(f.name);
+    flag.bit(static_cast<std::uint8_t>(f.bit));
+    flag.on(f.extract(*raw) != 0);
+    w.flags().push_back(std::move(flag));
   }
 }
 
@@ -111,98 +204,121 @@ void DeviceServices::start() {
 }
 
 void DeviceServices::sdo_read(const srv::SdoRead_Request& req, ddsl::Respond<srv::SdoRead_Response> respond) {
-  srv::SdoRead_Response r;
+  const auto refuse = [respond](const std::string& why) {
+    srv::SdoRead_Response r;
+    r.message(why);
+    respond(r);
+  };
   const auto type = canopen::parse_data_type(req.data_type());
   if (!type) {
-    r.message("unknown data type '" + req.data_type() + "' (INTEGER8..64, UNSIGNED8..64, REAL32, REAL64, VISIBLE_STRING, OCTET_STRING)");
-    return respond(r);
+    return refuse("unknown data type '" + req.data_type() +
+                  "' (INTEGER8..64, UNSIGNED8..64, REAL32, REAL64, VISIBLE_STRING, OCTET_STRING)");
   }
-  if (auto why = refusal(); !why.empty()) return r.message(why), respond(r);
-  ctx_.sdo->read(ctx_.device.node_id, req.index(), req.sub_index(), *type,
-                 [respond, t = *type](canopen::SdoClient::ReadResult result) {
-                   srv::SdoRead_Response reply;
-                   if (result) {
-                     reply.success(true);
-                     reply.value(to_msg(t, *result));
-                   } else {
-                     reply.abort_code(result.error().abort_code);
-                     reply.message(result.error().message);
-                   }
-                   respond(reply);
-                 });
+  if (auto why = refusal(); !why.empty()) return refuse(why);
+  when_sdo_possible(
+      ctx_,
+      [this, respond, t = *type, index = req.index(), sub = req.sub_index()] {
+        ctx_.sdo->read(
+            ctx_.device.node_id, index, sub, t,
+            [respond, t](canopen::SdoClient::ReadResult result) {
+              srv::SdoRead_Response reply;
+              if (result) {
+                reply.success(true);
+                reply.value(to_msg(t, *result));
+              } else {
+                reply.abort_code(result.error().abort_code);
+                reply.message(result.error().message);
+              }
+              respond(reply);
+            },
+            kServiceSdoLimit);
+      },
+      refuse);
 }
 
 void DeviceServices::sdo_write(const srv::SdoWrite_Request& req, ddsl::Respond<srv::SdoWrite_Response> respond) {
-  srv::SdoWrite_Response r;
+  const auto refuse = [respond](const std::string& why) {
+    srv::SdoWrite_Response r;
+    r.message(why);
+    respond(r);
+  };
   const auto type = canopen::parse_data_type(req.value().data_type());
-  if (!type) {
-    r.message("unknown data type '" + req.value().data_type() + "'");
-    return respond(r);
-  }
-  if (auto why = refusal(); !why.empty()) return r.message(why), respond(r);
+  if (!type) return refuse("unknown data type '" + req.value().data_type() + "'");
+  if (auto why = refusal(); !why.empty()) return refuse(why);
   auto value = from_msg(*type, req.value());
-  if (!value) return r.message(value.error().message), respond(r);
-  ctx_.sdo->write(ctx_.device.node_id, req.index(), req.sub_index(), *type, *value,
-                  [respond](canopen::SdoClient::DownloadResult result) {
-                    srv::SdoWrite_Response reply;
-                    reply.success(result.has_value());
-                    if (!result) {
-                      reply.abort_code(result.error().abort_code);
-                      reply.message(result.error().message);
-                    }
-                    respond(reply);
-                  });
+  if (!value) return refuse(value.error().message);
+  when_sdo_possible(
+      ctx_,
+      [this, respond, t = *type, v = *value, index = req.index(), sub = req.sub_index()] {
+        ctx_.sdo->write(ctx_.device.node_id, index, sub, t, v, sdo_written<srv::SdoWrite_Response>(respond, 0),
+                        kServiceSdoLimit);
+      },
+      refuse);
 }
 
 void DeviceServices::get_parameter(const srv::GetParameter_Request& req, ddsl::Respond<srv::GetParameter_Response> respond) {
-  srv::GetParameter_Response r;
+  const auto refuse = [respond](const std::string& why) {
+    srv::GetParameter_Response r;
+    r.message(why);
+    respond(r);
+  };
   const auto* obj = ctx_.profile.object(req.parameter());
-  if (obj == nullptr) return r.message("profile " + ctx_.profile.key() + " has no object '" + req.parameter() + "'"), respond(r);
-  if (!obj->readable()) return r.message(req.parameter() + " is write-only"), respond(r);
-  if (auto why = refusal(); !why.empty()) return r.message(why), respond(r);
-  ctx_.sdo->upload(ctx_.device.node_id, obj->index, obj->sub, [respond, obj](canopen::SdoClient::UploadResult result) {
-    srv::GetParameter_Response reply;
-    if (!result) {
-      reply.abort_code(result.error().abort_code);
-      reply.message(result.error().message);
-      return respond(reply);
-    }
-    std::uint64_t raw = 0;
-    for (std::size_t i = 0; i < result->size() && i < 8; ++i) raw |= std::uint64_t{(*result)[i]} << (8 * i);
-    reply.success(true);
-    reply.value(obj->to_engineering(raw));
-    reply.unit(obj->eng_unit);
-    reply.raw(canopen::is_signed_integer(obj->type) ? canopen::sign_extend(raw, canopen::bit_size(obj->type))
-                                                    : static_cast<std::int64_t>(raw));
-    respond(reply);
-  });
+  if (obj == nullptr) return refuse("profile " + ctx_.profile.key() + " has no object '" + req.parameter() + "'");
+  if (!obj->readable()) return refuse(req.parameter() + " is write-only");
+  if (auto why = refusal(); !why.empty()) return refuse(why);
+  when_sdo_possible(
+      ctx_,
+      [this, respond, obj] {
+        ctx_.sdo->read(
+            ctx_.device.node_id, obj->index, obj->sub, obj->type,
+            [this, respond, obj](canopen::SdoClient::ReadResult result) {
+              srv::GetParameter_Response reply;
+              if (!result) {
+                reply.abort_code(result.error().abort_code);
+                reply.message(result.error().message);
+                return respond(reply);
+              }
+              const auto raw = canopen::integer_bits(*result);
+              reply.success(true);
+              reply.value(obj->to_engineering(raw));
+              reply.unit(obj->eng_unit);
+              reply.raw(canopen::is_signed_integer(obj->type) ? canopen::sign_extend(raw, canopen::bit_size(obj->type))
+                                                              : static_cast<std::int64_t>(raw));
+              respond(reply);
+              // Read on demand: info tells the new value.
+              if (configuration_bits_ != nullptr && configuration_bits_->applies_to(obj->index, obj->sub)) {
+                set_configuration_word(raw, "");
+                if (boots_reported_ > 0) publish_info();
+              }
+            },
+            kServiceSdoLimit);
+      },
+      refuse);
 }
 
 void DeviceServices::set_parameter(const srv::SetParameter_Request& req, ddsl::Respond<srv::SetParameter_Response> respond) {
-  srv::SetParameter_Response r;
+  const auto refuse = [respond](const std::string& why) {
+    srv::SetParameter_Response r;
+    r.message(why);
+    respond(r);
+  };
   const auto* obj = ctx_.profile.object(req.parameter());
-  if (obj == nullptr) return r.message("profile " + ctx_.profile.key() + " has no object '" + req.parameter() + "'"), respond(r);
-  if (!obj->writable()) {
-    return r.message(req.parameter() + " is " + std::string(profiles::to_string(obj->access)) + ", not writable"), respond(r);
-  }
-  if (auto why = refusal(); !why.empty()) return r.message(why), respond(r);
+  if (obj == nullptr) return refuse("profile " + ctx_.profile.key() + " has no object '" + req.parameter() + "'");
+  if (!obj->writable()) return refuse(req.parameter() + " is " + std::string(profiles::to_string(obj->access)) + ", not writable");
+  if (auto why = refusal(); !why.empty()) return refuse(why);
   auto raw = obj->to_raw(req.value());  // range of the profile, rounded to the raw unit
-  if (!raw) return r.message(raw.error().message), respond(r);
+  if (!raw) return refuse(raw.error().message);
   const auto bits = canopen::bit_size(obj->type);
   const bool is_signed = canopen::is_signed_integer(obj->type);
   const std::int64_t shown = is_signed ? canopen::sign_extend(*raw, bits) : static_cast<std::int64_t>(*raw);
   const canopen::ObjectValue value = is_signed ? canopen::ObjectValue{shown} : canopen::ObjectValue{*raw};
-  ctx_.sdo->write(ctx_.device.node_id, obj->index, obj->sub, obj->type, value,
-                  [respond, shown](canopen::SdoClient::DownloadResult result) {
-                    srv::SetParameter_Response reply;
-                    reply.success(result.has_value());
-                    reply.raw(shown);
-                    if (!result) {
-                      reply.abort_code(result.error().abort_code);
-                      reply.message(result.error().message);
-                    }
-                    respond(reply);
-                  });
+  when_sdo_possible(
+      ctx_,
+      [this, respond, obj, value, shown] {
+        ctx_.sdo->write(ctx_.device.node_id, obj->index, obj->sub, obj->type, value,
+                        sdo_written<srv::SetParameter_Response>(respond, shown), kServiceSdoLimit);
+      },
+      refuse);
 }
 
 std::string DeviceServices::refusal() const {
@@ -239,7 +355,8 @@ void DeviceServices::nmt(const srv::Nmt_Request& request, ddsl::Respond<srv::Nmt
   });
 }
 
-void DeviceServices::publish_info(const canopen::BootReport& report) {
+void DeviceServices::publish_info() {
+  const auto& report = report_;
   const auto& id = report.identity;
   msg::DeviceInfo m;
   stamp(m, id.read_at_ns);
@@ -263,10 +380,12 @@ void DeviceServices::publish_info(const canopen::BootReport& report) {
   m.pdo_config(std::string(profiles::to_string(ctx_.device.pdo_config)));
   for (const auto& p : report.pdos) m.pdos().push_back(to_msg(p));
   m.heartbeat_producer_ms(report.heartbeat_producer_ms ? *report.heartbeat_producer_ms : -1);
+  m.configuration_word(configuration_word_);
   if (report.started) {
-    spdlog::info("{}: identity: vendor {:08X}h product {:08X}h rev {:08X}h serial {:08X}h, \"{}\" hw \"{}\" sw \"{}\"",
+    spdlog::info("{}: identity: vendor {:08X}h product {:08X}h rev {:08X}h serial {:08X}h, \"{}\" hw \"{}\" sw \"{}\"{}",
                  ctx_.device.name, id.vendor_id, id.product_code, id.revision_number, id.serial_number, id.device_name,
-                 id.hardware_version, id.software_version);
+                 id.hardware_version, id.software_version,
+                 configuration_word_.read() ? fmt::format(", configuration word {:08X}h", configuration_word_.raw()) : "");
   } else if (report.error) {
     spdlog::warn("{}: not started: {}", ctx_.device.name, report.error->message);
   }

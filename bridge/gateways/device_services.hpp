@@ -8,8 +8,10 @@
 // also owns the device's boot sequence (presence check, SDO configuration, NMT start, identity).
 // Device-type gateways add status, set values and typed configuration.
 
+#include <cstdint>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 
 #include "canopen/boot_sequence.hpp"
@@ -50,14 +52,25 @@ class DeviceServices {
 
  private:
   std::string refusal() const;  // why this bus takes no commands, or empty
-  void publish_info(const canopen::BootReport& report);
+  void on_emergency(const canopen::Emergency& e);
+  void read_errors();  // 1001h/1003h into the node's active errors (master role)
+  void booted(const canopen::BootReport& report);
+  void publish_info();
+  // 6010h, from a read (nullopt: failed, with the reason) or "not read".
+  void set_configuration_word(std::optional<std::uint64_t> raw, const std::string& remark);
 
   DeviceContext ctx_;
   ddsl::Writer<linebridge_msgs::msg::EmergencyPubSubType> emergency_writer_;
   ddsl::Writer<linebridge_msgs::msg::DeviceInfoPubSubType> info_writer_;
   std::unique_ptr<canopen::BootSequence> boot_;
   std::unique_ptr<canopen::ErrorControl> control_;
-  canopen::BootReport report_;  // loop thread
+  const profiles::BitSet* configuration_bits_ = nullptr;  // 6010h's named bits; null: the profile has none
+  // Loop thread.
+  canopen::BootReport report_;
+  std::uint64_t boots_reported_ = 0;  // a newer boot report outdates the reads of an older one
+  bool reading_errors_ = false;
+  bool reread_errors_ = false;
+  linebridge_msgs::msg::ConfigurationWord configuration_word_;
 };
 
 // The boot's findings as their DDS types.

@@ -1,6 +1,10 @@
 #include "gateways/diagnostics_gateway.hpp"
 
+#include <algorithm>
 #include <stdexcept>
+#include <string_view>
+
+#include "can/log_bus.hpp"
 
 #include "dds/topic_names.hpp"
 #include "gateways/nmt_state_msg.hpp"
@@ -8,6 +12,19 @@
 namespace lb::gateways {
 
 namespace msg = linebridge_msgs::msg;
+
+namespace {
+
+enum class Replay { none, realtime, fast };
+
+Replay replay_of(const profiles::BusConfig& bus) {
+  constexpr std::string_view kLog = "log:";
+  if (bus.interface.rfind(kLog, 0) != 0) return Replay::none;
+  const auto spec = can::LogBus::parse_spec(std::string_view(bus.interface).substr(kLog.size()));
+  return spec && spec->pace == can::LogBus::Pace::fast ? Replay::fast : Replay::realtime;
+}
+
+}  // namespace
 
 DiagnosticsGateway::DiagnosticsGateway(ddsl::Participant& dds, const std::string& line, std::vector<Bus> buses,
                                        std::chrono::milliseconds period)
@@ -57,10 +74,24 @@ void DiagnosticsGateway::snapshot(std::size_t i) {
   b.frames_out(stats.frames_out);
   b.error_frames(stats.error_frames);
   b.tx_dropped(stats.tx_dropped);
+  b.tx_error_counter(stats.tx_error_counter);
+  b.rx_error_counter(stats.rx_error_counter);
+  b.bus_offs(stats.bus_offs);
+  b.rx_overflows(stats.rx_overflows);
+  b.rx_dropped(stats.rx_dropped);
+  b.tx_queue_full(stats.tx_queue_full);
+  b.reopens(stats.reopens);
+  b.record_errors(stats.record_errors);
+  const Replay replay = replay_of(*bus.config);
+  b.replay(replay != Replay::none);
   if (dt > 0) {
     b.frames_in_per_s(static_cast<double>(stats.frames_in - prev.frames_in) / dt);
     b.frames_out_per_s(static_cast<double>(stats.frames_out - prev.frames_out) / dt);
-    b.load_percent(100.0 * static_cast<double>(bits - prev.bits) / dt / static_cast<double>(bus.config->bitrate));
+    // A fast replay delivers frames as fast as they are read: a load against wall-clock time would
+    // be any number (hundreds of percent), so none is given.
+    b.load_percent(replay == Replay::fast
+                       ? -1.0
+                       : 100.0 * static_cast<double>(bits - prev.bits) / dt / static_cast<double>(bus.config->bitrate));
   }
   prev = {now, stats.frames_in, stats.frames_out, bits};
   b.handler_failures(bus.loop->handler_failures());
@@ -75,7 +106,13 @@ void DiagnosticsGateway::snapshot(std::size_t i) {
   }
 
   std::vector<msg::NodeDiagnostics> nodes;
-  const std::int64_t now_ns = ddsl::now_ns();
+  // Heartbeat times are the frames' own: on a replay, the recording's. Their age is then taken on
+  // the recording's clock (from the newest heartbeat of the bus), not against today's date.
+  std::int64_t now_ns = ddsl::now_ns();
+  if (replay != Replay::none) {
+    now_ns = 0;
+    for (const auto& d : bus.devices) now_ns = std::max(now_ns, d.node->last_heartbeat_ns());
+  }
   for (const auto& d : bus.devices) {
     msg::NodeDiagnostics n;
     n.device(d.config->name);

@@ -36,8 +36,8 @@ class DriveCodec : public DriveImage {
   using DeviceTraits = Traits;
 
   DriveCodec(const profiles::Profile& profile, std::span<const profiles::DevicePdo> pdos,
-             SetEchoMonitor::Settings echo = {})
-      : DriveImage(profile, pdos, Traits::device, echo),
+             SetEchoMonitor::Settings echo = {}, bool rpdos_received = false)
+      : DriveImage(profile, pdos, Traits::device, echo, rpdos_received),
         status_word_(Traits::status_word(bitset("status_word"))),
         control_word_(Traits::control_word(bitset("control_word"))) {}
 
@@ -58,6 +58,7 @@ class DriveCodec : public DriveImage {
     control_word_(cw, s.control_word());
     s.speed_set_percent(speed_set_percent());
     s.set_echo_mismatch(set_echo_mismatch());
+    fill_other_values(s.other_values());
   }
 
   Result<RawSetpoint> validate(const Setpoint& sp) const {

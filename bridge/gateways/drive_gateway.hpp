@@ -61,7 +61,7 @@ class DriveGateway : public Gateway {
 template <class Dds>
 DriveGateway<Dds>::DriveGateway(DeviceContext context)
     : ctx_(context),
-      codec_(context.profile, context.device.pdos),
+      codec_(context.profile, context.device.pdos, {}, !context.is_master()),
       pdos_(ctx_, codec_, [this](std::size_t pdo, const can::CanFrame& f) { on_pdo(pdo, f); }),
       commands_(
           context.loop, [this](unsigned bit, bool on) { codec_.set_control_bit(bit, on); },
@@ -88,11 +88,17 @@ DriveGateway<Dds>::DriveGateway(DeviceContext context)
       [this](const Setpoint& sp, const ddsl::fdds::SampleInfo&) { on_setpoint(sp); });
   if (!sub) fail(sub.error());
 
+  // Momentary commands count the RPDO frames that carry the control word (momentary_commands.hpp).
+  pdos_.observe(ctx_.profile.object("control_word")->index,
+                {.before_send = [this] { commands_.before_frame(); },
+                 .sent = [this](auto at) { commands_.frame_sent(at); },
+                 .not_sent = [this](std::string_view why) { commands_.frame_not_sent(why); }});
   ctx_.node.on_change([this](canopen::NmtState, bool) {
     pdos_.resend();  // a (re)started device gets the image at once
     publish_status(ddsl::now_ns());
   });
   ctx_.node.on_emergency([this](const canopen::Emergency& e) { publish_status(e.timestamp_ns); });
+  ctx_.node.on_errors([this] { publish_status(ddsl::now_ns()); });
   if (ctx_.sync != nullptr) {
     ctx_.sync->on_sync([this] { pdos_.on_sync(); });
   }

@@ -38,7 +38,7 @@ std::optional<std::uint64_t> trailing(std::span<const std::uint8_t> payload, uns
 }  // namespace
 
 DriveImage::DriveImage(const profiles::Profile& profile, std::span<const profiles::DevicePdo> pdos,
-                       std::string_view device, SetEchoMonitor::Settings echo)
+                       std::string_view device, SetEchoMonitor::Settings echo, bool rpdos_received)
     : profile_(profile), echo_(echo) {
   const std::string d(device);
   status_word_ = bind("status_word");
@@ -53,8 +53,10 @@ DriveImage::DriveImage(const profiles::Profile& profile, std::span<const profile
   if (!bit) throw std::runtime_error("profile " + profile_.key() + ": control_word has no bit 'extruder_running'");
   bit_extruder_running_ = *bit;
 
+  others_.emplace(profile_, image_, rpdos_received);
   defs_.assign(pdos.begin(), pdos.end());
   for (const auto& pdo : defs_) {
+    others_->bind(pdos_.size(), pdo, image_);
     auto mapping = canopen::PdoMapping::create(pdo.mapping);
     if (!mapping) throw std::runtime_error("profile " + profile_.key() + " " + pdo.name + ": " + mapping.error().message);
     Pdo p{&pdo, canopen::PdoBinding(std::move(*mapping), image_), std::nullopt, false};
@@ -67,7 +69,7 @@ DriveImage::DriveImage(const profiles::Profile& profile, std::span<const profile
 
 Result<void> DriveImage::use_pdo(std::size_t pdo, const profiles::DevicePdo& actual) {
   auto& p = pdos_[pdo];
-  if (auto r = use_device_pdo(profile_, image_, defs_[pdo], p.binding, actual); !r) return r;
+  if (auto r = use_device_pdo(profile_, image_, defs_[pdo], p.binding, actual, *others_, pdo); !r) return r;
   p.carries_echo = actual.direction == profiles::PdoDirection::tx && maps(p.binding.mapping(), *speed_echo_.def);
   return {};
 }

@@ -14,6 +14,7 @@
 
 #include "base/result.hpp"
 #include "canopen/process_image.hpp"
+#include "gateways/other_values.hpp"
 #include "gateways/set_echo_monitor.hpp"
 #include "profiles/line_config.hpp"
 
@@ -35,8 +36,9 @@ class DriveImage {
   // device: "puller" or "corrugator", the prefix of the profile's speed and load object names.
   // Throws std::runtime_error (start-up) when the profile lacks an object or bit this needs.
   // pdos: the device's PDOs (profile defaults with overrides); they must outlive the image.
+  // rpdos_received: a monitor bus, where the line controller's RPDOs are decoded too.
   DriveImage(const profiles::Profile& profile, std::span<const profiles::DevicePdo> pdos, std::string_view device,
-             SetEchoMonitor::Settings echo = {});
+             SetEchoMonitor::Settings echo = {}, bool rpdos_received = false);
 
   DriveImage(const DriveImage&) = delete;
   DriveImage& operator=(const DriveImage&) = delete;
@@ -70,6 +72,7 @@ class DriveImage {
   // From the last TPDO that could carry it: nullopt when that frame was too short for it.
   std::optional<std::uint16_t> manufacturer_status_word() const { return manufacturer_status_word_; }
   bool set_echo_mismatch() const { return echo_.mismatch(); }
+  void fill_other_values(std::vector<linebridge_msgs::msg::ProcessValue>& out) const { others_->fill(image_, out); }
 
  private:
   struct Object {
@@ -88,6 +91,7 @@ class DriveImage {
   std::vector<Pdo> pdos_;
   std::optional<std::uint16_t> manufacturer_status_word_;
   SetEchoMonitor echo_;
+  std::optional<OtherValues> others_;  // after the typed objects are bound
 };
 
 }  // namespace lb::gateways

@@ -46,7 +46,8 @@ Result<std::uint64_t> test_parameter(const std::string& test, std::uint8_t param
 
 }  // namespace
 
-FeederCodec::FeederCodec(const profiles::Profile& profile, std::span<const profiles::DevicePdo> pdos) : profile_(profile) {
+FeederCodec::FeederCodec(const profiles::Profile& profile, std::span<const profiles::DevicePdo> pdos, bool rpdos_received)
+    : profile_(profile) {
   status_ = &object("feeder_status_1").values;
   error_condition_ = &object("feeder_error_condition_1").values;
   control_box_error_ = &object("feeder_control_box_error_condition").values;
@@ -66,9 +67,12 @@ FeederCodec::FeederCodec(const profiles::Profile& profile, std::span<const profi
   weft_filling_word_ = bind("global_weft_filling_parameter");
   trigger_signal_ = bind("trigger_signal");
   for (std::size_t i = 0; i < picks_.size(); ++i) picks_[i] = bind("pick_insertion_" + std::to_string(i + 1));
+  for (std::size_t i = 0; i < outputs_.size(); ++i) outputs_[i] = bind("digital_outputs_" + std::to_string(i + 1));
 
+  others_.emplace(profile_, image_, rpdos_received);
   defs_.assign(pdos.begin(), pdos.end());
   for (const auto& pdo : defs_) {
+    others_->bind(pdos_.size(), pdo, image_);
     auto mapping = canopen::PdoMapping::create(pdo.mapping);
     if (!mapping) throw std::runtime_error("profile " + profile_.key() + " " + pdo.name + ": " + mapping.error().message);
     pdos_.push_back({&pdo, canopen::PdoBinding(std::move(*mapping), image_)});
@@ -76,7 +80,7 @@ FeederCodec::FeederCodec(const profiles::Profile& profile, std::span<const profi
 }
 
 Result<void> FeederCodec::use_pdo(std::size_t pdo, const profiles::DevicePdo& actual) {
-  return use_device_pdo(profile_, image_, defs_[pdo], pdos_[pdo].binding, actual);
+  return use_device_pdo(profile_, image_, defs_[pdo], pdos_[pdo].binding, actual, *others_, pdo);
 }
 
 const ObjectDef& FeederCodec::object(std::string_view name) const {
@@ -181,7 +185,7 @@ msg::FeederUnwinding FeederCodec::last_unwinding() const {
   return unwinding(static_cast<std::uint32_t>(image_.get(unwinding_time_.slot)));
 }
 
-void FeederCodec::fill_loom(msg::LoomSide& loom) const {
+void FeederCodec::fill_loom(msg::LoomSide& loom, bool outputs_in_use) const {
   loom.seen(loom_seen_);
   loom.loom_status(code(loom_status_.def->values, image_.get(loom_status_.slot)));
   const std::uint64_t weft = image_.get(weft_filling_word_.slot);
@@ -193,6 +197,10 @@ void FeederCodec::fill_loom(msg::LoomSide& loom) const {
   loom.trigger_signal(code(trigger_signal_.def->values, image_.get(trigger_signal_.slot)));
   loom.pick_insertion().clear();
   for (const auto& p : picks_) loom.pick_insertion().push_back(pick(static_cast<std::uint8_t>(image_.get(p.slot))));
+  loom.digital_outputs().clear();
+  if (outputs_in_use) {
+    for (const auto& o : outputs_) loom.digital_outputs().push_back(static_cast<std::uint8_t>(image_.get(o.slot)));
+  }
 }
 
 std::uint32_t FeederCodec::ff10_bitmap(const std::array<std::uint8_t, 5>& m) {
@@ -364,8 +372,17 @@ Result<FeederCodec::RawLoom> FeederCodec::validate(const msg::LoomSetpoint& sp) 
     }
     raw.picks = codes;
   }
-  if (!raw.loom_status && !raw.trigger && !raw.picks) {
-    return make_error("nothing to send: give loom_status, trigger_signal or pick_insertion");
+  if (sp.digital_outputs().size() > outputs_.size()) {
+    return make_error(fmt::format("digital_outputs has {} groups; 600Dh has {} (sub 1..{})", sp.digital_outputs().size(),
+                                  outputs_.size(), outputs_.size()));
+  }
+  for (std::size_t i = 0; i < sp.digital_outputs().size(); ++i) {
+    auto o = checked(*outputs_[i].def, sp.digital_outputs()[i]);
+    if (!o) return make_error(fmt::format("digital_outputs[{}]: {}", i, o.error().message));
+    raw.outputs.push_back(o->raw);
+  }
+  if (!raw.loom_status && !raw.trigger && !raw.picks && raw.outputs.empty()) {
+    return make_error("nothing to send: give loom_status, trigger_signal, pick_insertion or digital_outputs");
   }
   return raw;
 }
@@ -379,6 +396,7 @@ void FeederCodec::apply(const RawLoom& raw) {
   if (raw.picks) {
     for (std::size_t i = 0; i < picks_.size(); ++i) image_.set(picks_[i].slot, (*raw.picks)[i]);
   }
+  for (std::size_t i = 0; i < raw.outputs.size(); ++i) image_.set(outputs_[i].slot, raw.outputs[i]);
   loom_seen_ = true;
 }
 

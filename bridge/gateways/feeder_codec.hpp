@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "canopen/process_image.hpp"
+#include "gateways/other_values.hpp"
 #include "msgs/feeder.h"
 #include "profiles/line_config.hpp"
 
@@ -38,11 +39,14 @@ class FeederCodec {
     std::uint64_t weft_filling = 0;  // with loom_status (RPDO2 carries both)
     std::optional<std::uint64_t> trigger;
     std::optional<std::array<std::uint64_t, 5>> picks;
+    std::vector<std::uint64_t> outputs;  // 600Dh groups 1..n (RPDO3); empty: not sent
   };
+  static constexpr unsigned kOutputGroups = 8;  // 600Dh sub 1..8
 
   // Throws std::runtime_error (start-up) when the profile lacks an object or bit set a feeder
   // needs. pdos: the device's PDOs; they must outlive the codec.
-  FeederCodec(const profiles::Profile& profile, std::span<const profiles::DevicePdo> pdos);
+  // rpdos_received: a monitor bus, where the loom controller's RPDOs are decoded (other_values.hpp).
+  FeederCodec(const profiles::Profile& profile, std::span<const profiles::DevicePdo> pdos, bool rpdos_received = false);
 
   const profiles::Profile& profile() const { return profile_; }
   FeederCodec(const FeederCodec&) = delete;
@@ -70,7 +74,9 @@ class FeederCodec {
   linebridge_msgs::msg::FeederUnwinding unwinding(std::uint32_t raw) const;  // stamp is the caller's
   linebridge_msgs::msg::FeederUnwinding last_unwinding() const;             // from the image (TPDO1)
   // The loom side as the image holds it (received RPDOs, or the bridge's own image).
-  void fill_loom(linebridge_msgs::msg::LoomSide& loom) const;
+  // outputs_in_use: the box's RPDO3 (600Dh) exists and is valid, so its outputs mean something.
+  void fill_loom(linebridge_msgs::msg::LoomSide& loom, bool outputs_in_use) const;
+  void fill_other_values(std::vector<linebridge_msgs::msg::ProcessValue>& out) const { others_->fill(image_, out); }
 
   // EMCY FF10h: EMCY bytes 3..6 = manufacturer bytes 0..3, little-endian; bit k = feeder k+1.
   static std::uint32_t ff10_bitmap(const std::array<std::uint8_t, 5>& manufacturer);
@@ -132,6 +138,8 @@ class FeederCodec {
   const profiles::ObjectDef* selected_;
   Object unwinding_time_, loom_status_, weft_filling_word_, trigger_signal_;
   std::array<Object, 5> picks_;
+  std::array<Object, kOutputGroups> outputs_;
+  std::optional<OtherValues> others_;  // after the typed objects are bound
   std::vector<profiles::DevicePdo> defs_;  // what each PDO is decoded and sent by; never resized
   std::vector<Pdo> pdos_;
   bool loom_seen_ = false;  // an RPDO was received or the image was set

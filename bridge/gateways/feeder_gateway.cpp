@@ -10,6 +10,7 @@
 #include "dds/topic_names.hpp"
 #include "gateways/device_health.hpp"
 #include "gateways/pdo_receive.hpp"
+#include "gateways/sdo_admission.hpp"
 
 namespace lb::gateways {
 
@@ -23,19 +24,13 @@ namespace {
 // (and the feeders beyond 32, which FF10h cannot report, are only seen this way).
 constexpr auto kPollPeriod = std::chrono::seconds(1);
 constexpr std::uint16_t kStatus = 0x6009, kErrorCondition = 0x6007, kControlBoxError = 0x6008, kFunctions = 0x6001;
-constexpr std::uint16_t kUnwinding = 0x6010, kLoomStatus = 0x600A, kTrigger = 0x600B, kPicks = 0x600C;
+constexpr std::uint16_t kUnwinding = 0x6010, kLoomStatus = 0x600A, kTrigger = 0x600B, kPicks = 0x600C, kOutputs = 0x600D;
 constexpr std::uint16_t kFf10 = 0xFF10;
 
 template <class T>
 T checked(Result<T> r, const std::string& what) {
   if (!r) throw std::runtime_error(what + ": " + r.error().message);
   return std::move(*r);
-}
-
-std::uint64_t little_endian(const canopen::SdoClient::Bytes& b) {
-  std::uint64_t raw = 0;
-  for (std::size_t i = 0; i < b.size() && i < 8; ++i) raw |= std::uint64_t{b[i]} << (8 * i);
-  return raw;
 }
 
 srv::FeederWrite_Response refused(std::string message) {
@@ -55,7 +50,7 @@ void stamp(M& m, std::int64_t ns) {
 
 FeederGateway::FeederGateway(DeviceContext context)
     : ctx_(context),
-      codec_(context.profile, context.device.pdos),
+      codec_(context.profile, context.device.pdos, !context.is_master()),
       burst_(context.loop, [this](std::int64_t stamp_ns) { publish_status(stamp_ns); }),
       // The loom controller's RPDOs are event-driven (255): they go out when a loom set value
       // changes them, and never before the first one (loom_active_).
@@ -88,6 +83,7 @@ FeederGateway::FeederGateway(DeviceContext context)
     publish_status(ddsl::now_ns());
   });
   ctx_.node.on_emergency([this](const canopen::Emergency& e) { on_emergency(e); });
+  ctx_.node.on_errors([this] { publish_status(ddsl::now_ns()); });
   if (ctx_.sync != nullptr) ctx_.sync->on_sync([this] { pdos_.on_sync(); });  // a line may make them synchronous
   if (ctx_.is_master() && ctx_.sdo != nullptr) {
     poll_timer_ = ctx_.loop.create_timer([this] { poll(); });
@@ -141,10 +137,10 @@ void FeederGateway::publish_error_event(unsigned feeder, bool in_error, std::uin
   }
   // "If feeders are not able to provide detailed failure conditions immediately after the error
   // occurs, the Emergency message will not contain [them]": the detail is in 6007h sub feeder.
-  ctx_.sdo->upload(ctx_.device.node_id, kErrorCondition, static_cast<std::uint8_t>(feeder),
-                   [this, ev, feeder](canopen::SdoClient::UploadResult r) mutable {
+  read(kErrorCondition, static_cast<std::uint8_t>(feeder),
+                   [this, ev, feeder](canopen::SdoClient::ReadResult r) mutable {
                      if (r) {
-                       const auto raw = little_endian(*r);
+                       const auto raw = canopen::integer_bits(*r);
                        ev.detail_read(true);
                        ev.condition(codec_.error_condition(raw));
                        entry(feeder).error_condition_read(true);
@@ -206,10 +202,10 @@ void FeederGateway::read_chain(std::shared_ptr<std::vector<Read>> reads, std::si
     return;
   }
   const Read& r = (*reads)[next];
-  ctx_.sdo->upload(ctx_.device.node_id, r.index, r.sub, [this, reads, next](canopen::SdoClient::UploadResult result) {
+  read(r.index, r.sub, [this, reads, next](canopen::SdoClient::ReadResult result) {
     // The count read adds the per-feeder reads: appended after it ran, never while it runs.
     std::vector<Read> more;
-    (*reads)[next].apply(result ? std::optional(little_endian(*result)) : std::nullopt, more);
+    (*reads)[next].apply(result ? std::optional(canopen::integer_bits(*result)) : std::nullopt, more);
     for (auto& m : more) reads->push_back(std::move(m));
     // A local general error means the client is going away (or the bus refused the frame): stop
     // here rather than queue more requests.
@@ -239,7 +235,8 @@ void FeederGateway::publish_status(std::int64_t stamp_ns) {
   stamp(status_, stamp_ns);
   fill_health(ctx_.node, status_.health());
   status_.error_bitmap(bitmap_);
-  codec_.fill_loom(status_.loom());
+  codec_.fill_loom(status_.loom(), outputs_in_use());
+  codec_.fill_other_values(status_.other_values());
   status_.pdo_length_errors(ctx_.node.stats().pdo_length_errors);
   status_writer_.write(status_);
 }
@@ -258,7 +255,23 @@ std::optional<unsigned> FeederGateway::feeder_count() const {
   return n < 0 ? std::nullopt : std::optional<unsigned>(static_cast<unsigned>(n));
 }
 
+void FeederGateway::read(std::uint16_t index, std::uint8_t sub, canopen::SdoClient::ReadDone done,
+                         std::optional<canopen::SdoClient::Limit> limit) {
+  // By the profile's type, so a device that answers without size indication is read right.
+  const auto* obj = ctx_.profile.object(index, sub);
+  ctx_.sdo->read(ctx_.device.node_id, index, sub, obj != nullptr ? obj->type : canopen::DataType::unsigned32,
+                 std::move(done), limit);
+}
+
+void FeederGateway::when_sdo_possible(WriteReply reply, std::function<void()> send) {
+  gateways::when_sdo_possible(ctx_, std::move(send), [reply](const std::string& why) { reply(refused(why)); });
+}
+
 void FeederGateway::write(const FeederCodec::Write& w, WriteReply reply, std::function<void()> then) {
+  when_sdo_possible(reply, [this, w, reply, then = std::move(then)] { write_now(w, reply, then); });
+}
+
+void FeederGateway::write_now(const FeederCodec::Write& w, WriteReply reply, std::function<void()> then) {
   const auto* obj = w.object;
   ctx_.sdo->write(ctx_.device.node_id, obj->index, obj->sub, obj->type, canopen::ObjectValue{w.raw},
                   [this, obj, raw = w.raw, reply = std::move(reply), then = std::move(then)](canopen::SdoClient::DownloadResult r) {
@@ -274,7 +287,8 @@ void FeederGateway::write(const FeederCodec::Write& w, WriteReply reply, std::fu
                       spdlog::info("{}: {} = {:X}h written", ctx_.device.name, obj->name, raw);
                     }
                     reply(resp);
-                  });
+                  },
+                  kServiceSdoLimit);
 }
 
 template <class RequestPS>
@@ -327,7 +341,7 @@ void FeederGateway::serve_services() {
           color = *w;
         }
         // Both checked before either is written; the colour follows a successful number write.
-        if (number && color) return write(*number, reply, [this, c = *color, reply] { write(c, reply); });
+        if (number && color) return write(*number, reply, [this, c = *color, reply] { write_now(c, reply); });
         write(number ? *number : *color, reply);
       });
   serve<srv::FeederFunctions_RequestPubSubType>(
@@ -337,35 +351,41 @@ void FeederGateway::serve_services() {
         std::vector<FeederCodec::FunctionSetting> settings;
         for (const auto& s : req.settings()) settings.push_back({s.function(), s.state()});
         // Read-modify-write: only functions the feeder reports as available may change.
-        ctx_.sdo->upload(ctx_.device.node_id, (*obj)->index, (*obj)->sub,
-                         [this, o = *obj, settings = std::move(settings), reply](canopen::SdoClient::UploadResult r) {
-                           if (!r) {
-                             auto resp = refused(o->name + " not read: " + r.error().message);
-                             resp.abort_code(r.error().abort_code);
-                             return reply(resp);
-                           }
-                           auto merged = codec_.merge_functions(little_endian(*r), settings);
-                           if (!merged) return reply(refused(merged.error().message));
-                           auto w = FeederCodec::checked(*o, *merged);
-                           if (!w) return reply(refused(w.error().message));
-                           write(*w, reply);
-                         });
+        when_sdo_possible(reply, [this, o = *obj, settings = std::move(settings), reply] {
+          read(o->index, o->sub,
+               [this, o, settings, reply](canopen::SdoClient::ReadResult r) {
+                 if (!r) {
+                   auto resp = refused(o->name + " not read: " + r.error().message);
+                   resp.abort_code(r.error().abort_code);
+                   return reply(resp);
+                 }
+                 auto merged = codec_.merge_functions(canopen::integer_bits(*r), settings);
+                 if (!merged) return reply(refused(merged.error().message));
+                 auto w = FeederCodec::checked(*o, *merged);
+                 if (!w) return reply(refused(w.error().message));
+                 write_now(*w, reply);
+               },
+               kServiceSdoLimit);
+        });
       });
   serve<srv::TriggerSource_RequestPubSubType>(
       "trigger_source", [this](const srv::TriggerSource_Request& req, WriteReply reply) {
         std::vector<std::string> selected(req.selected().begin(), req.selected().end());
         const auto& supported = codec_.trigger_sources_supported();
-        ctx_.sdo->upload(ctx_.device.node_id, supported.index, supported.sub,
-                         [this, selected = std::move(selected), reply](canopen::SdoClient::UploadResult r) {
-                           if (!r) {
-                             auto resp = refused("trigger_sources_supported not read: " + r.error().message);
-                             resp.abort_code(r.error().abort_code);
-                             return reply(resp);
-                           }
-                           auto w = codec_.trigger_sources(selected, little_endian(*r));
-                           if (!w) return reply(refused(w.error().message));
-                           write(*w, reply);
-                         });
+        when_sdo_possible(reply, [this, &supported, selected = std::move(selected), reply] {
+          read(supported.index, supported.sub,
+               [this, selected, reply](canopen::SdoClient::ReadResult r) {
+                 if (!r) {
+                   auto resp = refused("trigger_sources_supported not read: " + r.error().message);
+                   resp.abort_code(r.error().abort_code);
+                   return reply(resp);
+                 }
+                 auto w = codec_.trigger_sources(selected, canopen::integer_bits(*r));
+                 if (!w) return reply(refused(w.error().message));
+                 write_now(*w, reply);
+               },
+               kServiceSdoLimit);
+        });
       });
 }
 
@@ -380,13 +400,17 @@ void FeederGateway::on_loom(const msg::LoomSetpoint& sp) {
     if (!ctx_.node.ready_for_pdos()) {
       return loom_reply(id, false, ctx_.device.name + " is not started by this bridge or offline: loom set value not sent");
     }
+    if (!r.outputs.empty() && !outputs_in_use()) {
+      return loom_reply(id, false, ctx_.device.name + ": RPDO3 (600Dh digital outputs) is not in use: the box does not have "
+                                                       "it, or it is disabled (COB-ID bit 31); loom set value not sent");
+    }
     if (!loom_active_) spdlog::info("{}: the bridge now plays the loom controller (RPDOs from here on)", ctx_.device.name);
     loom_active_ = true;
     codec_.apply(r);
     // Each part given is an event on its own PDO, sent even when unchanged (a trigger repeats).
     for (auto& t : pdos_.rpdos()) {
       const bool touched = (r.loom_status && codec_.carries(t.pdo, kLoomStatus)) || (r.trigger && codec_.carries(t.pdo, kTrigger)) ||
-                           (r.picks && codec_.carries(t.pdo, kPicks));
+                           (r.picks && codec_.carries(t.pdo, kPicks)) || (!r.outputs.empty() && codec_.carries(t.pdo, kOutputs));
       if (!touched) continue;
       t.transmitter->resend();
       t.transmitter->on_data();
@@ -394,6 +418,21 @@ void FeederGateway::on_loom(const msg::LoomSetpoint& sp) {
     publish_status(ddsl::now_ns());
     loom_reply(id, true, "");
   });
+}
+
+bool FeederGateway::outputs_in_use() {
+  if (!ctx_.is_master()) {
+    // A monitor decodes the loom controller's RPDO3 when the line has it enabled.
+    for (std::size_t i = 0; i < codec_.pdos().size(); ++i) {
+      const auto& def = *codec_.pdos()[i].def;
+      if (def.direction == PdoDirection::rx && def.enabled && codec_.carries(i, kOutputs)) return true;
+    }
+    return false;
+  }
+  for (const auto& t : pdos_.rpdos()) {
+    if (t.valid_on_device && codec_.carries(t.pdo, kOutputs)) return true;
+  }
+  return false;
 }
 
 void FeederGateway::loom_reply(std::uint64_t request_id, bool accepted, const std::string& reason) {

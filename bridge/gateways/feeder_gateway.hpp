@@ -55,10 +55,18 @@ class FeederGateway : public Gateway {
   // Validated on the DDS thread; empty when the bus takes commands.
   std::string refusal() const;
   std::optional<unsigned> feeder_count() const;
+  // A checked write, once the box can answer SDO (sdo_admission.hpp); then() instead of the reply
+  // when it succeeded (a second write follows). write_now: already admitted.
   void write(const FeederCodec::Write& w, WriteReply reply, std::function<void()> then = {});
+  void write_now(const FeederCodec::Write& w, WriteReply reply, std::function<void()> then = {});
+  void when_sdo_possible(WriteReply reply, std::function<void()> send);
+  void read(std::uint16_t index, std::uint8_t sub, canopen::SdoClient::ReadDone done,
+            std::optional<canopen::SdoClient::Limit> limit = std::nullopt);
 
   void on_loom(const linebridge_msgs::msg::LoomSetpoint& sp);
   void loom_reply(std::uint64_t request_id, bool accepted, const std::string& reason);
+  // Loop thread: the box's RPDO3 (600Dh digital outputs, optional) is in use.
+  bool outputs_in_use();
 
   DeviceContext ctx_;
   FeederCodec codec_;  // loop thread, except the const validation (any thread)

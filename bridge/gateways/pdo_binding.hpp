@@ -8,6 +8,7 @@
 #include "base/result.hpp"
 #include "canopen/pdo_parameters.hpp"
 #include "canopen/process_image.hpp"
+#include "gateways/other_values.hpp"
 #include "profiles/line_config.hpp"
 
 namespace lb::gateways {
@@ -25,7 +26,8 @@ inline Result<canopen::PdoBinding> bind_device_pdo(const profiles::Profile& prof
     }
     const profiles::ObjectDef* obj = profile.object(e.index, e.sub);
     if (obj == nullptr) {
-      return make_error(fmt::format("{} maps {}, an object profile {} does not define: the bridge could not decode it",
+      return make_error(fmt::format("{} maps {}, an object profile {} does not define: the bridge could not decode it "
+                                    "(name it under the device's objects: in the line file)",
                                     pdo.name, entry, profile.key()));
     }
     if (canopen::bit_size(obj->type) != e.bits) {
@@ -43,12 +45,18 @@ inline Result<canopen::PdoBinding> bind_device_pdo(const profiles::Profile& prof
 // A codec's PDO (`def`, `binding`) taking the parameters its device's boot found: a mapping that is
 // the line's own was checked at start-up; another one is bound after the checks above, and on a
 // refusal nothing changes.
-inline Result<void> use_device_pdo(const profiles::Profile& profile, const canopen::ProcessImage& image,
+// Objects the typed status does not name get their slots (others, index: the PDO's) before the
+// binding, so they are decoded and published too.
+inline Result<void> use_device_pdo(const profiles::Profile& profile, canopen::ProcessImage& image,
                                    profiles::DevicePdo& def, canopen::PdoBinding& binding,
-                                   const profiles::DevicePdo& actual) {
+                                   const profiles::DevicePdo& actual, OtherValues& others, std::size_t index) {
   if (actual.mapping != def.mapping) {
+    others.bind(index, actual, image);
     auto bound = bind_device_pdo(profile, image, actual);
-    if (!bound) return bound.error();
+    if (!bound) {
+      others.bind(index, def, image);
+      return bound.error();
+    }
     binding = std::move(*bound);
   }
   def = actual;

@@ -4,7 +4,8 @@
 // RPDOs the bridge sends from the codec's image by their transmission type, only while the device
 // may take them (master role); and the PDOs the device's boot left in use taken over before the
 // device is started (pdo_config: adopt, or a PDO the device does not have).
-// Codec: pdos() (each with `def`, the DevicePdo it decodes by), pack(i, out), use_pdo(i, DevicePdo).
+// Codec: pdos() (each with `def`, the DevicePdo it decodes by, and `binding`), pack(i, out),
+// use_pdo(i, DevicePdo).
 
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
@@ -14,6 +15,8 @@
 #include <functional>
 #include <memory>
 #include <span>
+#include <string>
+#include <string_view>
 #include <vector>
 
 #include "canopen/pdo_transmitter.hpp"
@@ -46,10 +49,28 @@ class PdoWiring {
         continue;
       }
       const std::size_t k = rpdos_.size();
-      rpdos_.push_back({i, std::make_unique<canopen::PdoTransmitter>(
-                               ctx_.loop, settings(pdo),
-                               [this, i](can::CanFrame& f) { f.len = codec_.pack(i, std::span<std::uint8_t, 8>(f.data)); },
-                               [this, k] { return may_send(k); }, [this] { ++ctx_.node.stats().pdos_sent; })});
+      using Transmitter = canopen::PdoTransmitter;
+      rpdos_.push_back(
+          {i, std::make_unique<Transmitter>(
+                  ctx_.loop, settings(pdo),
+                  Transmitter::Hooks{
+                      .pack = [this, i](can::CanFrame& f) { f.len = codec_.pack(i, std::span<std::uint8_t, 8>(f.data)); },
+                      .may_send = [this, k] { return may_send(k); },
+                      .before_send = [this, i] { notify(i, [](const RpdoObserver& o) { o.before_send(); }); },
+                      .sent =
+                          [this, i](const can::CanFrame&, std::chrono::steady_clock::time_point at) {
+                            ++ctx_.node.stats().pdos_sent;
+                            notify(i, [at](const RpdoObserver& o) { o.sent(at); });
+                          },
+                      .not_sent =
+                          [this, i, k](Transmitter::Refusal why) {
+                            if (observed(i)) {
+                              const auto text = why == Transmitter::Refusal::bus
+                                                    ? std::string("the bus refused the frame (diagnostics: tx_dropped)")
+                                                    : why_not(k);
+                              notify(i, [&text](const RpdoObserver& o) { o.not_sent(text); });
+                            }
+                          }})});
     }
     if (ctx_.is_master()) ctx_.node.on_pdos([this](std::span<const canopen::PdoInUse> pdos) { return use(pdos); });
   }
@@ -77,6 +98,15 @@ class PdoWiring {
     if (restored) spdlog::info("{}: set values in force restored from {}", ctx_.device.name, ctx_.set_values->path());
     keep();
   }
+  // What a gateway learns about every frame of the RPDOs that carry one object (the control word,
+  // for momentary commands), as the device's boot left them mapped.
+  struct RpdoObserver {
+    std::function<void()> before_send;  // a frame is about to be packed from the image
+    std::function<void(std::chrono::steady_clock::time_point at)> sent;
+    std::function<void(std::string_view why)> not_sent;  // one was due and did not go out
+  };
+  // Before the loop starts.
+  void observe(std::uint16_t index, RpdoObserver observer) { observers_.push_back({index, std::move(observer)}); }
 
   // Loop thread.
   void on_sync() {
@@ -117,6 +147,41 @@ class PdoWiring {
     return rpdos_[k].valid_on_device && ctx_.node.ready_for_pdos() && (!gate_ || gate_());
   }
 
+  // Why may_send(k) is false, for whoever waits for the frame.
+  std::string why_not(std::size_t k) const {
+    const auto& name = ctx_.device.name;
+    const auto& node = ctx_.node;
+    if (!rpdos_[k].valid_on_device) {
+      return fmt::format("{} has {} disabled (COB-ID bit 31)", name, codec_.pdos()[rpdos_[k].pdo].def->name);
+    }
+    if (!node.online()) return name + " is offline (no heartbeat)";
+    if (!node.configured()) return name + " has not passed its boot (its state became unknown, or the boot failed)";
+    if (node.commanded_state() != canopen::NmtState::operational) return name + " was told to leave operational (NMT)";
+    if (node.state() != canopen::NmtState::operational) {
+      return fmt::format("{} reports {}, not operational", name, canopen::to_string(node.state()));
+    }
+    return name + ": the gateway does not send this PDO yet";
+  }
+
+  bool observed(std::size_t pdo) const {
+    for (const auto& o : observers_) {
+      if (maps(pdo, o.index)) return true;
+    }
+    return false;
+  }
+  bool maps(std::size_t pdo, std::uint16_t index) const {
+    for (const auto& e : codec_.pdos()[pdo].binding.mapping().entries()) {
+      if (e.index == index) return true;
+    }
+    return false;
+  }
+  template <class F>
+  void notify(std::size_t pdo, F f) const {
+    for (const auto& o : observers_) {
+      if (maps(pdo, o.index)) f(o.observer);
+    }
+  }
+
   Result<void> use(std::span<const canopen::PdoInUse> pdos) {
     for (const auto& found : pdos) {
       for (std::size_t i = 0; i < codec_.pdos().size(); ++i) {
@@ -148,6 +213,11 @@ class PdoWiring {
   Gate gate_;
   std::vector<Rpdo> rpdos_;
   bool persist_ = false;
+  struct Observer {
+    std::uint16_t index;
+    RpdoObserver observer;
+  };
+  std::vector<Observer> observers_;
 };
 
 }  // namespace lb::gateways

@@ -18,7 +18,8 @@ unsigned required_bit(const profiles::BitSet& set, std::string_view name, const 
 
 }  // namespace
 
-SawCodec::SawCodec(const profiles::Profile& profile, std::span<const profiles::DevicePdo> pdos) : profile_(profile) {
+SawCodec::SawCodec(const profiles::Profile& profile, std::span<const profiles::DevicePdo> pdos, bool rpdos_received)
+    : profile_(profile) {
   status_word_ = bind("status_word");
   control_word_ = bind("control_word");
   counter_value_ = bind("counter_value");
@@ -62,9 +63,12 @@ SawCodec::SawCodec(const profiles::Profile& profile, std::span<const profiles::D
   bit_change_of_length_ = required_bit(cw, "change_of_length", profile_.key());
   bit_saw_cutting_ = required_bit(sw, "saw_cutting", profile_.key());
   bit_count_mode_ = cw.bit("count_mode");
+  bit_wall_thickening_ = cw.bit("wall_thickening");
 
+  others_.emplace(profile_, image_, rpdos_received);
   defs_.assign(pdos.begin(), pdos.end());
   for (const auto& pdo : defs_) {
+    others_->bind(pdos_.size(), pdo, image_);
     auto mapping = canopen::PdoMapping::create(pdo.mapping);
     if (!mapping) throw std::runtime_error("profile " + profile_.key() + " " + pdo.name + ": " + mapping.error().message);
     pdos_.push_back({&pdo, canopen::PdoBinding(std::move(*mapping), image_)});
@@ -72,7 +76,7 @@ SawCodec::SawCodec(const profiles::Profile& profile, std::span<const profiles::D
 }
 
 Result<void> SawCodec::use_pdo(std::size_t pdo, const profiles::DevicePdo& actual) {
-  return use_device_pdo(profile_, image_, defs_[pdo], pdos_[pdo].binding, actual);
+  return use_device_pdo(profile_, image_, defs_[pdo], pdos_[pdo].binding, actual, *others_, pdo);
 }
 
 SawCodec::Object SawCodec::bind(std::string_view name) {
@@ -102,6 +106,7 @@ void SawCodec::fill(msg::SawStatus& status) const {
   status.control_word().count_mode(corrugated ? msg::CORRUGATED_PIPE : msg::SMOOTH_PIPE);
   status.sync_speed_set_percent(sync_speed_set_.def->to_engineering(image_.get(sync_speed_set_.slot)));
   status.product_length_set_m(length_set_.def->to_engineering(image_.get(length_set_.slot)));
+  others_->fill(image_, status.other_values());
 }
 
 bool SawCodec::cutting() const { return ((image_.get(status_word_.slot) >> bit_saw_cutting_) & 1U) != 0; }
@@ -110,9 +115,12 @@ Result<SawCodec::RawSetpoint> SawCodec::validate(const msg::SawSetpoint& sp) con
   if (sp.count_mode() != msg::SMOOTH_PIPE && sp.count_mode() != msg::CORRUGATED_PIPE) {
     return make_error("count_mode " + std::to_string(static_cast<int>(sp.count_mode())) + " is not a count mode");
   }
-  RawSetpoint raw{sp.saw_program_on(), sp.count_mode() == msg::CORRUGATED_PIPE, 0, 0};
+  RawSetpoint raw{sp.saw_program_on(), sp.wall_thickening(), sp.count_mode() == msg::CORRUGATED_PIPE, 0, 0};
   if (raw.corrugated && !bit_count_mode_) {
     return make_error("profile " + profile_.key() + " has no count mode bit: corrugated pipe mode is not available");
+  }
+  if (raw.wall_thickening && !bit_wall_thickening_) {
+    return make_error("profile " + profile_.key() + " has no wall-thickening bit");
   }
   auto speed = sync_speed_set_.def->to_raw(sp.sync_speed_percent());
   if (!speed) return make_error("sync_speed_percent: " + speed.error().message);
@@ -127,6 +135,7 @@ void SawCodec::apply(const RawSetpoint& raw) {
   std::uint64_t cw = image_.get(control_word_.slot);
   const auto set_bit = [&cw](unsigned bit, bool on) { cw = on ? cw | (1ULL << bit) : cw & ~(1ULL << bit); };
   set_bit(bit_program_on_, raw.program_on);
+  if (bit_wall_thickening_) set_bit(*bit_wall_thickening_, raw.wall_thickening);
   if (bit_count_mode_) set_bit(*bit_count_mode_, raw.corrugated);
   if (raw.product_length != image_.get(length_set_.slot)) cw ^= 1ULL << bit_change_of_length_;
   image_.set(control_word_.slot, cw);

@@ -10,6 +10,7 @@
 
 #include "canopen/process_image.hpp"
 #include "gateways/named_bits.hpp"
+#include "gateways/other_values.hpp"
 #include "msgs/saw.h"
 #include "profiles/line_config.hpp"
 
@@ -23,14 +24,16 @@ class SawCodec {
   };
   struct RawSetpoint {
     bool program_on = false;
+    bool wall_thickening = false;
     bool corrugated = false;
     std::uint64_t sync_speed = 0;      // 6005h, 0.01 %
     std::uint64_t product_length = 0;  // 6002h, 0.1 mm
   };
 
   // Throws std::runtime_error (start-up) when the profile lacks an object or bit a saw needs.
-  // pdos: the device's PDOs (profile defaults with overrides).
-  SawCodec(const profiles::Profile& profile, std::span<const profiles::DevicePdo> pdos);
+  // pdos: the device's PDOs (profile defaults with overrides). rpdos_received: a monitor bus, where
+  // the line controller's RPDOs are decoded too (other_values.hpp).
+  SawCodec(const profiles::Profile& profile, std::span<const profiles::DevicePdo> pdos, bool rpdos_received = false);
   SawCodec(const SawCodec&) = delete;
   SawCodec& operator=(const SawCodec&) = delete;
 
@@ -74,6 +77,8 @@ class SawCodec {
   NamedBits<linebridge_msgs::msg::SawControlWord> control_bits_;
   unsigned bit_program_on_ = 0, bit_change_of_length_ = 0, bit_saw_cutting_ = 0;
   std::optional<unsigned> bit_count_mode_;  // from saw 3.1 on
+  std::optional<unsigned> bit_wall_thickening_;
+  std::optional<OtherValues> others_;  // after the typed objects are bound
   std::vector<profiles::DevicePdo> defs_;  // what each PDO is decoded and sent by; never resized
   std::vector<Pdo> pdos_;
 };

@@ -26,7 +26,7 @@ T checked(Result<T> r, const std::string& what) {
 
 SawGateway::SawGateway(DeviceContext context)
     : ctx_(context),
-      codec_(context.profile, context.device.pdos),
+      codec_(context.profile, context.device.pdos, !context.is_master()),
       pdos_(ctx_, codec_, [this](std::size_t pdo, const can::CanFrame& f) { on_pdo(pdo, f); }),
       commands_(
           context.loop, [this](unsigned bit, bool on) { codec_.set_control_bit(bit, on); },
@@ -50,12 +50,18 @@ SawGateway::SawGateway(DeviceContext context)
       [this](const msg::SawSetpoint& sp, const ddsl::fdds::SampleInfo&) { on_setpoint(sp); });
   if (!sub) throw std::runtime_error(dev + ": " + sub.error().message);
 
+  // Momentary commands count the RPDO frames that carry the control word (momentary_commands.hpp).
+  pdos_.observe(ctx_.profile.object("control_word")->index,
+                {.before_send = [this] { commands_.before_frame(); },
+                 .sent = [this](auto at) { commands_.frame_sent(at); },
+                 .not_sent = [this](std::string_view why) { commands_.frame_not_sent(why); }});
   ctx_.node.on_change([this](canopen::NmtState, bool) {
     // A device (re)started gets the current image at once from event-driven RPDOs too.
     pdos_.resend();
     publish_status(ddsl::now_ns());
   });
   ctx_.node.on_emergency([this](const canopen::Emergency& e) { publish_status(e.timestamp_ns); });
+  ctx_.node.on_errors([this] { publish_status(ddsl::now_ns()); });
   if (ctx_.sync != nullptr) {
     ctx_.sync->on_sync([this] { pdos_.on_sync(); });
   }

@@ -8,6 +8,7 @@
 #include <sstream>
 
 #include "can/log_bus.hpp"
+#include "profiles/object_fields.hpp"
 #include "profiles/yaml_source.hpp"
 
 namespace lb::profiles {
@@ -178,13 +179,15 @@ std::vector<SimulatedPdo> parse_simulated_pdos(const YamlSource& src, const YAML
 
 SimulationConfig parse_simulation(const YamlSource& src, const YAML::Node& n, const Profile& profile) {
   src.check_keys(n, "simulation", {"max_speed_m_per_min", "acceleration_m_per_min_s", "scaling_pulses_per_m",
-                                   "heartbeat_period_ms", "controller_values", "identity", "pdos", "ignore_writes"});
+                                   "heartbeat_period_ms", "controller_values", "identity", "pdos", "ignore_writes",
+                                   "pre_defined_error_field"});
   SimulationConfig sim;
   sim.max_speed_m_per_min = positive(src, n, "max_speed_m_per_min", sim.max_speed_m_per_min);
   sim.acceleration_m_per_min_s = positive(src, n, "acceleration_m_per_min_s", sim.acceleration_m_per_min_s);
   sim.scaling_pulses_per_m = bounded<std::uint32_t>(src, n, "scaling_pulses_per_m", sim.scaling_pulses_per_m, 1, 100'000'000, "simulation");
   // 0: the device sends no heartbeat until a master writes 1017h.
   sim.heartbeat_period = std::chrono::milliseconds(bounded<int>(src, n, "heartbeat_period_ms", 100, 0, 65535, "simulation"));
+  sim.pre_defined_error_field = src.optional<bool>(n, "pre_defined_error_field").value_or(true);
   if (n["identity"]) sim.identity = parse_identity(src, n["identity"], "simulation identity");
   if (n["pdos"]) sim.pdos = parse_simulated_pdos(src, n["pdos"], profile);
   if (const auto ignore = n["ignore_writes"]) {
@@ -325,7 +328,7 @@ DeviceConfig parse_device(const YamlSource& src, const YAML::Node& n, const Line
                           const ProfileRegistry& registry) {
   src.check_keys(n, "device", {"name", "bus", "node_id", "profile", "version", "heartbeat_timeout_ms", "configure",
                                "boot_retry_ms", "pdos", "simulation", "identity", "pdo_config", "on_state_unknown",
-                               "heartbeat_producer_ms"});
+                               "heartbeat_producer_ms", "objects"});
   DeviceConfig dev;
   dev.name = src.required<std::string>(n, "name", "device");
   check_name(src, n["name"], dev.name);
@@ -356,12 +359,30 @@ DeviceConfig parse_device(const YamlSource& src, const YAML::Node& n, const Line
     src.fail(n["profile"], "device " + dev.name + ": unknown profile " + dev.profile + " version " + dev.version +
                                " (known: " + known + ")");
   }
+  if (const auto objects = n["objects"]) {
+    // The device's own objects the bridge is to know by name (a manufacturer-specific one mapped
+    // into a PDO): the bridge decodes by the profile with them. The simulator keeps the profile.
+    src.expect_sequence(objects, "objects");
+    Profile extended = *dev.resolved_profile;
+    for (const auto& o : objects) {
+      src.check_keys(o, "object", {"index", "sub", "name", "type", "access", "unit", "scale", "eng_unit", "min", "max",
+                                   "values", "special_values"});
+      ObjectDef def = parse_object_fields(src, o, "device " + dev.name + " object");
+      if (extended.object(def.name) != nullptr) src.fail(o["name"], "object name '" + def.name + "' is already the profile's or used twice");
+      if (extended.object(def.index, def.sub) != nullptr) {
+        src.fail(o["index"], "device " + dev.name + ": the object at this index and sub is already " +
+                                 extended.object(def.index, def.sub)->name);
+      }
+      extended.objects.push_back(std::move(def));
+    }
+    dev.profile_with_objects = std::make_shared<const Profile>(std::move(extended));
+  }
   dev.heartbeat_timeout =
       std::chrono::milliseconds(bounded<int>(src, n, "heartbeat_timeout_ms", 500, 1, 65535, "device " + dev.name));
   dev.boot_retry = std::chrono::milliseconds(bounded<int>(src, n, "boot_retry_ms", 5000, 100, 600'000, "device " + dev.name));
-  if (n["configure"]) dev.configure = parse_configure(src, n["configure"], *dev.resolved_profile, dev.name);
+  if (n["configure"]) dev.configure = parse_configure(src, n["configure"], dev.bridge_profile(), dev.name);
   const YAML::Node pdo_overrides = n["pdos"];
-  dev.pdos = resolve_pdos(src, pdo_overrides ? &pdo_overrides : nullptr, *dev.resolved_profile, dev.node_id, dev.name);
+  dev.pdos = resolve_pdos(src, pdo_overrides ? &pdo_overrides : nullptr, dev.bridge_profile(), dev.node_id, dev.name);
   if (n["simulation"]) dev.simulation = parse_simulation(src, n["simulation"], *dev.resolved_profile);
   if (n["identity"]) dev.identity = parse_identity(src, n["identity"], "identity");
   if (const auto mode = src.optional<std::string>(n, "pdo_config")) {

@@ -4,6 +4,7 @@
 
 #include <chrono>
 #include <cstdint>
+#include <memory>
 #include <optional>
 #include <string>
 #include <vector>
@@ -86,6 +87,9 @@ struct SimulationConfig {
   // Objects (index << 8 | sub) whose SDO writes the device confirms and then ignores, as a faulty
   // device may: a master that reads back notices.
   std::vector<std::uint32_t> ignore_writes;
+  // CiA 301 1003h (pre-defined error field): the device lists its active errors there. false: it
+  // has no 1003h, as many devices (the object is optional).
+  bool pre_defined_error_field = true;
 };
 
 // One SDO write of a device's boot configuration (written in this order before NMT start).
@@ -157,6 +161,11 @@ struct DeviceConfig {
   std::optional<std::chrono::milliseconds> heartbeat_producer;
   SimulationConfig simulation;
   const Profile* resolved_profile = nullptr;  // points into the registry the config was loaded with
+  // The profile with the device's `objects:` (manufacturer-specific objects the line names), or
+  // null when it names none. The bridge decodes by bridge_profile(); a simulator by its profile.
+  std::shared_ptr<const Profile> profile_with_objects;
+
+  const Profile& bridge_profile() const { return profile_with_objects ? *profile_with_objects : *resolved_profile; }
 };
 
 struct LineConfig {

@@ -10,6 +10,7 @@
 #include <fmt/format.h>
 
 #include "profiles/builtin_profiles.hpp"
+#include "profiles/object_fields.hpp"
 #include "profiles/yaml_source.hpp"
 
 namespace lb::profiles {
@@ -109,6 +110,35 @@ std::optional<ValueTable> parse_value_table(const YamlSource& src, const YAML::N
   return out;
 }
 
+}  // namespace
+
+ObjectDef parse_object_fields(const YamlSource& src, const YAML::Node& o, const std::string& what) {
+  ObjectDef def;
+  def.index = in_range<std::uint16_t>(src, o, "index", 0x1000, 0xFFFF);
+  def.sub = optional_in_range<std::uint8_t>(src, o, "sub", 0, 255).value_or(0);
+  def.name = src.required<std::string>(o, "name", what);
+  const auto type_text = src.required<std::string>(o, "type", what);
+  const auto type = canopen::parse_data_type(type_text);
+  if (!type) src.fail(o["type"], "unknown data type '" + type_text + "'");
+  def.type = *type;
+  def.access = o["access"] ? parse_access(src, o["access"]) : Access::ro;
+  def.unit = src.optional<std::string>(o, "unit").value_or("");
+  def.scale = src.optional<double>(o, "scale").value_or(1.0);
+  if (def.scale == 0.0) src.fail(o["scale"], "scale must not be 0");
+  def.eng_unit = src.optional<std::string>(o, "eng_unit").value_or(def.unit);
+  def.min = src.optional<std::int64_t>(o, "min");
+  def.max = src.optional<std::int64_t>(o, "max");
+  def.mandatory = src.optional<bool>(o, "mandatory").value_or(true);
+  const bool integer = canopen::is_signed_integer(def.type) || canopen::is_unsigned_integer(def.type);
+  if ((o["values"] || o["special_values"]) && !integer) {
+    src.fail(o["values"] ? o["values"] : o["special_values"], "named codes need an integer data type, not " + type_text);
+  }
+  if (auto table = parse_value_table(src, o, canopen::bit_size(def.type))) def.values = std::move(*table);
+  return def;
+}
+
+namespace {
+
 class ProfileLoader {
  public:
   ProfileLoader(const YamlSource& src, Profile& p) : src_(src), p_(p) {}
@@ -133,28 +163,9 @@ class ProfileLoader {
     src_.check_keys(o, "object",
                     {"index", "sub", "name", "type", "access", "unit", "scale", "eng_unit", "min", "max", "array",
                      "mandatory", "values", "special_values"});
-    ObjectDef def;
-    def.index = in_range<std::uint16_t>(src_, o, "index", 0x1000, 0xFFFF);
+    if (!o["access"]) src_.fail(o, "object: missing required key 'access'");
+    ObjectDef def = parse_object_fields(src_, o, "object");
     const auto sub = optional_in_range<std::uint8_t>(src_, o, "sub", 0, 255);
-    def.sub = sub.value_or(0);
-    def.name = src_.required<std::string>(o, "name", "object");
-    const auto type_text = src_.required<std::string>(o, "type", "object");
-    const auto type = canopen::parse_data_type(type_text);
-    if (!type) src_.fail(o["type"], "unknown data type '" + type_text + "'");
-    def.type = *type;
-    def.access = parse_access(src_, o["access"]);
-    def.unit = src_.optional<std::string>(o, "unit").value_or("");
-    def.scale = src_.optional<double>(o, "scale").value_or(1.0);
-    if (def.scale == 0.0) src_.fail(o["scale"], "scale must not be 0");
-    def.eng_unit = src_.optional<std::string>(o, "eng_unit").value_or(def.unit);
-    def.min = src_.optional<std::int64_t>(o, "min");
-    def.max = src_.optional<std::int64_t>(o, "max");
-    def.mandatory = src_.optional<bool>(o, "mandatory").value_or(true);
-    const bool integer = canopen::is_signed_integer(def.type) || canopen::is_unsigned_integer(def.type);
-    if ((o["values"] || o["special_values"]) && !integer) {
-      src_.fail(o["values"] ? o["values"] : o["special_values"], "named codes need an integer data type, not " + type_text);
-    }
-    if (auto table = parse_value_table(src_, o, canopen::bit_size(def.type))) def.values = std::move(*table);
 
     const auto n = src_.optional<int>(o, "array");
     if (!n) {

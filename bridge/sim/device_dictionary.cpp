@@ -86,6 +86,13 @@ canopen::ObjectDictionary make_device_dictionary(const profiles::DeviceConfig& d
       std::uint64_t{id.serial_number.value_or(0x5100'0000U + device.node_id)});
   add(od, kDeviceText, 0, DataType::visible_string, ObjectAccess::rw, std::string());
   add(od, kSimulationControl, 0, DataType::unsigned8, ObjectAccess::wo, std::uint64_t{0});
+  add(od, kErrorSimulation, 0, DataType::unsigned32, ObjectAccess::wo, std::uint64_t{0});
+  if (device.simulation.pre_defined_error_field) {
+    add(od, kErrorField, 0, DataType::unsigned8, ObjectAccess::rw, std::uint64_t{0});
+    for (std::uint8_t sub = 1; sub <= kErrorFieldEntries; ++sub) {
+      add(od, kErrorField, sub, DataType::unsigned32, ObjectAccess::ro, std::uint64_t{0});
+    }
+  }
   if (has_manufacturer_entries(profile, profiles::PdoDirection::tx)) {
     add(od, kSecondStatusWord, 0, DataType::unsigned16, ObjectAccess::ro, std::uint64_t{0});
   }

@@ -6,6 +6,8 @@
 //
 //   1000h  device type: the profile's, or simulation.identity.device_type
 //   1001h  error register          1005h  COB-ID SYNC 0000 0080h      1014h  COB-ID EMCY 80h + node-ID
+//   1003h  pre-defined error field: sub 0 UNSIGNED8 rw (0 clears), sub 1..8 UNSIGNED32 ro; absent
+//          with simulation.pre_defined_error_field: false
 //   1008h/1009h/100Ah  device name, hardware and software version (visible strings)
 //   1017h  heartbeat producer time, power-on value simulation.heartbeat_period_ms (0: none)
 //   1018h  identity, sub 0 = 4; each value replaced by simulation.identity where given:
@@ -14,6 +16,7 @@
 //   2000h  VISIBLE_STRING rw: a free text the line can store in the device (segmented both ways)
 //   2002h  UNSIGNED8 wo: simulation control, 1 = reset node, 2 = reset communication, both
 //          without the boot-up message (simulated_node.hpp)
+//   2003h  UNSIGNED32 wo: error simulation, bits 0..15 a code to raise, bit 31 set: to clear
 //   2110h  UNSIGNED16 ro: second status word, where a TPDO has a manufacturer-specific entry
 //   2111h  UNSIGNED16 rw: second control word, where an RPDO has a manufacturer-specific entry
 
@@ -28,6 +31,9 @@ namespace lb::sim {
 
 inline constexpr std::uint16_t kDeviceText = 0x2000;
 inline constexpr std::uint16_t kSimulationControl = 0x2002;
+inline constexpr std::uint16_t kErrorSimulation = 0x2003;
+inline constexpr std::uint16_t kErrorField = 0x1003;
+inline constexpr std::uint8_t kErrorFieldEntries = 8;
 
 // The simulator's product codes (1018h sub 2): 0420 0002h puller, 0420 0003h corrugator,
 // 0420 0004h saw (CiA 420 part number in the high word), 0414 0002h feeder; 0 for other types.

@@ -44,12 +44,14 @@ DevicePdos::DevicePdos(canopen::BusLoop& loop, const profiles::DeviceConfig& dev
     }
     p.transmitter = std::make_unique<canopen::PdoTransmitter>(
         loop_, settings(p.now),
-        [this, i](can::CanFrame& f) {
-          const Pdo& q = pdos_[i];
-          f.len = q.binding ? q.binding->pack_from(image_, std::span<std::uint8_t, 8>(f.data)) : 0;
-        },
-        // Not valid, or nothing mapped (sub 0 = 0): the PDO does not exist on the bus.
-        [this, i] { return hooks_.operational() && pdos_[i].now.valid() && pdos_[i].now.count > 0; });
+        canopen::PdoTransmitter::Hooks{
+            .pack =
+                [this, i](can::CanFrame& f) {
+                  const Pdo& q = pdos_[i];
+                  f.len = q.binding ? q.binding->pack_from(image_, std::span<std::uint8_t, 8>(f.data)) : 0;
+                },
+            // Not valid, or nothing mapped (sub 0 = 0): the PDO does not exist on the bus.
+            .may_send = [this, i] { return hooks_.operational() && pdos_[i].now.valid() && pdos_[i].now.count > 0; }});
   }
 }
 

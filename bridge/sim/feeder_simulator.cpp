@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <array>
 #include <stdexcept>
 
 #include "canopen/sdo_abort.hpp"
@@ -14,7 +15,13 @@ namespace {
 
 // A pre-measuring feeder reports one winding this often while the loom runs.
 constexpr auto kWindingPeriod = std::chrono::milliseconds(100);
-constexpr std::uint8_t kErrorRegisterGeneric = 0x01;
+constexpr std::uint16_t kFeederError = 0xFF10;  // CiA 414-2: bitmap of the feeders in error
+
+// EMCY FF10h's manufacturer bytes: the bitmap, little-endian.
+std::array<std::uint8_t, 5> bitmap_bytes(std::uint32_t bitmap) {
+  return {static_cast<std::uint8_t>(bitmap), static_cast<std::uint8_t>(bitmap >> 8), static_cast<std::uint8_t>(bitmap >> 16),
+          static_cast<std::uint8_t>(bitmap >> 24), 0};
+}
 
 // Arrays with one element per feeder: sub 0 tells how many feeders the box has.
 constexpr const char* kPerFeeder[] = {"feeder_functions", "single_weft_filling_parameter", "feeder_error_condition",
@@ -179,7 +186,7 @@ void FeederSimulator::raise(unsigned feeder, std::uint64_t condition) {
   node_.set(status.index, sub, code_of(status, "error_mode"));
   bitmap_ |= 1U << (feeder - 1);
   spdlog::info("sim {}: feeder {} fault {:02X}h injected: EMCY FF10h bitmap {:08X}h", device_.name, feeder, condition, bitmap_);
-  send_emergency(0xFF10, bitmap_);
+  node_.raise_error(kFeederError, bitmap_bytes(bitmap_));
 }
 
 void FeederSimulator::clear(unsigned feeder) {
@@ -190,14 +197,9 @@ void FeederSimulator::clear(unsigned feeder) {
   node_.set(status.index, sub, code_of(status, "operational_mode"));
   bitmap_ &= ~(1U << (feeder - 1));
   spdlog::info("sim {}: feeder {} fault cleared: EMCY FF10h bitmap {:08X}h", device_.name, feeder, bitmap_);
-  send_emergency(0xFF10, bitmap_);
-  if (bitmap_ == 0) send_emergency(0x0000, 0);  // no error left (CiA 301 error reset)
-}
-
-void FeederSimulator::send_emergency(std::uint16_t code, std::uint32_t bitmap) {
-  node_.send_emergency(code, bitmap != 0 ? kErrorRegisterGeneric : 0,
-                       {static_cast<std::uint8_t>(bitmap), static_cast<std::uint8_t>(bitmap >> 8),
-                        static_cast<std::uint8_t>(bitmap >> 16), static_cast<std::uint8_t>(bitmap >> 24), 0});
+  // FF10h with the feeders still in error; once none is left, its last word and the error reset.
+  if (bitmap_ != 0) node_.raise_error(kFeederError, bitmap_bytes(bitmap_));
+  else node_.clear_error(kFeederError, bitmap_bytes(0));
 }
 
 void FeederSimulator::on_rpdo(std::span<const canopen::PdoEntry> mapped) {

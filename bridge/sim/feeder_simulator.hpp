@@ -10,7 +10,8 @@
 // feeder goes to error mode, 6007h sub n takes the condition and an EMCY FF10h carries the new
 // bitmap. A condition of 0 clears that feeder, feeder 0 clears all; a feeder command "reset"
 // (600Eh = 04h) clears that feeder too. Every clearing sends FF10h with the remaining bitmap and,
-// once it is empty, an EMCY 0000h (error reset). Conditions the table does not define are raised
+// once it is empty, an EMCY 0000h (error reset) with the error register that remains. FF10h is
+// one active error of the box (1003h) while any feeder is in error. Conditions the table does not define are raised
 // as given, so a bridge's handling of undefined codes can be tested.
 
 #include <cstdint>
@@ -42,7 +43,6 @@ class FeederSimulator : public DeviceSimulator {
   std::optional<std::uint32_t> on_functions(unsigned feeder, std::uint64_t word);
   void raise(unsigned feeder, std::uint64_t condition);
   void clear(unsigned feeder);
-  void send_emergency(std::uint16_t code, std::uint32_t bitmap);
   void on_rpdo(std::span<const canopen::PdoEntry> mapped);
   void unwind();
 

@@ -21,6 +21,7 @@ SawSimulator::SawSimulator(canopen::BusLoop& loop, const profiles::DeviceConfig&
   sync_speed_set_ = node_.slot("saw_sync_speed_set_value");
   length_set_ = node_.slot("product_length_set_value");
   speed_max_ = node_.slot("saw_sync_speed_set_maximum");
+  configuration_word_ = node_.slot("configuration_word");
   cw_program_on_ = required_bit("control_word", "saw_program_on");
   cw_change_of_length_ = required_bit("control_word", "change_of_length");
   sw_ready_ = required_bit("status_word", "saw_ready");
@@ -38,6 +39,14 @@ void SawSimulator::start() { node_.boot(); }
 
 void SawSimulator::reset() {
   node_.image().set(speed_max_, static_cast<std::uint64_t>(device_.simulation.max_speed_m_per_min * 1000.0));  // mm/min
+  // Its hardware: a measuring wheel, cut depth, early warning and groove counting where the
+  // profile (version) names them; no height adjustment, no functions f1..f3, no corrugator cut
+  // management.
+  std::uint64_t config = 0;
+  for (const auto* name : {"speed_measuring", "cut_depth", "early_warning", "groove_count_mode"}) {
+    if (const auto bit = node_.bit("configuration_word", name)) config |= std::uint64_t{1} << *bit;
+  }
+  node_.image().set(configuration_word_, config);
   speed_mm_per_min_ = 0;
   saw_counter_01mm_ = 0;
   pulses_ = 0;

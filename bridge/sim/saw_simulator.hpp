@@ -28,7 +28,7 @@ class SawSimulator : public DeviceSimulator {
   const profiles::DeviceConfig& device_;
   SimulatedNode node_;
   std::size_t status_word_, control_word_, counter_value_, saw_counter_, product_speed_, sync_speed_set_, length_set_,
-      speed_max_;
+      speed_max_, configuration_word_;
   unsigned cw_program_on_, cw_change_of_length_, sw_ready_, sw_cutting_, sw_program_enabled_;
 
   double speed_mm_per_min_ = 0;

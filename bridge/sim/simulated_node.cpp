@@ -57,6 +57,7 @@ SimulatedNode::SimulatedNode(canopen::BusLoop& loop, const profiles::DeviceConfi
   sdo_.set_gate([this] { return nmt_.state() != NmtState::stopped; });
   link_image_objects();
   link_communication_objects();
+  link_error_objects();
   loop_.on_frame(canopen::cob::sync, [this](const can::CanFrame&) { on_sync(); });
 }
 
@@ -133,6 +134,7 @@ void SimulatedNode::on_reset(Reset kind) {
       if (count != canopen::ProcessImage::npos) image_.set(count, std::max<std::uint64_t>(image_.get(count), o.sub));
     }
     error_register_ = 0;
+    active_errors_.clear();
     auto& od = sdo_.dictionary();
     (void)od.set(kDeviceText, 0, {});
     for (const auto index : commands_) (void)od.set(index, 0, canopen::ObjectDictionary::Bytes(od.find(index, 0)->value.size()));
@@ -212,6 +214,76 @@ void SimulatedNode::send_emergency(std::uint16_t code, std::uint8_t error_regist
   f.data = {static_cast<std::uint8_t>(code), static_cast<std::uint8_t>(code >> 8), error_register, manufacturer[0],
             manufacturer[1], manufacturer[2], manufacturer[3], manufacturer[4]};
   (void)loop_.send(f);
+}
+
+void SimulatedNode::link_error_objects() {
+  auto& od = sdo_.dictionary();
+  (void)od.set_on_write(kErrorSimulation, 0, [this](std::span<const std::uint8_t> v) -> std::optional<std::uint32_t> {
+    const auto value = little_endian(v);
+    const auto code = static_cast<std::uint16_t>(value & 0xFFFF);
+    const bool clear = (value & 0x8000'0000U) != 0;
+    if (!clear && code == 0) return canopen::sdo_abort::value_range_exceeded;
+    // After this write's confirmation went out.
+    loop_.post([this, code, clear] {
+      if (!clear) return raise_error(code);
+      if (code != 0) return clear_error(code);
+      active_errors_.clear();
+      spdlog::info("sim {}: every error cleared (error simulation)", device_.name);
+      send_emergency(0x0000, 0, {});
+    });
+    return std::nullopt;
+  });
+  if (od.find(kErrorField, 0) == nullptr) return;
+  (void)od.set_on_read(kErrorField, 0, [this] {
+    return canopen::ObjectDictionary::Bytes{
+        static_cast<std::uint8_t>(std::min<std::size_t>(active_errors_.size(), kErrorFieldEntries))};
+  });
+  (void)od.set_on_write(kErrorField, 0, [this](std::span<const std::uint8_t> v) -> std::optional<std::uint32_t> {
+    if (little_endian(v) != 0) return canopen::sdo_abort::value_range_exceeded;  // CiA 301: only 0 (clear)
+    loop_.post([this] {
+      active_errors_.clear();
+      send_emergency(0x0000, 0, {});
+    });
+    return std::nullopt;
+  });
+  for (std::uint8_t sub = 1; sub <= kErrorFieldEntries; ++sub) {
+    (void)od.set_on_read(kErrorField, sub, [this, sub] {
+      const std::size_t n = active_errors_.size();
+      return bytes_of(sub <= n ? active_errors_[n - sub] : 0, 4);  // sub 1: the newest
+    });
+  }
+}
+
+std::uint8_t SimulatedNode::register_of_active() const {
+  std::uint8_t reg = 0;
+  for (const auto code : active_errors_) {
+    reg |= 0x01;  // generic: any error
+    switch (code >> 12) {
+      case 0x2: reg |= 0x02; break;  // current
+      case 0x3: reg |= 0x04; break;  // voltage
+      case 0x4: reg |= 0x08; break;  // temperature
+      case 0x8: reg |= 0x10; break;  // communication
+      default: break;
+    }
+  }
+  return reg;
+}
+
+void SimulatedNode::raise_error(std::uint16_t code, std::array<std::uint8_t, 5> manufacturer) {
+  if (std::find(active_errors_.begin(), active_errors_.end(), code) == active_errors_.end()) active_errors_.push_back(code);
+  spdlog::info("sim {}: error {:04X}h active ({} active)", device_.name, code, active_errors_.size());
+  send_emergency(code, register_of_active(), manufacturer);
+}
+
+void SimulatedNode::clear_error(std::uint16_t code, std::optional<std::array<std::uint8_t, 5>> last_word) {
+  const auto it = std::find(active_errors_.begin(), active_errors_.end(), code);
+  if (it == active_errors_.end()) return;
+  active_errors_.erase(it);
+  const auto reg = register_of_active();
+  spdlog::info("sim {}: error {:04X}h cleared: EMCY 0000h with error register {:02X}h ({} still active)", device_.name, code,
+               reg, active_errors_.size());
+  if (last_word) send_emergency(code, reg, *last_word);
+  send_emergency(0x0000, reg, {});
 }
 
 void SimulatedNode::on_sync() {

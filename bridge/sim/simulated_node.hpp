@@ -22,6 +22,14 @@
 //    The write is confirmed first; the device is then pre-operational with its power-on values
 //    and sends heartbeats if its power-on 1017h is not 0.
 //  - `simulation.ignore_writes`: those objects confirm an SDO write and keep their value.
+//  - Errors (CiA 301): the device keeps its active errors; 1001h is the error register (bit 0
+//    generic whenever one is active, plus the family's bit: current, voltage, temperature,
+//    communication); 1003h (unless simulation.pre_defined_error_field is false) lists them, sub 0
+//    the count (writing 0 clears them all, with EMCY 0000h), sub 1 the newest. raise_error() sends
+//    the code's EMCY; clear_error() sends EMCY 0000h with the register that remains, so a master
+//    sees "error reset" while other errors are still active. Reset node clears them.
+//    Error simulation 2003h (UNSIGNED32, wo), for tests of a master: bits 0..15 an error code to
+//    raise; with bit 31 set the code to clear (0000h with bit 31: clear all).
 
 #include <array>
 #include <chrono>
@@ -91,6 +99,11 @@ class SimulatedNode {
   void event(std::string_view tpdo) { (void)pdos_.event(tpdo); }
   // EMCY on 1014h; the error register (1001h) becomes `error_register`.
   void send_emergency(std::uint16_t code, std::uint8_t error_register, std::array<std::uint8_t, 5> manufacturer);
+  // Loop thread: an error becomes active (again: its EMCY is sent again, with new manufacturer bytes).
+  void raise_error(std::uint16_t code, std::array<std::uint8_t, 5> manufacturer = {});
+  // Loop thread: an error is no longer active. `last_word`: the code's EMCY is sent once more with
+  // these bytes (and the register that remains) before the error reset, as a feeder box does.
+  void clear_error(std::uint16_t code, std::optional<std::array<std::uint8_t, 5>> last_word = std::nullopt);
 
  private:
   void on_reset(NmtSlave::Reset kind);
@@ -100,6 +113,8 @@ class SimulatedNode {
   void link_image_objects();
   void link_communication_objects();
   void serve_from_image(std::uint16_t index, std::uint8_t sub, std::size_t slot);
+  void link_error_objects();
+  std::uint8_t register_of_active() const;
 
   canopen::BusLoop& loop_;
   const profiles::DeviceConfig& device_;
@@ -114,6 +129,7 @@ class SimulatedNode {
   std::optional<std::size_t> second_status_word_;  // 2110h, where a TPDO has a manufacturer entry
   std::chrono::milliseconds heartbeat_period_{0};  // 1017h
   std::uint8_t error_register_ = 0;                // 1001h
+  std::vector<std::uint16_t> active_errors_;       // oldest first; 1003h lists them newest first
   std::optional<std::chrono::steady_clock::time_point> last_sync_;
   std::uint64_t short_rpdos_ = 0;
   std::optional<std::chrono::steady_clock::time_point> last_short_emcy_;

@@ -32,7 +32,7 @@ class FeederCodecTest : public ::testing::Test {
   }
   msg::LoomSide loom() const {
     msg::LoomSide l;
-    codec_.fill_loom(l);
+    codec_.fill_loom(l, true);
     return l;
   }
   std::vector<std::uint8_t> pack(const std::string& name) const {
@@ -259,6 +259,27 @@ TEST_F(FeederCodecTest, LoomSetpointPackedIntoRpdos) {
   wide.loom_width_m(700.0);  // 70000 cm does not fit 16 bits
   EXPECT_NE(codec_.validate(wide).error().message.find("loom_width_m"), std::string::npos);
   EXPECT_FALSE(codec_.validate(msg::LoomSetpoint{})) << "nothing to send";
+}
+
+// CiA 414-2 5.2.14: 600Dh "8 x 8 digital output lines", RPDO3 (optional) maps sub 1..8, one byte
+// each, in order. Groups not given keep their value.
+TEST_F(FeederCodecTest, DigitalOutputsPackedIntoRpdo3) {
+  msg::LoomSetpoint sp;
+  sp.digital_outputs({0x81, 0x02});
+  auto raw = codec_.validate(sp);
+  ASSERT_TRUE(raw) << raw.error().message;
+  codec_.apply(*raw);
+  EXPECT_EQ(pack("rpdo3"), (std::vector<std::uint8_t>{0x81, 0x02, 0, 0, 0, 0, 0, 0}));
+  sp.digital_outputs({0x00, 0x00, 0xFF});
+  codec_.apply(*codec_.validate(sp));
+  EXPECT_EQ(pack("rpdo3"), (std::vector<std::uint8_t>{0x00, 0x00, 0xFF, 0, 0, 0, 0, 0}));
+  msg::LoomSide l;
+  codec_.fill_loom(l, true);
+  EXPECT_EQ(l.digital_outputs(), (std::vector<std::uint8_t>{0x00, 0x00, 0xFF, 0, 0, 0, 0, 0}));
+  codec_.fill_loom(l, false);
+  EXPECT_TRUE(l.digital_outputs().empty()) << "no outputs where the box has no RPDO3";
+  sp.digital_outputs({1, 2, 3, 4, 5, 6, 7, 8, 9});
+  EXPECT_FALSE(codec_.validate(sp)) << "600Dh has eight groups";
 }
 
 }  // namespace

@@ -256,3 +256,47 @@ TEST(LineConfig, SimulationDeviceKeys) {
   EXPECT_EQ(r->devices[0].pdos[1].mapping.front().index, 0x6001);
   EXPECT_NE(error_of(replace(yaml, "pdos: {tpdo2:", "pdos: {tpdo9:")).find("has no PDO 'tpdo9'"), std::string::npos);
 }
+
+// A device's own objects (a manufacturer-specific one it maps): the bridge decodes by the profile
+// with them; the simulator keeps the profile as it is.
+TEST(LineConfig, DeviceObjectsExtendTheBridgesProfileOnly) {
+  const auto registry = ProfileRegistry::builtin();
+  const std::string yaml = replace(kGood, "    heartbeat_timeout_ms: 300\n",
+                                   "    heartbeat_timeout_ms: 300\n"
+                                   "    objects:\n"
+                                   "      - {index: 0x2110, name: second_status_word, type: UNSIGNED16}\n"
+                                   "      - {index: 0x2120, name: blade_temperature, type: INTEGER16, unit: 0.1 °C, scale: 0.1, eng_unit: °C}\n"
+                                   "    pdos: {tpdo1: {mapping: [0x60300010, 0x60000020, 0x21100010]}}\n");
+  auto r = parse_line_config(yaml, "line.yaml", registry);
+  ASSERT_TRUE(r) << r.error().message;
+  const auto& dev = r->devices[0];
+  const auto* second = dev.bridge_profile().object("second_status_word");
+  ASSERT_NE(second, nullptr);
+  EXPECT_EQ(second->index, 0x2110);
+  EXPECT_EQ(second->access, lb::profiles::Access::ro);
+  const auto* blade = dev.bridge_profile().object(0x2120, 0);
+  ASSERT_NE(blade, nullptr);
+  EXPECT_DOUBLE_EQ(blade->to_engineering(0xFF9C), -10.0);  // -100 x 0.1 °C
+  EXPECT_EQ(dev.resolved_profile->object("second_status_word"), nullptr) << "the simulator's profile changed";
+  EXPECT_EQ(dev.pdos[0].mapping.size(), 3u);
+  // Without objects: the mapping names an object the profile does not define.
+  EXPECT_NE(error_of(replace(yaml, "      - {index: 0x2110, name: second_status_word, type: UNSIGNED16}\n", ""))
+                .find("mapping entry names an object profile cia420-4@3.1 does not define"),
+            std::string::npos);
+  EXPECT_NE(error_of(replace(yaml, "name: second_status_word", "name: status_word")).find("already the profile's"),
+            std::string::npos);
+  EXPECT_NE(error_of(replace(yaml, "index: 0x2110", "index: 0x6030")).find("already status_word"), std::string::npos);
+  EXPECT_NE(error_of(replace(yaml, "type: UNSIGNED16}", "type: UNSIGNED16, array: 3}")).find("unknown key 'array'"),
+            std::string::npos);
+}
+
+TEST(LineConfig, SimulatedDeviceWithoutPreDefinedErrorField) {
+  const auto registry = ProfileRegistry::builtin();
+  auto r = parse_line_config(replace(kGood, "      max_speed_m_per_min: 12.5\n",
+                                     "      max_speed_m_per_min: 12.5\n      pre_defined_error_field: false\n"),
+                             "line.yaml", registry);
+  ASSERT_TRUE(r) << r.error().message;
+  EXPECT_FALSE(r->devices[0].simulation.pre_defined_error_field);
+  auto d = parse_line_config(kGood, "line.yaml", registry);
+  EXPECT_TRUE(d->devices[0].simulation.pre_defined_error_field);
+}

@@ -32,12 +32,16 @@ class Transmitter : public ::testing::Test {
   void make(PdoTransmitter::Settings s) {
     s.can_id = 0x181;
     tx_ = std::make_unique<PdoTransmitter>(
-        *loop_, s, [this](lb::can::CanFrame& f) {
-          f.len = 2;
-          f.data[0] = value_.load();
-          f.data[1] = 0xAB;
-        },
-        [this] { return gate_.load(); }, [this] { ++sent_; });
+        *loop_, s,
+        PdoTransmitter::Hooks{.pack =
+                                  [this](lb::can::CanFrame& f) {
+                                    f.len = 2;
+                                    f.data[0] = value_.load();
+                                    f.data[1] = 0xAB;
+                                  },
+                              .may_send = [this] { return gate_.load(); },
+                              .sent = [this](const lb::can::CanFrame&, auto) { ++sent_; },
+                              .not_sent = [this](PdoTransmitter::Refusal) { ++refused_; }});
     loop_->start();
   }
   // Runs on the loop thread and waits for it.
@@ -60,6 +64,7 @@ class Transmitter : public ::testing::Test {
   std::atomic<std::uint8_t> value_{1};
   std::atomic<bool> gate_{true};
   std::atomic<int> sent_{0};
+  std::atomic<int> refused_{0};
 };
 
 }  // namespace
@@ -137,4 +142,43 @@ TEST_F(Transmitter, TwentyNineBitIdentifier) {
   const auto frames = sent_frames();
   ASSERT_EQ(frames.size(), 1u);
   EXPECT_TRUE(frames[0].extended);
+}
+
+// CiA 301: the event timer of an event-driven PDO restarts with every transmission. A trigger that
+// could not send (device not started, bus refused) must not stop it: the PDO goes out again once
+// it may, without waiting for its data to change.
+TEST_F(Transmitter, EventTimerKeepsRunningAfterARefusedSend) {
+  gate_ = false;
+  make({.transmission_type = 254, .event_timer = 60ms});
+  on_loop([this] { tx_->on_data(); });
+  EXPECT_TRUE(sent_frames().empty());
+  EXPECT_GE(refused_.load(), 1);
+  gate_ = true;  // no data change, no resend: only the event timer can send it now
+  const auto frames = sent_frames(400ms);
+  EXPECT_GE(frames.size(), 3u) << "the event timer stopped after the refused send";
+}
+
+// A resend (the device restarted, came online again) is a frame of this PDO like any other: it
+// waits for the inhibit time after the previous one.
+TEST_F(Transmitter, ResendRespectsTheInhibitTime) {
+  make({.transmission_type = 255, .inhibit = 200ms});
+  on_loop([this] { tx_->on_data(); });
+  on_loop([this] { tx_->resend(); });  // at once: the inhibit time is not over
+  EXPECT_EQ(sent_frames(50ms).size(), 1u) << "the resend did not wait for the inhibit time";
+  const auto frames = sent_frames(400ms);
+  ASSERT_EQ(frames.size(), 2u) << "the resend is sent once the inhibit time is over";
+  // Reception times at the spy carry delivery jitter; without the inhibit the gap would be ~0.
+  EXPECT_GE(frames[1].timestamp_ns - frames[0].timestamp_ns, 150'000'000);
+}
+
+TEST_F(Transmitter, RefusalsAreReportedWithTheirCause) {
+  gate_ = false;
+  make({.transmission_type = 1});
+  on_loop([this] { tx_->on_sync(); });
+  EXPECT_EQ(refused_.load(), 1);
+  EXPECT_EQ(sent_.load(), 0);
+  gate_ = true;
+  on_loop([this] { tx_->on_sync(); });
+  EXPECT_EQ(sent_.load(), 1);
+  EXPECT_EQ(refused_.load(), 1);
 }

@@ -168,6 +168,51 @@ TEST_F(SawCodecTest, CorrugatedModeSetsControlBit12) {
   EXPECT_EQ(status().control_word().count_mode(), msg::CORRUGATED_PIPE);
 }
 
+// 6020h bit 1 "wall-thickening active" (spec file 004's order): a level, set with the set values.
+TEST_F(SawCodecTest, WallThickeningIsControlBit1) {
+  auto sp = setpoint(true, 10.0, 0.0);
+  sp.wall_thickening(true);
+  codec_.apply(*codec_.validate(sp));
+  EXPECT_EQ(rpdo1()[0], 0x03);  // bit 0 program on, bit 1 wall-thickening
+  EXPECT_TRUE(status().control_word().wall_thickening());
+  sp.wall_thickening(false);
+  codec_.apply(*codec_.validate(sp));
+  EXPECT_EQ(rpdo1()[0], 0x01);
+  EXPECT_FALSE(status().control_word().wall_thickening());
+}
+
+// Saw 3.1 TPDO1 sub 3 is manufacturer-specific: a device maps 2110h there, the line names it
+// (device objects:); it arrives after 6030h and 6000h and is published by name.
+TEST_F(SawCodecTest, AnObjectBeyondTheTypedStatusIsPublishedByName) {
+  lb::profiles::Profile extended = profile_;
+  lb::profiles::ObjectDef second;
+  second.index = 0x2110;
+  second.name = "second_status_word";
+  second.type = lb::canopen::DataType::unsigned16;
+  extended.objects.push_back(second);
+  auto pdos = lb::profiles::default_pdos(extended, 3);
+  for (auto& p : pdos) {
+    if (p.name == "tpdo1") p.mapping.push_back(lb::canopen::PdoEntry::from_u32(0x21100010));
+  }
+  SawCodec codec(extended, pdos);
+  const std::array<std::uint8_t, 8> frame{0x01, 0x00, 0x10, 0x27, 0x00, 0x00, 0x34, 0x12};  // 2110h = 1234h
+  ASSERT_TRUE(codec.receive(lb::test::pdo_index(codec, "tpdo1"), frame));
+  msg::SawStatus s;
+  codec.fill(s);
+  EXPECT_EQ(s.counter_value(), 10000u);
+  ASSERT_EQ(s.other_values().size(), 1u);
+  const auto& v = s.other_values()[0];
+  EXPECT_EQ(v.name(), "second_status_word");
+  EXPECT_EQ(v.index(), 0x2110);
+  EXPECT_EQ(v.pdo(), "tpdo1");
+  EXPECT_EQ(v.raw(), 0x1234);
+  EXPECT_DOUBLE_EQ(v.value(), 4660.0);
+  // The line's own profile objects are no "other" values: the default codec has none.
+  msg::SawStatus plain;
+  codec_.fill(plain);
+  EXPECT_TRUE(plain.other_values().empty());
+}
+
 TEST_F(SawCodecTest, RoundsToTheNearestRawUnit) {
   // 12.125 % -> 1212.5 raw -> 1213 (half away from zero); 0.00004 m -> 0.4 raw -> 0.
   auto raw = codec_.validate(setpoint(true, 12.125, 0.00004));

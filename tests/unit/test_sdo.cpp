@@ -1017,5 +1017,111 @@ TEST_F(Sdo, BusSendFailureIsALocalError) {
   expect_quiet(*tap_);
 }
 
+// CiA 301: an expedited upload answer with e = 1, s = 0 carries "an unspecified number of bytes".
+// A typed read knows how many it needs: a 1- or 2-byte object so answered is read, whatever the
+// other bytes hold; an untyped upload gets all four.
+TEST_F(Sdo, ExpeditedUploadWithoutSizeIsReadByTheType) {
+  SdoClient& client = make_client();
+  start();
+  const auto serve = [&](std::uint8_t sub, Bytes answer) {
+    auto req = next_frame(*tap_);
+    ASSERT_TRUE(req);
+    ASSERT_EQ(hex(req->payload()), hex(Bytes{0x40, 0x00, 0x20, sub, 0, 0, 0, 0}));
+    ASSERT_TRUE(tap_->send(sdo_frame(0x587, std::move(answer))));
+  };
+  auto u8 = client.read_async(7, 0x2000, 1, DataType::unsigned8);
+  serve(1, {0x42, 0x00, 0x20, 0x01, 0x2A, 0xEE, 0xEE, 0xEE});
+  auto r8 = wait(u8);
+  ASSERT_TRUE(r8) << r8.error().message;
+  EXPECT_EQ(std::get<std::uint64_t>(*r8), 0x2Au);
+
+  auto i16 = client.read_async(7, 0x2000, 2, DataType::integer16);
+  serve(2, {0x42, 0x00, 0x20, 0x02, 0x18, 0xFC, 0x00, 0x00});  // -1000
+  auto r16 = wait(i16);
+  ASSERT_TRUE(r16) << r16.error().message;
+  EXPECT_EQ(std::get<std::int64_t>(*r16), -1000);
+
+  auto u32 = client.read_async(7, 0x2000, 3, DataType::unsigned32);
+  serve(3, {0x42, 0x00, 0x20, 0x03, 0x78, 0x56, 0x34, 0x12});
+  auto r32 = wait(u32);
+  ASSERT_TRUE(r32) << r32.error().message;
+  EXPECT_EQ(std::get<std::uint64_t>(*r32), 0x12345678u);
+
+  auto raw = client.upload_async(7, 0x2000, 4);
+  serve(4, {0x42, 0x00, 0x20, 0x04, 0x01, 0x02, 0x03, 0x04});
+  auto rr = wait(raw);
+  ASSERT_TRUE(rr) << rr.error().message;
+  EXPECT_EQ(hex(*rr), "01 02 03 04");
+  expect_quiet(*tap_);  // no abort anywhere
+}
+
+// An SDO frame is always 8 bytes (CiA 301). A shorter frame on 580h + n is not the server's answer:
+// it is ignored and the transfer goes on with the real answer.
+TEST_F(Sdo, ShortFrameOnTheResponseIdentifierIsIgnored) {
+  SdoClient& client = make_client();
+  start();
+  auto f = client.upload_async(7, 0x2000, 0);
+  expect_traffic(*tap_, {{0x607, {0x40, 0x00, 0x20, 0x00, 0, 0, 0, 0}}});
+  ASSERT_TRUE(tap_->send(sdo_frame(0x587, {0x4B, 0x00, 0x20, 0x00})));
+  ASSERT_TRUE(tap_->send(sdo_frame(0x587, {0x4B, 0x00, 0x20, 0x00, 0x11, 0x22, 0, 0})));
+  auto r = wait(f);
+  ASSERT_TRUE(r) << r.error().message;
+  EXPECT_EQ(hex(*r), "11 22");
+  expect_quiet(*tap_);  // the client sent no abort
+}
+
+// Service calls are limited per device: a request that finds the limit waiting is refused at once
+// (abort code 0: nothing went on the bus), and cancel_waiting answers the waiting ones at once.
+// The bridge's own requests (boot, polls) are never limited nor cancelled.
+TEST_F(Sdo, LimitedRequestsAreRefusedAtTheLimitAndCancelledOnDemand) {
+  SdoClient& client = make_client(2000ms);
+  start();
+  Recorder done;
+  std::mutex m;
+  std::vector<SdoClient::UploadResult> results(6, SdoClient::UploadResult(SdoError{}));
+  const auto limited = [&](int i) {
+    client.upload(9, 0x2000, static_cast<std::uint8_t>(i), [&, i](SdoClient::UploadResult r) {
+      {
+        std::lock_guard lock(m);
+        results[static_cast<std::size_t>(i)] = std::move(r);
+      }
+      done.add(i);
+    }, SdoClient::Limit{2});
+  };
+  limited(0);  // in flight at node 9, which never answers
+  ASSERT_TRUE(next_frame(*tap_));
+  limited(1);  // waits
+  auto own = client.upload_async(9, 0x2000, 9);  // the bridge's own: not counted, not cancelled
+  limited(2);  // waits: the limit is reached
+  limited(3);  // refused at once
+  auto seen = done.wait_for(1, 500ms);
+  ASSERT_EQ(seen, std::vector<int>{3});
+  {
+    std::lock_guard lock(m);
+    ASSERT_FALSE(results[3]);
+    EXPECT_EQ(results[3].error().abort_code, 0u);
+    EXPECT_TRUE(contains(results[3].error().message, "2 requests already wait for this device (limit 2)"))
+        << results[3].error().message;
+  }
+  client.cancel_waiting(9, "node 9 went offline");
+  seen = done.wait_for(3, 500ms);
+  ASSERT_EQ(seen.size(), 3u) << "the waiting requests were not answered at once";
+  {
+    std::lock_guard lock(m);
+    for (int i : {1, 2}) {
+      ASSERT_FALSE(results[static_cast<std::size_t>(i)]);
+      EXPECT_EQ(results[static_cast<std::size_t>(i)].error().abort_code, 0u);
+      EXPECT_TRUE(contains(results[static_cast<std::size_t>(i)].error().message, "not sent: node 9 went offline"));
+    }
+  }
+  // The one in flight and the bridge's own request time out as before.
+  auto r0 = done.wait_for(4, 4000ms);
+  ASSERT_EQ(r0.size(), 4u);
+  EXPECT_EQ(r0.back(), 0);
+  auto ro = wait(own, 5000ms);
+  ASSERT_FALSE(ro);
+  EXPECT_EQ(ro.error().abort_code, sdo_abort::timed_out);
+}
+
 }  // namespace
 }  // namespace lb::canopen

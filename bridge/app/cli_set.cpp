@@ -1,0 +1,193 @@
+#include "app/cli_set.hpp"
+
+#include <fmt/format.h>
+#include <fmt/ranges.h>
+
+#include <chrono>
+#include <condition_variable>
+#include <functional>
+#include <mutex>
+#include <thread>
+
+#include "app/cli_exit.hpp"
+#include "dds/topic_names.hpp"
+#include "msgs/commonPubSubTypes.h"
+#include "msgs/corrugatorPubSubTypes.h"
+#include "msgs/feederPubSubTypes.h"
+#include "msgs/pullerPubSubTypes.h"
+#include "msgs/sawPubSubTypes.h"
+
+namespace lb::app {
+
+namespace msg = linebridge_msgs::msg;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+// Latest value of something a DDS thread delivers, waited for by the main thread.
+template <class T>
+class Mailbox {
+ public:
+  void put(const T& v) {
+    {
+      std::lock_guard lock(m_);
+      value_ = v;
+    }
+    cv_.notify_all();
+  }
+  template <class Pred>
+  std::optional<T> wait(Clock::duration timeout, Pred pred) {
+    std::unique_lock lock(m_);
+    if (!cv_.wait_for(lock, timeout, [&] { return value_ && pred(*value_); })) return std::nullopt;
+    return value_;
+  }
+
+ private:
+  std::mutex m_;
+  std::condition_variable cv_;
+  std::optional<T> value_;
+};
+
+bool wait_until(Clock::duration timeout, const std::function<bool()>& cond) {
+  const auto end = Clock::now() + timeout;
+  while (!cond()) {
+    if (Clock::now() > end) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  return true;
+}
+
+// The common path: the device's current status (online), then the set value, then its answer.
+// make(status) builds the set value from what is in force; describe() says what was accepted.
+template <class StatusPS, class SetpointPS>
+int send_set_value(ddsl::Participant& dds, const std::string& line, const std::string& device, const char* setpoint_name,
+                   const char* result_name, const SetOptions& o, const std::function<typename SetpointPS::type(const typename StatusPS::type&)>& make,
+                   const std::function<std::string(const typename SetpointPS::type&)>& describe) {
+  using Status = typename StatusPS::type;
+  const auto status_topic = ddsl::topic_name(line, device, "status");
+  const auto result_topic = ddsl::topic_name(line, device, result_name);
+  const auto setpoint_topic = ddsl::topic_name(line, device, setpoint_name);
+  const auto timeout = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(o.timeout_s));
+
+  Mailbox<Status> status;
+  Mailbox<msg::SetpointResult> result;
+  auto writer = dds.writer<SetpointPS>(setpoint_topic, ddsl::QosKind::command);
+  if (!writer) return fmt::print(stderr, "{}\n", writer.error().message), kExitNoAnswer;
+  auto status_sub = dds.subscribe_scoped<StatusPS>(status_topic, ddsl::QosKind::state,
+                                                   [&](const Status& s, const auto&) { status.put(s); });
+  auto result_sub = dds.subscribe_scoped<msg::SetpointResultPubSubType>(
+      result_topic, ddsl::QosKind::reply, [&](const msg::SetpointResult& r, const auto&) { result.put(r); });
+  if (!status_sub || !result_sub) {
+    return fmt::print(stderr, "{}\n", !status_sub ? status_sub.error().message : result_sub.error().message), kExitNoAnswer;
+  }
+  // Fields not given keep the value in force, which the status topic reports; wait for the
+  // device to be online so the bridge will not refuse the set value as offline.
+  auto current = status.wait(timeout, [](const Status& s) { return s.health().online(); });
+  if (!current) {
+    fmt::print(stderr, "{}: no online status on {} within {} s (is the bridge running and the device up?)\n", device,
+               status_topic, o.timeout_s);
+    return kExitNoAnswer;
+  }
+  if (!wait_until(timeout, [&] { return writer->matched() > 0 && dds.matched_writers(result_topic) > 0; })) {
+    fmt::print(stderr, "{}: the bridge does not subscribe {}\n", device, setpoint_topic);
+    return kExitNoAnswer;
+  }
+  auto sp = make(*current);
+  sp.request_id(static_cast<std::uint64_t>(ddsl::now_ns()));
+  writer->write(sp);
+  auto reply = result.wait(timeout, [&](const msg::SetpointResult& r) { return r.request_id() == sp.request_id(); });
+  if (!reply) return fmt::print(stderr, "{}: no answer from the bridge within {} s\n", device, o.timeout_s), kExitNoAnswer;
+  if (!reply->accepted()) return fmt::print(stderr, "{}: set value refused: {}\n", device, reply->reason()), kExitRefused;
+  fmt::print("{}: accepted: {}\n", device, describe(sp));
+  return kExitOk;
+}
+
+bool on(const std::optional<std::string>& v, bool in_force, const char* on_word = "on") {
+  return v ? *v == on_word : in_force;
+}
+
+int set_saw(ddsl::Participant& dds, const std::string& line, const std::string& device, const SetOptions& o) {
+  return send_set_value<msg::SawStatusPubSubType, msg::SawSetpointPubSubType>(
+      dds, line, device, "setpoint", "setpoint_result", o,
+      [&o](const msg::SawStatus& s) {
+        msg::SawSetpoint sp;
+        sp.saw_program_on(on(o.program, s.control_word().saw_program_on()));
+        sp.wall_thickening(on(o.wall_thickening, s.control_word().wall_thickening()));
+        sp.count_mode(o.count_mode ? (*o.count_mode == "corrugated" ? msg::CORRUGATED_PIPE : msg::SMOOTH_PIPE)
+                                   : s.control_word().count_mode());
+        sp.sync_speed_percent(o.sync_speed_percent.value_or(s.sync_speed_set_percent()));
+        sp.product_length_m(o.product_length_m.value_or(s.product_length_set_m()));
+        return sp;
+      },
+      [](const msg::SawSetpoint& sp) {
+        return fmt::format("program {}, wall-thickening {}, {} pipe, sync speed {} %, product length {} m",
+                           sp.saw_program_on() ? "on" : "off", sp.wall_thickening() ? "on" : "off",
+                           sp.count_mode() == msg::CORRUGATED_PIPE ? "corrugated" : "smooth", sp.sync_speed_percent(),
+                           sp.product_length_m());
+      });
+}
+
+template <class StatusPS, class SetpointPS>
+int set_drive(ddsl::Participant& dds, const std::string& line, const std::string& device, const SetOptions& o) {
+  return send_set_value<StatusPS, SetpointPS>(
+      dds, line, device, "setpoint", "setpoint_result", o,
+      [&o](const typename StatusPS::type& s) {
+        typename SetpointPS::type sp;
+        sp.extruder_running(on(o.extruder, s.control_word().extruder_running(), "running"));
+        sp.speed_set_percent(o.speed_percent.value_or(s.speed_set_percent()));
+        return sp;
+      },
+      [](const typename SetpointPS::type& sp) {
+        return fmt::format("extruder {}, speed {} %", sp.extruder_running() ? "running" : "stopped", sp.speed_set_percent());
+      });
+}
+
+int set_feeder(ddsl::Participant& dds, const std::string& line, const std::string& device, const SetOptions& o) {
+  return send_set_value<msg::FeederStatusPubSubType, msg::LoomSetpointPubSubType>(
+      dds, line, device, "loom", "loom_result", o,
+      [&o](const msg::FeederStatus& s) {
+        msg::LoomSetpoint sp;
+        if (o.loom_status) {
+          // RPDO2 carries the loom status with the weft filling: what is not given stays in force.
+          sp.loom_status(*o.loom_status);
+          sp.maximum_speed_per_min(static_cast<std::uint16_t>(o.maximum_speed_per_min.value_or(s.loom().maximum_speed_per_min())));
+          sp.loom_width_m(o.loom_width_m.value_or(s.loom().loom_width_m()));
+        }
+        if (o.trigger_signal) sp.trigger_signal(*o.trigger_signal);
+        for (auto p : o.picks) sp.pick_insertion().push_back(static_cast<std::uint8_t>(p));
+        for (auto v : o.outputs) sp.digital_outputs().push_back(static_cast<std::uint8_t>(v));
+        return sp;
+      },
+      [](const msg::LoomSetpoint& sp) {
+        std::string out;
+        if (!sp.loom_status().empty()) {
+          out += fmt::format("loom {} at {} 1/min, width {} m; ", sp.loom_status(), sp.maximum_speed_per_min(), sp.loom_width_m());
+        }
+        if (!sp.trigger_signal().empty()) out += "trigger " + sp.trigger_signal() + "; ";
+        if (!sp.pick_insertion().empty()) out += fmt::format("picks [{:02X}]; ", fmt::join(sp.pick_insertion(), " "));
+        if (!sp.digital_outputs().empty()) out += fmt::format("outputs [{:02X}]; ", fmt::join(sp.digital_outputs(), " "));
+        return out.substr(0, out.size() - 2);
+      });
+}
+
+}  // namespace
+
+std::string set_options_of(const std::string& device_type) {
+  if (device_type == "saw") return "--program, --wall-thickening, --sync-speed-percent, --product-length-m, --count-mode";
+  if (device_type == "feeder") return "--loom-status, --maximum-speed, --loom-width-m, --trigger-signal, --picks, --outputs";
+  return "--extruder, --speed-percent";
+}
+
+int run_set(ddsl::Participant& dds, const std::string& line, const std::string& device, const std::string& device_type,
+            const SetOptions& o) {
+  if (device_type == "saw") return set_saw(dds, line, device, o);
+  if (device_type == "puller") return set_drive<msg::PullerStatusPubSubType, msg::PullerSetpointPubSubType>(dds, line, device, o);
+  if (device_type == "corrugator") {
+    return set_drive<msg::CorrugatorStatusPubSubType, msg::CorrugatorSetpointPubSubType>(dds, line, device, o);
+  }
+  if (device_type == "feeder") return set_feeder(dds, line, device, o);
+  fmt::print(stderr, "{}: no set values for a {}\n", device, device_type);
+  return kExitUsage;
+}
+
+}  // namespace lb::app

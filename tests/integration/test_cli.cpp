@@ -1,0 +1,187 @@
+// linebridge-cli for every device type, as an integrator uses it: the real CLI process against
+// the real bridge and simulator. Readable status of pullers, corrugators and feeder boxes (names,
+// not numbers), their set values, a feeder box's topics and typed services, exit codes that tell
+// "refused" (1) from "no answer" (3), and the line file from LINEBRIDGE_CONFIG or --config
+// anywhere on the command line.
+#include <gtest/gtest.h>
+#include <sys/wait.h>
+
+#include <chrono>
+#include <cstdlib>
+#include <thread>
+
+#include "msgs/corrugatorPubSubTypes.h"
+#include "msgs/feederPubSubTypes.h"
+#include "msgs/pullerPubSubTypes.h"
+#include "support/line_harness.hpp"
+
+namespace msg = linebridge_msgs::msg;
+using namespace std::chrono_literals;
+using lb::ddsl::QosKind;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+struct CliRun {
+  int exit_code;
+  std::string output;  // stdout and stderr
+};
+
+int runs = 0;
+
+CliRun run_cli(std::vector<std::string> args, std::chrono::seconds limit = 20s) {
+  args.insert(args.begin(), LB_BIN_CLI);
+  lb::test::ChildProcess p(args, ::testing::TempDir() + "/cli_" + std::to_string(::getpid()) + "_" + std::to_string(++runs) + ".log");
+  const auto deadline = Clock::now() + limit;
+  while (p.running() && Clock::now() < deadline) std::this_thread::sleep_for(20ms);
+  const int status = p.stop();
+  return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, p.log()};
+}
+
+bool has(const CliRun& r, const std::string& text) { return r.output.find(text) != std::string::npos; }
+
+template <class Status>
+bool operational(const Status& s) {
+  return s.health().online() && s.health().nmt_state() == msg::NMT_OPERATIONAL;
+}
+
+class Cli : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
+    line_ = std::make_unique<lb::test::LineHarness>("clitest", 33);
+    line_->start("  - {name: saw1, bus: b, node_id: 3, profile: cia420-4, version: '3.1'}\n"
+                 "  - {name: puller1, bus: b, node_id: 6, profile: cia420-2, version: '1.0'}\n"
+                 "  - {name: corr1, bus: b, node_id: 7, profile: cia420-3, version: '3.1'}\n"
+                 "  - {name: puller3, bus: b, node_id: 8, profile: cia420-2, version: '3.0-status'}\n"
+                 "  - {name: box1, bus: b, node_id: 10, profile: cia414-2, version: '1.1'}\n");
+    config_ = ::testing::TempDir() + "/clitest_bridge_" + std::to_string(::getpid()) + ".yaml";
+    ASSERT_TRUE(puller_.subscribe(line_->dds(), line_->topic("puller1", "status"), QosKind::state));
+    ASSERT_TRUE(corr_.subscribe(line_->dds(), line_->topic("corr1", "status"), QosKind::state));
+    ASSERT_TRUE(box_.subscribe(line_->dds(), line_->topic("box1", "status"), QosKind::state));
+    ASSERT_TRUE(puller_.wait_last(30s, operational<msg::PullerStatus>)) << line_->logs();
+    ASSERT_TRUE(corr_.wait_last(30s, operational<msg::CorrugatorStatus>)) << line_->logs();
+    ASSERT_TRUE(box_.wait_last(30s, [](const msg::FeederStatus& s) { return operational(s) && s.feeder_count_read(); }))
+        << line_->logs();
+  }
+  CliRun cli(std::vector<std::string> args, std::chrono::seconds limit = 20s) {
+    args.insert(args.begin(), {"--config", config_});
+    return run_cli(std::move(args), limit);
+  }
+
+  std::unique_ptr<lb::test::LineHarness> line_;
+  std::string config_;
+  lb::test::Collector<msg::PullerStatusPubSubType> puller_;
+  lb::test::Collector<msg::CorrugatorStatusPubSubType> corr_;
+  lb::test::Collector<msg::FeederStatusPubSubType> box_;
+};
+
+}  // namespace
+
+TEST_F(Cli, EchoShowsEveryDeviceTypeReadablyWithNames) {
+  const auto puller = cli({"echo", "puller1", "status", "--duration", "2"});
+  EXPECT_EQ(puller.exit_code, 0) << puller.output;
+  EXPECT_TRUE(has(puller, "puller1 ")) << puller.output;
+  EXPECT_TRUE(has(puller, "operational     online")) << puller.output;
+  EXPECT_TRUE(has(puller, "| set: extruder stopped, speed 0.00 %")) << puller.output;
+  EXPECT_TRUE(has(puller, "[ready")) << "status bits by name\n" << puller.output;
+  const auto puller3 = cli({"echo", "puller3", "--duration", "2"});
+  EXPECT_TRUE(has(puller3, "speed set mode remote")) << "an enumeration by name\n" << puller3.output;
+  const auto corr = cli({"echo", "corr1", "status", "--duration", "2"});
+  EXPECT_EQ(corr.exit_code, 0) << corr.output;
+  // Status bits by name: the idle corrugator is ready (6030h bit 1); "master-extruder enabled"
+  // (bit 7) is not expected here, the simulated drive sets it only while running.
+  EXPECT_TRUE(has(corr, "corr1 ") && has(corr, "[ready]")) << corr.output;
+  const auto box = cli({"echo", "box1", "status", "--duration", "3"});
+  EXPECT_EQ(box.exit_code, 0) << box.output;
+  EXPECT_TRUE(has(box, "4 feeder(s)")) << box.output;
+  EXPECT_TRUE(has(box, "feeder   1: operational_mode | condition no_error")) << "codes by name\n" << box.output;
+  EXPECT_TRUE(has(box, "yarn-break active")) << box.output;
+  const auto wrong = cli({"echo", "puller1", "cut", "--duration", "1"});
+  EXPECT_EQ(wrong.exit_code, 2) << wrong.output;
+  EXPECT_TRUE(has(wrong, "a puller has no topic 'cut' (status, setpoint_result, info, emergency)")) << wrong.output;
+}
+
+TEST_F(Cli, SetTakesEachDevicesSetValues) {
+  auto r = cli({"set", "puller1", "--extruder", "running", "--speed-percent", "25"});
+  EXPECT_EQ(r.exit_code, 0) << r.output << line_->logs();
+  EXPECT_TRUE(has(r, "puller1: accepted: extruder running, speed 25 %")) << r.output;
+  EXPECT_TRUE(puller_.wait_last(5s, [](const msg::PullerStatus& s) {
+    return s.control_word().extruder_running() && std::abs(s.speed_set_percent() - 25.0) < 1e-9;
+  }));
+  r = cli({"set", "corr1", "--speed-percent", "-10"});  // extruder not given: stays as in force
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(corr_.wait_last(5s, [](const msg::CorrugatorStatus& s) { return std::abs(s.speed_set_percent() + 10.0) < 1e-9; }));
+  r = cli({"set", "puller1", "--speed-percent", "120"});
+  EXPECT_EQ(r.exit_code, 1) << "refused by the bridge\n" << r.output;
+  EXPECT_TRUE(has(r, "set value refused")) << r.output;
+  r = cli({"set", "puller1", "--sync-speed-percent", "10"});
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_TRUE(has(r, "--sync-speed-percent is not a set value of a puller (--extruder, --speed-percent)")) << r.output;
+  r = cli({"set", "saw1", "--wall-thickening", "on", "--program", "on"});
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(has(r, "wall-thickening on")) << r.output;
+  r = cli({"press", "puller1", "motor_start"});
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(has(r, "motor_start: on the bus in ")) << r.output;
+}
+
+TEST_F(Cli, FeederTopicsServicesAndLoomPlay) {
+  // The loom runs: the box sends an unwinding event per winding.
+  lb::test::ChildProcess unwinding({LB_BIN_CLI, "echo", "box1", "unwinding", "--config", config_, "--duration", "6"},
+                                   ::testing::TempDir() + "/cli_unwinding_" + std::to_string(::getpid()) + ".log");
+  lb::test::ChildProcess errors({LB_BIN_CLI, "echo", "box1", "feeder_error", "--config", config_, "--duration", "6"},
+                                ::testing::TempDir() + "/cli_feeder_error_" + std::to_string(::getpid()) + ".log");
+  std::this_thread::sleep_for(1500ms);  // both matched
+  auto r = cli({"set", "box1", "--loom-status", "start_advice", "--maximum-speed", "600", "--loom-width-m", "1.9"});
+  EXPECT_EQ(r.exit_code, 0) << r.output << line_->logs();
+  EXPECT_TRUE(has(r, "loom start_advice at 600 1/min, width 1.9 m")) << r.output;
+  r = cli({"feeder-command", "box1", "2", "led_on"});
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(has(r, "feeder 2 led_on written (5h)")) << r.output;
+  r = cli({"feeder-command", "box1", "2", "fly"});
+  EXPECT_EQ(r.exit_code, 1) << r.output;
+  EXPECT_TRUE(has(r, "refused: unknown feeder command 'fly'")) << r.output;
+  r = cli({"feeder-functions", "box1", "1", "yarn_break_sensor=not_active"});
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  // Feeder 2, yarn broken (6007h 04h), through the simulator's fault injection 2001h.
+  r = cli({"sdo-write", "box1", "0x2001", "0", "UNSIGNED16", "0x0402"});
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  r = cli({"weft-insertion-type", "box1", "air_jet"});
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  r = cli({"press", "box1", "manual_cut"});
+  EXPECT_EQ(r.exit_code, 1) << r.output;  // a box has no momentary commands: refused by the bridge
+  r = cli({"feeder-command", "puller1", "1", "reset"});
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  while (unwinding.running() || errors.running()) std::this_thread::sleep_for(50ms);
+  EXPECT_NE(unwinding.log().find("box1 "), std::string::npos);
+  EXPECT_NE(unwinding.log().find("UNWINDING feeder "), std::string::npos) << unwinding.log();
+  EXPECT_NE(errors.log().find("FEEDER 2 IN ERROR (bitmap 00000002h): yarn_broken"), std::string::npos) << errors.log();
+}
+
+TEST_F(Cli, LineFileFromTheEnvironmentOrAnywhereOnTheCommandLine) {
+  ::setenv("LINEBRIDGE_CONFIG", config_.c_str(), 1);
+  auto r = run_cli({"list"});
+  ::unsetenv("LINEBRIDGE_CONFIG");
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(has(r, "device box1 on b node 10: feeder cia414-2@1.1")) << r.output;
+  r = run_cli({"get", "puller1", "configuration_word", "--config", config_});
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(has(r, "configuration_word = 1")) << r.output;
+}
+
+// Nobody answers: exit 3, not the exit code of a refusal; echo says it waits for a bridge.
+TEST(CliWithoutBridge, NoAnswerIsExitThreeAndEchoSaysItWaits) {
+  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
+  const std::string config = ::testing::TempDir() + "/cli_nobridge_" + std::to_string(::getpid()) + ".yaml";
+  std::ofstream(config) << "line: nobody\ndds: {domain: 34}\nbuses:\n  - {name: b, interface: 'virtual:nobody'}\n"
+                           "devices:\n  - {name: saw1, bus: b, node_id: 3, profile: cia420-4, version: '3.1'}\n";
+  auto r = run_cli({"press", "saw1", "manual_cut", "--timeout", "2", "--config", config});
+  EXPECT_EQ(r.exit_code, 3) << r.output;
+  EXPECT_TRUE(has(r, "no answer: ")) << r.output;
+  r = run_cli({"set", "saw1", "--program", "on", "--timeout", "2", "--config", config});
+  EXPECT_EQ(r.exit_code, 3) << r.output;
+  r = run_cli({"echo", "saw1", "--duration", "5", "--config", config});
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(has(r, "waiting for the bridge: nothing publishes rt/nobody/saw1/status")) << r.output;
+}

@@ -1,0 +1,166 @@
+// What the bridge says about a device is what the device says (CiA 301), with the real bridge and
+// simulator: active errors after an EMCY 0000h that left errors (read from 1003h where the device
+// has it, "uncertain" where it has not), a boot-up that clears them, errors raised before the
+// bridge started; and SDO requests that cannot succeed refused at once with the reason.
+// The simulator's error simulation 2003h raises (code) and clears (bit 31 | code) errors; expected
+// codes and registers are written here by hand from CiA 301.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <thread>
+
+#include "msgs/sawPubSubTypes.h"
+#include "support/line_harness.hpp"
+
+namespace msg = linebridge_msgs::msg;
+namespace srv = linebridge_msgs::srv;
+using namespace std::chrono_literals;
+using lb::ddsl::QosKind;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+constexpr std::uint16_t kErrorSimulation = 0x2003;
+constexpr std::uint32_t kClear = 0x8000'0000;
+constexpr std::uint16_t kTemperature = 0x4210, kVoltage = 0x3120;
+
+bool operational(const msg::SawStatus& s) { return s.health().online() && s.health().nmt_state() == msg::NMT_OPERATIONAL; }
+
+std::string saw(const std::string& name, int node, const std::string& extra = "") {
+  return "  - {name: " + name + ", bus: b, node_id: " + std::to_string(node) +
+         ", profile: cia420-4, version: '3.1', heartbeat_timeout_ms: 400" + extra + "}\n";
+}
+
+auto errors_are(std::vector<std::uint16_t> codes, bool known) {
+  return [codes, known](const msg::SawStatus& s) {
+    return s.health().active_errors() == codes && s.health().active_errors_known() == known;
+  };
+}
+
+}  // namespace
+
+// CiA 301: EMCY 0000h clears the list only when its error register is 0. The device with 1003h
+// says which errors remain; the one without cannot, and the status says the list is uncertain.
+TEST(DeviceTruth, ErrorResetThatLeavesErrorsIsResolvedFrom1003hOrFlaggedUncertain) {
+  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
+  lb::test::LineHarness line("truth", 23);
+  // saw2 is a device without 1003h: the bridge's file does not know it (it cannot), the simulator's does.
+  line.start(saw("saw1", 3) + saw("saw2", 4),
+             saw("saw1", 3) + saw("saw2", 4, ", simulation: {pre_defined_error_field: false}"));
+  lb::test::Collector<msg::SawStatusPubSubType> saw1, saw2;
+  lb::test::Collector<msg::EmergencyPubSubType> emcy1;
+  ASSERT_TRUE(saw1.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
+  ASSERT_TRUE(saw2.subscribe(line.dds(), line.topic("saw2", "status"), QosKind::state));
+  ASSERT_TRUE(emcy1.subscribe(line.dds(), line.topic("saw1", "emergency"), QosKind::event));
+  // After their boot the bridge read 1001h = 0: nothing active, and that is known.
+  ASSERT_TRUE(saw1.wait_last(30s, [](const auto& s) { return operational(s) && s.health().active_errors_known(); })) << line.logs();
+  ASSERT_TRUE(saw2.wait_last(30s, [](const auto& s) { return operational(s) && s.health().active_errors_known(); })) << line.logs();
+
+  for (const char* dev : {"saw1", "saw2"}) {
+    ASSERT_TRUE(line.sdo_write(dev, kErrorSimulation, 0, "UNSIGNED32", kTemperature).success());
+    ASSERT_TRUE(line.sdo_write(dev, kErrorSimulation, 0, "UNSIGNED32", kVoltage).success());
+  }
+  ASSERT_TRUE(saw1.wait_last(5s, errors_are({kTemperature, kVoltage}, true))) << line.logs();
+  ASSERT_TRUE(saw2.wait_last(5s, errors_are({kTemperature, kVoltage}, true))) << line.logs();
+  // Temperature cleared, voltage remains: EMCY 0000h with error register 05h (generic, voltage).
+  for (const char* dev : {"saw1", "saw2"}) {
+    ASSERT_TRUE(line.sdo_write(dev, kErrorSimulation, 0, "UNSIGNED32", kClear | kTemperature).success());
+  }
+  ASSERT_TRUE(emcy1.wait(5s, [](const auto& v) {
+    return !v.empty() && v.back().error_code() == 0 && v.back().error_register() == 0x05;
+  })) << "the simulator sends the error reset with the register that remains";
+  EXPECT_TRUE(saw1.wait_last(5s, errors_are({kVoltage}, true))) << "1003h lists only the voltage error\n" << line.logs();
+  EXPECT_EQ(saw1.samples().back().health().error_register(), 0x05);
+  EXPECT_TRUE(saw2.wait_last(5s, [](const msg::SawStatus& s) {
+    return !s.health().active_errors_known() && s.health().active_errors().size() == 2 &&
+           s.health().active_errors_note().find("no 1003h") != std::string::npos;
+  })) << "without 1003h the list must not be cleared, and must say it is uncertain\n"
+      << line.logs();
+  // The last one cleared: 0000h with register 0 clears everything, certainly.
+  for (const char* dev : {"saw1", "saw2"}) {
+    ASSERT_TRUE(line.sdo_write(dev, kErrorSimulation, 0, "UNSIGNED32", kClear | kVoltage).success());
+  }
+  EXPECT_TRUE(saw1.wait_last(5s, errors_are({}, true))) << line.logs();
+  EXPECT_TRUE(saw2.wait_last(5s, errors_are({}, true))) << line.logs();
+}
+
+// A boot-up: the device starts without active errors, whatever it reported before.
+TEST(DeviceTruth, BootUpClearsTheActiveErrors) {
+  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
+  lb::test::LineHarness line("truth2", 24);
+  line.start(saw("saw1", 3, ", simulation: {pre_defined_error_field: false}"));
+  lb::test::Collector<msg::SawStatusPubSubType> status;
+  ASSERT_TRUE(status.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
+  ASSERT_TRUE(status.wait_last(30s, operational)) << line.logs();
+  ASSERT_TRUE(line.sdo_write("saw1", kErrorSimulation, 0, "UNSIGNED32", kTemperature).success());
+  ASSERT_TRUE(status.wait_last(5s, errors_are({kTemperature}, true))) << line.logs();
+  // A boot-up message from the device (700h + 3, data 00h), as after a power cycle. The bridge
+  // boots it again; its 1001h (01h) then makes the list uncertain again (no 1003h to name it).
+  const auto before = status.size();
+  ASSERT_TRUE(line.spy().send(lb::can::make_frame(0x703, {0x00})));
+  EXPECT_TRUE(status.wait(5s, [before](const auto& v) {
+    for (std::size_t i = before; i < v.size(); ++i) {
+      if (v[i].health().active_errors().empty() && v[i].health().active_errors_known()) return true;
+    }
+    return false;
+  })) << "the boot-up must clear the list\n"
+      << line.logs();
+}
+
+// Errors raised before the bridge started are in its status from the first boot on: it reads them.
+TEST(DeviceTruth, ErrorsRaisedBeforeTheBridgeStartedAreReadAtBoot) {
+  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
+  lb::test::LineHarness line("truth3", 25);
+  line.start(saw("saw1", 3));
+  lb::test::Collector<msg::SawStatusPubSubType> status;
+  ASSERT_TRUE(status.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
+  ASSERT_TRUE(status.wait_last(30s, operational)) << line.logs();
+  // The bridge goes away; meanwhile the device raises an error nobody hears.
+  ASSERT_EQ(line.bridge().stop(), 0);
+  // 2003h = 5000h (device hardware), a raw expedited SDO download from the test's bus member.
+  ASSERT_TRUE(line.spy().send(lb::can::make_frame(0x603, {0x23, 0x03, 0x20, 0x00, 0x00, 0x50, 0x00, 0x00})));
+  std::this_thread::sleep_for(200ms);
+  const auto before = status.size();
+  line.start_bridge();
+  EXPECT_TRUE(status.wait(30s, [before](const auto& v) {
+    for (std::size_t i = before; i < v.size(); ++i) {
+      const auto& h = v[i].health();
+      if (h.active_errors() == std::vector<std::uint16_t>{0x5000} && h.active_errors_known() && h.error_register() == 0x01) {
+        return true;
+      }
+    }
+    return false;
+  })) << line.logs();
+}
+
+// SDO requests that cannot succeed are answered at once with the reason, not after a timeout.
+TEST(DeviceTruth, SdoRequestsThatCannotSucceedAreRefusedAtOnce) {
+  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
+  lb::test::LineHarness line("truth4", 26);
+  // saw2 is not on the bus at all; sdo_timeout_ms long, so a queued request would wait 3 s.
+  line.start(saw("saw1", 3) + saw("saw2", 4), saw("saw1", 3), ", sdo_timeout_ms: 3000");
+  lb::test::Collector<msg::SawStatusPubSubType> status;
+  ASSERT_TRUE(status.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
+  ASSERT_TRUE(status.wait_last(30s, operational)) << line.logs();
+  (void)line.sdo_read("saw1", 0x1000, 0, "UNSIGNED32");  // the client is matched
+
+  auto t0 = Clock::now();
+  auto r = line.sdo_read("saw2", 0x1000, 0, "UNSIGNED32");
+  EXPECT_FALSE(r.success());
+  EXPECT_NE(r.message().find("offline"), std::string::npos) << r.message();
+  EXPECT_EQ(r.abort_code(), 0u);
+  EXPECT_LT(Clock::now() - t0, 1500ms) << "refused only after waiting";
+
+  ASSERT_TRUE(line.nmt("saw1", srv::NMT_STOP).success());
+  ASSERT_TRUE(status.wait_last(5s, [](const msg::SawStatus& s) { return s.health().nmt_state() == msg::NMT_STOPPED; }));
+  t0 = Clock::now();
+  r = line.sdo_read("saw1", 0x1000, 0, "UNSIGNED32");
+  EXPECT_FALSE(r.success());
+  EXPECT_NE(r.message().find("stopped"), std::string::npos) << r.message();
+  EXPECT_LT(Clock::now() - t0, 1500ms);
+  ASSERT_TRUE(line.nmt("saw1", srv::NMT_ENTER_PRE_OPERATIONAL).success());
+  ASSERT_TRUE(status.wait_last(5s, [](const msg::SawStatus& s) { return s.health().nmt_state() == msg::NMT_PRE_OPERATIONAL; }));
+  r = line.sdo_read("saw1", 0x1000, 0, "UNSIGNED32");
+  EXPECT_TRUE(r.success()) << "a pre-operational device answers SDO: " << r.message();
+  EXPECT_EQ(r.value().unsigned_value(), 0x01A4u);
+}
