@@ -10,7 +10,11 @@
 #include <optional>
 #include <thread>
 
+#include "app/arguments.hpp"
+#include "app/bus_watch.hpp"
 #include "app/dds_options.hpp"
+#include "app/eds_tool.hpp"
+#include "app/line_topics.hpp"
 #include "app/line_config_source.hpp"
 #include "app/run_until_signal.hpp"
 #include "app/cli_services.hpp"
@@ -177,17 +181,20 @@ int run_echo(lb::ddsl::Participant& dds, const std::string& line, const std::str
                                                       });
   }
   if (!sub) return fmt::print(stderr, "{}\n", sub.error().message), 1;
-  lb::app::run_until_signal(std::chrono::milliseconds(static_cast<long>(o.duration_s * 1000)));
+  lb::app::run_until_signal(lb::app::duration_ms(o.duration_s));
   return 0;
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
+  namespace app = lb::app;
   CLI::App cli{"linebridge-cli: read and set the devices of a line over DDS"};
+  app::add_conventions(cli, "linebridge-cli");
   cli.require_subcommand(1);
   std::string config_path;
-  cli.add_option("-c,--config", config_path, "line configuration (YAML); default: the built-in demo line");
+  cli.add_option("-c,--config", config_path, "line configuration (YAML); default: the built-in demo line")
+      ->check(app::non_empty_path());
   std::string identity_dir;
   cli.add_option("--identity", identity_dir,
                  "secured line: this client's identity folder (cert.pem, key.pem, permissions.p7s; launch_scripts/pki.sh)")
@@ -201,9 +208,10 @@ int main(int argc, char** argv) {
       ->check(CLI::IsMember({"status", "cut", "setpoint_result", "info", "emergency", "diagnostics"}))
       ->capture_default_str();
   echo_cmd->add_option("--rate", echo.rate_hz, "status lines per second at most (bit changes always show)")
-      ->check(CLI::PositiveNumber)
+      ->check(app::positive_at_most(1000))
       ->capture_default_str();
-  echo_cmd->add_option("-d,--duration", echo.duration_s, "stop after this many seconds");
+  echo_cmd->add_option("-d,--duration", echo.duration_s, "stop after this many seconds (default 0: until Ctrl-C)")
+      ->check(app::duration_seconds());
 
   SetOptions set;
   auto* set_cmd = cli.add_subcommand("set", "send a saw set value; fields not given keep their value in force");
@@ -212,7 +220,9 @@ int main(int argc, char** argv) {
   set_cmd->add_option("--sync-speed-percent", set.sync_speed_percent, "saw sync speed set value, 0..100 %");
   set_cmd->add_option("--product-length-m", set.product_length_m, "product length set value in metres");
   set_cmd->add_option("--count-mode", set.count_mode, "smooth or corrugated pipe")->check(CLI::IsMember({"smooth", "corrugated"}));
-  set_cmd->add_option("--timeout", set.timeout_s, "seconds to wait for the bridge")->capture_default_str();
+  set_cmd->add_option("--timeout", set.timeout_s, "seconds to wait for the bridge")
+      ->check(app::positive_at_most(3600))
+      ->capture_default_str();
 
   auto* list_cmd = cli.add_subcommand("list", "list the line's buses and devices");
 
@@ -255,15 +265,50 @@ int main(int argc, char** argv) {
   press_cmd->add_option("device", device, "device name")->required();
   press_cmd->add_option("command", command_name)->required();
   for (auto* c : {nmt_cmd, read_cmd, write_cmd, get_cmd, put_cmd, press_cmd, identity_cmd}) {
-    c->add_option("--timeout", timeout_s, "seconds to wait for the bridge")->capture_default_str();
+    c->add_option("--timeout", timeout_s, "seconds to wait for the bridge")
+        ->check(app::positive_at_most(3600))
+        ->capture_default_str();
   }
-  CLI11_PARSE(cli, argc, argv);
+
+  std::string bus_name;
+  app::WatchOptions watch;
+  auto* candump_cmd = cli.add_subcommand(
+      "candump", "print the raw frames of a bus of the line (virtual buses too), listen-only, as candump -l writes them");
+  candump_cmd->add_option("bus", bus_name, "bus name in the line file")->required();
+  candump_cmd->add_option("-d,--duration", watch.duration_s, "stop after this many seconds (default 0: until Ctrl-C)")
+      ->check(app::duration_seconds());
+  candump_cmd->add_option("-n,--count", watch.count, "stop after this many frames");
+  candump_cmd->add_flag("--log", watch.log_only, "bare log lines (for a file canplayer replays), without what each frame is");
+
+  app::TopicsOptions topics;
+  auto* topics_cmd = cli.add_subcommand("topics", "list the DDS topics and types of the running line, as discovery reports them");
+  topics_cmd->add_option("--wait", topics.wait_s, "seconds of discovery before the list is printed")
+      ->check(app::positive_at_most(600))
+      ->capture_default_str();
+  topics_cmd->add_flag("--all", topics.all, "every topic of the DDS domain, not only this line's");
+
+  app::EdsOptions eds;
+  auto* eds_cmd = cli.add_subcommand(
+      "eds", "read a device's EDS or DCF file (CiA 306), check it against a profile and print the line-file entries it implies");
+  eds_cmd->add_option("file", eds.file, "the EDS or DCF file")->required()->check(CLI::ExistingFile);
+  eds_cmd->add_option("--device", eds.device, "check it for this device of the line (its profile, node-ID and PDOs)");
+  eds_cmd->add_option("--profile", eds.profile, "or against this profile id (e.g. cia420-4) ...");
+  eds_cmd->add_option("--profile-version", eds.profile_version, "... and version (e.g. 3.1)");
+  eds_cmd->add_option("--node-id", eds.node_id, "node-ID for $NODEID (default: a DCF's, else the device's)")->check(CLI::Range(1, 127));
+  if (const int code = app::parse(cli, argc, argv); code >= 0) return code;
   spdlog::set_level(spdlog::level::warn);
 
   lb::app::block_stop_signals();
   const auto registry = lb::profiles::ProfileRegistry::builtin();
   auto config = lb::app::load_config(config_path, registry);
   if (!config) return fmt::print(stderr, "{}\n", config.error().message), 2;
+  if (candump_cmd->parsed()) return app::watch_bus(*config, bus_name, watch);
+  if (eds_cmd->parsed()) return app::run_eds(*config, registry, eds);
+  if (topics_cmd->parsed()) {
+    auto options = app::client_participant_options(*config, "linebridge-cli topics", identity_dir);
+    if (!options) return fmt::print(stderr, "{}\n", options.error().message), app::kExitUsage;
+    return app::list_topics(*config, *options, topics);
+  }
   if (list_cmd->parsed()) {
     for (const auto& b : config->buses) fmt::print("bus {} on {} ({})\n", b.name, b.interface, lb::profiles::to_string(b.role));
     for (const auto& d : config->devices) {

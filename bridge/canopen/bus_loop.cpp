@@ -121,6 +121,7 @@ void BusLoop::run() {
   std::array<epoll_event, 16> events{};
   for (;;) {
     const int n = ::epoll_wait(epoll_fd_, events.data(), static_cast<int>(events.size()), -1);
+    iterations_.fetch_add(1, std::memory_order_relaxed);
     if (n < 0) {
       if (errno == EINTR) continue;
       spdlog::critical("{}: epoll_wait failed: {}", bus_->uri(), std::strerror(errno));
