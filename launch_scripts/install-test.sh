@@ -27,8 +27,9 @@ step "clean Debian 12 root"
 mkdir -p "$cache"
 tarball=$cache/bookworm-minbase.tar
 if [ ! -s "$tarball" ]; then
-  mmdebstrap --quiet --variant=minbase --include=ca-certificates bookworm "$tarball.tmp" "$mirror"
-  mv "$tarball.tmp" "$tarball"
+  # The name must end in .tar for mmdebstrap to write a tarball (not a directory).
+  mmdebstrap --quiet --variant=minbase --include=ca-certificates bookworm "$cache/partial.tar" "$mirror"
+  mv "$cache/partial.tar" "$tarball"
 fi
 work=$(mktemp -d /tmp/linebridge-root.XXXXXX)
 trap 'rm -rf "$work"' EXIT

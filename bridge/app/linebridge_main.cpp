@@ -34,7 +34,10 @@ int main(int argc, char** argv) {
   spdlog::set_pattern("%H:%M:%S.%e [bridge] %^%l%$ %v");
 
   const auto registry = lb::profiles::ProfileRegistry::builtin();
-  if (!check_path.empty()) return app::check_line(check_path, registry, stdout, stderr);
+  if (!check_path.empty()) {
+    spdlog::set_level(spdlog::level::warn);  // the summary says it all; the gateways' start-up lines would not
+    return app::check_line(check_path, registry, stdout, stderr);
+  }
 
   app::block_stop_signals();
   auto config = app::load_config(config_path, registry);

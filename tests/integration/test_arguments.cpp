@@ -28,7 +28,10 @@ std::string line_with_interface(const std::string& name, const std::string& inte
 
 TEST(Arguments, UnknownOptionIsUsageErrorEverywhere) {
   for (const auto& exe : kExecutables) {
-    const auto r = run_command({exe, "--no-such-option"});
+    std::vector<std::string> argv = {exe, "--no-such-option"};
+    if (exe == LB_BIN_CLI) argv.push_back("list");
+    if (exe == LB_BIN_SECURITY) argv.push_back("governance");
+    const auto r = run_command(argv);
     EXPECT_EQ(r.exit_code, 2) << exe << ": " << r.output;
     EXPECT_NE(r.output.find("no-such-option"), std::string::npos) << exe << ": " << r.output;
   }
