@@ -60,17 +60,28 @@ Result<fdds::DomainParticipantQos> base_qos(const ParticipantOptions& options, s
     discovery.initial_announcements.count = 5;
     discovery.initial_announcements.period = eprosima::fastrtps::Duration_t(0, 50'000'000);
   }
-  if (options.localhost_only) {
-    // localhost_only keeps DDS on this machine whatever a profile says.
-    if (!(qos.transport() == pristine.transport()) || !qos.wire_protocol().builtin.initialPeersList.empty()) {
-      notes.push_back("dds.localhost_only is true: the site profile's transports and initial peers are not used");
-    }
+  // Transports. UDP only unless the line asks for shared memory: Fast DDS 2.9's shared-memory
+  // transport carries nothing between processes of different users (measured: a bridge running as
+  // its service user and a CLI run by root or an operator on the same machine never saw each
+  // other, with no error on either side), while UDP on loopback always works (at 36-62 % more CPU
+  // per write, BENCHMARKS.md).
+  const auto udp_on = [&](const char* address) {
     qos.transport().use_builtin_transports = false;
     qos.transport().user_transports.clear();
     auto udp = std::make_shared<eprosima::fastdds::rtps::UDPv4TransportDescriptor>();
-    udp->interfaceWhiteList.emplace_back("127.0.0.1");
+    if (address != nullptr) udp->interfaceWhiteList.emplace_back(address);
     qos.transport().user_transports.push_back(udp);
-    qos.transport().user_transports.push_back(std::make_shared<eprosima::fastdds::rtps::SharedMemTransportDescriptor>());
+    if (options.shared_memory) {
+      qos.transport().user_transports.push_back(std::make_shared<eprosima::fastdds::rtps::SharedMemTransportDescriptor>());
+    }
+  };
+  const bool site_transports = !(qos.transport() == pristine.transport());
+  if (options.localhost_only) {
+    // localhost_only keeps DDS on this machine whatever a profile says.
+    if (site_transports || !qos.wire_protocol().builtin.initialPeersList.empty()) {
+      notes.push_back("dds.localhost_only is true: the site profile's transports and initial peers are not used");
+    }
+    udp_on("127.0.0.1");
     qos.wire_protocol().builtin.initialPeersList.clear();
     if (options.discovery_servers.empty()) {
       Locator_t peer;
@@ -78,6 +89,10 @@ Result<fdds::DomainParticipantQos> base_qos(const ParticipantOptions& options, s
       IPLocator::setIPv4(peer, 127, 0, 0, 1);
       qos.wire_protocol().builtin.initialPeersList.push_back(peer);
     }
+  } else if (!site_transports) {
+    udp_on(nullptr);  // every interface, as Fast DDS's built-in UDP transport
+  } else if (options.shared_memory) {
+    notes.push_back("dds.shared_memory: the site profile's transports are used as they are");
   }
   if (!options.discovery_servers.empty()) {
     if (discovery.discoveryProtocol != eprosima::fastrtps::rtps::DiscoveryProtocol_t::SIMPLE) {
@@ -160,7 +175,7 @@ void set_history(Qos& qos, fdds::HistoryQosPolicyKind kind, int depth) {
     limits.max_samples_per_instance = kKeepAllLimit;
     limits.allocated_samples = 1;
   }
-  // The shared-memory transport still carries data between processes on one host; data sharing
+  // The transports (UDP, shared memory where a line asks for it) carry data between processes; data sharing
   // would add a fixed-size pool per endpoint on top of it.
   qos.data_sharing().off();
 }

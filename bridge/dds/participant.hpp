@@ -65,7 +65,7 @@ using DiscoveryObserver = std::function<void(const DiscoveryEvent&)>;
 
 struct ParticipantOptions {
   std::uint32_t domain = 0;
-  bool localhost_only = true;  // UDPv4 on 127.0.0.1 + shared memory, initial peer 127.0.0.1
+  bool localhost_only = true;  // UDPv4 on 127.0.0.1 only, initial peer 127.0.0.1
   std::string name = "linebridge";
   // DDS Security (PKI-DH, Access-Permissions, AES-GCM-GMAC), fail-closed: the files are checked
   // first and the participant proves after creation that security is in force, or it is not created.
@@ -80,6 +80,9 @@ struct ParticipantOptions {
   // list a line's topics; a plain client learns only the endpoints that match its own.
   bool see_all_endpoints = false;
   DiscoveryObserver on_discovery = {};
+  // Fast DDS's shared-memory transport besides UDP. Off by default: in Fast DDS 2.9 it silently
+  // carries nothing between processes of different users (the service's and an operator's).
+  bool shared_memory = false;
 };
 
 // A DDS entity the bridge would create, as a planning participant records it (linebridge --check).

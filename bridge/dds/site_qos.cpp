@@ -37,28 +37,31 @@ void refuse_contract(const Attributes& site, const std::string& topic, std::vect
   refuse(site.qos.m_destinationOrder, pristine.qos.m_destinationOrder, topic, "destination order", notes);
 }
 
-void merge(const PublisherAttributes& site, const std::string& topic, fdds::DataWriterQos& qos, std::vector<std::string>& notes) {
-  const PublisherAttributes pristine;
+// What writers and readers share that a site may set.
+template <class Attributes, class Qos>
+void take_timing(const Attributes& site, Qos& qos) {
+  const Attributes pristine;
   take(site.qos.m_deadline, pristine.qos.m_deadline, qos.deadline());
   take(site.qos.m_latencyBudget, pristine.qos.m_latencyBudget, qos.latency_budget());
   take(site.qos.m_liveliness, pristine.qos.m_liveliness, qos.liveliness());
-  take(site.qos.m_lifespan, pristine.qos.m_lifespan, qos.lifespan());
   take(site.qos.m_userData, pristine.qos.m_userData, qos.user_data());
+  take(site.historyMemoryPolicy, pristine.historyMemoryPolicy, qos.endpoint().history_memory_policy);
+}
+
+void merge(const PublisherAttributes& site, const std::string& topic, fdds::DataWriterQos& qos, std::vector<std::string>& notes) {
+  const PublisherAttributes pristine;
+  take_timing(site, qos);
+  take(site.qos.m_lifespan, pristine.qos.m_lifespan, qos.lifespan());
   take(site.qos.m_publishMode, pristine.qos.m_publishMode, qos.publish_mode());
   take(site.times, pristine.times, qos.reliable_writer_qos().times);
-  take(site.historyMemoryPolicy, pristine.historyMemoryPolicy, qos.endpoint().history_memory_policy);
   refuse_contract(site, topic, notes);
   refuse(site.qos.m_disablePositiveACKs, pristine.qos.m_disablePositiveACKs, topic, "disable_positive_acks", notes);
 }
 
 void merge(const SubscriberAttributes& site, const std::string& topic, fdds::DataReaderQos& qos, std::vector<std::string>& notes) {
   const SubscriberAttributes pristine;
-  take(site.qos.m_deadline, pristine.qos.m_deadline, qos.deadline());
-  take(site.qos.m_latencyBudget, pristine.qos.m_latencyBudget, qos.latency_budget());
-  take(site.qos.m_liveliness, pristine.qos.m_liveliness, qos.liveliness());
-  take(site.qos.m_userData, pristine.qos.m_userData, qos.user_data());
+  take_timing(site, qos);
   take(site.times, pristine.times, qos.reliable_reader_qos().times);
-  take(site.historyMemoryPolicy, pristine.historyMemoryPolicy, qos.endpoint().history_memory_policy);
   refuse_contract(site, topic, notes);
   // A time-based filter would drop set values and requests.
   refuse(site.qos.m_timeBasedFilter, pristine.qos.m_timeBasedFilter, topic, "time_based_filter", notes);

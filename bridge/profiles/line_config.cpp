@@ -119,7 +119,7 @@ std::vector<DdsDiscoveryServer> parse_discovery_servers(const YamlSource& src, c
 
 DdsConfig parse_dds(const YamlSource& src, const YAML::Node& n) {
   src.check_keys(n, "dds", {"domain", "localhost_only", "security", "profiles_file", "participant_profile",
-                            "discovery_servers"});
+                            "discovery_servers", "shared_memory"});
   DdsConfig dds;
   dds.domain = bounded<std::uint32_t>(src, n, "domain", 0, 0, 232, "dds");  // DDS/RTPS port mapping limit
   dds.localhost_only = src.optional<bool>(n, "localhost_only").value_or(true);
@@ -130,6 +130,7 @@ DdsConfig parse_dds(const YamlSource& src, const YAML::Node& n) {
   }
   dds.participant_profile = src.optional<std::string>(n, "participant_profile").value_or("");
   if (n["participant_profile"] && dds.participant_profile.empty()) src.fail(n["participant_profile"], "participant_profile is empty");
+  dds.shared_memory = src.optional<bool>(n, "shared_memory").value_or(false);
   if (n["discovery_servers"]) dds.discovery_servers = parse_discovery_servers(src, n["discovery_servers"], dds.localhost_only);
   return dds;
 }

@@ -44,6 +44,7 @@ struct DdsConfig {
   std::string profiles_file;        // Fast DDS XML profiles (absolute path); "" = none
   std::string participant_profile;  // a participant profile of it by name; "" = its default one
   std::vector<DdsDiscoveryServer> discovery_servers;  // none: simple (multicast) discovery
+  bool shared_memory = false;       // Fast DDS's shared-memory transport besides UDP (one user only)
 };
 
 struct BusConfig {

@@ -38,8 +38,14 @@ const std::string kDemo = std::string(LB_SOURCE_DIR) + "/config/lines/demo.yaml"
 
 TEST(Check, DemoLineSummaryWithEveryTopicAndNoDdsNoCan) {
   ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
+  // With shared memory on, any participant would leave Fast DDS segments in /dev/shm.
+  std::ifstream in(kDemo);
+  std::stringstream demo;
+  demo << in.rdbuf();
+  std::string text = demo.str();
+  text.replace(text.find("  localhost_only: true\n"), 23, "  localhost_only: true\n  shared_memory: true\n");
   const auto before = shm_entries();
-  const auto r = run_command({LB_BIN_BRIDGE, "--check", kDemo});
+  const auto r = run_command({LB_BIN_BRIDGE, "--check", write("demo.yaml", text)});
   ASSERT_EQ(r.exit_code, 0) << r.output;
   EXPECT_EQ(shm_entries(), before) << "--check created Fast DDS shared-memory segments: it started a participant";
   for (const char* expected : {

@@ -212,7 +212,7 @@ TEST(SiteQos, ParticipantTakesTheProfileAndTheLineFileDecidesDiscoveryAndLocalho
   ASSERT_TRUE(qos);
   ASSERT_EQ(notes.size(), 1U);
   EXPECT_NE(notes[0].find("localhost_only"), std::string::npos);
-  EXPECT_EQ(qos->transport().user_transports.size(), 2U);  // UDP on 127.0.0.1 and shared memory
+  EXPECT_EQ(qos->transport().user_transports.size(), 1U);  // UDP on 127.0.0.1 only (no shared memory by default)
   const auto& d = qos->wire_protocol().builtin.discovery_config;
   EXPECT_EQ(d.discoveryProtocol, eprosima::fastrtps::rtps::DiscoveryProtocol_t::CLIENT);
   ASSERT_EQ(d.m_DiscoveryServers.size(), 1U);
@@ -224,6 +224,18 @@ TEST(SiteQos, ParticipantTakesTheProfileAndTheLineFileDecidesDiscoveryAndLocalho
   o.see_all_endpoints = true;
   EXPECT_EQ(lb::ddsl::participant_qos(o, nullptr)->wire_protocol().builtin.discovery_config.discoveryProtocol,
             eprosima::fastrtps::rtps::DiscoveryProtocol_t::SUPER_CLIENT);
+
+  o.shared_memory = true;
+  EXPECT_EQ(lb::ddsl::participant_qos(o, nullptr)->transport().user_transports.size(), 2U);  // and shared memory
+
+  // Without a profile's transports, not localhost-only: UDP on every interface, no shared memory.
+  lb::ddsl::ParticipantOptions plain;
+  plain.localhost_only = false;
+  auto udp = lb::ddsl::participant_qos(plain, nullptr);
+  ASSERT_TRUE(udp);
+  EXPECT_FALSE(udp->transport().use_builtin_transports);
+  ASSERT_EQ(udp->transport().user_transports.size(), 1U);
+  EXPECT_TRUE(udp->wire_protocol().builtin.initialPeersList.empty());
 
   o.participant_profile = "no_such_profile";
   auto missing = lb::ddsl::participant_qos(o, nullptr);
