@@ -17,7 +17,7 @@
 #
 # ECDSA P-256 keys, SHA-256 signatures (what Fast DDS 2.9 accepts), subjects CN=<name>,O=<org>.
 # linebridge-security (built with the bridge) writes the XML from the line file; LINEBRIDGE_BIN
-# names its folder (default: build/bridge/app).
+# names its folder (default: build/bridge/app, or where PATH finds it, as the package installs it).
 set -euo pipefail
 
 usage() { sed -n '2,20p' "$0" | sed 's/^# \{0,1\}//'; exit 2; }
@@ -50,6 +50,9 @@ done
 command -v openssl >/dev/null || die "openssl is missing (launch_scripts/setup.sh installs it)"
 
 bin=${LINEBRIDGE_BIN:-$root/build/bridge/app}
+if [ -z "${LINEBRIDGE_BIN:-}" ] && [ ! -x "$bin/linebridge-security" ] && command -v linebridge-security >/dev/null; then
+  bin=$(dirname "$(command -v linebridge-security)")
+fi
 security() {
   [ -x "$bin/linebridge-security" ] || die "$bin/linebridge-security is missing: build first (cmake --build build)"
   "$bin/linebridge-security" ${config:+--config "$config"} "$@"

@@ -10,6 +10,7 @@ packages=(
   iproute2 util-linux procps
   can-utils qemu-system-x86 busybox-static xz-utils
   openssl libssl-dev libtinyxml2-dev
+  libsystemd-dev dpkg-dev fakeroot lintian
 )
 
 missing=()

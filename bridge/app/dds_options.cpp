@@ -9,17 +9,30 @@ ddsl::SecurityFiles files_of(const profiles::DdsSecurityConfig& s) {
   return {s.identity_ca, s.certificate, s.private_key, s.permissions_ca, s.governance, s.permissions, s.properties};
 }
 
+// The line file's site settings, the same for the bridge and every client of the line.
+ddsl::ParticipantOptions line_options(const profiles::LineConfig& line, std::string name) {
+  ddsl::ParticipantOptions o;
+  o.domain = line.dds.domain;
+  o.localhost_only = line.dds.localhost_only;
+  o.name = std::move(name);
+  o.profiles_file = line.dds.profiles_file;
+  o.participant_profile = line.dds.participant_profile;
+  o.shared_memory = line.dds.shared_memory;
+  for (const auto& s : line.dds.discovery_servers) o.discovery_servers.push_back({s.id, s.address, s.port});
+  return o;
+}
+
 }  // namespace
 
 ddsl::ParticipantOptions bridge_participant_options(const profiles::LineConfig& line) {
-  ddsl::ParticipantOptions o{line.dds.domain, line.dds.localhost_only, "linebridge/" + line.line, std::nullopt};
+  auto o = line_options(line, "linebridge/" + line.line);
   if (line.dds.security) o.security = files_of(*line.dds.security);
   return o;
 }
 
 Result<ddsl::ParticipantOptions> client_participant_options(const profiles::LineConfig& line, std::string name,
                                                             const std::string& identity_dir) {
-  ddsl::ParticipantOptions o{line.dds.domain, line.dds.localhost_only, std::move(name), std::nullopt};
+  auto o = line_options(line, std::move(name));
   if (!line.dds.security) {
     if (!identity_dir.empty()) {
       return make_error("line " + line.line + " is not secured (no dds.security in its file): --identity " + identity_dir +

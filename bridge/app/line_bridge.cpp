@@ -11,22 +11,26 @@
 
 namespace lb::app {
 
+Result<std::unique_ptr<can::Bus>> open_configured_bus(const profiles::BusConfig& bus_cfg) {
+  const bool master = bus_cfg.role == profiles::BusRole::master;
+  auto bus = can::open_bus(bus_cfg.interface, master ? can::BusAccess::read_write : can::BusAccess::listen_only);
+  if (!bus || bus_cfg.record.empty()) return bus;
+  // Outermost, so it records what this bridge really sent (a monitor sends nothing).
+  auto recording = can::RecordingBus::open(std::move(*bus), bus_cfg.record);
+  if (!recording) return recording.error();
+  spdlog::info("bus {}: recording every frame to {}", bus_cfg.name, bus_cfg.record);
+  return std::unique_ptr<can::Bus>(std::move(*recording));
+}
+
 Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfig& config,
-                                                        std::unique_ptr<ddsl::Participant> dds) {
+                                                        std::unique_ptr<ddsl::Participant> dds, const BusOpener& open_bus) {
   auto bridge = std::make_unique<LineBridge>(config);
   bridge->dds_ = std::move(dds);
 
   for (const auto& bus_cfg : config.buses) {
     const bool master = bus_cfg.role == profiles::BusRole::master;
-    auto bus = can::open_bus(bus_cfg.interface, master ? can::BusAccess::read_write : can::BusAccess::listen_only);
+    auto bus = open_bus(bus_cfg);
     if (!bus) return make_error("bus " + bus_cfg.name + ": " + bus.error().message);
-    if (!bus_cfg.record.empty()) {
-      // Outermost, so it records what this bridge really sent (a monitor sends nothing).
-      auto recording = can::RecordingBus::open(std::move(*bus), bus_cfg.record);
-      if (!recording) return make_error("bus " + bus_cfg.name + ": " + recording.error().message);
-      bus = std::unique_ptr<can::Bus>(std::move(*recording));
-      spdlog::info("bus {}: recording every frame to {}", bus_cfg.name, bus_cfg.record);
-    }
     BusRuntime rt{};
     rt.config = &bus_cfg;
     rt.loop = std::make_unique<canopen::BusLoop>(std::move(*bus));
@@ -37,6 +41,8 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
       }
       request_stop();
     });
+    // Wakes an idle loop now and then, so the service watchdog sees it alive.
+    rt.loop->arm_timer(rt.loop->create_timer([] {}), ServiceNotifier::kLoopTick, ServiceNotifier::kLoopTick);
     if (master) {
       rt.sync = std::make_unique<canopen::SyncProducer>(*rt.loop, bus_cfg.sync_period);
       rt.sdo = std::make_unique<canopen::SdoClient>(*rt.loop, bus_cfg.sdo_timeout);
@@ -151,6 +157,14 @@ void LineBridge::start() {
 std::optional<std::string> LineBridge::failure() const {
   std::lock_guard lock(failure_mutex_);
   return failure_;
+}
+
+std::vector<ServiceNotifier::Loop> LineBridge::watched_loops() const {
+  std::vector<ServiceNotifier::Loop> loops;
+  for (const auto& rt : buses_) {
+    loops.push_back({rt.config->name, [loop = rt.loop.get()] { return loop->iterations(); }});
+  }
+  return loops;
 }
 
 void LineBridge::stop() {

@@ -3,12 +3,14 @@
 // in the master role), one gateway per device, the line-wide device-management services, one DDS
 // participant for all of them.
 
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <optional>
 #include <string>
 #include <vector>
 
+#include "app/service_notifier.hpp"
 #include "canopen/bus_loop.hpp"
 #include "canopen/heartbeat_producer.hpp"
 #include "canopen/other_master.hpp"
@@ -25,13 +27,19 @@
 
 namespace lb::app {
 
+// How a bus of the configuration is opened: for real (open_configured_bus: the medium, listen-only
+// in the monitor role, recording), or as a stand-in that touches no CAN (linebridge --check).
+using BusOpener = std::function<Result<std::unique_ptr<can::Bus>>(const profiles::BusConfig&)>;
+Result<std::unique_ptr<can::Bus>> open_configured_bus(const profiles::BusConfig& bus);
+
 class LineBridge {
  public:
   // Opens every bus and creates every gateway on `dds`, or fails with the reason; nothing runs yet.
   // The caller creates the participant (app/dds_options.hpp), so it can tell a security refusal
   // (a configuration error) from other start-up failures.
   static Result<std::unique_ptr<LineBridge>> create(const profiles::LineConfig& config,
-                                                    std::unique_ptr<ddsl::Participant> dds);
+                                                    std::unique_ptr<ddsl::Participant> dds,
+                                                    const BusOpener& open_bus = open_configured_bus);
   explicit LineBridge(const profiles::LineConfig& config) : config_(config) {}
   ~LineBridge();
   LineBridge(const LineBridge&) = delete;
@@ -41,6 +49,11 @@ class LineBridge {
   void stop();  // idempotent
   // A bus loop failed for good (the process should end with an error and be restarted): its why.
   std::optional<std::string> failure() const;
+
+  // Every bus loop's progress, for the service watchdog (each loop wakes at least every
+  // ServiceNotifier::kLoopTick, so an idle bus still shows progress).
+  std::vector<ServiceNotifier::Loop> watched_loops() const;
+  const ddsl::Participant& dds() const { return *dds_; }
 
  private:
   struct BusRuntime {

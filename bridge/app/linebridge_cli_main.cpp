@@ -14,7 +14,11 @@
 #include "app/cli_exit.hpp"
 #include "app/cli_services.hpp"
 #include "app/cli_set.hpp"
+#include "app/arguments.hpp"
+#include "app/bus_watch.hpp"
 #include "app/dds_options.hpp"
+#include "app/eds_tool.hpp"
+#include "app/line_topics.hpp"
 #include "app/line_config_source.hpp"
 #include "app/run_until_signal.hpp"
 #include "dds/participant.hpp"
@@ -54,13 +58,16 @@ bool set_options_fit(const std::string& type, CLI::App& set_cmd) {
 }  // namespace
 
 int main(int argc, char** argv) {
+  namespace app = lb::app;
   CLI::App cli{"linebridge-cli: watch and command the devices of a line over DDS"};
+  app::add_conventions(cli, "linebridge-cli");
   cli.require_subcommand(1);
   // --config, --identity (and each subcommand's --timeout) anywhere on the command line.
   cli.fallthrough();
   std::string config_path;
   cli.add_option("-c,--config", config_path, "line configuration (YAML); default: the built-in demo line")
-      ->envname("LINEBRIDGE_CONFIG");
+      ->envname("LINEBRIDGE_CONFIG")
+      ->check(app::non_empty_path());
   std::string identity_dir;
   cli.add_option("--identity", identity_dir,
                  "secured line: this client's identity folder (cert.pem, key.pem, permissions.p7s; launch_scripts/pki.sh)")
@@ -75,10 +82,11 @@ int main(int argc, char** argv) {
                        "info, emergency; feeder: status, unwinding, feeder_error, loom_result, info, emergency; "
                        "bridge: diagnostics")
       ->capture_default_str();
-  echo_cmd->add_option("--rate", echo.rate_hz, "status lines per second at most (a change of status bits always shows)")
-      ->check(CLI::PositiveNumber)
+  echo_cmd->add_option("--rate", echo.rate_hz, "status lines per second at most (bit changes always show)")
+      ->check(app::positive_at_most(1000))
       ->capture_default_str();
-  echo_cmd->add_option("-d,--duration", echo.duration_s, "stop after this many seconds");
+  echo_cmd->add_option("-d,--duration", echo.duration_s, "stop after this many seconds (default 0: until Ctrl-C)")
+      ->check(app::duration_seconds());
 
   lb::app::SetOptions set;
   auto* set_cmd = cli.add_subcommand("set", "send a device's set values; fields not given keep the value in force");
@@ -98,7 +106,9 @@ int main(int argc, char** argv) {
   set_cmd->add_option("--trigger-signal", set.trigger_signal, "feeder: 600Bh by name, e.g. angle_trigger");
   set_cmd->add_option("--picks", set.picks, "feeder: five 600Ch codes, e.g. --picks 0x01 0x02 0x03 0x04 0x05")->expected(5);
   set_cmd->add_option("--outputs", set.outputs, "feeder: 600Dh output groups 1..n (RPDO3), bit k = line k+1")->expected(1, 8);
-  set_cmd->add_option("--timeout", set.timeout_s, "seconds to wait for the bridge")->capture_default_str();
+  set_cmd->add_option("--timeout", set.timeout_s, "seconds to wait for the bridge")
+      ->check(app::positive_at_most(3600))
+      ->capture_default_str();
 
   auto* list_cmd = cli.add_subcommand("list", "list the line's buses and devices");
 
@@ -169,15 +179,50 @@ int main(int argc, char** argv) {
 
   for (auto* c : {nmt_cmd, read_cmd, write_cmd, get_cmd, put_cmd, press_cmd, identity_cmd, fcommand_cmd, ftest_cmd,
                   ffunctions_cmd, fassign_cmd, weft_cmd, trigger_cmd}) {
-    c->add_option("--timeout", timeout_s, "seconds to wait for the bridge")->capture_default_str();
+    c->add_option("--timeout", timeout_s, "seconds to wait for the bridge")
+        ->check(app::positive_at_most(3600))
+        ->capture_default_str();
   }
-  CLI11_PARSE(cli, argc, argv);
+
+  std::string bus_name;
+  app::WatchOptions watch;
+  auto* candump_cmd = cli.add_subcommand(
+      "candump", "print the raw frames of a bus of the line (virtual buses too), listen-only, as candump -l writes them");
+  candump_cmd->add_option("bus", bus_name, "bus name in the line file")->required();
+  candump_cmd->add_option("-d,--duration", watch.duration_s, "stop after this many seconds (default 0: until Ctrl-C)")
+      ->check(app::duration_seconds());
+  candump_cmd->add_option("-n,--count", watch.count, "stop after this many frames");
+  candump_cmd->add_flag("--log", watch.log_only, "bare log lines (for a file canplayer replays), without what each frame is");
+
+  app::TopicsOptions topics;
+  auto* topics_cmd = cli.add_subcommand("topics", "list the DDS topics and types of the running line, as discovery reports them");
+  topics_cmd->add_option("--wait", topics.wait_s, "seconds of discovery before the list is printed")
+      ->check(app::positive_at_most(600))
+      ->capture_default_str();
+  topics_cmd->add_flag("--all", topics.all, "every topic of the DDS domain, not only this line's");
+
+  app::EdsOptions eds;
+  auto* eds_cmd = cli.add_subcommand(
+      "eds", "read a device's EDS or DCF file (CiA 306), check it against a profile and print the line-file entries it implies");
+  eds_cmd->add_option("file", eds.file, "the EDS or DCF file")->required()->check(CLI::ExistingFile);
+  eds_cmd->add_option("--device", eds.device, "check it for this device of the line (its profile, node-ID and PDOs)");
+  eds_cmd->add_option("--profile", eds.profile, "or against this profile id (e.g. cia420-4) ...");
+  eds_cmd->add_option("--profile-version", eds.profile_version, "... and version (e.g. 3.1)");
+  eds_cmd->add_option("--node-id", eds.node_id, "node-ID for $NODEID (default: a DCF's, else the device's)")->check(CLI::Range(1, 127));
+  if (const int code = app::parse(cli, argc, argv); code >= 0) return code;
   spdlog::set_level(spdlog::level::warn);
 
   lb::app::block_stop_signals();
   const auto registry = lb::profiles::ProfileRegistry::builtin();
   auto config = lb::app::load_config(config_path, registry);
   if (!config) return fmt::print(stderr, "{}\n", config.error().message), kExitUsage;
+  if (candump_cmd->parsed()) return app::watch_bus(*config, bus_name, watch);
+  if (eds_cmd->parsed()) return app::run_eds(*config, registry, eds);
+  if (topics_cmd->parsed()) {
+    auto options = app::client_participant_options(*config, "linebridge-cli topics", identity_dir);
+    if (!options) return fmt::print(stderr, "{}\n", options.error().message), app::kExitUsage;
+    return app::list_topics(*config, *options, topics);
+  }
   if (list_cmd->parsed()) {
     for (const auto& b : config->buses) fmt::print("bus {} on {} ({})\n", b.name, b.interface, lb::profiles::to_string(b.role));
     for (const auto& d : config->devices) {

@@ -8,6 +8,7 @@
 #include <ctime>
 #include <sstream>
 
+#include "app/arguments.hpp"
 #include "app/dds_options.hpp"
 #include "app/line_config_source.hpp"
 #include "dds/security_files.hpp"
@@ -37,9 +38,11 @@ std::vector<std::string> split(const std::string& list) {
 
 int main(int argc, char** argv) {
   CLI::App cli{"linebridge-security: governance and permissions of a line, and checks of its security files"};
+  lb::app::add_conventions(cli, "linebridge-security");
   cli.require_subcommand(1);
   std::string config_path;
-  cli.add_option("-c,--config", config_path, "line configuration (YAML); default: the built-in demo line");
+  cli.add_option("-c,--config", config_path, "line configuration (YAML); default: the built-in demo line")
+      ->check(lb::app::non_empty_path());
 
   auto* gov_cmd = cli.add_subcommand("governance", "print the governance document (XML) of the line's DDS domain");
 
@@ -60,7 +63,7 @@ int main(int argc, char** argv) {
   auto* check_cmd = cli.add_subcommand(
       "check", "check the line's security files as the bridge does before it starts (or a client's, with --identity)");
   check_cmd->add_option("--identity", identity_dir, "a client's identity folder (cert.pem, key.pem, permissions.p7s)");
-  CLI11_PARSE(cli, argc, argv);
+  if (const int code = lb::app::parse(cli, argc, argv); code >= 0) return code;
 
   const auto registry = lb::profiles::ProfileRegistry::builtin();
   auto config = lb::app::load_config(config_path, registry);

@@ -6,6 +6,7 @@
 #include <memory>
 #include <vector>
 
+#include "app/arguments.hpp"
 #include "app/line_config_source.hpp"
 #include "app/run_until_signal.hpp"
 #include "canopen/bus_loop.hpp"
@@ -14,21 +15,26 @@
 
 int main(int argc, char** argv) {
   CLI::App cli{"linebridge-sim: simulated CANopen devices of a line"};
+  lb::app::add_conventions(cli, "linebridge-sim");
   std::string config_path;
   std::vector<std::string> only;
   double duration_s = 0;
   std::string log_level = "info";
   std::string role = "devices";
-  cli.add_option("-c,--config", config_path, "line configuration (YAML); default: the built-in demo line");
+  cli.add_option("-c,--config", config_path, "line configuration (YAML); default: the built-in demo line")
+      ->check(lb::app::non_empty_path());
   cli.add_option("--role", role,
                  "devices: play the devices; controller: play the line controller (SYNC, NMT, RPDOs from "
                  "simulation.controller_values) for a bridge in the monitor role; both")
       ->check(CLI::IsMember({"devices", "controller", "both"}))
       ->capture_default_str();
   cli.add_option("--device", only, "simulate only these devices (default: all)");
-  cli.add_option("-d,--duration", duration_s, "stop after this many seconds (default: run until Ctrl-C)");
-  cli.add_option("--log-level", log_level, "trace, debug, info, warn, error")->capture_default_str();
-  CLI11_PARSE(cli, argc, argv);
+  cli.add_option("-d,--duration", duration_s, "stop after this many seconds (default 0: run until SIGINT/SIGTERM)")
+      ->check(lb::app::duration_seconds());
+  cli.add_option("--log-level", log_level, "trace, debug, info, warn, error, critical, off")
+      ->check(lb::app::log_level())
+      ->capture_default_str();
+  if (const int code = lb::app::parse(cli, argc, argv); code >= 0) return code;
   spdlog::set_level(spdlog::level::from_str(log_level));
   spdlog::set_pattern("%H:%M:%S.%e [sim] %^%l%$ %v");
 
@@ -81,7 +87,7 @@ int main(int argc, char** argv) {
   for (auto& loop : loops) loop->start();
   spdlog::info("simulating {} device(s){} of line {}", devices.size(), controllers.empty() ? "" : " and the line controller",
                config->line);
-  lb::app::run_until_signal(std::chrono::milliseconds(static_cast<long>(duration_s * 1000)));
+  lb::app::run_until_signal(lb::app::duration_ms(duration_s));
   for (auto& loop : loops) loop->stop();
   return 0;
 }

@@ -66,6 +66,10 @@ class Bus {
   virtual BusStats stats() const = 0;
 };
 
+// Whether a bus URI can be opened as far as its text goes (scheme, name rules, a log: spec),
+// without opening anything: the line configuration refuses a bad one with its file:line:column.
+Result<void> check_bus_uri(std::string_view uri);
+
 // Opens "socketcan:<ifname>" or "virtual:<name>". listen_only returns a bus whose send() always
 // fails without touching the medium (the monitor role).
 Result<std::unique_ptr<Bus>> open_bus(std::string_view uri, BusAccess access = BusAccess::read_write);

@@ -1,5 +1,8 @@
 #include "can/socketcan_bus.hpp"
 
+#include <algorithm>
+#include <cctype>
+
 #include <linux/can.h>
 #include <net/if_arp.h>
 #include <linux/can/error.h>
@@ -30,11 +33,19 @@ bool link_error(int err) { return err == ENETDOWN || err == ENODEV || err == ENX
 
 }  // namespace
 
+Result<void> SocketCanBus::check_name(std::string_view ifname) {
+  const auto bad = [](char c) { return c == '/' || c == ':' || std::isspace(static_cast<unsigned char>(c)) != 0; };
+  if (ifname.empty() || ifname.size() >= IFNAMSIZ || ifname == "." || ifname == ".." ||
+      std::any_of(ifname.begin(), ifname.end(), bad)) {
+    return make_error("socketcan:" + std::string(ifname.substr(0, 100)) + ": an interface name is 1 to " + std::to_string(IFNAMSIZ - 1) +
+                      " characters, without '/', ':' or white space");
+  }
+  return {};
+}
+
 Result<std::unique_ptr<SocketCanBus>> SocketCanBus::open(std::string_view ifname) {
   std::string uri = "socketcan:" + std::string(ifname);
-  if (ifname.empty() || ifname.size() >= IFNAMSIZ) {
-    return make_error(uri + ": interface name must be 1 to " + std::to_string(IFNAMSIZ - 1) + " characters");
-  }
+  if (auto ok = check_name(ifname); !ok) return ok.error();
   UniqueFd epoll{::epoll_create1(EPOLL_CLOEXEC)};
   UniqueFd timer{::timerfd_create(CLOCK_MONOTONIC, TFD_NONBLOCK | TFD_CLOEXEC)};
   if (!epoll || !timer || !detail::epoll_add(epoll.get(), timer.get())) {

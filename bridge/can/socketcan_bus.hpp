@@ -34,6 +34,9 @@ class SocketCanBus final : public Bus {
   // when the interface does not exist or is not a CAN interface. An interface that exists but is
   // down is not an error: the bus starts in state `down` and opens the socket when it comes up.
   static Result<std::unique_ptr<SocketCanBus>> open(std::string_view ifname);
+  // An interface name Linux accepts (1..15 characters, no '/', ':' or white space, not . or ..),
+  // checked before anything is opened (the line configuration checks it too).
+  static Result<void> check_name(std::string_view ifname);
 
   SocketCanBus(PrivateTag, std::string uri, std::string ifname, UniqueFd epoll, UniqueFd retry_timer);
   ~SocketCanBus() override;

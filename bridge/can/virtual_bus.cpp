@@ -322,12 +322,15 @@ class VirtualBus::Hub {
 
 // -------------------------------------------------------------------------------------------------
 
+Result<void> VirtualBus::check_name(std::string_view name) {
+  if (valid_name(name)) return {};
+  return make_error("virtual:" + std::string(name.substr(0, 100)) + (name.size() > 100 ? "..." : "") +
+                    ": the bus name must be 1 to " + std::to_string(kMaxNameLen) + " characters of A-Z a-z 0-9 . _ -");
+}
+
 Result<std::unique_ptr<VirtualBus>> VirtualBus::open(std::string_view name) {
   std::string uri = "virtual:" + std::string(name);
-  if (!valid_name(name)) {
-    return make_error(uri + ": the bus name must be 1 to " + std::to_string(kMaxNameLen) +
-                      " characters of A-Z a-z 0-9 . _ -");
-  }
+  if (auto ok = check_name(name); !ok) return ok.error();
   UniqueFd epoll{::epoll_create1(EPOLL_CLOEXEC)};
   UniqueFd timer{::timerfd_create(CLOCK_MONOTONIC, TFD_NONBLOCK | TFD_CLOEXEC)};
   if (!epoll || !timer || !detail::epoll_add(epoll.get(), timer.get())) {

@@ -47,6 +47,8 @@ class VirtualBus final : public Bus {
   // every frame any member sends after open() returns reaches it (a frame sent just before may too:
   // send() queues, like a controller's TX queue). Blocks at most 2 s, then fails if no hub answers.
   static Result<std::unique_ptr<VirtualBus>> open(std::string_view name);
+  // The name rule above, checked before anything is opened (the line configuration checks it too).
+  static Result<void> check_name(std::string_view name);
 
   VirtualBus(PrivateTag, std::string uri, std::string address, UniqueFd epoll,
              UniqueFd retry_timer);

@@ -171,6 +171,7 @@ void BusLoop::loop() {
   std::array<epoll_event, 16> events{};
   for (;;) {
     const int n = ::epoll_wait(epoll_fd_, events.data(), static_cast<int>(events.size()), -1);
+    iterations_.fetch_add(1, std::memory_order_relaxed);
     if (n < 0) {
       if (errno == EINTR) continue;
       throw std::runtime_error(std::string("epoll_wait failed: ") + std::strerror(errno));

@@ -11,6 +11,7 @@
 // work are never starved.
 
 #include <array>
+#include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <functional>
@@ -79,6 +80,10 @@ class BusLoop {
   void stop();  // idempotent; joins the thread
   bool on_loop_thread() const { return std::this_thread::get_id() == thread_.get_id(); }
 
+  // Any thread: how many times the loop has woken up (epoll) so far. A service watchdog feeds
+  // systemd only while this grows on every bus; arm a periodic timer so an idle loop still wakes.
+  std::uint64_t iterations() const { return iterations_.load(std::memory_order_relaxed); }
+
   const can::Bus& bus() const { return *bus_; }
   can::BusStats stats() const { return bus_->stats(); }
   // Bits on the wire without stuffing, for the bus load (loop thread).
@@ -144,6 +149,7 @@ class BusLoop {
   std::mutex posted_mutex_;
   std::vector<Task> posted_;
   bool stopping_ = false;  // guarded by posted_mutex_
+  std::atomic<std::uint64_t> iterations_{0};
   std::thread thread_;
 };
 

@@ -1,14 +1,20 @@
 #include "dds/participant.hpp"
 
 #include <fastdds/dds/domain/DomainParticipantFactory.hpp>
+#include <fastdds/dds/domain/DomainParticipantListener.hpp>
+#include <fastdds/rtps/attributes/ServerAttributes.h>
 #include <fastdds/rtps/transport/UDPv4TransportDescriptor.h>
 #include <fastdds/rtps/transport/shared_mem/SharedMemTransportDescriptor.h>
 #include <fastrtps/utils/IPLocator.h>
 
+#include <algorithm>
 #include <chrono>
 #include <filesystem>
+#include <sstream>
 
 #include "dds/security_proof.hpp"
+#include "dds/site_profiles.hpp"
+#include "dds/site_qos.hpp"
 
 namespace lb::ddsl {
 namespace {
@@ -26,27 +32,88 @@ const eprosima::fastrtps::Duration_t kHeartbeatPeriod{0, 100'000'000};
 // 200 in 4 s of an EMCY burst). A reader more than this many behind loses the oldest.
 constexpr int kEventDepth = 1000;
 
-fdds::DomainParticipantQos base_qos(const ParticipantOptions& options) {
+// The site's participant QoS (XML profiles) with the bridge's choices where the site says nothing.
+Result<fdds::DomainParticipantQos> base_qos(const ParticipantOptions& options, std::vector<std::string>& notes) {
+  auto* factory = fdds::DomainParticipantFactory::get_instance();
   fdds::DomainParticipantQos qos = fdds::PARTICIPANT_QOS_DEFAULT;
-  qos.name(options.name);
+  auto site = load_site_profiles(options.profiles_file);
+  if (!site) return site.error();
+  const std::string profile = !options.participant_profile.empty() ? options.participant_profile
+                              : site->default_participant ? *site->default_participant
+                                                          : std::string();
+  if (!profile.empty()) {
+    if (factory->get_participant_qos_from_profile(profile, qos) != eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK) {
+      return make_error("no participant profile '" + profile + "' in the DDS profiles files");
+    }
+  } else {
+    factory->get_default_participant_qos(qos);  // FASTRTPS_DEFAULT_PROFILES_FILE's default, or Fast DDS's
+  }
+  const fdds::DomainParticipantQos pristine = fdds::PARTICIPANT_QOS_DEFAULT;
+  if (qos.name() == pristine.name()) qos.name(options.name);
   // Short-lived participants (the CLI, HMI tools) come and go: announce often enough that a
   // missed initial announcement costs a second, not Fast DDS's default three, and forget a
-  // participant that went away within ten seconds rather than twenty.
+  // participant that went away within ten seconds rather than twenty. A site's own values win.
   auto& discovery = qos.wire_protocol().builtin.discovery_config;
-  discovery.leaseDuration = eprosima::fastrtps::Duration_t(10, 0);
-  discovery.leaseDuration_announcementperiod = eprosima::fastrtps::Duration_t(1, 0);
-  discovery.initial_announcements.count = 5;
-  discovery.initial_announcements.period = eprosima::fastrtps::Duration_t(0, 50'000'000);
-  if (options.localhost_only) {
+  const auto& fast = pristine.wire_protocol().builtin.discovery_config;
+  if (discovery.leaseDuration == fast.leaseDuration) discovery.leaseDuration = eprosima::fastrtps::Duration_t(10, 0);
+  if (discovery.leaseDuration_announcementperiod == fast.leaseDuration_announcementperiod) {
+    discovery.leaseDuration_announcementperiod = eprosima::fastrtps::Duration_t(1, 0);
+  }
+  if (discovery.initial_announcements == fast.initial_announcements) {
+    discovery.initial_announcements.count = 5;
+    discovery.initial_announcements.period = eprosima::fastrtps::Duration_t(0, 50'000'000);
+  }
+  // Transports. UDP only unless the line asks for shared memory: Fast DDS 2.9's shared-memory
+  // transport carries nothing between processes of different users (measured: a bridge running as
+  // its service user and a CLI run by root or an operator on the same machine never saw each
+  // other, with no error on either side), while UDP on loopback always works (at 36-62 % more CPU
+  // per write, BENCHMARKS.md).
+  const auto udp_on = [&](const char* address) {
     qos.transport().use_builtin_transports = false;
+    qos.transport().user_transports.clear();
     auto udp = std::make_shared<eprosima::fastdds::rtps::UDPv4TransportDescriptor>();
-    udp->interfaceWhiteList.emplace_back("127.0.0.1");
+    if (address != nullptr) udp->interfaceWhiteList.emplace_back(address);
     qos.transport().user_transports.push_back(udp);
-    qos.transport().user_transports.push_back(std::make_shared<eprosima::fastdds::rtps::SharedMemTransportDescriptor>());
-    Locator_t peer;
-    peer.kind = LOCATOR_KIND_UDPv4;
-    IPLocator::setIPv4(peer, 127, 0, 0, 1);
-    qos.wire_protocol().builtin.initialPeersList.push_back(peer);
+    if (options.shared_memory) {
+      qos.transport().user_transports.push_back(std::make_shared<eprosima::fastdds::rtps::SharedMemTransportDescriptor>());
+    }
+  };
+  const bool site_transports = !(qos.transport() == pristine.transport());
+  if (options.localhost_only) {
+    // localhost_only keeps DDS on this machine whatever a profile says.
+    if (site_transports || !qos.wire_protocol().builtin.initialPeersList.empty()) {
+      notes.push_back("dds.localhost_only is true: the site profile's transports and initial peers are not used");
+    }
+    udp_on("127.0.0.1");
+    qos.wire_protocol().builtin.initialPeersList.clear();
+    if (options.discovery_servers.empty()) {
+      Locator_t peer;
+      peer.kind = LOCATOR_KIND_UDPv4;
+      IPLocator::setIPv4(peer, 127, 0, 0, 1);
+      qos.wire_protocol().builtin.initialPeersList.push_back(peer);
+    }
+  } else if (!site_transports) {
+    udp_on(nullptr);  // every interface, as Fast DDS's built-in UDP transport
+  } else if (options.shared_memory) {
+    notes.push_back("dds.shared_memory: the site profile's transports are used as they are");
+  }
+  if (!options.discovery_servers.empty()) {
+    if (discovery.discoveryProtocol != eprosima::fastrtps::rtps::DiscoveryProtocol_t::SIMPLE) {
+      notes.push_back("dds.discovery_servers replaces the site profile's discovery protocol");
+    }
+    discovery.discoveryProtocol = options.see_all_endpoints ? eprosima::fastrtps::rtps::DiscoveryProtocol_t::SUPER_CLIENT
+                                                            : eprosima::fastrtps::rtps::DiscoveryProtocol_t::CLIENT;
+    discovery.m_DiscoveryServers.clear();
+    for (const auto& server : options.discovery_servers) {
+      eprosima::fastdds::rtps::RemoteServerAttributes remote;
+      eprosima::fastdds::rtps::get_server_client_default_guidPrefix(server.id, remote.guidPrefix);
+      Locator_t locator;
+      locator.kind = LOCATOR_KIND_UDPv4;
+      IPLocator::setIPv4(locator, server.address);
+      IPLocator::setPhysicalPort(locator, server.port);
+      remote.metatrafficUnicastLocatorList.push_back(locator);
+      discovery.m_DiscoveryServers.push_back(remote);
+    }
   }
   return qos;
 }
@@ -104,7 +171,7 @@ void set_history(Qos& qos, fdds::HistoryQosPolicyKind kind, int depth) {
   limits.max_samples = depth;
   limits.max_samples_per_instance = depth;
   limits.allocated_samples = 1;
-  // The shared-memory transport still carries data between processes on one host; data sharing
+  // The transports (UDP, shared memory where a line asks for it) carry data between processes; data sharing
   // would add a fixed-size pool per endpoint on top of it.
   qos.data_sharing().off();
 }
@@ -118,20 +185,98 @@ Qos with_kind(Qos qos, QosKind kind) {
   return qos;
 }
 
-fdds::DataWriterQos writer_qos(QosKind kind) {
+// The bridge's QoS of a kind, then what the site's profiles may change of it (site_qos.hpp), then
+// the kind again: the contract's policies are never the site's.
+fdds::DataWriterQos writer_qos(const std::string& topic, QosKind kind, std::vector<std::string>& notes) {
   auto qos = with_kind(fdds::DATAWRITER_QOS_DEFAULT, kind);
   qos.reliable_writer_qos().times.heartbeatPeriod = kHeartbeatPeriod;
-  return qos;
+  apply_site_qos(topic, qos, notes);
+  return with_kind(qos, kind);
 }
 
-fdds::DataReaderQos reader_qos(QosKind kind) { return with_kind(fdds::DATAREADER_QOS_DEFAULT, kind); }
+fdds::DataReaderQos reader_qos(const std::string& topic, QosKind kind, std::vector<std::string>& notes) {
+  auto qos = with_kind(fdds::DATAREADER_QOS_DEFAULT, kind);
+  apply_site_qos(topic, qos, notes);
+  return with_kind(qos, kind);
+}
+
+// "reliable, transient-local[, deadline 2 s]": what a discovered endpoint announced.
+template <class Qos>
+std::string qos_text(const Qos& q) {
+  std::string out = std::string(q.m_reliability.kind == fdds::RELIABLE_RELIABILITY_QOS ? "reliable" : "best-effort") + ", " +
+                    (q.m_durability.kind == fdds::VOLATILE_DURABILITY_QOS ? "volatile" : "transient-local");
+  if (q.m_deadline.period != eprosima::fastrtps::c_TimeInfinite) {
+    std::ostringstream s;
+    s << ", deadline " << q.m_deadline.period.to_ns() / 1e9 << " s";
+    out += s.str();
+  }
+  return out;
+}
+std::string partitions_text(const fdds::PartitionQosPolicy& p) {
+  std::string out;
+  for (const auto& name : p.getNames()) out += (out.empty() ? "" : ",") + name;
+  return out;
+}
+template <class T>
+std::string guid_text(const T& guid) {
+  std::ostringstream s;
+  s << guid;
+  return s.str();
+}
+
+// Discovery callbacks of a participant: the secured bridge's partition bookkeeping first (it must
+// run before matching), then a tool's observer.
+class Listener : public fdds::DomainParticipantListener {
+ public:
+  Listener(WriterPartitions* partitions, DiscoveryObserver observer)
+      : partitions_(partitions), observer_(std::move(observer)) {}
+
+  void on_participant_discovery(fdds::DomainParticipant*, eprosima::fastrtps::rtps::ParticipantDiscoveryInfo&& info) override {
+    if (!observer_) return;
+    using S = eprosima::fastrtps::rtps::ParticipantDiscoveryInfo;
+    const bool removed = info.status == S::REMOVED_PARTICIPANT || info.status == S::DROPPED_PARTICIPANT;
+    observer_({DiscoveryEvent::Kind::participant, removed, guid_text(info.info.m_guid.guidPrefix),
+               info.info.m_participantName.to_string(), {}, {}, {}});
+  }
+  void on_publisher_discovery(fdds::DomainParticipant* participant, eprosima::fastrtps::rtps::WriterDiscoveryInfo&& info) override {
+    if (partitions_ != nullptr) partitions_->on_publisher_discovery(participant, eprosima::fastrtps::rtps::WriterDiscoveryInfo(info));
+    if (!observer_) return;
+    using S = eprosima::fastrtps::rtps::WriterDiscoveryInfo;
+    observer_({DiscoveryEvent::Kind::writer, info.status == S::REMOVED_WRITER, guid_text(info.info.guid()),
+               info.info.topicName().to_string(), info.info.typeName().to_string(), qos_text(info.info.m_qos),
+               partitions_text(info.info.m_qos.m_partition)});
+  }
+  void on_subscriber_discovery(fdds::DomainParticipant*, eprosima::fastrtps::rtps::ReaderDiscoveryInfo&& info) override {
+    if (!observer_) return;
+    using S = eprosima::fastrtps::rtps::ReaderDiscoveryInfo;
+    observer_({DiscoveryEvent::Kind::reader, info.status == S::REMOVED_READER, guid_text(info.info.guid()),
+               info.info.topicName().to_string(), info.info.typeName().to_string(), qos_text(info.info.m_qos),
+               partitions_text(info.info.m_qos.m_partition)});
+  }
+
+ private:
+  WriterPartitions* partitions_;
+  DiscoveryObserver observer_;
+};
 
 }  // namespace
 
-fdds::DomainParticipantQos participant_qos(const ParticipantOptions& options) {
-  auto qos = base_qos(options);
-  if (options.security) add_security(qos, *options.security);
+Result<fdds::DomainParticipantQos> participant_qos(const ParticipantOptions& options, std::vector<std::string>* notes) {
+  std::vector<std::string> ignored;
+  auto qos = base_qos(options, notes != nullptr ? *notes : ignored);
+  if (!qos) return qos.error();
+  if (options.security) add_security(*qos, *options.security);
   return qos;
+}
+
+std::string_view to_string(QosKind kind) {
+  switch (kind) {
+    case QosKind::state: return "reliable, transient-local, keep-last 1";
+    case QosKind::command: return "reliable, volatile, keep-last 16";
+    case QosKind::event: return "reliable, volatile, keep-last 1000";
+    case QosKind::reply: return "reliable, transient-local, keep-last 16";
+  }
+  return "?";
 }
 
 std::int64_t now_ns() {
@@ -153,9 +298,13 @@ Result<std::unique_ptr<Participant>, CreateError> Participant::create_checked(co
     }
     p->writer_partitions_ = std::make_unique<WriterPartitions>();
   }
+  auto qos = participant_qos(options, &p->site_notes_);
+  if (!qos) return CreateError{qos.error().message, true};
+  if (p->writer_partitions_ || options.on_discovery) {
+    p->listener_ = std::make_unique<Listener>(p->writer_partitions_.get(), options.on_discovery);
+  }
   auto* factory = fdds::DomainParticipantFactory::get_instance();
-  p->participant_ =
-      factory->create_participant(options.domain, participant_qos(options), p->writer_partitions_.get(), fdds::StatusMask::none());
+  p->participant_ = factory->create_participant(options.domain, *qos, p->listener_.get(), fdds::StatusMask::none());
   if (p->participant_ == nullptr) {
     if (!options.security) return CreateError{"cannot create DDS participant on domain " + std::to_string(options.domain)};
     return CreateError{"Fast DDS refused the secured participant on domain " + std::to_string(options.domain) +
@@ -171,6 +320,40 @@ Result<std::unique_ptr<Participant>, CreateError> Participant::create_checked(co
   p->subscriber_ = p->participant_->create_subscriber(fdds::SUBSCRIBER_QOS_DEFAULT);
   if (p->publisher_ == nullptr || p->subscriber_ == nullptr) return CreateError{"cannot create DDS publisher/subscriber"};
   return p;
+}
+
+Result<std::unique_ptr<Participant>, CreateError> Participant::plan(const ParticipantOptions& options) {
+  auto p = std::make_unique<Participant>(Key{});
+  p->planning_ = true;
+  if (options.security) {
+    if (auto files = check_security_files(*options.security, options.domain); !files) {
+      return CreateError{files.error().message, true};
+    }
+    p->secured_ = true;  // so the plan has the secured line's endpoints (requests in every partition)
+  }
+  auto qos = participant_qos(options, &p->site_notes_);
+  if (!qos) return CreateError{qos.error().message, true};
+  return p;
+}
+
+void Participant::record_plan(PlannedEndpoint endpoint) {
+  std::lock_guard lock(mutex_);
+  // The QoS the site profiles would give it: what they set that is not applied becomes a note.
+  if (endpoint.writer) {
+    writer_qos(endpoint.topic, endpoint.kind, site_notes_);
+  } else {
+    reader_qos(endpoint.topic, endpoint.kind, site_notes_);
+  }
+  planned_.push_back(std::move(endpoint));
+}
+
+std::vector<std::string> Participant::site_notes() const {
+  std::lock_guard lock(mutex_);
+  std::vector<std::string> unique;
+  for (const auto& n : site_notes_) {
+    if (std::find(unique.begin(), unique.end(), n) == unique.end()) unique.push_back(n);
+  }
+  return unique;
 }
 
 bool Participant::writer_in_partition(const eprosima::fastrtps::rtps::GUID_t& writer, std::string_view partition) const {
@@ -229,7 +412,12 @@ Result<fdds::Topic*> Participant::topic_for_type(const std::string& name, fdds::
 fdds::DataWriter* Participant::create_writer(fdds::Topic* topic, QosKind kind, const std::string& partition) {
   fdds::Publisher* pub = publisher_in(partition);
   if (pub == nullptr) return nullptr;
-  auto* w = pub->create_datawriter(topic, writer_qos(kind));
+  fdds::DataWriterQos qos;
+  {
+    std::lock_guard lock(mutex_);
+    qos = writer_qos(topic->get_name(), kind, site_notes_);
+  }
+  auto* w = pub->create_datawriter(topic, qos);
   if (w != nullptr) {
     std::lock_guard lock(mutex_);
     writers_[topic->get_name()].push_back(w);
@@ -239,7 +427,11 @@ fdds::DataWriter* Participant::create_writer(fdds::Topic* topic, QosKind kind, c
 
 fdds::DataReader* Participant::create_reader(fdds::Topic* topic, QosKind kind, int keep_last,
                                              fdds::DataReaderListener* listener, bool any_partition) {
-  auto qos = reader_qos(kind);
+  fdds::DataReaderQos qos;
+  {
+    std::lock_guard lock(mutex_);
+    qos = reader_qos(topic->get_name(), kind, site_notes_);
+  }
   if (keep_last > 0 && qos.history().kind == fdds::KEEP_LAST_HISTORY_QOS) set_history(qos, fdds::KEEP_LAST_HISTORY_QOS, keep_last);
   fdds::Subscriber* sub = any_partition ? any_partition_subscriber() : subscriber_;
   if (sub == nullptr) return nullptr;
@@ -252,6 +444,7 @@ fdds::DataReader* Participant::create_reader(fdds::Topic* topic, QosKind kind, i
 }
 
 void Participant::remove_reader(fdds::DataReader* reader) {
+  if (reader == nullptr) return;  // a planning participant's
   {
     std::lock_guard lock(mutex_);
     for (auto& [name, readers] : readers_) std::erase(readers, reader);

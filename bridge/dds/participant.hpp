@@ -21,6 +21,7 @@
 #include <optional>
 #include <string>
 #include <string_view>
+#include <type_traits>
 #include <vector>
 
 #include "base/result.hpp"
@@ -43,14 +44,58 @@ enum class QosKind {
   reply,
 };
 
+// A Fast DDS discovery server (fast-discovery-server -i ID -l ADDRESS -p PORT): its ID gives its
+// GUID prefix, as ROS_DISCOVERY_SERVER's positions do.
+struct DiscoveryServer {
+  std::uint8_t id = 0;
+  std::string address;  // IPv4
+  std::uint16_t port = 11811;
+};
+
+// What discovery reports of remote participants and endpoints, for tools that list a line.
+struct DiscoveryEvent {
+  enum class Kind { participant, writer, reader };
+  Kind kind = Kind::participant;
+  bool removed = false;
+  std::string guid;       // the participant's GUID prefix or the endpoint's GUID
+  std::string name;       // the participant's name or the endpoint's topic
+  std::string type;       // the endpoint's type name
+  std::string qos;        // "reliable, transient-local" ...
+  std::string partitions; // comma-separated
+};
+using DiscoveryObserver = std::function<void(const DiscoveryEvent&)>;
+
 struct ParticipantOptions {
   std::uint32_t domain = 0;
-  bool localhost_only = true;  // UDPv4 on 127.0.0.1 + shared memory, initial peer 127.0.0.1
+  bool localhost_only = true;  // UDPv4 on 127.0.0.1 only, initial peer 127.0.0.1
   std::string name = "linebridge";
   // DDS Security (PKI-DH, Access-Permissions, AES-GCM-GMAC), fail-closed: the files are checked
   // first and the participant proves after creation that security is in force, or it is not created.
   std::optional<SecurityFiles> security = std::nullopt;
+  // Site DDS configuration (README "Site DDS configuration"): Fast DDS XML profiles, loaded after
+  // FASTRTPS_DEFAULT_PROFILES_FILE; a participant profile by name ("" = the file's default one).
+  std::string profiles_file = {};
+  std::string participant_profile = {};
+  // Discovery through these servers (CLIENT) instead of multicast; none: simple discovery.
+  std::vector<DiscoveryServer> discovery_servers = {};
+  // With discovery servers: learn every endpoint of the domain (SUPER_CLIENT), for tools that
+  // list a line's topics; a plain client learns only the endpoints that match its own.
+  bool see_all_endpoints = false;
+  DiscoveryObserver on_discovery = {};
+  // Fast DDS's shared-memory transport besides UDP. Off by default: in Fast DDS 2.9 it silently
+  // carries nothing between processes of different users (the service's and an operator's).
+  bool shared_memory = false;
 };
+
+// A DDS entity the bridge would create, as a planning participant records it (linebridge --check).
+struct PlannedEndpoint {
+  std::string topic;
+  std::string type;
+  QosKind kind = QosKind::state;
+  bool writer = true;
+  std::string partition;  // "*" for a reader of every partition
+};
+std::string_view to_string(QosKind kind);  // "reliable, transient-local, keep-last 1" ...
 
 // Why a participant was not created. `configuration`: the options are wrong (a security file,
 // security not in force), not the machine; executables exit with their configuration-error code.
@@ -59,9 +104,14 @@ struct CreateError {
   bool configuration = false;
 };
 
-// The QoS Participant::create gives Fast DDS, security properties included, without the checks
-// and the proof: for tests that must drive Fast DDS directly (a client that bypasses its own checks).
-fdds::DomainParticipantQos participant_qos(const ParticipantOptions& options);
+// The QoS Participant::create gives Fast DDS, site profiles and security properties included,
+// without the checks and the proof: for tests that must drive Fast DDS directly (a client that
+// bypasses its own checks). Site notes: what a profile set that was not applied, and why.
+Result<fdds::DomainParticipantQos> participant_qos(const ParticipantOptions& options, std::vector<std::string>* notes);
+inline fdds::DomainParticipantQos participant_qos(const ParticipantOptions& options) {
+  auto qos = participant_qos(options, nullptr);
+  return qos ? *qos : fdds::PARTICIPANT_QOS_DEFAULT;
+}
 
 // ROS 2 style service topic names: rq/<path>Request and rr/<path>Reply.
 inline std::string request_topic(const std::string& path) { return "rq/" + path + "Request"; }
@@ -114,12 +164,21 @@ class Participant {
   explicit Participant(Key) {}
   static Result<std::unique_ptr<Participant>> create(const ParticipantOptions& options);
   static Result<std::unique_ptr<Participant>, CreateError> create_checked(const ParticipantOptions& options);
+  // A participant that creates nothing in DDS and records every topic, writer and reader asked of
+  // it (with the QoS the site profiles would give them): what a line will publish, without a
+  // network (linebridge --check). Its writers write nothing.
+  static Result<std::unique_ptr<Participant>, CreateError> plan(const ParticipantOptions& options);
+  const std::vector<PlannedEndpoint>& planned() const { return planned_; }
+  // What the site's profiles set that was not applied (contract QoS, transports over
+  // localhost_only, ...), one line each, for the log and --check.
+  std::vector<std::string> site_notes() const;
   ~Participant();
   Participant(const Participant&) = delete;
   Participant& operator=(const Participant&) = delete;
 
   template <class PubSubType>
   Result<Writer<PubSubType>> writer(const std::string& topic, QosKind kind) {
+    if (planning_) return plan_endpoint<PubSubType, Writer<PubSubType>>(topic, kind, true);
     auto t = topic_for<PubSubType>(topic);
     if (!t) return t.error();
     auto* w = create_writer(*t, kind);
@@ -131,6 +190,7 @@ class Participant {
   // when the permissions do not grant publishing on the topic in that partition.
   template <class PubSubType>
   Result<Writer<PubSubType>> writer(const std::string& topic, QosKind kind, const std::string& partition) {
+    if (planning_) return plan_endpoint<PubSubType, Writer<PubSubType>>(topic, kind, true, partition);
     auto t = topic_for<PubSubType>(topic);
     if (!t) return t.error();
     auto* w = create_writer(*t, kind, partition);
@@ -147,6 +207,7 @@ class Participant {
   template <class PubSubType>
   Result<void> subscribe(const std::string& topic, QosKind kind, SampleCallback<PubSubType> callback,
                          int keep_last = 0) {
+    if (planning_) return plan_endpoint<PubSubType, void>(topic, kind, false);
     auto t = topic_for<PubSubType>(topic);
     if (!t) return t.error();
     auto listener = std::make_unique<TypedListener<PubSubType>>(std::move(callback), gate_, lost_for(kind), topic);
@@ -177,6 +238,10 @@ class Participant {
   template <class PubSubType>
   Result<std::unique_ptr<Subscription>> subscribe_scoped(const std::string& topic, QosKind kind,
                                                          SampleCallback<PubSubType> callback) {
+    if (planning_) {
+      record_plan(PlannedEndpoint{topic, PubSubType().getName(), kind, false, {}});
+      return std::make_unique<Subscription>(*this, nullptr, nullptr);
+    }
     auto t = topic_for<PubSubType>(topic);
     if (!t) return t.error();
     auto listener = std::make_unique<TypedListener<PubSubType>>(std::move(callback), gate_, lost_for(kind), topic);
@@ -188,6 +253,7 @@ class Participant {
   // writer_in_partition() tells which partitions a sample's writer was matched with.
   template <class PubSubType>
   Result<void> subscribe_any_partition(const std::string& topic, QosKind kind, SampleCallback<PubSubType> callback) {
+    if (planning_) return plan_endpoint<PubSubType, void>(topic, kind, false, "*");
     auto t = topic_for<PubSubType>(topic);
     if (!t) return t.error();
     auto listener = std::make_unique<TypedListener<PubSubType>>(std::move(callback), gate_, lost_for(kind), topic);
@@ -253,6 +319,17 @@ class Participant {
     std::string topic_;
   };
 
+  template <class PubSubType, class Made>
+  Result<Made> plan_endpoint(const std::string& topic, QosKind kind, bool writer, const std::string& partition = {}) {
+    record_plan(PlannedEndpoint{topic, PubSubType().getName(), kind, writer, partition});
+    if constexpr (std::is_void_v<Made>) {
+      return {};
+    } else {
+      return Made();
+    }
+  }
+  void record_plan(PlannedEndpoint endpoint);
+
   template <class PubSubType>
   Result<fdds::Topic*> topic_for(const std::string& name) {
     // TypeSupport takes ownership of a raw pointer by API design.
@@ -272,7 +349,11 @@ class Participant {
   std::shared_ptr<LostSamples> lost_commands_ = std::make_shared<LostSamples>();
   // Declared before the participant's entities: Fast DDS calls it until the participant is deleted.
   std::unique_ptr<WriterPartitions> writer_partitions_;
+  std::unique_ptr<fdds::DomainParticipantListener> listener_;
   bool secured_ = false;
+  bool planning_ = false;
+  std::vector<PlannedEndpoint> planned_;
+  std::vector<std::string> site_notes_;  // guarded by mutex_
   fdds::DomainParticipant* participant_ = nullptr;
   fdds::Publisher* publisher_ = nullptr;
   fdds::Subscriber* subscriber_ = nullptr;

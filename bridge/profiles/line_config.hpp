@@ -30,10 +30,21 @@ struct DdsSecurityConfig {
   std::vector<std::pair<std::string, std::string>> properties;
 };
 
+// dds.discovery_servers: a Fast DDS discovery server (fast-discovery-server -i id -l address -p port).
+struct DdsDiscoveryServer {
+  std::uint8_t id = 0;
+  std::string address;  // IPv4
+  std::uint16_t port = 11811;
+};
+
 struct DdsConfig {
   std::uint32_t domain = 0;
   bool localhost_only = true;
   std::optional<DdsSecurityConfig> security;  // absent: an unsecured domain
+  std::string profiles_file;        // Fast DDS XML profiles (absolute path); "" = none
+  std::string participant_profile;  // a participant profile of it by name; "" = its default one
+  std::vector<DdsDiscoveryServer> discovery_servers;  // none: simple (multicast) discovery
+  bool shared_memory = false;       // Fast DDS's shared-memory transport besides UDP (one user only)
 };
 
 struct BusConfig {
@@ -178,6 +189,12 @@ struct LineConfig {
   bool restore_set_values = true;
   std::vector<BusConfig> buses;
   std::vector<DeviceConfig> devices;
+  // profiles_dir: profile files loaded over the built-in ones; the devices' resolved_profile
+  // point into `profiles` then (shared, so copies of the configuration stay valid).
+  std::string profiles_dir;
+  std::shared_ptr<const ProfileRegistry> profiles;
+  // What start-up accepts but an integrator should look at ("file:line:column: ..."), for --check.
+  std::vector<std::string> warnings;
 
   const BusConfig* bus(std::string_view name) const;
   const DeviceConfig* device(std::string_view name) const;

@@ -414,12 +414,16 @@ ProfileRegistry ProfileRegistry::builtin() {
   return registry;
 }
 
-Result<void> ProfileRegistry::add_file(const std::string& path) {
+Result<Profile> load_profile_file(const std::string& path) {
   std::ifstream in(path);
   if (!in) return make_error(path + ": cannot open profile file");
   std::stringstream text;
   text << in.rdbuf();
-  auto p = parse_profile(text.str(), path);
+  return parse_profile(text.str(), path);
+}
+
+Result<void> ProfileRegistry::add_file(const std::string& path) {
+  auto p = load_profile_file(path);
   if (!p) return p.error();
   add(std::move(*p));
   return {};

@@ -13,6 +13,8 @@ namespace lb::profiles {
 
 // Parses one profile definition; `source` names it in error messages.
 Result<Profile> parse_profile(const std::string& yaml_text, const std::string& source);
+// Reads and parses one profile file; errors name the file (and line and column).
+Result<Profile> load_profile_file(const std::string& path);
 
 class ProfileRegistry {
  public:

@@ -1,0 +1,77 @@
+#include "app/arguments.hpp"
+
+#include <fastrtps/config.h>
+
+#include <cmath>
+
+#include "app/version.hpp"
+
+namespace lb::app {
+namespace {
+
+constexpr double kYearSeconds = 365.0 * 24 * 3600;
+
+}  // namespace
+
+std::string version_text(std::string_view program) {
+  return std::string(program) + " " + std::string(kVersion) + " (Fast DDS " + FASTRTPS_VERSION_STR + ")";
+}
+
+void add_conventions(CLI::App& cli, std::string_view program) {
+  cli.set_version_flag("--version", version_text(program));
+  cli.footer("Exit codes: 0 done, 1 failure (start-up, run time, or a request the bridge refused), 2 bad arguments or "
+             "configuration.");
+}
+
+int parse(CLI::App& cli, int argc, char** argv) {
+  try {
+    cli.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    // CLI11 prints help, the version or the error; its own codes (104, 105, 109, ...) would mean
+    // something else to a service manager, so every argument error is a usage error.
+    return cli.exit(e) == 0 ? kExitOk : kExitUsage;
+  }
+  return -1;
+}
+
+const CLI::Validator& duration_seconds() {
+  static const CLI::Validator v(
+      [](std::string& text) -> std::string {
+        double d = 0;
+        if (!CLI::detail::lexical_cast(text, d) || !std::isfinite(d) || d < 0 || d > kYearSeconds) {
+          return "a duration is 0 (no limit) up to 31536000 seconds, not '" + text + "'";
+        }
+        return {};
+      },
+      "SECONDS 0..31536000");
+  return v;
+}
+
+CLI::Validator positive_at_most(double max) {
+  return CLI::Validator(
+      [max](std::string& text) -> std::string {
+        double d = 0;
+        if (!CLI::detail::lexical_cast(text, d) || !std::isfinite(d) || d <= 0 || d > max) {
+          return "expected a number greater than 0 and at most " + CLI::detail::to_string(max) + ", not '" + text + "'";
+        }
+        return {};
+      },
+      "NUMBER > 0");
+}
+
+const CLI::Validator& non_empty_path() {
+  static const CLI::Validator v(
+      [](std::string& text) -> std::string { return text.empty() ? "the path is empty" : std::string{}; }, "FILE");
+  return v;
+}
+
+const CLI::Validator& log_level() {
+  static const CLI::Validator v = CLI::IsMember({"trace", "debug", "info", "warn", "error", "critical", "off"});
+  return v;
+}
+
+std::chrono::milliseconds duration_ms(double seconds) {
+  return std::chrono::milliseconds(static_cast<long long>(std::llround(seconds * 1000)));
+}
+
+}  // namespace lb::app

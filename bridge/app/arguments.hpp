@@ -1,0 +1,43 @@
+#pragma once
+// Argument conventions shared by every executable: exit codes, --version, and the validators of
+// options whose bad values CLI11 would otherwise take (a negative or NaN duration, an unknown log
+// level, an empty configuration path).
+
+#include <CLI/CLI.hpp>
+
+#include <chrono>
+#include <string>
+#include <string_view>
+
+namespace lb::app {
+
+// Exit codes of every executable (README "Exit codes").
+inline constexpr int kExitOk = 0;
+inline constexpr int kExitFailure = 1;  // start-up or run-time failure; a refusal by the bridge (CLI)
+inline constexpr int kExitUsage = 2;    // bad arguments or configuration: retrying cannot help
+inline constexpr int kExitLoopFailed = 3;  // linebridge: a bus loop failed while running (restart it)
+
+// "linebridge 0.1.0 (Fast DDS 2.9.1)".
+std::string version_text(std::string_view program);
+
+// Adds --version and makes CLI11's own failures follow the conventions above.
+void add_conventions(CLI::App& cli, std::string_view program);
+
+// Parses; returns the exit code to leave with (0 after --help/--version, kExitUsage for any
+// argument error, which CLI11 prints) or -1 to go on.
+int parse(CLI::App& cli, int argc, char** argv);
+
+// Validators.
+// A duration in seconds: finite, 0 (no limit) up to a year. Refuses -5, nan, inf, 1e30.
+const CLI::Validator& duration_seconds();
+// A finite number greater than 0 and at most `max` (rates, timeouts).
+CLI::Validator positive_at_most(double max);
+// A path that is not empty ("" would otherwise mean "the built-in demo line").
+const CLI::Validator& non_empty_path();
+// trace, debug, info, warn, error, critical, off.
+const CLI::Validator& log_level();
+
+// --duration's value (validated) as the chrono duration run_until_signal takes; 0 = no limit.
+std::chrono::milliseconds duration_ms(double seconds);
+
+}  // namespace lb::app

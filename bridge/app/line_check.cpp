@@ -1,0 +1,152 @@
+#include "app/line_check.hpp"
+
+#include <fmt/format.h>
+#include <net/if.h>
+#include <sys/eventfd.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <map>
+
+#include "app/arguments.hpp"
+#include "app/dds_options.hpp"
+#include "app/line_bridge.hpp"
+#include "app/line_config_source.hpp"
+#include "can/unique_fd.hpp"
+#include "dds/site_profiles.hpp"
+
+namespace lb::app {
+namespace {
+
+// Where the packaged service may write (ReadWritePaths / StateDirectory of linebridge.service).
+constexpr std::string_view kServiceStateDir = "/var/lib/linebridge";
+
+// A bus that is never opened: the gateways register on it as on a real one, and nothing reaches CAN.
+class StandInBus final : public can::Bus {
+ public:
+  explicit StandInBus(std::string uri) : uri_(std::move(uri)), fd_(::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC)) {}
+  const std::string& uri() const override { return uri_; }
+  int fd() const override { return fd_.get(); }
+  Result<std::optional<can::CanFrame>> receive() override { return std::optional<can::CanFrame>{}; }
+  Result<void> send(const can::CanFrame&) override { return make_error("--check sends nothing"); }
+  can::BusStats stats() const override { return {}; }
+
+ private:
+  std::string uri_;
+  can::UniqueFd fd_;
+};
+
+// What start-up would find on this machine that the file alone does not say.
+void check_machine(const profiles::LineConfig& line, std::vector<std::string>& errors, std::vector<std::string>& warnings) {
+  for (const auto& bus : line.buses) {
+    const std::string_view uri = bus.interface;
+    if (uri.rfind("log:", 0) == 0) {
+      const auto path = std::string(uri.substr(4, uri.find('?') == std::string_view::npos ? std::string_view::npos : uri.find('?') - 4));
+      if (::access(path.c_str(), R_OK) != 0) errors.push_back("bus " + bus.name + ": cannot read the recording " + path);
+    } else if (uri.rfind("socketcan:", 0) == 0) {
+      const std::string ifname(uri.substr(10));
+      if (::if_nametoindex(ifname.c_str()) == 0) {
+        warnings.push_back("bus " + bus.name + ": no network interface " + ifname +
+                           " on this machine: start-up here would stop (exit 1) until it exists");
+      }
+    }
+    if (!bus.record.empty()) {
+      const auto dir = std::filesystem::path(bus.record).parent_path();
+      if (::access(dir.c_str(), W_OK) != 0) warnings.push_back("bus " + bus.name + ": cannot write to " + dir.string() + " (record:)");
+      if (bus.record.rfind(kServiceStateDir, 0) != 0) {
+        warnings.push_back("bus " + bus.name + ": record: " + bus.record + " is outside " + std::string(kServiceStateDir) +
+                           ", the only directory the packaged service may write");
+      }
+    }
+  }
+}
+
+// Endpoint profiles of the site's XML files that name no topic of this line: most likely a typo.
+void check_profile_names(const profiles::LineConfig& line, const std::vector<ddsl::PlannedEndpoint>& planned,
+                         std::vector<std::string>& warnings) {
+  auto site = ddsl::load_site_profiles(line.dds.profiles_file);
+  if (!site) return;
+  const auto unused = [&](const std::vector<std::string>& names, bool writer, const char* what) {
+    for (const auto& name : names) {
+      if (name.rfind("rt/", 0) != 0 && name.rfind("rq/", 0) != 0 && name.rfind("rr/", 0) != 0) continue;  // not a topic name
+      const bool used = std::any_of(planned.begin(), planned.end(),
+                                    [&](const ddsl::PlannedEndpoint& e) { return e.topic == name && e.writer == writer; });
+      if (!used) warnings.push_back(std::string(what) + " profile '" + name + "' names no topic the bridge " +
+                                    (writer ? "writes" : "reads") + " on line " + line.line);
+    }
+  };
+  unused(site->writers, true, "data_writer");
+  unused(site->readers, false, "data_reader");
+}
+
+void print_summary(const profiles::LineConfig& line, const std::vector<ddsl::PlannedEndpoint>& planned, std::FILE* out) {
+  const auto& dds = line.dds;
+  std::string discovery = "simple discovery";
+  if (!dds.discovery_servers.empty()) {
+    discovery = "discovery servers";
+    for (const auto& s : dds.discovery_servers) discovery += fmt::format(" {}@{}:{}", s.id, s.address, s.port);
+  }
+  fmt::print(out, "line {}: {} bus(es), {} device(s); DDS domain {}{}, {}{}{}\n", line.line, line.buses.size(),
+             line.devices.size(), dds.domain, dds.localhost_only ? " (localhost only)" : "", discovery,
+             dds.security ? ", secured (DDS Security)" : "", dds.profiles_file.empty() ? "" : ", profiles " + dds.profiles_file);
+  if (!line.profiles_dir.empty()) fmt::print(out, "profiles_dir {}\n", line.profiles_dir);
+  for (const auto& b : line.buses) {
+    fmt::print(out, "bus {} on {}: {}", b.name, b.interface, profiles::to_string(b.role));
+    if (b.role == profiles::BusRole::master) {
+      fmt::print(out, ", SYNC every {} ms, SDO timeout {} ms", b.sync_period.count() / 1000, b.sdo_timeout.count());
+      if (b.master_node_id != 0) fmt::print(out, ", own heartbeat node {} every {} ms", b.master_node_id, b.master_heartbeat_period.count());
+    }
+    if (!b.record.empty()) fmt::print(out, ", recording to {}", b.record);
+    fmt::print(out, "\n");
+    for (const auto& d : line.devices) {
+      if (d.bus != b.name) continue;
+      fmt::print(out, "  {} node {}: {} {} {} ({}), heartbeat timeout {} ms{}, pdo_config {}\n", d.name, d.node_id,
+                 d.resolved_profile->device, d.profile, d.version, d.resolved_profile->title, d.heartbeat_timeout.count(),
+                 d.heartbeat_producer ? fmt::format(" (producer {} ms written to 1017h)", d.heartbeat_producer->count()) : "",
+                 profiles::to_string(d.pdo_config));
+    }
+  }
+  // One line per topic: which way the bridge uses it and with what QoS.
+  std::map<std::string, std::vector<const ddsl::PlannedEndpoint*>> topics;
+  for (const auto& e : planned) topics[e.topic].push_back(&e);
+  fmt::print(out, "DDS topics ({}):\n", topics.size());
+  for (const auto& [topic, endpoints] : topics) {
+    const auto* first = endpoints.front();
+    std::string how;
+    for (const auto* e : endpoints) {
+      const std::string h = std::string(e->writer ? "bridge writes" : "bridge reads") + (e->partition.empty() ? "" : " in partition " + e->partition);
+      if (how.find(h) == std::string::npos) how += (how.empty() ? "" : ", ") + h;
+    }
+    fmt::print(out, "  {:<44} {:<52} {} [{}]\n", topic, first->type, how, ddsl::to_string(first->kind));
+  }
+}
+
+}  // namespace
+
+int check_line(const std::string& path, const profiles::ProfileRegistry& registry, std::FILE* out, std::FILE* err) {
+  auto config = load_config(path, registry);
+  if (!config) return fmt::print(err, "{}\n", config.error().message), kExitUsage;
+  auto dds = ddsl::Participant::plan(bridge_participant_options(*config));
+  if (!dds) return fmt::print(err, "{}\n", dds.error().message), kExitUsage;
+  auto* planning = dds->get();
+  auto bridge = LineBridge::create(*config, std::move(*dds), [](const profiles::BusConfig& b) -> Result<std::unique_ptr<can::Bus>> {
+    return std::unique_ptr<can::Bus>(std::make_unique<StandInBus>(b.interface));
+  });
+  if (!bridge) return fmt::print(err, "{}: {}\n", path, bridge.error().message), kExitUsage;
+
+  std::vector<std::string> errors;
+  std::vector<std::string> warnings = config->warnings;
+  check_machine(*config, errors, warnings);
+  check_profile_names(*config, planning->planned(), warnings);
+  for (const auto& n : planning->site_notes()) warnings.push_back(n);
+
+  print_summary(*config, planning->planned(), out);
+  for (const auto& w : warnings) fmt::print(out, "warning: {}\n", w);
+  for (const auto& e : errors) fmt::print(err, "error: {}\n", e);
+  if (!errors.empty()) return kExitUsage;
+  fmt::print(out, "{}: ok ({} warning(s))\n", path, warnings.size());
+  return kExitOk;
+}
+
+}  // namespace lb::app

@@ -1,0 +1,125 @@
+// Argument handling and exit codes of every executable (README "Exit codes"): the real binaries,
+// run to their end. Every case here must be refused before anything starts; the test still runs
+// inside launch_scripts/netns-run.sh so that a regression could not reach a network.
+#include <gtest/gtest.h>
+
+#include <fstream>
+#include <string>
+#include <vector>
+
+#include "support/run_command.hpp"
+
+using lb::test::run_command;
+
+namespace {
+
+const std::vector<std::string> kExecutables = {LB_BIN_BRIDGE, LB_BIN_SIM, LB_BIN_CLI, LB_BIN_SECURITY};
+
+std::string write_file(const std::string& name, const std::string& text) {
+  const auto path = ::testing::TempDir() + "/" + name;
+  std::ofstream(path) << text;
+  return path;
+}
+
+std::string line_with_interface(const std::string& name, const std::string& interface) {
+  return write_file(name, "line: args\nbuses:\n  - name: b\n    interface: '" + interface +
+                              "'\ndevices:\n  - {name: saw1, bus: b, node_id: 3, profile: cia420-4, version: '3.1'}\n");
+}
+
+TEST(Arguments, UnknownOptionIsUsageErrorEverywhere) {
+  for (const auto& exe : kExecutables) {
+    std::vector<std::string> argv = {exe, "--no-such-option"};
+    if (exe == LB_BIN_CLI) argv.push_back("list");
+    if (exe == LB_BIN_SECURITY) argv.push_back("governance");
+    const auto r = run_command(argv);
+    EXPECT_EQ(r.exit_code, 2) << exe << ": " << r.output;
+    EXPECT_NE(r.output.find("no-such-option"), std::string::npos) << exe << ": " << r.output;
+  }
+  // CLI11's own codes were 106 (a value that is no number) and 109 (an extra argument).
+  EXPECT_EQ(run_command({LB_BIN_CLI, "echo"}).exit_code, 2);
+  EXPECT_EQ(run_command({LB_BIN_CLI, "no-such-command"}).exit_code, 2);
+  EXPECT_EQ(run_command({LB_BIN_BRIDGE, "--duration", "ten"}).exit_code, 2);
+  EXPECT_EQ(run_command({LB_BIN_SIM, "extra"}).exit_code, 2);
+}
+
+TEST(Arguments, VersionAndHelpEverywhere) {
+  const std::vector<std::string> names = {"linebridge ", "linebridge-sim ", "linebridge-cli ", "linebridge-security "};
+  for (std::size_t i = 0; i < kExecutables.size(); ++i) {
+    const auto v = run_command({kExecutables[i], "--version"});
+    EXPECT_EQ(v.exit_code, 0) << v.output;
+    EXPECT_EQ(v.output.rfind(names[i] + "0.", 0), 0U) << v.output;
+    EXPECT_NE(v.output.find("Fast DDS 2."), std::string::npos) << v.output;
+    const auto h = run_command({kExecutables[i], "--help"});
+    EXPECT_EQ(h.exit_code, 0) << h.output;
+    EXPECT_NE(h.output.find("Exit codes"), std::string::npos) << h.output;
+  }
+}
+
+TEST(Arguments, DurationsMustBeFiniteAndBounded) {
+  for (const auto& exe : {std::string(LB_BIN_BRIDGE), std::string(LB_BIN_SIM)}) {
+    for (const char* bad : {"-5", "nan", "inf", "1e30", "-0.001", "31536001"}) {
+      const auto r = run_command({exe, "--duration", bad});
+      EXPECT_EQ(r.exit_code, 2) << exe << " --duration " << bad << ": " << r.output;
+      EXPECT_NE(r.output.find("duration"), std::string::npos) << r.output;
+    }
+  }
+  for (const char* bad : {"-5", "nan", "1e30"}) {
+    EXPECT_EQ(run_command({LB_BIN_CLI, "echo", "saw1", "--duration", bad}).exit_code, 2) << bad;
+    EXPECT_EQ(run_command({LB_BIN_CLI, "candump", "extrusion", "--duration", bad}).exit_code, 2) << bad;
+  }
+  for (const char* bad : {"0", "-1", "nan", "inf"}) {
+    EXPECT_EQ(run_command({LB_BIN_CLI, "echo", "saw1", "--rate", bad}).exit_code, 2) << bad;
+    EXPECT_EQ(run_command({LB_BIN_CLI, "nmt", "saw1", "start", "--timeout", bad}).exit_code, 2) << bad;
+    EXPECT_EQ(run_command({LB_BIN_CLI, "set", "saw1", "--timeout", bad}).exit_code, 2) << bad;
+  }
+}
+
+TEST(Arguments, MistypedLogLevelIsRefused) {
+  for (const auto& exe : {std::string(LB_BIN_BRIDGE), std::string(LB_BIN_SIM)}) {
+    const auto r = run_command({exe, "--log-level", "verbose"});
+    EXPECT_EQ(r.exit_code, 2) << exe << ": " << r.output;
+    EXPECT_NE(r.output.find("verbose"), std::string::npos) << r.output;
+  }
+}
+
+TEST(Arguments, EmptyConfigPathIsRefusedNotTheDemoLine) {
+  for (const auto& exe : kExecutables) {
+    std::vector<std::string> argv = {exe, "--config", ""};
+    if (exe == LB_BIN_CLI) argv.push_back("list");
+    if (exe == LB_BIN_SECURITY) argv.push_back("governance");
+    const auto r = run_command(argv);
+    EXPECT_EQ(r.exit_code, 2) << exe << ": " << r.output;
+    EXPECT_NE(r.output.find("empty"), std::string::npos) << exe << ": " << r.output;
+  }
+  EXPECT_EQ(run_command({LB_BIN_BRIDGE, "--check", ""}).exit_code, 2);
+}
+
+// A malformed interface is a configuration error with its place in the file, in every executable
+// and in --check, exit 2 (the unit does not restart on 2), never a start-up failure (exit 1).
+TEST(Arguments, MalformedInterfacesAreConfigurationErrorsWithTheirPlace) {
+  const std::vector<std::pair<std::string, std::string>> cases = {
+      {"socketcan:", "empty"},
+      {"virtual:", "empty"},
+      {"socketcan:" + std::string(16, 'c'), "interface name"},
+      {"socketcan:can/0", "interface name"},
+      {"virtual:" + std::string(100000, 'v'), "bus name"},
+      {"virtual:a b", "bus name"},
+      {"can0", "unknown scheme"},
+  };
+  int n = 0;
+  for (const auto& [interface, says] : cases) {
+    const auto path = line_with_interface("iface_" + std::to_string(++n) + ".yaml", interface);
+    for (const auto& argv : std::vector<std::vector<std::string>>{{LB_BIN_BRIDGE, "--config", path},
+                                                                   {LB_BIN_BRIDGE, "--check", path},
+                                                                   {LB_BIN_SIM, "--config", path},
+                                                                   {LB_BIN_CLI, "--config", path, "list"}}) {
+      const auto r = run_command(argv);
+      EXPECT_EQ(r.exit_code, 2) << argv[0] << " " << interface.substr(0, 40) << ": " << r.output;
+      EXPECT_NE(r.output.find(path + ":4:16:"), std::string::npos) << interface.substr(0, 40) << ": " << r.output.substr(0, 400);
+      EXPECT_NE(r.output.find(says), std::string::npos) << r.output.substr(0, 400);
+      EXPECT_LT(r.output.size(), 2000U) << "the message repeats a huge name";
+    }
+  }
+}
+
+}  // namespace
