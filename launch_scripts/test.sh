@@ -1,35 +1,76 @@
 #!/usr/bin/env bash
 # The whole test suite from nothing: installs the dependencies (apt), builds with warnings as
-# errors, runs every test (unit, integration over virtual buses with DDS in private network
-# namespaces, real SocketCAN in a VM or natively), then runs the integration tests once more under
-# ThreadSanitizer (LINEBRIDGE_TSAN=0 skips that stage).
-#   launch_scripts/test.sh [extra ctest arguments, e.g. -R SawLine]
+# errors, then runs, each stage timed:
+#   1. ThreadSanitizer: every integration and unit test (ctest labels), instrumented (LINEBRIDGE_TSAN=0 skips);
+#   2. AddressSanitizer + UndefinedBehaviorSanitizer (clang): every unit and integration test
+#      (LINEBRIDGE_ASAN=0 skips), and in the same build the libFuzzer targets (fuzz/), each for
+#      LINEBRIDGE_FUZZ_SECONDS (20; 0 skips) from its committed seeds;
+#   3. every test (unit, integration over virtual buses with DDS in private network namespaces,
+#      real SocketCAN in a VM or natively) in the normal build.
+#   launch_scripts/test.sh [extra ctest arguments for stage 3, e.g. -R SawLine]
 set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$PWD
 
 ./launch_scripts/setup.sh
 build=${LINEBRIDGE_BUILD_DIR:-build}
+
+stage_times=()
+failed=()
+stage_start() { stage_t0=$SECONDS; echo "== $1"; }
+stage_end() {  # name status
+  stage_times+=("$1: $((SECONDS - stage_t0)) s")
+  if [ "$2" != 0 ]; then failed+=("$1 (exit $2)"); fi
+}
+
+stage_start "build"
 cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLINEBRIDGE_WERROR=ON
 cmake --build "$build"
+stage_end "build" 0
 
-tsan_status=0
 if [ "${LINEBRIDGE_TSAN:-1}" != 0 ]; then
   # Races between service calls, DDS threads and the bus loops are what this stage is for: the
-  # real bridge and simulator processes, instrumented, under the integration tests.
+  # real bridge and simulator processes, instrumented, under every integration test.
+  stage_start "ThreadSanitizer: build, unit and integration tests"
   tsan="${build}-tsan"
-  cmake -S . -B "$tsan" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLINEBRIDGE_WERROR=ON -DLINEBRIDGE_SANITIZE=thread
-  cmake --build "$tsan" --target linebridge linebridge-sim integration_saw integration_core integration_monitor \
-    integration_pdo integration_master_boot unit_sdo unit_pdo_transmitter
-  echo "== ThreadSanitizer: integration tests"
-  (cd "$tsan" && TSAN_OPTIONS="suppressions=$root/tests/tsan.supp second_deadlock_stack=1" \
-    ctest --output-on-failure --timeout 300 -j 1 -R 'SawLine|CanopenCore|MonitorRole|PdoOverrides|MasterBoot|Transmitter|^Sdo') ||
-    tsan_status=$?
+  status=0
+  cmake -S . -B "$tsan" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DLINEBRIDGE_WERROR=ON -DLINEBRIDGE_SANITIZE=thread &&
+    cmake --build "$tsan" &&
+    (cd "$tsan" && TSAN_OPTIONS="suppressions=$root/tests/tsan.supp second_deadlock_stack=1" \
+      ctest --output-on-failure --timeout 300 -j 1 -L '^(unit|integration)$') || status=$?
+  stage_end "ThreadSanitizer" "$status"
 fi
 
-cd "$build"
-ctest --output-on-failure --timeout 300 -j 2 "$@"
-if [ "$tsan_status" != 0 ]; then
-  echo "test.sh: the ThreadSanitizer stage failed (see above)" >&2
-  exit "$tsan_status"
+if [ "${LINEBRIDGE_ASAN:-1}" != 0 ]; then
+  # Memory errors and undefined behaviour (any report ends the process: -fno-sanitize-recover).
+  # clang, so that the fuzz targets build in the same tree and the libraries are compiled once.
+  stage_start "AddressSanitizer + UBSan: build, unit and integration tests"
+  asan="${build}-asan"
+  status=0
+  cmake -S . -B "$asan" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER=clang++ \
+    -DLINEBRIDGE_SANITIZE=address,undefined -DLINEBRIDGE_FUZZ=ON &&
+    cmake --build "$asan" &&
+    (cd "$asan" && ASAN_OPTIONS="detect_leaks=1" \
+      LSAN_OPTIONS="suppressions=$root/tests/lsan.supp" UBSAN_OPTIONS="print_stacktrace=1" \
+      ctest --output-on-failure --timeout 300 -j 2 -L '^(unit|integration)$') || status=$?
+  stage_end "AddressSanitizer + UBSan" "$status"
+
+  fuzz_seconds=${LINEBRIDGE_FUZZ_SECONDS:-20}
+  if [ "$fuzz_seconds" != 0 ]; then
+    stage_start "fuzz: every target for ${fuzz_seconds} s"
+    status=0
+    LINEBRIDGE_FUZZ_BUILD_DIR="$asan" ./launch_scripts/fuzz.sh --seconds "$fuzz_seconds" || status=$?
+    stage_end "fuzz" "$status"
+  fi
+fi
+
+stage_start "all tests"
+status=0
+(cd "$build" && ctest --output-on-failure --timeout 300 -j 2 "$@") || status=$?
+stage_end "all tests" "$status"
+
+echo "test.sh: stage times: $(IFS=';'; echo "${stage_times[*]}")"
+if ((${#failed[@]})); then
+  echo "test.sh: failed stages: ${failed[*]}" >&2
+  exit 1
 fi

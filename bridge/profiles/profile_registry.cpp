@@ -2,14 +2,13 @@
 
 #include <algorithm>
 #include <charconv>
-#include <fstream>
-#include <sstream>
 #include <stdexcept>
 #include <unordered_set>
 
 #include <fmt/format.h>
 
 #include "profiles/builtin_profiles.hpp"
+#include "profiles/config_file.hpp"
 #include "profiles/yaml_source.hpp"
 
 namespace lb::profiles {
@@ -390,6 +389,8 @@ Result<Profile> parse_profile(const std::string& yaml_text, const std::string& s
     return p;
   } catch (const ConfigError& e) {
     return make_error(e.what());
+  } catch (const YAML::Exception& e) {  // a conversion the checks missed: still an error, not an abort
+    return make_error(source + ":" + std::to_string(e.mark.line + 1) + ":" + std::to_string(e.mark.column + 1) + ": " + e.msg);
   }
 }
 
@@ -404,11 +405,9 @@ ProfileRegistry ProfileRegistry::builtin() {
 }
 
 Result<void> ProfileRegistry::add_file(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) return make_error(path + ": cannot open profile file");
-  std::stringstream text;
-  text << in.rdbuf();
-  auto p = parse_profile(text.str(), path);
+  auto text = read_config_file(path, "profile file");
+  if (!text) return text.error();
+  auto p = parse_profile(*text, path);
   if (!p) return p.error();
   add(std::move(*p));
   return {};

@@ -155,6 +155,14 @@ TEST(CandumpLog, RefusesWhatIsNotAClassicalFrame) {
   EXPECT_NE(fd.error().message.find("CAN FD"), std::string::npos) << fd.error().message;
 }
 
+// Found by fuzz_candump_log: 66666666660 s times 10^9 overflowed the nanoseconds (undefined
+// behaviour; in practice a wrapped, wrong time). A time past the year 2262 is refused.
+TEST(CandumpLog, RefusesATimestampTheNanosecondsCannotHold) {
+  EXPECT_FALSE(parse_log_line("(66666666660.0) can0 123#11"));
+  EXPECT_FALSE(parse_log_line("(999999999999999999.999999) can0 123#11"));
+  EXPECT_EQ(parse_one("(9223372035.000001) can0 123#11").timestamp_ns, 9'223'372'035'000'001'000);
+}
+
 TEST(CandumpLog, FormatsExactlyAsCandumpLogs) {
   CanFrame f = make_frame(0x183, {0x02, 0x00, 0x78, 0x56, 0x34, 0x12, 0x00, 0x00});
   f.timestamp_ns = 1'700'000'000'123'456'789;

@@ -3,8 +3,12 @@
 // manufacturer-specific tails; and the file:line:column errors of every new key.
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <array>
 #include <cstdint>
+#include <cstdio>
+#include <fstream>
 #include <string>
 
 #include "profiles/profile_registry.hpp"
@@ -392,4 +396,34 @@ TEST(BuiltinProfiles, PdoAccessAsTheSpecTablesSay) {
   const auto* rpdo1 = registry.find("cia414-2", "1.1")->pdo("rpdo1");
   EXPECT_EQ(rpdo1->rules.inhibit_time, A::none);
   EXPECT_EQ(rpdo1->rules.event_timer, A::none);
+}
+
+// Hostile profile files (issue 12): each was accepted silently or aborted the process before.
+TEST(ProfileLoaderHostile, DuplicateAndNonScalarKeysAreRefusedWithTheirPlace) {
+  const std::string object = "  - {index: 0x6030, name: status_word, type: UNSIGNED16, access: ro}\nbitsets:\n  s:\n    object: 0x6030\n    bits:\n";
+  // A bit given twice: yaml-cpp kept one of the two positions without a word.
+  EXPECT_ERROR(object + "      a: 1\n      a: 2\n", "t.yaml:12:7: key 'a' is given twice in this mapping (first at line 11, column 7)");
+  EXPECT_ERROR("  - {index: 0x6030, index: 0x6031, name: s, type: UNSIGNED16, access: ro}\n",
+               "t.yaml:7:22: key 'index' is given twice in this mapping (first at line 7, column 8)");
+  // A list as a key threw YAML::TypedBadConversion out of the loader (exit 134 in every executable).
+  EXPECT_ERROR(object + "      ? [a, b]\n      : 1\n", "t.yaml:11:9: a key must be a plain value, not a list");
+  EXPECT_ERROR("  - {index: 0x6030, name: s, type: UNSIGNED8, access: ro, values: {? [1, 2] : x}}\n",
+               "t.yaml:7:69: a key must be a plain value, not a list");
+}
+
+TEST(ProfileLoaderHostile, OnlyRegularFilesOfBoundedSizeAreRead) {
+  auto registry = lb::profiles::ProfileRegistry::builtin();
+  auto r = registry.add_file("/dev/zero");  // was read without end
+  ASSERT_FALSE(r);
+  EXPECT_EQ(r.error().message, "/dev/zero: profile file: not a regular file");
+  const std::string big = ::testing::TempDir() + "/profile_big_" + std::to_string(::getpid()) + ".yaml";
+  {
+    std::ofstream out(big);
+    out << kHeader << "  - {index: 0x6030, name: status_word, type: UNSIGNED16, access: ro}\n";
+    for (int i = 0; i < 50'000; ++i) out << "# " << std::string(100, '-') << "\n";
+  }
+  r = registry.add_file(big);
+  std::remove(big.c_str());
+  ASSERT_FALSE(r);
+  EXPECT_NE(r.error().message.find("larger than 4194304 bytes"), std::string::npos) << r.error().message;
 }
