@@ -16,7 +16,6 @@
 #include "canopen/emcy.hpp"
 #include "canopen/nmt.hpp"
 #include "canopen/remote_node.hpp"
-#include "support/null_log.hpp"
 #include "support/scripted_bus.hpp"
 
 using namespace lb;
@@ -41,11 +40,6 @@ std::vector<canopen::PdoInUse> fuzzed_pdos(FuzzedDataProvider& in) {
 }
 
 }  // namespace
-
-extern "C" int LLVMFuzzerInitialize(int*, char***) {
-  fuzz::log_to_nowhere();
-  return 0;
-}
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   FuzzedDataProvider in(data, size);

@@ -7,6 +7,7 @@
 
 #include <array>
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -16,7 +17,6 @@
 #include "gateways/saw_codec.hpp"
 #include "profiles/line_config.hpp"
 #include "profiles/profile_registry.hpp"
-#include "support/null_log.hpp"
 
 using namespace lb;
 using profiles::DevicePdo;
@@ -178,11 +178,6 @@ std::vector<const Profile*> all_profiles(const profiles::ProfileRegistry& regist
 }
 
 }  // namespace
-
-extern "C" int LLVMFuzzerInitialize(int*, char***) {
-  fuzz::log_to_nowhere();
-  return 0;
-}
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   static const auto registry = profiles::ProfileRegistry::builtin();

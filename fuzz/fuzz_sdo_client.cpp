@@ -12,7 +12,6 @@
 #include "canopen/bus_loop.hpp"
 #include "canopen/cob_id.hpp"
 #include "canopen/sdo_client.hpp"
-#include "support/null_log.hpp"
 #include "support/scripted_bus.hpp"
 
 using namespace lb;
@@ -46,11 +45,6 @@ canopen::ObjectValue fuzzed_value(FuzzedDataProvider& in) {
 }
 
 }  // namespace
-
-extern "C" int LLVMFuzzerInitialize(int*, char***) {
-  fuzz::log_to_nowhere();
-  return 0;
-}
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   FuzzedDataProvider in(data, size);

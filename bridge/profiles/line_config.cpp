@@ -21,7 +21,7 @@ constexpr std::size_t kMaxNameLength = 64;
 constexpr std::size_t kMaxBuses = 64;
 
 // A value as an error message quotes it: long ones cut, so a hostile file cannot flood the log.
-std::string quoted(std::string_view text) {
+std::string shown(std::string_view text) {
   constexpr std::size_t kShown = 80;
   if (text.size() <= kShown) return "'" + std::string(text) + "'";
   return "'" + std::string(text.substr(0, kShown)) + "...' (" + std::to_string(text.size()) + " characters)";
@@ -34,7 +34,7 @@ void check_name(const YamlSource& src, const YAML::Node& node, const std::string
   const bool valid = !name.empty() && name.size() <= kMaxNameLength && letter(name.front()) &&
                      std::all_of(name.begin(), name.end(), [&](char c) { return letter(c) || (c >= '0' && c <= '9') || c == '_'; });
   if (!valid) {
-    src.fail(node, quoted(name) + " is not a valid name (a letter, then letters, digits or '_'; at most " +
+    src.fail(node, shown(name) + " is not a valid name (a letter, then letters, digits or '_'; at most " +
                        std::to_string(kMaxNameLength) + " characters)");
   }
 }
@@ -296,9 +296,6 @@ std::vector<DevicePdo> resolve_pdos(const YamlSource& src, const YAML::Node* ove
       if (!it->extended && (entry & 0x1FFF'F800U) != 0) {
         src.fail(o["cob_id"], "cob_id: an 11-bit identifier (bit 29 clear) must be below 800h");
       }
-      if (const auto use = canopen::cob::restricted_use(it->can_id); !it->extended && !use.empty()) {
-        src.fail(o["cob_id"], fmt::format("cob_id: identifier {:03X}h is {}: CiA 301 restricts it, no PDO may use it", it->can_id, use));
-      }
     }
     it->transmission_type = bounded<std::uint8_t>(src, o, "transmission_type", it->transmission_type, 0, 255, "pdo " + name);
     if (it->transmission_type > 240 && it->transmission_type < 252) {
@@ -349,12 +346,19 @@ YAML::Node identifier_node(const YAML::Node& device, const std::string& pdo) {
   return device["node_id"];
 }
 
-// One identifier carries one PDO on a bus: two devices (or two PDOs of one) sending or expecting
+// No PDO on an identifier CiA 301 keeps for another service (an RPDO on 000h would be taken for
+// NMT commands, a TPDO on 080h for SYNC), whether it comes from an override or from the profile's
+// default (profile files are input too), valid or not (it may be made valid later). And one
+// identifier carries one PDO on a bus: two devices (or two PDOs of one) sending or expecting
 // different data under one identifier would each decode the other's frames.
 void claim_pdo_identifiers(const YamlSource& src, const YAML::Node& n, const DeviceConfig& dev, Taken& taken) {
   for (const auto& pdo : dev.pdos) {
-    if (!pdo.enabled && pdo.validity_given) continue;  // never on the bus
     const auto who = "pdo " + pdo.name + " of device " + dev.name;
+    if (const auto use = canopen::cob::restricted_use(pdo.can_id); !pdo.extended && !use.empty()) {
+      src.fail(identifier_node(n, pdo.name),
+               fmt::format("{}: identifier {:03X}h is {}: CiA 301 restricts it, no PDO may use it", who, pdo.can_id, use));
+    }
+    if (!pdo.enabled && pdo.validity_given) continue;  // never on the bus
     const auto [it, added] = taken.pdo_ids.try_emplace({dev.bus, pdo.extended, pdo.can_id}, who);
     if (!added) {
       src.fail(identifier_node(n, pdo.name), fmt::format("{}: identifier {:0{}X}h is already used by {} on bus {}", who,
@@ -449,7 +453,7 @@ void check_recordings(const YamlSource& src, const YAML::Node& nodes, const std:
     if (buses[i].record.empty()) continue;
     const auto [it, added] = files.try_emplace(file_identity(buses[i].record), "bus " + buses[i].name + " records into it");
     if (!added) {
-      src.fail(nodes[i]["record"], "bus " + buses[i].name + ": record: " + quoted(buses[i].record) + " cannot be recorded into: " +
+      src.fail(nodes[i]["record"], "bus " + buses[i].name + ": record: " + shown(buses[i].record) + " cannot be recorded into: " +
                                        it->second);
     }
   }

@@ -270,7 +270,9 @@ class ProfileLoader {
     for (const auto& other : p_.pdos) {
       if (other.name == pdo.name) src_.fail(n["name"], "pdo '" + pdo.name + "' is defined twice");
     }
-    pdo.cob_id_base = in_range<std::uint32_t>(src_, n, "cob_id", 0x001, 0x7FF);
+    // The base of the predefined connection set: every node-ID (up to 127) is added to it, and the
+    // sum must still be an 11-bit identifier (found by fuzz_profile: 7FFh gave 87Eh for node 127).
+    pdo.cob_id_base = in_range<std::uint32_t>(src_, n, "cob_id", 0x001, 0x7FF - 127);
     pdo.transmission_type = in_range<std::uint8_t>(src_, n, "transmission_type", 0, 255);
     if (const YAML::Node v = n["valid"]) {
       const auto text = src_.as<std::string>(v, "valid");

@@ -106,7 +106,7 @@ class StructureCheck final : public YAML::EventHandler {
       fail(mark, "nested more than " + std::to_string(limits_.max_depth) + " levels deep");
     }
     add_nodes(mark, 1);
-    stack_.push_back(Container{map, anchor, nodes_});
+    stack_.push_back(Container{map, anchor, nodes_, true, {}});
   }
 
   void close() {

@@ -399,7 +399,7 @@ TEST(LineConfigHostile, ManyDevicesLoadInLinearTimeAndBusesAreBounded) {
 
 TEST(LineConfigHostile, PdoIdentifiersOfRestrictedServicesAreRefused) {
   const auto e = [](const std::string& pdos) { return error_of(with_pdos(pdos)); };
-  EXPECT_NE(e("    pdos: {rpdo1: {cob_id: 0x000}}\n").find("line.yaml:20:21: cob_id: identifier 000h is NMT: CiA 301 restricts it"),
+  EXPECT_NE(e("    pdos: {rpdo1: {cob_id: 0x000}}\n").find("line.yaml:20:21: pdo rpdo1 of device saw1: identifier 000h is NMT: CiA 301 restricts it"),
             std::string::npos)
       << e("    pdos: {rpdo1: {cob_id: 0x000}}\n");
   EXPECT_NE(e("    pdos: {tpdo1: {cob_id: 0x080}}\n").find("identifier 080h is SYNC"), std::string::npos);
@@ -412,6 +412,17 @@ TEST(LineConfigHostile, PdoIdentifiersOfRestrictedServicesAreRefused) {
     EXPECT_NE(e(std::string("    pdos: {tpdo1: {cob_id: ") + reserved + "}}\n").find("is reserved: CiA 301 restricts it"), std::string::npos)
         << reserved;
   }
+  // A profile's default identifiers are checked too: profile files are input like the line.
+  auto registry_with = ProfileRegistry::builtin();
+  lb::profiles::Profile emcy_base = *registry_with.find("cia420-4", "3.1");
+  emcy_base.id = "x-emcy";
+  emcy_base.pdos[0].cob_id_base = 0x080;
+  registry_with.add(emcy_base);
+  auto r = parse_line_config(replace(kGood, "profile: cia420-4", "profile: x-emcy"), "line.yaml", registry_with);
+  ASSERT_FALSE(r);
+  EXPECT_NE(r.error().message.find("line.yaml:16:14: pdo " + emcy_base.pdos[0].name + " of device saw1: identifier 083h is EMCY"),
+            std::string::npos)
+      << r.error().message;
   // Not valid (bit 31) does not make it usable later; a 29-bit identifier is not restricted.
   EXPECT_NE(e("    pdos: {rpdo1: {cob_id: 0x80000000}}\n").find("is NMT"), std::string::npos);
   const auto registry = ProfileRegistry::builtin();
