@@ -25,6 +25,7 @@ if ((${#targets[@]} == 0)); then
   for f in fuzz/fuzz_*.cpp; do t=${f#fuzz/fuzz_}; targets+=("${t%.cpp}"); done
 fi
 
+./launch_scripts/setup.sh --clang >/dev/null
 build=${LINEBRIDGE_FUZZ_BUILD_DIR:-build-fuzz}
 cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER=clang++ \
   -DLINEBRIDGE_FUZZ=ON -DLINEBRIDGE_SANITIZE=address,undefined >/dev/null

@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # Installs every build and run dependency of linebridge from Debian's packages.
 # Idempotent: installs only what is missing, so repeated runs cost a dpkg query.
+#   launch_scripts/setup.sh [--clang]   (--clang: also clang and its sanitizer/libFuzzer runtime, for
+#                                         the AddressSanitizer + UBSan and fuzz stages, fuzz/)
 set -euo pipefail
 
 packages=(
@@ -11,6 +13,9 @@ packages=(
   can-utils qemu-system-x86 busybox-static xz-utils
   openssl libssl-dev libtinyxml2-dev
 )
+if [ "${1:-}" = --clang ]; then
+  packages+=(clang libclang-rt-14-dev)
+fi
 
 missing=()
 for p in "${packages[@]}"; do

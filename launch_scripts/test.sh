@@ -12,7 +12,7 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$PWD
 
-./launch_scripts/setup.sh
+if [ "${LINEBRIDGE_ASAN:-1}" != 0 ]; then ./launch_scripts/setup.sh --clang; else ./launch_scripts/setup.sh; fi
 build=${LINEBRIDGE_BUILD_DIR:-build}
 
 stage_times=()

@@ -432,9 +432,9 @@ TEST(ProfileLoaderHostile, OnlyRegularFilesOfBoundedSizeAreRead) {
 TEST(ProfileLoaderHostile, APdoBasePlusAnyNodeIdIsAnElevenBitIdentifier) {
   const std::string objects = "  - {index: 0x6000, name: a, type: UNSIGNED32, access: ro}\npdos:\n";
   EXPECT_ERROR(objects + "  - {name: tpdo1, direction: tx, cob_id: 0x7FF, transmission_type: 1, mapping: [0x60000020]}\n",
-               "t.yaml:8:40: cob_id 2047 is outside 1..1920");
+               "t.yaml:8:42: cob_id 2047 is outside 1..1920");
   EXPECT_ERROR(objects + "  - {name: tpdo1, direction: tx, cob_id: 0x781, transmission_type: 1, mapping: [0x60000020]}\n",
-               "t.yaml:8:40: cob_id 1921 is outside 1..1920");
+               "t.yaml:8:42: cob_id 1921 is outside 1..1920");
   const auto p = load(objects + "  - {name: tpdo1, direction: tx, cob_id: 0x780, transmission_type: 1, mapping: [0x60000020]}\n");
   ASSERT_EQ(p.pdos.size(), 1u);
   EXPECT_EQ(p.pdos[0].cob_id(127), 0x7FFu);
