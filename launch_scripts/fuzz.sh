@@ -45,7 +45,7 @@ for t in "${targets[@]}"; do
   status=0
   # The seeds are read, never written: new inputs go to the working corpus.
   nice -n 19 "$build/fuzz/fuzz_$t" "${args[@]}" "${limit[@]}" "$corpus" "$root/fuzz/corpus/$t" >"$log" 2>&1 || status=$?
-  grep -E '^Done [0-9]+ runs|^stat::number_of_executed_units|^stat::average_exec_per_sec' "$log" || true
+  grep -E '^#[0-9]+\s+DONE|^Done [0-9]+ runs|^stat::number_of_executed_units|^stat::average_exec_per_sec' "$log" || true
   if [ "$status" != 0 ]; then
     failed+=("$t")
     echo "fuzz.sh: $t found a problem (exit $status); the report:" >&2
