@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # Installs every build and run dependency of linebridge from Debian's packages.
 # Idempotent: installs only what is missing, so repeated runs cost a dpkg query.
+#   launch_scripts/setup.sh [--clang]   (--clang: also clang and its sanitizer/libFuzzer runtime, for
+#                                         the AddressSanitizer + UBSan and fuzz stages, fuzz/)
 set -euo pipefail
 
 packages=(
@@ -12,6 +14,9 @@ packages=(
   openssl libssl-dev libtinyxml2-dev
   libsystemd-dev dpkg-dev fakeroot lintian
 )
+if [ "${1:-}" = --clang ]; then
+  packages+=(clang libclang-rt-14-dev)
+fi
 
 missing=()
 for p in "${packages[@]}"; do

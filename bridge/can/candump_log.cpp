@@ -4,6 +4,7 @@
 
 #include <cctype>
 #include <cstdio>
+#include <limits>
 #include <vector>
 
 namespace lb::can {
@@ -47,7 +48,9 @@ std::optional<std::int64_t> parse_timestamp(std::string_view t) {
   const auto sec = decimal(t.substr(0, dot));
   const std::string_view frac = t.substr(dot + 1);
   const auto sub = decimal(frac);
-  if (!sec || !sub || frac.size() > 9) return std::nullopt;
+  // Beyond this many seconds (the year 2262) the time does not fit the nanoseconds a frame carries.
+  constexpr std::uint64_t kMaxSeconds = std::numeric_limits<std::int64_t>::max() / 1'000'000'000 - 1;
+  if (!sec || !sub || frac.size() > 9 || *sec > kMaxSeconds) return std::nullopt;
   std::int64_t ns = static_cast<std::int64_t>(*sub);
   for (std::size_t i = frac.size(); i < 9; ++i) ns *= 10;
   return static_cast<std::int64_t>(*sec) * 1'000'000'000 + ns;

@@ -3,6 +3,8 @@
 #include <sys/timerfd.h>
 
 #include <cerrno>
+#include <filesystem>
+#include <istream>
 
 #include "can/controller_state.hpp"
 #include "can/detail.hpp"
@@ -13,6 +15,21 @@ namespace {
 // Frames per wake-up in fast pace: large enough for speed, small enough that a bus loop's timers
 // and posted tasks still run every few hundred microseconds.
 constexpr int kFastBatch = 64;
+
+// A candump line has under 100 characters: what a longer one holds beyond this is dropped as it
+// is read, so a file without line breaks cannot fill the memory.
+constexpr std::size_t kMaxLine = 1024;
+
+bool read_line(std::istream& in, std::string& line) {
+  line.clear();
+  bool any = false;
+  for (char c; in.get(c);) {
+    any = true;
+    if (c == '\n') return true;
+    if (line.size() < kMaxLine) line += c;
+  }
+  return any;
+}
 
 }  // namespace
 
@@ -50,6 +67,11 @@ Result<std::unique_ptr<LogBus>> LogBus::open(std::string_view spec_text) {
   auto spec = parse_spec(spec_text);
   if (!spec) return spec.error();
   std::string uri = "log:" + std::string(spec_text);
+  // A device (/dev/zero) or a FIFO never ends and has no lines: only a recording on disk replays.
+  std::error_code ec;
+  if (const auto st = std::filesystem::status(spec->path, ec); !ec && !std::filesystem::is_regular_file(st)) {
+    return make_error(uri + ": " + spec->path + " is not a regular file");
+  }
   std::ifstream in(spec->path);
   if (!in) return make_error(uri + ": cannot open " + spec->path + ": " + detail::errno_text(errno));
   UniqueFd timer{::timerfd_create(CLOCK_MONOTONIC, TFD_NONBLOCK | TFD_CLOEXEC)};
@@ -73,7 +95,7 @@ LogBus::LogBus(PrivateTag, std::string uri, Spec spec, std::ifstream in, UniqueF
 void LogBus::read_next() {
   pending_.reset();
   std::string line;
-  while (std::getline(in_, line)) {
+  while (read_line(in_, line)) {
     ++line_no_;
     auto rec = parse_log_line(line);
     if (!rec) {

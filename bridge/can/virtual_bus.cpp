@@ -20,6 +20,7 @@
 #include <vector>
 
 #include "can/detail.hpp"
+#include "can/virtual_bus_wire.hpp"
 
 namespace lb::can {
 
@@ -39,54 +40,16 @@ constexpr long kRetryIntervalNs = 10'000'000;
 // Messages read from one member before the hub looks at the others again (fairness, not order).
 constexpr int kPumpBatch = 64;
 
-// In the welcome message: a member never talks to a hub with another wire format.
-constexpr std::uint32_t kWireMagic = 0x4C42'5601;  // "LBV", version 1
-
-enum class Kind : std::uint8_t { frame = 0, welcome = 1 };
-enum : std::uint8_t { kFlagExtended = 1, kFlagRtr = 2, kFlagError = 4 };
-
-// One message on a hub connection. Members and hub are on one machine, so host byte order is fine.
-struct WireMsg {
-  std::uint32_t id;
-  Kind kind;
-  std::uint8_t flags;
-  std::uint8_t len;
-  std::uint8_t reserved;
-  std::uint8_t data[CanFrame::kMaxLen];
-  std::int64_t timestamp_ns;  // sender's clock at send; informational, the receiver re-stamps
-};
-static_assert(sizeof(WireMsg) == 24 && std::is_trivially_copyable_v<WireMsg>);
+using WireMsg = wire::Msg;
+using wire::Kind;
 constexpr ssize_t kMsgSize = sizeof(WireMsg);
-
-WireMsg to_wire(const CanFrame& f) {
-  WireMsg m{};
-  m.id = f.id;
-  m.kind = Kind::frame;
-  m.flags = static_cast<std::uint8_t>((f.extended ? kFlagExtended : 0) | (f.rtr ? kFlagRtr : 0) |
-                                      (f.error ? kFlagError : 0));
-  m.len = f.len;
-  std::memcpy(m.data, f.data.data(), f.len);
-  m.timestamp_ns = detail::realtime_ns();
-  return m;
-}
-
-CanFrame from_wire(const WireMsg& m) {
-  CanFrame f;
-  f.id = m.id;
-  f.extended = (m.flags & kFlagExtended) != 0;
-  f.rtr = (m.flags & kFlagRtr) != 0;
-  f.error = (m.flags & kFlagError) != 0;
-  f.len = m.len;
-  std::memcpy(f.data.data(), m.data, m.len);
-  return f;
-}
 
 // What a member gets in place of the frames the hub had to drop for it.
 WireMsg overflow_notice() {
   WireMsg m{};
   m.id = CAN_ERR_CRTL;
   m.kind = Kind::frame;
-  m.flags = kFlagError;
+  m.flags = wire::kFlagError;
   m.len = CAN_ERR_DLC;
   m.data[1] = CAN_ERR_CRTL_RX_OVERFLOW;
   return m;
@@ -224,9 +187,7 @@ class VirtualBus::Hub {
       }
       ::setsockopt(fd.get(), SOL_SOCKET, SO_SNDBUF, &kSocketBuffer, sizeof kSocketBuffer);
       // The welcome goes out before the member is in the forwarding set, so it is always first.
-      WireMsg welcome{};
-      welcome.kind = Kind::welcome;
-      welcome.id = kWireMagic;
+      const WireMsg welcome = wire::welcome();
       if (::send(fd.get(), &welcome, sizeof welcome, MSG_DONTWAIT | MSG_NOSIGNAL) != kMsgSize)
         continue;
       if (!detail::epoll_add(epoll_.get(), fd.get())) continue;
@@ -427,7 +388,7 @@ Result<bool> VirtualBus::await_welcome(std::chrono::steady_clock::time_point dea
     WireMsg msg;
     const ssize_t n = ::recv(sock_.get(), &msg, sizeof msg, MSG_DONTWAIT);
     if (n == kMsgSize && msg.kind == Kind::welcome) {
-      if (msg.id != kWireMagic)
+      if (msg.id != wire::kMagic)
         return make_error(uri_ + ": the hub speaks another wire format version");
       return true;
     }
@@ -470,8 +431,9 @@ Result<std::optional<CanFrame>> VirtualBus::receive() {
         return std::optional<CanFrame>{};
       }
       // Welcomes after a re-join and anything malformed are not frames.
-      if (len != kMsgSize || msg.kind != Kind::frame || msg.len > CanFrame::kMaxLen) continue;
-      CanFrame frame = from_wire(msg);
+      const auto decoded = wire::decode({reinterpret_cast<const std::uint8_t*>(&msg), len});
+      if (!decoded) continue;
+      CanFrame frame = *decoded;
       frame.timestamp_ns = detail::realtime_ns();
       ++(frame.error ? stats_.error_frames : stats_.frames_in);
       return std::optional<CanFrame>{frame};
@@ -496,7 +458,7 @@ Result<std::optional<CanFrame>> VirtualBus::receive() {
 
 Result<void> VirtualBus::send(const CanFrame& frame) {
   if (auto ok = detail::check_sendable(frame, uri_); !ok) return ok;
-  const WireMsg msg = to_wire(frame);
+  const WireMsg msg = wire::encode(frame, detail::realtime_ns());
   // Second attempt only after the hub connection was found dead and replaced.
   for (int attempt = 0; attempt < 2; ++attempt) {
     if (!sock_) {

@@ -5,23 +5,41 @@
 #include <arpa/inet.h>
 
 #include <filesystem>
-#include <fstream>
-#include <regex>
-#include <sstream>
+#include <map>
+#include <tuple>
+#include <unordered_set>
+
+#include <fmt/format.h>
 
 #include "can/log_bus.hpp"
 #include "profiles/object_fields.hpp"
 #include "can/bus.hpp"
+#include "canopen/cob_id.hpp"
+#include "profiles/config_file.hpp"
 #include "profiles/yaml_source.hpp"
 
 namespace lb::profiles {
 namespace {
 
-// Names become parts of DDS topic names: keep them to what ROS 2 allows there.
+constexpr std::size_t kMaxNameLength = 64;
+constexpr std::size_t kMaxBuses = 64;
+
+// A value as an error message quotes it: long ones cut, so a hostile file cannot flood the log.
+std::string shown(std::string_view text) {
+  constexpr std::size_t kShown = 80;
+  if (text.size() <= kShown) return "'" + std::string(text) + "'";
+  return "'" + std::string(text.substr(0, kShown)) + "...' (" + std::to_string(text.size()) + " characters)";
+}
+
+// Names become parts of DDS topic names: keep them to what ROS 2 allows there. A plain loop, not
+// std::regex, whose matching recurses once per character and overflows the stack on long names.
 void check_name(const YamlSource& src, const YAML::Node& node, const std::string& name) {
-  static const std::regex valid("[A-Za-z][A-Za-z0-9_]*");
-  if (!std::regex_match(name, valid)) {
-    src.fail(node, "'" + name + "' is not a valid name (a letter, then letters, digits or '_')");
+  const auto letter = [](char c) { return (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z'); };
+  const bool valid = !name.empty() && name.size() <= kMaxNameLength && letter(name.front()) &&
+                     std::all_of(name.begin(), name.end(), [&](char c) { return letter(c) || (c >= '0' && c <= '9') || c == '_'; });
+  if (!valid) {
+    src.fail(node, shown(name) + " is not a valid name (a letter, then letters, digits or '_'; at most " +
+                       std::to_string(kMaxNameLength) + " characters)");
   }
 }
 
@@ -386,8 +404,44 @@ std::vector<DevicePdo> resolve_pdos(const YamlSource& src, const YAML::Node* ove
   return pdos;
 }
 
+// What the devices so far use: the checks against all earlier devices stay linear in their number.
+struct Taken {
+  std::unordered_set<std::string> device_names;
+  std::map<std::pair<std::string, std::uint8_t>, std::string> node_ids;  // (bus, node-ID) -> device
+  std::map<std::tuple<std::string, bool, std::uint32_t>, std::string> pdo_ids;  // (bus, 29-bit, identifier) -> PDO
+};
+
+// Where a PDO's identifier comes from: its cob_id override, or else the node-ID it is derived from.
+YAML::Node identifier_node(const YAML::Node& device, const std::string& pdo) {
+  if (const YAML::Node overrides = device["pdos"]; overrides && overrides.IsMap()) {
+    if (const YAML::Node o = overrides[pdo]; o && o.IsMap() && o["cob_id"]) return o["cob_id"];
+  }
+  return device["node_id"];
+}
+
+// No PDO on an identifier CiA 301 keeps for another service (an RPDO on 000h would be taken for
+// NMT commands, a TPDO on 080h for SYNC), whether it comes from an override or from the profile's
+// default (profile files are input too), valid or not (it may be made valid later). And one
+// identifier carries one PDO on a bus: two devices (or two PDOs of one) sending or expecting
+// different data under one identifier would each decode the other's frames.
+void claim_pdo_identifiers(const YamlSource& src, const YAML::Node& n, const DeviceConfig& dev, Taken& taken) {
+  for (const auto& pdo : dev.pdos) {
+    const auto who = "pdo " + pdo.name + " of device " + dev.name;
+    if (const auto use = canopen::cob::restricted_use(pdo.can_id); !pdo.extended && !use.empty()) {
+      src.fail(identifier_node(n, pdo.name),
+               fmt::format("{}: identifier {:03X}h is {}: CiA 301 restricts it, no PDO may use it", who, pdo.can_id, use));
+    }
+    if (!pdo.enabled && pdo.validity_given) continue;  // never on the bus
+    const auto [it, added] = taken.pdo_ids.try_emplace({dev.bus, pdo.extended, pdo.can_id}, who);
+    if (!added) {
+      src.fail(identifier_node(n, pdo.name), fmt::format("{}: identifier {:0{}X}h is already used by {} on bus {}", who,
+                                                         pdo.can_id, pdo.extended ? 8 : 3, it->second, dev.bus));
+    }
+  }
+}
+
 DeviceConfig parse_device(const YamlSource& src, const YAML::Node& n, const LineConfig& line,
-                          const ProfileRegistry& registry, std::vector<std::string>& warnings) {
+                          const ProfileRegistry& registry, std::vector<std::string>& warnings, Taken& taken) {
   src.check_keys(n, "device", {"name", "bus", "node_id", "profile", "version", "heartbeat_timeout_ms", "configure",
                                "boot_retry_ms", "pdos", "simulation", "identity", "pdo_config", "on_state_unknown",
                                "heartbeat_producer_ms", "objects"});
@@ -397,7 +451,7 @@ DeviceConfig parse_device(const YamlSource& src, const YAML::Node& n, const Line
   // rt/<line>/bridge/... and <line>/bridge/<service> are the bridge's own (diagnostics, the
   // line-wide services, lb::ddsl::kBridgeNamespace): a device of that name would meet them.
   if (dev.name == "bridge") src.fail(n["name"], "device name 'bridge' is reserved for the bridge's own topics and services");
-  if (line.device(dev.name) != nullptr) src.fail(n["name"], "device name '" + dev.name + "' is used twice");
+  if (!taken.device_names.insert(dev.name).second) src.fail(n["name"], "device name '" + dev.name + "' is used twice");
   dev.bus = src.required<std::string>(n, "bus", "device " + dev.name);
   if (line.bus(dev.bus) == nullptr) src.fail(n["bus"], "device " + dev.name + ": no bus named '" + dev.bus + "'");
   if (!n["node_id"]) src.fail(n, "device " + dev.name + ": missing required key 'node_id'");
@@ -406,11 +460,9 @@ DeviceConfig parse_device(const YamlSource& src, const YAML::Node& n, const Line
     src.fail(n["node_id"], "device " + dev.name + ": node-ID " + std::to_string(dev.node_id) +
                                " is the bridge's own (master_node_id of bus " + dev.bus + ")");
   }
-  for (const auto& other : line.devices) {
-    if (other.bus == dev.bus && other.node_id == dev.node_id) {
-      src.fail(n["node_id"], "device " + dev.name + ": node-ID " + std::to_string(dev.node_id) + " is already used by " +
-                                 other.name + " on bus " + dev.bus);
-    }
+  if (const auto [other, added] = taken.node_ids.try_emplace({dev.bus, dev.node_id}, dev.name); !added) {
+    src.fail(n["node_id"], "device " + dev.name + ": node-ID " + std::to_string(dev.node_id) + " is already used by " +
+                               other->second + " on bus " + dev.bus);
   }
   dev.profile = src.required<std::string>(n, "profile", "device " + dev.name);
   dev.version = src.required<std::string>(n, "version", "device " + dev.name);
@@ -445,6 +497,7 @@ DeviceConfig parse_device(const YamlSource& src, const YAML::Node& n, const Line
   if (n["configure"]) dev.configure = parse_configure(src, n["configure"], dev.bridge_profile(), dev.name);
   const YAML::Node pdo_overrides = n["pdos"];
   dev.pdos = resolve_pdos(src, pdo_overrides ? &pdo_overrides : nullptr, dev.bridge_profile(), dev.node_id, dev.name);
+  claim_pdo_identifiers(src, n, dev, taken);
   if (n["simulation"]) dev.simulation = parse_simulation(src, n["simulation"], *dev.resolved_profile);
   if (n["identity"]) dev.identity = parse_identity(src, n["identity"], "identity");
   if (const auto mode = src.optional<std::string>(n, "pdo_config")) {
@@ -474,6 +527,33 @@ DeviceConfig parse_device(const YamlSource& src, const YAML::Node& n, const Line
     }
   }
   return dev;
+}
+
+// The file a path names, as far as it can be told before the file exists.
+std::filesystem::path file_identity(const std::string& path) {
+  std::error_code ec;
+  auto p = std::filesystem::weakly_canonical(std::filesystem::absolute(path, ec), ec);
+  return ec ? std::filesystem::path(path).lexically_normal() : p;
+}
+
+// A recording must not be a file a log: bus replays (it would read what it writes and grow without
+// bound) nor the recording of another bus (two writers interleave their lines).
+void check_recordings(const YamlSource& src, const YAML::Node& nodes, const std::vector<BusConfig>& buses) {
+  std::map<std::filesystem::path, std::string> files;  // replayed or recorded file -> its bus and use
+  for (const auto& bus : buses) {
+    if (bus.interface.rfind("log:", 0) != 0) continue;
+    if (auto spec = can::LogBus::parse_spec(std::string_view(bus.interface).substr(4))) {
+      files.emplace(file_identity(spec->path), "bus " + bus.name + " replays it");
+    }
+  }
+  for (std::size_t i = 0; i < buses.size(); ++i) {
+    if (buses[i].record.empty()) continue;
+    const auto [it, added] = files.try_emplace(file_identity(buses[i].record), "bus " + buses[i].name + " records into it");
+    if (!added) {
+      src.fail(nodes[i]["record"], "bus " + buses[i].name + ": record: " + shown(buses[i].record) + " cannot be recorded into: " +
+                                       it->second);
+    }
+  }
 }
 
 }  // namespace
@@ -547,26 +627,29 @@ Result<LineConfig> parse_line_config(const std::string& yaml_text, const std::st
     }
     const auto buses = src.required<YAML::Node>(root, "buses", "line configuration");
     src.expect_sequence(buses, "buses");
+    if (buses.size() > kMaxBuses) src.fail(buses, "a line has at most " + std::to_string(kMaxBuses) + " buses");
     for (const auto& b : buses) {
       auto bus = parse_bus(src, b);
       if (cfg.bus(bus.name) != nullptr) src.fail(b["name"], "bus name '" + bus.name + "' is used twice");
       cfg.buses.push_back(std::move(bus));
     }
+    check_recordings(src, buses, cfg.buses);
     const auto devices = src.required<YAML::Node>(root, "devices", "line configuration");
     src.expect_sequence(devices, "devices");
-    for (const auto& d : devices) cfg.devices.push_back(parse_device(src, d, cfg, *profiles, cfg.warnings));
+    Taken taken;
+    for (const auto& d : devices) cfg.devices.push_back(parse_device(src, d, cfg, *profiles, cfg.warnings, taken));
     return cfg;
   } catch (const ConfigError& e) {
     return make_error(e.what());
+  } catch (const YAML::Exception& e) {  // a conversion the checks above missed: still an error, not an abort
+    return make_error(source + ":" + std::to_string(e.mark.line + 1) + ":" + std::to_string(e.mark.column + 1) + ": " + e.msg);
   }
 }
 
 Result<LineConfig> load_line_config(const std::string& path, const ProfileRegistry& registry) {
-  std::ifstream in(path);
-  if (!in) return make_error(path + ": cannot open the line configuration");
-  std::stringstream text;
-  text << in.rdbuf();
-  return parse_line_config(text.str(), path, registry);
+  auto text = read_config_file(path, "line configuration");
+  if (!text) return text.error();
+  return parse_line_config(*text, path, registry);
 }
 
 }  // namespace lb::profiles

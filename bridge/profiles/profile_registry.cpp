@@ -2,8 +2,6 @@
 
 #include <algorithm>
 #include <charconv>
-#include <fstream>
-#include <sstream>
 #include <stdexcept>
 #include <unordered_set>
 
@@ -11,6 +9,7 @@
 
 #include "profiles/builtin_profiles.hpp"
 #include "profiles/object_fields.hpp"
+#include "profiles/config_file.hpp"
 #include "profiles/yaml_source.hpp"
 
 namespace lb::profiles {
@@ -282,7 +281,9 @@ class ProfileLoader {
     for (const auto& other : p_.pdos) {
       if (other.name == pdo.name) src_.fail(n["name"], "pdo '" + pdo.name + "' is defined twice");
     }
-    pdo.cob_id_base = in_range<std::uint32_t>(src_, n, "cob_id", 0x001, 0x7FF);
+    // The base of the predefined connection set: every node-ID (up to 127) is added to it, and the
+    // sum must still be an 11-bit identifier (found by fuzz_profile: 7FFh gave 87Eh for node 127).
+    pdo.cob_id_base = in_range<std::uint32_t>(src_, n, "cob_id", 0x001, 0x7FF - 127);
     pdo.transmission_type = in_range<std::uint8_t>(src_, n, "transmission_type", 0, 255);
     if (const YAML::Node v = n["valid"]) {
       const auto text = src_.as<std::string>(v, "valid");
@@ -401,6 +402,8 @@ Result<Profile> parse_profile(const std::string& yaml_text, const std::string& s
     return p;
   } catch (const ConfigError& e) {
     return make_error(e.what());
+  } catch (const YAML::Exception& e) {  // a conversion the checks missed: still an error, not an abort
+    return make_error(source + ":" + std::to_string(e.mark.line + 1) + ":" + std::to_string(e.mark.column + 1) + ": " + e.msg);
   }
 }
 
@@ -415,11 +418,9 @@ ProfileRegistry ProfileRegistry::builtin() {
 }
 
 Result<Profile> load_profile_file(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) return make_error(path + ": cannot open profile file");
-  std::stringstream text;
-  text << in.rdbuf();
-  return parse_profile(text.str(), path);
+  auto text = read_config_file(path, "profile file");
+  if (!text) return text.error();
+  return parse_profile(*text, path);
 }
 
 Result<void> ProfileRegistry::add_file(const std::string& path) {

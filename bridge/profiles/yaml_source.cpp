@@ -2,6 +2,9 @@
 
 #include <algorithm>
 
+#include "profiles/config_file.hpp"
+#include "profiles/yaml_structure.hpp"
+
 namespace lb::profiles {
 
 std::string YamlSource::where(const YAML::Node& node) const {
@@ -15,6 +18,11 @@ void YamlSource::fail(const YAML::Node& node, std::string_view what) const {
 }
 
 YAML::Node YamlSource::parse(const std::string& text) const {
+  // The same bound as a file has, for text from anywhere else.
+  if (text.size() > kMaxConfigFileBytes) {
+    throw ConfigError(name_ + ": larger than " + std::to_string(kMaxConfigFileBytes) + " bytes (" + std::to_string(text.size()) + ")");
+  }
+  check_yaml_structure(text, name_);
   try {
     return YAML::Load(text);
   } catch (const YAML::ParserException& e) {

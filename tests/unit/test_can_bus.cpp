@@ -9,6 +9,7 @@
 #include <poll.h>
 #include <sys/epoll.h>
 #include <sys/socket.h>
+#include <sys/un.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -27,6 +28,7 @@
 #include "can/detail.hpp"
 #include "can/unique_fd.hpp"
 #include "can/virtual_bus.hpp"
+#include "can/virtual_bus_wire.hpp"
 
 namespace lb::can {
 namespace {
@@ -280,6 +282,43 @@ TEST(VirtualBus, RefusesFramesNoControllerCouldSend) {
     EXPECT_NE(r.error().message.find(uri), std::string::npos) << r.error().message;
   }
   EXPECT_EQ(a->stats().frames_out, 0u);
+}
+
+// Any local process can connect to a hub and send any bytes. Messages no member could have sent
+// (an 11-bit identifier above 7FFh, a 29-bit one above 1FFFFFFFh, unknown flags, an error frame
+// marked remote, more than 8 bytes) must not reach the members as frames: the layers above index
+// tables by identifier. Before, only the length was checked.
+TEST(VirtualBus, DropsWireMessagesNoMemberCouldHaveSent) {
+  const std::string name = bus_name();
+  auto a = must_open("virtual:" + name);
+  lb::can::UniqueFd raw{::socket(AF_UNIX, SOCK_SEQPACKET | SOCK_CLOEXEC, 0)};
+  ASSERT_TRUE(raw);
+  sockaddr_un addr{};
+  addr.sun_family = AF_UNIX;
+  const std::string abstract = std::string(1, '\0') + "linebridge-vbus/" + name;
+  std::memcpy(addr.sun_path, abstract.data(), abstract.size());
+  ASSERT_EQ(::connect(raw.get(), reinterpret_cast<const sockaddr*>(&addr),
+                      static_cast<socklen_t>(offsetof(sockaddr_un, sun_path) + abstract.size())),
+            0);
+  lb::can::wire::Msg welcome{};
+  ASSERT_EQ(::recv(raw.get(), &welcome, sizeof welcome, 0), static_cast<ssize_t>(sizeof welcome));
+  const auto message = [](std::uint32_t id, std::uint8_t flags, std::uint8_t len) {
+    lb::can::wire::Msg m{};
+    m.id = id;
+    m.kind = lb::can::wire::Kind::frame;
+    m.flags = flags;
+    m.len = len;
+    return m;
+  };
+  using lb::can::wire::kFlagError, lb::can::wire::kFlagExtended, lb::can::wire::kFlagRtr;
+  for (const auto& m : {message(0x900, 0, 1), message(0x3000'0000, kFlagExtended, 1), message(0x100, 0x80, 1),
+                        message(0x4, kFlagError | kFlagRtr, 8), message(0x100, 0, 9), message(0x123, 0, 1)}) {
+    ASSERT_EQ(::send(raw.get(), &m, sizeof m, MSG_NOSIGNAL), static_cast<ssize_t>(sizeof m));
+  }
+  const auto f = next_frame(*a);
+  ASSERT_TRUE(f);
+  EXPECT_EQ(f->id, 0x123u) << "a malformed message came through";
+  EXPECT_FALSE(next_frame(*a, 200ms));
 }
 
 // Two senders send bursts at the same time from two threads; two receivers record what they see.

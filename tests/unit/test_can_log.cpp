@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 #include <linux/can/error.h>
 #include <poll.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <chrono>
@@ -154,6 +155,14 @@ TEST(CandumpLog, RefusesWhatIsNotAClassicalFrame) {
   auto fd = parse_log_line("(1700000000.000000) can0 123##311223344");
   ASSERT_FALSE(fd);
   EXPECT_NE(fd.error().message.find("CAN FD"), std::string::npos) << fd.error().message;
+}
+
+// Found by fuzz_candump_log: 66666666660 s times 10^9 overflowed the nanoseconds (undefined
+// behaviour; in practice a wrapped, wrong time). A time past the year 2262 is refused.
+TEST(CandumpLog, RefusesATimestampTheNanosecondsCannotHold) {
+  EXPECT_FALSE(parse_log_line("(66666666660.0) can0 123#11"));
+  EXPECT_FALSE(parse_log_line("(999999999999999999.999999) can0 123#11"));
+  EXPECT_EQ(parse_one("(9223372035.000001) can0 123#11").timestamp_ns, 9'223'372'035'000'001'000);
 }
 
 TEST(CandumpLog, FormatsExactlyAsCandumpLogs) {
@@ -321,6 +330,46 @@ TEST(LogBus, FastPaceYieldsToTheCallersLoop) {
   EXPECT_LT(in_a_row, 500) << "a bus loop draining until nothing is due must get control back between batches";
   pollfd p{(*bus)->fd(), POLLIN, 0};
   EXPECT_EQ(::poll(&p, 1, 100), 1) << "and be woken again for the rest";
+}
+
+// log:/dev/zero never finished starting and grew ~450 MB/s (one endless "line"); a FIFO without a
+// writer blocked the open. Only a regular file replays, and a line is never held whole.
+TEST(LogBus, OnlyARegularFileReplaysAndAnEndlessLineIsNotHeldWhole) {
+  auto bus = open_bus("log:/dev/zero");
+  ASSERT_FALSE(bus);
+  EXPECT_NE(bus.error().message.find("/dev/zero is not a regular file"), std::string::npos) << bus.error().message;
+  const auto fifo = temp_path("fifo.log");
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  bus = open_bus("log:" + fifo);
+  ::unlink(fifo.c_str());
+  ASSERT_FALSE(bus);
+  EXPECT_NE(bus.error().message.find("is not a regular file"), std::string::npos) << bus.error().message;
+
+  // 64 MB without a line break, then a frame: the frame replays, the long line is refused.
+  const auto path = temp_path("long_line.log");
+  {
+    std::ofstream out(path);
+    out << "(1700000000.000000) vcan0 181#01\n";
+    const std::string chunk(1 << 20, 'x');
+    for (int i = 0; i < 64; ++i) out << chunk;
+    out << "\n(1700000000.000000) vcan0 181#02\n";
+  }
+  bus = open_bus("log:" + path + "?pace=fast");
+  ASSERT_TRUE(bus) << bus.error().message;
+  std::vector<CanFrame> frames;
+  for (int i = 0; i < 20 && frames.size() < 2; ++i) {
+    auto r = (*bus)->receive();
+    if (r && *r) frames.push_back(**r);
+  }
+  ::unlink(path.c_str());
+  ASSERT_EQ(frames.size(), 2u);
+  EXPECT_EQ(frames[1].data[0], 0x02);
+  long rss_kb = 0;
+  std::ifstream status("/proc/self/status");
+  for (std::string line; std::getline(status, line);) {
+    if (line.rfind("VmHWM:", 0) == 0) rss_kb = std::stol(line.substr(6));
+  }
+  EXPECT_LT(rss_kb, 60 * 1024) << "the 64 MB line was held in memory";
 }
 
 TEST(LogBus, ABadLineIsReportedWithItsPlaceAndSkipped) {

@@ -1,12 +1,16 @@
 // Line configuration: a good file loads; every kind of mistake stops start-up with the file,
 // line and column and what is wrong.
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <sys/wait.h>
+#include <unistd.h>
 
 #include <array>
+#include <chrono>
 #include <cstdio>
 #include <fstream>
 #include <string>
+#include <utility>
 
 #include "profiles/line_config.hpp"
 
@@ -299,4 +303,206 @@ TEST(LineConfig, SimulatedDeviceWithoutPreDefinedErrorField) {
   EXPECT_FALSE(r->devices[0].simulation.pre_defined_error_field);
   auto d = parse_line_config(kGood, "line.yaml", registry);
   EXPECT_TRUE(d->devices[0].simulation.pre_defined_error_field);
+}
+
+// ---- hostile files (issue 12): each was accepted, crashed or hung before ----------------------
+
+namespace {
+
+// The bridge's exit and what it printed, for a configuration file.
+std::pair<int, std::string> run_bridge_with(const std::string& path) {
+  const std::string cmd = std::string(LB_BIN_BRIDGE) + " --config " + path + " 2>&1";
+  FILE* pipe = ::popen(cmd.c_str(), "r");
+  if (pipe == nullptr) return {-1, "popen failed"};
+  std::string output;
+  std::array<char, 256> buf{};
+  while (std::fgets(buf.data(), buf.size(), pipe) != nullptr) output += buf.data();
+  return {::pclose(pipe), output};
+}
+
+std::string temp_path(const std::string& name) {
+  return ::testing::TempDir() + "/line_config_" + std::to_string(::getpid()) + "_" + name;
+}
+
+std::string with_pdos(const std::string& pdos) { return replace(kGood, "    simulation:\n", pdos + "    simulation:\n"); }
+
+}  // namespace
+
+TEST(LineConfigHostile, NonScalarKeyIsAnErrorWithItsPlaceNotAnAbort) {
+  // yaml-cpp's conversion of such a key threw YAML::TypedBadConversion past every handler.
+  EXPECT_NE(error_of("? [a, b]\n: 1\n" + kGood).find("line.yaml:1:3: a key must be a plain value, not a list"), std::string::npos)
+      << error_of("? [a, b]\n: 1\n" + kGood);
+  EXPECT_NE(error_of(with_pdos("    pdos: {? {x: 1} : 2}\n")).find("a key must be a plain value, not a mapping"), std::string::npos);
+  EXPECT_NE(error_of(replace(kGood, "line: test\n", "line: test\n? &k a\n: 1\n? *k\n: 2\n")).find("not an alias"), std::string::npos);
+  EXPECT_NE(error_of("{: 1}\n").find("a key must not be empty"), std::string::npos) << error_of("{: 1}\n");
+
+  const auto path = temp_path("list_key.yaml");
+  std::ofstream(path) << "? [a, b]\n: 1\n" << kGood;
+  const auto [status, output] = run_bridge_with(path);
+  ASSERT_TRUE(WIFEXITED(status)) << "killed by signal " << WTERMSIG(status) << ":\n" << output;
+  EXPECT_NE(WEXITSTATUS(status), 0);
+  EXPECT_NE(output.find(path + ":1:3: a key must be a plain value"), std::string::npos) << output;
+}
+
+TEST(LineConfigHostile, LongNamesAreRefusedNotARecursionThatOverflowsTheStack) {
+  // std::regex recursed once per character: ~100 kB overflowed the stack (SIGSEGV).
+  const std::string huge(100'000, 'a');
+  for (const auto& [from, to] : {std::pair<std::string, std::string>{"line: test", "line: " + huge},
+                                 {"name: ext", "name: " + huge}, {"name: saw1", "name: " + huge}}) {
+    const auto e = error_of(replace(kGood, from, to));
+    EXPECT_NE(e.find("is not a valid name"), std::string::npos) << e.substr(0, 300);
+    EXPECT_NE(e.find("(100000 characters)"), std::string::npos) << "the message quotes the name cut short";
+    EXPECT_LT(e.size(), 400u);
+  }
+  const auto registry = ProfileRegistry::builtin();
+  EXPECT_TRUE(parse_line_config(replace(kGood, "name: saw1", "name: s" + std::string(63, 'x')), "line.yaml", registry));
+  EXPECT_NE(error_of(replace(kGood, "name: saw1", "name: s" + std::string(64, 'x'))).find("at most 64 characters"), std::string::npos);
+}
+
+TEST(LineConfigHostile, DuplicateKeysAreRefusedWithBothPlaces) {
+  // yaml-cpp keeps one of them silently: a line could run with the value its author did not mean.
+  EXPECT_NE(error_of(replace(kGood, "    node_id: 3\n", "    node_id: 3\n    node_id: 4\n"))
+                .find("line.yaml:17:5: key 'node_id' is given twice in this mapping (first at line 16, column 5)"),
+            std::string::npos)
+      << error_of(replace(kGood, "    node_id: 3\n", "    node_id: 3\n    node_id: 4\n"));
+  EXPECT_NE(error_of("line: a\n" + kGood).find("line.yaml:2:1: key 'line' is given twice"), std::string::npos);
+  EXPECT_NE(error_of(with_pdos("    pdos: {tpdo1: {transmission_type: 1}, tpdo1: {transmission_type: 2}}\n")).find("key 'tpdo1' is given twice"),
+            std::string::npos);
+  // One document per file: YAML::Load read the first and ignored the rest.
+  EXPECT_NE(error_of(kGood + "---\nline: other\n").find("one YAML document"), std::string::npos);
+}
+
+TEST(LineConfigHostile, DeepNestingAndAliasBombsAreRefused) {
+  EXPECT_NE(error_of("line: " + std::string(5000, '[') + std::string(5000, ']') + "\n").find("nested more than"), std::string::npos);
+  std::string bomb = "a: &a [x, x, x, x, x, x, x, x, x, x]\n";
+  for (char c = 'b'; c <= 'h'; ++c) {
+    bomb += std::string(1, c) + ": &" + c + " [*" + static_cast<char>(c - 1);
+    for (int i = 0; i < 9; ++i) bomb += std::string(", *") + static_cast<char>(c - 1);
+    bomb += "]\n";
+  }
+  EXPECT_NE(error_of(bomb).find("aliases expanded"), std::string::npos) << error_of(bomb);
+}
+
+TEST(LineConfigHostile, OnlyRegularFilesOfBoundedSizeAreRead) {
+  const auto registry = ProfileRegistry::builtin();
+  // /dev/zero was read without end (~450 MB/s), a FIFO without a writer blocked start-up forever.
+  auto r = lb::profiles::load_line_config("/dev/zero", registry);
+  ASSERT_FALSE(r);
+  EXPECT_NE(r.error().message.find("/dev/zero: line configuration: not a regular file"), std::string::npos) << r.error().message;
+  const auto fifo = temp_path("fifo.yaml");
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  r = lb::profiles::load_line_config(fifo, registry);
+  ::unlink(fifo.c_str());
+  ASSERT_FALSE(r);
+  EXPECT_NE(r.error().message.find("not a regular file"), std::string::npos) << r.error().message;
+  r = lb::profiles::load_line_config(::testing::TempDir(), registry);
+  ASSERT_FALSE(r);
+  EXPECT_NE(r.error().message.find("not a regular file"), std::string::npos) << r.error().message;
+
+  const auto big = temp_path("big.yaml");
+  {
+    std::ofstream out(big);
+    out << kGood;
+    const std::string comment = "# " + std::string(1000, '-') + "\n";
+    for (int i = 0; i < 5000; ++i) out << comment;  // ~5 MB of comments
+  }
+  r = lb::profiles::load_line_config(big, registry);
+  ::unlink(big.c_str());
+  ASSERT_FALSE(r);
+  EXPECT_NE(r.error().message.find("larger than 4194304 bytes"), std::string::npos) << r.error().message;
+  r = lb::profiles::load_line_config(temp_path("missing.yaml"), registry);
+  ASSERT_FALSE(r);
+  EXPECT_NE(r.error().message.find("cannot open"), std::string::npos) << r.error().message;
+}
+
+TEST(LineConfigHostile, TheAttacksHugeLineIsRefusedAtOnceAndBusesAreBounded) {
+  // 254,000 devices on 2,000 buses loaded in quadratic time (every device compared with all before;
+  // now a set per check). Such a file is now refused by its size, and a line by its number of buses.
+  const auto registry = ProfileRegistry::builtin();
+  const auto line = [](int buses, int per_bus) {
+    std::string text = "line: big\nbuses:\n";
+    for (int b = 0; b < buses; ++b) text += "  - {name: b" + std::to_string(b) + ", interface: \"virtual:b" + std::to_string(b) + "\"}\n";
+    text += "devices:\n";
+    for (int b = 0; b < buses; ++b) {
+      for (int n = 1; n <= per_bus; ++n) {
+        text += "  - {name: d" + std::to_string(b) + "_" + std::to_string(n) + ", bus: b" + std::to_string(b) +
+                ", node_id: " + std::to_string(n) + ", profile: cia420-2, version: \"1.0\"}\n";
+      }
+    }
+    return text;
+  };
+  auto r = parse_line_config(line(64, 20), "line.yaml", registry);
+  ASSERT_TRUE(r) << r.error().message;
+  EXPECT_EQ(r->devices.size(), 64u * 20u);
+  EXPECT_NE(error_of(line(65, 1)).find("a line has at most 64 buses"), std::string::npos);
+  const auto huge = line(2000, 127);  // the attack's file: refused at once, not after minutes
+  EXPECT_NE(error_of(huge).find("larger than 4194304 bytes"), std::string::npos);
+}
+
+TEST(LineConfigHostile, PdoIdentifiersOfRestrictedServicesAreRefused) {
+  const auto e = [](const std::string& pdos) { return error_of(with_pdos(pdos)); };
+  EXPECT_NE(e("    pdos: {rpdo1: {cob_id: 0x000}}\n").find("line.yaml:20:28: pdo rpdo1 of device saw1: identifier 000h is NMT: CiA 301 restricts it"),
+            std::string::npos)
+      << e("    pdos: {rpdo1: {cob_id: 0x000}}\n");
+  EXPECT_NE(e("    pdos: {tpdo1: {cob_id: 0x080}}\n").find("identifier 080h is SYNC"), std::string::npos);
+  EXPECT_NE(e("    pdos: {tpdo1: {cob_id: 0x085}}\n").find("identifier 085h is EMCY"), std::string::npos);
+  EXPECT_NE(e("    pdos: {tpdo1: {cob_id: 0x100}}\n").find("identifier 100h is TIME"), std::string::npos);
+  EXPECT_NE(e("    pdos: {tpdo1: {cob_id: 0x583}}\n").find("default SDO (server to client)"), std::string::npos);
+  EXPECT_NE(e("    pdos: {rpdo1: {cob_id: 0x603}}\n").find("default SDO (client to server)"), std::string::npos);
+  EXPECT_NE(e("    pdos: {tpdo2: {cob_id: 0x703}}\n").find("NMT error control"), std::string::npos);
+  for (const char* reserved : {"0x001", "0x07F", "0x101", "0x180", "0x6E0", "0x780", "0x7FF"}) {
+    EXPECT_NE(e(std::string("    pdos: {tpdo1: {cob_id: ") + reserved + "}}\n").find("is reserved: CiA 301 restricts it"), std::string::npos)
+        << reserved;
+  }
+  // A profile's default identifiers are checked too: profile files are input like the line.
+  auto registry_with = ProfileRegistry::builtin();
+  lb::profiles::Profile emcy_base = *registry_with.find("cia420-4", "3.1");
+  emcy_base.id = "x-emcy";
+  emcy_base.pdos[0].cob_id_base = 0x080;
+  registry_with.add(emcy_base);
+  auto r = parse_line_config(replace(kGood, "profile: cia420-4", "profile: x-emcy"), "line.yaml", registry_with);
+  ASSERT_FALSE(r);
+  EXPECT_NE(r.error().message.find("line.yaml:16:14: pdo " + emcy_base.pdos[0].name + " of device saw1: identifier 083h is EMCY"),
+            std::string::npos)
+      << r.error().message;
+  // Not valid (bit 31) does not make it usable later; a 29-bit identifier is not restricted.
+  EXPECT_NE(e("    pdos: {rpdo1: {cob_id: 0x80000000}}\n").find("is NMT"), std::string::npos);
+  const auto registry = ProfileRegistry::builtin();
+  EXPECT_TRUE(parse_line_config(with_pdos("    pdos: {tpdo1: {cob_id: 0x20000080}, tpdo2: {cob_id: 0x181}, rpdo1: {cob_id: 0x680}}\n"),
+                                "line.yaml", registry));
+}
+
+TEST(LineConfigHostile, OneIdentifierCarriesOnePdoOnABus) {
+  const auto registry = ProfileRegistry::builtin();
+  // saw1 (node 3) has TPDO1 on 183h; a second saw whose TPDO2 is moved there collides.
+  const std::string second = "  - {name: saw2, bus: ext, node_id: 4, profile: cia420-4, version: \"3.1\", pdos: {tpdo2: {cob_id: 0x183}}}\n";
+  auto e = error_of(kGood + second);
+  EXPECT_NE(e.find("line.yaml:22:98: pdo tpdo2 of device saw2: identifier 183h is already used by pdo tpdo1 of device saw1 on bus ext"),
+            std::string::npos)
+      << e;
+  e = error_of(with_pdos("    pdos: {tpdo2: {cob_id: 0x203}}\n"));  // its own RPDO1's identifier
+  EXPECT_NE(e.find("pdo rpdo1 of device saw1: identifier 203h is already used by pdo tpdo2 of device saw1"), std::string::npos) << e;
+  e = error_of(with_pdos("    pdos: {tpdo1: {cob_id: 0x20000283}, tpdo2: {cob_id: 0x20000283}}\n"));
+  EXPECT_NE(e.find("identifier 00000283h is already used"), std::string::npos) << e;
+  // On another bus, not valid, or 11-bit against 29-bit: no collision.
+  EXPECT_TRUE(parse_line_config(kGood + "  - {name: saw2, bus: mon, node_id: 3, profile: cia420-4, version: \"3.1\"}\n", "line.yaml", registry));
+  EXPECT_TRUE(parse_line_config(kGood + "  - {name: saw2, bus: ext, node_id: 4, profile: cia420-4, version: \"3.1\", pdos: {tpdo2: {cob_id: 0x80000183}}}\n",
+                                "line.yaml", registry));
+  EXPECT_TRUE(parse_line_config(with_pdos("    pdos: {tpdo2: {cob_id: 0x20000183}}\n"), "line.yaml", registry));
+}
+
+TEST(LineConfigHostile, ARecordingCannotBeAReplayedLogOrAnotherRecording) {
+  const auto log = temp_path("replayed.log");
+  const auto buses = "buses:\n  - {name: ext, interface: \"virtual:x\", record: \"" + log + "\"}\n" +
+                     "  - {name: mon, interface: \"log:" + log + "\"}\n";
+  const std::string devices = "devices: []\n";
+  auto e = error_of("line: test\n" + buses + devices);
+  EXPECT_NE(e.find("line.yaml:3:49: bus ext: record: '" + log + "' cannot be recorded into: bus mon replays it"), std::string::npos) << e;
+  // The same file by another spelling.
+  const auto dir = ::testing::TempDir();
+  const auto other = dir + "/./" + log.substr(dir.size() + 1);
+  e = error_of("line: test\nbuses:\n  - {name: mon, interface: \"log:" + log + "?pace=fast\", record: \"" + other + "\"}\n" + devices);
+  EXPECT_NE(e.find("cannot be recorded into: bus mon replays it"), std::string::npos) << e;
+  e = error_of("line: test\nbuses:\n  - {name: a, interface: \"virtual:x\", record: \"" + log + "\"}\n  - {name: b, interface: \"virtual:y\", record: \"" + log + "\"}\n" + devices);
+  EXPECT_NE(e.find("bus b: record: '" + log + "' cannot be recorded into: bus a records into it"), std::string::npos) << e;
 }

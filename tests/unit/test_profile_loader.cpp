@@ -3,8 +3,12 @@
 // manufacturer-specific tails; and the file:line:column errors of every new key.
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <array>
 #include <cstdint>
+#include <cstdio>
+#include <fstream>
 #include <string>
 
 #include "profiles/profile_registry.hpp"
@@ -243,8 +247,8 @@ TEST(ProfileLoaderErrors, OverlappingFields) {
   EXPECT_ERROR(object + "      a: 3\n      b: 3\n", "t.yaml:12:10: bit 3 is already a");
   EXPECT_ERROR(object + "      a: 8\n      b: {bit: 7, width: 2}\n", "t.yaml:12:16: bits 8..7 overlap a (bit 8)");
   EXPECT_ERROR(object + "      a: {bit: 4, width: 4}\n      b: 6\n", "t.yaml:12:10: bit 6 overlaps a (bits 7..4)");
-  // yaml-cpp keeps duplicate keys; the loader refuses the second one.
-  EXPECT_ERROR(object + "      a: 1\n      a: 2\n", "t.yaml:12:7: duplicate bit name 'a'");
+  // yaml-cpp keeps duplicate keys; the loader refuses the second one (as every duplicate key).
+  EXPECT_ERROR(object + "      a: 1\n      a: 2\n", "t.yaml:12:7: key 'a' is given twice in this mapping (first at line 11, column 7)");
 }
 
 TEST(ProfileLoaderErrors, ValueTables) {
@@ -392,4 +396,46 @@ TEST(BuiltinProfiles, PdoAccessAsTheSpecTablesSay) {
   const auto* rpdo1 = registry.find("cia414-2", "1.1")->pdo("rpdo1");
   EXPECT_EQ(rpdo1->rules.inhibit_time, A::none);
   EXPECT_EQ(rpdo1->rules.event_timer, A::none);
+}
+
+// Hostile profile files (issue 12): each was accepted silently or aborted the process before.
+TEST(ProfileLoaderHostile, DuplicateAndNonScalarKeysAreRefusedWithTheirPlace) {
+  const std::string object = "  - {index: 0x6030, name: status_word, type: UNSIGNED16, access: ro}\nbitsets:\n  s:\n    object: 0x6030\n    bits:\n";
+  // An object's index given twice: yaml-cpp kept one of them without a word.
+  EXPECT_ERROR("  - {index: 0x6030, index: 0x6031, name: s, type: UNSIGNED16, access: ro}\n",
+               "t.yaml:6:21: key 'index' is given twice in this mapping (first at line 6, column 6)");
+  // A list as a key threw YAML::TypedBadConversion out of the loader (exit 134 in every executable).
+  EXPECT_ERROR(object + "      ? [a, b]\n      : 1\n", "t.yaml:11:9: a key must be a plain value, not a list");
+  EXPECT_ERROR("  - {index: 0x6030, name: s, type: UNSIGNED8, access: ro, values: {? [1, 2] : x}}\n",
+               "t.yaml:6:70: a key must be a plain value, not a list");
+}
+
+TEST(ProfileLoaderHostile, OnlyRegularFilesOfBoundedSizeAreRead) {
+  auto registry = lb::profiles::ProfileRegistry::builtin();
+  auto r = registry.add_file("/dev/zero");  // was read without end
+  ASSERT_FALSE(r);
+  EXPECT_EQ(r.error().message, "/dev/zero: profile file: not a regular file");
+  const std::string big = ::testing::TempDir() + "/profile_big_" + std::to_string(::getpid()) + ".yaml";
+  {
+    std::ofstream out(big);
+    out << kHeader << "  - {index: 0x6030, name: status_word, type: UNSIGNED16, access: ro}\n";
+    for (int i = 0; i < 50'000; ++i) out << "# " << std::string(100, '-') << "\n";
+  }
+  r = registry.add_file(big);
+  std::remove(big.c_str());
+  ASSERT_FALSE(r);
+  EXPECT_NE(r.error().message.find("larger than 4194304 bytes"), std::string::npos) << r.error().message;
+}
+
+// Found by fuzz_profile: a PDO's cob_id is the base the node-ID is added to; 7FFh was accepted and
+// gave node 127 the identifier 87Eh, which no 11-bit frame can carry (the bus loop threw on it).
+TEST(ProfileLoaderHostile, APdoBasePlusAnyNodeIdIsAnElevenBitIdentifier) {
+  const std::string objects = "  - {index: 0x6000, name: a, type: UNSIGNED32, access: ro}\npdos:\n";
+  EXPECT_ERROR(objects + "  - {name: tpdo1, direction: tx, cob_id: 0x7FF, transmission_type: 1, mapping: [0x60000020]}\n",
+               "t.yaml:8:42: cob_id 2047 is outside 1..1920");
+  EXPECT_ERROR(objects + "  - {name: tpdo1, direction: tx, cob_id: 0x781, transmission_type: 1, mapping: [0x60000020]}\n",
+               "t.yaml:8:42: cob_id 1921 is outside 1..1920");
+  const auto p = load(objects + "  - {name: tpdo1, direction: tx, cob_id: 0x780, transmission_type: 1, mapping: [0x60000020]}\n");
+  ASSERT_EQ(p.pdos.size(), 1u);
+  EXPECT_EQ(p.pdos[0].cob_id(127), 0x7FFu);
 }

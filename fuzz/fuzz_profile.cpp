@@ -1,0 +1,23 @@
+// The YAML device profile loader (profiles/profile_registry): any text is a profile or is refused
+// with a message, never a crash, an uncaught exception or a hang; a profile it accepts is usable
+// (its PDOs resolve for a node).
+#include <cstdint>
+#include <string>
+
+#include "profiles/line_config.hpp"
+#include "profiles/profile_registry.hpp"
+
+using namespace lb::profiles;
+
+extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
+  const std::string text(reinterpret_cast<const char*>(data), size);
+  const auto profile = parse_profile(text, "fuzz.yaml");
+  if (!profile) {
+    if (profile.error().message.empty()) __builtin_trap();
+    return 0;
+  }
+  for (const auto& pdo : default_pdos(*profile, 127)) {
+    if (pdo.can_id > 0x7FF && !pdo.extended) __builtin_trap();
+  }
+  return 0;
+}

@@ -1,0 +1,59 @@
+#!/usr/bin/env bash
+# Builds the libFuzzer targets (fuzz/, clang with AddressSanitizer and UndefinedBehaviorSanitizer)
+# and runs each, one after the other, from its committed seed corpus (fuzz/corpus/<target>/).
+#   launch_scripts/fuzz.sh [--runs N | --seconds S] [target ...]     (default: every target, --runs 10000000)
+# The long run: launch_scripts/fuzz.sh (at nice 19; hours on 2 cores). test.sh runs --seconds 20.
+# Each target works on a copy of its seeds in $build/fuzz-corpus/<target>, keeps its log in
+# $build/fuzz-logs/<target>.log and any crashing input in $build/fuzz-artifacts/<target>/.
+# Exit 0 only when no target found anything. Reproduce a finding: $build/fuzz/fuzz_<target> <file>.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+root=$PWD
+
+limit=(-runs=10000000)
+targets=()
+while (($#)); do
+  case "$1" in
+    --runs) limit=("-runs=$2"); shift 2 ;;
+    --seconds) limit=("-max_total_time=$2"); shift 2 ;;
+    -h|--help) sed -n '2,9p' "$0"; exit 0 ;;
+    -*) echo "fuzz.sh: unknown option $1" >&2; exit 2 ;;
+    *) targets+=("$1"); shift ;;
+  esac
+done
+if ((${#targets[@]} == 0)); then
+  for f in fuzz/fuzz_*.cpp; do t=${f#fuzz/fuzz_}; targets+=("${t%.cpp}"); done
+fi
+
+./launch_scripts/setup.sh --clang >/dev/null
+build=${LINEBRIDGE_FUZZ_BUILD_DIR:-build-fuzz}
+cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_CXX_COMPILER=clang++ \
+  -DLINEBRIDGE_FUZZ=ON -DLINEBRIDGE_SANITIZE=address,undefined >/dev/null
+cmake --build "$build" --target "${targets[@]/#/fuzz_}"
+
+export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=0}
+export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
+failed=()
+for t in "${targets[@]}"; do
+  corpus="$build/fuzz-corpus/$t" artifacts="$build/fuzz-artifacts/$t/" log="$build/fuzz-logs/$t.log"
+  mkdir -p "$corpus" "$artifacts" "$(dirname "$log")"
+  maxlen=4096
+  [ "$t" = profile ] && maxlen=16384  # the seeds are the built-in profiles
+  args=(-timeout=10 -rss_limit_mb=2560 "-max_len=$maxlen" -print_final_stats=1 "-artifact_prefix=$artifacts")
+  [ -f "fuzz/$t.dict" ] && args+=("-dict=fuzz/$t.dict")
+  echo "== fuzz $t (${limit[*]})"
+  status=0
+  # The seeds are read, never written: new inputs go to the working corpus.
+  nice -n 19 "$build/fuzz/fuzz_$t" "${args[@]}" "${limit[@]}" "$corpus" "$root/fuzz/corpus/$t" >"$log" 2>&1 || status=$?
+  grep -E '^#[0-9]+\s+DONE|^Done [0-9]+ runs|^stat::number_of_executed_units|^stat::average_exec_per_sec' "$log" || true
+  if [ "$status" != 0 ]; then
+    failed+=("$t")
+    echo "fuzz.sh: $t found a problem (exit $status); the report:" >&2
+    grep -E -A30 '^==[0-9]+==ERROR|runtime error|^SUMMARY|deadly signal|Test unit written' "$log" | head -60 >&2 || tail -40 "$log" >&2
+  fi
+done
+if ((${#failed[@]})); then
+  echo "fuzz.sh: findings in: ${failed[*]} (inputs in $build/fuzz-artifacts/)" >&2
+  exit 1
+fi
+echo "fuzz.sh: ${#targets[@]} targets, no findings"
