@@ -54,7 +54,7 @@ class BusLoop {
   // A burst is what one wake-up finds pending, at most kBurstFrames frames, so a quiet bus flushes
   // after every frame and adds no latency. Registration: before start() or on the loop thread.
   static constexpr int kBurstFrames = 64;
-  static constexpr int kFramesPerWake = 256;
+  static constexpr int kFramesPerWake = 64;  // one burst (kBurstFrames): timers wait for at most one
   // A frame handler or timer that threw this many times is switched off.
   static constexpr std::uint32_t kMaxHandlerFailures = 10;
   FlushId create_flush(Task callback);

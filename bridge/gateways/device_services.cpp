@@ -233,7 +233,7 @@ void DeviceServices::sdo_read(const srv::SdoRead_Request& req, ddsl::Respond<srv
             },
             kServiceSdoLimit);
       },
-      refuse);
+      refuse, [this] { return answered_boot(); });
 }
 
 void DeviceServices::sdo_write(const srv::SdoWrite_Request& req, ddsl::Respond<srv::SdoWrite_Response> respond) {
@@ -253,7 +253,7 @@ void DeviceServices::sdo_write(const srv::SdoWrite_Request& req, ddsl::Respond<s
         ctx_.sdo->write(ctx_.device.node_id, index, sub, t, v, sdo_written<srv::SdoWrite_Response>(respond, 0),
                         kServiceSdoLimit);
       },
-      refuse);
+      refuse, [this] { return answered_boot(); });
 }
 
 void DeviceServices::get_parameter(const srv::GetParameter_Request& req, ddsl::Respond<srv::GetParameter_Response> respond) {
@@ -293,7 +293,7 @@ void DeviceServices::get_parameter(const srv::GetParameter_Request& req, ddsl::R
             },
             kServiceSdoLimit);
       },
-      refuse);
+      refuse, [this] { return answered_boot(); });
 }
 
 void DeviceServices::set_parameter(const srv::SetParameter_Request& req, ddsl::Respond<srv::SetParameter_Response> respond) {
@@ -318,7 +318,7 @@ void DeviceServices::set_parameter(const srv::SetParameter_Request& req, ddsl::R
         ctx_.sdo->write(ctx_.device.node_id, obj->index, obj->sub, obj->type, value,
                         sdo_written<srv::SetParameter_Response>(respond, shown), kServiceSdoLimit);
       },
-      refuse);
+      refuse, [this] { return answered_boot(); });
 }
 
 std::string DeviceServices::refusal() const {
@@ -351,6 +351,12 @@ void DeviceServices::nmt(const srv::Nmt_Request& request, ddsl::Respond<srv::Nmt
     auto r = ctx_.node.command(c);
     if (!r) return reply(false, r.error().message);
     spdlog::info("{}: NMT command {:02X}h sent on request", ctx_.device.name, static_cast<int>(c));
+    // NMT is unconfirmed (CiA 301): only the device's heartbeat tells that it was heard. A device
+    // that has none (offline) may be gone; sending may still help (a reset), claiming it did not.
+    if (!ctx_.node.online()) {
+      return reply(false, "sent, but " + ctx_.device.name +
+                              " is offline (no heartbeat within its timeout): nothing confirms that it took effect");
+    }
     reply(true, "");
   });
 }

@@ -33,6 +33,10 @@ class DeviceServices {
   void start();
   // Loop thread: "started", "failed (K): ...", a pending retry, "monitored" (monitor role).
   std::string boot_state() const { return control_ ? control_->state() : "monitored"; }
+  // Loop thread: the last boot failed after the device answered SDO (not a device that is silent).
+  bool answered_boot() const {
+    return report_.error.has_value() && !(report_.error->code == 'B' && report_.error->abort_code == 0x05040000u);
+  }
   // Loop thread: what the last finished boot found (empty before the first one).
   const canopen::BootReport& boot_report() const { return report_; }
   canopen::ErrorControl::Counters boot_counters() const { return control_ ? control_->counters() : canopen::ErrorControl::Counters{}; }

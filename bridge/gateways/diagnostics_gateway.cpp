@@ -87,12 +87,11 @@ void DiagnosticsGateway::snapshot(std::size_t i) {
   if (dt > 0) {
     b.frames_in_per_s(static_cast<double>(stats.frames_in - prev.frames_in) / dt);
     b.frames_out_per_s(static_cast<double>(stats.frames_out - prev.frames_out) / dt);
-    // A fast replay delivers frames as fast as they are read: a load against wall-clock time would
-    // be any number (hundreds of percent), so none is given.
-    b.load_percent(replay == Replay::fast
-                       ? -1.0
-                       : 100.0 * static_cast<double>(bits - prev.bits) / dt / static_cast<double>(bus.config->bitrate));
+    b.load_percent(100.0 * static_cast<double>(bits - prev.bits) / dt / static_cast<double>(bus.config->bitrate));
   }
+  // A fast replay delivers frames as fast as they are read: a load against wall-clock time would
+  // be any number (hundreds of percent), so none is given, from the first snapshot on.
+  if (replay == Replay::fast) b.load_percent(-1.0);
   prev = {now, stats.frames_in, stats.frames_out, bits};
   b.handler_failures(bus.loop->handler_failures());
   b.handlers_disabled(bus.loop->handlers_disabled());

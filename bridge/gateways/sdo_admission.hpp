@@ -7,6 +7,7 @@
 // device; one more is refused at once (SdoClient::Limit). The bridge's own requests (boot, polls)
 // are not counted.
 
+#include <functional>
 #include <string>
 
 #include "canopen/sdo_client.hpp"
@@ -17,8 +18,10 @@ namespace lb::gateways {
 inline constexpr canopen::SdoClient::Limit kServiceSdoLimit{8};
 
 // Loop thread: why an SDO request to the device cannot succeed now; empty when it can.
-inline std::string sdo_refusal(const DeviceContext& ctx) {
-  if (!ctx.node.online()) return ctx.device.name + " is offline (no heartbeat): SDO request not sent";
+// answered_boot: the device has no heartbeat but answered its last boot's SDO requests (the boot
+// failed later, e.g. on a mapping): it is asked, since that is how an integrator finds out why.
+inline std::string sdo_refusal(const DeviceContext& ctx, bool answered_boot = false) {
+  if (!ctx.node.online() && !answered_boot) return ctx.device.name + " is offline (no heartbeat): SDO request not sent";
   if (ctx.node.state() == canopen::NmtState::stopped) {
     return ctx.device.name + " is stopped (NMT): a stopped device answers no SDO (CiA 301); SDO request not sent";
   }
@@ -27,9 +30,9 @@ inline std::string sdo_refusal(const DeviceContext& ctx) {
 
 // Any thread: runs send() on the loop thread when the device can answer SDO, else refuse(why) there.
 template <class Send, class Refuse>
-void when_sdo_possible(const DeviceContext& ctx, Send send, Refuse refuse) {
-  ctx.loop.post([&ctx, send = std::move(send), refuse = std::move(refuse)]() mutable {
-    if (auto why = sdo_refusal(ctx); !why.empty()) return refuse(why);
+void when_sdo_possible(const DeviceContext& ctx, Send send, Refuse refuse, std::function<bool()> answered_boot = {}) {
+  ctx.loop.post([&ctx, send = std::move(send), refuse = std::move(refuse), answered_boot = std::move(answered_boot)]() mutable {
+    if (auto why = sdo_refusal(ctx, answered_boot && answered_boot()); !why.empty()) return refuse(why);
     send();
   });
 }

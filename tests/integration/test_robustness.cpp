@@ -477,10 +477,11 @@ TEST(Robustness, AFrozenThenKilledSimulatorIsSupervisedAndBootedAgain) {
 
   line.spy().clear();
   ::kill(line.sim().pid(), SIGSTOP);
-  ASSERT_TRUE(status.wait_last(3s, offline)) << "a frozen device still shown online\n" << line.logs();
+  ASSERT_TRUE(status.wait_last(5s, offline)) << "a frozen device still shown online\n" << line.logs();
   std::this_thread::sleep_for(1500ms);
   const auto [frozen_syncs, frozen_gap] = syncs(line.spy().frames());
-  EXPECT_GE(frozen_syncs, 60u) << "SYNC stopped while the device was frozen";
+  // About 100 at 20 ms; a loaded machine delays some, a stalled loop sends none.
+  EXPECT_GE(frozen_syncs, 40u) << "SYNC stopped while the device was frozen";
   EXPECT_LT(frozen_gap, 1000.0);
   ::kill(line.sim().pid(), SIGCONT);
   ASSERT_TRUE(status.wait_last(20s, operational)) << line.logs();
@@ -494,7 +495,24 @@ TEST(Robustness, AFrozenThenKilledSimulatorIsSupervisedAndBootedAgain) {
 
   line.spy().clear();
   ::kill(line.sim().pid(), SIGKILL);
-  ASSERT_TRUE(status.wait_last(3s, offline)) << "a dead device still shown online\n" << line.logs();
+  ASSERT_TRUE(status.wait_last(5s, offline)) << "a dead device still shown online\n" << line.logs();
+  // NMT to a device that is gone: sent (a reset may help), but not reported as done.
+  {
+    auto nmt = lb::test::LineHarness::NmtClient::create(line.dds(), lb::ddsl::line_service_path(line.line(), "nmt"));
+    ASSERT_TRUE(nmt);
+    srv::Nmt_Request req;
+    req.device("saw1");
+    req.command(srv::NMT_RESET_NODE);
+    const auto answer = (*nmt)->call(req, 10s);
+    ASSERT_TRUE(answer) << answer.error().message;
+    EXPECT_FALSE(answer->success()) << "NMT to an offline device reported as done";
+    EXPECT_NE(answer->message().find("offline"), std::string::npos) << answer->message();
+    std::this_thread::sleep_for(100ms);
+    const auto resets = line.spy().frames(0x000);
+    EXPECT_TRUE(std::any_of(resets.begin(), resets.end(), [](const lb::can::CanFrame& f) {
+      return f.len == 2 && f.data[0] == 0x81 && f.data[1] == 5;
+    })) << "the reset was not sent";
+  }
   line.start_sim();
   ASSERT_TRUE(status.wait_last(20s, operational)) << line.logs();
   const auto [sdo, start] = boot_then_start(line.spy().frames());
