@@ -319,12 +319,7 @@ TEST_F(CanopenCore, HeartbeatLossAndReturnFlipOnline) {
 TEST_F(CanopenCore, EmergenciesAreEventsAndActiveErrorsInStatus) {
   // After its boot the bridge reads the saw's own 1003h, which replaces the list (the device is the
   // truth, and these EMCYs come from the test, not the device): inject after that reading.
-  const auto read_deadline = std::chrono::steady_clock::now() + 10s;
-  while (bridge_->log().find("saw1: active errors from the device") == std::string::npos &&
-         std::chrono::steady_clock::now() < read_deadline) {
-    std::this_thread::sleep_for(50ms);
-  }
-  ASSERT_NE(bridge_->log().find("saw1: active errors from the device"), std::string::npos) << logs();
+  ASSERT_TRUE(bridge_->wait_log("saw1: active errors from the device", 10s)) << logs();
   // EMCY 4210h (temperature), error register 09h, manufacturer bytes 01..05, from node 5.
   ASSERT_TRUE(spy_->send(lb::can::make_frame(0x85, {0x10, 0x42, 0x09, 0x01, 0x02, 0x03, 0x04, 0x05})));
   ASSERT_TRUE(emcy_.wait_last(5s, [](const msg::Emergency& e) { return e.error_code() == 0x4210; })) << logs();

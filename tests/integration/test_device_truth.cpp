@@ -94,10 +94,7 @@ TEST(DeviceTruth, BootUpClearsTheActiveErrors) {
   ASSERT_TRUE(status.wait_last(30s, operational)) << line.logs();
   // The bridge reads 1001h after the boot; an EMCY during that reading makes it read again, and a
   // device without 1003h then cannot name its errors (uncertain). Raise the error after it.
-  const auto read_deadline = Clock::now() + 10s;
-  while (line.bridge().log().find("saw1: active errors from the device") == std::string::npos && Clock::now() < read_deadline) {
-    std::this_thread::sleep_for(50ms);
-  }
+  line.bridge().wait_log("saw1: active errors from the device", 10s);
   ASSERT_TRUE(line.sdo_write("saw1", kErrorSimulation, 0, "UNSIGNED32", kTemperature).success());
   ASSERT_TRUE(status.wait_last(5s, errors_are({kTemperature}, true))) << line.logs();
   // A boot-up message from the device (700h + 3, data 00h), as after a power cycle. The bridge

@@ -61,11 +61,7 @@ bool has_nmt(const std::vector<lb::can::CanFrame>& frames, std::uint8_t command,
 // identifiers with the test's raw request: wait until they are done, so that neither takes the
 // other's answer.
 void wait_post_boot_reads(lb::test::LineHarness& line, const std::string& device) {
-  const std::string done = device + ": active errors from the device";
-  const auto deadline = Clock::now() + std::chrono::seconds(10);
-  while (line.bridge().log().find(done) == std::string::npos && Clock::now() < deadline) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(50));
-  }
+  line.bridge().wait_log(device + ": active errors from the device", std::chrono::seconds(10));
   std::this_thread::sleep_for(std::chrono::milliseconds(200));  // 6010h's read follows
 }
 

@@ -64,6 +64,15 @@ class ChildProcess {
     s << in.rdbuf();
     return s.str();
   }
+  // True once the process's log holds text, within timeout (polled, bounded).
+  bool wait_log(const std::string& text, std::chrono::milliseconds timeout) const {
+    const auto deadline = std::chrono::steady_clock::now() + timeout;
+    while (log().find(text) == std::string::npos) {
+      if (std::chrono::steady_clock::now() >= deadline) return false;
+      std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    }
+    return true;
+  }
 
  private:
   std::string log_path_;
