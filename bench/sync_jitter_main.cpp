@@ -1,6 +1,6 @@
 // bench-sync-jitter: a member of one virtual bus that measures the SYNC a master produces there:
-// every SYNC frame's receive time, the periods between them, and how far each period is from the
-// nominal one. Optionally it is also a device that floods the bus with EMCYs (an EMCY burst, as a
+// every SYNC frame's bus time (its frame stamp: when the master sent it), the periods between them,
+// and how far each period is from the nominal one; the same from the times this meter read them. Optionally it is also a device that floods the bus with EMCYs (an EMCY burst, as a
 // device with a loose contact sends them), so that the bridge has events to publish while a reader
 // of them is frozen, and a source of hostile frames (any identifier, 11 or 29 bits, any length,
 // remote requests, random data). Prints key=value lines; the periods go to --out.
@@ -57,8 +57,11 @@ int main(int argc, char** argv) {
     std::fprintf(stderr, "bench-sync-jitter: %s\n", bus.error().message.c_str());
     return 1;
   }
-  std::vector<std::int64_t> syncs;
+  // Two clocks per SYNC: its frame stamp (when it went on the bus: the bridge's send) and when this
+  // meter read it (adds the hub's and the meter's own scheduling on a loaded machine).
+  std::vector<std::int64_t> syncs, read_at;
   syncs.reserve(static_cast<std::size_t>(duration_s * 1e6 / period_us * 1.2) + 16);
+  read_at.reserve(syncs.capacity());
   const auto start = bench::monotonic_ns();
   const auto end = start + static_cast<std::int64_t>(duration_s * 1e9);
   const double emcy_period_ns = emcy_rate > 0 ? 1e9 / emcy_rate : 0;
@@ -109,14 +112,18 @@ int main(int argc, char** argv) {
       auto r = (*bus)->receive();
       if (!r || !r->has_value()) break;
       const auto& f = **r;
-      if (f.id == 0x080 && !f.extended && !f.rtr && !f.error) syncs.push_back(f.timestamp_ns);
+      if (f.id == 0x080 && !f.extended && !f.rtr && !f.error) {
+        syncs.push_back(f.timestamp_ns);
+        read_at.push_back(bench::realtime_ns());
+      }
     }
   }
-  std::vector<double> periods, deviation;
+  std::vector<double> periods, deviation, read_deviation;
   for (std::size_t i = 1; i < syncs.size(); ++i) {
     const double us = static_cast<double>(syncs[i] - syncs[i - 1]) / 1e3;
     periods.push_back(us);
     deviation.push_back(std::abs(us - period_us));
+    read_deviation.push_back(std::abs(static_cast<double>(read_at[i] - read_at[i - 1]) / 1e3 - period_us));
   }
   if (!out.empty()) {
     std::ofstream o(out);
@@ -125,10 +132,12 @@ int main(int argc, char** argv) {
   const double expected = duration_s * 1e6 / period_us;
   std::fputs(fmt::format("jitter_syncs={}\njitter_expected_syncs={:.0f}\njitter_p50_us={:.1f}\njitter_p99_us={:.1f}\n"
                          "jitter_p999_us={:.1f}\njitter_max_us={:.1f}\njitter_longest_period_us={:.1f}\n"
-                         "jitter_emcy_sent={}\njitter_emcy_dropped={}\njitter_hostile_sent={}\n",
+                         "jitter_emcy_sent={}\njitter_emcy_dropped={}\njitter_hostile_sent={}\n"
+                         "jitter_read_p50_us={:.1f}\njitter_read_p99_us={:.1f}\njitter_read_p999_us={:.1f}\njitter_read_max_us={:.1f}\n",
                          syncs.size(), expected, percentile(deviation, 50), percentile(deviation, 99),
                          percentile(deviation, 99.9), percentile(deviation, 100), percentile(periods, 100), emcy_sent,
-                         emcy_dropped, hostile_sent)
+                         emcy_dropped, hostile_sent, percentile(read_deviation, 50), percentile(read_deviation, 99),
+                         percentile(read_deviation, 99.9), percentile(read_deviation, 100))
                  .c_str(),
              stdout);
   return syncs.size() < 2 ? 1 : 0;

@@ -21,6 +21,7 @@
 #   --nice N         run everything (bridge, floors, harness) at this niceness, e.g. -10 to keep a
 #                    shared machine's other work from dominating the latency tails
 #   --report-only    measure nothing: print the table again from the data in --out DIR
+#   --jitter-rate N  frames/s of the saws' TPDOs in the jitter figure (default: full load, 8000)
 #   --profile        record the bridge with perf (call graphs) during every throughput step;
 #                    perf.data and a report per step in the output directory
 #
@@ -38,9 +39,11 @@
 #   memory      VmRSS / VmHWM of the bridge with 8 buses x 30 saws under full load.
 #   startup     process start -> first status sample at an already running subscriber.
 #   jitter      SYNC period jitter (p50/p99/p99.9/max deviation from 20 ms) of a master bridge with
-#               30 saws at full load (8000 frames/s) and an EMCY burst (1000/s), three ways: alone;
-#               with an emergency subscriber that freezes (SIGSTOP: it neither reads nor
-#               acknowledges); recording to a slow disk (a FIFO drained at 16 KiB/s).
+#               30 saws: idle (no load: the unloaded figure); then at full load (8000 frames/s,
+#               --jitter-rate) with an EMCY burst (1000/s), three ways: alone; with an emergency
+#               subscriber that freezes (SIGSTOP: it neither reads nor acknowledges); recording to
+#               a slow disk (a FIFO drained at 16 KiB/s). Beside them the floor: a bare periodic
+#               timer on the bridge's core (bench-timer-floor), how steady this machine can be at all.
 #   soak        resident memory and open file descriptors of the bridge sampled every 10 s during a
 #               flood (full load, EMCY burst, hostile frames on every identifier), 10 minutes (2
 #               with --quick): start, end, highest.
@@ -64,6 +67,7 @@ buses_list=""
 pin=1
 niceness=0
 profile=0
+jitter_rate=""
 report_only=0
 while (($#)); do
   case "$1" in
@@ -77,6 +81,7 @@ while (($#)); do
     --no-pin) pin=0 ;;
     --nice) niceness=${2:?}; shift ;;
     --profile) profile=1 ;;
+    --jitter-rate) jitter_rate=${2:?}; shift ;;
     --report-only) report_only=1; do_build=0 ;;
     -h|--help) usage ;;
     *) echo "bench.sh: unknown argument $1" >&2; usage ;;
@@ -101,7 +106,7 @@ if [ "${LINEBRIDGE_NETNS:-}" != "1" ]; then
     fi
     cmake --build "$build_dir" --target linebridge linebridge-sim linebridge-security bench-config bench-inject bench-can-sink \
       bench-status-pub bench-status-sub bench-setpoint bench-relay bench-can-relay bench-startup bench-stats \
-      bench-sync-jitter bench-frozen-reader >&2
+      bench-sync-jitter bench-frozen-reader bench-timer-floor >&2
   fi
   [ -n "$out_dir" ] || out_dir=$(mktemp -d /tmp/linebridge-bench.XXXXXX)
   mkdir -p "$out_dir"
@@ -571,11 +576,13 @@ security_pki() {  # DIR
   LINEBRIDGE_BIN="$build_dir/bridge/app" "$root/launch_scripts/pki.sh" issue --config "$d.line.yaml" --dir "$d" --name engineer --role engineer 2>/dev/null
 }
 
-# jitter_step DIR SCENARIO: quiet | frozen | record. A master bridge (pinned) with 30 saws whose
-# TPDOs come at full load from the injector, an EMCY burst from the meter, and the scenario's
-# burden; the meter reports the SYNC periods it saw.
+# jitter_step DIR SCENARIO: idle | quiet | frozen | record. A master bridge (pinned) with 30 saws
+# whose TPDOs come at full load from the injector, an EMCY burst from the meter, and the
+# scenario's burden (idle: no TPDOs, no EMCYs); the meter reports the SYNC periods it saw.
 jitter_step() {
-  local d=$1 scenario=$2 inj bridge meter reader="" drain="" prefix="jit-$scenario-$RANDOM" extra=()
+  local d=$1 scenario=$2 inj="" bridge meter reader="" drain="" prefix="jit-$scenario-$RANDOM" extra=()
+  local rate=${jitter_rate:-$full_rate} emcy=1000
+  [ "$scenario" != idle ] || { rate=0; emcy=0; }
   mkdir -p "$d"
   next_domain
   if [ "$scenario" = record ]; then
@@ -589,11 +596,12 @@ while f.read(1024): time.sleep(1/16)" "$d/record.fifo"
     extra=(--record "$d/record.fifo")
   fi
   "$bin/bench-config" --buses 1 --devices $devices --domain $domain --prefix "$prefix" --role master "${extra[@]}" >"$d/line.yaml"
-  local count=$((full_rate * (jitter_s + 8)))
-  start "$d/inject" "${harness_cmd[@]}" "$bin/bench-inject" --buses 1 --devices $devices --rate $full_rate --count $count \
-    --prefix "$prefix" --ready "$d/inject.ready" --go "$d/go" --linger 1
-  inj=$pid
-  wait_file "$d/inject.ready" $inj
+  if ((rate > 0)); then
+    start "$d/inject" "${harness_cmd[@]}" "$bin/bench-inject" --buses 1 --devices $devices --rate $rate \
+      --count $((rate * (jitter_s + 8))) --prefix "$prefix" --ready "$d/inject.ready" --go "$d/go" --linger 1
+    inj=$pid
+    wait_file "$d/inject.ready" $inj
+  fi
   start "$d/bridge" "${pin_cmd[@]}" "$bridge_bin" --config "$d/line.yaml" --log-level warn
   bridge=$pid
   if [ "$scenario" = frozen ]; then
@@ -604,12 +612,12 @@ while f.read(1024): time.sleep(1/16)" "$d/record.fifo"
   touch "$d/go"
   sleep 2
   "${harness_cmd[@]}" "$bin/bench-sync-jitter" --bus "virtual:$prefix-0" --duration $jitter_s \
-    --emcy-rate 1000 --emcy-devices $devices --out "$d/periods" >"$d/meter.out" 2>"$d/meter.err" || true
-  printf '%s\n' "$bin/bench-sync-jitter --bus virtual:$prefix-0 --duration $jitter_s --emcy-rate 1000 --emcy-devices $devices --out $d/periods" >>"$commands"
+    --emcy-rate $emcy --emcy-devices $devices --out "$d/periods" >"$d/meter.out" 2>"$d/meter.err" || true
+  printf '%s\n' "$bin/bench-sync-jitter --bus virtual:$prefix-0 --duration $jitter_s --emcy-rate $emcy --emcy-devices $devices --out $d/periods" >>"$commands"
   [ -z "$reader" ] || { kill -KILL "$reader" 2>/dev/null || true; finish "$reader" || true; }
   echo "bridge_alive=$(kill -0 $bridge 2>/dev/null && echo 1 || echo 0)" >>"$d/meter.out"
   stop $bridge
-  stop $inj
+  [ -z "$inj" ] || stop $inj
   [ -z "$drain" ] || stop "$drain"
 }
 
@@ -617,13 +625,21 @@ fig_jitter() {  # RUN
   local d="$out_dir/jitter/run$1" scenario
   mkdir -p "$d"
   vals="$d/values"; : >"$vals"
-  for scenario in quiet frozen record; do
+  # The floor: how late this machine wakes a bare periodic timer on the bridge's core.
+  echo "jitter: timer floor" >&2
+  "${pin_cmd[@]}" "$bin/bench-timer-floor" --duration $jitter_s >"$d/floor.out"
+  printf '%s\n' "${pin_cmd[*]} $bin/bench-timer-floor --duration $jitter_s" >>"$commands"
+  for k in wakeups p50_us p99_us p999_us max_us; do echo "jitter_floor_$k=$(get "$d/floor.out" floor_$k)" >>"$vals"; done
+  for scenario in idle quiet frozen record; do
     echo "jitter: $scenario" >&2
     jitter_step "$d/$scenario" $scenario
-    for k in syncs expected_syncs p50_us p99_us p999_us max_us longest_period_us emcy_sent; do
+    for k in syncs expected_syncs p50_us p99_us p999_us max_us longest_period_us emcy_sent read_p50_us read_p99_us read_p999_us read_max_us; do
       echo "jitter_${scenario}_$k=$(get "$d/$scenario/meter.out" jitter_$k)" >>"$vals"
     done
     echo "jitter_${scenario}_bridge_alive=$(get "$d/$scenario/meter.out" bridge_alive)" >>"$vals"
+  done
+  for scenario in quiet frozen record; do
+    echo "jitter_${scenario}_p999_over_idle_us=$(awk -v a="$(get "$vals" jitter_${scenario}_p999_us)" -v b="$(get "$vals" jitter_idle_p999_us)" 'BEGIN { printf "%.1f", a - b }')" >>"$vals"
   done
   for scenario in frozen record; do
     echo "jitter_${scenario}_p999_over_quiet_us=$(awk -v a="$(get "$vals" jitter_${scenario}_p999_us)" -v b="$(get "$vals" jitter_quiet_p999_us)" 'BEGIN { printf "%.1f", a - b }')" >>"$vals"
@@ -787,10 +803,15 @@ cmd() { echo "launch_scripts/bench.sh --only $1$quick_flag --runs $runs$nice_fla
     echo "| Resident memory idle after start-up, 1x1 / ${mem_buses}x$devices, master role (MiB) | $(stat startup startup_1x1_rss_mib) / $(stat startup startup_${mem_buses}x${devices}_rss_mib) | | | \`$(cmd startup)\` |"
   fi
   if want jitter; then
+    echo "| Floor: a bare periodic timer (20 ms, absolute clock_nanosleep) on the bridge's core: wake-up lateness p50 / p99 / p99.9 / max (µs) | $(stat jitter jitter_floor_p50_us) / $(stat jitter jitter_floor_p99_us) / $(stat jitter jitter_floor_p999_us) / $(stat jitter jitter_floor_max_us) | | | \`$(cmd jitter)\` |"
+    echo "| SYNC jitter, 30 saws, no load (the unloaded figure): deviation from 20 ms p50 / p99 / p99.9 / max (µs); SYNCs seen / expected | $(stat jitter jitter_idle_p50_us) / $(stat jitter jitter_idle_p99_us) / $(stat jitter jitter_idle_p999_us) / $(stat jitter jitter_idle_max_us); $(stat jitter jitter_idle_syncs) / $(stat jitter jitter_idle_expected_syncs) | | | \`$(cmd jitter)\` |"
+    echo "| the same, from the times the meter read them | $(stat jitter jitter_idle_read_p50_us) / $(stat jitter jitter_idle_read_p99_us) / $(stat jitter jitter_idle_read_p999_us) / $(stat jitter jitter_idle_read_max_us) | | | |"
     for sc in "quiet:alone" "frozen:with a frozen emergency subscriber" "record:recording to a slow disk"; do
       k=${sc%%:*}
-      echo "| SYNC jitter, 30 saws at $full_rate frames/s + 1000 EMCY/s, ${sc#*:}: deviation from 20 ms p50 / p99 / p99.9 / max (µs); SYNCs seen / expected | $(stat jitter jitter_${k}_p50_us) / $(stat jitter jitter_${k}_p99_us) / $(stat jitter jitter_${k}_p999_us) / $(stat jitter jitter_${k}_max_us); $(stat jitter jitter_${k}_syncs) / $(stat jitter jitter_${k}_expected_syncs) | | | \`$(cmd jitter)\` |"
+      echo "| SYNC jitter, 30 saws at ${jitter_rate:-$full_rate} frames/s + 1000 EMCY/s, ${sc#*:}: deviation from 20 ms p50 / p99 / p99.9 / max (µs); SYNCs seen / expected | $(stat jitter jitter_${k}_p50_us) / $(stat jitter jitter_${k}_p99_us) / $(stat jitter jitter_${k}_p999_us) / $(stat jitter jitter_${k}_max_us); $(stat jitter jitter_${k}_syncs) / $(stat jitter jitter_${k}_expected_syncs) | | | \`$(cmd jitter)\` |"
+      echo "| the same, from the times the meter read them (adds the hub's and the meter's scheduling) | $(stat jitter jitter_${k}_read_p50_us) / $(stat jitter jitter_${k}_read_p99_us) / $(stat jitter jitter_${k}_read_p999_us) / $(stat jitter jitter_${k}_read_max_us) | | | |"
     done
+    echo "| SYNC jitter p99.9 under load alone / frozen subscriber / slow disk, over the unloaded figure (µs) | $(stat jitter jitter_quiet_p999_over_idle_us) / $(stat jitter jitter_frozen_p999_over_idle_us) / $(stat jitter jitter_record_p999_over_idle_us) | <= 200 each | quiet $(verdict "$(median jitter jitter_quiet_p999_over_idle_us)" "<=" 200), frozen $(verdict "$(median jitter jitter_frozen_p999_over_idle_us)" "<=" 200), disk $(verdict "$(median jitter jitter_record_p999_over_idle_us)" "<=" 200) | \`$(cmd jitter)\` |"
     echo "| SYNC jitter p99.9 with a frozen subscriber, over the same alone (µs) | $(stat jitter jitter_frozen_p999_over_quiet_us) | <= 200 | $(verdict "$(median jitter jitter_frozen_p999_over_quiet_us)" "<=" 200) | \`$(cmd jitter)\` |"
     echo "| SYNC jitter p99.9 recording to a slow disk, over the same alone (µs) | $(stat jitter jitter_record_p999_over_quiet_us) | <= 200 | $(verdict "$(median jitter jitter_record_p999_over_quiet_us)" "<=" 200) | \`$(cmd jitter)\` |"
   fi

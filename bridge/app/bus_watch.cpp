@@ -11,6 +11,7 @@
 #include <cstdio>
 
 #include "app/arguments.hpp"
+#include "app/stdout_gone.hpp"
 #include "can/bus.hpp"
 #include "can/candump_log.hpp"
 #include "can/unique_fd.hpp"
@@ -105,7 +106,7 @@ int watch_bus(const profiles::LineConfig& line, const std::string& bus_name, con
     }
     pollfd fds[2] = {{(*bus)->fd(), POLLIN, 0}, {signals.get(), POLLIN, 0}};
     if (::poll(fds, 2, timeout_ms) < 0 && errno != EINTR) return kExitFailure;
-    if ((fds[1].revents & POLLIN) != 0) return kExitOk;
+    if ((fds[1].revents & POLLIN) != 0 || stdout_gone()) return kExitOk;
     for (;;) {
       auto frame = (*bus)->receive();
       if (!frame) return fmt::print(stderr, "bus {}: {}\n", bus_name, frame.error().message), kExitFailure;
@@ -118,7 +119,7 @@ int watch_bus(const profiles::LineConfig& line, const std::string& bus_name, con
       std::fputs(text.c_str(), stdout);
       if (o.count != 0 && ++seen >= o.count) return std::fflush(stdout), kExitOk;
     }
-    std::fflush(stdout);
+    if (std::fflush(stdout) != 0 || std::ferror(stdout)) return kExitOk;  // the reader of stdout is gone
   }
 }
 

@@ -16,6 +16,7 @@
 #include "app/feeder_text.hpp"
 #include "app/run_until_signal.hpp"
 #include "app/saw_text.hpp"
+#include "app/stdout_gone.hpp"
 #include "dds/topic_names.hpp"
 #include "msgs/commonPubSubTypes.h"
 #include "msgs/corrugatorPubSubTypes.h"
@@ -30,6 +31,11 @@ using Clock = std::chrono::steady_clock;
 
 namespace {
 
+// stdout is gone (the reader of a pipe ended; SIGPIPE is ignored): end the echo as after a signal.
+void flush_or_stop() {
+  if (std::fflush(stdout) != 0 || std::ferror(stdout)) request_stop();
+}
+
 // Prints samples as they come, one at a time; status lines at most `rate` a second unless their
 // key (status bits, online) changed.
 class Printer {
@@ -40,8 +46,9 @@ class Printer {
 
   void print(const std::string& text) {
     std::lock_guard lock(m_);
-    fmt::print("{} {}\n", device_, text);
-    std::fflush(stdout);
+    // fputs, not fmt::print: a closed pipe must be an error to look at, not an exception on a DDS thread.
+    std::fputs(fmt::format("{} {}\n", device_, text).c_str(), stdout);
+    flush_or_stop();
   }
   void throttled(std::uint64_t key, const std::string& text) {
     const auto now = Clock::now();
@@ -85,7 +92,7 @@ Result<Subscription> subscribe_topic(ddsl::Participant& dds, const std::string& 
   if (topic == "emergency") return subscribe<msg::EmergencyPubSubType>(dds, topic_name, QosKind::event, text);
   if (topic == "diagnostics") {
     return subscribe<msg::DiagnosticsPubSubType>(dds, topic_name, QosKind::state,
-                                                 [](const msg::Diagnostics& d) { fmt::print("{}", to_text(d)), std::fflush(stdout); });
+                                                 [](const msg::Diagnostics& d) { std::fputs(to_text(d).c_str(), stdout), flush_or_stop(); });
   }
   if (topic == "setpoint_result" || topic == "loom_result") {
     return subscribe<msg::SetpointResultPubSubType>(dds, topic_name, QosKind::reply, [&out](const msg::SetpointResult& r) {
@@ -144,6 +151,7 @@ int run_echo(ddsl::Participant& dds, const std::string& line, const std::string&
     bool warned = false;
     while (!done) {
       std::this_thread::sleep_for(std::chrono::milliseconds(100));
+      if (stdout_gone()) request_stop();
       const bool matched = dds.matched_writers(topic) > 0;
       if (!matched && !warned && Clock::now() - start > kPatience) {
         fmt::print(stderr, "waiting for the bridge: nothing publishes {} (is linebridge running for line {}?)\n", topic, line);

@@ -105,13 +105,14 @@ std::string to_text(const msg::Diagnostics& d) {
   for (const auto& b : d.buses()) {
     out += fmt::format("  bus {:<12} {:<28} {:<7} {:<13} in {:>9} ({:7.1f}/s) out {:>9} ({:7.1f}/s) load {} "
                        "error frames {} dropped {} | TEC {} REC {} bus-offs {} overflows {} rx-dropped {} tx-queue-full {} "
-                       "reopens {}{}{}\n",
+                       "reopens {}{}{}{}\n",
                        b.name(), b.interface_uri(), b.role(), b.state(), b.frames_in(), b.frames_in_per_s(), b.frames_out(),
                        b.frames_out_per_s(),
                        b.load_percent() < 0 ? std::string("n/a (fast replay)") : fmt::format("{:5.1f} %", b.load_percent()),
                        b.error_frames(), b.tx_dropped(), b.tx_error_counter(), b.rx_error_counter(), b.bus_offs(),
                        b.rx_overflows(), b.rx_dropped(), b.tx_queue_full(), b.reopens(),
                        b.record_errors() != 0 ? fmt::format(" record-errors {}", b.record_errors()) : "",
+                       b.requests_refused() != 0 ? fmt::format(" requests-refused {} (loop overloaded)", b.requests_refused()) : "",
                        b.replay() ? " (replay: heartbeat ages on the recording's clock)" : "");
   }
   for (const auto& n : d.nodes()) {

@@ -5,6 +5,7 @@
 #include <spdlog/spdlog.h>
 
 #include <chrono>
+#include <csignal>
 #include <cstdio>
 #include <optional>
 #include <string>
@@ -213,6 +214,10 @@ int main(int argc, char** argv) {
   spdlog::set_level(spdlog::level::warn);
 
   lb::app::block_stop_signals();
+  // A reader that goes away (`linebridge-cli echo ... | head`) must end this process cleanly: killed
+  // by SIGPIPE it would leave its DDS participant behind, matched to the bridge's writers until
+  // its lease runs out. A failed write to stdout ends the watching commands instead (exit 0).
+  std::signal(SIGPIPE, SIG_IGN);
   const auto registry = lb::profiles::ProfileRegistry::builtin();
   auto config = lb::app::load_config(config_path, registry);
   if (!config) return fmt::print(stderr, "{}\n", config.error().message), kExitUsage;

@@ -27,7 +27,7 @@ using detail::errno_text;
 namespace {
 
 // Fast enough that a line notices a link back within a couple of SYNC periods, cheap when idle.
-constexpr long kRetryIntervalNs = 100'000'000;
+constexpr long kLinkRetryIntervalNs = 100'000'000;
 
 bool link_error(int err) { return err == ENETDOWN || err == ENODEV || err == ENXIO; }
 
@@ -143,8 +143,8 @@ void SocketCanBus::link_lost() {
 void SocketCanBus::set_retry_timer(bool armed) {
   itimerspec spec{};
   if (armed) {
-    spec.it_value.tv_nsec = kRetryIntervalNs;
-    spec.it_interval.tv_nsec = kRetryIntervalNs;
+    spec.it_value.tv_nsec = kLinkRetryIntervalNs;
+    spec.it_interval.tv_nsec = kLinkRetryIntervalNs;
   }
   ::timerfd_settime(retry_timer_.get(), 0, &spec, nullptr);  // also clears a pending expiry
 }

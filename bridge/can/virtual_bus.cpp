@@ -36,7 +36,7 @@ constexpr std::size_t kMaxNameLen = sizeof(sockaddr_un::sun_path) - 1 - kAddress
 constexpr int kSocketBuffer = 1 << 20;
 constexpr auto kOpenTimeout = std::chrono::seconds(2);
 constexpr auto kJoinRetryPause = std::chrono::milliseconds(2);
-constexpr long kRetryIntervalNs = 10'000'000;
+constexpr long kHubRetryIntervalNs = 10'000'000;
 // Messages read from one member before the hub looks at the others again (fairness, not order).
 constexpr int kPumpBatch = 64;
 
@@ -415,7 +415,7 @@ Result<void> VirtualBus::rejoin() {
 
 void VirtualBus::set_retry_timer(bool armed) {
   itimerspec spec{};
-  spec.it_value.tv_nsec = armed ? kRetryIntervalNs : 0;
+  spec.it_value.tv_nsec = armed ? kHubRetryIntervalNs : 0;
   ::timerfd_settime(retry_timer_.get(), 0, &spec, nullptr);  // also clears a pending expiry
 }
 
@@ -434,7 +434,11 @@ Result<std::optional<CanFrame>> VirtualBus::receive() {
       const auto decoded = wire::decode({reinterpret_cast<const std::uint8_t*>(&msg), len});
       if (!decoded) continue;
       CanFrame frame = *decoded;
-      frame.timestamp_ns = detail::realtime_ns();
+      // Stamped with the moment it went on the bus (its sender's send, same machine and clock), as
+      // SocketCAN stamps a frame when the controller took it off the wire: not with when this
+      // member got around to reading it. A stamp from the future or over 10 s old is not taken.
+      const auto now = detail::realtime_ns();
+      frame.timestamp_ns = msg.timestamp_ns <= now && now - msg.timestamp_ns < 10'000'000'000 ? msg.timestamp_ns : now;
       ++(frame.error ? stats_.error_frames : stats_.frames_in);
       return std::optional<CanFrame>{frame};
     }

@@ -27,13 +27,13 @@ struct Msg {
   std::uint8_t len;
   std::uint8_t reserved;
   std::uint8_t data[CanFrame::kMaxLen];
-  std::int64_t timestamp_ns;  // sender's clock at send; informational, the receiver re-stamps
+  std::int64_t timestamp_ns;  // sender's CLOCK_REALTIME at send: the receiver's frame stamp, if plausible
 };
 static_assert(sizeof(Msg) == 24 && std::is_trivially_copyable_v<Msg>);
 
 Msg encode(const CanFrame& frame, std::int64_t now_ns);
 Msg welcome();
-// The frame a received message carries (timestamp_ns 0: the receiver stamps it), or nullopt for
+// The frame a received message carries (timestamp_ns 0: the receiver decides), or nullopt for
 // anything else: a welcome, a message of another size, a length over 8, unknown flags, an
 // identifier its format cannot have.
 std::optional<CanFrame> decode(std::span<const std::uint8_t> message);

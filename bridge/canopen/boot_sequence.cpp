@@ -183,7 +183,7 @@ void BootSequence::read_pdos(std::vector<PdoSpec> specs, std::function<void(std:
         owner.emplace_back(i, mapped);
       }
     }
-    batch(second, [this, second, owner, devices = std::move(devices), read_failed, then](Replies entries) mutable {
+    batch(second, [second, owner, devices = std::move(devices), read_failed, then](Replies entries) mutable {
       if (!entries.empty() && entries.back().error) return read_failed(second, entries);
       for (std::size_t k = 0; k < entries.size(); ++k) {
         auto& d = devices[owner[k].first];

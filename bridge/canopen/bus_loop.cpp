@@ -40,8 +40,9 @@ timespec to_timespec(std::chrono::nanoseconds ns) {
 
 BusLoop::BusLoop(std::unique_ptr<can::Bus> bus) : bus_(std::move(bus)) {
   epoll_fd_ = ::epoll_create1(EPOLL_CLOEXEC);
+  timers_fd_ = ::epoll_create1(EPOLL_CLOEXEC);
   wake_fd_ = ::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC);
-  if (epoll_fd_ < 0 || wake_fd_ < 0) throw std::runtime_error("cannot create bus loop descriptors");
+  if (epoll_fd_ < 0 || timers_fd_ < 0 || wake_fd_ < 0) throw std::runtime_error("cannot create bus loop descriptors");
   epoll_add(epoll_fd_, bus_->fd(), kBusTag);
   epoll_add(epoll_fd_, wake_fd_, kWakeTag);
 }
@@ -50,6 +51,7 @@ BusLoop::~BusLoop() {
   stop();
   for (auto& t : timers_) ::close(t->fd);
   ::close(wake_fd_);
+  ::close(timers_fd_);
   ::close(epoll_fd_);
 }
 
@@ -100,6 +102,7 @@ BusLoop::TimerId BusLoop::create_timer(Task callback) {
   const TimerId id = timers_.size();
   timers_.push_back(std::make_unique<Timer>(Timer{fd, std::move(callback)}));
   epoll_add(epoll_fd_, fd, kTimerTagBase + id);
+  epoll_add(timers_fd_, fd, kTimerTagBase + id);
   return id;
 }
 
@@ -123,6 +126,30 @@ void BusLoop::post(Task task) {
   }
   const std::uint64_t one = 1;
   [[maybe_unused]] auto n = ::write(wake_fd_, &one, sizeof one);
+}
+
+bool BusLoop::try_post(Task task) {
+  bool accepted = false, log = false;
+  std::uint64_t held_back = 0;
+  {
+    std::lock_guard lock(posted_mutex_);
+    accepted = posted_.size() < kMaxPosted;
+    if (accepted) {
+      posted_.push_back(std::move(task));
+    } else {
+      posts_refused_.fetch_add(1, std::memory_order_relaxed);
+      log = refused_log_.allow();
+      held_back = refused_log_.held_back();
+    }
+  }
+  if (accepted) {
+    const std::uint64_t one = 1;
+    [[maybe_unused]] auto n = ::write(wake_fd_, &one, sizeof one);
+  } else if (log) {
+    spdlog::warn("{}: {} requests already wait for the bus loop: request refused ({} refused in all){}", bus_->uri(),
+                 kMaxPosted, posts_refused(), held_back == 0 ? "" : fmt::format(" ({} more not logged)", held_back));
+  }
+  return accepted;
 }
 
 Result<void> BusLoop::send(const can::CanFrame& frame) {
@@ -190,17 +217,28 @@ void BusLoop::loop() {
         run_posted();
         if (backlog_) drain_bus();
       } else {
-        auto& timer = *timers_[tag - kTimerTagBase];
-        std::uint64_t expirations = 0;
-        if (::read(timer.fd, &expirations, sizeof expirations) != sizeof expirations) continue;
-        if (timer.failures >= kMaxHandlerFailures) continue;
-        if (!guarded([&timer] { timer.callback(); }, &timer.failures, "timer", static_cast<std::uint32_t>(tag - kTimerTagBase)) &&
-            timer.failures >= kMaxHandlerFailures) {
-          disarm_timer(tag - kTimerTagBase);
-        }
+        run_timer(tag - kTimerTagBase);
       }
     }
   }
+}
+
+void BusLoop::run_timer(TimerId id) {
+  auto& timer = *timers_[id];
+  std::uint64_t expirations = 0;
+  // Not due (any more): it already ran between the frames of a burst.
+  if (::read(timer.fd, &expirations, sizeof expirations) != sizeof expirations) return;
+  if (timer.failures >= kMaxHandlerFailures) return;
+  if (!guarded([&timer] { timer.callback(); }, &timer.failures, "timer", static_cast<std::uint32_t>(id)) &&
+      timer.failures >= kMaxHandlerFailures) {
+    disarm_timer(id);
+  }
+}
+
+void BusLoop::run_due_timers() {
+  std::array<epoll_event, 16> events{};
+  const int n = ::epoll_wait(timers_fd_, events.data(), static_cast<int>(events.size()), 0);
+  for (int i = 0; i < n; ++i) run_timer(events[static_cast<std::size_t>(i)].data.u64 - kTimerTagBase);
 }
 
 void BusLoop::drain_bus() {
@@ -219,6 +257,9 @@ void BusLoop::drain_bus() {
       run_flushes();
       in_burst = 0;
     }
+    // A due SYNC goes out between two frames, not after the burst: its period must not depend on
+    // how many frames a flood brings (one poll of the timers costs far less than a frame).
+    run_due_timers();
     auto r = bus_->receive();
     if (!r) {
       spdlog::warn("{}: receive failed: {}", bus_->uri(), r.error().message);

@@ -8,7 +8,8 @@
 // line. A failure of the loop itself (epoll) ends the loop and is reported to the failure
 // handler, so that the process can exit and its service manager restart it. A flooded bus is read
 // at most kFramesPerWake frames per wake-up, so timers (SYNC, heartbeat supervision) and posted
-// work are never starved.
+// work are never starved, and due timers also run between two frames of a burst (a SYNC is sent
+// on time however many frames wait).
 
 #include <array>
 #include <atomic>
@@ -21,6 +22,7 @@
 #include <thread>
 #include <vector>
 
+#include "base/log_rate.hpp"
 #include "base/result.hpp"
 #include "can/bus.hpp"
 #include "canopen/cob_id.hpp"
@@ -62,8 +64,16 @@ class BusLoop {
   // outside frame dispatch. Requests before that run coalesce into one call.
   void request_flush(FlushId id);
 
-  // Any thread: runs the task on the loop thread, in posting order.
+  // Any thread: runs the task on the loop thread, in posting order. For the bridge's own work,
+  // which its callers bound (SDO kicks, one diagnostics snapshot a second, start-up).
   void post(Task task);
+  // Any thread: as post(), for what other applications ask for (service requests, set values,
+  // commands), which arrives as fast as DDS delivers it. Refused while kMaxPosted tasks wait: the
+  // task is dropped unrun, counted (posts_refused) and logged at a bounded rate, and the caller
+  // answers the request itself. Keeps a request flood from growing memory without bound.
+  static constexpr std::size_t kMaxPosted = 4096;
+  [[nodiscard]] bool try_post(Task task);
+  std::uint64_t posts_refused() const { return posts_refused_.load(std::memory_order_relaxed); }
 
   // Loop thread: transmits, counting and logging failures (the caller decides nothing on them).
   // Refused while transmission is held.
@@ -115,12 +125,15 @@ class BusLoop {
   void call(Handler& h, const can::CanFrame& frame, const char* what);
   void watch_link();  // logs the bus's state changes and re-opens
   void drain_bus();
+  void run_timer(TimerId id);
+  void run_due_timers();  // between the frames of a burst
   void run_posted();
   void dispatch(const can::CanFrame& frame);
   void run_flushes();
 
   std::unique_ptr<can::Bus> bus_;
   int epoll_fd_ = -1;
+  int timers_fd_ = -1;  // epoll over the timers only: polled between frames
   int wake_fd_ = -1;  // eventfd: posted tasks and stop
   std::vector<std::unique_ptr<Timer>> timers_;
   std::array<std::vector<Handler>, cob::kStandardIdCount> handlers_;
@@ -149,6 +162,8 @@ class BusLoop {
   std::mutex posted_mutex_;
   std::vector<Task> posted_;
   bool stopping_ = false;  // guarded by posted_mutex_
+  LogRate refused_log_;     // guarded by posted_mutex_
+  std::atomic<std::uint64_t> posts_refused_{0};
   std::atomic<std::uint64_t> iterations_{0};
   std::thread thread_;
 };

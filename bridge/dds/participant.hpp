@@ -126,6 +126,13 @@ constexpr Stamp to_stamp(std::int64_t ns) {
   return {static_cast<std::int32_t>(ns / 1'000'000'000), static_cast<std::uint32_t>(ns % 1'000'000'000)};
 }
 std::int64_t now_ns();
+// Every sample type of the contract has a `stamp` (builtin_interfaces/Time).
+template <class Sample>
+void set_stamp(Sample& sample, std::int64_t ns) {
+  const auto s = to_stamp(ns);
+  sample.stamp().sec(s.sec);
+  sample.stamp().nanosec(s.nanosec);
+}
 
 template <class PubSubType>
 class Writer {

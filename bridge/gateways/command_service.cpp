@@ -31,7 +31,7 @@ void CommandService::handle(const srv::Command_Request& req, ddsl::Respond<srv::
   if (!ctx_.is_master()) {
     return refuse("bus " + ctx_.bus.name + " is in the monitor role: the bridge never transmits there");
   }
-  ctx_.loop.post([this, bit = cmd->bit, name = cmd->name, refuse, respond] {
+  const bool posted = ctx_.loop.try_post([this, bit = cmd->bit, name = cmd->name, refuse, respond] {
     // Refused at once when no frame could carry it; otherwise answered when the pulse is over.
     if (!ctx_.node.online()) return refuse(ctx_.device.name + " is offline (no heartbeat): " + name + " not sent");
     if (!ctx_.node.ready_for_pdos()) {
@@ -53,6 +53,7 @@ void CommandService::handle(const srv::Command_Request& req, ddsl::Respond<srv::
       respond(r);
     });
   });
+  if (!posted) refuse(ctx_.loop_busy(req.command()));
 }
 
 }  // namespace lb::gateways

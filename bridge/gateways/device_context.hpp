@@ -2,6 +2,7 @@
 // What every device gateway is given: its bus loop and node, the DDS participant, its configuration.
 
 #include <string>
+#include <string_view>
 
 #include "canopen/bus_loop.hpp"
 #include "canopen/remote_node.hpp"
@@ -26,6 +27,11 @@ struct DeviceContext {
   SetValueStore* set_values = nullptr;  // master role: where the set values in force are kept (null: nowhere)
 
   bool is_master() const { return bus.role == profiles::BusRole::master; }
+  // The answer to a request the bus loop refused (BusLoop::try_post: too many waiting).
+  std::string loop_busy(std::string_view what) const {
+    return "bus " + bus.name + " is overloaded (" + std::to_string(canopen::BusLoop::kMaxPosted) +
+           " requests wait for its loop): " + std::string(what) + " refused, not sent; ask again later";
+  }
 };
 
 }  // namespace lb::gateways

@@ -71,13 +71,6 @@ canopen::SdoClient::DownloadDone sdo_written(Respond respond, std::int64_t raw) 
   };
 }
 
-template <class T>
-void stamp(T& m, std::int64_t ns) {
-  const auto s = ddsl::to_stamp(ns);
-  m.stamp().sec(s.sec);
-  m.stamp().nanosec(s.nanosec);
-}
-
 }  // namespace
 
 DeviceServices::DeviceServices(DeviceContext context) : ctx_(context) {
@@ -126,7 +119,7 @@ DeviceServices::DeviceServices(DeviceContext context) : ctx_(context) {
 void DeviceServices::on_emergency(const canopen::Emergency& e) {
   const auto& errors = ctx_.node.errors();
   msg::Emergency m;
-  stamp(m, e.timestamp_ns);
+  ddsl::set_stamp(m, e.timestamp_ns);
   m.error_code(e.error_code);
   m.error_register(e.error_register);
   m.manufacturer(e.manufacturer);
@@ -338,7 +331,7 @@ void DeviceServices::nmt(const srv::Nmt_Request& request, ddsl::Respond<srv::Nmt
   const auto command = to_command(request.command());
   if (!command) return reply(false, "unknown NMT command " + std::to_string(static_cast<int>(request.command())));
   if (auto why = refusal(); !why.empty()) return reply(false, why);
-  ctx_.loop.post([this, c = *command, reply] {
+  const bool posted = ctx_.loop.try_post([this, c = *command, reply] {
     // A device whose boot did not pass (or whose state became unknown since) may have lost its
     // configuration: starting it would hand it RPDOs it may misread. Its boot starts it.
     if (c == canopen::NmtCommand::start && !ctx_.node.configured()) {
@@ -359,13 +352,14 @@ void DeviceServices::nmt(const srv::Nmt_Request& request, ddsl::Respond<srv::Nmt
     }
     reply(true, "");
   });
+  if (!posted) reply(false, ctx_.loop_busy("NMT command"));
 }
 
 void DeviceServices::publish_info() {
   const auto& report = report_;
   const auto& id = report.identity;
   msg::DeviceInfo m;
-  stamp(m, id.read_at_ns);
+  ddsl::set_stamp(m, id.read_at_ns);
   m.node_id(ctx_.device.node_id);
   m.device_type(id.device_type);
   m.profile_number(static_cast<std::uint16_t>(id.device_type & 0xFFFF));

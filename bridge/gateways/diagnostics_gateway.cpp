@@ -96,7 +96,7 @@ void DiagnosticsGateway::snapshot(std::size_t i) {
   b.handler_failures(bus.loop->handler_failures());
   b.handlers_disabled(bus.loop->handlers_disabled());
   b.frames_unclaimed(bus.loop->frames_unclaimed());
-  b.record_dropped(stats.record_errors);
+  b.requests_refused(bus.loop->posts_refused());
   b.frames_held(bus.loop->frames_held());
   if (bus.other_master != nullptr) {
     b.other_master_frames(bus.other_master->frames());

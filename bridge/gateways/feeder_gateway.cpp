@@ -8,6 +8,7 @@
 #include "canopen/sdo_abort.hpp"
 #include "dds/service.hpp"
 #include "dds/topic_names.hpp"
+#include "gateways/checked.hpp"
 #include "gateways/device_health.hpp"
 #include "gateways/pdo_receive.hpp"
 #include "gateways/sdo_admission.hpp"
@@ -27,23 +28,10 @@ constexpr std::uint16_t kStatus = 0x6009, kErrorCondition = 0x6007, kControlBoxE
 constexpr std::uint16_t kUnwinding = 0x6010, kLoomStatus = 0x600A, kTrigger = 0x600B, kPicks = 0x600C, kOutputs = 0x600D;
 constexpr std::uint16_t kFf10 = 0xFF10;
 
-template <class T>
-T checked(Result<T> r, const std::string& what) {
-  if (!r) throw std::runtime_error(what + ": " + r.error().message);
-  return std::move(*r);
-}
-
 srv::FeederWrite_Response refused(std::string message) {
   srv::FeederWrite_Response r;
   r.message(std::move(message));
   return r;
-}
-
-template <class M>
-void stamp(M& m, std::int64_t ns) {
-  const auto s = ddsl::to_stamp(ns);
-  m.stamp().sec(s.sec);
-  m.stamp().nanosec(s.nanosec);
 }
 
 }  // namespace
@@ -101,7 +89,7 @@ void FeederGateway::on_pdo(std::size_t pdo, const can::CanFrame& frame) {
   if (!receive_pdo(ctx_, codec_, burst_, pdo, frame)) return;
   if (codec_.pdos()[pdo].def->direction == PdoDirection::tx && codec_.carries(pdo, kUnwinding)) {
     auto u = codec_.last_unwinding();
-    stamp(u, frame.timestamp_ns);
+    ddsl::set_stamp(u, frame.timestamp_ns);
     if (!u.in_range()) ++ctx_.node.stats().range_warnings;  // published all the same: actual values are never dropped
     unwinding_writer_.write(u);
     return;
@@ -126,7 +114,7 @@ void FeederGateway::on_emergency(const canopen::Emergency& e) {
 
 void FeederGateway::publish_error_event(unsigned feeder, bool in_error, std::uint32_t bitmap, std::int64_t stamp_ns) {
   msg::FeederError ev;
-  stamp(ev, stamp_ns);
+  ddsl::set_stamp(ev, stamp_ns);
   ev.feeder(static_cast<std::uint8_t>(feeder));
   ev.in_error(in_error);
   ev.bitmap(bitmap);
@@ -232,7 +220,7 @@ msg::FeederEntry& FeederGateway::entry(unsigned feeder) {
 
 void FeederGateway::publish_status(std::int64_t stamp_ns) {
   burst_.published();
-  stamp(status_, stamp_ns);
+  ddsl::set_stamp(status_, stamp_ns);
   fill_health(ctx_.node, status_.health());
   status_.error_bitmap(bitmap_);
   codec_.fill_loom(status_.loom(), outputs_in_use());
@@ -396,7 +384,7 @@ void FeederGateway::on_loom(const msg::LoomSetpoint& sp) {
     spdlog::warn("{}: loom set value {} refused: {}", ctx_.device.name, sp.request_id(), raw.error().message);
     return loom_reply(sp.request_id(), false, raw.error().message);
   }
-  ctx_.loop.post([this, r = *raw, id = sp.request_id()] {
+  const bool posted = ctx_.loop.try_post([this, r = *raw, id = sp.request_id()] {
     if (!ctx_.node.ready_for_pdos()) {
       return loom_reply(id, false, ctx_.device.name + " is not started by this bridge or offline: loom set value not sent");
     }
@@ -418,6 +406,7 @@ void FeederGateway::on_loom(const msg::LoomSetpoint& sp) {
     publish_status(ddsl::now_ns());
     loom_reply(id, true, "");
   });
+  if (!posted) loom_reply(sp.request_id(), false, ctx_.loop_busy("loom set value"));
 }
 
 bool FeederGateway::outputs_in_use() {

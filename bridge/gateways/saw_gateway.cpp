@@ -5,6 +5,7 @@
 #include <stdexcept>
 
 #include "dds/topic_names.hpp"
+#include "gateways/checked.hpp"
 #include "gateways/device_health.hpp"
 #include "gateways/pdo_receive.hpp"
 #include "gateways/set_value_path.hpp"
@@ -13,16 +14,6 @@ namespace lb::gateways {
 
 namespace msg = linebridge_msgs::msg;
 using profiles::PdoDirection;
-
-namespace {
-
-template <class T>
-T checked(Result<T> r, const std::string& what) {
-  if (!r) throw std::runtime_error(what + ": " + r.error().message);
-  return std::move(*r);
-}
-
-}  // namespace
 
 SawGateway::SawGateway(DeviceContext context)
     : ctx_(context),

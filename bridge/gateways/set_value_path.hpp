@@ -25,7 +25,7 @@ void take_set_value(const DeviceContext& ctx, std::uint64_t id, Validate validat
     spdlog::warn("{}: set value {} refused: {}", ctx.device.name, id, raw.error().message);
     return reply(id, false, raw.error().message);
   }
-  ctx.loop.post([&ctx, id, r = *raw, apply, reply] {
+  const bool posted = ctx.loop.try_post([&ctx, id, r = *raw, apply, reply] {
     if (!ctx.node.online()) {
       spdlog::warn("{}: set value {} refused: device offline", ctx.device.name, id);
       return reply(id, false, ctx.device.name + " is offline (no heartbeat): set value not applied");
@@ -37,6 +37,7 @@ void take_set_value(const DeviceContext& ctx, std::uint64_t id, Validate validat
     apply(r);
     reply(id, true, "");
   });
+  if (!posted) reply(id, false, ctx.loop_busy("set value"));
 }
 
 }  // namespace lb::gateways

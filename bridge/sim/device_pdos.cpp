@@ -6,6 +6,7 @@
 #include <stdexcept>
 
 #include "canopen/sdo_abort.hpp"
+#include "sim/little_endian.hpp"
 
 namespace lb::sim {
 
@@ -13,12 +14,6 @@ using canopen::DataType;
 using profiles::PdoAccess;
 
 namespace {
-
-std::uint32_t little_endian(std::span<const std::uint8_t> v) {
-  std::uint32_t raw = 0;
-  for (std::size_t i = 0; i < v.size() && i < 4; ++i) raw |= std::uint32_t{v[i]} << (8 * i);
-  return raw;
-}
 
 }  // namespace
 
@@ -75,7 +70,7 @@ void DevicePdos::add(std::uint16_t index, std::uint8_t sub, DataType type, PdoAc
   // A const or ro entry is refused by its access (06010002h) before any hook runs.
   if (fixed || !write) return;
   (void)dictionary_.set_on_write(index, sub, [write = std::move(write)](std::span<const std::uint8_t> v) {
-    return write(little_endian(v));
+    return write(static_cast<std::uint32_t>(little_endian(v)));
   });
 }
 

@@ -8,6 +8,7 @@
 
 #include "canopen/sdo_abort.hpp"
 #include "sim/device_dictionary.hpp"
+#include "sim/little_endian.hpp"
 
 namespace lb::sim {
 
@@ -27,12 +28,6 @@ std::array<std::uint8_t, 5> bitmap_bytes(std::uint32_t bitmap) {
 constexpr const char* kPerFeeder[] = {"feeder_functions", "single_weft_filling_parameter", "feeder_error_condition",
                                       "feeder_status", "feeder_command", "feeder_test",
                                       "system_feeder_number_assignment", "feeder_color_assignment"};
-
-std::uint64_t little_endian(std::span<const std::uint8_t> v) {
-  std::uint64_t raw = 0;
-  for (std::size_t i = 0; i < v.size() && i < 8; ++i) raw |= std::uint64_t{v[i]} << (8 * i);
-  return raw;
-}
 
 std::uint64_t code_of(const profiles::ObjectDef& obj, std::string_view name) {
   const auto c = obj.values.code(name);

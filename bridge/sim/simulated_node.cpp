@@ -8,6 +8,7 @@
 
 #include "canopen/sdo_abort.hpp"
 #include "sim/device_dictionary.hpp"
+#include "sim/little_endian.hpp"
 
 namespace lb::sim {
 
@@ -19,12 +20,6 @@ namespace {
 constexpr double kMaxStep = 0.1;  // s: a stalled loop must not make the simulation jump
 constexpr auto kShortRpdoEmcyGap = std::chrono::seconds(1);
 constexpr std::uint16_t kEmcyPdoLength = 0x8210;  // PDO not processed due to length error
-
-std::uint64_t little_endian(std::span<const std::uint8_t> v) {
-  std::uint64_t raw = 0;
-  for (std::size_t i = 0; i < v.size() && i < 8; ++i) raw |= std::uint64_t{v[i]} << (8 * i);
-  return raw;
-}
 
 canopen::ObjectDictionary::Bytes bytes_of(std::uint64_t raw, std::size_t size) {
   canopen::ObjectDictionary::Bytes out(size);

@@ -2,7 +2,7 @@
 // the real bridge and simulator. Readable status of pullers, corrugators and feeder boxes (names,
 // not numbers), their set values, a feeder box's topics and typed services, exit codes that tell
 // "refused" (1) from "no answer" (3), and the line file from LINEBRIDGE_CONFIG or --config
-// anywhere on the command line.
+// anywhere on the command line; an echo whose pipe closes ends cleanly.
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
@@ -14,6 +14,7 @@
 #include "msgs/feederPubSubTypes.h"
 #include "msgs/pullerPubSubTypes.h"
 #include "support/line_harness.hpp"
+#include "support/run_command.hpp"
 
 namespace msg = linebridge_msgs::msg;
 using namespace std::chrono_literals;
@@ -100,6 +101,19 @@ TEST_F(Cli, EchoShowsEveryDeviceTypeReadablyWithNames) {
   const auto wrong = cli({"echo", "puller1", "cut", "--duration", "1"});
   EXPECT_EQ(wrong.exit_code, 2) << wrong.output;
   EXPECT_TRUE(has(wrong, "a puller has no topic 'cut' (status, setpoint_result, info, emergency)")) << wrong.output;
+}
+
+TEST_F(Cli, EchoIntoAPipeThatClosesEndsCleanlyAndTheNextClientIsAnswered) {
+  // `linebridge-cli echo ... | head -n 1`: once head has its line and is gone, the echo must end
+  // by itself with exit 0 (not be killed by SIGPIPE: its DDS participant would stay matched to the
+  // bridge's writers until its lease ran out), and the next client is answered at once.
+  const auto piped = lb::test::run_command(
+      {"/bin/bash", "-c", "set -o pipefail; \"$0\" --config \"$1\" echo saw1 status | head -n 1", LB_BIN_CLI, config_}, 20s);
+  EXPECT_EQ(piped.exit_code, 0) << "the echo's exit status through the pipe (141: killed by SIGPIPE)\n" << piped.output;
+  EXPECT_TRUE(has({piped.exit_code, piped.output}, "saw1 ")) << piped.output;
+  const auto next = cli({"set", "saw1", "--program", "on"}, 10s);
+  EXPECT_EQ(next.exit_code, 0) << next.output << line_->logs();
+  EXPECT_TRUE(has(next, "accepted")) << next.output;
 }
 
 TEST_F(Cli, SetTakesEachDevicesSetValues) {
