@@ -128,7 +128,7 @@ void feeder(FuzzedDataProvider& in, const Profile& profile, const std::vector<De
     if (common_op(in, op, codec, profile)) continue;
     if (op == 3) {
       linebridge_msgs::msg::LoomSide loom;
-      codec.fill_loom(loom);
+      codec.fill_loom(loom, in.ConsumeBool());
       (void)codec.last_unwinding();
     } else if (op == 4) {
       const auto raw = in.ConsumeIntegral<std::uint32_t>();

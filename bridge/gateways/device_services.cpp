@@ -62,7 +62,11 @@ canopen::SdoClient::DownloadDone sdo_written(Respond respond, std::int64_t raw) 
   return [respond, raw](canopen::SdoClient::DownloadResult result) {
     Reply reply;
     reply.success(result.has_value());
-    if constexpr (requires { reply.raw(raw); }) reply.raw(raw);
+    if constexpr (requires { reply.raw(raw); }) {
+      reply.raw(raw);
+    } else {
+      (void)raw;  // a reply without the value written
+    }
     if (!result) {
       reply.abort_code(result.error().abort_code);
       reply.message(result.error().message);

@@ -142,9 +142,11 @@ TEST_F(Cli, SetTakesEachDevicesSetValues) {
 
 TEST_F(Cli, FeederTopicsServicesAndLoomPlay) {
   // The loom runs: the box sends an unwinding event per winding.
-  lb::test::ChildProcess unwinding({LB_BIN_CLI, "echo", "box1", "unwinding", "--config", config_, "--duration", "6"},
+  // The echoes run until what the commands below cause has come (or 60 s): a fixed duration was
+  // too short under ThreadSanitizer, where each of those commands takes seconds.
+  lb::test::ChildProcess unwinding({LB_BIN_CLI, "echo", "box1", "unwinding", "--config", config_, "--duration", "60"},
                                    ::testing::TempDir() + "/cli_unwinding_" + std::to_string(::getpid()) + ".log");
-  lb::test::ChildProcess errors({LB_BIN_CLI, "echo", "box1", "feeder_error", "--config", config_, "--duration", "6"},
+  lb::test::ChildProcess errors({LB_BIN_CLI, "echo", "box1", "feeder_error", "--config", config_, "--duration", "60"},
                                 ::testing::TempDir() + "/cli_feeder_error_" + std::to_string(::getpid()) + ".log");
   std::this_thread::sleep_for(1500ms);  // both matched
   auto r = cli({"set", "box1", "--loom-status", "start_advice", "--maximum-speed", "600", "--loom-width-m", "1.9"});
@@ -167,10 +169,11 @@ TEST_F(Cli, FeederTopicsServicesAndLoomPlay) {
   EXPECT_EQ(r.exit_code, 1) << r.output;  // a box has no momentary commands: refused by the bridge
   r = cli({"feeder-command", "puller1", "1", "reset"});
   EXPECT_EQ(r.exit_code, 2) << r.output;
-  while (unwinding.running() || errors.running()) std::this_thread::sleep_for(50ms);
+  EXPECT_TRUE(errors.wait_log("FEEDER 2 IN ERROR (bitmap 00000002h): yarn_broken", 20s)) << errors.log();
+  EXPECT_TRUE(unwinding.wait_log("UNWINDING feeder ", 10s)) << unwinding.log();
   EXPECT_NE(unwinding.log().find("box1 "), std::string::npos);
-  EXPECT_NE(unwinding.log().find("UNWINDING feeder "), std::string::npos) << unwinding.log();
-  EXPECT_NE(errors.log().find("FEEDER 2 IN ERROR (bitmap 00000002h): yarn_broken"), std::string::npos) << errors.log();
+  EXPECT_EQ(unwinding.stop(), 0);  // SIGTERM: an echo ends cleanly
+  EXPECT_EQ(errors.stop(), 0);
 }
 
 TEST_F(Cli, LineFileFromTheEnvironmentOrAnywhereOnTheCommandLine) {
