@@ -2,7 +2,7 @@
 # Builds the libFuzzer targets (fuzz/, clang with AddressSanitizer and UndefinedBehaviorSanitizer)
 # and runs each, one after the other, from its committed seed corpus (fuzz/corpus/<target>/).
 #   launch_scripts/fuzz.sh [--runs N | --seconds S] [target ...]     (default: every target, --runs 10000000)
-# The long run: launch_scripts/fuzz.sh (at nice 19; hours on 2 cores). test.sh runs --seconds 10.
+# The long run: launch_scripts/fuzz.sh (at nice 19; hours on 2 cores). test.sh runs --seconds 5.
 # Each target works on a copy of its seeds in $build/fuzz-corpus/<target>, keeps its log in
 # $build/fuzz-logs/<target>.log and any crashing input in $build/fuzz-artifacts/<target>/.
 # Exit 0 only when no target found anything. Reproduce a finding: $build/fuzz/fuzz_<target> <file>.

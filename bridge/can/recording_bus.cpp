@@ -61,12 +61,13 @@ Result<std::optional<CanFrame>> RecordingBus::receive() {
 }
 
 Result<void> RecordingBus::send(const CanFrame& frame) {
+  // Stamped as it is handed to the bus, as the PDO transmitter stamps what it reports (a press's
+  // duration): read after the send, the two clocks would be apart by whatever the scheduler put
+  // between them (milliseconds on a loaded machine).
+  CanFrame sent = frame;
+  sent.timestamp_ns = detail::realtime_ns();
   auto r = inner_->send(frame);
-  if (r) {
-    CanFrame sent = frame;
-    sent.timestamp_ns = detail::realtime_ns();
-    record(sent);
-  }
+  if (r) record(sent);
   return r;
 }
 

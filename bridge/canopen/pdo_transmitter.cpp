@@ -71,8 +71,11 @@ void PdoTransmitter::send() {
   f.id = settings_.can_id;
   f.extended = settings_.extended;
   hooks_.pack(f);
-  if (!loop_.send(f)) return refused(Refusal::bus);  // counted by the bus
+  // Taken as the frame is handed to the bus (a recording stamps it at the same moment), not after
+  // the send returns: what this frame starts or ends (a momentary command's hold, the inhibit
+  // time) is measured from frame to frame on the bus.
   const auto at = std::chrono::steady_clock::now();
+  if (!loop_.send(f)) return refused(Refusal::bus);  // counted by the bus
   last_ = f;
   have_last_ = true;
   last_sent_ = at;
