@@ -26,6 +26,10 @@ int main(int argc, char** argv) {
                "RPDO1 event-driven (transmission type 255): a set value goes out at once instead of at the next SYNC");
   std::string record;
   cli.add_option("--record", record, "bus 0 records every frame to this file (record:)");
+  std::string other_master;
+  cli.add_option("--other-master", other_master,
+                 "what the master does on frames of another master (other_master:; default: the bridge's own, yield)")
+      ->check(CLI::IsMember({"yield", "warn"}));
   std::string pki;
   cli.add_option("--pki", pki, "DDS Security: the bridge's identity from this launch_scripts/pki.sh folder (default: unsecured)");
   CLI11_PARSE(cli, argc, argv);
@@ -44,6 +48,7 @@ int main(int argc, char** argv) {
     y += fmt::format("  - {{name: {}, interface: '{}', role: {}, bitrate: 1000000", lb::bench::bus_name(b),
                      lb::bench::bus_uri(prefix, b), role);
     if (role == "master") y += fmt::format(", sync_period_ms: {}", sync_ms);
+    if (role == "master" && !other_master.empty()) y += fmt::format(", other_master: {}", other_master);
     if (b == 0 && !record.empty()) y += fmt::format(", record: '{}'", record);
     y += "}\n";
   }

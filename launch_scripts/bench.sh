@@ -45,8 +45,10 @@
 #               a slow disk (a FIFO drained at 16 KiB/s). Beside them the floor: a bare periodic
 #               timer on the bridge's core (bench-timer-floor), how steady this machine can be at all.
 #   soak        resident memory and open file descriptors of the bridge sampled every 10 s during a
-#               flood (full load, EMCY burst, hostile frames on every identifier), 10 minutes (2
-#               with --quick): start, end, highest.
+#               flood (full load, EMCY burst, hostile frames on every identifier, and three
+#               applications calling services back to back plus two writing set values as fast as
+#               they go, hostile requests among them), 10 minutes (2 with --quick): start, end,
+#               highest; the SYNCs seen meanwhile and what the request flood got answered.
 #   security    DDS Security's cost, secured and unsecured side by side, alternating in chunks:
 #               the bare Fast DDS hop, CAN->DDS and DDS->CAN through the bridge, and start-up
 #               (1 saw) of a line secured by launch_scripts/pki.sh (PKI-DH, access control,
@@ -106,7 +108,7 @@ if [ "${LINEBRIDGE_NETNS:-}" != "1" ]; then
     fi
     cmake --build "$build_dir" --target linebridge linebridge-sim linebridge-security bench-config bench-inject bench-can-sink \
       bench-status-pub bench-status-sub bench-setpoint bench-relay bench-can-relay bench-startup bench-stats \
-      bench-sync-jitter bench-frozen-reader bench-timer-floor >&2
+      bench-sync-jitter bench-frozen-reader bench-timer-floor bench-request-flood >&2
   fi
   [ -n "$out_dir" ] || out_dir=$(mktemp -d /tmp/linebridge-bench.XXXXXX)
   mkdir -p "$out_dir"
@@ -653,7 +655,10 @@ fig_soak() {  # RUN
   mkdir -p "$d"
   vals="$d/values"; : >"$vals"
   next_domain
-  "$bin/bench-config" --buses 1 --devices $devices --domain $domain --prefix "$prefix" --role master >"$d/line.yaml"
+  # other_master: warn: the hostile frames include SYNC, NMT and the saws' RPDO identifiers, which
+  # would make a yielding bridge fall silent; the soak wants it mastering the bus all along.
+  "$bin/bench-config" --buses 1 --devices $devices --domain $domain --prefix "$prefix" --role master \
+    --other-master warn >"$d/line.yaml"
   start "$d/inject" "${harness_cmd[@]}" "$bin/bench-inject" --buses 1 --devices $devices --rate $full_rate \
     --count $((full_rate * (soak_s + 20))) --prefix "$prefix" --ready "$d/inject.ready" --go "$d/go" --linger 1
   inj=$pid
@@ -665,14 +670,26 @@ fig_soak() {  # RUN
   start "$d/hostile" "${harness_cmd[@]}" "$bin/bench-sync-jitter" --bus "virtual:$prefix-0" --duration $((soak_s + 5)) \
     --emcy-rate 1000 --emcy-devices $devices --hostile-rate 1000
   local hostile=$pid
+  start "$d/flood" "${harness_cmd[@]}" "$bin/bench-request-flood" --devices $devices --domain $domain \
+    --clients 3 --writers 2 --duration $soak_s
+  local flood=$pid
   : >"$d/samples"
   while ((t <= soak_s)); do
     echo "t=$t rss_kib=$(mem_kib $bridge VmRSS) fds=$(ls /proc/$bridge/fd 2>/dev/null | wc -l)" >>"$d/samples"
     sleep 10
     t=$((t + 10))
   done
+  finish $flood || echo "bench.sh: the request flood failed (see $d/flood.err)" >&2
   echo "soak_bridge_alive=$(kill -0 $bridge 2>/dev/null && echo 1 || echo 0)" >>"$vals"
-  stop $hostile
+  finish $hostile || echo "bench.sh: the SYNC meter failed (see $d/hostile.err)" >&2
+  for k in flood_requests_sent flood_requests_answered flood_requests_refused flood_requests_unanswered \
+    flood_requests_per_s flood_setpoints_written flood_setpoints_per_s flood_bridge_requests_refused \
+    flood_bridge_commands_lost; do
+    echo "soak_$k=$(get "$d/flood.out" $k)" >>"$vals"
+  done
+  for k in syncs expected_syncs p50_us p99_us p999_us max_us; do
+    echo "soak_sync_$k=$(get "$d/hostile.out" jitter_$k)" >>"$vals"
+  done
   stop $bridge
   stop $inj
   awk '{ split($2, r, "="); split($3, f, "=");
@@ -818,6 +835,9 @@ cmd() { echo "launch_scripts/bench.sh --only $1$quick_flag --runs $runs$nice_fla
   if want soak; then
     echo "| Soak, $soak_s s flood (full load, 1000 EMCY/s, 1000 hostile frames/s): VmRSS start / end / max (MiB) | $(stat soak soak_rss_start_mib) / $(stat soak soak_rss_end_mib) / $(stat soak soak_rss_max_mib) | flat | | \`$(cmd soak)\` |"
     echo "| Soak: open file descriptors start / end / max; bridge alive at the end | $(stat soak soak_fds_start) / $(stat soak soak_fds_end) / $(stat soak soak_fds_max); $(stat soak soak_bridge_alive) | flat | | \`$(cmd soak)\` |"
+    echo "| Soak: SYNCs seen / expected; SYNC period deviation p50 / p99 / p99.9 / max (µs) | $(stat soak soak_sync_syncs) / $(stat soak soak_sync_expected_syncs); $(stat soak soak_sync_p50_us) / $(stat soak soak_sync_p99_us) / $(stat soak soak_sync_p999_us) / $(stat soak soak_sync_max_us) | | | \`$(cmd soak)\` |"
+    echo "| Soak: service requests sent / answered / refused / unanswered (per s); set values written (per s) | $(stat soak soak_flood_requests_sent) / $(stat soak soak_flood_requests_answered) / $(stat soak soak_flood_requests_refused) / $(stat soak soak_flood_requests_unanswered) ($(stat soak soak_flood_requests_per_s)); $(stat soak soak_flood_setpoints_written) ($(stat soak soak_flood_setpoints_per_s)) | | | \`$(cmd soak)\` |"
+    echo "| Soak: the bridge's own counts: requests refused at a full loop queue; commands lost before the bridge | $(stat soak soak_flood_bridge_requests_refused); $(stat soak soak_flood_bridge_commands_lost) | | | \`$(cmd soak)\` |"
   fi
   if want security; then
     for what in "dds:bare Fast DDS hop, $devices status topics at $lat_rate samples/s" "can2dds:CAN->DDS through the bridge" \

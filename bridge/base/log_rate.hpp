@@ -6,6 +6,9 @@
 
 #include <chrono>
 #include <cstdint>
+#include <string>
+
+#include <fmt/format.h>
 
 namespace lb {
 
@@ -38,5 +41,10 @@ class LogRate {
   std::uint64_t held_back_ = 0;
   std::uint64_t last_held_back_ = 0;
 };
+
+// What to append to a message that allow() let through: " (N more not logged)", or nothing.
+inline std::string held_back_note(const LogRate& rate) {
+  return rate.held_back() == 0 ? std::string() : fmt::format(" ({} more not logged)", rate.held_back());
+}
 
 }  // namespace lb

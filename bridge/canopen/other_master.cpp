@@ -34,7 +34,7 @@ void OtherMasterWatch::seen(const can::CanFrame& frame, const char* what) {
     spdlog::error("{}: {}: another master is on this bus ({} such frames so far){}{}", loop_.bus().uri(), last_, frames_,
                   heard && policy_ == Policy::yield ? "; the bridge transmits nothing here until it is silent for 5 s"
                                                     : "",
-                  log_.held_back() != 0 ? fmt::format(" ({} more not logged)", log_.held_back()) : "");
+                  held_back_note(log_));
   }
   if (!heard || policy_ != Policy::yield) return;
   loop_.arm_timer(quiet_timer_, kQuiet);

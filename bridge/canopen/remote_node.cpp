@@ -7,10 +7,6 @@ namespace lb::canopen {
 
 namespace {
 
-std::string held_back(const LogRate& rate) {
-  return rate.held_back() == 0 ? std::string() : fmt::format(" ({} more not logged)", rate.held_back());
-}
-
 NmtState state_after(NmtCommand cmd) {
   switch (cmd) {
     case NmtCommand::start: return NmtState::operational;
@@ -49,7 +45,7 @@ RemoteNode::RemoteNode(BusLoop& loop, std::uint8_t node_id, std::chrono::millise
                            ++stats_.malformed_heartbeats;
                            if (malformed_log_.allow()) {
                              spdlog::warn("{}: node {}: heartbeat with {} bytes ignored (CiA 301: 1){}", loop_.bus().uri(),
-                                          this->node_id(), f.len, held_back(malformed_log_));
+                                          this->node_id(), f.len, held_back_note(malformed_log_));
                            }
                          },
                  }) {
@@ -125,7 +121,7 @@ void RemoteNode::on_emcy_frame(const can::CanFrame& frame) {
     ++stats_.malformed_emergencies;
     if (malformed_log_.allow()) {
       spdlog::warn("{}: node {}: EMCY with {} bytes ignored (CiA 301: 8){}", loop_.bus().uri(), node_id(), frame.len,
-                   held_back(malformed_log_));
+                   held_back_note(malformed_log_));
     }
     return;
   }
@@ -134,7 +130,7 @@ void RemoteNode::on_emcy_frame(const can::CanFrame& frame) {
   if (emcy_log_.allow()) {
     spdlog::log(e->is_reset() ? spdlog::level::info : spdlog::level::warn, "{}: node {} EMCY {:04X}h ({}), register {:02X}h{}",
                 loop_.bus().uri(), node_id(), e->error_code, emcy_family(e->error_code), e->error_register,
-                held_back(emcy_log_));
+                held_back_note(emcy_log_));
   }
   for (const auto& l : emcy_listeners_) l(*e);
 }

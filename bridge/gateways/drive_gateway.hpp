@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "base/shared_log_rate.hpp"
 #include "canopen/pdo_transmitter.hpp"
 #include "dds/topic_names.hpp"
 #include "gateways/command_service.hpp"
@@ -47,6 +48,8 @@ class DriveGateway : public Gateway {
   void reply(std::uint64_t request_id, bool accepted, const std::string& reason);
 
   DeviceContext ctx_;
+  SharedLogRate set_value_log_;  // refusals, from DDS threads and the loop
+  LogRate applied_log_;          // set values taken, on the loop
   Codec codec_;  // loop thread, except validate() (const, any thread)
   PdoWiring<Codec> pdos_;
   MomentaryCommands commands_;
@@ -133,13 +136,16 @@ void DriveGateway<Dds>::on_pdo(std::size_t pdo, const can::CanFrame& frame) {
 template <class Dds>
 void DriveGateway<Dds>::on_setpoint(const Setpoint& sp) {
   take_set_value(
-      ctx_, sp.request_id(), [&] { return codec_.validate(sp); },
+      ctx_, set_value_log_, sp.request_id(), [&] { return codec_.validate(sp); },
       [this](const auto& r) {
         codec_.apply(r);
         pdos_.on_data();
         publish_status(ddsl::now_ns());
-        spdlog::info("{}: set values: extruder {}, speed {} % (control word {:04X}h)", ctx_.device.name,
-                     r.extruder_running ? "running" : "stopped", codec_.speed_set_percent(), codec_.control_word());
+        if (applied_log_.allow()) {
+          spdlog::info("{}: set values: extruder {}, speed {} % (control word {:04X}h){}", ctx_.device.name,
+                       r.extruder_running ? "running" : "stopped", codec_.speed_set_percent(), codec_.control_word(),
+                       held_back_note(applied_log_));
+        }
       },
       [this](std::uint64_t id, bool accepted, const std::string& reason) { reply(id, accepted, reason); });
 }

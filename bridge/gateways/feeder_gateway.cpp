@@ -296,7 +296,7 @@ void FeederGateway::serve(const std::string& name, std::function<void(const type
 void FeederGateway::serve_services() {
   const auto write_or_refuse = [this](Result<FeederCodec::Write> w, const WriteReply& reply) {
     if (!w) {
-      spdlog::warn("{}: refused: {}", ctx_.device.name, w.error().message);
+      if (auto more = refusal_log_.allow()) spdlog::warn("{}: refused: {}{}", ctx_.device.name, w.error().message, *more);
       return reply(refused(w.error().message));
     }
     write(*w, reply);
@@ -381,7 +381,9 @@ void FeederGateway::on_loom(const msg::LoomSetpoint& sp) {
   if (auto why = refusal(); !why.empty()) return loom_reply(sp.request_id(), false, why);
   auto raw = codec_.validate(sp);
   if (!raw) {
-    spdlog::warn("{}: loom set value {} refused: {}", ctx_.device.name, sp.request_id(), raw.error().message);
+    if (auto more = refusal_log_.allow()) {
+      spdlog::warn("{}: loom set value {} refused: {}{}", ctx_.device.name, sp.request_id(), raw.error().message, *more);
+    }
     return loom_reply(sp.request_id(), false, raw.error().message);
   }
   const bool posted = ctx_.loop.try_post([this, r = *raw, id = sp.request_id()] {

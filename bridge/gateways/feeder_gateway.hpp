@@ -16,6 +16,7 @@
 #include <string>
 #include <vector>
 
+#include "base/shared_log_rate.hpp"
 #include "canopen/pdo_transmitter.hpp"
 #include "gateways/feeder_codec.hpp"
 #include "gateways/gateway.hpp"
@@ -69,6 +70,7 @@ class FeederGateway : public Gateway {
   bool outputs_in_use();
 
   DeviceContext ctx_;
+  SharedLogRate refusal_log_;  // refused writes and loom set values, from DDS threads and the loop
   FeederCodec codec_;  // loop thread, except the const validation (any thread)
   PdoBurst burst_;
   PdoWiring<FeederCodec> pdos_;  // the loom controller's RPDOs: sent only once loom play began

@@ -75,14 +75,17 @@ void SawGateway::on_pdo(std::size_t pdo, const can::CanFrame& frame) {
 
 void SawGateway::on_setpoint(const msg::SawSetpoint& sp) {
   take_set_value(
-      ctx_, sp.request_id(), [&] { return codec_.validate(sp); },
+      ctx_, set_value_log_, sp.request_id(), [&] { return codec_.validate(sp); },
       [this](const SawCodec::RawSetpoint& r) {
         codec_.apply(r);
         pdos_.on_data();
         publish_status(ddsl::now_ns());
-        spdlog::info("{}: set values: program {}, sync speed {} %, product length {} m (control word {:04X}h)",
-                     ctx_.device.name, status_.control_word().saw_program_on() ? "on" : "off",
-                     status_.sync_speed_set_percent(), status_.product_length_set_m(), status_.control_word().raw());
+        if (applied_log_.allow()) {
+          spdlog::info("{}: set values: program {}, sync speed {} %, product length {} m (control word {:04X}h){}",
+                       ctx_.device.name, status_.control_word().saw_program_on() ? "on" : "off",
+                       status_.sync_speed_set_percent(), status_.product_length_set_m(), status_.control_word().raw(),
+                       held_back_note(applied_log_));
+        }
       },
       [this](std::uint64_t id, bool accepted, const std::string& reason) { reply(id, accepted, reason); });
 }

@@ -8,6 +8,7 @@
 #include <string>
 #include <vector>
 
+#include "base/shared_log_rate.hpp"
 #include "canopen/pdo_transmitter.hpp"
 #include "gateways/command_service.hpp"
 #include "gateways/gateway.hpp"
@@ -35,6 +36,8 @@ class SawGateway : public Gateway {
   void reply(std::uint64_t request_id, bool accepted, const std::string& reason);
 
   DeviceContext ctx_;
+  SharedLogRate set_value_log_;  // refusals, from DDS threads and the loop
+  LogRate applied_log_;          // set values taken, on the loop
   SawCodec codec_;  // loop thread, except validate() (const, any thread)
   PdoWiring<SawCodec> pdos_;
   MomentaryCommands commands_;

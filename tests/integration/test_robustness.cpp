@@ -396,6 +396,73 @@ TEST(Robustness, HostileRequestsAreRefusedAndNothingReachesTheBus) {
   ASSERT_TRUE(status.wait_last(5s, operational));
 }
 
+// An application writing set values as fast as it can (bench.sh's soak found ~47,000 refusals a
+// second, each a log line: 5.6 million lines in 2 minutes): every set value that reaches the bridge
+// is still answered, but the log gets a few lines a second, with the count of the others, whether
+// the set values are refused or taken.
+TEST(Robustness, ASetValueFloodIsAnsweredButLoggedAtABoundedRate) {
+  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
+  lb::test::LineHarness line("setvalue_flood", 33);
+  line.start(saw("saw1", 5));
+  lb::test::Collector<msg::SawStatusPubSubType> status;
+  lb::test::Collector<msg::SetpointResultPubSubType> results;
+  ASSERT_TRUE(status.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
+  ASSERT_TRUE(results.subscribe(line.dds(), line.topic("saw1", "setpoint_result"), QosKind::reply));
+  auto writer = line.dds().writer<msg::SawSetpointPubSubType>(line.topic("saw1", "setpoint"), QosKind::command);
+  ASSERT_TRUE(writer);
+  ASSERT_TRUE(status.wait_last(20s, operational)) << line.logs();
+  wait_matched(line, *writer, line.topic("saw1", "setpoint_result"));
+
+  const auto set_value = [](std::uint64_t id, double length) {
+    msg::SawSetpoint sp;
+    sp.request_id(id);
+    sp.saw_program_on(true);
+    sp.sync_speed_percent(50);
+    sp.product_length_m(length);
+    return sp;
+  };
+  const auto answered = [&results](std::uint64_t first, std::uint64_t end, bool accepted) {
+    std::size_t n = 0;
+    for (const auto& r : results.samples()) n += r.request_id() >= first && r.request_id() < end && r.accepted() == accepted;
+    return n;
+  };
+  const auto refused_lines = line.bridge_log_count("refused: product_length_m");
+  const auto taken_lines = line.bridge_log_count(": set values: ");
+  // 2000 refused (NaN length) and 2000 taken, paced only so that most reach the bridge (the
+  // writer's keep-last 16 would otherwise replace them before they are sent).
+  for (std::uint64_t i = 0; i < 2000; ++i) {
+    writer->write(set_value(1000 + i, std::numeric_limits<double>::quiet_NaN()));
+    if (i % 10 == 9) std::this_thread::sleep_for(1ms);
+  }
+  for (std::uint64_t i = 0; i < 2000; ++i) {
+    writer->write(set_value(5000 + i, 1.0 + static_cast<double>(i) * 0.001));
+    if (i % 10 == 9) std::this_thread::sleep_for(1ms);
+  }
+  // After the flood's second has passed, one more of each says how many were not logged.
+  std::this_thread::sleep_for(1100ms);
+  writer->write(set_value(9000, std::numeric_limits<double>::quiet_NaN()));
+  writer->write(set_value(9001, 2.5));
+  ASSERT_TRUE(results.wait(10s, [](const std::vector<msg::SetpointResult>& v) {
+    return std::any_of(v.begin(), v.end(), [](const msg::SetpointResult& r) { return r.request_id() == 9001; });
+  })) << line.logs();
+  std::this_thread::sleep_for(300ms);
+
+  const auto refused = answered(1000, 3000, false);
+  const auto taken = answered(5000, 7000, true);
+  std::cout << "set-value flood: " << refused << " of 2000 refused and " << taken << " of 2000 taken were answered; log lines "
+            << line.bridge_log_count("refused: product_length_m") - refused_lines << " and "
+            << line.bridge_log_count(": set values: ") - taken_lines << "\n";
+  ASSERT_GT(refused, 200u) << "the flood did not reach the bridge: nothing to judge";
+  ASSERT_GT(taken, 200u) << "the flood did not reach the bridge: nothing to judge";
+  // Two floods of about a second each, 5 lines a second allowed for each kind, and the last ones.
+  EXPECT_LT(line.bridge_log_count("refused: product_length_m") - refused_lines, 40u) << "one log line per refusal";
+  EXPECT_LT(line.bridge_log_count(": set values: ") - taken_lines, 40u) << "one log line per set value taken";
+  EXPECT_NE(line.bridge().log().find("more not logged"), std::string::npos);
+  EXPECT_EQ(answered(9000, 9001, false), 1u);
+  EXPECT_EQ(answered(9001, 9002, true), 1u);
+  ASSERT_TRUE(status.wait_last(5s, operational));
+}
+
 // Random frames at the full rate of a 500 kbit/s bus (every identifier, both formats, every length,
 // remote requests), a boot-up flood from nodes nobody configured and SDO replies nobody asked for,
 // against a master bus: the saw stays operational, SYNC keeps its period, and the frames are
