@@ -3,7 +3,6 @@
 // threads that take them and on its bus loop, and an application writing them as fast as it can
 // (the request flood of bench.sh's soak: ~47,000 refusals a second) must not write the log that fast.
 
-#include <cstdint>
 #include <mutex>
 #include <optional>
 #include <string>
