@@ -30,6 +30,10 @@ int main(int argc, char** argv) {
   cli.add_option("--other-master", other_master,
                  "what the master does on frames of another master (other_master:; default: the bridge's own, yield)")
       ->check(CLI::IsMember({"yield", "warn"}));
+  int realtime_priority = 0;
+  cli.add_option("--realtime-priority", realtime_priority, "every bus loop's SCHED_FIFO priority (realtime_priority:; 0: normal)")
+      ->check(CLI::Range(0, 99))
+      ->capture_default_str();
   std::string pki;
   cli.add_option("--pki", pki, "DDS Security: the bridge's identity from this launch_scripts/pki.sh folder (default: unsecured)");
   CLI11_PARSE(cli, argc, argv);
@@ -49,6 +53,7 @@ int main(int argc, char** argv) {
                      lb::bench::bus_uri(prefix, b), role);
     if (role == "master") y += fmt::format(", sync_period_ms: {}", sync_ms);
     if (role == "master" && !other_master.empty()) y += fmt::format(", other_master: {}", other_master);
+    if (realtime_priority != 0) y += fmt::format(", realtime_priority: {}", realtime_priority);
     if (b == 0 && !record.empty()) y += fmt::format(", record: '{}'", record);
     y += "}\n";
   }

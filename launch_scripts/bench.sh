@@ -22,6 +22,8 @@
 #                    shared machine's other work from dominating the latency tails
 #   --report-only    measure nothing: print the table again from the data in --out DIR
 #   --jitter-rate N  frames/s of the saws' TPDOs in the jitter figure (default: full load, 8000)
+#   --realtime-priority N  jitter and soak: the bridge's bus loop runs SCHED_FIFO at N (the bus key
+#                    realtime_priority:), the floor's timer too (chrt -f N); default 0: normal
 #   --profile        record the bridge with perf (call graphs) during every throughput step;
 #                    perf.data and a report per step in the output directory
 #
@@ -70,6 +72,7 @@ pin=1
 niceness=0
 profile=0
 jitter_rate=""
+rt_priority=0
 report_only=0
 while (($#)); do
   case "$1" in
@@ -84,6 +87,7 @@ while (($#)); do
     --nice) niceness=${2:?}; shift ;;
     --profile) profile=1 ;;
     --jitter-rate) jitter_rate=${2:?}; shift ;;
+    --realtime-priority) rt_priority=${2:?}; shift ;;
     --report-only) report_only=1; do_build=0 ;;
     -h|--help) usage ;;
     *) echo "bench.sh: unknown argument $1" >&2; usage ;;
@@ -91,6 +95,7 @@ while (($#)); do
   shift
 done
 [[ $runs =~ ^[1-9][0-9]*$ ]] || { echo "bench.sh: --runs takes a positive number" >&2; exit 2; }
+[[ $rt_priority =~ ^[0-9]+$ ]] && ((rt_priority <= 99)) || { echo "bench.sh: --realtime-priority takes 0..99" >&2; exit 2; }
 for f in ${only//,/ }; do
   [[ $f =~ ^(can2dds|dds2can|throughput|memory|startup|security|jitter|soak)$ ]] || { echo "bench.sh: unknown figure $f" >&2; exit 2; }
 done
@@ -597,7 +602,8 @@ while f.read(1024): time.sleep(1/16)" "$d/record.fifo"
     drain=$pid
     extra=(--record "$d/record.fifo")
   fi
-  "$bin/bench-config" --buses 1 --devices $devices --domain $domain --prefix "$prefix" --role master "${extra[@]}" >"$d/line.yaml"
+  "$bin/bench-config" --buses 1 --devices $devices --domain $domain --prefix "$prefix" --role master \
+    --realtime-priority $rt_priority "${extra[@]}" >"$d/line.yaml"
   if ((rate > 0)); then
     start "$d/inject" "${harness_cmd[@]}" "$bin/bench-inject" --buses 1 --devices $devices --rate $rate \
       --count $((rate * (jitter_s + 8))) --prefix "$prefix" --ready "$d/inject.ready" --go "$d/go" --linger 1
@@ -629,8 +635,10 @@ fig_jitter() {  # RUN
   vals="$d/values"; : >"$vals"
   # The floor: how late this machine wakes a bare periodic timer on the bridge's core.
   echo "jitter: timer floor" >&2
-  "${pin_cmd[@]}" "$bin/bench-timer-floor" --duration $jitter_s >"$d/floor.out"
-  printf '%s\n' "${pin_cmd[*]} $bin/bench-timer-floor --duration $jitter_s" >>"$commands"
+  local floor_cmd=("${pin_cmd[@]}")
+  ((rt_priority == 0)) || floor_cmd+=(chrt -f $rt_priority)
+  "${floor_cmd[@]}" "$bin/bench-timer-floor" --duration $jitter_s >"$d/floor.out"
+  printf '%s\n' "${floor_cmd[*]} $bin/bench-timer-floor --duration $jitter_s" >>"$commands"
   for k in wakeups p50_us p99_us p999_us max_us; do echo "jitter_floor_$k=$(get "$d/floor.out" floor_$k)" >>"$vals"; done
   for scenario in idle quiet frozen record; do
     echo "jitter: $scenario" >&2
@@ -658,7 +666,7 @@ fig_soak() {  # RUN
   # other_master: warn: the hostile frames include SYNC, NMT and the saws' RPDO identifiers, which
   # would make a yielding bridge fall silent; the soak wants it mastering the bus all along.
   "$bin/bench-config" --buses 1 --devices $devices --domain $domain --prefix "$prefix" --role master \
-    --other-master warn >"$d/line.yaml"
+    --other-master warn --realtime-priority $rt_priority >"$d/line.yaml"
   start "$d/inject" "${harness_cmd[@]}" "$bin/bench-inject" --buses 1 --devices $devices --rate $full_rate \
     --count $((full_rate * (soak_s + 20))) --prefix "$prefix" --ready "$d/inject.ready" --go "$d/go" --linger 1
   inj=$pid

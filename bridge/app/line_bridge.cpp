@@ -34,6 +34,7 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
     BusRuntime rt{};
     rt.config = &bus_cfg;
     rt.loop = std::make_unique<canopen::BusLoop>(std::move(*bus));
+    rt.loop->set_thread("lb-bus-" + bus_cfg.name, bus_cfg.realtime_priority);
     rt.loop->on_failure([b = bridge.get(), name = bus_cfg.name](const std::string& why) {
       {
         std::lock_guard lock(b->failure_mutex_);

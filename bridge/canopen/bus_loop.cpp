@@ -2,6 +2,8 @@
 
 #include <fmt/ranges.h>
 #include <spdlog/spdlog.h>
+#include <pthread.h>
+#include <sched.h>
 #include <sys/epoll.h>
 #include <sys/eventfd.h>
 #include <sys/timerfd.h>
@@ -163,6 +165,27 @@ Result<void> BusLoop::send(const can::CanFrame& frame) {
   return r;
 }
 
+void BusLoop::set_thread(std::string name, int realtime_priority) {
+  if (realtime_priority < 0 || realtime_priority > 99) throw std::invalid_argument("realtime priority must be 0..99");
+  thread_name_ = std::move(name);
+  realtime_priority_ = realtime_priority;
+}
+
+void BusLoop::schedule_thread() {
+  if (!thread_name_.empty()) ::pthread_setname_np(::pthread_self(), thread_name_.substr(0, 15).c_str());
+  if (realtime_priority_ == 0) return;
+  sched_param param{};
+  param.sched_priority = realtime_priority_;
+  if (const int err = ::pthread_setschedparam(::pthread_self(), SCHED_FIFO, &param); err != 0) {
+    spdlog::warn("{}: realtime priority {} (SCHED_FIFO) refused: {}; the bus loop runs at normal priority, so SYNC "
+                 "and the RPDOs wait whenever other threads keep the CPU busy (grant CAP_SYS_NICE or an RLIMIT_RTPRIO "
+                 "of at least {}: LimitRTPRIO= in a systemd unit)",
+                 bus_->uri(), realtime_priority_, std::strerror(err), realtime_priority_);
+    return;
+  }
+  spdlog::info("{}: the bus loop runs at realtime priority {} (SCHED_FIFO)", bus_->uri(), realtime_priority_);
+}
+
 void BusLoop::start() {
   if (thread_.joinable()) return;
   thread_ = std::thread([this] { run(); });
@@ -181,6 +204,7 @@ void BusLoop::stop() {
 // The loop's own failures end it: a loop that cannot wait or read its descriptors any more must
 // not look alive to a service manager.
 void BusLoop::run() {
+  schedule_thread();
   std::string why;
   try {
     loop();

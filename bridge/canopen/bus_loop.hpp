@@ -86,6 +86,13 @@ class BusLoop {
   // Before start(): called on the loop thread when the loop ends by a failure of its own.
   void on_failure(std::function<void(const std::string& why)> handler) { failure_handler_ = std::move(handler); }
 
+  // Before start(): how the loop's thread is scheduled. `name` is what ps and top -H show (the
+  // kernel keeps 15 characters). realtime_priority 1..99 runs it SCHED_FIFO, so SYNC, the RPDOs and
+  // heartbeat supervision run before any normal thread on the machine (DDS's among them); 0 is
+  // normal scheduling. A priority the system refuses is logged and the loop runs at normal
+  // priority: a line without realtime rights still runs.
+  void set_thread(std::string name, int realtime_priority);
+
   void start();
   void stop();  // idempotent; joins the thread
   bool on_loop_thread() const { return std::this_thread::get_id() == thread_.get_id(); }
@@ -117,6 +124,7 @@ class BusLoop {
   };
 
   void run();
+  void schedule_thread();  // on the loop thread, before its first wait
   void loop();
   // The barrier: true when fn returned normally. `failures` (may be null: one-shot work) counts the
   // callback's throws; at kMaxHandlerFailures the caller switches it off.
@@ -156,6 +164,8 @@ class BusLoop {
   std::uint64_t last_reopens_ = 0;
   std::uint64_t handlers_disabled_ = 0;
   std::function<void(const std::string&)> failure_handler_;
+  std::string thread_name_;
+  int realtime_priority_ = 0;
   std::uint64_t bits_in_ = 0;
   std::uint64_t bits_out_ = 0;
 

@@ -181,7 +181,7 @@ std::shared_ptr<const ProfileRegistry> load_profiles_dir(const YamlSource& src, 
 
 BusConfig parse_bus(const YamlSource& src, const YAML::Node& n) {
   src.check_keys(n, "bus", {"name", "interface", "role", "sync_period_ms", "bitrate", "master_node_id",
-                            "master_heartbeat_ms", "sdo_timeout_ms", "record", "other_master"});
+                            "master_heartbeat_ms", "sdo_timeout_ms", "record", "other_master", "realtime_priority"});
   BusConfig bus;
   bus.name = src.required<std::string>(n, "name", "bus");
   check_name(src, n["name"], bus.name);
@@ -203,6 +203,7 @@ BusConfig parse_bus(const YamlSource& src, const YAML::Node& n) {
   bus.master_heartbeat_period =
       std::chrono::milliseconds(bounded<int>(src, n, "master_heartbeat_ms", 1000, 1, 65535, "bus " + bus.name));
   bus.sdo_timeout = std::chrono::milliseconds(bounded<int>(src, n, "sdo_timeout_ms", 1000, 10, 60'000, "bus " + bus.name));
+  bus.realtime_priority = bounded<int>(src, n, "realtime_priority", 0, 0, 99, "bus " + bus.name);
   if (const auto policy = src.optional<std::string>(n, "other_master")) {
     if (*policy != "yield" && *policy != "warn") {
       src.fail(n["other_master"], "other_master must be yield (transmit nothing while another master is heard) or warn, not '" +

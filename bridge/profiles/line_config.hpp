@@ -60,6 +60,8 @@ struct BusConfig {
   // Master role: another master heard on the bus (canopen/other_master.hpp): yield = transmit
   // nothing while it is there; warn = report and go on.
   bool yield_to_other_master = true;
+  // The bus loop thread's SCHED_FIFO priority, 1..99 (canopen/bus_loop.hpp); 0 = normal scheduling.
+  int realtime_priority = 0;
 };
 
 // Identity values (1000h device type, 1018h sub 1..4). Expected ones, in a device's configuration:

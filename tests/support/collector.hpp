@@ -6,7 +6,9 @@
 
 #include <chrono>
 #include <condition_variable>
+#include <cstdint>
 #include <functional>
+#include <map>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -25,10 +27,16 @@ class Collector {
   lb::Result<void> subscribe(lb::ddsl::Participant& dds, const std::string& topic, lb::ddsl::QosKind kind) {
     return dds.subscribe<PubSubType>(
         topic, kind,
-        [state = state_](const Sample& s, const lb::ddsl::fdds::SampleInfo&) {
+        [state = state_](const Sample& s, const lb::ddsl::fdds::SampleInfo& info) {
           {
             std::lock_guard lock(state->m);
             state->samples.push_back(s);
+            const auto sn = info.sample_identity.sequence_number().to64long();
+            auto [last, first] = state->last_sn.try_emplace(info.sample_identity.writer_guid(), sn);
+            if (!first && sn > last->second) {
+              state->gaps += sn - last->second - 1;
+              last->second = sn;
+            }
           }
           state->cv.notify_all();
         },
@@ -51,12 +59,20 @@ class Collector {
     std::lock_guard lock(state_->m);
     return state_->samples.size();
   }
+  // Samples a writer wrote that never arrived here: gaps in its sequence numbers between two that
+  // did (a reliable keep-last writer drops what a slow reader has not acknowledged).
+  std::uint64_t gaps() {
+    std::lock_guard lock(state_->m);
+    return state_->gaps;
+  }
 
  private:
   struct State {
     std::mutex m;
     std::condition_variable cv;
     std::vector<Sample> samples;
+    std::map<eprosima::fastrtps::rtps::GUID_t, std::uint64_t> last_sn;
+    std::uint64_t gaps = 0;
   };
   std::shared_ptr<State> state_ = std::make_shared<State>();
 };

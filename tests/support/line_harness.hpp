@@ -84,9 +84,13 @@ class LineHarness {
   }
 
   void start_bridge() {
-    bridge_ = std::make_unique<ChildProcess>(std::vector<std::string>{LB_BIN_BRIDGE, "--config", bridge_config_},
-                                             ::testing::TempDir() + "/" + name_ + "_bridge_" + tag_ + ".log");
+    auto argv = bridge_launcher_;
+    argv.insert(argv.end(), {LB_BIN_BRIDGE, "--config", bridge_config_});
+    bridge_ = std::make_unique<ChildProcess>(std::move(argv), ::testing::TempDir() + "/" + name_ + "_bridge_" + tag_ + ".log");
   }
+  // Before start(): the bridge is started through this command (an absolute path and its
+  // arguments, e.g. setpriv to take a capability away), which must exec it.
+  void set_bridge_launcher(std::vector<std::string> argv) { bridge_launcher_ = std::move(argv); }
 
   const std::string& bridge_config() const { return bridge_config_; }
   BusSpy& spy() { return *spy_; }
@@ -159,6 +163,7 @@ class LineHarness {
   std::string tag_;
   std::string bus_;
   std::string bridge_config_, sim_config_;
+  std::vector<std::string> bridge_launcher_;
   std::unique_ptr<BusSpy> spy_;
   std::unique_ptr<ChildProcess> sim_, bridge_;
   std::unique_ptr<ddsl::Participant> dds_;

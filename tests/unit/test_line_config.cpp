@@ -117,6 +117,20 @@ TEST(LineConfig, OtherMistakes) {
   EXPECT_NE(error_of("- just\n- a list\n").find("must be a mapping"), std::string::npos);
 }
 
+// realtime_priority: the bus loop's SCHED_FIFO priority, 1..99, absent or 0 = normal scheduling.
+TEST(LineConfig, RealtimePriorityOfABusLoop) {
+  const auto registry = ProfileRegistry::builtin();
+  auto r = parse_line_config(replace(kGood, "    sync_period_ms: 10\n", "    sync_period_ms: 10\n    realtime_priority: 40\n"),
+                             "line.yaml", registry);
+  ASSERT_TRUE(r) << r.error().message;
+  EXPECT_EQ(r->buses[0].realtime_priority, 40);
+  EXPECT_EQ(r->buses[1].realtime_priority, 0);
+  auto e = error_of(replace(kGood, "    sync_period_ms: 10\n", "    sync_period_ms: 10\n    realtime_priority: 100\n"));
+  EXPECT_NE(e.find("line.yaml:10:24: bus ext: realtime_priority 100 is outside 0..99"), std::string::npos) << e;
+  e = error_of(replace(kGood, "    sync_period_ms: 10\n", "    sync_period_ms: 10\n    realtime_priority: high\n"));
+  EXPECT_NE(e.find("line.yaml:10:24: 'realtime_priority' has a value of the wrong type"), std::string::npos) << e;
+}
+
 TEST(LineConfig, PdoOverrides) {
   const auto registry = ProfileRegistry::builtin();
   const std::string pdos = "    pdos:\n"
