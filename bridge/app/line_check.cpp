@@ -98,6 +98,7 @@ void print_summary(const profiles::LineConfig& line, const std::vector<ddsl::Pla
       if (b.master_node_id != 0) fmt::print(out, ", own heartbeat node {} every {} ms", b.master_node_id, b.master_heartbeat_period.count());
     }
     if (!b.record.empty()) fmt::print(out, ", recording to {}", b.record);
+    if (b.realtime_priority != 0) fmt::print(out, ", loop at realtime priority {} (SCHED_FIFO)", b.realtime_priority);
     fmt::print(out, "\n");
     for (const auto& d : line.devices) {
       if (d.bus != b.name) continue;

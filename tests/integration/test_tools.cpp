@@ -44,6 +44,8 @@ TEST(Check, DemoLineSummaryWithEveryTopicAndNoDdsNoCan) {
   demo << in.rdbuf();
   std::string text = demo.str();
   text.replace(text.find("  localhost_only: true\n"), 23, "  localhost_only: true\n  shared_memory: true\n");
+  const std::string weaving = "    interface: virtual:demo-weaving\n";
+  text.replace(text.find(weaving), weaving.size(), weaving + "    realtime_priority: 30\n");
   const auto before = shm_entries();
   const auto r = run_command({LB_BIN_BRIDGE, "--check", write("demo.yaml", text)});
   ASSERT_EQ(r.exit_code, 0) << r.output;
@@ -51,6 +53,7 @@ TEST(Check, DemoLineSummaryWithEveryTopicAndNoDdsNoCan) {
   for (const char* expected : {
            "line demo: 2 bus(es), 4 device(s)",
            "bus extrusion on virtual:demo-extrusion: master, SYNC every 20 ms",
+           "bus weaving on virtual:demo-weaving: master, SYNC every 20 ms, SDO timeout 1000 ms, loop at realtime priority 30 (SCHED_FIFO)\n",
            "saw1 node 3: saw cia420-4 3.1",
            "rt/demo/saw1/status", "linebridge_msgs::msg::dds_::SawStatus_", "bridge writes",
            "rt/demo/saw1/setpoint", "bridge reads",
