@@ -5,7 +5,8 @@
 # The long run: launch_scripts/fuzz.sh (at nice 19; hours on 2 cores). test.sh runs --seconds 5.
 # Each target works on a copy of its seeds in $build/fuzz-corpus/<target>, keeps its log in
 # $build/fuzz-logs/<target>.log and any crashing input in $build/fuzz-artifacts/<target>/.
-# Exit 0 only when no target found anything. Reproduce a finding: $build/fuzz/fuzz_<target> <file>.
+# Exit 0 when every target ran to its limit without a finding, 1 on any finding, 130 when one
+# was interrupted (SIGINT) and none found anything. Reproduce a finding: $build/fuzz/fuzz_<target> <file>.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 root=$PWD
@@ -16,7 +17,7 @@ while (($#)); do
   case "$1" in
     --runs) limit=("-runs=$2"); shift 2 ;;
     --seconds) limit=("-max_total_time=$2"); shift 2 ;;
-    -h|--help) sed -n '2,9p' "$0"; exit 0 ;;
+    -h|--help) sed -n '2,10p' "$0"; exit 0 ;;
     -*) echo "fuzz.sh: unknown option $1" >&2; exit 2 ;;
     *) targets+=("$1"); shift ;;
   esac
@@ -34,6 +35,7 @@ cmake --build "$build" --target "${targets[@]/#/fuzz_}"
 export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:abort_on_error=0}
 export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
 failed=()
+interrupted=()
 for t in "${targets[@]}"; do
   corpus="$build/fuzz-corpus/$t" artifacts="$build/fuzz-artifacts/$t/" log="$build/fuzz-logs/$t.log"
   mkdir -p "$corpus" "$artifacts" "$(dirname "$log")"
@@ -46,6 +48,12 @@ for t in "${targets[@]}"; do
   # The seeds are read, never written: new inputs go to the working corpus.
   nice -n 19 "$build/fuzz/fuzz_$t" "${args[@]}" "${limit[@]}" "$corpus" "$root/fuzz/corpus/$t" >"$log" 2>&1 || status=$?
   grep -E '^#[0-9]+\s+DONE|^Done [0-9]+ runs|^stat::number_of_executed_units|^stat::average_exec_per_sec' "$log" || true
+  # 72 with libFuzzer's own words: stopped by SIGINT (Ctrl-C, a stopped lane), not a finding.
+  if [ "$status" = 72 ] && grep -q 'libFuzzer: run interrupted' "$log"; then
+    echo "fuzz.sh: $t interrupted (no finding; the counts above are where it stopped)" >&2
+    interrupted+=("$t")
+    continue
+  fi
   if [ "$status" != 0 ]; then
     failed+=("$t")
     echo "fuzz.sh: $t found a problem (exit $status); the report:" >&2
@@ -55,5 +63,9 @@ done
 if ((${#failed[@]})); then
   echo "fuzz.sh: findings in: ${failed[*]} (inputs in $build/fuzz-artifacts/)" >&2
   exit 1
+fi
+if ((${#interrupted[@]})); then
+  echo "fuzz.sh: no findings; interrupted before their limit: ${interrupted[*]}" >&2
+  exit 130
 fi
 echo "fuzz.sh: ${#targets[@]} targets, no findings"
