@@ -40,17 +40,17 @@ Result<std::unique_ptr<RecordingBus>> RecordingBus::open(std::unique_ptr<Bus> in
 }
 
 RecordingBus::RecordingBus(PrivateTag, std::unique_ptr<Bus> inner, UniqueFd file, std::string interface)
-    : inner_(std::move(inner)), file_(std::move(file)), interface_(std::move(interface)) {
-  buffer_.reserve(64 << 10);
+    : inner_(std::move(inner)), file_(std::move(file)), interface_(std::move(interface)), ring_(kBufferBytes, '\0') {
+  static_assert((kBufferBytes & (kBufferBytes - 1)) == 0);
   writer_ = std::thread([this] { write_out(); });
 }
 
 RecordingBus::~RecordingBus() {
   {
-    std::lock_guard lock(mutex_);
+    std::lock_guard lock(stop_mutex_);
     stopping_ = true;
   }
-  cv_.notify_all();
+  stop_cv_.notify_all();
   writer_.join();
 }
 
@@ -77,60 +77,78 @@ BusStats RecordingBus::stats() const {
   return s;
 }
 
+// The loop's side: no lock, no system call, no allocation beyond the line's own.
 void RecordingBus::record(const CanFrame& frame) {
   const std::string line = format_log_line(frame, interface_);
-  {
-    std::lock_guard lock(mutex_);
-    if (buffer_.size() + line.size() > kBufferBytes) {
-      ++record_errors_;
-      return;
-    }
-    buffer_ += line;
+  const std::uint64_t put = put_.load(std::memory_order_relaxed);
+  const std::uint64_t taken = taken_.load(std::memory_order_acquire);
+  if (kBufferBytes - (put - taken) < line.size()) {
+    ++record_errors_;
+    return;
   }
-  cv_.notify_one();
+  const std::size_t at = put & (kBufferBytes - 1);
+  const std::size_t first = std::min(line.size(), kBufferBytes - at);
+  std::copy_n(line.data(), first, ring_.data() + at);
+  std::copy_n(line.data() + first, line.size() - first, ring_.data());
+  put_.store(put + line.size(), std::memory_order_release);
 }
 
-// The writer: takes the whole buffer at once, writes it, and repeats. Non-blocking writes with a
-// poll, so that a recording to a reader that never reads (a FIFO) still lets the bridge stop: at
-// the stop it gives up after a second and counts what it could not write.
+bool RecordingBus::stop_requested() {
+  std::lock_guard lock(stop_mutex_);
+  return stopping_;
+}
+
+// The writer: every kWriteInterval (or at the stop) writes out what the loop put into the ring.
 void RecordingBus::write_out() {
-  std::string chunk;
-  std::unique_lock lock(mutex_);
   for (;;) {
-    cv_.wait(lock, [this] { return !buffer_.empty() || stopping_; });
-    if (buffer_.empty() && stopping_) return;
-    chunk.clear();
-    chunk.swap(buffer_);
-    const bool stopping = stopping_;
-    lock.unlock();
-    std::size_t done = 0;
-    const auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(1);
-    while (done < chunk.size()) {
-      const ssize_t n = ::write(file_.get(), chunk.data() + done, chunk.size() - done);
-      if (n > 0) {
-        done += static_cast<std::size_t>(n);
-        continue;
-      }
-      if (n < 0 && errno == EINTR) continue;
-      if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) {
-        bool stop_now = false;
-        {
-          std::lock_guard check(mutex_);
-          stop_now = stopping_;
-        }
-        if (stop_now && std::chrono::steady_clock::now() > give_up) break;
-        pollfd p{file_.get(), POLLOUT, 0};
-        ::poll(&p, 1, 100);
-        continue;
-      }
-      break;  // disk full, I/O error: what is left of the chunk is lost
-    }
-    if (done < chunk.size()) {
-      record_errors_ += static_cast<std::uint64_t>(std::count(chunk.begin() + static_cast<std::ptrdiff_t>(done), chunk.end(), '\n'));
-    }
-    lock.lock();
-    if (stopping && buffer_.empty()) return;
+    // Read before draining, so that everything recorded before the stop is written (or counted).
+    const bool stopping = stop_requested();
+    drain(stopping);
+    if (stopping) return;
+    std::unique_lock lock(stop_mutex_);
+    stop_cv_.wait_for(lock, kWriteInterval, [this] { return stopping_; });
   }
+}
+
+// Non-blocking writes with a poll, so that a recording to a reader that never reads (a FIFO) still
+// lets the bridge stop: at the stop it gives up after a second and counts what it could not write.
+void RecordingBus::drain(bool stopping) {
+  auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(1);
+  for (;;) {
+    const std::uint64_t taken = taken_.load(std::memory_order_relaxed);
+    const std::uint64_t put = put_.load(std::memory_order_acquire);
+    if (taken == put) return;
+    const std::size_t at = taken & (kBufferBytes - 1);
+    const std::size_t len = static_cast<std::size_t>(std::min<std::uint64_t>(put - taken, kBufferBytes - at));
+    const ssize_t n = ::write(file_.get(), ring_.data() + at, len);
+    if (n > 0) {
+      taken_.store(taken + static_cast<std::uint64_t>(n), std::memory_order_release);
+      continue;
+    }
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) {
+      if (!stopping && stop_requested()) {
+        stopping = true;
+        give_up = std::chrono::steady_clock::now() + std::chrono::seconds(1);
+      }
+      if (stopping && std::chrono::steady_clock::now() > give_up) {
+        drop(taken, put);
+        return;
+      }
+      pollfd p{file_.get(), POLLOUT, 0};
+      ::poll(&p, 1, 100);
+      continue;
+    }
+    drop(taken, put);  // disk full, I/O error: what the ring holds now is lost; later lines try again
+    return;
+  }
+}
+
+void RecordingBus::drop(std::uint64_t from, std::uint64_t to) {
+  std::uint64_t lines = 0;
+  for (std::uint64_t i = from; i != to; ++i) lines += ring_[i & (kBufferBytes - 1)] == '\n' ? 1 : 0;
+  record_errors_ += lines;
+  taken_.store(to, std::memory_order_release);
 }
 
 }  // namespace lb::can

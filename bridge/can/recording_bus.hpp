@@ -4,18 +4,26 @@
 // tool that reads candump logs. A decorator: the bus below works exactly as without it.
 //
 // The file is opened for appending (a restart adds to it). The bus loop only formats a frame's
-// line into a buffer; a thread of the recording writes the buffer out (whole lines, so a reader
-// such as tail -f sees whole lines), so a slow or stuck disk never stalls the loop. The buffer is
-// bounded (kBufferBytes): a frame that does not fit, or cannot be written (disk full), is counted
-// in BusStats::record_errors and the bus goes on. A crash loses at most what the buffer held.
-// Sent frames are recorded once the bus accepted them, with the time of sending.
+// line into a ring; a thread of the recording writes the ring out, so a slow or stuck disk never
+// stalls the loop. The two share no lock: the loop may run at realtime priority (realtime_priority:)
+// and the writer does not, so a lock between them let the writer, preempted while holding it, hold
+// the loop up (SYNCs 1.0-1.3 ms late every ~2 s with a slow disk, BENCHMARKS.md). The ring is
+// allocated and touched at open, so the loop neither allocates nor page-faults for it. It is bounded
+// (kBufferBytes): a frame that does not fit, or cannot be written (disk full), is counted in
+// BusStats::record_errors and the bus goes on. The writer looks for new lines every kWriteInterval,
+// so a crash loses at most what the ring held. Sent frames are recorded once the bus accepted them,
+// with the time of sending.
 
 #include <atomic>
+#include <chrono>
 #include <condition_variable>
+#include <cstdint>
 #include <memory>
 #include <mutex>
 #include <string>
+#include <string_view>
 #include <thread>
+#include <vector>
 
 #include "can/bus.hpp"
 #include "can/unique_fd.hpp"
@@ -32,7 +40,8 @@ class RecordingBus final : public Bus {
   // "log" for a replay. inner must not be null.
   static Result<std::unique_ptr<RecordingBus>> open(std::unique_ptr<Bus> inner, const std::string& path);
 
-  static constexpr std::size_t kBufferBytes = 4 << 20;
+  static constexpr std::size_t kBufferBytes = 4 << 20;  // a power of two: positions wrap by masking
+  static constexpr std::chrono::milliseconds kWriteInterval{20};
 
   RecordingBus(PrivateTag, std::unique_ptr<Bus> inner, UniqueFd file, std::string interface);
   // Writes out what the buffer holds (for a disk that takes it within a second), then stops.
@@ -47,15 +56,24 @@ class RecordingBus final : public Bus {
  private:
   void record(const CanFrame& frame);
   void write_out();
+  // Writes what the ring holds; at a stop, gives up on a file that takes nothing for a second.
+  void drain(bool stopping);
+  // Counts the lines in [from, to) of the ring as lost and drops them.
+  void drop(std::uint64_t from, std::uint64_t to);
+  bool stop_requested();
 
   std::unique_ptr<Bus> inner_;
   UniqueFd file_;
   std::string interface_;
-  std::mutex mutex_;
-  std::condition_variable cv_;
-  std::string buffer_;                        // guarded by mutex_
-  bool stopping_ = false;                     // guarded by mutex_
+  // Single producer (the bus loop), single consumer (the writer): positions count bytes since open.
+  std::vector<char> ring_;
+  std::atomic<std::uint64_t> put_{0};    // written by the loop only
+  std::atomic<std::uint64_t> taken_{0};  // written by the writer only
   std::atomic<std::uint64_t> record_errors_{0};
+  // Between the writer and the destructor only; the loop never takes it.
+  std::mutex stop_mutex_;
+  std::condition_variable stop_cv_;
+  bool stopping_ = false;  // guarded by stop_mutex_
   std::thread writer_;
 };
 

@@ -2,12 +2,14 @@
 // the controller state an error frame implies, the log: replay bus (pace, filter, refusal, bad
 // lines, end of file), the recording decorator, and the configuration keys for both. The same code
 // against the real candump and a real vcan runs in tests/socketcan (inside the VM).
+#include <fcntl.h>
 #include <gtest/gtest.h>
 #include <linux/can/error.h>
 #include <poll.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <fstream>
 #include <sstream>
@@ -20,6 +22,7 @@
 #include "can/controller_state.hpp"
 #include "can/log_bus.hpp"
 #include "can/recording_bus.hpp"
+#include "can/unique_fd.hpp"
 #include "can/virtual_bus.hpp"
 #include "profiles/line_config.hpp"
 
@@ -443,6 +446,58 @@ TEST(RecordingBus, RecordsReceivedAndSentFramesAndTheRecordingReplays) {
   EXPECT_TRUE(frames[1].extended);
   EXPECT_EQ(frames[2].id, 0x205u);
   EXPECT_EQ(frames[3].id, 0x80u);
+}
+
+// A recording nobody reads (a FIFO whose reader is late) fills the pipe and then the ring: each
+// frame beyond is counted, none is lost uncounted, and the bus goes on delivering meanwhile. Once the
+// reader reads, the ring's lines follow: every frame is either a whole line in the FIFO, in order,
+// or one record error.
+TEST(RecordingBus, AFullRecordingCountsEveryFrameItCannotKeep) {
+  constexpr std::size_t kFrames = 150'000;  // ~6.7 MB of lines: more than the ring and the pipe hold
+  const std::string source_line = "(1700000000.000000) vcan0 181#0102030405060708\n";
+  const std::string recorded_line = "(1700000000.000000) log 181#0102030405060708\n";
+  std::string log;
+  log.reserve(kFrames * source_line.size());
+  for (std::size_t i = 0; i < kFrames; ++i) log += source_line;
+  const auto replayed = write_file("full_source.log", log);
+  const auto fifo = temp_path("full.fifo");
+  ::unlink(fifo.c_str());
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  UniqueFd reader{::open(fifo.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC)};  // not read until the bus is done
+  ASSERT_TRUE(reader);
+
+  auto inner = open_bus("log:" + replayed + "?pace=fast");
+  ASSERT_TRUE(inner) << inner.error().message;
+  auto rec = RecordingBus::open(std::move(*inner), fifo);
+  ASSERT_TRUE(rec) << rec.error().message;
+  ASSERT_EQ(drain(**rec, kFrames, 60'000ms).size(), kFrames) << "the bus stopped delivering when its recording was full";
+  const std::uint64_t errors = (*rec)->stats().record_errors;  // final: no frame comes any more
+  EXPECT_GT(errors, 0u);
+  EXPECT_LT(errors, kFrames);
+
+  std::string text;
+  char buf[1 << 16];
+  const auto expected_lines = kFrames - errors;
+  for (const auto until = Clock::now() + 20s;
+       static_cast<std::size_t>(std::count(text.begin(), text.end(), '\n')) < expected_lines && Clock::now() < until;) {
+    const ssize_t n = ::read(reader.get(), buf, sizeof buf);
+    if (n > 0) {
+      text.append(buf, static_cast<std::size_t>(n));
+    } else {
+      pollfd p{reader.get(), POLLIN, 0};
+      ::poll(&p, 1, 50);
+    }
+  }
+  rec->reset();  // the writer stops; nothing is left to write
+  for (ssize_t n; (n = ::read(reader.get(), buf, sizeof buf)) > 0;) text.append(buf, static_cast<std::size_t>(n));
+  ::unlink(replayed.c_str());
+  ::unlink(fifo.c_str());
+  EXPECT_EQ(static_cast<std::size_t>(std::count(text.begin(), text.end(), '\n')), expected_lines)
+      << errors << " record errors counted";
+  ASSERT_EQ(text.size() % recorded_line.size(), 0u) << "whole lines only";
+  for (std::size_t at = 0; at < text.size(); at += recorded_line.size()) {
+    ASSERT_EQ(text.compare(at, recorded_line.size(), recorded_line), 0) << "line " << at / recorded_line.size();
+  }
 }
 
 TEST(RecordingBus, AnUnwritableFileFailsAtOpen) {
