@@ -118,11 +118,17 @@ Result<CanFrame> parse_frame(std::string_view text) {
 }  // namespace
 
 std::string format_log_line(const CanFrame& frame, std::string_view interface) {
+  std::string line;
+  append_log_line(line, frame, interface);
+  return line;
+}
+
+void append_log_line(std::string& line, const CanFrame& frame, std::string_view interface) {
   char buf[96];
   const std::int64_t ns = frame.timestamp_ns < 0 ? 0 : frame.timestamp_ns;
   int n = std::snprintf(buf, sizeof buf, "(%010lld.%06lld) ", static_cast<long long>(ns / 1'000'000'000),
                         static_cast<long long>(ns % 1'000'000'000 / 1000));
-  std::string line(buf, static_cast<std::size_t>(n));
+  line.append(buf, static_cast<std::size_t>(n));
   line.append(interface);
   if (frame.error) {
     n = std::snprintf(buf, sizeof buf, " %08X#", static_cast<unsigned>((frame.id & CAN_ERR_MASK) | CAN_ERR_FLAG));
@@ -143,7 +149,6 @@ std::string format_log_line(const CanFrame& frame, std::string_view interface) {
     }
   }
   line += '\n';
-  return line;
 }
 
 Result<std::optional<LogRecord>> parse_log_line(std::string_view line) {

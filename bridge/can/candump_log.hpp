@@ -22,6 +22,8 @@ struct LogRecord {
 
 // The line for one frame, newline included. interface must not contain blanks.
 std::string format_log_line(const CanFrame& frame, std::string_view interface);
+// The same, appended to out: a caller that keeps out's capacity formats without allocating.
+void append_log_line(std::string& out, const CanFrame& frame, std::string_view interface);
 
 // One line, trailing newline or not. std::nullopt for a blank line; an error for anything else
 // that is not a classical CAN frame (CAN FD "##" lines included: this gateway speaks classical

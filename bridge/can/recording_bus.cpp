@@ -9,6 +9,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <chrono>
+#include <string_view>
 
 #include "can/candump_log.hpp"
 #include "can/detail.hpp"
@@ -42,6 +43,7 @@ Result<std::unique_ptr<RecordingBus>> RecordingBus::open(std::unique_ptr<Bus> in
 RecordingBus::RecordingBus(PrivateTag, std::unique_ptr<Bus> inner, UniqueFd file, std::string interface)
     : inner_(std::move(inner)), file_(std::move(file)), interface_(std::move(interface)), ring_(kBufferBytes, '\0') {
   static_assert((kBufferBytes & (kBufferBytes - 1)) == 0);
+  line_.reserve(interface_.size() + 64);  // the longest line: timestamp, identifier, 8 data bytes
   writer_ = std::thread([this] { write_out(); });
 }
 
@@ -77,9 +79,11 @@ BusStats RecordingBus::stats() const {
   return s;
 }
 
-// The loop's side: no lock, no system call, no allocation beyond the line's own.
+// The loop's side: no lock, no system call, no allocation.
 void RecordingBus::record(const CanFrame& frame) {
-  const std::string line = format_log_line(frame, interface_);
+  line_.clear();
+  append_log_line(line_, frame, interface_);
+  const std::string_view line = line_;
   const std::uint64_t put = put_.load(std::memory_order_relaxed);
   const std::uint64_t taken = taken_.load(std::memory_order_acquire);
   if (kBufferBytes - (put - taken) < line.size()) {

@@ -8,7 +8,8 @@
 // stalls the loop. The two share no lock: the loop may run at realtime priority (realtime_priority:)
 // and the writer does not, so a lock between them let the writer, preempted while holding it, hold
 // the loop up (SYNCs 1.0-1.3 ms late every ~2 s with a slow disk, BENCHMARKS.md). The ring is
-// allocated and touched at open, so the loop neither allocates nor page-faults for it. It is bounded
+// allocated and touched at open, and the line is formatted into a buffer of the loop's that keeps
+// its capacity, so recording a frame neither allocates nor page-faults (bench-record-handoff). It is bounded
 // (kBufferBytes): a frame that does not fit, or cannot be written (disk full), is counted in
 // BusStats::record_errors and the bus goes on. The writer looks for new lines every kWriteInterval,
 // so a crash loses at most what the ring held. Sent frames are recorded once the bus accepted them,
@@ -21,7 +22,6 @@
 #include <memory>
 #include <mutex>
 #include <string>
-#include <string_view>
 #include <thread>
 #include <vector>
 
@@ -65,6 +65,7 @@ class RecordingBus final : public Bus {
   std::unique_ptr<Bus> inner_;
   UniqueFd file_;
   std::string interface_;
+  std::string line_;  // the loop's: the frame being recorded
   // Single producer (the bus loop), single consumer (the writer): positions count bytes since open.
   std::vector<char> ring_;
   std::atomic<std::uint64_t> put_{0};    // written by the loop only

@@ -3,7 +3,6 @@
 // injected with cansend become the right DDS samples; a DDS set value becomes exactly the expected
 // bytes in candump; a monitor bridge puts nothing on the bus; the link going down and coming back
 // (also deleted and re-created) ends with RPDO1 on the bus again; record: and log: round trip.
-#include <fmt/format.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -15,6 +14,7 @@
 #include <thread>
 #include <vector>
 
+#include "can/candump_log.hpp"
 #include "dds/participant.hpp"
 #include "dds/topic_names.hpp"
 #include "msgs/commonPubSubTypes.h"
@@ -279,10 +279,11 @@ TEST_F(BridgeOnVcan, InjectedFramesBecomeDdsSamplesMonitorStaysSilentAndTheRecor
   }
   const std::string replayed = ::testing::TempDir() + "/replay_" + tag_ + ".log";
   {
-    const std::int64_t lead_in = dumped.front().frame.timestamp_ns - 3'000'000'000;
-    std::ofstream out(replayed);
-    out << fmt::format("({:010d}.{:06d}) vcan0 7FF#00\n", lead_in / 1'000'000'000, lead_in % 1'000'000'000 / 1000)
-        << candump.text();
+    lb::can::CanFrame lead_in;
+    lead_in.id = 0x7FF;
+    lead_in.len = 1;
+    lead_in.timestamp_ns = dumped.front().frame.timestamp_ns - 3'000'000'000;
+    std::ofstream(replayed) << lb::can::format_log_line(lead_in, "vcan0") << candump.text();
   }
   start_bridge(write_config("{name: ext, interface: 'log:" + replayed + "'}"));
   ASSERT_TRUE(decoded()) << logs();
