@@ -9,6 +9,7 @@
 #include "app/line_config_source.hpp"
 #include "app/run_until_signal.hpp"
 #include "app/service_notifier.hpp"
+#include "dds/fastdds_log.hpp"
 
 int main(int argc, char** argv) {
   namespace app = lb::app;
@@ -46,6 +47,8 @@ int main(int argc, char** argv) {
     return app::kExitUsage;
   }
   for (const auto& w : config->warnings) spdlog::warn("{}", w);
+  // Fast DDS's warnings (a reader refusing samples among them) and errors in this log, rate-limited.
+  const lb::ddsl::FastDdsLogRoute fastdds_log;
   // DDS first: a secured participant that cannot prove security is in force is a configuration
   // error (exit 2), like a bad security file or DDS profile; nothing runs unsecured by mistake.
   const auto dds_options = app::bridge_participant_options(*config);
