@@ -3,10 +3,12 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
+#include <algorithm>
 #include <chrono>
 #include <condition_variable>
 #include <functional>
 #include <mutex>
+#include <optional>
 #include <thread>
 
 #include "app/cli_exit.hpp"
@@ -48,6 +50,9 @@ class Mailbox {
   std::optional<T> value_;
 };
 
+// How long an unanswered set value waits before it is written again (see send_set_value).
+constexpr Clock::duration kAskAgainAfter = std::chrono::seconds(1);
+
 bool wait_until(Clock::duration timeout, const std::function<bool()>& cond) {
   const auto end = Clock::now() + timeout;
   while (!cond()) {
@@ -75,8 +80,13 @@ int send_set_value(ddsl::Participant& dds, const std::string& line, const std::s
   if (!writer) return fmt::print(stderr, "{}\n", writer.error().message), kExitNoAnswer;
   auto status_sub = dds.subscribe_scoped<StatusPS>(status_topic, ddsl::QosKind::state,
                                                    [&](const Status& s, const auto&) { status.put(s); });
+  // Only the answer to this set value is kept: the mailbox holds one value, and other clients'
+  // answers arriving right after it would otherwise replace it before it is looked at.
+  const auto request_id = static_cast<std::uint64_t>(ddsl::now_ns());
   auto result_sub = dds.subscribe_scoped<msg::SetpointResultPubSubType>(
-      result_topic, ddsl::QosKind::reply, [&](const msg::SetpointResult& r, const auto&) { result.put(r); });
+      result_topic, ddsl::QosKind::reply, [&](const msg::SetpointResult& r, const auto&) {
+        if (r.request_id() == request_id) result.put(r);
+      });
   if (!status_sub || !result_sub) {
     return fmt::print(stderr, "{}\n", !status_sub ? status_sub.error().message : result_sub.error().message), kExitNoAnswer;
   }
@@ -93,9 +103,19 @@ int send_set_value(ddsl::Participant& dds, const std::string& line, const std::s
     return kExitNoAnswer;
   }
   auto sp = make(*current);
-  sp.request_id(static_cast<std::uint64_t>(ddsl::now_ns()));
-  writer->write(sp);
-  auto reply = result.wait(timeout, [&](const msg::SetpointResult& r) { return r.request_id() == sp.request_id(); });
+  sp.request_id(request_id);
+  // Asked again, the same set value with the same request id, every second until answered: Fast
+  // DDS 2.9.1 can lose a writer's last sample after a burst of its others, and the answer to this
+  // set value is the bridge's reply writer's last sample when other clients' answers came just
+  // before it (seen: applied and answered by the bridge, never delivered here). A set value is
+  // absolute, so applying it twice changes nothing.
+  const auto give_up = Clock::now() + timeout;
+  std::optional<msg::SetpointResult> reply;
+  while (!reply && Clock::now() < give_up) {
+    writer->write(sp);
+    const auto wait = std::min<Clock::duration>(kAskAgainAfter, give_up - Clock::now());
+    reply = result.wait(wait, [&](const msg::SetpointResult& r) { return r.request_id() == sp.request_id(); });
+  }
   if (!reply) return fmt::print(stderr, "{}: no answer from the bridge within {} s\n", device, o.timeout_s), kExitNoAnswer;
   if (!reply->accepted()) return fmt::print(stderr, "{}: set value refused: {}\n", device, reply->reason()), kExitRefused;
   fmt::print("{}: accepted: {}\n", device, describe(sp));

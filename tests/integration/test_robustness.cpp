@@ -457,6 +457,9 @@ TEST(Robustness, HostileRequestsAreRefusedAndNothingReachesTheBus) {
     });
   }
   for (auto& t : flooders) t.join();
+  // Asked until answered, as linebridge-cli set does: written once, its answer (the bridge's reply
+  // writer's last sample after a burst) can fail to arrive though the bridge applied it (README,
+  // "Requests written faster than read").
   ASSERT_TRUE(answered_eventually(results, *writer, valid, 99'999)) << "no answer after the flood\n" << line.logs();
   std::this_thread::sleep_for(200ms);
   std::size_t flood_answered = 0;
