@@ -217,6 +217,11 @@ TEST(CliWithoutBridge, SetAsksAgainUntilAnswered) {
   const std::string config = ::testing::TempDir() + "/cli_askagain_" + std::to_string(::getpid()) + ".yaml";
   std::ofstream(config) << "line: askagain\ndds: {domain: 35}\nbuses:\n  - {name: b, interface: 'virtual:askagain'}\n"
                            "devices:\n  - {name: saw1, bus: b, node_id: 3, profile: cia420-4, version: '3.1'}\n";
+  // What the callback reaches is declared before the participant, so it outlives the callbacks.
+  std::mutex m;
+  std::map<std::uint64_t, int> seen;  // request id -> times it came
+  double speed = 0;
+  lb::ddsl::Writer<msg::SetpointResultPubSubType> answers;
   auto dds = lb::ddsl::Participant::create({35, true, "askagain-responder"});
   ASSERT_TRUE(dds) << dds.error().message;
   auto& p = **dds;
@@ -224,9 +229,7 @@ TEST(CliWithoutBridge, SetAsksAgainUntilAnswered) {
   auto results = p.writer<msg::SetpointResultPubSubType>(lb::ddsl::topic_name("askagain", "saw1", "setpoint_result"),
                                                          QosKind::reply);
   ASSERT_TRUE(status && results);
-  std::mutex m;
-  std::map<std::uint64_t, int> seen;  // request id -> times it came
-  double speed = 0;
+  answers = *results;
   ASSERT_TRUE(p.subscribe<msg::SawSetpointPubSubType>(
       lb::ddsl::topic_name("askagain", "saw1", "setpoint"), QosKind::command,
       [&](const msg::SawSetpoint& sp, const auto&) {
@@ -240,7 +243,7 @@ TEST(CliWithoutBridge, SetAsksAgainUntilAnswered) {
         msg::SetpointResult r;
         r.request_id(sp.request_id());
         r.accepted(true);
-        results->write(r);
+        answers.write(r);
       }));
   msg::SawStatus online;
   online.health().online(true);
