@@ -16,24 +16,22 @@ namespace {
 class SpdlogConsumer final : public fdds::LogConsumer {
  public:
   void Consume(const fdds::Log::Entry& entry) override {
-    const char* category = entry.context.category != nullptr ? entry.context.category : "?";
-    switch (entry.kind) {
-      case fdds::Log::Kind::Error:
-        if (errors_.allow()) spdlog::error("Fast DDS [{}] {}{}", category, entry.message, held_back_note(errors_));
-        break;
-      case fdds::Log::Kind::Warning:
-        if (warnings_.allow()) spdlog::warn("Fast DDS [{}] {}{}", category, entry.message, held_back_note(warnings_));
-        break;
-      default:
-        if (infos_.allow()) spdlog::debug("Fast DDS [{}] {}{}", category, entry.message, held_back_note(infos_));
-        break;
-    }
+    auto& kind = entry.kind == fdds::Log::Kind::Error     ? errors_
+                 : entry.kind == fdds::Log::Kind::Warning ? warnings_
+                                                          : infos_;
+    if (!kind.rate.allow()) return;
+    spdlog::log(kind.level, "Fast DDS [{}] {}{}", entry.context.category != nullptr ? entry.context.category : "?",
+                entry.message, held_back_note(kind.rate));
   }
 
  private:
-  LogRate errors_{5};
-  LogRate warnings_{5};
-  LogRate infos_{5};
+  struct Kind {
+    spdlog::level::level_enum level;
+    LogRate rate{5};
+  };
+  Kind errors_{spdlog::level::err};
+  Kind warnings_{spdlog::level::warn};
+  Kind infos_{spdlog::level::debug};
 };
 
 }  // namespace
