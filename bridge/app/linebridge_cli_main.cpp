@@ -107,7 +107,7 @@ int main(int argc, char** argv) {
   set_cmd->add_option("--trigger-signal", set.trigger_signal, "feeder: 600Bh by name, e.g. angle_trigger");
   set_cmd->add_option("--picks", set.picks, "feeder: five 600Ch codes, e.g. --picks 0x01 0x02 0x03 0x04 0x05")->expected(5);
   set_cmd->add_option("--outputs", set.outputs, "feeder: 600Dh output groups 1..n (RPDO3), bit k = line k+1")->expected(1, 8);
-  set_cmd->add_option("--timeout", set.timeout_s, "seconds to wait for the bridge")
+  set_cmd->add_option("--timeout", set.timeout_s, "seconds to wait for the bridge's answer (unanswered, the set value is written again every second)")
       ->check(app::positive_at_most(3600))
       ->capture_default_str();
 
@@ -180,7 +180,7 @@ int main(int argc, char** argv) {
 
   for (auto* c : {nmt_cmd, read_cmd, write_cmd, get_cmd, put_cmd, press_cmd, identity_cmd, fcommand_cmd, ftest_cmd,
                   ffunctions_cmd, fassign_cmd, weft_cmd, trigger_cmd}) {
-    c->add_option("--timeout", timeout_s, "seconds to wait for the bridge")
+    c->add_option("--timeout", timeout_s, "seconds to wait for the bridge's answer (unanswered, the request is asked again every second; the bridge runs it once)")
         ->check(app::positive_at_most(3600))
         ->capture_default_str();
   }

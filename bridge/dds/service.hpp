@@ -1,7 +1,10 @@
 #pragma once
 // Request/reply over DDS (Fast DDS 2.9 has no RPC): a request topic and a reply topic per service,
-// ROS 2 style, replies correlated with requests by the request's sample identity.
+// ROS 2 style, replies correlated with requests by the request's sample identity. A client that
+// gets no answer asks again (the same request, naming the first: request_ledger.hpp), and the
+// server answers a repeat with the first answer instead of running the request twice.
 
+#include <algorithm>
 #include <chrono>
 #include <concepts>
 #include <condition_variable>
@@ -14,6 +17,7 @@
 #include <thread>
 
 #include "dds/participant.hpp"
+#include "dds/request_ledger.hpp"
 
 namespace lb::ddsl {
 
@@ -45,10 +49,16 @@ class ServiceServer {
   using Request = typename RequestPS::type;
   using Reply = typename ReplyPS::type;
 
+  using Ledger = RequestLedger<Reply>;
+
   class Responder {
    public:
-    Responder(Writer<ReplyPS> writer, SampleIdentity request) : writer_(writer), request_(request) {}
+    // ledger: where the answer is kept for a repeat of the request (none for an answer that is
+    // itself a repeat or needs no keeping).
+    Responder(Writer<ReplyPS> writer, SampleIdentity request, std::shared_ptr<Ledger> ledger = nullptr)
+        : writer_(writer), request_(request), ledger_(std::move(ledger)) {}
     void operator()(const Reply& reply) const {
+      if (ledger_) ledger_->answered(request_, reply);
       eprosima::fastrtps::rtps::WriteParams params;
       params.related_sample_identity(request_);
       writer_.write(reply, params);
@@ -57,6 +67,7 @@ class ServiceServer {
    private:
     Writer<ReplyPS> writer_;
     SampleIdentity request_;
+    std::shared_ptr<Ledger> ledger_;
   };
   using Handler = std::function<void(const Request&, Responder)>;
 
@@ -65,31 +76,46 @@ class ServiceServer {
   static Result<void> serve(Participant& dds, const std::string& path, Handler handler) {
     auto writer = dds.writer<ReplyPS>(reply_topic(path), QosKind::reply);
     if (!writer) return writer.error();
+    auto ledger = std::make_shared<Ledger>();
     if constexpr (NamesDevice<Request> && Refusable<Reply>) {
-      if (dds.secured()) return serve_by_partition(dds, path, *writer, std::move(handler));
+      if (dds.secured()) return serve_by_partition(dds, path, *writer, std::move(ledger), std::move(handler));
     }
     return dds.subscribe<RequestPS>(request_topic(path), QosKind::command,
-                                    [w = *writer, h = std::move(handler)](const Request& req, const fdds::SampleInfo& info) {
-                                      h(req, Responder(w, info.sample_identity));
+                                    [w = *writer, ledger, h = std::move(handler)](const Request& req, const fdds::SampleInfo& info) {
+                                      dispatch(req, info, w, ledger, h);
                                     });
   }
 
  private:
+  // A request runs once; a repeat gets the first answer, or nothing while the first still runs
+  // (its answer will reach the client: both carry the first request's identity).
+  static void dispatch(const Request& req, const fdds::SampleInfo& info, const Writer<ReplyPS>& w,
+                       const std::shared_ptr<Ledger>& ledger, const Handler& h) {
+    const SampleIdentity request = Ledger::asked_as(info);
+    auto admission = ledger->admit(request);
+    switch (admission.seen) {
+      case Ledger::Seen::first: return h(req, Responder(w, request, ledger));
+      case Ledger::Seen::in_progress: return;
+      case Ledger::Seen::answered: return Responder(w, request)(*admission.answer);
+    }
+  }
+
   // The permissions decide which partitions a client's writer may be in (Fast DDS checks them on
   // both sides at matching); the request's device must be one of them.
-  static Result<void> serve_by_partition(Participant& dds, const std::string& path, Writer<ReplyPS> w, Handler h) {
+  static Result<void> serve_by_partition(Participant& dds, const std::string& path, Writer<ReplyPS> w,
+                                         std::shared_ptr<Ledger> ledger, Handler h) {
     return dds.subscribe_any_partition<RequestPS>(
-        request_topic(path), QosKind::command, [&dds, w, h = std::move(h)](const Request& req, const fdds::SampleInfo& info) {
-          Responder respond(w, info.sample_identity);
+        request_topic(path), QosKind::command,
+        [&dds, w, ledger = std::move(ledger), h = std::move(h)](const Request& req, const fdds::SampleInfo& info) {
           const std::string device = req.device();
           if (!dds.writer_in_partition(info.sample_identity.writer_guid(), device)) {
             Reply refusal;
             refusal.success(false);
             refusal.message("refused: a request for device '" + device + "' is taken only from a writer in the DDS partition '" +
                             device + "' (secured line; the partition must be granted by the requester's permissions)");
-            return respond(refusal);
+            return Responder(w, Ledger::asked_as(info))(refusal);
           }
-          h(req, respond);
+          dispatch(req, info, w, ledger, h);
         });
   }
 };
@@ -122,7 +148,11 @@ class ServiceClient {
   ServiceClient(const ServiceClient&) = delete;
   ServiceClient& operator=(const ServiceClient&) = delete;
 
-  // Waits for the server to be discovered (both directions), sends, waits for the matching reply.
+  // How long call() waits for an answer before it asks again.
+  static constexpr std::chrono::seconds kAskAgainAfter{1};
+
+  // Waits for the server to be discovered (both directions), sends, waits for the matching reply,
+  // asking again every kAskAgainAfter (the server runs the request once and answers each time).
   Result<Reply> call(const Request& request, std::chrono::milliseconds timeout) {
     const auto deadline = std::chrono::steady_clock::now() + timeout;
     std::string partition;
@@ -138,9 +168,17 @@ class ServiceClient {
     eprosima::fastrtps::rtps::WriteParams params;
     if (!writer->write(request, params)) return make_error("cannot send the request on " + request_topic(path_));
     const SampleIdentity id = params.sample_identity();
+    const auto answered = [&] { return replies_.count(id) != 0; };
     std::unique_lock lock(mutex_);
-    if (!cv_.wait_until(lock, deadline, [&] { return replies_.count(id) != 0; })) {
-      return make_error("no reply on " + reply_topic(path_) + " within " + std::to_string(timeout.count()) + " ms");
+    while (!cv_.wait_until(lock, std::min(deadline, std::chrono::steady_clock::now() + kAskAgainAfter), answered)) {
+      if (std::chrono::steady_clock::now() >= deadline) {
+        return make_error("no reply on " + reply_topic(path_) + " within " + std::to_string(timeout.count()) + " ms");
+      }
+      lock.unlock();  // received() takes the lock on a Fast DDS thread, and a write may wait
+      eprosima::fastrtps::rtps::WriteParams again;
+      again.related_sample_identity(id);
+      writer->write(request, again);  // refused: the next turn asks again
+      lock.lock();
     }
     Reply reply = std::move(replies_.at(id));
     replies_.erase(id);

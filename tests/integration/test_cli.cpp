@@ -13,6 +13,7 @@
 #include <mutex>
 #include <thread>
 
+#include "msgs/commonPubSubTypes.h"
 #include "msgs/corrugatorPubSubTypes.h"
 #include "msgs/feederPubSubTypes.h"
 #include "msgs/pullerPubSubTypes.h"
@@ -21,6 +22,7 @@
 #include "support/run_command.hpp"
 
 namespace msg = linebridge_msgs::msg;
+namespace srv = linebridge_msgs::srv;
 using namespace std::chrono_literals;
 using lb::ddsl::QosKind;
 using Clock = std::chrono::steady_clock;
@@ -257,4 +259,57 @@ TEST(CliWithoutBridge, SetAsksAgainUntilAnswered) {
   ASSERT_EQ(seen.size(), 1u) << "every write of one set value carries its request id";
   EXPECT_EQ(seen.begin()->second, 2) << "asked again once, after the first answer did not come";
   EXPECT_DOUBLE_EQ(speed, 40.0);
+}
+
+// The same for a service call: `press` (and every other service call) asks again every second,
+// naming its first request by sample identity, so the bridge answers the repeat from its first
+// answer instead of pressing twice (tests/integration/test_service_repeat.cpp shows that side).
+// The responder stands in for a bridge whose first answer was lost: it answers only a repeat,
+// and answers it as the bridge does, to the first request.
+TEST(CliWithoutBridge, ServiceCallAsksAgainNamingTheFirstRequest) {
+  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
+  const std::string config = ::testing::TempDir() + "/cli_askagain_svc_" + std::to_string(::getpid()) + ".yaml";
+  std::ofstream(config) << "line: askagainsvc\ndds: {domain: 37}\nbuses:\n  - {name: b, interface: 'virtual:askagainsvc'}\n"
+                           "devices:\n  - {name: saw1, bus: b, node_id: 3, profile: cia420-4, version: '3.1'}\n";
+  using eprosima::fastrtps::rtps::SampleIdentity;
+  struct Seen {
+    SampleIdentity self, related;
+    std::string device, command;
+  };
+  std::mutex m;
+  std::vector<Seen> seen;
+  lb::ddsl::Writer<srv::Command_ResponsePubSubType> answers;
+  auto dds = lb::ddsl::Participant::create({37, true, "askagain-service-responder"});
+  ASSERT_TRUE(dds) << dds.error().message;
+  auto& p = **dds;
+  const auto path = lb::ddsl::line_service_path("askagainsvc", "command");
+  auto replies = p.writer<srv::Command_ResponsePubSubType>(lb::ddsl::reply_topic(path), QosKind::reply);
+  ASSERT_TRUE(replies);
+  answers = *replies;
+  ASSERT_TRUE(p.subscribe<srv::Command_RequestPubSubType>(
+      lb::ddsl::request_topic(path), QosKind::command, [&](const srv::Command_Request& rq, const lb::ddsl::fdds::SampleInfo& info) {
+        {
+          std::lock_guard lock(m);
+          seen.push_back({info.sample_identity, info.related_sample_identity, rq.device(), rq.command()});
+        }
+        if (info.related_sample_identity == SampleIdentity::unknown()) return;  // the first answer "lost"
+        srv::Command_Response r;
+        r.success(true);
+        r.frames(6);
+        r.held_ms(120.0);
+        eprosima::fastrtps::rtps::WriteParams params;
+        params.related_sample_identity(info.related_sample_identity);
+        answers.write(r, params);
+      }));
+
+  const auto r = run_cli({"press", "saw1", "manual_cut", "--timeout", "8", "--config", config});
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(has(r, "manual_cut: on the bus in 6 RPDO(s) over 120.0 ms")) << r.output;
+  std::lock_guard lock(m);
+  ASSERT_EQ(seen.size(), 2u) << "asked again once, after the first answer did not come";
+  EXPECT_EQ(seen[0].related, SampleIdentity::unknown()) << "the first request names none";
+  EXPECT_EQ(seen[1].related, seen[0].self) << "the repeat names the first request";
+  EXPECT_NE(seen[1].self, seen[0].self);
+  EXPECT_EQ(seen[1].device, "saw1");
+  EXPECT_EQ(seen[1].command, "manual_cut");
 }

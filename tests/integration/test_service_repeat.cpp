@@ -1,0 +1,126 @@
+// A service request asked again runs once (the real bridge, simulator and bus): a client whose
+// answer is lost writes the same request again, naming the first by its sample identity as
+// related sample identity (README "Requests written faster than read"). The bridge must answer
+// the repeat with the first answer and must not press a momentary command a second time: what is
+// checked is the saw's RPDO1 on the bus (runs of frames with the manual-cut bit), not a counter.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <condition_variable>
+#include <map>
+#include <mutex>
+#include <thread>
+#include <vector>
+
+#include "msgs/commonPubSubTypes.h"
+#include "msgs/sawPubSubTypes.h"
+#include "support/line_harness.hpp"
+
+namespace msg = linebridge_msgs::msg;
+namespace srv = linebridge_msgs::srv;
+using namespace std::chrono_literals;
+using lb::ddsl::QosKind;
+using eprosima::fastrtps::rtps::SampleIdentity;
+using eprosima::fastrtps::rtps::WriteParams;
+
+namespace {
+
+constexpr unsigned kManualCutBit = 3;  // saw control word 6040h (profile-decisions.md, saw 1.0 order)
+
+// Separate runs of RPDO1 frames of the node with the bit set: one per press.
+unsigned presses(lb::test::BusSpy& spy, std::uint8_t node, unsigned bit) {
+  unsigned runs = 0;
+  bool in = false;
+  for (const auto& f : spy.frames(0x200u + node)) {
+    const bool on = f.len >= 2 && ((f.data[0] | f.data[1] << 8) >> bit & 1U) != 0;
+    if (on && !in) ++runs;
+    in = on;
+  }
+  return runs;
+}
+
+// The command service's replies as they arrive, by the request they answer.
+struct Replies {
+  std::mutex m;
+  std::condition_variable cv;
+  std::map<SampleIdentity, std::vector<srv::Command_Response>> by_request;
+
+  bool wait_for(const SampleIdentity& request, std::size_t count, std::chrono::milliseconds timeout) {
+    std::unique_lock lock(m);
+    return cv.wait_for(lock, timeout, [&] { return by_request[request].size() >= count; });
+  }
+  std::vector<srv::Command_Response> of(const SampleIdentity& request) {
+    std::lock_guard lock(m);
+    return by_request[request];
+  }
+};
+
+}  // namespace
+
+TEST(ServiceRepeat, ACommandAskedAgainIsPressedOnceAndAnsweredWithTheFirstAnswer) {
+  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
+  lb::test::LineHarness line("repeat", 36);
+  line.start("  - {name: saw1, bus: b, node_id: 3, profile: cia420-4, version: '3.1', heartbeat_timeout_ms: 1000}\n");
+  lb::test::Collector<msg::SawStatusPubSubType> saw;
+  ASSERT_TRUE(saw.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
+  ASSERT_TRUE(saw.wait_last(30s, [](const msg::SawStatus& s) {
+    return s.health().online() && s.health().nmt_state() == msg::NMT_OPERATIONAL;
+  })) << line.logs();
+
+  // A raw client: the request writer and the reply reader of the line-wide command service.
+  const auto path = lb::ddsl::line_service_path(line.line(), "command");
+  Replies replies;  // declared before the subscription's participant is used: outlives its callbacks
+  ASSERT_TRUE(line.dds().subscribe<srv::Command_ResponsePubSubType>(
+      lb::ddsl::reply_topic(path), QosKind::reply, [&](const srv::Command_Response& r, const auto& info) {
+        {
+          std::lock_guard lock(replies.m);
+          replies.by_request[info.related_sample_identity].push_back(r);
+        }
+        replies.cv.notify_all();
+      }));
+  auto requests = line.dds().writer<srv::Command_RequestPubSubType>(lb::ddsl::request_topic(path), QosKind::command);
+  ASSERT_TRUE(requests);
+  const auto deadline = std::chrono::steady_clock::now() + 20s;
+  while ((requests->matched() == 0 || line.dds().matched_writers(lb::ddsl::reply_topic(path)) == 0) &&
+         std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(10ms);
+  }
+  ASSERT_GT(requests->matched(), 0) << line.logs();
+
+  srv::Command_Request cut;
+  cut.device("saw1");
+  cut.command("manual_cut");
+  WriteParams first_params;
+  ASSERT_TRUE(requests->write(cut, first_params));
+  const SampleIdentity first = first_params.sample_identity();
+  const auto ask_again = [&] {
+    WriteParams again;
+    again.related_sample_identity(first);
+    ASSERT_TRUE(requests->write(cut, again));
+    EXPECT_NE(again.sample_identity(), first) << "a repeat is a sample of its own";
+  };
+  ask_again();  // at once: the first is still being pressed (at least 100 ms)
+  ASSERT_TRUE(replies.wait_for(first, 1, 10s)) << line.logs();
+  const std::size_t before = replies.of(first).size();
+  ask_again();  // after its answer: as a client whose answer was lost does
+  ASSERT_TRUE(replies.wait_for(first, before + 1, 10s)) << "the repeat is answered, to the first request\n" << line.logs();
+
+  const auto answers = replies.of(first);
+  ASSERT_GE(answers.size(), 2u);
+  EXPECT_TRUE(answers.front().success()) << answers.front().message();
+  EXPECT_GE(answers.front().held_ms(), 100.0);
+  for (const auto& a : answers) {
+    EXPECT_EQ(a.success(), answers.front().success());
+    EXPECT_EQ(a.frames(), answers.front().frames()) << "the first answer, not a second press's";
+    EXPECT_EQ(a.held_ms(), answers.front().held_ms()) << "the first answer, not a second press's";
+    EXPECT_EQ(a.message(), answers.front().message());
+  }
+
+  // A new request (no related identity) is pressed again: the count below sees a second press.
+  WriteParams next_params;
+  ASSERT_TRUE(requests->write(cut, next_params));
+  ASSERT_TRUE(replies.wait_for(next_params.sample_identity(), 1, 10s)) << line.logs();
+  EXPECT_TRUE(replies.of(next_params.sample_identity()).front().success());
+  std::this_thread::sleep_for(300ms);  // the bit's clearing frame reaches the spy
+  EXPECT_EQ(presses(line.spy(), 3, kManualCutBit), 2u) << "one press per request, none per repeat";
+}
