@@ -105,6 +105,7 @@ TEST(SiteConfig, BadDdsKeysAreRefusedWithTheirPlace) {
 
 TEST(SiteConfig, ProfilesDirLoadsFilesOverTheBuiltInOnes) {
   const auto dir = temp_path("profiles.d");
+  std::filesystem::remove_all(dir);  // an earlier run under the same pid left its broken.yaml there
   std::filesystem::create_directories(dir);
   // A copy of the built-in saw 3.1 under another version, and one that replaces saw 1.0.
   std::ifstream in(std::string(LB_SOURCE_DIR) + "/config/profiles/cia420-4-saw-3.1.yaml");
