@@ -12,6 +12,7 @@
 #include <thread>
 
 #include "app/cli_exit.hpp"
+#include "dds/service.hpp"
 #include "dds/topic_names.hpp"
 #include "msgs/commonPubSubTypes.h"
 #include "msgs/corrugatorPubSubTypes.h"
@@ -49,9 +50,6 @@ class Mailbox {
   std::condition_variable cv_;
   std::optional<T> value_;
 };
-
-// How long an unanswered set value waits before it is written again (see send_set_value).
-constexpr Clock::duration kAskAgainAfter = std::chrono::seconds(1);
 
 bool wait_until(Clock::duration timeout, const std::function<bool()>& cond) {
   const auto end = Clock::now() + timeout;
@@ -113,7 +111,7 @@ int send_set_value(ddsl::Participant& dds, const std::string& line, const std::s
   std::optional<msg::SetpointResult> reply;
   while (!reply && Clock::now() < give_up) {
     writer->write(sp);
-    const auto wait = std::min<Clock::duration>(kAskAgainAfter, give_up - Clock::now());
+    const auto wait = std::min<Clock::duration>(ddsl::kAskAgainAfter, give_up - Clock::now());
     reply = result.wait(wait, [](const msg::SetpointResult&) { return true; });  // only ours are put there
   }
   if (!reply) return fmt::print(stderr, "{}: no answer from the bridge within {} s\n", device, o.timeout_s), kExitNoAnswer;

@@ -25,6 +25,10 @@ using SampleIdentity = eprosima::fastrtps::rtps::SampleIdentity;
 
 // How a request's handler answers when it is not the server itself (a router hands requests on
 // to per-device handlers): called once, from any thread. A ServiceServer's Responder converts.
+// How long a client waits for an answer before it asks again (a service call, naming its first
+// request; a set value, with the same request_id): Fast DDS 2.9.1 can lose an answer.
+inline constexpr std::chrono::seconds kAskAgainAfter{1};
+
 template <class Reply>
 using Respond = std::function<void(const Reply&)>;
 
@@ -147,9 +151,6 @@ class ServiceClient {
   }
   ServiceClient(const ServiceClient&) = delete;
   ServiceClient& operator=(const ServiceClient&) = delete;
-
-  // How long call() waits for an answer before it asks again.
-  static constexpr std::chrono::seconds kAskAgainAfter{1};
 
   // Waits for the server to be discovered (both directions), sends, waits for the matching reply,
   // asking again every kAskAgainAfter (the server runs the request once and answers each time).
