@@ -3,7 +3,9 @@
 // and how far each period is from the nominal one; the same from the times this meter read them. Optionally it is also a device that floods the bus with EMCYs (an EMCY burst, as a
 // device with a loose contact sends them), so that the bridge has events to publish while a reader
 // of them is frozen, and a source of hostile frames (any identifier, 11 or 29 bits, any length,
-// remote requests, random data). Prints key=value lines; the periods go to --out.
+// remote requests, random data). With --sentinel-cpu, a host-stall sentinel (stall_sentinel.hpp)
+// runs on the bridge's core meanwhile, and the figures come twice: over every period, and over the
+// periods whose SYNCs no host stall touched. Prints key=value lines; the periods go to --out.
 #include <CLI/CLI.hpp>
 #include <fmt/format.h>
 #include <poll.h>
@@ -13,11 +15,13 @@
 #include <cmath>
 #include <cstdio>
 #include <fstream>
+#include <optional>
 #include <vector>
 
 #include "can/bus.hpp"
 #include "clock.hpp"
 #include "names.hpp"
+#include "stall_sentinel.hpp"
 
 namespace bench = lb::bench;
 
@@ -41,6 +45,7 @@ int main(int argc, char** argv) {
   int emcy_devices = 30;
   double hostile_rate = 0;
   std::string out;
+  bench::SentinelOptions sentinel_options;
   cli.add_option("--bus", uri, "virtual:<name>")->required();
   cli.add_option("--hostile-rate", hostile_rate, "random frames per second (0: none)")->capture_default_str();
   cli.add_option("--duration", duration_s, "seconds to measure")->check(CLI::Range(1.0, 7200.0))->capture_default_str();
@@ -49,7 +54,8 @@ int main(int argc, char** argv) {
   cli.add_option("--emcy-devices", emcy_devices, "devices (bench node-IDs) the EMCYs come from")
       ->check(CLI::Range(1, bench::kMaxDevicesPerBus))
       ->capture_default_str();
-  cli.add_option("--out", out, "file for the periods (us), one per line");
+  cli.add_option("--out", out, "file for the periods: one per line, its length (us), 1 if a host stall touched it (else 0), its closing SYNC's stamp (ns, CLOCK_REALTIME)");
+  sentinel_options.add_to(cli, "the bridge");
   CLI11_PARSE(cli, argc, argv);
 
   auto bus = lb::can::open_bus(uri);
@@ -62,6 +68,8 @@ int main(int argc, char** argv) {
   std::vector<std::int64_t> syncs, read_at;
   syncs.reserve(static_cast<std::size_t>(duration_s * 1e6 / period_us * 1.2) + 16);
   read_at.reserve(syncs.capacity());
+  std::optional<bench::StallSentinel> sentinel;
+  if (!sentinel_options.start(sentinel, "bench-sync-jitter")) return 1;
   const auto start = bench::monotonic_ns();
   const auto end = start + static_cast<std::int64_t>(duration_s * 1e9);
   const double emcy_period_ns = emcy_rate > 0 ? 1e9 / emcy_rate : 0;
@@ -118,16 +126,40 @@ int main(int argc, char** argv) {
       }
     }
   }
-  std::vector<double> periods, deviation, read_deviation;
+  const std::vector<bench::HostStall> no_stalls;
+  const auto& stalls = sentinel ? sentinel->stop() : no_stalls;
+  const auto window_ns = sentinel_options.window_ns();
+  std::vector<double> periods, deviation, read_deviation, clean_deviation;
+  std::vector<bool> touched;
   for (std::size_t i = 1; i < syncs.size(); ++i) {
     const double us = static_cast<double>(syncs[i] - syncs[i - 1]) / 1e3;
     periods.push_back(us);
     deviation.push_back(std::abs(us - period_us));
     read_deviation.push_back(std::abs(static_cast<double>(read_at[i] - read_at[i - 1]) / 1e3 - period_us));
+    // A period is as late as its end and as early as its start is late: a stall at either SYNC counts.
+    touched.push_back(bench::stalled(stalls, syncs[i - 1], window_ns) || bench::stalled(stalls, syncs[i], window_ns));
+    if (!touched.back()) clean_deviation.push_back(deviation.back());
   }
   if (!out.empty()) {
     std::ofstream o(out);
-    for (double p : periods) o << fmt::format("{:.1f}\n", p);
+    for (std::size_t i = 0; i < periods.size(); ++i) {
+      o << fmt::format("{:.1f} {} {}\n", periods[i], touched[i] ? 1 : 0, syncs[i + 1]);
+    }
+  }
+  std::int64_t stalled_ns = 0, longest_stall_ns = 0;
+  for (const auto& st : stalls) {
+    stalled_ns += st.end_ns - st.begin_ns;
+    longest_stall_ns = std::max(longest_stall_ns, st.end_ns - st.begin_ns);
+  }
+  if (sentinel) {
+    std::fputs(fmt::format("jitter_host_stalls={}\njitter_host_stalled_ms={:.1f}\njitter_host_longest_stall_us={:.1f}\n"
+                           "jitter_clean_periods={}\njitter_clean_p50_us={:.1f}\njitter_clean_p99_us={:.1f}\n"
+                           "jitter_clean_p999_us={:.1f}\njitter_clean_max_us={:.1f}\n",
+                           stalls.size(), static_cast<double>(stalled_ns) / 1e6, static_cast<double>(longest_stall_ns) / 1e3,
+                           clean_deviation.size(), percentile(clean_deviation, 50), percentile(clean_deviation, 99),
+                           percentile(clean_deviation, 99.9), percentile(clean_deviation, 100))
+                   .c_str(),
+               stdout);
   }
   const double expected = duration_s * 1e6 / period_us;
   std::fputs(fmt::format("jitter_syncs={}\njitter_expected_syncs={:.0f}\njitter_p50_us={:.1f}\njitter_p99_us={:.1f}\n"

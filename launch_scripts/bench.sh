@@ -24,6 +24,10 @@
 #   --jitter-rate N  frames/s of the saws' TPDOs in the jitter figure (default: full load, 8000)
 #   --realtime-priority N  jitter and soak: the bridge's bus loop runs SCHED_FIFO at N (the bus key
 #                    realtime_priority:), the floor's timer too (chrt -f N); default 0: normal
+#   --keep-awake     jitter: a SCHED_IDLE busy loop on the bridge's core, so that the core never
+#                    halts between wake-ups (what idle=poll or /dev/cpu_dma_latency do on a line
+#                    PC: a halted virtual CPU can wake milliseconds late); it runs only when
+#                    nothing else wants the core
 #   --profile        record the bridge with perf (call graphs) during every throughput step;
 #                    perf.data and a report per step in the output directory
 #
@@ -46,6 +50,9 @@
 #               subscriber that freezes (SIGSTOP: it neither reads nor acknowledges); recording to
 #               a slow disk (a FIFO drained at 16 KiB/s). Beside them the floor: a bare periodic
 #               timer on the bridge's core (bench-timer-floor), how steady this machine can be at all.
+#               Every figure also between host stalls: a sentinel thread on the bridge's core, one
+#               realtime priority above it, marks where the host did not run that core at all
+#               (bench/stall_sentinel.hpp); the periods those stalls touched are left out there.
 #   soak        resident memory and open file descriptors of the bridge sampled every 10 s during a
 #               flood (full load, EMCY burst, hostile frames on every identifier, and three
 #               applications calling services back to back plus two writing set values as fast as
@@ -57,7 +64,7 @@
 #               discovery, liveliness, metadata and data ENCRYPT) against the same line unsecured.
 set -euo pipefail
 
-usage() { sed -n '2,40p' "$0" | sed 's/^# \{0,1\}//'; exit 2; }
+usage() { sed -n '2,/^set -euo/p' "$0" | grep '^#' | sed 's/^# \{0,1\}//'; exit 2; }
 
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 orig_args=("$@")
@@ -73,6 +80,7 @@ niceness=0
 profile=0
 jitter_rate=""
 rt_priority=0
+keep_awake=0
 report_only=0
 while (($#)); do
   case "$1" in
@@ -88,6 +96,7 @@ while (($#)); do
     --profile) profile=1 ;;
     --jitter-rate) jitter_rate=${2:?}; shift ;;
     --realtime-priority) rt_priority=${2:?}; shift ;;
+    --keep-awake) keep_awake=1 ;;
     --report-only) report_only=1; do_build=0 ;;
     -h|--help) usage ;;
     *) echo "bench.sh: unknown argument $1" >&2; usage ;;
@@ -96,6 +105,7 @@ while (($#)); do
 done
 [[ $runs =~ ^[1-9][0-9]*$ ]] || { echo "bench.sh: --runs takes a positive number" >&2; exit 2; }
 [[ $rt_priority =~ ^[0-9]+$ ]] && ((rt_priority <= 99)) || { echo "bench.sh: --realtime-priority takes 0..99" >&2; exit 2; }
+((!keep_awake || pin)) || { echo "bench.sh: --keep-awake keeps the bridge's core awake: it needs pinning (no --no-pin)" >&2; exit 2; }
 for f in ${only//,/ }; do
   [[ $f =~ ^(can2dds|dds2can|throughput|memory|startup|security|jitter|soak)$ ]] || { echo "bench.sh: unknown figure $f" >&2; exit 2; }
 done
@@ -151,6 +161,9 @@ if ((pin)) && ((cores >= 2)); then
   pin_cmd=(taskset -c $((cores - 1)))
   harness_cmd=(taskset -c 0-$((cores - 2)))
 fi
+# The jitter figure's host-stall sentinel (bench/stall_sentinel.hpp): on the bridge's core, one
+# realtime priority above the bridge's loop (or the floor's timer).
+sentinel_args=(--sentinel-cpu $((cores - 1)) --sentinel-priority $((rt_priority + 1)))
 clk_tck=$(getconf CLK_TCK)
 mkdir -p "$out_dir"
 commands="$out_dir/commands.txt"
@@ -620,8 +633,8 @@ while f.read(1024): time.sleep(1/16)" "$d/record.fifo"
   touch "$d/go"
   sleep 2
   "${harness_cmd[@]}" "$bin/bench-sync-jitter" --bus "virtual:$prefix-0" --duration $jitter_s \
-    --emcy-rate $emcy --emcy-devices $devices --out "$d/periods" >"$d/meter.out" 2>"$d/meter.err" || true
-  printf '%s\n' "$bin/bench-sync-jitter --bus virtual:$prefix-0 --duration $jitter_s --emcy-rate $emcy --emcy-devices $devices --out $d/periods" >>"$commands"
+    --emcy-rate $emcy --emcy-devices $devices --out "$d/periods" "${sentinel_args[@]}" >"$d/meter.out" 2>"$d/meter.err" || true
+  printf '%s\n' "$bin/bench-sync-jitter --bus virtual:$prefix-0 --duration $jitter_s --emcy-rate $emcy --emcy-devices $devices --out $d/periods ${sentinel_args[*]}" >>"$commands"
   [ -z "$reader" ] || { kill -KILL "$reader" 2>/dev/null || true; finish "$reader" || true; }
   echo "bridge_alive=$(kill -0 $bridge 2>/dev/null && echo 1 || echo 0)" >>"$d/meter.out"
   stop $bridge
@@ -630,30 +643,43 @@ while f.read(1024): time.sleep(1/16)" "$d/record.fifo"
 }
 
 fig_jitter() {  # RUN
-  local d="$out_dir/jitter/run$1" scenario
+  local d="$out_dir/jitter/run$1" scenario awake=""
   mkdir -p "$d"
   vals="$d/values"; : >"$vals"
+  if ((keep_awake)); then
+    start "$d/awake" "${pin_cmd[@]}" chrt -i 0 sh -c 'while :; do :; done'
+    awake=$pid
+  fi
   # The floor: how late this machine wakes a bare periodic timer on the bridge's core.
   echo "jitter: timer floor" >&2
   local floor_cmd=("${pin_cmd[@]}")
   ((rt_priority == 0)) || floor_cmd+=(chrt -f $rt_priority)
-  "${floor_cmd[@]}" "$bin/bench-timer-floor" --duration $jitter_s >"$d/floor.out"
-  printf '%s\n' "${floor_cmd[*]} $bin/bench-timer-floor --duration $jitter_s" >>"$commands"
-  for k in wakeups p50_us p99_us p999_us max_us; do echo "jitter_floor_$k=$(get "$d/floor.out" floor_$k)" >>"$vals"; done
+  "${floor_cmd[@]}" "$bin/bench-timer-floor" --duration $jitter_s "${sentinel_args[@]}" >"$d/floor.out"
+  printf '%s\n' "${floor_cmd[*]} $bin/bench-timer-floor --duration $jitter_s ${sentinel_args[*]}" >>"$commands"
+  for k in wakeups p50_us p99_us p999_us max_us host_stalls clean_wakeups clean_p50_us clean_p99_us clean_p999_us clean_max_us; do
+    echo "jitter_floor_$k=$(get "$d/floor.out" floor_$k)" >>"$vals"
+  done
   for scenario in idle quiet frozen record; do
     echo "jitter: $scenario" >&2
     jitter_step "$d/$scenario" $scenario
-    for k in syncs expected_syncs p50_us p99_us p999_us max_us longest_period_us emcy_sent read_p50_us read_p99_us read_p999_us read_max_us; do
+    for k in syncs expected_syncs p50_us p99_us p999_us max_us longest_period_us emcy_sent read_p50_us read_p99_us read_p999_us read_max_us \
+      host_stalls host_stalled_ms host_longest_stall_us clean_periods clean_p50_us clean_p99_us clean_p999_us clean_max_us; do
       echo "jitter_${scenario}_$k=$(get "$d/$scenario/meter.out" jitter_$k)" >>"$vals"
     done
     echo "jitter_${scenario}_bridge_alive=$(get "$d/$scenario/meter.out" bridge_alive)" >>"$vals"
   done
-  for scenario in quiet frozen record; do
-    echo "jitter_${scenario}_p999_over_idle_us=$(awk -v a="$(get "$vals" jitter_${scenario}_p999_us)" -v b="$(get "$vals" jitter_idle_p999_us)" 'BEGIN { printf "%.1f", a - b }')" >>"$vals"
+  # p99.9 over a baseline, over all periods and between host stalls: each loaded scenario over the
+  # idle bus (the unloaded figure), and the burdens over the same load alone.
+  local base kind
+  for base in "idle:quiet frozen record" "quiet:frozen record"; do
+    for kind in "" clean_; do
+      for scenario in ${base#*:}; do
+        echo "jitter_${scenario}_${kind}p999_over_${base%%:*}_us=$(awk -v a="$(get "$vals" jitter_${scenario}_${kind}p999_us)" \
+          -v b="$(get "$vals" jitter_${base%%:*}_${kind}p999_us)" 'BEGIN { printf "%.1f", a - b }')" >>"$vals"
+      done
+    done
   done
-  for scenario in frozen record; do
-    echo "jitter_${scenario}_p999_over_quiet_us=$(awk -v a="$(get "$vals" jitter_${scenario}_p999_us)" -v b="$(get "$vals" jitter_quiet_p999_us)" 'BEGIN { printf "%.1f", a - b }')" >>"$vals"
-  done
+  [ -z "$awake" ] || stop $awake
 }
 
 # A flood for the soak: full load from the injector, an EMCY burst, and frames on every 11-bit
@@ -780,9 +806,11 @@ verdict() {  # VALUE OP LIMIT
 }
 
 table="$out_dir/table.md"
-nice_flag=""
-[ "$niceness" = 0 ] || nice_flag=" --nice $niceness"
-cmd() { echo "launch_scripts/bench.sh --only $1$quick_flag --runs $runs$nice_flag"; }
+run_flags=""
+[ "$niceness" = 0 ] || run_flags=" --nice $niceness"
+((rt_priority == 0)) || run_flags+=" --realtime-priority $rt_priority"
+((!keep_awake)) || run_flags+=" --keep-awake"
+cmd() { echo "launch_scripts/bench.sh --only $1$quick_flag --runs $runs$run_flags"; }
 {
   echo "| figure | value | target | result | reproduce |"
   echo "| --- | --- | --- | --- | --- |"
@@ -839,6 +867,14 @@ cmd() { echo "launch_scripts/bench.sh --only $1$quick_flag --runs $runs$nice_fla
     echo "| SYNC jitter p99.9 under load alone / frozen subscriber / slow disk, over the unloaded figure (µs) | $(stat jitter jitter_quiet_p999_over_idle_us) / $(stat jitter jitter_frozen_p999_over_idle_us) / $(stat jitter jitter_record_p999_over_idle_us) | <= 200 each | quiet $(verdict "$(median jitter jitter_quiet_p999_over_idle_us)" "<=" 200), frozen $(verdict "$(median jitter jitter_frozen_p999_over_idle_us)" "<=" 200), disk $(verdict "$(median jitter jitter_record_p999_over_idle_us)" "<=" 200) | \`$(cmd jitter)\` |"
     echo "| SYNC jitter p99.9 with a frozen subscriber, over the same alone (µs) | $(stat jitter jitter_frozen_p999_over_quiet_us) | <= 200 | $(verdict "$(median jitter jitter_frozen_p999_over_quiet_us)" "<=" 200) | \`$(cmd jitter)\` |"
     echo "| SYNC jitter p99.9 recording to a slow disk, over the same alone (µs) | $(stat jitter jitter_record_p999_over_quiet_us) | <= 200 | $(verdict "$(median jitter jitter_record_p999_over_quiet_us)" "<=" 200) | \`$(cmd jitter)\` |"
+    echo "| **Between host stalls** (a sentinel one priority above, on the bridge's core, woke > 500 µs late: periods whose SYNCs came within 2 ms after such a stall left out): | | | | |"
+    echo "| Floor between host stalls: p50 / p99 / p99.9 / max (µs); host stalls seen; wake-ups kept / all | $(stat jitter jitter_floor_clean_p50_us) / $(stat jitter jitter_floor_clean_p99_us) / $(stat jitter jitter_floor_clean_p999_us) / $(stat jitter jitter_floor_clean_max_us); $(stat jitter jitter_floor_host_stalls); $(stat jitter jitter_floor_clean_wakeups) / $(stat jitter jitter_floor_wakeups) | | | \`$(cmd jitter)\` |"
+    for sc in "idle:no load" "quiet:full load alone" "frozen:full load, frozen subscriber" "record:full load, slow disk"; do
+      k=${sc%%:*}
+      echo "| SYNC jitter between host stalls, ${sc#*:}: p50 / p99 / p99.9 / max (µs); host stalls seen (stalled ms, longest µs); periods kept | $(stat jitter jitter_${k}_clean_p50_us) / $(stat jitter jitter_${k}_clean_p99_us) / $(stat jitter jitter_${k}_clean_p999_us) / $(stat jitter jitter_${k}_clean_max_us); $(stat jitter jitter_${k}_host_stalls) ($(stat jitter jitter_${k}_host_stalled_ms), $(stat jitter jitter_${k}_host_longest_stall_us)); $(stat jitter jitter_${k}_clean_periods) | | | \`$(cmd jitter)\` |"
+    done
+    echo "| SYNC jitter p99.9 between host stalls under load alone / frozen subscriber / slow disk, over the unloaded figure (µs) | $(stat jitter jitter_quiet_clean_p999_over_idle_us) / $(stat jitter jitter_frozen_clean_p999_over_idle_us) / $(stat jitter jitter_record_clean_p999_over_idle_us) | <= 200 each | quiet $(verdict "$(median jitter jitter_quiet_clean_p999_over_idle_us)" "<=" 200), frozen $(verdict "$(median jitter jitter_frozen_clean_p999_over_idle_us)" "<=" 200), disk $(verdict "$(median jitter jitter_record_clean_p999_over_idle_us)" "<=" 200) | \`$(cmd jitter)\` |"
+    echo "| SYNC jitter p99.9 between host stalls, frozen subscriber / slow disk over the same alone (µs) | $(stat jitter jitter_frozen_clean_p999_over_quiet_us) / $(stat jitter jitter_record_clean_p999_over_quiet_us) | <= 200 each | frozen $(verdict "$(median jitter jitter_frozen_clean_p999_over_quiet_us)" "<=" 200), disk $(verdict "$(median jitter jitter_record_clean_p999_over_quiet_us)" "<=" 200) | \`$(cmd jitter)\` |"
   fi
   if want soak; then
     echo "| Soak, $soak_s s flood (full load, 1000 EMCY/s, 1000 hostile frames/s): VmRSS start / end / max (MiB) | $(stat soak soak_rss_start_mib) / $(stat soak soak_rss_end_mib) / $(stat soak soak_rss_max_mib) | flat | | \`$(cmd soak)\` |"
