@@ -3,9 +3,12 @@
 // kernel) now and then keeps a core from running anything for a millisecond or more; on such a host
 // those stalls, not the program measured, set every p99.9. The sentinel tells them apart the way
 // cyclictest and hwlatdetect do: a thread on the measured core, at a realtime priority above the
-// program measured, wakes every millisecond and does nothing else. Nothing at a lower priority can
-// make it late, so when it wakes late the core was not running user space at all: a host stall.
-// The figures report every period, and beside them the periods no host stall touched.
+// program measured, wakes every millisecond and does nothing else. No user-space code at a lower
+// priority can make it late, so when it wakes late the core was taken by the hypervisor, by
+// interrupts or by kernel code that could not be preempted (PREEMPT_NONE: also a long system call
+// of another thread on that core): a host stall. At the default threshold (500 µs) it sees every
+// stall of 1.5 ms or more (one of its ticks falls in it and waits longer than the threshold), and
+// a shorter one only when a tick falls early in it. The figures report every period, and beside them the periods no host stall touched.
 
 #include <CLI/CLI.hpp>
 #include <pthread.h>
@@ -14,9 +17,9 @@
 
 #include <algorithm>
 #include <atomic>
-#include <optional>
 #include <cstdint>
 #include <cstdio>
+#include <optional>
 #include <span>
 #include <stdexcept>
 #include <string>
