@@ -8,7 +8,8 @@
 // interrupts or by kernel code that could not be preempted (PREEMPT_NONE: also a long system call
 // of another thread on that core): a host stall. At the default threshold (500 µs) it sees every
 // stall of 1.5 ms or more (one of its ticks falls in it and waits longer than the threshold), and
-// a shorter one only when a tick falls early in it. The figures report every period, and beside them the periods no host stall touched.
+// a shorter one only when a tick falls early in it. The figures report every period, and beside
+// them the periods no host stall touched.
 
 #include <CLI/CLI.hpp>
 #include <pthread.h>

@@ -20,6 +20,7 @@
 
 #include "can/bus.hpp"
 #include "clock.hpp"
+#include "latencies.hpp"
 #include "names.hpp"
 #include "stall_sentinel.hpp"
 
@@ -129,7 +130,8 @@ int main(int argc, char** argv) {
   const std::vector<bench::HostStall> no_stalls;
   const auto& stalls = sentinel ? sentinel->stop() : no_stalls;
   const auto window_ns = sentinel_options.window_ns();
-  std::vector<double> periods, deviation, read_deviation, clean_deviation;
+  std::vector<double> periods, deviation, read_deviation;
+  std::vector<std::int64_t> clean_deviation_ns;
   std::vector<bool> touched;
   for (std::size_t i = 1; i < syncs.size(); ++i) {
     const double us = static_cast<double>(syncs[i] - syncs[i - 1]) / 1e3;
@@ -138,7 +140,9 @@ int main(int argc, char** argv) {
     read_deviation.push_back(std::abs(static_cast<double>(read_at[i] - read_at[i - 1]) / 1e3 - period_us));
     // A period is as late as its end and as early as its start is late: a stall at either SYNC counts.
     touched.push_back(bench::stalled(stalls, syncs[i - 1], window_ns) || bench::stalled(stalls, syncs[i], window_ns));
-    if (!touched.back()) clean_deviation.push_back(deviation.back());
+    if (!touched.back()) {
+      clean_deviation_ns.push_back(std::abs(syncs[i] - syncs[i - 1] - static_cast<std::int64_t>(period_us * 1e3)));
+    }
   }
   if (!out.empty()) {
     std::ofstream o(out);
@@ -146,18 +150,15 @@ int main(int argc, char** argv) {
       o << fmt::format("{:.1f} {} {}\n", periods[i], touched[i] ? 1 : 0, syncs[i + 1]);
     }
   }
-  std::int64_t stalled_ns = 0, longest_stall_ns = 0;
-  for (const auto& st : stalls) {
-    stalled_ns += st.end_ns - st.begin_ns;
-    longest_stall_ns = std::max(longest_stall_ns, st.end_ns - st.begin_ns);
-  }
   if (sentinel) {
-    std::fputs(fmt::format("jitter_host_stalls={}\njitter_host_stalled_ms={:.1f}\njitter_host_longest_stall_us={:.1f}\n"
-                           "jitter_clean_periods={}\njitter_clean_p50_us={:.1f}\njitter_clean_p99_us={:.1f}\n"
-                           "jitter_clean_p999_us={:.1f}\njitter_clean_max_us={:.1f}\n",
+    std::int64_t stalled_ns = 0, longest_stall_ns = 0;
+    for (const auto& st : stalls) {
+      stalled_ns += st.end_ns - st.begin_ns;
+      longest_stall_ns = std::max(longest_stall_ns, st.end_ns - st.begin_ns);
+    }
+    std::fputs(fmt::format("jitter_host_stalls={}\njitter_host_stalled_ms={:.1f}\njitter_host_longest_stall_us={:.1f}\n{}",
                            stalls.size(), static_cast<double>(stalled_ns) / 1e6, static_cast<double>(longest_stall_ns) / 1e3,
-                           clean_deviation.size(), percentile(clean_deviation, 50), percentile(clean_deviation, 99),
-                           percentile(clean_deviation, 99.9), percentile(clean_deviation, 100))
+                           bench::format_summary("jitter_clean", bench::summarize(clean_deviation_ns)))
                    .c_str(),
                stdout);
   }

@@ -163,7 +163,9 @@ if ((pin)) && ((cores >= 2)); then
 fi
 # The jitter figure's host-stall sentinel (bench/stall_sentinel.hpp): on the bridge's core, one
 # realtime priority above the bridge's loop (or the floor's timer).
-sentinel_args=(--sentinel-cpu $((cores - 1)) --sentinel-priority $((rt_priority + 1)))
+# Without pinning the bridge has no core of its own to watch: no sentinel, those rows stay empty.
+sentinel_args=()
+((${#pin_cmd[@]} == 0)) || sentinel_args=(--sentinel-cpu $((cores - 1)) --sentinel-priority $((rt_priority + 1)))
 clk_tck=$(getconf CLK_TCK)
 mkdir -p "$out_dir"
 commands="$out_dir/commands.txt"
@@ -656,16 +658,18 @@ fig_jitter() {  # RUN
   ((rt_priority == 0)) || floor_cmd+=(chrt -f $rt_priority)
   "${floor_cmd[@]}" "$bin/bench-timer-floor" --duration $jitter_s "${sentinel_args[@]}" >"$d/floor.out"
   printf '%s\n' "${floor_cmd[*]} $bin/bench-timer-floor --duration $jitter_s ${sentinel_args[*]}" >>"$commands"
-  for k in wakeups p50_us p99_us p999_us max_us host_stalls clean_wakeups clean_p50_us clean_p99_us clean_p999_us clean_max_us; do
+  for k in wakeups p50_us p99_us p999_us max_us host_stalls clean_p50_us clean_p99_us clean_p999_us clean_max_us; do
     echo "jitter_floor_$k=$(get "$d/floor.out" floor_$k)" >>"$vals"
   done
+  echo "jitter_floor_clean_wakeups=$(get "$d/floor.out" floor_clean_n)" >>"$vals"
   for scenario in idle quiet frozen record; do
     echo "jitter: $scenario" >&2
     jitter_step "$d/$scenario" $scenario
     for k in syncs expected_syncs p50_us p99_us p999_us max_us longest_period_us emcy_sent read_p50_us read_p99_us read_p999_us read_max_us \
-      host_stalls host_stalled_ms host_longest_stall_us clean_periods clean_p50_us clean_p99_us clean_p999_us clean_max_us; do
+      host_stalls host_stalled_ms host_longest_stall_us clean_p50_us clean_p99_us clean_p999_us clean_max_us; do
       echo "jitter_${scenario}_$k=$(get "$d/$scenario/meter.out" jitter_$k)" >>"$vals"
     done
+    echo "jitter_${scenario}_clean_periods=$(get "$d/$scenario/meter.out" jitter_clean_n)" >>"$vals"
     echo "jitter_${scenario}_bridge_alive=$(get "$d/$scenario/meter.out" bridge_alive)" >>"$vals"
   done
   # p99.9 over a baseline, over all periods and between host stalls: each loaded scenario over the

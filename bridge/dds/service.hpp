@@ -23,12 +23,12 @@ namespace lb::ddsl {
 
 using SampleIdentity = eprosima::fastrtps::rtps::SampleIdentity;
 
-// How a request's handler answers when it is not the server itself (a router hands requests on
-// to per-device handlers): called once, from any thread. A ServiceServer's Responder converts.
 // How long a client waits for an answer before it asks again (a service call, naming its first
 // request; a set value, with the same request_id): Fast DDS 2.9.1 can lose an answer.
 inline constexpr std::chrono::seconds kAskAgainAfter{1};
 
+// How a request's handler answers when it is not the server itself (a router hands requests on
+// to per-device handlers): called once, from any thread. A ServiceServer's Responder converts.
 template <class Reply>
 using Respond = std::function<void(const Reply&)>;
 
