@@ -163,7 +163,7 @@ if ((pin)) && ((cores >= 2)); then
 fi
 # The jitter figure's host-stall sentinel (bench/stall_sentinel.hpp): on the bridge's core, one
 # realtime priority above the bridge's loop (or the floor's timer).
-# Without pinning the bridge has no core of its own to watch: no sentinel, those rows stay empty.
+# Without pinning the bridge has no core of its own to watch: no sentinel, and the table says so.
 sentinel_args=()
 ((${#pin_cmd[@]} == 0)) || sentinel_args=(--sentinel-cpu $((cores - 1)) --sentinel-priority $((rt_priority + 1)))
 clk_tck=$(getconf CLK_TCK)
@@ -535,8 +535,8 @@ fig_memory() {  # RUN: reuses the throughput run's 8-bus step when there is one
     throughput_step "$d/n$mem_buses" $mem_buses || true
     step="$d/n$mem_buses/step"
   fi
-  echo "memory_rss_mib=$(awk -v k="$(get "$step" rss_kib)" 'BEGIN { printf "%.1f", k / 1024 }')" >>"$vals"
-  echo "memory_hwm_mib=$(awk -v k="$(get "$step" hwm_kib)" 'BEGIN { printf "%.1f", k / 1024 }')" >>"$vals"
+  echo "memory_rss_mib=$(awk -v k="$(get "$step" rss_kib)" 'BEGIN { if (k != "") printf "%.1f", k / 1024 }')" >>"$vals"
+  echo "memory_hwm_mib=$(awk -v k="$(get "$step" hwm_kib)" 'BEGIN { if (k != "") printf "%.1f", k / 1024 }')" >>"$vals"
 }
 
 fig_startup() {  # RUN: each size several times (discovery makes the spread worth seeing)
@@ -566,7 +566,7 @@ fig_startup() {  # RUN: each size several times (discovery makes the spread wort
       echo "startup_${spec}_all_ms=$(get "$base.out" startup_all_ms)" >>"$vals"
       echo "startup_${spec}_first_online_ms=$(get "$base.out" startup_first_online_ms)" >>"$vals"
       echo "startup_${spec}_all_online_ms=$(get "$base.out" startup_all_online_ms)" >>"$vals"
-      echo "startup_${spec}_rss_mib=$(awk -v k="$(get "$base.out" startup_rss_kib)" 'BEGIN { printf "%.1f", k / 1024 }')" >>"$vals"
+      echo "startup_${spec}_rss_mib=$(awk -v k="$(get "$base.out" startup_rss_kib)" 'BEGIN { if (k != "") printf "%.1f", k / 1024 }')" >>"$vals"
     done
   done
 }
@@ -637,7 +637,8 @@ while f.read(1024): time.sleep(1/16)" "$d/record.fifo"
   "${harness_cmd[@]}" "$bin/bench-sync-jitter" --bus "virtual:$prefix-0" --duration $jitter_s \
     --emcy-rate $emcy --emcy-devices $devices --out "$d/periods" "${sentinel_args[@]}" >"$d/meter.out" 2>"$d/meter.err" || true
   printf '%s\n' "$bin/bench-sync-jitter --bus virtual:$prefix-0 --duration $jitter_s --emcy-rate $emcy --emcy-devices $devices --out $d/periods ${sentinel_args[*]}" >>"$commands"
-  [ -z "$reader" ] || { kill -KILL "$reader" 2>/dev/null || true; finish "$reader" || true; }
+  # SIGKILL: a stopped process does not act on SIGTERM. The wait's report goes to the reader's log.
+  [ -z "$reader" ] || { kill -KILL "$reader" 2>/dev/null || true; finish "$reader" 2>>"$d/reader.err" || true; }
   echo "bridge_alive=$(kill -0 $bridge 2>/dev/null && echo 1 || echo 0)" >>"$d/meter.out"
   stop $bridge
   [ -z "$inj" ] || stop $inj
@@ -679,7 +680,7 @@ fig_jitter() {  # RUN
     for kind in "" clean_; do
       for scenario in ${base#*:}; do
         echo "jitter_${scenario}_${kind}p999_over_${base%%:*}_us=$(awk -v a="$(get "$vals" jitter_${scenario}_${kind}p999_us)" \
-          -v b="$(get "$vals" jitter_${base%%:*}_${kind}p999_us)" 'BEGIN { printf "%.1f", a - b }')" >>"$vals"
+          -v b="$(get "$vals" jitter_${base%%:*}_${kind}p999_us)" 'BEGIN { if (a != "" && b != "") printf "%.1f", a - b }')" >>"$vals"
       done
     done
   done
@@ -759,7 +760,7 @@ fig_security() {  # RUN
     sed -n 's/^chunk_bridge_cpu_pct=//p' "$d/$mode.chunks" |
       awk -v k="security_${mode}_bridge_cpu_pct" '{ s += $1 } END { if (NR) printf "%s=%.1f\n", k, s / NR }' >>"$vals"
     sed -n 's/^chunk_\(bridge_missing\|lost\)=//p' "$d/$mode.chunks" |
-      awk -v k="security_${mode}_missing" '{ s += $1 } END { printf "%s=%d\n", k, s }' >>"$vals"
+      awk -v k="security_${mode}_missing" '{ s += $1 } END { if (NR) printf "%s=%d\n", k, s }' >>"$vals"
   done
   for mode in plain secured; do
     cat "$d/$mode"/dds/c*/dds.lat >"$d/$mode.dds.lat"
@@ -814,6 +815,7 @@ run_flags=""
 [ "$niceness" = 0 ] || run_flags=" --nice $niceness"
 ((rt_priority == 0)) || run_flags+=" --realtime-priority $rt_priority"
 ((!keep_awake)) || run_flags+=" --keep-awake"
+((pin)) || run_flags+=" --no-pin"
 cmd() { echo "launch_scripts/bench.sh --only $1$quick_flag --runs $runs$run_flags"; }
 {
   echo "| figure | value | target | result | reproduce |"
@@ -871,14 +873,18 @@ cmd() { echo "launch_scripts/bench.sh --only $1$quick_flag --runs $runs$run_flag
     echo "| SYNC jitter p99.9 under load alone / frozen subscriber / slow disk, over the unloaded figure (µs) | $(stat jitter jitter_quiet_p999_over_idle_us) / $(stat jitter jitter_frozen_p999_over_idle_us) / $(stat jitter jitter_record_p999_over_idle_us) | <= 200 each | quiet $(verdict "$(median jitter jitter_quiet_p999_over_idle_us)" "<=" 200), frozen $(verdict "$(median jitter jitter_frozen_p999_over_idle_us)" "<=" 200), disk $(verdict "$(median jitter jitter_record_p999_over_idle_us)" "<=" 200) | \`$(cmd jitter)\` |"
     echo "| SYNC jitter p99.9 with a frozen subscriber, over the same alone (µs) | $(stat jitter jitter_frozen_p999_over_quiet_us) | <= 200 | $(verdict "$(median jitter jitter_frozen_p999_over_quiet_us)" "<=" 200) | \`$(cmd jitter)\` |"
     echo "| SYNC jitter p99.9 recording to a slow disk, over the same alone (µs) | $(stat jitter jitter_record_p999_over_quiet_us) | <= 200 | $(verdict "$(median jitter jitter_record_p999_over_quiet_us)" "<=" 200) | \`$(cmd jitter)\` |"
-    echo "| **Between host stalls** (a sentinel one priority above, on the bridge's core, woke > 500 µs late: periods whose SYNCs came within 2 ms after such a stall left out): | | | | |"
-    echo "| Floor between host stalls: p50 / p99 / p99.9 / max (µs); host stalls seen; wake-ups kept / all | $(stat jitter jitter_floor_clean_p50_us) / $(stat jitter jitter_floor_clean_p99_us) / $(stat jitter jitter_floor_clean_p999_us) / $(stat jitter jitter_floor_clean_max_us); $(stat jitter jitter_floor_host_stalls); $(stat jitter jitter_floor_clean_wakeups) / $(stat jitter jitter_floor_wakeups) | | | \`$(cmd jitter)\` |"
-    for sc in "idle:no load" "quiet:full load alone" "frozen:full load, frozen subscriber" "record:full load, slow disk"; do
-      k=${sc%%:*}
-      echo "| SYNC jitter between host stalls, ${sc#*:}: p50 / p99 / p99.9 / max (µs); host stalls seen (stalled ms, longest µs); periods kept | $(stat jitter jitter_${k}_clean_p50_us) / $(stat jitter jitter_${k}_clean_p99_us) / $(stat jitter jitter_${k}_clean_p999_us) / $(stat jitter jitter_${k}_clean_max_us); $(stat jitter jitter_${k}_host_stalls) ($(stat jitter jitter_${k}_host_stalled_ms), $(stat jitter jitter_${k}_host_longest_stall_us)); $(stat jitter jitter_${k}_clean_periods) | | | \`$(cmd jitter)\` |"
-    done
-    echo "| SYNC jitter p99.9 between host stalls under load alone / frozen subscriber / slow disk, over the unloaded figure (µs) | $(stat jitter jitter_quiet_clean_p999_over_idle_us) / $(stat jitter jitter_frozen_clean_p999_over_idle_us) / $(stat jitter jitter_record_clean_p999_over_idle_us) | <= 200 each | quiet $(verdict "$(median jitter jitter_quiet_clean_p999_over_idle_us)" "<=" 200), frozen $(verdict "$(median jitter jitter_frozen_clean_p999_over_idle_us)" "<=" 200), disk $(verdict "$(median jitter jitter_record_clean_p999_over_idle_us)" "<=" 200) | \`$(cmd jitter)\` |"
-    echo "| SYNC jitter p99.9 between host stalls, frozen subscriber / slow disk over the same alone (µs) | $(stat jitter jitter_frozen_clean_p999_over_quiet_us) / $(stat jitter jitter_record_clean_p999_over_quiet_us) | <= 200 each | frozen $(verdict "$(median jitter jitter_frozen_clean_p999_over_quiet_us)" "<=" 200), disk $(verdict "$(median jitter jitter_record_clean_p999_over_quiet_us)" "<=" 200) | \`$(cmd jitter)\` |"
+    if ((pin)); then
+      echo "| **Between host stalls** (a sentinel one priority above, on the bridge's core, woke > 500 µs late: periods whose SYNCs came within 2 ms after such a stall left out): | | | | |"
+      echo "| Floor between host stalls: p50 / p99 / p99.9 / max (µs); host stalls seen; wake-ups kept / all | $(stat jitter jitter_floor_clean_p50_us) / $(stat jitter jitter_floor_clean_p99_us) / $(stat jitter jitter_floor_clean_p999_us) / $(stat jitter jitter_floor_clean_max_us); $(stat jitter jitter_floor_host_stalls); $(stat jitter jitter_floor_clean_wakeups) / $(stat jitter jitter_floor_wakeups) | | | \`$(cmd jitter)\` |"
+      for sc in "idle:no load" "quiet:full load alone" "frozen:full load, frozen subscriber" "record:full load, slow disk"; do
+        k=${sc%%:*}
+        echo "| SYNC jitter between host stalls, ${sc#*:}: p50 / p99 / p99.9 / max (µs); host stalls seen (stalled ms, longest µs); periods kept | $(stat jitter jitter_${k}_clean_p50_us) / $(stat jitter jitter_${k}_clean_p99_us) / $(stat jitter jitter_${k}_clean_p999_us) / $(stat jitter jitter_${k}_clean_max_us); $(stat jitter jitter_${k}_host_stalls) ($(stat jitter jitter_${k}_host_stalled_ms), $(stat jitter jitter_${k}_host_longest_stall_us)); $(stat jitter jitter_${k}_clean_periods) | | | \`$(cmd jitter)\` |"
+      done
+      echo "| SYNC jitter p99.9 between host stalls under load alone / frozen subscriber / slow disk, over the unloaded figure (µs) | $(stat jitter jitter_quiet_clean_p999_over_idle_us) / $(stat jitter jitter_frozen_clean_p999_over_idle_us) / $(stat jitter jitter_record_clean_p999_over_idle_us) | <= 200 each | quiet $(verdict "$(median jitter jitter_quiet_clean_p999_over_idle_us)" "<=" 200), frozen $(verdict "$(median jitter jitter_frozen_clean_p999_over_idle_us)" "<=" 200), disk $(verdict "$(median jitter jitter_record_clean_p999_over_idle_us)" "<=" 200) | \`$(cmd jitter)\` |"
+      echo "| SYNC jitter p99.9 between host stalls, frozen subscriber / slow disk over the same alone (µs) | $(stat jitter jitter_frozen_clean_p999_over_quiet_us) / $(stat jitter jitter_record_clean_p999_over_quiet_us) | <= 200 each | frozen $(verdict "$(median jitter jitter_frozen_clean_p999_over_quiet_us)" "<=" 200), disk $(verdict "$(median jitter jitter_record_clean_p999_over_quiet_us)" "<=" 200) | \`$(cmd jitter)\` |"
+    else
+      echo "| **Between host stalls**: not measured (--no-pin: the bridge has no core of its own for the sentinel to watch) | | | | |"
+    fi
   fi
   if want soak; then
     echo "| Soak, $soak_s s flood (full load, 1000 EMCY/s, 1000 hostile frames/s): VmRSS start / end / max (MiB) | $(stat soak soak_rss_start_mib) / $(stat soak soak_rss_end_mib) / $(stat soak soak_rss_max_mib) | flat | | \`$(cmd soak)\` |"
