@@ -53,6 +53,7 @@
 #               Every figure also between host stalls: a sentinel thread on the bridge's core, one
 #               realtime priority above it, marks where the host did not run that core at all
 #               (bench/stall_sentinel.hpp); the periods those stalls touched are left out there.
+#               Not with --no-pin: the bridge then has no core of its own to watch.
 #   soak        resident memory and open file descriptors of the bridge sampled every 10 s during a
 #               flood (full load, EMCY burst, hostile frames on every identifier, and three
 #               applications calling services back to back plus two writing set values as fast as
