@@ -12,8 +12,8 @@
 
 #include <algorithm>
 #include <chrono>
-#include <cmath>
 #include <cstdio>
+#include <cstdlib>
 #include <fstream>
 #include <optional>
 #include <vector>
@@ -25,17 +25,6 @@
 #include "stall_sentinel.hpp"
 
 namespace bench = lb::bench;
-
-namespace {
-
-double percentile(std::vector<double> v, double p) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  const auto i = static_cast<std::size_t>(std::ceil(p / 100.0 * static_cast<double>(v.size()))) - 1;
-  return v[std::min(i, v.size() - 1)];
-}
-
-}  // namespace
 
 int main(int argc, char** argv) {
   CLI::App cli{"bench-sync-jitter: SYNC period jitter on a virtual bus, with an optional EMCY burst"};
@@ -130,25 +119,20 @@ int main(int argc, char** argv) {
   const std::vector<bench::HostStall> no_stalls;
   const auto& stalls = sentinel ? sentinel->stop() : no_stalls;
   const auto window_ns = sentinel_options.window_ns();
-  std::vector<double> periods, deviation, read_deviation;
-  std::vector<std::int64_t> clean_deviation_ns;
-  std::vector<bool> touched;
+  const auto nominal_ns = static_cast<std::int64_t>(period_us * 1e3);
+  std::vector<std::int64_t> deviation_ns, read_deviation_ns, clean_deviation_ns;
+  std::int64_t longest_period_ns = 0;
+  std::ofstream periods_file;
+  if (!out.empty()) periods_file.open(out);
   for (std::size_t i = 1; i < syncs.size(); ++i) {
-    const double us = static_cast<double>(syncs[i] - syncs[i - 1]) / 1e3;
-    periods.push_back(us);
-    deviation.push_back(std::abs(us - period_us));
-    read_deviation.push_back(std::abs(static_cast<double>(read_at[i] - read_at[i - 1]) / 1e3 - period_us));
+    const std::int64_t period_ns = syncs[i] - syncs[i - 1];
+    longest_period_ns = std::max(longest_period_ns, period_ns);
+    deviation_ns.push_back(std::abs(period_ns - nominal_ns));
+    read_deviation_ns.push_back(std::abs(read_at[i] - read_at[i - 1] - nominal_ns));
     // A period is as late as its end and as early as its start is late: a stall at either SYNC counts.
-    touched.push_back(bench::stalled(stalls, syncs[i - 1], window_ns) || bench::stalled(stalls, syncs[i], window_ns));
-    if (!touched.back()) {
-      clean_deviation_ns.push_back(std::abs(syncs[i] - syncs[i - 1] - static_cast<std::int64_t>(period_us * 1e3)));
-    }
-  }
-  if (!out.empty()) {
-    std::ofstream o(out);
-    for (std::size_t i = 0; i < periods.size(); ++i) {
-      o << fmt::format("{:.1f} {} {}\n", periods[i], touched[i] ? 1 : 0, syncs[i + 1]);
-    }
+    const bool touched = bench::stalled(stalls, syncs[i - 1], window_ns) || bench::stalled(stalls, syncs[i], window_ns);
+    if (!touched) clean_deviation_ns.push_back(deviation_ns.back());
+    if (periods_file) periods_file << fmt::format("{:.1f} {} {}\n", static_cast<double>(period_ns) / 1e3, touched ? 1 : 0, syncs[i]);
   }
   if (sentinel) {
     std::int64_t stalled_ns = 0, longest_stall_ns = 0;
@@ -163,14 +147,11 @@ int main(int argc, char** argv) {
                stdout);
   }
   const double expected = duration_s * 1e6 / period_us;
-  std::fputs(fmt::format("jitter_syncs={}\njitter_expected_syncs={:.0f}\njitter_p50_us={:.1f}\njitter_p99_us={:.1f}\n"
-                         "jitter_p999_us={:.1f}\njitter_max_us={:.1f}\njitter_longest_period_us={:.1f}\n"
-                         "jitter_emcy_sent={}\njitter_emcy_dropped={}\njitter_hostile_sent={}\n"
-                         "jitter_read_p50_us={:.1f}\njitter_read_p99_us={:.1f}\njitter_read_p999_us={:.1f}\njitter_read_max_us={:.1f}\n",
-                         syncs.size(), expected, percentile(deviation, 50), percentile(deviation, 99),
-                         percentile(deviation, 99.9), percentile(deviation, 100), percentile(periods, 100), emcy_sent,
-                         emcy_dropped, hostile_sent, percentile(read_deviation, 50), percentile(read_deviation, 99),
-                         percentile(read_deviation, 99.9), percentile(read_deviation, 100))
+  std::fputs(fmt::format("jitter_syncs={}\njitter_expected_syncs={:.0f}\njitter_longest_period_us={:.1f}\n"
+                         "jitter_emcy_sent={}\njitter_emcy_dropped={}\njitter_hostile_sent={}\n{}{}",
+                         syncs.size(), expected, static_cast<double>(longest_period_ns) / 1e3, emcy_sent, emcy_dropped,
+                         hostile_sent, bench::format_summary("jitter", bench::summarize(deviation_ns)),
+                         bench::format_summary("jitter_read", bench::summarize(read_deviation_ns)))
                  .c_str(),
              stdout);
   return syncs.size() < 2 ? 1 : 0;

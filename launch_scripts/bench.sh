@@ -53,7 +53,7 @@
 #               Every figure also between host stalls: a sentinel thread on the bridge's core, one
 #               realtime priority above it, marks where the host did not run that core at all
 #               (bench/stall_sentinel.hpp); the periods those stalls touched are left out there.
-#               Not with --no-pin: the bridge then has no core of its own to watch.
+#               Not with --no-pin or on one core: the bridge then has no core of its own to watch.
 #   soak        resident memory and open file descriptors of the bridge sampled every 10 s during a
 #               flood (full load, EMCY burst, hostile frames on every identifier, and three
 #               applications calling services back to back plus two writing set values as fast as
@@ -167,6 +167,7 @@ fi
 # Without pinning the bridge has no core of its own to watch: no sentinel, and the table says so.
 sentinel_args=()
 ((${#pin_cmd[@]} == 0)) || sentinel_args=(--sentinel-cpu $((cores - 1)) --sentinel-priority $((rt_priority + 1)))
+sentinel=$((${#sentinel_args[@]} > 0))
 clk_tck=$(getconf CLK_TCK)
 mkdir -p "$out_dir"
 commands="$out_dir/commands.txt"
@@ -214,6 +215,8 @@ cpu_percent() {
   awk -v a="$1" -v b="$2" -v s="$3" -v e="$4" -v hz="$clk_tck" 'BEGIN { printf "%.1f", (b - a) / hz / ((e - s) / 1e9) * 100 }'
 }
 now_ns() { date +%s%N; }
+# mib KIB: MiB with one decimal; nothing when the figure is missing (so no verdict, not 0 and a pass).
+mib() { awk -v k="$1" 'BEGIN { if (k != "") printf "%.1f", k / 1024 }'; }
 mem_kib() { awk -v k="$2:" '$1 == k { print $2 }' "/proc/$1/status"; }
 get() { sed -n "s/^$2=//p" "$1" | tail -1; }  # get FILE KEY (key=value reports)
 
@@ -536,8 +539,8 @@ fig_memory() {  # RUN: reuses the throughput run's 8-bus step when there is one
     throughput_step "$d/n$mem_buses" $mem_buses || true
     step="$d/n$mem_buses/step"
   fi
-  echo "memory_rss_mib=$(awk -v k="$(get "$step" rss_kib)" 'BEGIN { if (k != "") printf "%.1f", k / 1024 }')" >>"$vals"
-  echo "memory_hwm_mib=$(awk -v k="$(get "$step" hwm_kib)" 'BEGIN { if (k != "") printf "%.1f", k / 1024 }')" >>"$vals"
+  echo "memory_rss_mib=$(mib "$(get "$step" rss_kib)")" >>"$vals"
+  echo "memory_hwm_mib=$(mib "$(get "$step" hwm_kib)")" >>"$vals"
 }
 
 fig_startup() {  # RUN: each size several times (discovery makes the spread worth seeing)
@@ -567,7 +570,7 @@ fig_startup() {  # RUN: each size several times (discovery makes the spread wort
       echo "startup_${spec}_all_ms=$(get "$base.out" startup_all_ms)" >>"$vals"
       echo "startup_${spec}_first_online_ms=$(get "$base.out" startup_first_online_ms)" >>"$vals"
       echo "startup_${spec}_all_online_ms=$(get "$base.out" startup_all_online_ms)" >>"$vals"
-      echo "startup_${spec}_rss_mib=$(awk -v k="$(get "$base.out" startup_rss_kib)" 'BEGIN { if (k != "") printf "%.1f", k / 1024 }')" >>"$vals"
+      echo "startup_${spec}_rss_mib=$(mib "$(get "$base.out" startup_rss_kib)")" >>"$vals"
     done
   done
 }
@@ -874,7 +877,7 @@ cmd() { echo "launch_scripts/bench.sh --only $1$quick_flag --runs $runs$run_flag
     echo "| SYNC jitter p99.9 under load alone / frozen subscriber / slow disk, over the unloaded figure (µs) | $(stat jitter jitter_quiet_p999_over_idle_us) / $(stat jitter jitter_frozen_p999_over_idle_us) / $(stat jitter jitter_record_p999_over_idle_us) | <= 200 each | quiet $(verdict "$(median jitter jitter_quiet_p999_over_idle_us)" "<=" 200), frozen $(verdict "$(median jitter jitter_frozen_p999_over_idle_us)" "<=" 200), disk $(verdict "$(median jitter jitter_record_p999_over_idle_us)" "<=" 200) | \`$(cmd jitter)\` |"
     echo "| SYNC jitter p99.9 with a frozen subscriber, over the same alone (µs) | $(stat jitter jitter_frozen_p999_over_quiet_us) | <= 200 | $(verdict "$(median jitter jitter_frozen_p999_over_quiet_us)" "<=" 200) | \`$(cmd jitter)\` |"
     echo "| SYNC jitter p99.9 recording to a slow disk, over the same alone (µs) | $(stat jitter jitter_record_p999_over_quiet_us) | <= 200 | $(verdict "$(median jitter jitter_record_p999_over_quiet_us)" "<=" 200) | \`$(cmd jitter)\` |"
-    if ((pin)); then
+    if ((sentinel)); then
       echo "| **Between host stalls** (a sentinel one priority above, on the bridge's core, woke > 500 µs late: periods whose SYNCs came within 2 ms after such a stall left out): | | | | |"
       echo "| Floor between host stalls: p50 / p99 / p99.9 / max (µs); host stalls seen; wake-ups kept / all | $(stat jitter jitter_floor_clean_p50_us) / $(stat jitter jitter_floor_clean_p99_us) / $(stat jitter jitter_floor_clean_p999_us) / $(stat jitter jitter_floor_clean_max_us); $(stat jitter jitter_floor_host_stalls); $(stat jitter jitter_floor_clean_wakeups) / $(stat jitter jitter_floor_wakeups) | | | \`$(cmd jitter)\` |"
       for sc in "idle:no load" "quiet:full load alone" "frozen:full load, frozen subscriber" "record:full load, slow disk"; do
@@ -884,7 +887,7 @@ cmd() { echo "launch_scripts/bench.sh --only $1$quick_flag --runs $runs$run_flag
       echo "| SYNC jitter p99.9 between host stalls under load alone / frozen subscriber / slow disk, over the unloaded figure (µs) | $(stat jitter jitter_quiet_clean_p999_over_idle_us) / $(stat jitter jitter_frozen_clean_p999_over_idle_us) / $(stat jitter jitter_record_clean_p999_over_idle_us) | <= 200 each | quiet $(verdict "$(median jitter jitter_quiet_clean_p999_over_idle_us)" "<=" 200), frozen $(verdict "$(median jitter jitter_frozen_clean_p999_over_idle_us)" "<=" 200), disk $(verdict "$(median jitter jitter_record_clean_p999_over_idle_us)" "<=" 200) | \`$(cmd jitter)\` |"
       echo "| SYNC jitter p99.9 between host stalls, frozen subscriber / slow disk over the same alone (µs) | $(stat jitter jitter_frozen_clean_p999_over_quiet_us) / $(stat jitter jitter_record_clean_p999_over_quiet_us) | <= 200 each | frozen $(verdict "$(median jitter jitter_frozen_clean_p999_over_quiet_us)" "<=" 200), disk $(verdict "$(median jitter jitter_record_clean_p999_over_quiet_us)" "<=" 200) | \`$(cmd jitter)\` |"
     else
-      echo "| **Between host stalls**: not measured (--no-pin: the bridge has no core of its own for the sentinel to watch) | | | | |"
+      echo "| **Between host stalls**: not measured (not pinned, or one core: the bridge has no core of its own for the sentinel to watch) | | | | |"
     fi
   fi
   if want soak; then
