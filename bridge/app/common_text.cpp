@@ -114,6 +114,13 @@ std::string to_text(const msg::Diagnostics& d) {
                        b.record_errors() != 0 ? fmt::format(" record-errors {}", b.record_errors()) : "",
                        b.requests_refused() != 0 ? fmt::format(" requests-refused {} (loop overloaded)", b.requests_refused()) : "",
                        b.replay() ? " (replay: heartbeat ages on the recording's clock)" : "");
+    if (b.yielding_to_other_master()) {
+      out += fmt::format("  bus {:<12} YIELDING to another master: transmits nothing, refuses set values and commands "
+                         "({} frames held; last: {})\n", b.name(), b.frames_held(), b.other_master_last());
+    } else if (b.other_master_frames() != 0) {
+      out += fmt::format("  bus {:<12} other master's or stray frames: {} (last: {})\n", b.name(), b.other_master_frames(),
+                         b.other_master_last());
+    }
   }
   for (const auto& n : d.nodes()) {
     out += fmt::format("  {:<12} {:<10} node {:>3} {:<7} {:<15} heartbeat {:>6} boots {} PDOs in {} out {} short {} "
@@ -124,7 +131,13 @@ std::string to_text(const msg::Diagnostics& d) {
     if (!n.boot_error().code().empty() && n.boot_state().rfind("failed", 0) != 0) {
       out += fmt::format("  {:<12} last boot failure: {}\n", "", to_text(n.boot_error()));
     }
+    if (!n.set_values_at_start().empty()) out += fmt::format("  {:<12} last start: {}\n", "", n.set_values_at_start());
+    if (n.boot_ups_not_believed() != 0) {
+      out += fmt::format("  {:<12} boot-ups not believed (its next heartbeat said operational): {}\n", "", n.boot_ups_not_believed());
+    }
   }
+  if (!d.set_value_store().empty()) out += fmt::format("  set values in force: {}\n", d.set_value_store());
+  if (d.log_lines_dropped() != 0) out += fmt::format("  log lines dropped (queue full): {}\n", d.log_lines_dropped());
   return out;
 }
 

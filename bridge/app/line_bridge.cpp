@@ -6,6 +6,7 @@
 #include <cstdlib>
 #include <stdexcept>
 
+#include "app/async_log.hpp"
 #include "app/run_until_signal.hpp"
 #include "can/recording_bus.hpp"
 
@@ -55,8 +56,9 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
     bridge->buses_.push_back(std::move(rt));
   }
 
-  // The set values in force survive a restart: restored into the RPDO images before their first
-  // frame. A state directory that cannot be used costs that, not the line.
+  // The set values in force survive a restart (what comes back, and into which device, is the
+  // start-up policy's: PdoWiring). A state directory that cannot be used costs that, not the line,
+  // and says so in diagnostics and the log (--check refuses it).
   std::string state_dir = config.state_dir;
   if (const char* systemd = std::getenv("STATE_DIRECTORY"); state_dir.empty() && systemd != nullptr) {
     state_dir = std::string(systemd).substr(0, std::string(systemd).find(':'));
@@ -66,11 +68,13 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
     if (store) {
       bridge->set_values_ = std::move(*store);
       spdlog::info("set values in force are kept in {}{}", bridge->set_values_->path(),
-                   config.restore_set_values ? " and restored at start" : " (restore_set_values: false: a start begins from zero)");
+                   config.restore_set_values ? "" : " (restore_set_values: false: a start begins from zero)");
     } else {
+      bridge->store_problem_ = "not kept: " + store.error().message;
       spdlog::error("set values in force will not survive a restart: {}", store.error().message);
     }
   } else {
+    bridge->store_problem_ = "not kept: no state_dir (and no $STATE_DIRECTORY)";
     spdlog::info("set values in force are not kept across restarts (no state_dir)");
   }
 
@@ -94,8 +98,10 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
                              [&](const BusRuntime& b) { return b.config->name == dev.bus; });
     const bool master = rt.config->role == profiles::BusRole::master;
     rt.nodes.push_back(std::make_unique<canopen::RemoteNode>(*rt.loop, dev.node_id, dev.heartbeat_timeout, master));
+    rt.nodes.back()->believe_every_boot_up(dev.starts_itself);
     const gateways::DeviceContext ctx{*rt.loop,     *rt.nodes.back(), rt.sync.get(), rt.sdo.get(),          *bridge->dds_,
-                                      config.line,  *rt.config,       dev,           dev.bridge_profile(), bridge->set_values_.get()};
+                                      config.line,  *rt.config,       dev,           dev.bridge_profile(), bridge->set_values_.get(),
+                                      config.startup};
     try {
       rt.services.push_back(std::make_unique<gateways::DeviceServices>(ctx));
       rt.gateways.push_back(gateways::make_gateway(ctx));
@@ -123,7 +129,17 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
     diag.push_back(std::move(b));
   }
   try {
-    bridge->diagnostics_ = std::make_unique<gateways::DiagnosticsGateway>(*bridge->dds_, config.line, std::move(diag));
+    bridge->diagnostics_ = std::make_unique<gateways::DiagnosticsGateway>(
+        *bridge->dds_, config.line, std::move(diag),
+        [store = bridge->set_values_.get(), problem = bridge->store_problem_](linebridge_msgs::msg::Diagnostics& d) {
+          if (store == nullptr) {
+            d.set_value_store(problem);
+          } else {
+            const auto failing = store->problem();
+            d.set_value_store(failing.empty() ? "kept in " + store->path() : "failing: " + failing);
+          }
+          d.log_lines_dropped(log_lines_dropped());
+        });
   } catch (const std::runtime_error& e) {
     return make_error(e.what());
   }

@@ -49,6 +49,8 @@ class LineBridge {
   void stop();  // idempotent
   // A bus loop failed for good (the process should end with an error and be restarted): its why.
   std::optional<std::string> failure() const;
+  // Why the set values in force are not kept across restarts; empty when they are.
+  const std::string& set_value_store_problem() const { return store_problem_; }
 
   // Every bus loop's progress, for the service watchdog (each loop wakes at least every
   // ServiceNotifier::kLoopTick, so an idle bus still shows progress).
@@ -70,6 +72,7 @@ class LineBridge {
 
   // Before the buses: their gateways keep set values in it until they are gone.
   std::unique_ptr<gateways::SetValueStore> set_values_;
+  std::string store_problem_;  // why set values are not kept, when they are not
   std::unique_ptr<ddsl::Participant> dds_;
   std::vector<BusRuntime> buses_;
   // The line-wide nmt/sdo/command/parameter services; they call into the buses' device handlers,

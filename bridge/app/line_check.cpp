@@ -139,6 +139,11 @@ int check_line(const std::string& path, const profiles::ProfileRegistry& registr
   std::vector<std::string> errors;
   std::vector<std::string> warnings = config->warnings;
   check_machine(*config, errors, warnings);
+  // A state directory named but unusable would start every device from zero after a restart.
+  // (Without one the packaged service's $STATE_DIRECTORY serves: nothing to say here.)
+  if (const auto& problem = (*bridge)->set_value_store_problem(); !problem.empty() && !config->state_dir.empty()) {
+    errors.push_back("state_dir: set values in force " + problem);
+  }
   check_profile_names(*config, planning->planned(), warnings);
   for (const auto& n : planning->site_notes()) warnings.push_back(n);
 

@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include "app/arguments.hpp"
+#include "app/async_log.hpp"
 #include "app/dds_options.hpp"
 #include "app/line_bridge.hpp"
 #include "app/line_check.hpp"
@@ -40,6 +41,8 @@ int main(int argc, char** argv) {
     return app::check_line(check_path, registry, stdout, stderr);
   }
 
+  // From here on no bus loop waits for the log.
+  const app::AsyncLog async_log("%H:%M:%S.%e [bridge] %^%l%$ %v");
   app::block_stop_signals();
   auto config = app::load_config(config_path, registry);
   if (!config) {

@@ -34,6 +34,9 @@ std::optional<BootError> compare_identity(char code, const char* what, const cha
 
 BootSequence::BootSequence(BusLoop& loop, RemoteNode& node, SdoClient& sdo, Settings settings)
     : loop_(loop), node_(node), sdo_(sdo), settings_(std::move(settings)) {
+  // The heartbeat the boot waits for is one that follows the configuration: a state, never the
+  // boot-up message (a device without a heartbeat producer sends only that).
+  node_.on_heartbeat([this](NmtState) { heartbeat_back(); });
   heartbeat_timer_ = loop_.create_timer([this] {
     if (!waiting_for_heartbeat_) return;
     waiting_for_heartbeat_ = false;
@@ -230,7 +233,7 @@ void BootSequence::configure_pdos(std::vector<DevicePdo> devices) {
                           (spec.transmit && (p.inhibit_time != w.inhibit_time || p.event_timer != w.event_timer)));
     planned_pdos_.push_back({spec.name, plan->result, adopted});
   }
-  if (writes.empty()) return write_configuration();
+  if (writes.empty()) return use_pdos();
   if (needs_not_operational && node_.state() == NmtState::operational) {
     spdlog::info("{}: node {}: NMT enter pre-operational to change a PDO mapping", loop_.bus().uri(), node_.node_id());
     (void)node_.command(NmtCommand::enter_pre_operational);
@@ -256,7 +259,7 @@ void BootSequence::verify_pdos(std::vector<PdoSpec> specs, std::vector<PdoParame
                      fmt::format("node {}: {}", node_.node_id(), m->message)});
       }
     }
-    write_configuration();
+    use_pdos();
   });
 }
 
@@ -317,17 +320,19 @@ void BootSequence::verify_configuration() {
                                  node_.node_id(), *settings_.heartbeat_producer_ms, producer)});
       }
     }
-    use_pdos();
+    await_heartbeat();
   });
 }
 
+// As soon as the PDOs are verified: the gateways decode and send by them from now on (a stop for
+// a running device needs them even if a later step fails).
 void BootSequence::use_pdos() {
   if (auto r = node_.use_pdos(planned_pdos_); !r) {
     return fail({'J', "PDO configuration", 0, 0, "PDOs the bridge can use", "refused", 0,
                  fmt::format("node {}: {}", node_.node_id(), r.error().message)});
   }
   report_.pdos = planned_pdos_;
-  await_heartbeat();
+  write_configuration();
 }
 
 void BootSequence::await_heartbeat() {
@@ -344,7 +349,8 @@ void BootSequence::await_heartbeat() {
     }
   }
   for (const auto& w : report_.warnings) spdlog::warn("{}: node {}: {}", loop_.bus().uri(), node_.node_id(), w);
-  if (node_.online()) return start();
+  // Started only after a heartbeat that comes after the configuration (as a CiA 302-2 master
+  // waits for it), however recently the last one came.
   set_step("waiting for its heartbeat");
   waiting_for_heartbeat_ = true;
   loop_.arm_timer(heartbeat_timer_, node_.heartbeat_timeout());
@@ -358,6 +364,26 @@ void BootSequence::heartbeat_back() {
 }
 
 void BootSequence::start() {
+  // Nothing in this attempt started it (an operational device is left running while it is
+  // checked, a stopped one is put pre-operational), so operational now means it was running
+  // before: only the bridge or the line PC restarted, or its heartbeat was lost for a while.
+  report_.was_operational = node_.state() == NmtState::operational;
+  const auto& id = report_.identity;
+  node_.starting({report_.was_operational, {id.vendor_id, id.product_code, id.revision_number, id.serial_number}});
+  if (const auto hold = node_.operator_hold()) {
+    if (auto r = node_.command(*hold); !r) {
+      return fail({0, "start", 0, 0, "", "", 0, fmt::format("node {}: the operator's NMT command could not be sent: {}", node_.node_id(), r.error().message)});
+    }
+    node_.set_configured(true);
+    running_ = false;
+    report_.held_by_operator = true;
+    set_step(fmt::format("configured; kept {} by the operator (nmt start releases it)",
+                         *hold == NmtCommand::stop ? "stopped" : "pre-operational"));
+    spdlog::info("{}: node {} checked and configured, and kept {} as an operator left it (not started)", loop_.bus().uri(),
+                 node_.node_id(), *hold == NmtCommand::stop ? "stopped" : "pre-operational");
+    if (done_) done_(report_);
+    return;
+  }
   if (auto r = node_.command(NmtCommand::start); !r) {
     return fail({0, "start", 0, 0, "", "", 0, fmt::format("node {}: NMT start could not be sent: {}", node_.node_id(), r.error().message)});
   }
@@ -398,8 +424,10 @@ void BootSequence::fail(BootError error) {
   node_.set_configured(false);
   report_.identity.read_at_ns = now_ns();
   set_step(error.code != 0 ? fmt::format("failed ({}): {}", error.code, error.message) : "failed: " + error.message);
-  spdlog::warn("{}: boot of node {} failed{}: {}", loop_.bus().uri(), node_.node_id(),
-               error.code != 0 ? fmt::format(" (CiA 302-2 error {})", error.code) : std::string(), error.message);
+  if (fail_log_.allow(error.message)) {
+    spdlog::warn("{}: boot of node {} failed{}: {}{}", loop_.bus().uri(), node_.node_id(),
+                 error.code != 0 ? fmt::format(" (CiA 302-2 error {})", error.code) : std::string(), error.message, fail_log_.note());
+  }
   report_.error = std::move(error);
   if (done_) done_(report_);
 }

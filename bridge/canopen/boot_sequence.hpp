@@ -2,7 +2,7 @@
 // Brings one device into service the CiA 302-2 way ("boot slave"), master role:
 //   1. device type 1000h (is anyone there, and of the right profile?);
 //   2. identity 1018h sub 1..4 against the expected values;
-//   3. PDO configuration: every PDO's communication and mapping parameters read and compared with
+//   3. PDO configuration (then handed to the gateways): every PDO's communication and mapping parameters read and compared with
 //      what the master will decode and send; what differs is written in the CiA 301 order where
 //      the profile lets a master write it, and read back; what differs where the profile fixes it
 //      fails the boot (or, in adopt mode, the device's parameters are taken);
@@ -21,6 +21,7 @@
 #include <string>
 #include <vector>
 
+#include "base/repeat_log.hpp"
 #include "canopen/bus_loop.hpp"
 #include "canopen/object_value.hpp"
 #include "canopen/pdo_parameters.hpp"
@@ -75,6 +76,9 @@ struct BootReport {
   std::vector<PdoInUse> pdos;
   std::vector<std::string> warnings;
   bool was_operational = false;  // CiA 302-2 L: it was running when the boot began
+  // Configured, then put back in the state an operator's NMT stop or pre-operational left it in,
+  // not started (RemoteNode::hold).
+  bool held_by_operator = false;
 };
 
 class BootSequence {
@@ -138,6 +142,7 @@ class BootSequence {
   std::string step_ = "waiting";
   BootReport report_;
   std::vector<PdoInUse> planned_pdos_;
+  RepeatLog fail_log_;  // the same failure again (an absent device) once a minute
 };
 
 }  // namespace lb::canopen

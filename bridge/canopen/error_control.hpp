@@ -13,6 +13,7 @@
 #include <functional>
 #include <string>
 
+#include "base/repeat_log.hpp"
 #include "canopen/boot_sequence.hpp"
 #include "canopen/remote_node.hpp"
 
@@ -30,6 +31,8 @@ class ErrorControl {
     unsigned storm_count = 5;
     std::chrono::seconds storm_window{60};
     std::chrono::seconds max_backoff{300};
+    // After an NMT reset: how long to wait for the boot-up before booting anyway.
+    std::chrono::milliseconds reset_bound{2000};
   };
   struct Counters {
     std::uint32_t boots = 0;           // attempts begun
@@ -44,6 +47,11 @@ class ErrorControl {
   ErrorControl(BusLoop& loop, RemoteNode& node, BootSequence& boot, Settings settings, Listener listener);
 
   void start();  // loop thread: the first boot
+  // Loop thread: an NMT reset was sent to the device. A reset always leads to a boot: its boot-up
+  // starts one, and if none is believed within kResetBound (a lost boot-up), a boot begins
+  // anyway; the device is never taken for started meanwhile. An operator's reset also ends a
+  // boot-up storm's back-off: it is a deliberate action, and the device is booted at its boot-up.
+  void reset_sent(bool by_operator);
 
   // Loop thread: what diagnostics show (the boot's step, a pending retry, a storm).
   std::string state() const;
@@ -51,6 +59,7 @@ class ErrorControl {
 
  private:
   void on_event(RemoteNode::Event event, NmtState reported);
+  bool boot_under_way() const;
   void recover(const char* why);
   void boot_now(const std::string& why);
   void boot_after(std::chrono::milliseconds delay, const std::string& why);
@@ -64,9 +73,12 @@ class ErrorControl {
   Settings settings_;
   Listener listener_;
   BusLoop::TimerId timer_;
+  BusLoop::TimerId reset_timer_;  // bounds the wait for the boot-up after a reset
   std::deque<std::chrono::steady_clock::time_point> recent_;
   std::chrono::milliseconds backoff_{0};
   std::string waiting_;  // why the next boot is pending, or empty
+  bool unmanaged_ = false;
+  RepeatLog boot_log_;  // an absent device is tried every retry interval: the same line once a minute  // its boot failed while it runs: no retry until an event
   Counters counters_;
 };
 

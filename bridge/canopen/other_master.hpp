@@ -5,15 +5,19 @@
 // takes alternating set values at every SYNC. The bridge never receives its own frames (SocketCAN
 // raw sockets and virtual buses do not echo them), so every such frame is someone else's.
 //
-// Policy `yield`: while the other master is heard (kTrigger frames within a second) the bridge
+// Policy `yield`: only on evidence of a real master, its SYNC producer running: at least
+// kEvidence SYNCs in a run, none more than kEvidenceGap after the previous one, over at least
+// kEvidenceSpan (a burst is no producer). While it is heard the bridge
 // transmits nothing at all on that bus (BusLoop::hold_transmission: no SYNC, RPDO, NMT, SDO or
-// heartbeat), so the devices follow one master; it resumes once the other one has been silent
-// for kQuiet. Policy `warn`: report and go on. Either way it is counted, logged (at a bounded
-// rate) and shown in the diagnostics. A single stray frame never silences the bus.
+// heartbeat), so the devices follow one master; it resumes once no SYNC came for kQuiet. Stray
+// or spoofed frames (an NMT command, a heartbeat on the bridge's node-ID, a frame on an RPDO
+// identifier, a few SYNCs, a SYNC now and then) are reported but never silence the master: a
+// service tool or one misconfigured TPDO must not take the line's SYNC away. Policy `warn`:
+// report and go on. Either way every such frame is counted, logged (at a bounded rate) and shown
+// in the diagnostics.
 
 #include <chrono>
 #include <cstdint>
-#include <deque>
 #include <string>
 
 #include "base/log_rate.hpp"
@@ -24,7 +28,9 @@ namespace lb::canopen {
 class OtherMasterWatch {
  public:
   enum class Policy { yield, warn };
-  static constexpr unsigned kTrigger = 3;
+  static constexpr unsigned kEvidence = 10;
+  static constexpr std::chrono::milliseconds kEvidenceGap{250};
+  static constexpr std::chrono::milliseconds kEvidenceSpan{200};
   static constexpr std::chrono::seconds kQuiet{5};
 
   // Before the loop starts. own_node_id: the bridge's heartbeat node-ID (0: none).
@@ -39,12 +45,15 @@ class OtherMasterWatch {
 
  private:
   void seen(const can::CanFrame& frame, const char* what);
+  void sync_seen(const can::CanFrame& frame);
   void quiet();
 
   BusLoop& loop_;
   Policy policy_;
   BusLoop::TimerId quiet_timer_;
-  std::deque<std::chrono::steady_clock::time_point> recent_;
+  // The current run of foreign SYNCs (each within kEvidenceGap of the previous one).
+  std::chrono::steady_clock::time_point run_start_{}, last_sync_{};
+  std::uint64_t run_syncs_ = 0;
   std::uint64_t frames_ = 0;
   bool yielding_ = false;
   std::string last_;

@@ -37,7 +37,7 @@ RemoteNode::RemoteNode(BusLoop& loop, std::uint8_t node_id, std::chrono::millise
       heartbeat_timeout_(heartbeat_timeout),
       heartbeat_(loop, node_id, heartbeat_timeout,
                  HeartbeatConsumer::Listener{
-                     .on_boot_up = [this] { booted(); },
+                     .on_boot_up = [this] { boot_up_seen(); },
                      .on_change = [this](NmtState s, bool o) { changed(s, o); },
                      .on_heartbeat = [this](NmtState s) { heartbeat(s); },
                      .on_malformed =
@@ -56,6 +56,7 @@ Result<void> RemoteNode::command(NmtCommand cmd) {
   if (!may_transmit_) return make_error("the bus is in the monitor role: the bridge sends no NMT commands there");
   if (auto r = loop_.send(make_nmt_command(cmd, node_id())); !r) return r;
   commanded_ = state_after(cmd);
+  if (cmd == NmtCommand::reset_node || cmd == NmtCommand::reset_communication) configured_ = false;
   confirmed_ = false;
   commanded_at_ = std::chrono::steady_clock::now();
   return {};
@@ -69,8 +70,19 @@ Result<void> RemoteNode::use_pdos(std::span<const PdoInUse> pdos) {
   return {};
 }
 
-void RemoteNode::booted() {
+// A boot-up is believed once the state that follows agrees: a device that has just booted is
+// pre-operational (or stopped, or silent: its heartbeat producer may be off at power-on), never
+// operational unless it starts itself. So a spoofed 70Xh#00 (or a device that sends one by
+// fault) next to a running device changes nothing: its configuration and set values stay, it is
+// not booted again, and a few such frames cannot make a boot-up storm that locks it out.
+void RemoteNode::boot_up_seen() {
   ++stats_.boot_ups;
+  if (!may_transmit_ || believe_every_boot_up_) return booted();
+  boot_up_pending_ = true;
+}
+
+void RemoteNode::booted() {
+  boot_up_pending_ = false;
   configured_ = false;
   commanded_ = NmtState::unknown;
   spdlog::info("{}: node {} booted (boot-up #{})", loop_.bus().uri(), node_id(), stats_.boot_ups);
@@ -85,6 +97,7 @@ void RemoteNode::changed(NmtState state, bool online) {
   was_online_ = online;
   for (const auto& l : listeners_) l(state, online);
   if (went_offline) {
+    if (boot_up_pending_) booted();  // a boot-up and then silence: a device whose heartbeat is off at power-on
     configured_ = false;
     emit(Event::lost, state);
   } else if (came_online) {
@@ -97,6 +110,25 @@ void RemoteNode::changed(NmtState state, bool online) {
 // right after a command may predate it, so a difference counts once a heartbeat has confirmed the
 // command, or once a whole heartbeat timeout has passed without.
 void RemoteNode::heartbeat(NmtState state) {
+  check_state(state);
+  if (state == NmtState::boot_up) return;
+  for (const auto& l : heartbeat_listeners_) l(state);
+}
+
+void RemoteNode::check_state(NmtState state) {
+  if (boot_up_pending_ && state != NmtState::boot_up) {
+    if (state != NmtState::operational) {
+      booted();
+    } else {
+      boot_up_pending_ = false;
+      ++stats_.boot_ups_not_believed;
+      if (spoof_log_.allow()) {
+        spdlog::warn("{}: node {}: a boot-up, then a heartbeat saying operational: not believed (a spoofed frame or a "
+                     "device fault; {} so far); its configuration and set values stay{}",
+                     loop_.bus().uri(), node_id(), stats_.boot_ups_not_believed, held_back_note(spoof_log_));
+      }
+    }
+  }
   if (commanded_ == NmtState::unknown || state == NmtState::boot_up) return;
   if (state == commanded_) {
     confirmed_ = true;

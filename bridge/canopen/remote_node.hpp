@@ -4,9 +4,11 @@
 // It reports what makes the device's state unknown to the master (a boot-up, a lost heartbeat, a
 // state it was not told to take); what to do about it is the error control's business.
 
+#include <array>
 #include <chrono>
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <span>
 #include <string>
 #include <vector>
@@ -32,6 +34,7 @@ class RemoteNode {
     std::uint64_t range_warnings = 0;
     std::uint64_t malformed_emergencies = 0;  // EMCYs not 8 bytes long (ignored)
     std::uint64_t malformed_heartbeats = 0;   // heartbeats without a state byte (ignored)
+    std::uint32_t boot_ups_not_believed = 0;  // a boot-up, then a heartbeat saying operational
   };
   // What makes the master lose track of the device's object dictionary.
   enum class Event {
@@ -47,9 +50,20 @@ class RemoteNode {
   using PdoListener = std::function<Result<void>(std::span<const PdoInUse> pdos)>;
   // The active-error list changed other than by an EMCY (a boot-up, a reading from the device).
   using ErrorsListener = std::function<void()>;
+  // What the boot found, told right before it sends NMT start (the last moment to decide what
+  // the device's first RPDO carries).
+  struct StartFacts {
+    bool found_operational = false;            // it reported operational before this start
+    std::array<std::uint32_t, 4> identity{};   // 1018h sub 1..4 as read (0 where absent)
+  };
+  using StartListener = std::function<void(const StartFacts&)>;
 
   // may_transmit = false for the monitor role: the node is observed, never commanded.
   RemoteNode(BusLoop& loop, std::uint8_t node_id, std::chrono::milliseconds heartbeat_timeout, bool may_transmit);
+
+  // Before the loop starts: the device enters operational by itself at power-on, so a boot-up
+  // followed by "operational" is believed too (otherwise it is a spoofed frame or a fault).
+  void believe_every_boot_up(bool believe) { believe_every_boot_up_ = believe; }
 
   // Registration before the loop starts.
   void on_change(ChangeListener listener) { listeners_.push_back(std::move(listener)); }
@@ -57,9 +71,20 @@ class RemoteNode {
   void on_event(EventListener listener) { event_listeners_.push_back(std::move(listener)); }
   void on_pdos(PdoListener listener) { pdo_listeners_.push_back(std::move(listener)); }
   void on_errors(ErrorsListener listener) { errors_listeners_.push_back(std::move(listener)); }
+  void on_start(StartListener listener) { start_listeners_.push_back(std::move(listener)); }
+  // Every heartbeat that carries a state (not a boot-up message), after the node took it.
+  void on_heartbeat(std::function<void(NmtState)> listener) { heartbeat_listeners_.push_back(std::move(listener)); }
 
-  // Loop thread. Refused with the reason on a monitor bus. Records the state the device must take.
+  // Loop thread. Refused with the reason on a monitor bus. Records the state the device must take;
+  // after a reset the device is no longer configured (its boot-up, or ErrorControl's bound on
+  // waiting for it, starts a boot).
   Result<void> command(NmtCommand command);
+  // Loop thread: an operator's NMT stop or enter pre-operational is kept until an operator starts
+  // (or resets) the device: every boot in between configures it and puts it back in that state
+  // instead of starting it, whatever happens to its heartbeat.
+  void hold(NmtCommand command) { hold_ = command; }
+  void release_hold() { hold_.reset(); }
+  const std::optional<NmtCommand>& operator_hold() const { return hold_; }
   // Loop thread: the boot passed (the device holds the configuration), or a boot begins or failed:
   // then what the device was told before no longer counts (it is pre-operational while booted).
   void set_configured(bool configured) {
@@ -68,6 +93,13 @@ class RemoteNode {
   }
   // Loop thread, by the boot: the PDOs from now on; the first listener's refusal is returned.
   Result<void> use_pdos(std::span<const PdoInUse> pdos);
+  // Loop thread, by the boot, right before NMT start.
+  void starting(const StartFacts& facts) {
+    for (const auto& l : start_listeners_) l(facts);
+  }
+  // What the last start did with the set values in force (diagnostics), and the gateway's note of it.
+  const std::string& set_values_at_start() const { return set_values_at_start_; }
+  void note_set_values_at_start(std::string note) { set_values_at_start_ = std::move(note); }
 
   std::uint8_t node_id() const { return heartbeat_.node_id(); }
   NmtState state() const { return heartbeat_.state(); }
@@ -94,9 +126,11 @@ class RemoteNode {
   const Stats& stats() const { return stats_; }
 
  private:
+  void boot_up_seen();
   void booted();
   void changed(NmtState state, bool online);
   void heartbeat(NmtState state);
+  void check_state(NmtState state);
   void emit(Event event, NmtState state);
   void on_emcy_frame(const can::CanFrame& frame);
 
@@ -108,6 +142,9 @@ class RemoteNode {
   bool confirmed_ = false;                  // a heartbeat reported the commanded state since
   std::chrono::steady_clock::time_point commanded_at_{};
   bool was_online_ = false;
+  bool believe_every_boot_up_ = false;
+  std::optional<NmtCommand> hold_;  // an operator's stop or pre-operational, kept
+  bool boot_up_pending_ = false;  // a boot-up frame, not yet confirmed by the state that follows
   Stats stats_;
   ActiveErrors errors_;
   std::vector<PdoInUse> pdos_;
@@ -117,7 +154,11 @@ class RemoteNode {
   std::vector<PdoListener> pdo_listeners_;
   LogRate emcy_log_;
   LogRate malformed_log_;
+  LogRate spoof_log_{1};
   std::vector<ErrorsListener> errors_listeners_;
+  std::vector<StartListener> start_listeners_;
+  std::vector<std::function<void(NmtState)>> heartbeat_listeners_;
+  std::string set_values_at_start_;
   HeartbeatConsumer heartbeat_;
 };
 

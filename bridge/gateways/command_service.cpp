@@ -2,6 +2,8 @@
 
 #include <spdlog/spdlog.h>
 
+#include "gateways/set_value_path.hpp"
+
 namespace lb::gateways {
 
 namespace srv = linebridge_msgs::srv;
@@ -9,7 +11,7 @@ namespace srv = linebridge_msgs::srv;
 std::vector<CommandBit> resolve_commands(const profiles::BitSet& control_word, const std::vector<std::string>& names) {
   std::vector<CommandBit> out;
   for (const auto& n : names) {
-    if (auto bit = control_word.bit(n)) out.push_back({n, *bit});
+    if (auto bit = control_word.bit(n)) out.push_back({n, *bit, control_word.field(n)->stopping});
   }
   return out;
 }
@@ -31,10 +33,12 @@ void CommandService::handle(const srv::Command_Request& req, ddsl::Respond<srv::
   if (!ctx_.is_master()) {
     return refuse("bus " + ctx_.bus.name + " is in the monitor role: the bridge never transmits there");
   }
-  const bool posted = ctx_.loop.try_post([this, bit = cmd->bit, name = cmd->name, refuse, respond] {
+  const bool posted = ctx_.loop.try_post([this, bit = cmd->bit, name = cmd->name, stopping = cmd->stopping, refuse, respond] {
     // Refused at once when no frame could carry it; otherwise answered when the pulse is over.
+    if (ctx_.loop.transmission_held()) return refuse(another_master(ctx_, name + " not sent"));
     if (!ctx_.node.online()) return refuse(ctx_.device.name + " is offline (no heartbeat): " + name + " not sent");
-    if (!ctx_.node.ready_for_pdos()) {
+    // A stop goes out to a device that is heard running, whatever the bridge knows of its boot.
+    if (!ctx_.node.ready_for_pdos() && !(stopping && stop_anyway_ && stop_anyway_())) {
       return refuse(ctx_.device.name + " is not started by this bridge (its boot has not passed, or it was told to "
                                        "stop): " + name + " not sent");
     }

@@ -4,6 +4,7 @@
 // Validated on the DDS thread (known command, master role), pressed on the loop thread (device
 // online).
 
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -17,6 +18,7 @@ namespace lb::gateways {
 struct CommandBit {
   std::string name;  // the profile's bit name, e.g. "manual_cut"
   unsigned bit;
+  bool stopping = false;  // marked `stopping` in the profile: never refused while the device is heard
 };
 
 // Resolves the names in the profile's bit set; names the profile lacks (older versions) are left
@@ -25,9 +27,14 @@ std::vector<CommandBit> resolve_commands(const profiles::BitSet& control_word, c
 
 class CommandService {
  public:
+  // Loop thread: for a stopping command on a device the bridge has not started (boot under way or
+  // failed, state unknown): true when it is heard running and its RPDOs may carry the pulse, after
+  // every enabling level was switched off in the image (PdoWiring::takes_a_safe_image).
+  using StopAnyway = std::function<bool()>;
   // pulses belongs to the device's gateway, which owns this service too.
-  CommandService(const DeviceContext& ctx, std::vector<CommandBit> commands, MomentaryCommands& pulses)
-      : ctx_(ctx), commands_(std::move(commands)), pulses_(pulses) {}
+  CommandService(const DeviceContext& ctx, std::vector<CommandBit> commands, MomentaryCommands& pulses,
+                 StopAnyway stop_anyway = {})
+      : ctx_(ctx), commands_(std::move(commands)), pulses_(pulses), stop_anyway_(std::move(stop_anyway)) {}
   CommandService(const CommandService&) = delete;
   CommandService& operator=(const CommandService&) = delete;
 
@@ -40,6 +47,7 @@ class CommandService {
   DeviceContext ctx_;
   std::vector<CommandBit> commands_;  // immutable: read from any thread
   MomentaryCommands& pulses_;         // loop thread
+  StopAnyway stop_anyway_;            // loop thread
 };
 
 }  // namespace lb::gateways

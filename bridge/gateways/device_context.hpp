@@ -25,6 +25,7 @@ struct DeviceContext {
   const profiles::DeviceConfig& device;
   const profiles::Profile& profile;
   SetValueStore* set_values = nullptr;  // master role: where the set values in force are kept (null: nowhere)
+  const profiles::StartupPolicy& startup;
 
   bool is_master() const { return bus.role == profiles::BusRole::master; }
   // The answer to a request the bus loop refused (BusLoop::try_post: too many waiting).

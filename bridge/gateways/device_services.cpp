@@ -4,6 +4,8 @@
 #include <fmt/ranges.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
+
 #include <stdexcept>
 
 #include "canopen/error_field.hpp"
@@ -115,6 +117,7 @@ DeviceServices::DeviceServices(DeviceContext context) : ctx_(context) {
                                    ? canopen::RecoveryAction::reset_node
                                    : canopen::RecoveryAction::reboot;
     control.retry = d.boot_retry;
+    control.reset_bound = std::max(2 * d.heartbeat_timeout, std::chrono::milliseconds(2000));
     control_ = std::make_unique<canopen::ErrorControl>(ctx_.loop, ctx_.node, *boot_, control,
                                                        [this](const canopen::BootReport& r) { booted(r); });
   }
@@ -348,6 +351,19 @@ void DeviceServices::nmt(const srv::Nmt_Request& request, ddsl::Respond<srv::Nmt
     auto r = ctx_.node.command(c);
     if (!r) return reply(false, r.error().message);
     spdlog::info("{}: NMT command {:02X}h sent on request", ctx_.device.name, static_cast<int>(c));
+    // What an operator asks is kept: a stop or pre-operational until an operator starts or resets
+    // the device (a heartbeat loss, a boot-up and the boot that follows do not undo it); a reset
+    // always leads to a boot.
+    switch (c) {
+      case canopen::NmtCommand::stop:
+      case canopen::NmtCommand::enter_pre_operational: ctx_.node.hold(c); break;
+      case canopen::NmtCommand::start: ctx_.node.release_hold(); break;
+      case canopen::NmtCommand::reset_node:
+      case canopen::NmtCommand::reset_communication:
+        ctx_.node.release_hold();
+        if (control_) control_->reset_sent(true);
+        break;
+    }
     // NMT is unconfirmed (CiA 301): only the device's heartbeat tells that it was heard. A device
     // that has none (offline) may be gone; sending may still help (a reset), claiming it did not.
     if (!ctx_.node.online()) {

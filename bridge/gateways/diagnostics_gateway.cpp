@@ -27,8 +27,8 @@ Replay replay_of(const profiles::BusConfig& bus) {
 }  // namespace
 
 DiagnosticsGateway::DiagnosticsGateway(ddsl::Participant& dds, const std::string& line, std::vector<Bus> buses,
-                                       std::chrono::milliseconds period)
-    : dds_(dds), line_(line), buses_(std::move(buses)), period_(period), previous_(buses_.size()),
+                                       BridgeFields bridge_fields, std::chrono::milliseconds period)
+    : dds_(dds), line_(line), buses_(std::move(buses)), bridge_fields_(std::move(bridge_fields)), period_(period), previous_(buses_.size()),
       bus_snapshots_(buses_.size()), node_snapshots_(buses_.size()) {
   auto w = dds.writer<msg::DiagnosticsPubSubType>(ddsl::topic_name(line, ddsl::kBridgeNamespace, "diagnostics"),
                                                   ddsl::QosKind::state);
@@ -120,6 +120,7 @@ void DiagnosticsGateway::snapshot(std::size_t i) {
     n.online(d.node->online());
     n.nmt_state(to_msg(d.node->state()));
     n.boot_state(d.services->boot_state());
+    n.set_values_at_start(d.node->set_values_at_start());
     if (const auto& e = d.services->boot_report().error) n.boot_error(to_msg(*e));
     const auto counters = d.services->boot_counters();
     n.boots(counters.boots);
@@ -136,6 +137,7 @@ void DiagnosticsGateway::snapshot(std::size_t i) {
     n.range_warnings(s.range_warnings);
     n.malformed_emergencies(s.malformed_emergencies);
     n.malformed_heartbeats(s.malformed_heartbeats);
+    n.boot_ups_not_believed(s.boot_ups_not_believed);
     nodes.push_back(std::move(n));
   }
   std::lock_guard lock(mutex_);
@@ -157,6 +159,7 @@ void DiagnosticsGateway::publish_loop() {
     for (const auto& nodes : node_snapshots_) d.nodes().insert(d.nodes().end(), nodes.begin(), nodes.end());
     lock.unlock();
     d.commands_lost(dds_.commands_lost());
+    if (bridge_fields_) bridge_fields_(d);
     writer_.write(d);
     lock.lock();
   }

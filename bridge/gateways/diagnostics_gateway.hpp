@@ -5,6 +5,7 @@
 
 #include <chrono>
 #include <condition_variable>
+#include <functional>
 #include <mutex>
 #include <string>
 #include <thread>
@@ -34,7 +35,9 @@ class DiagnosticsGateway {
     std::vector<Device> devices;
   };
 
-  DiagnosticsGateway(ddsl::Participant& dds, const std::string& line, std::vector<Bus> buses,
+  // The process's own fields (the set-value store, the log), filled on the publishing thread.
+  using BridgeFields = std::function<void(linebridge_msgs::msg::Diagnostics&)>;
+  DiagnosticsGateway(ddsl::Participant& dds, const std::string& line, std::vector<Bus> buses, BridgeFields bridge_fields = {},
                      std::chrono::milliseconds period = std::chrono::seconds(1));
   ~DiagnosticsGateway();
   DiagnosticsGateway(const DiagnosticsGateway&) = delete;
@@ -54,6 +57,7 @@ class DiagnosticsGateway {
   const ddsl::Participant& dds_;
   std::string line_;
   std::vector<Bus> buses_;
+  BridgeFields bridge_fields_;
   std::chrono::milliseconds period_;
   ddsl::Writer<linebridge_msgs::msg::DiagnosticsPubSubType> writer_;
   std::vector<Previous> previous_;  // per bus, loop thread of that bus

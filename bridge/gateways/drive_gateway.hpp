@@ -74,7 +74,12 @@ DriveGateway<Dds>::DriveGateway(DeviceContext context)
           }),
       burst_(context.loop, [this](std::int64_t stamp_ns) { publish_status(stamp_ns); }),
       command_service_(context, resolve_commands(codec_.bitset("control_word"), Codec::DeviceTraits::momentary_commands()),
-                       commands_) {
+                       commands_,
+                       [this] {
+                         const bool go = pdos_.ready_for_a_stop();
+                         if (go) publish_status(ddsl::now_ns());
+                         return go;
+                       }) {
   namespace msg = linebridge_msgs::msg;
   const std::string& dev = ctx_.device.name;
   const auto fail = [&dev](const Error& e) { throw std::runtime_error(dev + ": " + e.message); };
@@ -136,14 +141,14 @@ void DriveGateway<Dds>::on_pdo(std::size_t pdo, const can::CanFrame& frame) {
 template <class Dds>
 void DriveGateway<Dds>::on_setpoint(const Setpoint& sp) {
   take_set_value(
-      ctx_, set_value_log_, sp.request_id(), [&] { return codec_.validate(sp); },
-      [this](const auto& r) {
-        codec_.apply(r);
+      ctx_, pdos_, set_value_log_, sp.request_id(), [&] { return codec_.validate(sp); },
+      [this](const auto& r) { codec_.apply(r); },
+      [this] {
         pdos_.on_data();
         publish_status(ddsl::now_ns());
         if (applied_log_.allow()) {
           spdlog::info("{}: set values: extruder {}, speed {} % (control word {:04X}h){}", ctx_.device.name,
-                       r.extruder_running ? "running" : "stopped", codec_.speed_set_percent(), codec_.control_word(),
+                       codec_.extruder_running() ? "running" : "stopped", codec_.speed_set_percent(), codec_.control_word(),
                        held_back_note(applied_log_));
         }
       },

@@ -64,6 +64,7 @@ class DriveImage {
 
   std::uint64_t status_word() const { return image_.get(status_word_.slot); }
   std::uint64_t control_word() const { return image_.get(control_word_.slot); }
+  bool extruder_running() const { return (control_word() >> bit_extruder_running_) & 1U; }
   double speed_actual_percent() const { return engineering(speed_actual_); }
   double load_actual_percent() const { return engineering(load_actual_); }
   double speed_set_echo_percent() const { return engineering(speed_echo_); }

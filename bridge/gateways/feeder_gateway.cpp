@@ -125,8 +125,18 @@ void FeederGateway::publish_error_event(unsigned feeder, bool in_error, std::uin
   }
   // "If feeders are not able to provide detailed failure conditions immediately after the error
   // occurs, the Emergency message will not contain [them]": the detail is in 6007h sub feeder.
+  const std::uint32_t bit = FeederCodec::in_bitmap(0xFFFF'FFFFU, feeder) ? 1U << (feeder - 1) : 0U;
+  if ((detail_pending_ & bit) != 0) {
+    ++detail_reads_coalesced_;
+    ev.remark("6007h sub " + std::to_string(feeder) + " not read again: its read is still under way (" +
+              std::to_string(detail_reads_coalesced_) + " such events coalesced)");
+    error_writer_.write(ev);
+    return;
+  }
+  detail_pending_ |= bit;
   read(kErrorCondition, static_cast<std::uint8_t>(feeder),
-                   [this, ev, feeder](canopen::SdoClient::ReadResult r) mutable {
+                   [this, ev, feeder, bit](canopen::SdoClient::ReadResult r) mutable {
+                     detail_pending_ &= ~bit;
                      if (r) {
                        const auto raw = canopen::integer_bits(*r);
                        ev.detail_read(true);

@@ -87,6 +87,11 @@ class FeederGateway : public Gateway {
   bool polling_ = false;
   bool loom_active_ = false;
   std::uint32_t bitmap_ = 0;
+  // Feeders whose 6007h detail read is queued or under way (loop thread): one read per feeder at
+  // a time, so a chattering FF10h bit cannot grow the node's SDO queue (at most 32 reads wait);
+  // the events in between are published without the detail, and counted.
+  std::uint32_t detail_pending_ = 0;
+  std::uint64_t detail_reads_coalesced_ = 0;
   linebridge_msgs::msg::FeederStatus status_;
 };
 

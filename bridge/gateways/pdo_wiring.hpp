@@ -8,12 +8,16 @@
 // use_pdo(i, DevicePdo).
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
 #include <array>
+#include <chrono>
 #include <cstddef>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <span>
 #include <string>
 #include <string_view>
@@ -22,6 +26,7 @@
 #include "canopen/pdo_transmitter.hpp"
 #include "gateways/device_context.hpp"
 #include "gateways/pdo_specs.hpp"
+#include "gateways/set_value_restore.hpp"
 
 namespace lb::gateways {
 
@@ -72,31 +77,34 @@ class PdoWiring {
                             }
                           }})});
     }
-    if (ctx_.is_master()) ctx_.node.on_pdos([this](std::span<const canopen::PdoInUse> pdos) { return use(pdos); });
+    if (ctx_.is_master()) {
+      ctx_.node.on_pdos([this](std::span<const canopen::PdoInUse> pdos) { return use(pdos); });
+      // A boot-up (believed: canopen/remote_node) starts the device from its power-on PDOs; one
+      // that was gone may come back as another device: its PDOs are verified again.
+      ctx_.node.on_event([this](canopen::RemoteNode::Event e, canopen::NmtState) {
+        if (e == canopen::RemoteNode::Event::boot_up || e == canopen::RemoteNode::Event::lost) {
+          pdos_verified_ = false;
+          safe_image_asked_ = false;
+        }
+      });
+    }
   }
 
-  // Before the loop starts, once the gateway is complete: the set values in force before the
-  // bridge's last stop (ctx.set_values) go back into the RPDOs' image before their first frame.
-  // From now on every change is kept. clear_momentary takes out what must never come back (a
-  // command bit that was held at the moment of the stop).
-  void restore(const std::function<void()>& clear_momentary) {
-    persist_ = ctx_.set_values != nullptr && ctx_.is_master();
-    if (!persist_) return;
-    bool restored = false;
-    for (auto& r : rpdos_) {
-      const auto& def = *codec_.pdos()[r.pdo].def;
-      const auto kept = ctx_.set_values->restored(ctx_.device.name, def.name);
-      if (!kept) continue;
-      if (kept->mapping != mapping_of(def)) {
-        spdlog::warn("{}: the kept set values of {} are not restored: its mapping changed since", ctx_.device.name, def.name);
-        continue;
-      }
-      if (auto ok = codec_.receive(r.pdo, kept->payload); !ok) continue;
-      restored = true;
-    }
-    if (clear_momentary) clear_momentary();
-    if (restored) spdlog::info("{}: set values in force restored from {}", ctx_.device.name, ctx_.set_values->path());
-    keep();
+  // Before the loop starts, once the gateway is complete (master role). clear_momentary takes out
+  // what must never come back (a command bit that was held at the moment of the stop). From the
+  // first start on, every change of the RPDOs' image is kept (ctx.set_values).
+  // At every start of the device (right before NMT start) the start-up policy decides what its
+  // RPDOs carry (set_value_restore.hpp): at the first start, the set values kept at the bridge's
+  // last stop, if they were held in force recently enough, by a device of the same identity, and
+  // pass today's range checks; at a later start (the device lost power or was reset while the
+  // bridge ran), the image in force. Either way a device not found operational gets no enabling
+  // level (restart_after_power_loss: never).
+  void restore(std::function<void()> clear_momentary) {
+    clear_momentary_ = std::move(clear_momentary);
+    if (clear_momentary_) clear_momentary_();
+    if (!ctx_.is_master()) return;
+    persist_ = ctx_.set_values != nullptr;
+    ctx_.node.on_start([this](const canopen::RemoteNode::StartFacts& facts) { starting(facts); });
   }
   // What a gateway learns about every frame of the RPDOs that carry one object (the control word,
   // for momentary commands), as the device's boot left them mapped.
@@ -121,6 +129,69 @@ class PdoWiring {
   }
   std::vector<Rpdo>& rpdos() { return rpdos_; }
 
+  // Loop thread. The RPDOs' image as it would go out now carries an enabling level (program on,
+  // extruder running): what a device the bridge has not started (again) must not be sent.
+  bool carries_enabling() {
+    for (const auto& r : rpdos_) {
+      std::array<std::uint8_t, 8> data{};
+      const auto len = codec_.pack(r.pdo, std::span<std::uint8_t, 8>(data));
+      if (!clear_enabling(ctx_.profile, codec_.pdos()[r.pdo].def->mapping, std::span<std::uint8_t>(data.data(), len)).empty()) {
+        return true;
+      }
+    }
+    return false;
+  }
+  // Loop thread: every enabling level off in the image (a stop on a device the bridge does not
+  // control just now); returns what was switched off.
+  std::vector<std::string> switch_off_enabling() {
+    std::vector<std::string> off;
+    for (const auto& r : rpdos_) {
+      std::array<std::uint8_t, 8> data{};
+      const auto len = codec_.pack(r.pdo, std::span<std::uint8_t, 8>(data));
+      auto names = clear_enabling(ctx_.profile, codec_.pdos()[r.pdo].def->mapping, std::span<std::uint8_t>(data.data(), len));
+      if (names.empty()) continue;
+      if (auto ok = codec_.receive(r.pdo, std::span<const std::uint8_t>(data.data(), len)); !ok) continue;
+      off.insert(off.end(), names.begin(), names.end());
+    }
+    if (!off.empty()) on_data();
+    return off;
+  }
+  // Loop thread, for a stopping command on a device the bridge has not started: true when its
+  // RPDOs may carry the pulse now (heard running, PDOs verified), after every enabling level was
+  // switched off in the image (a stop means stop: its RPDOs may carry nothing that enables).
+  bool ready_for_a_stop() {
+    if (!takes_a_safe_image()) return false;
+    safe_image_asked_ = true;
+    if (const auto off = switch_off_enabling(); !off.empty()) {
+      spdlog::warn("{}: a stop for a device the bridge has not started: switched off first: {}", ctx_.device.name, fmt::join(off, ", "));
+    }
+    return true;
+  }
+  using Image = std::vector<std::vector<std::uint8_t>>;
+  // Loop thread: the RPDOs' payloads, to put back what a refused change did.
+  Image image() {
+    Image out;
+    for (const auto& r : rpdos_) {
+      std::array<std::uint8_t, 8> data{};
+      const auto len = codec_.pack(r.pdo, std::span<std::uint8_t, 8>(data));
+      out.emplace_back(data.begin(), data.begin() + len);
+    }
+    return out;
+  }
+  void restore_image(const Image& image) {
+    for (std::size_t k = 0; k < rpdos_.size() && k < image.size(); ++k) static_cast<void>(codec_.receive(rpdos_[k].pdo, image[k]));
+  }
+  // Loop thread: a device the bridge has not started (its boot under way, failed, or its state
+  // unknown) that is heard operational and whose PDOs a boot of this run verified: it may take an
+  // image that enables nothing, so a stop is never held back while it is heard.
+  bool takes_a_safe_image() const {
+    return pdos_verified_ && ctx_.node.online() && ctx_.node.state() == canopen::NmtState::operational;
+  }
+  // Loop thread: an operator's set value that enables nothing was taken for such a device: from
+  // now on its RPDOs carry the image while it enables nothing (never by themselves: a restarted
+  // bridge whose boot fails must not stop a running line unasked).
+  void safe_image_asked() { safe_image_asked_ = true; }
+
  private:
   static canopen::PdoTransmitter::Settings settings(const profiles::DevicePdo& p) {
     return {p.can_id, p.extended, p.transmission_type, p.inhibit, p.event_timer};
@@ -132,30 +203,110 @@ class PdoWiring {
     return m;
   }
 
-  // The RPDOs' payloads as they would go out now.
+  SetValueStore::Key store_key(const profiles::DevicePdo& def) const {
+    return {ctx_.bus.name, ctx_.device.node_id, ctx_.profile.key(), def.name};
+  }
+
+  // The RPDOs' payloads as they would go out now; only once a start has decided what they are.
   void keep() {
-    if (!persist_) return;
+    if (!persist_ || !started_once_) return;
     for (auto& r : rpdos_) {
       const auto& def = *codec_.pdos()[r.pdo].def;
       std::array<std::uint8_t, 8> data{};
       const auto len = codec_.pack(r.pdo, std::span<std::uint8_t, 8>(data));
-      ctx_.set_values->save(ctx_.device.name, def.name, {mapping_of(def), {data.begin(), data.begin() + len}});
+      ctx_.set_values->save(store_key(def), {identity_, 0, mapping_of(def), {data.begin(), data.begin() + len}});
     }
   }
 
-  bool may_send(std::size_t k) const {
-    return rpdos_[k].valid_on_device && ctx_.node.ready_for_pdos() && (!gate_ || gate_());
+  // Why a kept entry does not go back into this device, or nothing when it may.
+  std::optional<std::string> refuse_kept(const profiles::DevicePdo& def, const SetValueStore::Entry& kept) const {
+    if (kept.mapping != mapping_of(def)) return "its mapping changed since";
+    if (kept.identity != identity_) {
+      return fmt::format("they were kept for another device (identity {:08X}:{:08X}:{:08X}:{:08X}, now {:08X}:{:08X}:{:08X}:{:08X})",
+                         kept.identity[0], kept.identity[1], kept.identity[2], kept.identity[3], identity_[0], identity_[1],
+                         identity_[2], identity_[3]);
+    }
+    const auto now = std::chrono::duration_cast<std::chrono::seconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+    const auto age = now - kept.held_at_s;
+    // A stamp from the future: the clock went back, so the age is unknown.
+    if (age < -60) return fmt::format("they are stamped {} s in the future (the clock went back?)", -age);
+    if (age > ctx_.startup.set_values_max_age.count()) {
+      return fmt::format("they were last in force {} s ago, over set_values_max_age_s {}", age, ctx_.startup.set_values_max_age.count());
+    }
+    if (auto ok = check_set_values(ctx_.profile, def.mapping, kept.payload); !ok) return "out of range: " + ok.error().message;
+    return std::nullopt;
+  }
+
+  // Loop thread, right before the device's NMT start.
+  void starting(const canopen::RemoteNode::StartFacts& facts) {
+    identity_ = facts.identity;
+    safe_image_asked_ = false;
+    const auto scope = restore_scope(ctx_.startup, facts.found_operational, ctx_.device.starts_itself);
+    const bool first = !started_once_;
+    started_once_ = true;
+    std::vector<std::string> notes;
+    std::vector<std::string> cleared;
+    for (auto& r : rpdos_) {
+      const auto& def = *codec_.pdos()[r.pdo].def;
+      std::array<std::uint8_t, 8> data{};
+      std::size_t len = 0;
+      if (first) {
+        // The image is all zero until now: what comes back is what was kept.
+        const auto kept = ctx_.set_values != nullptr ? ctx_.set_values->restored(store_key(def)) : std::nullopt;
+        if (!kept) continue;
+        if (const auto why = refuse_kept(def, *kept)) {
+          notes.push_back(fmt::format("{} not restored: {}", def.name, *why));
+          continue;
+        }
+        len = std::min(kept->payload.size(), data.size());
+        std::copy_n(kept->payload.begin(), len, data.begin());
+        notes.push_back(fmt::format("{} restored", def.name));
+      } else {
+        len = codec_.pack(r.pdo, std::span<std::uint8_t, 8>(data));
+      }
+      if (scope == RestoreScope::nothing) data.fill(0);
+      if (scope == RestoreScope::non_enabling) {
+        for (auto& name : clear_enabling(ctx_.profile, def.mapping, std::span<std::uint8_t>(data.data(), len))) {
+          cleared.push_back(std::move(name));
+        }
+      }
+      if (auto ok = codec_.receive(r.pdo, std::span<const std::uint8_t>(data.data(), len)); !ok) {
+        notes.push_back(fmt::format("{}: {}", def.name, ok.error().message));
+      }
+    }
+    if (clear_momentary_) clear_momentary_();
+    const char* found = facts.found_operational ? (ctx_.device.starts_itself ? "found operational, but it starts itself"
+                                                                              : "found operational")
+                                                : "found not operational (power loss or reset)";
+    std::string note = fmt::format("{}: {} set values", found, to_string(scope));
+    if (!cleared.empty()) note += fmt::format("; enabling levels switched off until an operator sets them: {}", fmt::join(cleared, ", "));
+    if (!notes.empty()) note += fmt::format("; {}", fmt::join(notes, "; "));
+    if (!cleared.empty()) spdlog::warn("{}: {}", ctx_.device.name, note);
+    else if (first || scope == RestoreScope::nothing) spdlog::info("{}: {}", ctx_.device.name, note);
+    ctx_.node.note_set_values_at_start(std::move(note));
+    keep();
+  }
+
+  bool may_send(std::size_t k) {
+    if (!rpdos_[k].valid_on_device || (gate_ && !gate_())) return false;
+    return ctx_.node.ready_for_pdos() || (safe_image_asked_ && takes_a_safe_image() && !carries_enabling());
   }
 
   // Why may_send(k) is false, for whoever waits for the frame.
-  std::string why_not(std::size_t k) const {
+  std::string why_not(std::size_t k) {
     const auto& name = ctx_.device.name;
     const auto& node = ctx_.node;
     if (!rpdos_[k].valid_on_device) {
       return fmt::format("{} has {} disabled (COB-ID bit 31)", name, codec_.pdos()[rpdos_[k].pdo].def->name);
     }
     if (!node.online()) return name + " is offline (no heartbeat)";
-    if (!node.configured()) return name + " has not passed its boot (its state became unknown, or the boot failed)";
+    if (!node.configured()) {
+      if (takes_a_safe_image()) {
+        return name + " has not passed its boot (its state became unknown, or the boot failed): while it runs it takes only "
+                      "set values that enable nothing (program off, extruder stopped)";
+      }
+      return name + " has not passed its boot (its state became unknown, or the boot failed)";
+    }
     if (node.commanded_state() != canopen::NmtState::operational) return name + " was told to leave operational (NMT)";
     if (node.state() != canopen::NmtState::operational) {
       return fmt::format("{} reports {}, not operational", name, canopen::to_string(node.state()));
@@ -205,6 +356,7 @@ class PdoWiring {
         }
       }
     }
+    pdos_verified_ = true;
     return {};
   }
 
@@ -213,6 +365,11 @@ class PdoWiring {
   Gate gate_;
   std::vector<Rpdo> rpdos_;
   bool persist_ = false;
+  bool started_once_ = false;           // loop thread: a start has decided the image
+  bool pdos_verified_ = false;          // loop thread: a boot checked the device's PDOs since its last boot-up
+  bool safe_image_asked_ = false;       // loop thread: an operator stopped a device the bridge has not started
+  std::array<std::uint32_t, 4> identity_{};  // loop thread: 1018h of the device as its last boot read it
+  std::function<void()> clear_momentary_;
   struct Observer {
     std::uint16_t index;
     RpdoObserver observer;

@@ -29,7 +29,12 @@ SawGateway::SawGateway(DeviceContext context)
       command_service_(context,
                        resolve_commands(codec_.control_word(), {"manual_cut", "tip_pulse", "stop_immediately", "f1_stop",
                                                                 "f1_start", "f2_stop", "f2_start", "f3_stop", "f3_start"}),
-                       commands_) {
+                       commands_,
+                       [this] {
+                         const bool go = pdos_.ready_for_a_stop();
+                         if (go) publish_status(ddsl::now_ns());
+                         return go;
+                       }) {
   const std::string& dev = ctx_.device.name;
   const std::string& line = ctx_.line;
   status_writer_ = checked(ctx_.dds.writer<msg::SawStatusPubSubType>(ddsl::topic_name(line, dev, "status"), ddsl::QosKind::state), dev);
@@ -75,9 +80,9 @@ void SawGateway::on_pdo(std::size_t pdo, const can::CanFrame& frame) {
 
 void SawGateway::on_setpoint(const msg::SawSetpoint& sp) {
   take_set_value(
-      ctx_, set_value_log_, sp.request_id(), [&] { return codec_.validate(sp); },
-      [this](const SawCodec::RawSetpoint& r) {
-        codec_.apply(r);
+      ctx_, pdos_, set_value_log_, sp.request_id(), [&] { return codec_.validate(sp); },
+      [this](const SawCodec::RawSetpoint& r) { codec_.apply(r); },
+      [this] {
         pdos_.on_data();
         publish_status(ddsl::now_ns());
         if (applied_log_.allow()) {

@@ -1,12 +1,19 @@
 #pragma once
 // The set values in force of a line's devices, kept across restarts of the bridge: a restart must
 // not send a running line zeros (a saw switching its program off, pullers to speed 0). What is
-// kept is what the bridge last sent: the payload of each RPDO with its mapping, so a payload is
-// never restored into a PDO whose mapping changed. One file per line,
-// <state_dir>/<line>.set_values, text (one RPDO a line), written atomically (temporary file,
-// fsync, rename) by a thread of its own at most every kWriteInterval, so no bus loop ever waits
-// for the disk; a crash loses at most the last interval's changes.
+// kept is what the bridge last sent: the payload of each RPDO with its mapping, keyed by what the
+// device *is* (bus, node-ID, profile) and stamped with the identity its boot read (1018h) and the
+// time the bridge last held it in force. So a renamed device keeps its values, another device at
+// that node-ID gets none, and a file from before a long stop restores nothing
+// (StartupPolicy::set_values_max_age). Whether and what is restored is PdoWiring's decision.
+//
+// One file per line, <state_dir>/<line>.set_values, text, written atomically (a fresh temporary
+// file opened without following links, fsync, rename, fsync of the directory) by a thread of its
+// own at most every kWriteInterval and at least every kRefreshInterval (the held-in-force stamps),
+// so no bus loop ever waits for the disk; a crash loses at most the last interval's changes.
+// A store that cannot be used is reported (problem(): diagnostics, --check), never silent.
 
+#include <array>
 #include <chrono>
 #include <condition_variable>
 #include <cstdint>
@@ -14,6 +21,7 @@
 #include <memory>
 #include <mutex>
 #include <optional>
+#include <set>
 #include <string>
 #include <thread>
 #include <vector>
@@ -25,41 +33,60 @@ namespace lb::gateways {
 class SetValueStore {
  public:
   static constexpr std::chrono::milliseconds kWriteInterval{200};
+  static constexpr std::chrono::seconds kRefreshInterval{60};
   static constexpr std::size_t kMaxFileBytes = 1 << 20;
+  static constexpr int kFormat = 2;
 
+  // What the device is: the file's key. pdo: rpdo1, ...
+  struct Key {
+    std::string bus;
+    unsigned node_id = 0;
+    std::string profile;  // id@version
+    std::string pdo;
+    auto operator<=>(const Key&) const = default;
+  };
   struct Entry {
-    std::vector<std::uint32_t> mapping;  // index(16) sub(8) bits(8) per entry, as sent
+    std::array<std::uint32_t, 4> identity{};  // 1018h sub 1..4 as the device's boot read them
+    std::int64_t held_at_s = 0;               // Unix time the bridge last held it in force
+    std::vector<std::uint32_t> mapping;       // index(16) sub(8) bits(8) per entry, as sent
     std::vector<std::uint8_t> payload;
   };
 
-  // Reads the file when `restore` (a missing file is an empty store); fails when the directory
-  // cannot be written or the file cannot be read. Lines it cannot parse are skipped with a warning.
+  // Checks that <state_dir> is a directory the bridge can write, then reads the file when
+  // `restore` (a missing file is an empty store). Refused: a directory that cannot be used, a
+  // file that is a link, not a regular file, over kMaxFileBytes or unreadable. Lines it cannot
+  // parse are skipped and counted (a few logged, then one summary).
   static Result<std::unique_ptr<SetValueStore>> open(const std::string& state_dir, const std::string& line, bool restore);
-  SetValueStore(std::string path, std::map<std::string, Entry> restored);
+  SetValueStore(std::string path, std::map<Key, Entry> restored);
   ~SetValueStore();  // writes what is pending, then stops
   SetValueStore(const SetValueStore&) = delete;
   SetValueStore& operator=(const SetValueStore&) = delete;
 
   const std::string& path() const { return path_; }
   // What the file held for a device's PDO at start-up.
-  std::optional<Entry> restored(const std::string& device, const std::string& pdo) const;
-  // Any thread, never blocks on the disk: the newest values of a PDO, written soon.
-  void save(const std::string& device, const std::string& pdo, Entry entry);
+  std::optional<Entry> restored(const Key& key) const;
+  // Any thread, never blocks on the disk: the newest values of a PDO, written soon; from now on
+  // its held-in-force stamp follows the clock.
+  void save(const Key& key, Entry entry);
   std::uint64_t write_failures() const;
+  // Empty while the last write succeeded; else why the file is not being kept up to date.
+  std::string problem() const;
 
  private:
-  static std::string key(const std::string& device, const std::string& pdo) { return device + " " + pdo; }
   void run();
-  bool write_file(const std::map<std::string, Entry>& values);
+  bool write_file(const std::map<Key, Entry>& values, std::string& why);
 
   std::string path_;
-  const std::map<std::string, Entry> restored_;
+  const std::map<Key, Entry> restored_;
   mutable std::mutex mutex_;
   std::condition_variable cv_;
-  std::map<std::string, Entry> current_;  // guarded by mutex_
-  bool dirty_ = false;                    // guarded by mutex_
-  bool stopping_ = false;                 // guarded by mutex_
-  std::uint64_t write_failures_ = 0;      // guarded by mutex_
+  std::map<Key, Entry> current_;  // guarded by mutex_
+  std::set<Key> live_;            // guarded by mutex_: saved in this run, stamped at every write
+  bool dirty_ = false;            // guarded by mutex_
+  bool stopping_ = false;         // guarded by mutex_
+  std::uint64_t write_failures_ = 0;  // guarded by mutex_
+  std::string problem_;               // guarded by mutex_
+  std::chrono::steady_clock::time_point failure_logged_{};  // the writer thread's: a failing disk is logged once a minute
   std::thread thread_;
 };
 

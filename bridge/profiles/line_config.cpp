@@ -261,7 +261,7 @@ std::vector<SimulatedPdo> parse_simulated_pdos(const YamlSource& src, const YAML
 SimulationConfig parse_simulation(const YamlSource& src, const YAML::Node& n, const Profile& profile) {
   src.check_keys(n, "simulation", {"max_speed_m_per_min", "acceleration_m_per_min_s", "scaling_pulses_per_m",
                                    "heartbeat_period_ms", "controller_values", "identity", "pdos", "ignore_writes",
-                                   "pre_defined_error_field"});
+                                   "pre_defined_error_field", "boot_up_after_nmt_reset"});
   SimulationConfig sim;
   sim.max_speed_m_per_min = positive(src, n, "max_speed_m_per_min", sim.max_speed_m_per_min);
   sim.acceleration_m_per_min_s = positive(src, n, "acceleration_m_per_min_s", sim.acceleration_m_per_min_s);
@@ -269,6 +269,7 @@ SimulationConfig parse_simulation(const YamlSource& src, const YAML::Node& n, co
   // 0: the device sends no heartbeat until a master writes 1017h.
   sim.heartbeat_period = std::chrono::milliseconds(bounded<int>(src, n, "heartbeat_period_ms", 100, 0, 65535, "simulation"));
   sim.pre_defined_error_field = src.optional<bool>(n, "pre_defined_error_field").value_or(true);
+  sim.boot_up_after_nmt_reset = src.optional<bool>(n, "boot_up_after_nmt_reset").value_or(true);
   if (n["identity"]) sim.identity = parse_identity(src, n["identity"], "simulation identity");
   if (n["pdos"]) sim.pdos = parse_simulated_pdos(src, n["pdos"], profile);
   if (const auto ignore = n["ignore_writes"]) {
@@ -441,11 +442,29 @@ void claim_pdo_identifiers(const YamlSource& src, const YAML::Node& n, const Dev
   }
 }
 
+StartupPolicy parse_startup(const YamlSource& src, const YAML::Node& n) {
+  src.expect_map(n, "startup");
+  src.check_keys(n, "startup", {"set_values_max_age_s", "after_power_loss", "restart_after_power_loss"});
+  StartupPolicy p;
+  p.set_values_max_age = std::chrono::seconds(bounded<int>(src, n, "set_values_max_age_s", 3600, 0, 30 * 86400, "startup"));
+  if (const auto v = src.optional<std::string>(n, "after_power_loss")) {
+    if (*v == "non_enabling") p.after_power_loss = StartupPolicy::AfterPowerLoss::non_enabling;
+    else if (*v == "nothing") p.after_power_loss = StartupPolicy::AfterPowerLoss::nothing;
+    else src.fail(n["after_power_loss"], "after_power_loss must be non_enabling (speeds, lengths and modes come back) or nothing, not '" + *v + "'");
+  }
+  if (const auto v = src.optional<std::string>(n, "restart_after_power_loss")) {
+    if (*v == "never") p.restart_after_power_loss = StartupPolicy::Restart::never;
+    else if (*v == "allowed") p.restart_after_power_loss = StartupPolicy::Restart::allowed;
+    else src.fail(n["restart_after_power_loss"], "restart_after_power_loss must be never or allowed, not '" + *v + "'");
+  }
+  return p;
+}
+
 DeviceConfig parse_device(const YamlSource& src, const YAML::Node& n, const LineConfig& line,
                           const ProfileRegistry& registry, std::vector<std::string>& warnings, Taken& taken) {
   src.check_keys(n, "device", {"name", "bus", "node_id", "profile", "version", "heartbeat_timeout_ms", "configure",
                                "boot_retry_ms", "pdos", "simulation", "identity", "pdo_config", "on_state_unknown",
-                               "heartbeat_producer_ms", "objects"});
+                               "heartbeat_producer_ms", "objects", "starts_itself"});
   DeviceConfig dev;
   dev.name = src.required<std::string>(n, "name", "device");
   check_name(src, n["name"], dev.name);
@@ -511,6 +530,7 @@ DeviceConfig parse_device(const YamlSource& src, const YAML::Node& n, const Line
     else if (*action == "reset_node") dev.on_state_unknown = StateUnknownAction::reset_node;
     else src.fail(n["on_state_unknown"], "on_state_unknown must be reboot or reset_node, not '" + *action + "'");
   }
+  dev.starts_itself = src.optional<bool>(n, "starts_itself").value_or(false);
   if (n["heartbeat_producer_ms"]) {
     const auto producer = bounded<int>(src, n, "heartbeat_producer_ms", 0, 1, 65535, "device " + dev.name);
     dev.heartbeat_producer = std::chrono::milliseconds(producer);
@@ -588,12 +608,51 @@ const BusConfig* LineConfig::bus(std::string_view name) const {
   return nullptr;
 }
 
+std::string_view to_string(StartupPolicy::AfterPowerLoss v) {
+  return v == StartupPolicy::AfterPowerLoss::nothing ? "nothing" : "non_enabling";
+}
+
+std::string_view to_string(StartupPolicy::Restart v) { return v == StartupPolicy::Restart::allowed ? "allowed" : "never"; }
+
 const DeviceConfig* LineConfig::device(std::string_view name) const {
   for (const auto& d : devices) {
     if (d.name == name) return &d;
   }
   return nullptr;
 }
+
+namespace {
+
+// Every CiA 420 device answers 01A4h in 1000h: without identity: (vendor_id or product_code) a
+// puller plugged in at the saw's node-ID passes the boot and gets the saw's control word. The
+// master buses' devices that only 1000h bits 0..15 tell apart are named.
+void warn_identity_by_profile_number_alone(LineConfig& cfg) {
+  for (const auto& bus : cfg.buses) {
+    if (bus.role != BusRole::master) continue;
+    std::map<std::uint32_t, std::vector<const DeviceConfig*>> by_number;
+    for (const auto& d : cfg.devices) {
+      if (d.bus == bus.name) by_number[d.resolved_profile->device_type & 0xFFFF].push_back(&d);
+    }
+    for (const auto& [number, devices] : by_number) {
+      if (devices.size() < 2) continue;
+      std::vector<std::string> bare;
+      for (const auto* d : devices) {
+        if (!d->identity.vendor_id && !d->identity.product_code && !d->identity.serial_number) bare.push_back(d->name);
+      }
+      if (bare.empty()) continue;
+      std::string names;
+      for (const auto& n : bare) names += (names.empty() ? "" : ", ") + n;
+      cfg.warnings.push_back(fmt::format(
+          "bus {}: {} ha{} no identity: (vendor_id, product_code) and {} told apart from the other CiA {} device(s) of the bus "
+          "by 1000h bits 0..15 alone: any CiA {} device at {} node-ID is taken for {} (`linebridge-cli identity <device>` "
+          "prints the lines to add)",
+          bus.name, names, bare.size() == 1 ? "s" : "ve", bare.size() == 1 ? "is" : "are", number, number,
+          bare.size() == 1 ? "its" : "their", bare.size() == 1 ? "it" : "them"));
+    }
+  }
+}
+
+}  // namespace
 
 Result<LineConfig> parse_line_config(const std::string& yaml_text, const std::string& source,
                                      const ProfileRegistry& registry) {
@@ -602,7 +661,7 @@ Result<LineConfig> parse_line_config(const std::string& yaml_text, const std::st
     const YAML::Node root = src.parse(yaml_text);
     if (!root.IsMap()) src.fail(root, "a line configuration must be a mapping with line, buses and devices");
     src.check_keys(root, "line configuration",
-                   {"line", "dds", "profiles_dir", "buses", "devices", "state_dir", "restore_set_values"});
+                   {"line", "dds", "profiles_dir", "buses", "devices", "state_dir", "restore_set_values", "startup"});
     LineConfig cfg;
     cfg.line = src.required<std::string>(root, "line", "line configuration");
     check_name(src, root["line"], cfg.line);
@@ -611,6 +670,15 @@ Result<LineConfig> parse_line_config(const std::string& yaml_text, const std::st
       if (cfg.state_dir.empty()) src.fail(root["state_dir"], "state_dir: the directory is empty");
     }
     cfg.restore_set_values = src.optional<bool>(root, "restore_set_values").value_or(true);
+    if (const auto startup = root["startup"]) {
+      cfg.startup = parse_startup(src, startup);
+      if (cfg.startup.restart_after_power_loss == StartupPolicy::Restart::allowed) {
+        cfg.warnings.push_back(src.where(startup["restart_after_power_loss"]) +
+                               ": restart_after_power_loss: allowed: after a power loss or a reset the bridge switches "
+                               "enabling levels (saw program on, extruder running) back on by itself; IEC 60204-1 7.5 "
+                               "allows that only where it cannot cause a hazard");
+      }
+    }
     if (root["dds"]) cfg.dds = parse_dds(src, root["dds"]);
     if (cfg.dds.security && !cfg.dds.discovery_servers.empty()) {
       // Measured with Fast DDS 2.9.1: through an unsecured fast-discovery-server secured
@@ -632,6 +700,13 @@ Result<LineConfig> parse_line_config(const std::string& yaml_text, const std::st
     for (const auto& b : buses) {
       auto bus = parse_bus(src, b);
       if (cfg.bus(bus.name) != nullptr) src.fail(b["name"], "bus name '" + bus.name + "' is used twice");
+      // Two masters on one network hear each other's SYNC and NMT: one line, one master per bus.
+      for (const auto& other : cfg.buses) {
+        if (other.interface == bus.interface && other.role == BusRole::master && bus.role == BusRole::master) {
+          src.fail(b["interface"], "bus " + bus.name + ": " + bus.interface + " is already bus " + other.name +
+                                       ", and both are masters: a CAN network has one NMT master and one SYNC producer");
+        }
+      }
       cfg.buses.push_back(std::move(bus));
     }
     check_recordings(src, buses, cfg.buses);
@@ -639,6 +714,7 @@ Result<LineConfig> parse_line_config(const std::string& yaml_text, const std::st
     src.expect_sequence(devices, "devices");
     Taken taken;
     for (const auto& d : devices) cfg.devices.push_back(parse_device(src, d, cfg, *profiles, cfg.warnings, taken));
+    warn_identity_by_profile_number_alone(cfg);
     return cfg;
   } catch (const ConfigError& e) {
     return make_error(e.what());

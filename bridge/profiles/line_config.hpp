@@ -103,6 +103,9 @@ struct SimulationConfig {
   // CiA 301 1003h (pre-defined error field): the device lists its active errors there. false: it
   // has no 1003h, as many devices (the object is optional).
   bool pre_defined_error_field = true;
+  // false: the boot-up message after an NMT reset is lost (a fault to test a master with; the
+  // power-on boot-up is still sent).
+  bool boot_up_after_nmt_reset = true;
 };
 
 // One SDO write of a device's boot configuration (written in this order before NMT start).
@@ -157,6 +160,24 @@ enum class StateUnknownAction {
 };
 std::string_view to_string(StateUnknownAction action);
 
+// What a device gets back of the set values in force when the bridge starts it (README: "Start-up
+// and recovery"). A device found operational kept running without the bridge (only the bridge or
+// the line PC restarted): continuity, everything is restored. A device found pre-operational or
+// freshly booted lost power or was reset: IEC 60204-1 7.5, it must not restart by itself, so its
+// enabling levels (marked `enabling` in the profiles) stay off until an operator sets them again.
+struct StartupPolicy {
+  enum class AfterPowerLoss { non_enabling, nothing };
+  enum class Restart { never, allowed };
+  // Kept set values last held in force longer ago than this are not restored at all.
+  std::chrono::seconds set_values_max_age{3600};
+  // What a device found not operational gets: speeds, lengths and modes (non_enabling), or zero.
+  AfterPowerLoss after_power_loss = AfterPowerLoss::non_enabling;
+  // allowed: its enabling levels too (the integrator has judged an automatic restart safe).
+  Restart restart_after_power_loss = Restart::never;
+};
+std::string_view to_string(StartupPolicy::AfterPowerLoss v);
+std::string_view to_string(StartupPolicy::Restart v);
+
 struct DeviceConfig {
   std::string name;
   std::string bus;
@@ -172,6 +193,9 @@ struct DeviceConfig {
   StateUnknownAction on_state_unknown = StateUnknownAction::reboot;
   // Written to 1017h at every boot, after `configure`; nullopt: the device's own value is kept.
   std::optional<std::chrono::milliseconds> heartbeat_producer;
+  // The device enters operational by itself at power-on (no NMT master needed): finding it
+  // operational then proves nothing about a power loss, so it is treated as freshly booted.
+  bool starts_itself = false;
   SimulationConfig simulation;
   const Profile* resolved_profile = nullptr;  // points into the registry the config was loaded with
   // The profile with the device's `objects:` (manufacturer-specific objects the line names), or
@@ -189,6 +213,7 @@ struct LineConfig {
   // every start begins from zero (and still keeps them).
   std::string state_dir;
   bool restore_set_values = true;
+  StartupPolicy startup;
   std::vector<BusConfig> buses;
   std::vector<DeviceConfig> devices;
   // profiles_dir: profile files loaded over the built-in ones; the devices' resolved_profile

@@ -58,6 +58,9 @@ struct ObjectDef {
   std::optional<std::int64_t> max;
   bool mandatory = true;
   ValueTable values;  // empty: the object has no named codes
+  // Any value but 0 lets the machine run (a loom status other than stop, digital outputs): after a
+  // power loss or a reset it is sent as 0 until an operator sets it again (restart_after_power_loss).
+  bool enabling = false;
 
   bool writable() const { return access == Access::rw || access == Access::wo; }
   bool readable() const { return access != Access::wo; }
@@ -81,6 +84,12 @@ struct BitField {
   std::optional<std::int64_t> min;  // printed range of the field value
   std::optional<std::int64_t> max;
   ValueTable values;
+  // A level that lets the machine run (saw program on, extruder running): cleared after a power
+  // loss or a reset until an operator sets it again (restart_after_power_loss).
+  bool enabling = false;
+  // A command that stops the machine or a function unit (stop immediately, f1 stop): never
+  // refused while the device is heard, whatever the bridge knows of its boot.
+  bool stopping = false;
 
   std::uint64_t mask() const;  // the field's bits in place within the word
   std::uint64_t extract(std::uint64_t word) const { return (word & mask()) >> bit; }

@@ -161,9 +161,11 @@ class ProfileLoader {
   void object(const YAML::Node& o) {
     src_.check_keys(o, "object",
                     {"index", "sub", "name", "type", "access", "unit", "scale", "eng_unit", "min", "max", "array",
-                     "mandatory", "values", "special_values"});
+                     "mandatory", "values", "special_values", "enabling"});
     if (!o["access"]) src_.fail(o, "object: missing required key 'access'");
     ObjectDef def = parse_object_fields(src_, o, "object");
+    def.enabling = src_.optional<bool>(o, "enabling").value_or(false);
+    if (def.enabling && !def.writable()) src_.fail(o["enabling"], "enabling: only an object the master writes can let a machine run");
     const auto sub = optional_in_range<std::uint8_t>(src_, o, "sub", 0, 255);
 
     const auto n = src_.optional<int>(o, "array");
@@ -206,7 +208,7 @@ class ProfileLoader {
   void bitset(std::string name, const YAML::Node& node) {
     BitSet set;
     set.name = std::move(name);
-    src_.check_keys(node, "bitset " + set.name, {"object", "sub", "bits"});
+    src_.check_keys(node, "bitset " + set.name, {"object", "sub", "bits", "enabling", "stopping"});
     set.index = in_range<std::uint16_t>(src_, node, "object", 0x1000, 0xFFFF);
     const auto sub = optional_in_range<std::uint8_t>(src_, node, "sub", 0, 255);
     // Without a sub, a bit set of an ARRAY describes every element (feeder n at sub n).
@@ -224,7 +226,24 @@ class ProfileLoader {
     if (!bits) src_.fail(node, "bitset " + set.name + ": missing required key 'bits'");
     src_.expect_map(bits, "bits");
     for (const auto& b : bits) set.bits.push_back(field(set, b.first, b.second, word));
+    // By name: the levels that let the machine run (what a power loss must not bring back), and
+    // the commands that stop it (what is never refused while the device is heard).
+    mark(node, set, *obj, "enabling", &BitField::enabling);
+    mark(node, set, *obj, "stopping", &BitField::stopping);
     p_.bitsets.push_back(std::move(set));
+  }
+
+  void mark(const YAML::Node& node, BitSet& set, const ObjectDef& obj, const char* key, bool BitField::*flag) const {
+    const YAML::Node names = node[key];
+    if (!names) return;
+    src_.expect_sequence(names, key);
+    if (!obj.writable()) src_.fail(names, std::string(key) + ": bitset " + set.name + " is not written by the master");
+    for (const auto& e : names) {
+      const auto name = src_.as<std::string>(e, key);
+      const auto f = std::find_if(set.bits.begin(), set.bits.end(), [&](const BitField& b) { return b.name == name; });
+      if (f == set.bits.end()) src_.fail(e, std::string(key) + ": bitset " + set.name + " has no field '" + name + "'");
+      (*f).*flag = true;
+    }
   }
 
   BitField field(const BitSet& set, const YAML::Node& key, const YAML::Node& value, unsigned word) const {

@@ -48,8 +48,8 @@ void NmtSlave::on_command(const can::CanFrame& frame) {
     case NmtCommand::start: enter(NmtState::operational); return;
     case NmtCommand::stop: enter(NmtState::stopped); return;
     case NmtCommand::enter_pre_operational: enter(NmtState::pre_operational); return;
-    case NmtCommand::reset_node: reset(Reset::node); return;
-    case NmtCommand::reset_communication: reset(Reset::communication); return;
+    case NmtCommand::reset_node: reset(Reset::node, announce_nmt_resets_); return;
+    case NmtCommand::reset_communication: reset(Reset::communication, announce_nmt_resets_); return;
   }
   spdlog::warn("sim node {}: unknown NMT command {:02X}h ignored", node_id_, frame.data[0]);
 }

@@ -27,6 +27,8 @@ class NmtSlave {
   // Loop thread (or before the loop starts): the reset, the boot-up message unless `announce` is
   // false (a device whose boot-up was lost), then pre-operational.
   void reset(Reset kind, bool announce = true);
+  // false: resets by NMT command send no boot-up message (simulation: boot_up_after_nmt_reset).
+  void announce_nmt_resets(bool announce) { announce_nmt_resets_ = announce; }
   // 1017h: a period of 0 stops the heartbeat (CiA 301); the next one comes a period from now.
   void set_heartbeat_period(std::chrono::milliseconds period);
   canopen::NmtState state() const { return state_; }
@@ -43,6 +45,7 @@ class NmtSlave {
   canopen::BusLoop::TimerId heartbeat_timer_;
   std::chrono::milliseconds heartbeat_period_{0};
   canopen::NmtState state_ = canopen::NmtState::boot_up;
+  bool announce_nmt_resets_ = true;
 };
 
 }  // namespace lb::sim

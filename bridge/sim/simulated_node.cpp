@@ -105,6 +105,7 @@ void SimulatedNode::link_communication_objects() {
 }
 
 void SimulatedNode::boot() {
+  nmt_.announce_nmt_resets(device_.simulation.boot_up_after_nmt_reset);
   // The faults name any object, the application's too: they exist by now.
   for (const auto key : device_.simulation.ignore_writes) {
     const auto index = static_cast<std::uint16_t>(key >> 8);

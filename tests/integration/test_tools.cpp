@@ -93,6 +93,13 @@ TEST(Check, ErrorsExitTwoWithTheirPlaceAndWarningsAreListed) {
                                "data_writer profile 'rt/x/saw1/statsu' names no topic", "ok (5 warning(s))"}) {
     EXPECT_NE(r.output.find(expected), std::string::npos) << expected << "\n" << r.output;
   }
+  // A state_dir that cannot be used would start every device from zero after a restart: an error.
+  const auto not_a_dir = write("not_a_dir", "");
+  const auto stateless = write("state.yaml", "line: x\nstate_dir: '" + not_a_dir + "'\nbuses:\n  - {name: b, interface: 'virtual:x'}\ndevices: []\n");
+  r = run_command({LB_BIN_BRIDGE, "--check", stateless});
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("error: state_dir: set values in force not kept: state_dir " + not_a_dir + ": not a directory"),
+            std::string::npos) << r.output;
   // A replay whose file is missing would stop start-up: an error.
   const auto replay = write("replay.yaml", "line: x\nbuses:\n  - {name: b, interface: 'log:/nonexistent/rec.log'}\ndevices: []\n");
   r = run_command({LB_BIN_BRIDGE, "--check", replay});

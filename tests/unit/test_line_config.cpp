@@ -520,3 +520,69 @@ TEST(LineConfigHostile, ARecordingCannotBeAReplayedLogOrAnotherRecording) {
   e = error_of("line: test\nbuses:\n  - {name: a, interface: \"virtual:x\", record: \"" + log + "\"}\n  - {name: b, interface: \"virtual:y\", record: \"" + log + "\"}\n" + devices);
   EXPECT_NE(e.find("bus b: record: '" + log + "' cannot be recorded into: bus a records into it"), std::string::npos) << e;
 }
+
+// The start-up policy: safe defaults (no restart after a power loss, speeds and lengths back, one
+// hour), each key checked, and an automatic restart warned about.
+TEST(LineConfig, StartupPolicyDefaultsAreSafeAndEachKeyIsChecked) {
+  using lb::profiles::StartupPolicy;
+  const auto registry = ProfileRegistry::builtin();
+  auto plain = parse_line_config(kGood, "line.yaml", registry);
+  ASSERT_TRUE(plain) << plain.error().message;
+  EXPECT_EQ(plain->startup.restart_after_power_loss, StartupPolicy::Restart::never);
+  EXPECT_EQ(plain->startup.after_power_loss, StartupPolicy::AfterPowerLoss::non_enabling);
+  EXPECT_EQ(plain->startup.set_values_max_age, std::chrono::seconds(3600));
+  EXPECT_FALSE(plain->devices[0].starts_itself);
+  EXPECT_TRUE(plain->warnings.empty());
+
+  const auto set = replace(kGood, "dds:\n", "startup: {set_values_max_age_s: 60, after_power_loss: nothing, restart_after_power_loss: allowed}\ndds:\n");
+  auto custom = parse_line_config(replace(set, "    heartbeat_timeout_ms: 300\n", "    heartbeat_timeout_ms: 300\n    starts_itself: true\n"),
+                                  "line.yaml", registry);
+  ASSERT_TRUE(custom) << custom.error().message;
+  EXPECT_EQ(custom->startup.restart_after_power_loss, StartupPolicy::Restart::allowed);
+  EXPECT_EQ(custom->startup.after_power_loss, StartupPolicy::AfterPowerLoss::nothing);
+  EXPECT_EQ(custom->startup.set_values_max_age, std::chrono::seconds(60));
+  EXPECT_TRUE(custom->devices[0].starts_itself);
+  ASSERT_EQ(custom->warnings.size(), 1u);
+  EXPECT_NE(custom->warnings[0].find("restart_after_power_loss: allowed"), std::string::npos) << custom->warnings[0];
+
+  EXPECT_NE(error_of(replace(kGood, "dds:\n", "startup: {restart_after_power_loss: always}\ndds:\n")).find("must be never or allowed"),
+            std::string::npos);
+  EXPECT_NE(error_of(replace(kGood, "dds:\n", "startup: {after_power_loss: all}\ndds:\n")).find("non_enabling"), std::string::npos);
+  EXPECT_NE(error_of(replace(kGood, "dds:\n", "startup: {set_values_max_age_s: -1}\ndds:\n")).find("set_values_max_age_s"),
+            std::string::npos);
+  EXPECT_NE(error_of(replace(kGood, "dds:\n", "startup: {restore: true}\ndds:\n")).find("restore"), std::string::npos);
+}
+
+// Two master buses on one CAN network would hear each other's SYNC and NMT and silence each other.
+TEST(LineConfig, TwoMasterBusesOnOneInterfaceAreRefused) {
+  const auto two = replace(kGood, "    interface: socketcan:can1\n    role: monitor\n", "    interface: virtual:x\n    role: master\n");
+  const auto e = error_of(two);
+  EXPECT_NE(e.find("is already bus ext, and both are masters"), std::string::npos) << e;
+  EXPECT_NE(e.find("line.yaml:11:"), std::string::npos) << e;
+  // A monitor beside a master on one interface is fine (it only listens).
+  const auto registry = ProfileRegistry::builtin();
+  EXPECT_TRUE(parse_line_config(replace(kGood, "interface: socketcan:can1", "interface: virtual:x"), "line.yaml", registry));
+}
+
+// Devices of one bus that only 1000h bits 0..15 tell apart (a puller and a saw both answer 01A4h)
+// are named: without identity: either is taken for the other at its node-ID.
+TEST(LineConfig, DevicesToldApartByTheProfileNumberAloneAreNamed) {
+  const auto registry = ProfileRegistry::builtin();
+  const std::string puller = "  - {name: puller1, bus: ext, node_id: 4, profile: cia420-2, version: '1.0'}\n";
+  auto both = parse_line_config(kGood + puller, "line.yaml", registry);
+  ASSERT_TRUE(both) << both.error().message;
+  ASSERT_EQ(both->warnings.size(), 1u);
+  EXPECT_NE(both->warnings[0].find("bus ext: saw1, puller1 have no identity:"), std::string::npos) << both->warnings[0];
+  EXPECT_NE(both->warnings[0].find("1000h bits 0..15 alone"), std::string::npos) << both->warnings[0];
+  // With the saw's identity given, only the puller is named.
+  auto one = parse_line_config(replace(kGood, "    heartbeat_timeout_ms: 300\n",
+                                       "    heartbeat_timeout_ms: 300\n    identity: {vendor_id: 1, product_code: 2}\n") + puller,
+                               "line.yaml", registry);
+  ASSERT_TRUE(one) << one.error().message;
+  ASSERT_EQ(one->warnings.size(), 1u);
+  EXPECT_NE(one->warnings[0].find("bus ext: puller1 has no identity:"), std::string::npos) << one->warnings[0];
+  // One device of a profile number on a bus: nothing to confuse it with there.
+  auto single = parse_line_config(kGood, "line.yaml", registry);
+  ASSERT_TRUE(single);
+  EXPECT_TRUE(single->warnings.empty());
+}

@@ -293,7 +293,7 @@ TEST(ProfileLoaderErrors, BitSetObjects) {
   EXPECT_ERROR(objects + "    object: 0x1008\n    bits: {a: 0}\n",
                "t.yaml:10:13: bitset s needs an integer object, not VISIBLE_STRING");
   EXPECT_ERROR(objects + "    object: 0x6005\n    sub: 1\n    bitz: {a: 0}\n",
-               "t.yaml:12:5: unknown key 'bitz' in bitset s (allowed: object, sub, bits)");
+               "t.yaml:12:5: unknown key 'bitz' in bitset s (allowed: object, sub, bits, enabling, stopping)");
 }
 
 TEST(ProfileLoaderErrors, Pdos) {

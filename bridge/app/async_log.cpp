@@ -1,0 +1,41 @@
+#include "app/async_log.hpp"
+
+#include <spdlog/async.h>
+#include <spdlog/async_logger.h>
+#include <spdlog/sinks/stdout_color_sinks.h>
+#include <spdlog/spdlog.h>
+
+namespace lb::app {
+
+namespace {
+constexpr const char* kName = "linebridge";
+}
+
+AsyncLog::AsyncLog(std::string pattern) : pattern_(std::move(pattern)) {
+  const auto level = spdlog::get_level();
+  spdlog::init_thread_pool(kQueue, 1);
+  auto sink = std::make_shared<spdlog::sinks::stdout_color_sink_mt>();
+  auto logger = std::make_shared<spdlog::async_logger>(kName, std::move(sink), spdlog::thread_pool(),
+                                                       spdlog::async_overflow_policy::overrun_oldest);
+  logger->set_level(level);
+  logger->set_pattern(pattern_);
+  spdlog::set_default_logger(std::move(logger));
+}
+
+AsyncLog::~AsyncLog() {
+  // Synchronous again for whatever logs during the rest of the exit; then the queue's thread
+  // writes what waits and ends.
+  auto sync = std::make_shared<spdlog::logger>(std::string(kName) + "-exit", std::make_shared<spdlog::sinks::stdout_color_sink_mt>());
+  sync->set_level(spdlog::get_level());
+  sync->set_pattern(pattern_);
+  spdlog::set_default_logger(std::move(sync));
+  spdlog::drop(kName);
+  spdlog::details::registry::instance().set_tp(nullptr);
+}
+
+std::uint64_t log_lines_dropped() {
+  const auto pool = spdlog::thread_pool();
+  return pool ? pool->overrun_counter() : 0;
+}
+
+}  // namespace lb::app

@@ -1,0 +1,40 @@
+#pragma once
+// What of a device's set values goes (back) into its RPDOs when the bridge starts it, after every
+// boot: the start-up policy (profiles::StartupPolicy) applied to one RPDO payload. Pure logic on
+// raw payloads and the profile, so every gateway applies it the same way (PdoWiring) and the unit
+// tests drive it without a bus.
+
+#include <cstdint>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "base/result.hpp"
+#include "canopen/pdo_mapping.hpp"
+#include "profiles/line_config.hpp"
+#include "profiles/profile.hpp"
+
+namespace lb::gateways {
+
+enum class RestoreScope {
+  all,           // the device kept running: every set value in force
+  non_enabling,  // power loss or reset: speeds, lengths, modes; every enabling level off
+  nothing,       // power loss or reset, policy after_power_loss: nothing: all zero
+};
+std::string_view to_string(RestoreScope scope);
+
+// found_operational: the device reported operational before the bridge started it in this boot.
+RestoreScope restore_scope(const profiles::StartupPolicy& policy, bool found_operational, bool starts_itself);
+
+// A kept payload passes the checks a new set value passes: every mapped object of the profile
+// within its range (min/max, else its data type) and, for an enumeration, a code it defines;
+// every bit field within its printed range. Objects the profile does not know are not checked.
+Result<void> check_set_values(const profiles::Profile& profile, std::span<const canopen::PdoEntry> mapping,
+                              std::span<const std::uint8_t> payload);
+
+// Clears every enabling level (bit fields and objects marked `enabling` in the profile) in the
+// payload; returns the names of those that were set.
+std::vector<std::string> clear_enabling(const profiles::Profile& profile, std::span<const canopen::PdoEntry> mapping,
+                                        std::span<std::uint8_t> payload);
+
+}  // namespace lb::gateways

@@ -1,0 +1,422 @@
+// The start-up and recovery policy as the bus shows it, with the real bridge and simulator: after
+// a power cut no machine starts by itself (no RPDO with an enabling level set), a restart of the
+// bridge alone keeps a running line running, a device reset while the bridge runs gets no
+// enabling level back, and kept set values that are too old or out of today's range are not
+// restored. Expected payloads are written by hand from CiA 420 (saw 420-4 3.1 RPDO1: 6020h
+// control word, 6005h sync speed in 0.01 %, 6002h product length in 0.1 mm; puller 420-2 1.0
+// RPDO1: 6020h control word, 6002h speed in 0.01 %) and the profiles' enabling marks (saw program
+// on 6020h bit 0, wall thickening bit 1; extruder running bit 6).
+#include <gtest/gtest.h>
+#include <signal.h>
+
+#include <algorithm>
+#include <chrono>
+#include <ctime>
+#include <filesystem>
+#include <fstream>
+#include <regex>
+#include <sstream>
+#include <string>
+#include <thread>
+
+#include "msgs/pullerPubSubTypes.h"
+#include "msgs/sawPubSubTypes.h"
+#include "support/line_harness.hpp"
+
+namespace msg = linebridge_msgs::msg;
+namespace srv = linebridge_msgs::srv;
+using namespace std::chrono_literals;
+using lb::ddsl::QosKind;
+
+namespace {
+
+bool operational(const msg::SawStatus& s) { return s.health().online() && s.health().nmt_state() == msg::NMT_OPERATIONAL; }
+
+std::string device(const std::string& name, int node_id, const std::string& profile, const std::string& version) {
+  return "  - name: " + name + "\n    bus: b\n    node_id: " + std::to_string(node_id) + "\n    profile: " + profile +
+         "\n    version: '" + version + "'\n    heartbeat_timeout_ms: 400\n    boot_retry_ms: 1000\n";
+}
+std::string saw_and_puller() { return device("saw1", 5, "cia420-4", "3.1") + device("puller1", 3, "cia420-2", "1.0"); }
+
+std::string state_dir(const std::string& name) {
+  const auto dir = ::testing::TempDir() + "/" + name + "-state-" + std::to_string(::getpid());
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  return dir;
+}
+
+std::string read_file(const std::string& path) {
+  std::ifstream in(path);
+  std::stringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+// Waits until `count` frames of `id` were seen since the spy was cleared; returns them.
+std::vector<lb::can::CanFrame> frames_of(lb::test::LineHarness& line, std::uint32_t id, std::size_t count,
+                                         std::chrono::seconds deadline = 30s) {
+  const auto end = std::chrono::steady_clock::now() + deadline;
+  auto f = line.spy().frames(id);
+  while (f.size() < count && std::chrono::steady_clock::now() < end) {
+    std::this_thread::sleep_for(50ms);
+    f = line.spy().frames(id);
+  }
+  return f;
+}
+
+std::string hex(const lb::can::CanFrame& f) {
+  std::string s;
+  for (unsigned i = 0; i < f.len; ++i) s += fmt::format("{:02X}", f.data[i]);
+  return s;
+}
+
+const msg::NodeDiagnostics* node(const msg::Diagnostics& d, const std::string& device) {
+  for (const auto& n : d.nodes()) {
+    if (n.device() == device) return &n;
+  }
+  return nullptr;
+}
+
+class StartupPolicy : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
+  }
+
+  // The line running, the saw's program on at 50 % and 1.2 m, the puller's extruder running at 50 %,
+  // and both kept in the state file.
+  void run_line_with_set_values(lb::test::LineHarness& line, const std::string& dir) {
+    line.start(saw_and_puller(), "", "", "state_dir: " + dir + "\n");
+    ASSERT_TRUE(saw_status.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
+    ASSERT_TRUE(diag.subscribe(line.dds(), line.topic("bridge", "diagnostics"), QosKind::state));
+    ASSERT_TRUE(results.subscribe(line.dds(), line.topic("saw1", "setpoint_result"), QosKind::reply));
+    ASSERT_TRUE(puller_results.subscribe(line.dds(), line.topic("puller1", "setpoint_result"), QosKind::reply));
+    auto saw = line.dds().writer<msg::SawSetpointPubSubType>(line.topic("saw1", "setpoint"), QosKind::command);
+    auto puller = line.dds().writer<msg::PullerSetpointPubSubType>(line.topic("puller1", "setpoint"), QosKind::command);
+    ASSERT_TRUE(saw && puller);
+    saw_writer = *saw;
+    ASSERT_TRUE(saw_status.wait_last(30s, operational)) << line.logs();
+    ASSERT_TRUE(wait_matched(*saw) && wait_matched(*puller)) << "setpoint writers never matched the bridge";
+    ASSERT_TRUE(answered_until(results, 1, [&] { set_saw(true, 1); })) << line.logs();
+    msg::PullerSetpoint p;
+    p.request_id(2);
+    p.extruder_running(true);
+    p.speed_set_percent(50);
+    ASSERT_TRUE(answered_until(puller_results, 2, [&] { puller->write(p); })) << line.logs();
+    // What goes out now: the saw's program on (0005h: program on, the first length change
+    // toggled), the puller's extruder running (0040h).
+    line.spy().clear();
+    ASSERT_TRUE(frame_seen(line, 0x205, [](const lb::can::CanFrame& f) { return f.data[0] == 0x05; })) << line.logs();
+    ASSERT_TRUE(frame_seen(line, 0x203, [](const lb::can::CanFrame& f) { return f.data[0] == 0x40; })) << line.logs();
+    // Kept on disk (the store writes within 200 ms): both RPDOs with those control words.
+    const auto file = dir + "/startup.set_values";
+    const auto end = std::chrono::steady_clock::now() + 20s;
+    while (std::chrono::steady_clock::now() < end) {
+      const auto text = read_file(file);
+      if (text.find(" rpdo1 60200010,60050010,60020020 0500881") != std::string::npos &&
+          text.find(" rpdo1 60200010,60020010 40008813") != std::string::npos) {
+        return;
+      }
+      std::this_thread::sleep_for(50ms);
+    }
+    FAIL() << "the set values in force never reached " << file << ":\n" << read_file(file) << line.logs();
+  }
+
+  void set_saw(bool program_on, std::uint64_t id) {
+    msg::SawSetpoint sp;
+    sp.request_id(id);
+    sp.saw_program_on(program_on);
+    sp.sync_speed_percent(50);
+    sp.product_length_m(1.2);
+    saw_writer.write(sp);
+  }
+
+  template <class Writer>
+  bool wait_matched(Writer& w) {
+    const auto end = std::chrono::steady_clock::now() + 20s;
+    while (w.matched() == 0) {
+      if (std::chrono::steady_clock::now() > end) return false;
+      std::this_thread::sleep_for(20ms);
+    }
+    return true;
+  }
+
+  // Writes again every second until answered so (a reply writer matched after the first write).
+  template <class Write>
+  static bool answered_until(lb::test::Collector<msg::SetpointResultPubSubType>& r, std::uint64_t id, Write write,
+                             bool accepted = true) {
+    for (int i = 0; i < 20; ++i) {
+      write();
+      if (r.wait(1s, [&](const std::vector<msg::SetpointResult>& v) {
+            return std::any_of(v.begin(), v.end(),
+                               [&](const msg::SetpointResult& x) { return x.request_id() == id && x.accepted() == accepted; });
+          })) {
+        return true;
+      }
+    }
+    return false;
+  }
+
+  template <class Pred>
+  static bool frame_seen(lb::test::LineHarness& line, std::uint32_t id, Pred pred) {
+    const auto end = std::chrono::steady_clock::now() + 20s;
+    while (std::chrono::steady_clock::now() < end) {
+      const auto f = line.spy().frames(id);
+      if (std::any_of(f.begin(), f.end(), pred)) return true;
+      std::this_thread::sleep_for(20ms);
+    }
+    return false;
+  }
+
+  // The diagnostics' note of a device's last start, once it contains `text`.
+  bool start_note(const std::string& device, const std::string& text) {
+    return diag.wait(20s, [&](const std::vector<msg::Diagnostics>& v) {
+      if (v.empty()) return false;
+      const auto* n = node(v.back(), device);
+      return n != nullptr && n->set_values_at_start().find(text) != std::string::npos;
+    });
+  }
+  std::string last_note(const std::string& device) {
+    const auto v = diag.samples();
+    const auto* n = v.empty() ? nullptr : node(v.back(), device);
+    return n == nullptr ? "(no diagnostics)" : n->set_values_at_start();
+  }
+
+  lb::test::Collector<msg::SawStatusPubSubType> saw_status;
+  lb::test::Collector<msg::DiagnosticsPubSubType> diag;
+  lb::test::Collector<msg::SetpointResultPubSubType> results;
+  lb::test::Collector<msg::SetpointResultPubSubType> puller_results;
+  lb::ddsl::Writer<msg::SawSetpointPubSubType> saw_writer;
+};
+
+// A plant power cut: devices and bridge go down together and come back together. No RPDO after it
+// carries an enabling level; speeds and lengths come back (after_power_loss: non_enabling), and an
+// operator can switch the program on again.
+TEST_F(StartupPolicy, APowerCutStartsNoMachine) {
+  const auto dir = state_dir("powercut");
+  lb::test::LineHarness line("startup", 61);
+  run_line_with_set_values(line, dir);
+  if (HasFatalFailure()) return;
+
+  ASSERT_EQ(line.bridge().stop(), 0) << line.logs();
+  line.sim().stop();  // the devices lose power: they come back pre-operational from their power-on values
+  line.spy().clear();
+  line.start_sim();
+  line.start_bridge();
+
+  // 25 cycles of both RPDOs after the restart, every one of them without an enabling level.
+  const auto saw = frames_of(line, 0x205, 25);
+  const auto puller = frames_of(line, 0x203, 25);
+  ASSERT_GE(saw.size(), 25u) << line.logs();
+  ASSERT_GE(puller.size(), 25u) << line.logs();
+  for (const auto& f : saw) {
+    // 0004h: program off, wall thickening off, the length-change toggle as it was; 50.00 %; 1.2 m.
+    EXPECT_EQ(hex(f), "04008813E02E0000") << "saw RPDO1 after the power cut";
+  }
+  for (const auto& f : puller) {
+    ASSERT_GE(f.len, 4);
+    EXPECT_EQ(f.data[0] & 0x40, 0) << "the puller's extruder was switched on by itself: " << hex(f);
+    EXPECT_EQ(f.data[2], 0x88);  // 5000 = 50.00 %
+    EXPECT_EQ(f.data[3], 0x13);
+  }
+  ASSERT_TRUE(start_note("saw1", "saw_program_on")) << last_note("saw1") << line.logs();
+  EXPECT_NE(last_note("saw1").find("found not operational"), std::string::npos) << last_note("saw1");
+  ASSERT_TRUE(start_note("puller1", "extruder_running")) << last_note("puller1");
+
+  // Only an operator's set value switches the program on again.
+  ASSERT_TRUE(saw_status.wait_last(30s, operational)) << line.logs();
+  ASSERT_TRUE(answered_until(results, 3, [&] { set_saw(true, 3); })) << line.logs();
+  EXPECT_TRUE(frame_seen(line, 0x205, [](const lb::can::CanFrame& f) { return f.data[0] == 0x05; })) << line.logs();
+}
+
+// A reset of the device while the bridge runs is a power loss as far as the device knows: after
+// its boot-up no RPDO carries the program on until an operator sets it again.
+TEST_F(StartupPolicy, ADeviceResetGetsNoEnablingLevelBack) {
+  const auto dir = state_dir("reset");
+  lb::test::LineHarness line("startup", 62);
+  run_line_with_set_values(line, dir);
+  if (HasFatalFailure()) return;
+
+  line.spy().clear();
+  const auto r = line.nmt("saw1", srv::NMT_RESET_NODE);
+  ASSERT_TRUE(r.success()) << r.message();
+  // The boot-up, then 25 RPDO1s after it: none with the program on.
+  ASSERT_TRUE(frame_seen(line, 0x705, [](const lb::can::CanFrame& f) { return f.len == 1 && f.data[0] == 0; })) << line.logs();
+  std::int64_t boot_up_ns = 0;
+  for (const auto& f : line.spy().frames(0x705)) {
+    if (f.len == 1 && f.data[0] == 0) boot_up_ns = f.timestamp_ns;
+  }
+  const auto end = std::chrono::steady_clock::now() + 30s;
+  std::vector<lb::can::CanFrame> after;
+  while (after.size() < 25 && std::chrono::steady_clock::now() < end) {
+    std::this_thread::sleep_for(50ms);
+    after.clear();
+    for (const auto& f : line.spy().frames(0x205)) {
+      if (f.timestamp_ns > boot_up_ns) after.push_back(f);
+    }
+  }
+  ASSERT_GE(after.size(), 25u) << line.logs();
+  for (const auto& f : after) EXPECT_EQ(hex(f), "04008813E02E0000") << "saw RPDO1 after its reset";
+  ASSERT_TRUE(start_note("saw1", "saw_program_on")) << last_note("saw1");
+}
+
+// The bridge alone restarts while the saw runs, but the kept values are too old, then out of
+// today's range: nothing of them is restored, and diagnostics say why.
+TEST_F(StartupPolicy, KeptValuesTooOldOrOutOfRangeAreNotRestored) {
+  const auto dir = state_dir("stale");
+  lb::test::LineHarness line("startup", 63);
+  run_line_with_set_values(line, dir);
+  if (HasFatalFailure()) return;
+  const auto file = dir + "/startup.set_values";
+
+  ASSERT_EQ(line.bridge().stop(), 0) << line.logs();
+  // Every entry last held in force two hours ago (the default set_values_max_age_s is 3600).
+  const auto now = static_cast<long long>(std::time(nullptr));
+  const std::regex held(R"(( [0-9A-F]{8}:[0-9A-F]{8}:[0-9A-F]{8}:[0-9A-F]{8} )(\d+)( ))");
+  const auto kept = read_file(file);
+  std::ofstream(file) << std::regex_replace(kept, held, "$01" + std::to_string(now - 7200) + "$03");
+  line.spy().clear();
+  line.start_bridge();
+  auto saw = frames_of(line, 0x205, 10);
+  ASSERT_GE(saw.size(), 10u) << line.logs();
+  for (const auto& f : saw) EXPECT_EQ(hex(f), "0000000000000000") << "an old kept value was restored";
+  ASSERT_TRUE(start_note("saw1", "over set_values_max_age_s")) << last_note("saw1") << line.logs();
+
+  // Fresh, but the saw's sync speed FFFFh (655.35 %) is over the profile's 100.00 %.
+  ASSERT_EQ(line.bridge().stop(), 0) << line.logs();
+  std::ofstream(file) << std::regex_replace(std::regex_replace(kept, held, "$01" + std::to_string(now) + "$03"),
+                                            std::regex(" 05008813E02E0000"), " 0500FFFFE02E0000");
+  line.spy().clear();
+  line.start_bridge();
+  saw = frames_of(line, 0x205, 10);
+  ASSERT_GE(saw.size(), 10u) << line.logs();
+  for (const auto& f : saw) EXPECT_EQ(hex(f), "0000000000000000") << "an out-of-range kept value was restored";
+  ASSERT_TRUE(start_note("saw1", "out of range")) << last_note("saw1") << line.logs();
+}
+
+// A command that stops a machine is never refused while the device is heard: the bridge restarts
+// while the saw runs, and its boot fails (a configuration write the saw confirms and ignores:
+// error J), so the bridge does not start it and it runs on unmanaged. Nothing is sent by itself
+// (a failing boot must not stop a running line unasked), but a program-off set value is taken
+// and reaches the saw, while one that switches the program on is refused.
+TEST_F(StartupPolicy, AStopReachesARunningSawWhoseBootFails) {
+  const auto dir = state_dir("unmanaged");
+  lb::test::LineHarness line("startup", 64);
+  const auto saw = device("saw1", 5, "cia420-4", "3.1");
+  line.start(saw, saw + "    simulation: {ignore_writes: [{index: 0x6006, sub: 0}]}\n", "", "state_dir: " + dir + "\n");
+  ASSERT_TRUE(saw_status.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
+  ASSERT_TRUE(diag.subscribe(line.dds(), line.topic("bridge", "diagnostics"), QosKind::state));
+  ASSERT_TRUE(results.subscribe(line.dds(), line.topic("saw1", "setpoint_result"), QosKind::reply));
+  auto w = line.dds().writer<msg::SawSetpointPubSubType>(line.topic("saw1", "setpoint"), QosKind::command);
+  ASSERT_TRUE(w);
+  saw_writer = *w;
+  ASSERT_TRUE(saw_status.wait_last(30s, operational)) << line.logs();
+  ASSERT_TRUE(answered_until(results, 1, [&] { set_saw(true, 1); })) << line.logs();
+  ASSERT_TRUE(frame_seen(line, 0x205, [](const lb::can::CanFrame& f) { return f.data[0] == 0x05; })) << line.logs();
+
+  ASSERT_EQ(line.bridge().stop(), 0) << line.logs();
+  {
+    std::ofstream(line.bridge_config(), std::ios::app) << "    configure: [{object: saw_sync_speed_set_maximum, value: 45000}]\n";
+  }
+  line.spy().clear();
+  line.start_bridge();
+  ASSERT_TRUE(diag.wait_last(30s, [](const msg::Diagnostics& d) {
+    const auto* n = node(d, "saw1");
+    return n != nullptr && n->boot_error().code() == "J";
+  })) << line.logs();
+  // It runs on, unmanaged: no RPDO by itself.
+  EXPECT_TRUE(line.spy().frames(0x205).empty()) << "the failed boot sent the saw an RPDO1 unasked";
+  // Program on is refused; program off is taken and reaches the saw.
+  ASSERT_TRUE(answered_until(results, 2, [&] { set_saw(true, 2); }, false)) << line.logs();
+  EXPECT_TRUE(line.spy().frames(0x205).empty()) << "a refused set value reached the saw";
+  ASSERT_TRUE(answered_until(results, 3, [&] { set_saw(false, 3); })) << line.logs();
+  EXPECT_TRUE(frame_seen(line, 0x205, [](const lb::can::CanFrame& f) { return f.len == 8 && (f.data[0] & 0x03) == 0; }))
+      << "program off never reached the running saw\n" << line.logs();
+  for (const auto& f : line.spy().frames(0x205)) EXPECT_EQ(f.data[0] & 0x03, 0) << hex(f);
+}
+
+// A reset always leads to a boot: the saw's boot-up after the operator's NMT reset is lost (the
+// simulated device sends none), so nothing tells the bridge it came back; within the bounded
+// wait it boots it anyway (SDO traffic before the NMT start) and never reports it started meanwhile.
+TEST_F(StartupPolicy, AResetWhoseBootUpIsLostIsBootedAgain) {
+  lb::test::LineHarness line("startup", 65);
+  const auto saw = device("saw1", 5, "cia420-4", "3.1");
+  line.start(saw, saw + "    simulation: {boot_up_after_nmt_reset: false}\n");
+  ASSERT_TRUE(saw_status.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
+  ASSERT_TRUE(diag.subscribe(line.dds(), line.topic("bridge", "diagnostics"), QosKind::state));
+  ASSERT_TRUE(saw_status.wait_last(30s, operational)) << line.logs();
+  line.spy().clear();
+  const auto r = line.nmt("saw1", srv::NMT_RESET_NODE);
+  ASSERT_TRUE(r.success()) << r.message();
+  // Not started while it waits: an NMT start is refused, diagnostics say why.
+  const auto start = line.nmt("saw1", srv::NMT_START);
+  EXPECT_FALSE(start.success()) << "an NMT start was taken for a device just reset";
+  // On the bus: the reset, no boot-up, then SDO requests (the boot), then the NMT start.
+  std::int64_t reset_ns = 0, sdo_ns = 0, start_ns = 0;
+  const auto end = std::chrono::steady_clock::now() + 30s;
+  while (start_ns == 0 && std::chrono::steady_clock::now() < end) {
+    std::this_thread::sleep_for(50ms);
+    for (const auto& f : line.spy().frames()) {
+      if (f.id == 0x000 && f.len == 2 && f.data[0] == 0x81 && f.data[1] == 5 && reset_ns == 0) reset_ns = f.timestamp_ns;
+      if (f.id == 0x605 && reset_ns != 0 && sdo_ns == 0) sdo_ns = f.timestamp_ns;
+      if (f.id == 0x000 && f.len == 2 && f.data[0] == 0x01 && f.data[1] == 5 && sdo_ns != 0) start_ns = f.timestamp_ns;
+    }
+  }
+  ASSERT_NE(reset_ns, 0) << line.logs();
+  EXPECT_TRUE(line.spy().frames(0x705).empty() ||
+              std::none_of(line.spy().frames(0x705).begin(), line.spy().frames(0x705).end(),
+                           [](const lb::can::CanFrame& f) { return f.len == 1 && f.data[0] == 0; }))
+      << "the simulated device sent a boot-up: the test proves nothing";
+  ASSERT_NE(sdo_ns, 0) << "no boot after the reset\n" << line.logs();
+  ASSERT_NE(start_ns, 0) << "never started again\n" << line.logs();
+  EXPECT_LT(sdo_ns, start_ns);
+  for (const auto& f : line.spy().frames()) {
+    if (f.id == 0x000 && f.len == 2 && f.data[0] == 0x01 && f.data[1] == 5) {
+      EXPECT_GE(f.timestamp_ns, sdo_ns) << "an NMT start before the boot";
+    }
+  }
+  ASSERT_TRUE(saw_status.wait_last(30s, operational)) << line.logs();
+  EXPECT_NE(line.bridge().log().find("no boot-up within"), std::string::npos) << line.logs();
+}
+
+// An operator's NMT stop is kept: the saw's heartbeat is lost and comes back (its process stopped
+// and resumed), the bridge boots it again, and puts it back in stopped instead of starting it.
+// Only the operator's NMT start starts it.
+TEST_F(StartupPolicy, AnOperatorsStopSurvivesAHeartbeatLossAndReturn) {
+  lb::test::LineHarness line("startup", 66);
+  line.start(device("saw1", 5, "cia420-4", "3.1"));
+  ASSERT_TRUE(saw_status.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
+  ASSERT_TRUE(diag.subscribe(line.dds(), line.topic("bridge", "diagnostics"), QosKind::state));
+  ASSERT_TRUE(saw_status.wait_last(30s, operational)) << line.logs();
+  const auto stop = line.nmt("saw1", srv::NMT_STOP);
+  ASSERT_TRUE(stop.success()) << stop.message();
+  ASSERT_TRUE(saw_status.wait_last(10s, [](const msg::SawStatus& s) { return s.health().nmt_state() == msg::NMT_STOPPED; }))
+      << line.logs();
+
+  ::kill(line.sim().pid(), SIGSTOP);
+  ASSERT_TRUE(saw_status.wait_last(10s, [](const msg::SawStatus& s) { return !s.health().online(); })) << line.logs();
+  line.spy().clear();
+  ::kill(line.sim().pid(), SIGCONT);
+  // Booted again (SDO), and kept stopped: the boot ends with NMT stop, never NMT start.
+  ASSERT_TRUE(diag.wait_last(30s, [](const msg::Diagnostics& d) {
+    const auto* n = node(d, "saw1");
+    return n != nullptr && n->boot_state().find("kept stopped by the operator") != std::string::npos;
+  })) << line.logs();
+  bool sdo = false, stopped_again = false;
+  for (const auto& f : line.spy().frames()) {
+    sdo = sdo || f.id == 0x605;
+    stopped_again = stopped_again || (f.id == 0x000 && f.len == 2 && f.data[0] == 0x02 && f.data[1] == 5);
+    EXPECT_FALSE(f.id == 0x000 && f.len == 2 && f.data[0] == 0x01 && f.data[1] == 5) << "the operator's stop was undone";
+  }
+  EXPECT_TRUE(sdo) << "not booted again after the heartbeat came back";
+  EXPECT_TRUE(stopped_again) << "not put back in stopped";
+  ASSERT_TRUE(saw_status.wait_last(10s, [](const msg::SawStatus& s) {
+    return s.health().online() && s.health().nmt_state() == msg::NMT_STOPPED;
+  })) << line.logs();
+
+  const auto go = line.nmt("saw1", srv::NMT_START);
+  ASSERT_TRUE(go.success()) << go.message();
+  ASSERT_TRUE(saw_status.wait_last(10s, operational)) << line.logs();
+}
+
+}  // namespace
