@@ -90,6 +90,15 @@ std::string to_text(const msg::DeviceInfo& i) {
   } else if (!w.remark().empty()) {
     out += "  configuration word: " + w.remark() + "\n";
   }
+  if (i.error_history_read()) {
+    // The code alone unless the device put additional information in bits 16..31.
+    std::vector<std::string> entries;
+    for (const auto e : i.error_history()) entries.push_back(e > 0xFFFF ? fmt::format("{:08X}h", e) : fmt::format("{:04X}h", e));
+    out += fmt::format("  error history 1003h (not the active errors; {} recorded, newest first): [{}]\n",
+                       i.error_history_count(), fmt::join(entries, " "));
+  } else if (!i.error_history_remark().empty()) {
+    out += "  error history 1003h: " + i.error_history_remark() + "\n";
+  }
   if (!i.remarks().empty()) out += "  " + i.remarks() + "\n";
   return out;
 }

@@ -50,46 +50,43 @@ std::string_view emcy_family(std::uint16_t code) {
 
 void ActiveErrors::apply(const Emergency& e) {
   error_register_ = e.error_register;
-  if (!e.is_reset()) {
-    add(e.error_code);
-    return;
-  }
-  if (e.error_register == 0) {
-    codes_.clear();
-    known_ = true;
-    needs_reading_ = false;
-    note_.clear();
-    return;
-  }
+  // CiA 301: the error register is 0 exactly when no error is active, whatever the code says.
+  if (e.error_register == 0) return clear();
+  if (!e.is_reset()) return add(e.error_code);
   // "Error reset" while the register still reports errors: some were cleared, others remain.
   known_ = false;
-  needs_reading_ = true;
+  reset_left_errors_ = true;
   note_ = fmt::format("EMCY 0000h (error reset) with error register {:02X}h: errors remain and the EMCY does not say "
                       "which",
                       e.error_register);
 }
 
-void ActiveErrors::reset_by_boot_up() {
+void ActiveErrors::reset_by_boot_up() { clear(); }
+
+void ActiveErrors::reconcile(std::uint8_t error_register) {
+  if (error_register == 0) return clear();
+  error_register_ = error_register;
+  if (known_ && !codes_.empty()) return;  // the EMCYs since the boot-up name them; the register agrees
+  if (reset_left_errors_) return;          // uncertain already, and the note says why
+  // 1003h cannot help: it is the history, it does not say which of its entries are still active.
+  known_ = false;
+  note_ = fmt::format("error register 1001h = {:02X}h: errors are active that no EMCY since the device's boot-up "
+                      "named (raised before the bridge heard it); which ones is unknown (1003h is the device's "
+                      "error history, on info, not its active errors)",
+                      error_register);
+}
+
+void ActiveErrors::clear() {
   codes_.clear();
   error_register_ = 0;
   known_ = true;
-  needs_reading_ = false;
+  reset_left_errors_ = false;
   note_.clear();
-}
-
-void ActiveErrors::replace(std::vector<std::uint16_t> codes, std::uint8_t error_register, std::string note) {
-  codes_.clear();
-  for (const auto c : codes) add(c);
-  error_register_ = error_register;
-  known_ = true;
-  needs_reading_ = false;
-  note_ = std::move(note);
 }
 
 void ActiveErrors::mark_uncertain(std::string why, std::optional<std::uint8_t> error_register) {
   if (error_register) error_register_ = *error_register;
   known_ = false;
-  needs_reading_ = false;
   note_ = std::move(why);
 }
 

@@ -28,13 +28,18 @@ std::optional<Emergency> parse_emergency(const can::CanFrame& frame);
 // "generic", "current", "voltage", "temperature", "communication: heartbeat or life guard", ...
 std::string_view emcy_family(std::uint16_t error_code);
 
-// The errors a device has raised and not cleared, and whether that list can be trusted (CiA 301):
-//   - an EMCY with a code adds it;
-//   - an EMCY 0000h ("error reset or no error") clears the list only when the error register it
-//     carries is 0; with a register other than 0 errors remain and the EMCY does not say which:
-//     the list is uncertain until the device says (1003h, pre-defined error field) or clears all;
+// The errors a device has active now, and whether that list can be trusted (CiA 301). Only the
+// EMCYs received since the device's last boot-up and its error register (1001h) say that; 1003h,
+// the pre-defined error field, is the device's error HISTORY (every EMCY it sent, error resets
+// included) and never feeds this list (error_field.hpp reads it as history):
+//   - an EMCY with a code and an error register other than 0 adds the code;
+//   - an EMCY whose error register is 0 leaves nothing active: the register says no error is
+//     (an EMCY 0000h "error reset or no error" with register 0, or a code sent as a mere event);
+//   - an EMCY 0000h with a register other than 0: some errors were cleared, others remain, and the
+//     EMCY does not say which: the list is uncertain until the register goes to 0 or a boot-up;
 //   - a boot-up clears it: the device starts without active errors;
-//   - what the device lists in 1003h (read by the master) replaces it.
+//   - the register read by the master (reconcile): 0 clears it; otherwise the list stays, and it
+//     is uncertain when no EMCY since the boot-up names an error that the register reports.
 // Until one of these happened (a monitor that joined a running line, a master before its first
 // read) the list is uncertain too: errors raised before cannot be known.
 class ActiveErrors {
@@ -43,8 +48,8 @@ class ActiveErrors {
 
   void apply(const Emergency& e);
   void reset_by_boot_up();
-  // The device's own list (codes oldest first) and its error register 1001h.
-  void replace(std::vector<std::uint16_t> codes, std::uint8_t error_register, std::string note);
+  // The device's error register 1001h as the master read it.
+  void reconcile(std::uint8_t error_register);
   // The list cannot be trusted: kept as it is, flagged, with the reason (and the register, if read).
   void mark_uncertain(std::string why, std::optional<std::uint8_t> error_register = std::nullopt);
 
@@ -53,17 +58,16 @@ class ActiveErrors {
   bool known() const { return known_; }
   // Why the list is uncertain, or where it comes from when that is worth saying; may be empty.
   const std::string& note() const { return note_; }
-  // An error reset whose register says errors remain: the master should read 1003h.
-  bool needs_reading() const { return needs_reading_; }
 
  private:
   void add(std::uint16_t code);
+  void clear();
 
   std::vector<std::uint16_t> codes_;
   std::uint8_t error_register_ = 0;
   bool known_ = false;
-  bool needs_reading_ = false;
-  std::string note_ = "not known yet: no boot-up seen and the device's errors not read";
+  bool reset_left_errors_ = false;  // uncertain because of an EMCY 0000h with a register other than 0
+  std::string note_ = "not known yet: no boot-up seen and the device's error register not read";
 };
 
 }  // namespace lb::canopen

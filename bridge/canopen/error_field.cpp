@@ -3,7 +3,6 @@
 #include <fmt/format.h>
 
 #include <algorithm>
-#include <memory>
 
 #include "canopen/sdo_batch.hpp"
 
@@ -22,51 +21,60 @@ void read_error_field(SdoClient& sdo, std::uint8_t node, std::function<bool()> c
   run_sdo_batch(sdo, node, std::move(first), cancelled,
                 [&sdo, node, cancelled, done = std::move(done)](std::vector<SdoReply> replies) {
                   ErrorFieldReading reading;
-                  if (replies.back().error) {
+                  if (replies.size() < 2) {  // 1001h failed: the batch ended there
                     reading.error = replies.back().error;
+                    reading.history.remark = "not read: 1001h could not be read";
                     return done(std::move(reading));
                   }
                   reading.error_register = static_cast<std::uint8_t>(unsigned_value(replies[0]));
-                  // Register 0: no error is active, whatever history 1003h keeps (CiA 301).
-                  if (reading.error_register == 0 || replies[1].absent) return done(std::move(reading));
-                  // Only the active list's size: the newest ActiveErrors::kMax entries.
-                  const auto count = std::min<std::uint64_t>(unsigned_value(replies[1]), ActiveErrors::kMax);
+                  if (replies[1].error) {
+                    reading.history.remark = "1003h sub 0 could not be read: " + replies[1].error->message;
+                    return done(std::move(reading));
+                  }
+                  if (replies[1].absent) {
+                    reading.history.remark = "the device has no 1003h (pre-defined error field)";
+                    return done(std::move(reading));
+                  }
+                  // Read whatever the register says: the history is worth publishing even when no
+                  // error is active (it is how a device tells what happened before).
+                  reading.history.count = static_cast<std::uint8_t>(unsigned_value(replies[1]));
+                  const auto n = std::min<std::size_t>(reading.history.count, ErrorHistory::kMaxEntries);
                   std::vector<SdoRequest> entries;
-                  for (std::uint64_t sub = 1; sub <= count; ++sub) {
+                  for (std::size_t sub = 1; sub <= n; ++sub) {
                     entries.push_back(SdoRequest::read(kErrorField, static_cast<std::uint8_t>(sub), DataType::unsigned32, true));
                   }
                   if (entries.empty()) {
-                    reading.codes.emplace();
+                    reading.history.read = true;
                     return done(std::move(reading));
                   }
                   run_sdo_batch(sdo, node, std::move(entries), cancelled,
-                                [reading, done](std::vector<SdoReply> entries_read) mutable {
+                                [reading = std::move(reading), done](std::vector<SdoReply> entries_read) mutable {
                                   if (entries_read.back().error) {
-                                    reading.error = entries_read.back().error;
+                                    reading.history.remark = "1003h could not be read: " + entries_read.back().error->message;
                                     return done(std::move(reading));
                                   }
-                                  std::vector<std::uint16_t> codes;
+                                  // In sub-index order, which is newest first.
                                   for (const auto& r : entries_read) {
-                                    if (!r.absent) codes.push_back(static_cast<std::uint16_t>(unsigned_value(r) & 0xFFFF));
+                                    if (r.absent) break;  // fewer than the count said
+                                    reading.history.entries.push_back(static_cast<std::uint32_t>(unsigned_value(r)));
                                   }
-                                  std::reverse(codes.begin(), codes.end());  // 1003h: sub 1 is the newest
-                                  reading.codes = std::move(codes);
+                                  reading.history.read = true;
                                   done(std::move(reading));
                                 });
                 });
 }
 
 void apply(ActiveErrors& errors, const ErrorFieldReading& reading) {
-  if (reading.error) return errors.mark_uncertain("the device's errors could not be read: " + reading.error->message);
-  if (reading.error_register == 0) return errors.replace({}, 0, "");
-  if (reading.codes) {
-    return errors.replace(*reading.codes, reading.error_register,
-                          fmt::format("as the device lists them in 1003h (error register {:02X}h)", reading.error_register));
+  if (reading.error) {
+    // The EMCYs since a boot-up stay true without the register. A list not known for want of a
+    // boot-up says the read failed too; one made uncertain by an EMCY keeps that reason.
+    if (!errors.known() && errors.note().starts_with("not known yet")) {
+      errors.mark_uncertain("not known: no boot-up seen and the error register 1001h could not be read: " +
+                            reading.error->message);
+    }
+    return;
   }
-  errors.mark_uncertain(fmt::format("error register 1001h = {:02X}h and the device has no 1003h (pre-defined error "
-                                    "field): which errors remain is unknown",
-                                    reading.error_register),
-                        reading.error_register);
+  errors.reconcile(reading.error_register);
 }
 
 }  // namespace lb::canopen

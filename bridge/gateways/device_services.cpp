@@ -135,13 +135,8 @@ void DeviceServices::on_emergency(const canopen::Emergency& e) {
   m.active_errors_known(errors.known());
   m.active_errors_note(errors.note());
   emergency_writer_.write(m);
-  if (reading_errors_) reread_errors_ = true;  // what is being read may predate this EMCY
-  if (errors.needs_reading()) {
-    if (ctx_.is_master() && ctx_.sdo != nullptr) return read_errors();
-    ctx_.node.update_errors([](canopen::ActiveErrors& a) {
-      a.mark_uncertain(a.note() + "; in the monitor role the bridge cannot read the device's 1003h");
-    });
-  }
+  // The register being read may predate this EMCY: reconciling with it would undo what the EMCY said.
+  if (reading_errors_) reread_errors_ = true;
 }
 
 void DeviceServices::read_errors() {
@@ -155,19 +150,33 @@ void DeviceServices::read_errors() {
     reading_errors_ = false;
     if (reread_errors_) return read_errors();
     ctx_.node.update_errors([&reading](canopen::ActiveErrors& a) { canopen::apply(a, reading); });
+    if (!report_.started) return;  // a newer boot failed meanwhile: its info is out, without a history
+    error_history_ = std::move(reading.history);
     const auto& errors = ctx_.node.errors();
-    spdlog::info("{}: active errors from the device: [{:04X}]{}{}", ctx_.device.name, fmt::join(errors.codes(), " "),
-                 errors.known() ? "" : ", uncertain: ", errors.known() ? "" : errors.note());
+    std::vector<std::string> history;
+    for (const auto entry : error_history_.entries) history.push_back(fmt::format("{:04X}", entry & 0xFFFF));
+    spdlog::info("{}: active errors from the device: [{:04X}]{}{}; error register 1001h {:02X}h; error history 1003h{}",
+                 ctx_.device.name, fmt::join(errors.codes(), " "), errors.known() ? "" : ", uncertain: ",
+                 errors.known() ? "" : errors.note(), errors.error_register(),
+                 error_history_.read ? fmt::format(" ({} recorded, newest first): [{}]", error_history_.count, fmt::join(history, " "))
+                                     : ": " + error_history_.remark);
+    read_configuration_word_and_publish();
   });
 }
 
 // After every boot attempt; one that passed first reads what the device says about itself (its
-// active errors, 6010h), so `info` and the status tell the truth from then on.
+// error register and error history, then 6010h), so `info` and the status tell the truth from then on.
 void DeviceServices::booted(const canopen::BootReport& report) {
   report_ = report;
-  const auto seq = ++boots_reported_;
+  ++boots_reported_;
+  error_history_ = {};
+  error_history_.remark = report.started ? "not read yet" : "not read: the boot did not pass";
   if (!report.started || ctx_.sdo == nullptr) return publish_info();
   read_errors();
+}
+
+void DeviceServices::read_configuration_word_and_publish() {
+  const auto seq = boots_reported_;
   if (configuration_bits_ == nullptr) return publish_info();
   ctx_.sdo->read(ctx_.device.node_id, configuration_bits_->index, configuration_bits_->sub,
                  ctx_.profile.object(configuration_bits_->index, configuration_bits_->sub)->type,
@@ -401,6 +410,10 @@ void DeviceServices::publish_info() {
   for (const auto& p : report.pdos) m.pdos().push_back(to_msg(p));
   m.heartbeat_producer_ms(report.heartbeat_producer_ms ? *report.heartbeat_producer_ms : -1);
   m.configuration_word(configuration_word_);
+  m.error_history_read(error_history_.read);
+  m.error_history_count(error_history_.count);
+  m.error_history(error_history_.entries);
+  m.error_history_remark(error_history_.remark);
   if (report.started) {
     spdlog::info("{}: identity: vendor {:08X}h product {:08X}h rev {:08X}h serial {:08X}h, \"{}\" hw \"{}\" sw \"{}\"{}",
                  ctx_.device.name, id.vendor_id, id.product_code, id.revision_number, id.serial_number, id.device_name,

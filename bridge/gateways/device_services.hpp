@@ -16,6 +16,7 @@
 
 #include "canopen/boot_sequence.hpp"
 #include "canopen/error_control.hpp"
+#include "canopen/error_field.hpp"
 #include "dds/service.hpp"
 #include "gateways/device_context.hpp"
 #include "msgs/commonPubSubTypes.h"
@@ -57,7 +58,10 @@ class DeviceServices {
  private:
   std::string refusal() const;  // why this bus takes no commands, or empty
   void on_emergency(const canopen::Emergency& e);
-  void read_errors();  // 1001h/1003h into the node's active errors (master role)
+  // Master role, after a boot that passed: 1001h reconciles the node's active errors, 1003h is
+  // kept as the error history for info; then 6010h and info.
+  void read_errors();
+  void read_configuration_word_and_publish();
   void booted(const canopen::BootReport& report);
   void publish_info();
   // 6010h, from a read (nullopt: failed, with the reason) or "not read".
@@ -75,6 +79,7 @@ class DeviceServices {
   bool reading_errors_ = false;
   bool reread_errors_ = false;
   linebridge_msgs::msg::ConfigurationWord configuration_word_;
+  canopen::ErrorHistory error_history_;  // 1003h as the last boot that passed read it
 };
 
 // The boot's findings as their DDS types.

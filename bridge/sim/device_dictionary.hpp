@@ -6,7 +6,8 @@
 //
 //   1000h  device type: the profile's, or simulation.identity.device_type
 //   1001h  error register          1005h  COB-ID SYNC 0000 0080h      1014h  COB-ID EMCY 80h + node-ID
-//   1003h  pre-defined error field: sub 0 UNSIGNED8 rw (0 clears), sub 1..8 UNSIGNED32 ro; absent
+//   1003h  pre-defined error field, the error history (every EMCY sent, newest at sub 1):
+//          sub 0 UNSIGNED8 rw (the count; writing 0 clears), sub 1..8 UNSIGNED32 ro; absent
 //          with simulation.pre_defined_error_field: false
 //   1008h/1009h/100Ah  device name, hardware and software version (visible strings)
 //   1017h  heartbeat producer time, power-on value simulation.heartbeat_period_ms (0: none)

@@ -11,8 +11,9 @@
 // bitmap. A condition of 0 clears that feeder, feeder 0 clears all; a feeder command "reset"
 // (600Eh = 04h) clears that feeder too. Every clearing sends FF10h with the remaining bitmap and,
 // once it is empty, an EMCY 0000h (error reset) with the error register that remains. FF10h is
-// one active error of the box (1003h) while any feeder is in error. Conditions the table does not define are raised
-// as given, so a bridge's handling of undefined codes can be tested.
+// one active error of the box while any feeder is in error (each of these EMCYs also goes into
+// its 1003h error history). Conditions the table does not define are raised as given, so a
+// bridge's handling of undefined codes can be tested.
 
 #include <cstdint>
 #include <optional>

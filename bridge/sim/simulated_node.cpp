@@ -131,6 +131,7 @@ void SimulatedNode::on_reset(Reset kind) {
     }
     error_register_ = 0;
     active_errors_.clear();
+    error_history_.clear();  // kept in RAM: a power-on value, as CANopenNode's
     auto& od = sdo_.dictionary();
     (void)od.set(kDeviceText, 0, {});
     for (const auto index : commands_) (void)od.set(index, 0, canopen::ObjectDictionary::Bytes(od.find(index, 0)->value.size()));
@@ -204,6 +205,9 @@ void SimulatedNode::add_command(std::uint16_t index, canopen::DataType type, can
 
 void SimulatedNode::send_emergency(std::uint16_t code, std::uint8_t error_register, std::array<std::uint8_t, 5> manufacturer) {
   error_register_ = error_register;
+  // CiA 301 1003h: every EMCY goes into the history, newest at sub 1, the oldest falls off the end.
+  error_history_.insert(error_history_.begin(), code);
+  if (error_history_.size() > kErrorFieldEntries) error_history_.resize(kErrorFieldEntries);
   can::CanFrame f;
   f.id = canopen::cob::emcy_base + device_.node_id;  // 1014h
   f.len = 8;
@@ -231,21 +235,20 @@ void SimulatedNode::link_error_objects() {
   });
   if (od.find(kErrorField, 0) == nullptr) return;
   (void)od.set_on_read(kErrorField, 0, [this] {
-    return canopen::ObjectDictionary::Bytes{
-        static_cast<std::uint8_t>(std::min<std::size_t>(active_errors_.size(), kErrorFieldEntries))};
+    return canopen::ObjectDictionary::Bytes{static_cast<std::uint8_t>(error_history_.size())};
   });
+  // CiA 301: writing 0 deletes the history; it does not reset the errors, which stay active (1001h
+  // unchanged, no EMCY). Any other value is refused.
   (void)od.set_on_write(kErrorField, 0, [this](std::span<const std::uint8_t> v) -> std::optional<std::uint32_t> {
-    if (little_endian(v) != 0) return canopen::sdo_abort::value_range_exceeded;  // CiA 301: only 0 (clear)
-    loop_.post([this] {
-      active_errors_.clear();
-      send_emergency(0x0000, 0, {});
-    });
+    if (little_endian(v) != 0) return canopen::sdo_abort::value_range_exceeded;
+    error_history_.clear();
+    spdlog::info("sim {}: error history 1003h cleared", device_.name);
     return std::nullopt;
   });
   for (std::uint8_t sub = 1; sub <= kErrorFieldEntries; ++sub) {
     (void)od.set_on_read(kErrorField, sub, [this, sub] {
-      const std::size_t n = active_errors_.size();
-      return bytes_of(sub <= n ? active_errors_[n - sub] : 0, 4);  // sub 1: the newest
+      // Beyond the count there is nothing recorded: 0, as the entry's power-on value.
+      return bytes_of(sub <= error_history_.size() ? error_history_[sub - 1] : 0, 4);
     });
   }
 }

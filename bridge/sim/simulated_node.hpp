@@ -24,10 +24,16 @@
 //  - `simulation.ignore_writes`: those objects confirm an SDO write and keep their value.
 //  - Errors (CiA 301): the device keeps its active errors; 1001h is the error register (bit 0
 //    generic whenever one is active, plus the family's bit: current, voltage, temperature,
-//    communication); 1003h (unless simulation.pre_defined_error_field is false) lists them, sub 0
-//    the count (writing 0 clears them all, with EMCY 0000h), sub 1 the newest. raise_error() sends
-//    the code's EMCY; clear_error() sends EMCY 0000h with the register that remains, so a master
-//    sees "error reset" while other errors are still active. Reset node clears them.
+//    communication). raise_error() sends the code's EMCY; clear_error() sends EMCY 0000h with the
+//    register that remains, so a master sees "error reset" while other errors are still active.
+//    Reset node clears them.
+//  - 1003h, the pre-defined error field (unless simulation.pre_defined_error_field is false), is
+//    the error HISTORY, not the active list: every EMCY the device sends is recorded there, the
+//    error resets (0000h) included, as CANopenNode does. Sub 0 the number recorded, sub 1 the
+//    newest, older ones shift up; at most kErrorFieldEntries, the oldest dropped. Each entry:
+//    bits 0..15 the error code, bits 16..31 (manufacturer-specific additional information) 0.
+//    Writing 0 to sub 0 empties the history (the errors stay active, no EMCY); any other value is
+//    refused with abort 0609 0030h; subs 1..n are read-only. Reset node empties it (power-on).
 //    Error simulation 2003h (UNSIGNED32, wo), for tests of a master: bits 0..15 an error code to
 //    raise; with bit 31 set the code to clear (0000h with bit 31: clear all).
 
@@ -129,7 +135,8 @@ class SimulatedNode {
   std::optional<std::size_t> second_status_word_;  // 2110h, where a TPDO has a manufacturer entry
   std::chrono::milliseconds heartbeat_period_{0};  // 1017h
   std::uint8_t error_register_ = 0;                // 1001h
-  std::vector<std::uint16_t> active_errors_;       // oldest first; 1003h lists them newest first
+  std::vector<std::uint16_t> active_errors_;       // oldest first; what 1001h reflects
+  std::vector<std::uint32_t> error_history_;       // 1003h sub 1.. : newest first, every EMCY sent
   std::optional<std::chrono::steady_clock::time_point> last_sync_;
   std::uint64_t short_rpdos_ = 0;
   std::optional<std::chrono::steady_clock::time_point> last_short_emcy_;

@@ -317,8 +317,8 @@ TEST_F(CanopenCore, HeartbeatLossAndReturnFlipOnline) {
 }
 
 TEST_F(CanopenCore, EmergenciesAreEventsAndActiveErrorsInStatus) {
-  // After its boot the bridge reads the saw's own 1003h, which replaces the list (the device is the
-  // truth, and these EMCYs come from the test, not the device): inject after that reading.
+  // After its boot the bridge reads the saw's error register 1001h (0), which clears the list (the
+  // device is the truth, and these EMCYs come from the test, not the device): inject after that reading.
   ASSERT_TRUE(bridge_->wait_log("saw1: active errors from the device", 10s)) << logs();
   // EMCY 4210h (temperature), error register 09h, manufacturer bytes 01..05, from node 5.
   ASSERT_TRUE(spy_->send(lb::can::make_frame(0x85, {0x10, 0x42, 0x09, 0x01, 0x02, 0x03, 0x04, 0x05})));

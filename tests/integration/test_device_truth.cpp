@@ -1,7 +1,8 @@
 // What the bridge says about a device is what the device says (CiA 301), with the real bridge and
-// simulator: active errors after an EMCY 0000h that left errors (read from 1003h where the device
-// has it, "uncertain" where it has not), a boot-up that clears them, errors raised before the
-// bridge started; and SDO requests that cannot succeed refused at once with the reason.
+// simulator: active errors after an EMCY 0000h that left errors ("uncertain": neither the EMCY nor
+// 1001h says which remain, and 1003h is the error history, published on info as such), a boot-up
+// that clears them, errors raised before the bridge started; and SDO requests that cannot succeed
+// refused at once with the reason.
 // The simulator's error simulation 2003h raises (code) and clears (bit 31 | code) errors; expected
 // codes and registers are written here by hand from CiA 301.
 #include <gtest/gtest.h>
@@ -39,9 +40,11 @@ auto errors_are(std::vector<std::uint16_t> codes, bool known) {
 
 }  // namespace
 
-// CiA 301: EMCY 0000h clears the list only when its error register is 0. The device with 1003h
-// says which errors remain; the one without cannot, and the status says the list is uncertain.
-TEST(DeviceTruth, ErrorResetThatLeavesErrorsIsResolvedFrom1003hOrFlaggedUncertain) {
+// CiA 301: EMCY 0000h clears the list only when its error register is 0; with errors remaining
+// neither it nor 1001h says which, and 1003h cannot either (it is the history: every EMCY, 0000h
+// included). Both devices, with and without 1003h, report the list as uncertain. After a new
+// boot the history is on info, newest first; the device without 1003h says it has none.
+TEST(DeviceTruth, ErrorResetThatLeavesErrorsIsUncertainAndTheHistoryIsOnInfo) {
   ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("truth", 23);
   // saw2 is a device without 1003h: the bridge's file does not know it (it cannot), the simulator's does.
@@ -49,12 +52,16 @@ TEST(DeviceTruth, ErrorResetThatLeavesErrorsIsResolvedFrom1003hOrFlaggedUncertai
              saw("saw1", 3) + saw("saw2", 4, ", simulation: {pre_defined_error_field: false}"));
   lb::test::Collector<msg::SawStatusPubSubType> saw1, saw2;
   lb::test::Collector<msg::EmergencyPubSubType> emcy1;
+  lb::test::Collector<msg::DeviceInfoPubSubType> info1, info2;
   ASSERT_TRUE(saw1.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
   ASSERT_TRUE(saw2.subscribe(line.dds(), line.topic("saw2", "status"), QosKind::state));
   ASSERT_TRUE(emcy1.subscribe(line.dds(), line.topic("saw1", "emergency"), QosKind::event));
+  ASSERT_TRUE(info1.subscribe(line.dds(), line.topic("saw1", "info"), QosKind::state));
+  ASSERT_TRUE(info2.subscribe(line.dds(), line.topic("saw2", "info"), QosKind::state));
   // After their boot the bridge read 1001h = 0: nothing active, and that is known.
   ASSERT_TRUE(saw1.wait_last(30s, [](const auto& s) { return operational(s) && s.health().active_errors_known(); })) << line.logs();
   ASSERT_TRUE(saw2.wait_last(30s, [](const auto& s) { return operational(s) && s.health().active_errors_known(); })) << line.logs();
+  ASSERT_TRUE(info1.wait_last(10s, [](const msg::DeviceInfo& i) { return i.started(); })) << line.logs();
 
   for (const char* dev : {"saw1", "saw2"}) {
     ASSERT_TRUE(line.sdo_write(dev, kErrorSimulation, 0, "UNSIGNED32", kTemperature).success());
@@ -69,19 +76,38 @@ TEST(DeviceTruth, ErrorResetThatLeavesErrorsIsResolvedFrom1003hOrFlaggedUncertai
   ASSERT_TRUE(emcy1.wait(5s, [](const auto& v) {
     return !v.empty() && v.back().error_code() == 0 && v.back().error_register() == 0x05;
   })) << "the simulator sends the error reset with the register that remains";
-  EXPECT_TRUE(saw1.wait_last(5s, errors_are({kVoltage}, true))) << "1003h lists only the voltage error\n" << line.logs();
-  EXPECT_EQ(saw1.samples().back().health().error_register(), 0x05);
-  EXPECT_TRUE(saw2.wait_last(5s, [](const msg::SawStatus& s) {
-    return !s.health().active_errors_known() && s.health().active_errors().size() == 2 &&
-           s.health().active_errors_note().find("no 1003h") != std::string::npos;
-  })) << "without 1003h the list must not be cleared, and must say it is uncertain\n"
-      << line.logs();
+  const auto uncertain = [](const msg::SawStatus& s) {
+    return !s.health().active_errors_known() && s.health().error_register() == 0x05 &&
+           s.health().active_errors() == std::vector<std::uint16_t>{kTemperature, kVoltage} &&
+           s.health().active_errors_note().find("EMCY 0000h") != std::string::npos;
+  };
+  EXPECT_TRUE(saw1.wait_last(5s, uncertain)) << "1003h must not be taken for the active list\n" << line.logs();
+  EXPECT_TRUE(saw2.wait_last(5s, uncertain)) << line.logs();
+  std::this_thread::sleep_for(500ms);  // nothing the bridge reads afterwards may "resolve" it
+  EXPECT_TRUE(uncertain(saw1.samples().back())) << saw1.samples().back().health().active_errors_note();
   // The last one cleared: 0000h with register 0 clears everything, certainly.
   for (const char* dev : {"saw1", "saw2"}) {
     ASSERT_TRUE(line.sdo_write(dev, kErrorSimulation, 0, "UNSIGNED32", kClear | kVoltage).success());
   }
   EXPECT_TRUE(saw1.wait_last(5s, errors_are({}, true))) << line.logs();
   EXPECT_TRUE(saw2.wait_last(5s, errors_are({}, true))) << line.logs();
+
+  // Reset communication (the device keeps its history): boot-up, a new boot, 1003h on info.
+  const auto before1 = info1.size(), before2 = info2.size();
+  ASSERT_TRUE(line.nmt("saw1", srv::NMT_RESET_COMMUNICATION).success());
+  ASSERT_TRUE(line.nmt("saw2", srv::NMT_RESET_COMMUNICATION).success());
+  ASSERT_TRUE(info1.wait(30s, [before1](const auto& v) { return v.size() > before1 && v.back().started(); })) << line.logs();
+  const auto i1 = info1.samples().back();
+  ASSERT_TRUE(i1.error_history_read()) << i1.error_history_remark();
+  EXPECT_EQ(i1.error_history_count(), 4);
+  EXPECT_EQ(i1.error_history(), (std::vector<std::uint32_t>{0x0000, 0x0000, kVoltage, kTemperature}))
+      << "every EMCY, newest first, the error resets included";
+  EXPECT_TRUE(saw1.wait_last(5s, errors_are({}, true))) << "a history is no active error\n" << line.logs();
+  ASSERT_TRUE(info2.wait(30s, [before2](const auto& v) { return v.size() > before2 && v.back().started(); })) << line.logs();
+  const auto i2 = info2.samples().back();
+  EXPECT_FALSE(i2.error_history_read());
+  EXPECT_TRUE(i2.error_history().empty());
+  EXPECT_NE(i2.error_history_remark().find("no 1003h"), std::string::npos) << i2.error_history_remark();
 }
 
 // A boot-up: the device starts without active errors, whatever it reported before.
@@ -93,12 +119,13 @@ TEST(DeviceTruth, BootUpClearsTheActiveErrors) {
   ASSERT_TRUE(status.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
   ASSERT_TRUE(status.wait_last(30s, operational)) << line.logs();
   // The bridge reads 1001h after the boot; an EMCY during that reading makes it read again, and a
-  // device without 1003h then cannot name its errors (uncertain). Raise the error after it.
+  // register that reports an error no EMCY since the boot-up named makes the list uncertain.
+  // Raise the error after it.
   line.bridge().wait_log("saw1: active errors from the device", 10s);
   ASSERT_TRUE(line.sdo_write("saw1", kErrorSimulation, 0, "UNSIGNED32", kTemperature).success());
   ASSERT_TRUE(status.wait_last(5s, errors_are({kTemperature}, true))) << line.logs();
   // A boot-up message from the device (700h + 3, data 00h), as after a power cycle. The bridge
-  // boots it again; its 1001h (01h) then makes the list uncertain again (no 1003h to name it).
+  // boots it again; its 1001h (09h) then makes the list uncertain again (no EMCY since named it).
   const auto before = status.size();
   ASSERT_TRUE(line.spy().send(lb::can::make_frame(0x703, {0x00})));
   EXPECT_TRUE(status.wait(5s, [before](const auto& v) {
@@ -110,13 +137,17 @@ TEST(DeviceTruth, BootUpClearsTheActiveErrors) {
       << line.logs();
 }
 
-// Errors raised before the bridge started are in its status from the first boot on: it reads them.
-TEST(DeviceTruth, ErrorsRaisedBeforeTheBridgeStartedAreReadAtBoot) {
+// Errors raised before the bridge started: after its first boot the bridge knows from 1001h that
+// one is active but not which (CiA 301: 1003h is the history, its entries may long be cleared), so
+// the list is empty and uncertain, and the history on info names what the device recorded.
+TEST(DeviceTruth, ErrorsRaisedBeforeTheBridgeStartedAreUncertainAndInTheHistory) {
   ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("truth3", 25);
   line.start(saw("saw1", 3));
   lb::test::Collector<msg::SawStatusPubSubType> status;
+  lb::test::Collector<msg::DeviceInfoPubSubType> info;
   ASSERT_TRUE(status.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
+  ASSERT_TRUE(info.subscribe(line.dds(), line.topic("saw1", "info"), QosKind::state));
   ASSERT_TRUE(status.wait_last(30s, operational)) << line.logs();
   // The bridge goes away; meanwhile the device raises an error nobody hears.
   ASSERT_EQ(line.bridge().stop(), 0);
@@ -124,16 +155,27 @@ TEST(DeviceTruth, ErrorsRaisedBeforeTheBridgeStartedAreReadAtBoot) {
   ASSERT_TRUE(line.spy().send(lb::can::make_frame(0x603, {0x23, 0x03, 0x20, 0x00, 0x00, 0x50, 0x00, 0x00})));
   std::this_thread::sleep_for(200ms);
   const auto before = status.size();
+  const auto info_before = info.size();
   line.start_bridge();
   EXPECT_TRUE(status.wait(30s, [before](const auto& v) {
     for (std::size_t i = before; i < v.size(); ++i) {
       const auto& h = v[i].health();
-      if (h.active_errors() == std::vector<std::uint16_t>{0x5000} && h.active_errors_known() && h.error_register() == 0x01) {
+      if (h.active_errors().empty() && !h.active_errors_known() && h.error_register() == 0x01 &&
+          h.active_errors_note().find("1001h = 01h") != std::string::npos) {
         return true;
       }
     }
     return false;
   })) << line.logs();
+  const auto all = status.samples();
+  for (std::size_t i = before; i < all.size(); ++i) {
+    EXPECT_TRUE(all[i].health().active_errors().empty()) << "5000h taken from the history for an active error";
+  }
+  ASSERT_TRUE(info.wait(30s, [info_before](const auto& v) {
+    return v.size() > info_before && v.back().started() && v.back().error_history_read();
+  })) << line.logs();
+  EXPECT_EQ(info.samples().back().error_history_count(), 1);
+  EXPECT_EQ(info.samples().back().error_history(), (std::vector<std::uint32_t>{0x5000}));
 }
 
 // SDO requests that cannot succeed are answered at once with the reason, not after a timeout.

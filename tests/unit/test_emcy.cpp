@@ -1,6 +1,8 @@
 // A device's active errors as CiA 301 has them: what an EMCY 0000h (error reset) may and may not
-// clear, a boot-up, and what the device lists itself (1001h, 1003h). Codes and registers written
-// by hand from CiA 301 (cia301-essentials.md, EMCY).
+// clear, what an error register of 0 says, a boot-up, and what the master reads from the device:
+// 1001h (the error register) reconciles the list; 1003h (the pre-defined error field) is the
+// device's error HISTORY and never feeds it. Codes and registers written by hand from CiA 301
+// (cia301-essentials.md, EMCY; node-state-machine.md, "Errors: history versus active list").
 #include <gtest/gtest.h>
 
 #include "canopen/emcy.hpp"
@@ -20,6 +22,16 @@ Emergency emcy(std::uint16_t code, std::uint8_t error_register) {
 }
 
 std::vector<std::uint16_t> codes(const ActiveErrors& a) { return a.codes(); }
+
+// 1003h as a master reads it: entries newest first (sub 1 = the newest).
+ErrorFieldReading reading(std::uint8_t error_register, std::vector<std::uint32_t> history_newest_first) {
+  ErrorFieldReading r;
+  r.error_register = error_register;
+  r.history.read = true;
+  r.history.count = static_cast<std::uint8_t>(history_newest_first.size());
+  r.history.entries = std::move(history_newest_first);
+  return r;
+}
 
 }  // namespace
 
@@ -41,11 +53,22 @@ TEST(ActiveErrors, ErrorResetWithRegisterZeroClearsEverything) {
   a.apply(emcy(0x0000, 0x00));
   EXPECT_TRUE(a.codes().empty());
   EXPECT_TRUE(a.known());
-  EXPECT_FALSE(a.needs_reading());
+}
+
+// CiA 301: the error register is 0 when no error is active. An EMCY that carries a code with
+// register 0 reports an event, not an error that stays (and it ends whatever was listed).
+TEST(ActiveErrors, AnEmcyWithErrorRegisterZeroLeavesNoErrorActive) {
+  ActiveErrors a;
+  a.reset_by_boot_up();
+  a.apply(emcy(0x4210, 0x09));
+  a.apply(emcy(0x8210, 0x00));  // PDO not processed (length), register 0
+  EXPECT_TRUE(a.codes().empty());
+  EXPECT_TRUE(a.known());
+  EXPECT_EQ(a.error_register(), 0x00);
 }
 
 // CiA 301: an EMCY 0000h says "error reset or no error"; the register it carries says whether
-// errors remain. With register 01h some do, and the EMCY does not say which.
+// errors remain. With register 05h some do, and the EMCY does not say which.
 TEST(ActiveErrors, ErrorResetWithErrorsRemainingMakesTheListUncertain) {
   ActiveErrors a;
   a.reset_by_boot_up();
@@ -54,7 +77,6 @@ TEST(ActiveErrors, ErrorResetWithErrorsRemainingMakesTheListUncertain) {
   a.apply(emcy(0x0000, 0x05));  // 4210h cleared, 3120h (voltage) remains
   EXPECT_EQ(codes(a), (std::vector<std::uint16_t>{0x4210, 0x3120})) << "nothing may be dropped on a guess";
   EXPECT_FALSE(a.known());
-  EXPECT_TRUE(a.needs_reading());
   EXPECT_NE(a.note().find("error register 05h"), std::string::npos) << a.note();
   EXPECT_EQ(a.error_register(), 0x05);
 }
@@ -68,47 +90,69 @@ TEST(ActiveErrors, BootUpClearsTheList) {
   EXPECT_TRUE(a.codes().empty());
   EXPECT_EQ(a.error_register(), 0);
   EXPECT_TRUE(a.known());
-  EXPECT_FALSE(a.needs_reading());
 }
 
-TEST(ErrorField, TheDevicesOwnListReplacesTheUncertainOne) {
+// 1003h after 4210h, 3120h and an error reset that left the voltage error: the history holds all
+// three EMCYs (0000h newest). It says what happened, not what is active: the list stays as the
+// EMCYs left it, uncertain, and never lists 0000h or an entry of the history it did not have.
+TEST(ErrorField, TheHistoryIsNotTheActiveList) {
   ActiveErrors a;
+  a.reset_by_boot_up();
   a.apply(emcy(0x4210, 0x09));
   a.apply(emcy(0x3120, 0x0D));
   a.apply(emcy(0x0000, 0x05));
-  ErrorFieldReading r;
-  r.error_register = 0x05;
-  r.codes = std::vector<std::uint16_t>{0x3120};
-  apply(a, r);
-  EXPECT_EQ(codes(a), (std::vector<std::uint16_t>{0x3120}));
-  EXPECT_TRUE(a.known());
-  EXPECT_NE(a.note().find("1003h"), std::string::npos) << a.note();
+  apply(a, reading(0x05, {0x0000, 0x3120, 0x4210, 0x5000}));
+  EXPECT_EQ(codes(a), (std::vector<std::uint16_t>{0x4210, 0x3120}));
+  EXPECT_FALSE(a.known());
+  EXPECT_NE(a.note().find("EMCY 0000h"), std::string::npos) << "the reason stays the error reset: " << a.note();
+  EXPECT_EQ(a.error_register(), 0x05);
 }
 
 TEST(ErrorField, RegisterZeroMeansNoActiveErrorWhateverTheHistorySays) {
   ActiveErrors a;
   a.apply(emcy(0x4210, 0x09));
-  ErrorFieldReading r;
-  r.error_register = 0;
-  apply(a, r);
+  apply(a, reading(0x00, {0x4210, 0x3120}));
   EXPECT_TRUE(a.codes().empty());
   EXPECT_TRUE(a.known());
+  EXPECT_EQ(a.error_register(), 0x00);
 }
 
-TEST(ErrorField, WithoutAn1003hTheListStaysUncertainAndSaysWhy) {
+// Errors raised before the bridge heard the device (no boot-up seen), or since a boot-up without an
+// EMCY naming them: 1001h says some are active, and only the history names codes, which may long
+// be cleared. The list stays empty and says it is uncertain, and why.
+TEST(ErrorField, ARegisterThatReportsErrorsNoEmcyNamedMakesTheListUncertain) {
+  ActiveErrors before_boot_up;
+  apply(before_boot_up, reading(0x01, {0x5000}));
+  EXPECT_TRUE(before_boot_up.codes().empty()) << "5000h is history, not an active error";
+  EXPECT_FALSE(before_boot_up.known());
+  EXPECT_EQ(before_boot_up.error_register(), 0x01);
+  EXPECT_NE(before_boot_up.note().find("1001h = 01h"), std::string::npos) << before_boot_up.note();
+
+  ActiveErrors after_boot_up;
+  after_boot_up.reset_by_boot_up();
+  apply(after_boot_up, reading(0x01, {0x0000, 0x5000}));
+  EXPECT_TRUE(after_boot_up.codes().empty());
+  EXPECT_FALSE(after_boot_up.known());
+  EXPECT_NE(after_boot_up.note().find("1001h = 01h"), std::string::npos) << after_boot_up.note();
+}
+
+// Since the boot-up the EMCYs named 4210h; 1001h = 09h agrees: the list is known, with or without
+// a 1003h on the device.
+TEST(ErrorField, EmcysSinceTheBootUpStayTrueWhenTheRegisterReportsErrors) {
   ActiveErrors a;
+  a.reset_by_boot_up();
   a.apply(emcy(0x4210, 0x09));
-  a.apply(emcy(0x0000, 0x01));
   ErrorFieldReading r;
-  r.error_register = 0x01;  // no codes: the device has no 1003h
+  r.error_register = 0x09;  // no history: the device has no 1003h
   apply(a, r);
   EXPECT_EQ(codes(a), (std::vector<std::uint16_t>{0x4210}));
-  EXPECT_FALSE(a.known());
-  EXPECT_NE(a.note().find("no 1003h"), std::string::npos) << a.note();
-  EXPECT_EQ(a.error_register(), 0x01);
+  EXPECT_TRUE(a.known()) << a.note();
+  EXPECT_EQ(a.error_register(), 0x09);
 }
 
-TEST(ErrorField, AFailedReadKeepsTheListAndSaysSo) {
+// The register is only a check of what the EMCYs since the boot-up said: a read that failed does
+// not make them wrong. A list not known for want of a boot-up says the read failed too.
+TEST(ErrorField, AFailedReadKeepsTheListAndSaysSoWhereItWasNotKnown) {
   ActiveErrors a;
   a.reset_by_boot_up();
   a.apply(emcy(0x4210, 0x09));
@@ -116,6 +160,12 @@ TEST(ErrorField, AFailedReadKeepsTheListAndSaysSo) {
   r.error = lb::canopen::SdoError{0x05040000, "timed out"};
   apply(a, r);
   EXPECT_EQ(codes(a), (std::vector<std::uint16_t>{0x4210}));
-  EXPECT_FALSE(a.known());
-  EXPECT_NE(a.note().find("could not be read"), std::string::npos) << a.note();
+  EXPECT_TRUE(a.known());
+
+  ActiveErrors never_booted;
+  never_booted.apply(emcy(0x4210, 0x09));
+  apply(never_booted, r);
+  EXPECT_EQ(codes(never_booted), (std::vector<std::uint16_t>{0x4210}));
+  EXPECT_FALSE(never_booted.known());
+  EXPECT_NE(never_booted.note().find("could not be read"), std::string::npos) << never_booted.note();
 }
