@@ -100,8 +100,8 @@ struct SimulationConfig {
   // Objects (index << 8 | sub) whose SDO writes the device confirms and then ignores, as a faulty
   // device may: a master that reads back notices.
   std::vector<std::uint32_t> ignore_writes;
-  // CiA 301 1003h (pre-defined error field): the device lists its active errors there. false: it
-  // has no 1003h, as many devices (the object is optional).
+  // CiA 301 1003h (pre-defined error field): the device's error history (every EMCY it sent,
+  // newest first). false: it has no 1003h, as many devices (the object is optional).
   bool pre_defined_error_field = true;
   // false: the boot-up message after an NMT reset is lost (a fault to test a master with; the
   // power-on boot-up is still sent).

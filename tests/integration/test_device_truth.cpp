@@ -124,10 +124,11 @@ TEST(DeviceTruth, BootUpClearsTheActiveErrors) {
   line.bridge().wait_log("saw1: active errors from the device", 10s);
   ASSERT_TRUE(line.sdo_write("saw1", kErrorSimulation, 0, "UNSIGNED32", kTemperature).success());
   ASSERT_TRUE(status.wait_last(5s, errors_are({kTemperature}, true))) << line.logs();
-  // A boot-up message from the device (700h + 3, data 00h), as after a power cycle. The bridge
-  // boots it again; its 1001h (09h) then makes the list uncertain again (no EMCY since named it).
+  // The device resets (NMT reset node from the test's bus member, as after a power cycle): its
+  // boot-up message, then pre-operational heartbeats. The bridge believes it (a lone boot-up next
+  // to operational heartbeats would be a spoof) and the list starts empty.
   const auto before = status.size();
-  ASSERT_TRUE(line.spy().send(lb::can::make_frame(0x703, {0x00})));
+  ASSERT_TRUE(line.spy().send(lb::can::make_frame(0x000, {0x81, 0x03})));
   EXPECT_TRUE(status.wait(5s, [before](const auto& v) {
     for (std::size_t i = before; i < v.size(); ++i) {
       if (v[i].health().active_errors().empty() && v[i].health().active_errors_known()) return true;
