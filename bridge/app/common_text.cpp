@@ -136,7 +136,8 @@ std::string to_text(const msg::Diagnostics& d) {
                        "EMCY {} | {}\n",
                        n.device(), n.bus(), n.node_id(), n.online() ? "online" : "OFFLINE", to_text(n.nmt_state()),
                        n.last_heartbeat_age_s() < 0 ? std::string("never") : fmt::format("{:.2f} s", n.last_heartbeat_age_s()),
-                       n.boot_ups(), n.pdos_received(), n.pdos_sent(), n.pdo_length_errors(), n.emergencies(), n.boot_state());
+                       n.boot_ups(), n.pdos_received(), n.pdos_sent(), n.pdo_length_errors(), n.emergencies(),
+                       n.node_state().empty() || n.node_state() == "monitored" ? n.boot_state() : n.node_state() + ": " + n.boot_state());
     if (!n.boot_error().code().empty() && n.boot_state().rfind("failed", 0) != 0) {
       out += fmt::format("  {:<12} last boot failure: {}\n", "", to_text(n.boot_error()));
     }

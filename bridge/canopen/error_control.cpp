@@ -37,10 +37,36 @@ void ErrorControl::reset_sent(bool by_operator) {
     backoff_ = std::chrono::milliseconds(0);
   }
   waiting_ = "reset: waiting for its boot-up";
+  resetting_ = true;
   loop_.arm_timer(reset_timer_, settings_.reset_bound);
 }
 
 void ErrorControl::start() { boot_now("start-up"); }
+
+std::string_view to_string(NodeState state) {
+  switch (state) {
+    case NodeState::unknown: return "unknown";
+    case NodeState::booting: return "booting";
+    case NodeState::boot_failed: return "boot failed";
+    case NodeState::running_unmanaged: return "running unmanaged";
+    case NodeState::operational: return "operational";
+    case NodeState::stopped_by_operator: return "stopped by operator";
+    case NodeState::resetting: return "resetting";
+    case NodeState::lost: return "lost";
+  }
+  return "?";
+}
+
+NodeState ErrorControl::node_state() const {
+  if (resetting_) return NodeState::resetting;
+  if (!node_.online()) return node_.last_heartbeat_ns() == 0 ? NodeState::unknown : NodeState::lost;
+  if (unmanaged_) return NodeState::running_unmanaged;
+  if (boot_under_way()) return NodeState::booting;
+  if (node_.operator_hold() && node_.configured()) return NodeState::stopped_by_operator;
+  if (node_.ready_for_pdos()) return NodeState::operational;
+  if (boot_.report().error) return NodeState::boot_failed;
+  return NodeState::booting;
+}
 
 std::string ErrorControl::state() const {
   if (!waiting_.empty()) return waiting_;
@@ -51,6 +77,7 @@ void ErrorControl::on_event(RemoteNode::Event event, NmtState reported) {
   switch (event) {
     case RemoteNode::Event::boot_up:
       loop_.disarm_timer(reset_timer_);
+      resetting_ = false;
       if (storm()) return;
       return boot_now("boot-up");
     case RemoteNode::Event::lost:
@@ -86,6 +113,7 @@ void ErrorControl::recover(const char* why) {
 
 void ErrorControl::boot_now(const std::string& why) {
   unmanaged_ = false;
+  resetting_ = false;
   loop_.disarm_timer(timer_);
   loop_.disarm_timer(reset_timer_);
   waiting_.clear();

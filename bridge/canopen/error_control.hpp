@@ -12,6 +12,7 @@
 #include <deque>
 #include <functional>
 #include <string>
+#include <string_view>
 
 #include "base/repeat_log.hpp"
 #include "canopen/boot_sequence.hpp"
@@ -20,6 +21,20 @@
 namespace lb::canopen {
 
 enum class RecoveryAction { reboot, reset_node };
+
+// The master's view of one device, as diagnostics name it (derived from the boot, the error
+// control's wait and the node's heartbeat and commands).
+enum class NodeState {
+  unknown,              // not heard yet
+  booting,              // a boot is checking and configuring it
+  boot_failed,          // the last boot failed; retried after boot_retry_ms or a back-off
+  running_unmanaged,    // its boot failed while it runs: left running, reported, not started by the bridge
+  operational,          // started by the bridge, heard operational
+  stopped_by_operator,  // an operator's NMT stop or pre-operational, kept
+  resetting,            // an NMT reset was sent: waiting for its boot-up
+  lost,                 // no heartbeat within its timeout
+};
+std::string_view to_string(NodeState state);
 
 class ErrorControl {
  public:
@@ -55,6 +70,7 @@ class ErrorControl {
 
   // Loop thread: what diagnostics show (the boot's step, a pending retry, a storm).
   std::string state() const;
+  NodeState node_state() const;
   const Counters& counters() const { return counters_; }
 
  private:
@@ -77,7 +93,8 @@ class ErrorControl {
   std::deque<std::chrono::steady_clock::time_point> recent_;
   std::chrono::milliseconds backoff_{0};
   std::string waiting_;  // why the next boot is pending, or empty
-  bool unmanaged_ = false;
+  bool unmanaged_ = false;  // its boot failed while it runs: no retry until an event
+  bool resetting_ = false;  // an NMT reset was sent, its boot-up not seen yet
   RepeatLog boot_log_;  // an absent device is tried every retry interval: the same line once a minute  // its boot failed while it runs: no retry until an event
   Counters counters_;
 };

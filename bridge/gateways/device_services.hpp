@@ -34,6 +34,7 @@ class DeviceServices {
   void start();
   // Loop thread: "started", "failed (K): ...", a pending retry, "monitored" (monitor role).
   std::string boot_state() const { return control_ ? control_->state() : "monitored"; }
+  std::string_view node_state() const { return control_ ? canopen::to_string(control_->node_state()) : "monitored"; }
   // Loop thread: the last boot failed after the device answered SDO (not a device that is silent).
   bool answered_boot() const {
     return report_.error.has_value() && !(report_.error->code == 'B' && report_.error->abort_code == 0x05040000u);

@@ -120,6 +120,7 @@ void DiagnosticsGateway::snapshot(std::size_t i) {
     n.online(d.node->online());
     n.nmt_state(to_msg(d.node->state()));
     n.boot_state(d.services->boot_state());
+    n.node_state(std::string(d.services->node_state()));
     n.set_values_at_start(d.node->set_values_at_start());
     if (const auto& e = d.services->boot_report().error) n.boot_error(to_msg(*e));
     const auto counters = d.services->boot_counters();

@@ -6,6 +6,8 @@
 #include <fstream>
 #include <sstream>
 
+#include "profiles/config_file.hpp"
+
 namespace lb::profiles {
 namespace {
 
@@ -215,12 +217,11 @@ Result<EdsFile> parse_eds(const std::string& text, const std::string& source) {
   return eds;
 }
 
+// Bounded like a line file: /dev/zero, a FIFO or a huge file is refused, not read until memory runs out.
 Result<EdsFile> load_eds(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) return make_error(path + ": cannot open");
-  std::stringstream text;
-  text << in.rdbuf();
-  return parse_eds(text.str(), path);
+  auto text = read_config_file(path, "EDS/DCF file");
+  if (!text) return text.error();
+  return parse_eds(*text, path);
 }
 
 }  // namespace lb::profiles

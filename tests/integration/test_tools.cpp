@@ -205,6 +205,11 @@ TEST_F(Eds, FilesThatAreNoEdsAreRefused) {
   EXPECT_NE(r.output.find("profiles of this device type:"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find(" cia420-4@3.1"), std::string::npos) << r.output;
   EXPECT_EQ(r.output.find("cia414"), std::string::npos) << "a CiA 414 profile for a device type of 420: " << r.output;
+  // Read with the line file's bounds: /dev/zero is refused at once (it grew to gigabytes and
+  // aborted with std::bad_alloc before).
+  r = run_command({LB_BIN_CLI, "eds", "/dev/zero"}, std::chrono::seconds(20));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("/dev/zero: EDS/DCF file: not a regular file"), std::string::npos) << r.output;
 }
 
 // A virtual bus, watched as candump watches a CAN interface: the simulator's boot-up and
