@@ -135,7 +135,7 @@ class BusLoop {
   void loop();
   // The barrier: true when fn returned normally. `failures` (may be null: one-shot work) counts the
   // callback's throws in a row and is reset by a normal return; at kMaxHandlerFailures it throws
-  // HandlerBroken, which ends the loop (run() reports it to the failure handler).
+  // (std::runtime_error naming the callback) out of loop(), and run() reports it to on_failure.
   template <class Fn>
   bool guarded(Fn&& fn, std::uint32_t* failures, const char* what, std::uint32_t id);
   void call(Handler& h, const can::CanFrame& frame, const char* what);
