@@ -41,19 +41,26 @@ Result<std::unique_ptr<RecordingBus>> RecordingBus::open(std::unique_ptr<Bus> in
 }
 
 RecordingBus::RecordingBus(PrivateTag, std::unique_ptr<Bus> inner, UniqueFd file, std::string interface)
-    : inner_(std::move(inner)), file_(std::move(file)), interface_(std::move(interface)), ring_(kBufferBytes, '\0') {
+    : inner_(std::move(inner)), interface_(std::move(interface)), shared_(std::make_shared<Shared>(std::move(file))) {
   static_assert((kBufferBytes & (kBufferBytes - 1)) == 0);
   line_.reserve(interface_.size() + 64);  // the longest line: timestamp, identifier, 8 data bytes
-  writer_ = std::thread([this] { write_out(); });
+  writer_ = std::thread([s = shared_] { write_out(*s); });
 }
 
 RecordingBus::~RecordingBus() {
-  {
-    std::lock_guard lock(stop_mutex_);
-    stopping_ = true;
+  Shared& s = *shared_;
+  std::unique_lock lock(s.stop_mutex);
+  s.stopping = true;
+  s.stop_cv.notify_all();
+  // The writer gives up by itself after kStopWait, unless a write() never returns: then it is left
+  // to finish on its own (it holds the file and the ring), and the shutdown goes on.
+  const bool finished = s.stop_cv.wait_for(lock, kStopWait + kStopGrace, [&s] { return s.finished; });
+  lock.unlock();
+  if (finished) {
+    writer_.join();
+  } else {
+    writer_.detach();  // what the ring still holds is lost with it
   }
-  stop_cv_.notify_all();
-  writer_.join();
 }
 
 Result<std::optional<CanFrame>> RecordingBus::receive() {
@@ -75,84 +82,95 @@ Result<void> RecordingBus::send(const CanFrame& frame) {
 
 BusStats RecordingBus::stats() const {
   BusStats s = inner_->stats();
-  s.record_errors += record_errors_;
+  s.record_errors += shared_->record_errors;
   return s;
 }
 
 // The loop's side: no lock, no system call, no allocation.
 void RecordingBus::record(const CanFrame& frame) {
+  Shared& s = *shared_;
   line_.clear();
   append_log_line(line_, frame, interface_);
   const std::string_view line = line_;
-  const std::uint64_t put = put_.load(std::memory_order_relaxed);
-  const std::uint64_t taken = taken_.load(std::memory_order_acquire);
+  const std::uint64_t put = s.put.load(std::memory_order_relaxed);
+  const std::uint64_t taken = s.taken.load(std::memory_order_acquire);
   if (kBufferBytes - (put - taken) < line.size()) {
-    ++record_errors_;
+    ++s.record_errors;
     return;
   }
   const std::size_t at = put & (kBufferBytes - 1);
   const std::size_t first = std::min(line.size(), kBufferBytes - at);
-  std::copy_n(line.data(), first, ring_.data() + at);
-  std::copy_n(line.data() + first, line.size() - first, ring_.data());
-  put_.store(put + line.size(), std::memory_order_release);
+  std::copy_n(line.data(), first, s.ring.data() + at);
+  std::copy_n(line.data() + first, line.size() - first, s.ring.data());
+  s.put.store(put + line.size(), std::memory_order_release);
 }
 
-bool RecordingBus::stop_requested() {
-  std::lock_guard lock(stop_mutex_);
-  return stopping_;
+bool RecordingBus::stop_requested(Shared& s) {
+  std::lock_guard lock(s.stop_mutex);
+  return s.stopping;
 }
 
 // The writer: every kWriteInterval (or at the stop) writes out what the loop put into the ring.
-void RecordingBus::write_out() {
+void RecordingBus::write_out(Shared& s) {
   for (;;) {
     // Read before draining, so that everything recorded before the stop is written (or counted).
-    const bool stopping = stop_requested();
-    drain(stopping);
-    if (stopping) return;
-    std::unique_lock lock(stop_mutex_);
-    stop_cv_.wait_for(lock, kWriteInterval, [this] { return stopping_; });
+    const bool stopping = stop_requested(s);
+    drain(s, stopping);
+    std::unique_lock lock(s.stop_mutex);
+    if (stopping) {
+      s.finished = true;
+      s.stop_cv.notify_all();
+      return;
+    }
+    s.stop_cv.wait_for(lock, kWriteInterval, [&s] { return s.stopping; });
   }
 }
 
 // Non-blocking writes with a poll, so that a recording to a reader that never reads (a FIFO) still
-// lets the bridge stop: at the stop it gives up after a second and counts what it could not write.
-void RecordingBus::drain(bool stopping) {
-  auto give_up = std::chrono::steady_clock::now() + std::chrono::seconds(1);
+// lets the bridge stop. The stop is bounded by kStopWait from the moment it is requested, checked
+// before every write: a file that takes nothing and one that takes a trickle (a slow disk, whose
+// writes never say EAGAIN) alike. What is left then is dropped and counted.
+void RecordingBus::drain(Shared& s, bool stopping) {
+  using Clock = std::chrono::steady_clock;
+  auto give_up = stopping ? Clock::now() + kStopWait : Clock::time_point::max();
   for (;;) {
-    const std::uint64_t taken = taken_.load(std::memory_order_relaxed);
-    const std::uint64_t put = put_.load(std::memory_order_acquire);
+    const std::uint64_t taken = s.taken.load(std::memory_order_relaxed);
+    const std::uint64_t put = s.put.load(std::memory_order_acquire);
     if (taken == put) return;
+    if (!stopping && stop_requested(s)) {
+      stopping = true;
+      give_up = Clock::now() + kStopWait;
+    }
+    const auto now = Clock::now();
+    if (now >= give_up) {
+      drop(s, taken, put);
+      return;
+    }
     const std::size_t at = taken & (kBufferBytes - 1);
     const std::size_t len = static_cast<std::size_t>(std::min<std::uint64_t>(put - taken, kBufferBytes - at));
-    const ssize_t n = ::write(file_.get(), ring_.data() + at, len);
+    const ssize_t n = ::write(s.file.get(), s.ring.data() + at, len);
     if (n > 0) {
-      taken_.store(taken + static_cast<std::uint64_t>(n), std::memory_order_release);
+      s.taken.store(taken + static_cast<std::uint64_t>(n), std::memory_order_release);
       continue;
     }
     if (n < 0 && errno == EINTR) continue;
     if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK)) {
-      if (!stopping && stop_requested()) {
-        stopping = true;
-        give_up = std::chrono::steady_clock::now() + std::chrono::seconds(1);
-      }
-      if (stopping && std::chrono::steady_clock::now() > give_up) {
-        drop(taken, put);
-        return;
-      }
-      pollfd p{file_.get(), POLLOUT, 0};
-      ::poll(&p, 1, 100);
+      // Wakes at least every 100 ms to notice a stop; never sleeps past the deadline.
+      const auto left = std::chrono::ceil<std::chrono::milliseconds>(give_up - now);
+      pollfd p{s.file.get(), POLLOUT, 0};
+      ::poll(&p, 1, static_cast<int>(std::min<std::int64_t>(100, left.count())));
       continue;
     }
-    drop(taken, put);  // disk full, I/O error: what the ring holds now is lost; later lines try again
+    drop(s, taken, put);  // disk full, I/O error: what the ring holds now is lost; later lines try again
     return;
   }
 }
 
-void RecordingBus::drop(std::uint64_t from, std::uint64_t to) {
+void RecordingBus::drop(Shared& s, std::uint64_t from, std::uint64_t to) {
   std::uint64_t lines = 0;
-  for (std::uint64_t i = from; i != to; ++i) lines += ring_[i & (kBufferBytes - 1)] == '\n' ? 1 : 0;
-  record_errors_ += lines;
-  taken_.store(to, std::memory_order_release);
+  for (std::uint64_t i = from; i != to; ++i) lines += s.ring[i & (kBufferBytes - 1)] == '\n' ? 1 : 0;
+  s.record_errors += lines;
+  s.taken.store(to, std::memory_order_release);
 }
 
 }  // namespace lb::can

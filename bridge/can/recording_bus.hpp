@@ -13,7 +13,9 @@
 // (kBufferBytes): a frame that does not fit, or cannot be written (disk full), is counted in
 // BusStats::record_errors and the bus goes on. The writer looks for new lines every kWriteInterval,
 // so a crash loses at most what the ring held. Sent frames are recorded once the bus accepted them,
-// with the time of sending.
+// with the time of sending. The stop is bounded too: the writer gets kStopWait to write out the
+// ring and drops (counts) the rest, and a writer whose write() does not return is left behind
+// after kStopGrace more, so no file can hold up the bridge's shutdown.
 
 #include <atomic>
 #include <chrono>
@@ -42,9 +44,18 @@ class RecordingBus final : public Bus {
 
   static constexpr std::size_t kBufferBytes = 4 << 20;  // a power of two: positions wrap by masking
   static constexpr std::chrono::milliseconds kWriteInterval{20};
+  // How long the destructor lets the writer write out what the ring holds; the rest is dropped
+  // and counted, so a file that takes nothing or a trickle (a FIFO nobody reads, or reads slowly)
+  // cannot hold up the bridge's shutdown.
+  static constexpr std::chrono::milliseconds kStopWait{1000};
+  // Beyond kStopWait, how long the destructor waits for a write() that does not return (a file
+  // whose writes block: a hung network file system, a blocking FIFO nobody reads). Then it leaves
+  // the writer behind, detached: the writer owns its state, which goes when it returns.
+  static constexpr std::chrono::milliseconds kStopGrace{500};
 
   RecordingBus(PrivateTag, std::unique_ptr<Bus> inner, UniqueFd file, std::string interface);
-  // Writes out what the buffer holds (for a disk that takes it within a second), then stops.
+  // Writes out what the buffer holds for at most kStopWait (kStopWait + kStopGrace if a write
+  // blocks), then stops.
   ~RecordingBus() override;
 
   const std::string& uri() const override { return inner_->uri(); }
@@ -54,27 +65,35 @@ class RecordingBus final : public Bus {
   BusStats stats() const override;
 
  private:
+  // What the writer thread uses, owned jointly with it: a writer stuck in write() at the stop is
+  // detached and keeps this alive (file and ring) until its write returns, however long after.
+  struct Shared {
+    explicit Shared(UniqueFd f) : file(std::move(f)), ring(kBufferBytes, '\0') {}
+    UniqueFd file;
+    // Single producer (the bus loop), single consumer (the writer): positions count bytes since open.
+    std::vector<char> ring;
+    std::atomic<std::uint64_t> put{0};    // written by the loop only
+    std::atomic<std::uint64_t> taken{0};  // written by the writer only
+    std::atomic<std::uint64_t> record_errors{0};
+    // Between the writer and the destructor only; the loop never takes it.
+    std::mutex stop_mutex;
+    std::condition_variable stop_cv;
+    bool stopping = false;  // guarded by stop_mutex
+    bool finished = false;  // guarded by stop_mutex: the writer returned
+  };
+
   void record(const CanFrame& frame);
-  void write_out();
-  // Writes what the ring holds; at a stop, gives up on a file that takes nothing for a second.
-  void drain(bool stopping);
+  static void write_out(Shared& s);
+  // Writes what the ring holds; at a stop, gives up kStopWait after the stop was requested.
+  static void drain(Shared& s, bool stopping);
   // Counts the lines in [from, to) of the ring as lost and drops them.
-  void drop(std::uint64_t from, std::uint64_t to);
-  bool stop_requested();
+  static void drop(Shared& s, std::uint64_t from, std::uint64_t to);
+  static bool stop_requested(Shared& s);
 
   std::unique_ptr<Bus> inner_;
-  UniqueFd file_;
   std::string interface_;
   std::string line_;  // the loop's: the frame being recorded
-  // Single producer (the bus loop), single consumer (the writer): positions count bytes since open.
-  std::vector<char> ring_;
-  std::atomic<std::uint64_t> put_{0};    // written by the loop only
-  std::atomic<std::uint64_t> taken_{0};  // written by the writer only
-  std::atomic<std::uint64_t> record_errors_{0};
-  // Between the writer and the destructor only; the loop never takes it.
-  std::mutex stop_mutex_;
-  std::condition_variable stop_cv_;
-  bool stopping_ = false;  // guarded by stop_mutex_
+  std::shared_ptr<Shared> shared_;
   std::thread writer_;
 };
 

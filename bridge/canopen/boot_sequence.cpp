@@ -156,7 +156,8 @@ void BootSequence::read_pdos(std::vector<PdoSpec> specs, std::function<void(std:
                       r.back().error->message)});
   };
   batch(first, [this, specs, first, read_failed, then = std::move(then)](Replies r) {
-    if (r.back().error) return read_failed(first, r);
+    // No PDOs (a profile without `pdos:`): nothing was read, and there is no last reply to look at.
+    if (!r.empty() && r.back().error) return read_failed(first, r);
     std::vector<DevicePdo> devices(specs.size());
     std::vector<SdoRequest> second;
     std::vector<std::pair<std::size_t, std::size_t>> owner;  // (pdo, mapped count) of each entry read

@@ -73,6 +73,8 @@ bool BusLoop::guarded(Fn&& fn, std::uint32_t* failures, const char* what, std::u
   std::string error;
   try {
     fn();
+    // Throws in a row, not in all: sporadic throws over months must not add up to a restart.
+    if (failures != nullptr) *failures = 0;
     return true;
   } catch (const std::exception& e) {
     error = e.what();
@@ -86,15 +88,17 @@ bool BusLoop::guarded(Fn&& fn, std::uint32_t* failures, const char* what, std::u
     spdlog::error("{}: the {} {:03X}h threw: {} ({} failures on this bus); the bus goes on", bus_->uri(), what, id,
                   error, handler_failures_);
   }
-  if (failures != nullptr && n == kMaxHandlerFailures) {
+  if (failures != nullptr && n >= kMaxHandlerFailures) {
+    // Switching it off would leave a loop that iterates (and so feeds the service watchdog) without
+    // SYNC, heartbeat supervision or SDO answers: the loop ends instead, through run()'s failure
+    // path, so the process exits and its service manager restarts it.
     ++handlers_disabled_;
-    spdlog::error("{}: the {} {:03X}h is switched off after {} failures", bus_->uri(), what, id, n);
+    throw std::runtime_error(fmt::format("the {} {:03X}h threw {} times in a row (last: {})", what, id, n, error));
   }
   return false;
 }
 
 void BusLoop::call(Handler& h, const can::CanFrame& frame, const char* what) {
-  if (h.failures >= kMaxHandlerFailures) return;
   guarded([&] { h.fn(frame); }, &h.failures, what, frame.id);
 }
 
@@ -252,11 +256,7 @@ void BusLoop::run_timer(TimerId id) {
   std::uint64_t expirations = 0;
   // Not due (any more): it already ran between the frames of a burst.
   if (::read(timer.fd, &expirations, sizeof expirations) != sizeof expirations) return;
-  if (timer.failures >= kMaxHandlerFailures) return;
-  if (!guarded([&timer] { timer.callback(); }, &timer.failures, "timer", static_cast<std::uint32_t>(id)) &&
-      timer.failures >= kMaxHandlerFailures) {
-    disarm_timer(id);
-  }
+  guarded([&timer] { timer.callback(); }, &timer.failures, "timer", static_cast<std::uint32_t>(id));
 }
 
 void BusLoop::run_due_timers() {

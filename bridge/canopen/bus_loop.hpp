@@ -3,10 +3,13 @@
 // threads. Every CANopen service of a bus runs on this thread, so none of them needs a lock.
 //
 // Every callback (frame handler, timer, posted task, flush) runs behind an exception barrier: a
-// throw is logged at a bounded rate and counted (handler_failures), and a frame handler or timer
-// that keeps throwing is switched off, so one broken handler cannot stall the bus or end the
-// line. A failure of the loop itself (epoll) ends the loop and is reported to the failure
-// handler, so that the process can exit and its service manager restart it. A flooded bus is read
+// throw is logged at a bounded rate and counted (handler_failures), and the loop goes on, so a
+// sporadic throw costs one frame or one tick, not the line. A frame handler or timer that throws
+// kMaxHandlerFailures times in a row is broken for good: the loop ends through its failure path
+// (as when epoll fails), reported to the failure handler, so that the process exits and its
+// service manager restarts it. A handler is never switched off while the loop runs on: a loop
+// that still iterates feeds the service watchdog, so a line without SYNC or without heartbeat
+// supervision would look healthy. A flooded bus is read
 // at most kFramesPerWake frames per wake-up, so timers (SYNC, heartbeat supervision) and posted
 // work are never starved, and due timers also run between two frames of a burst (a SYNC is sent
 // on time however many frames wait).
@@ -57,7 +60,8 @@ class BusLoop {
   // after every frame and adds no latency. Registration: before start() or on the loop thread.
   static constexpr int kBurstFrames = 64;
   static constexpr int kFramesPerWake = 64;  // one burst (kBurstFrames): timers wait for at most one
-  // A frame handler or timer that threw this many times is switched off.
+  // A frame handler or timer that threw this many times in a row (a normal return starts the count
+  // again) ends the loop through on_failure.
   static constexpr std::uint32_t kMaxHandlerFailures = 10;
   FlushId create_flush(Task callback);
   // Loop thread: runs the callback once after the frames being dispatched now; at once when called
@@ -83,7 +87,8 @@ class BusLoop {
   bool transmission_held() const { return held_; }
   std::uint64_t frames_held() const { return frames_held_; }  // refused while held
 
-  // Before start(): called on the loop thread when the loop ends by a failure of its own.
+  // Before start(): called on the loop thread when the loop ends by a failure of its own (epoll, or
+  // a frame handler or timer that threw kMaxHandlerFailures times in a row).
   void on_failure(std::function<void(const std::string& why)> handler) { failure_handler_ = std::move(handler); }
 
   // Before start(): how the loop's thread is scheduled. `name` is what ps and top -H show (the
@@ -106,10 +111,12 @@ class BusLoop {
   // Bits on the wire without stuffing, for the bus load (loop thread).
   std::uint64_t bits_in() const { return bits_in_; }
   std::uint64_t bits_out() const { return bits_out_; }
-  // Callbacks that threw (loop thread), and the frame handlers and timers switched off for it.
+  // Callbacks that threw (loop thread).
   std::uint64_t handler_failures() const { return handler_failures_; }
   // Frames nobody on this bus handles (nodes the line does not have, identifiers no service uses).
   std::uint64_t frames_unclaimed() const { return frames_unclaimed_; }
+  // Frame handlers and timers that reached kMaxHandlerFailures: at most 1, and then the loop has
+  // ended (kept for the diagnostics contract; nothing is switched off any more).
   std::uint64_t handlers_disabled() const { return handlers_disabled_; }
 
  private:
@@ -127,7 +134,8 @@ class BusLoop {
   void schedule_thread();  // on the loop thread, before its first wait
   void loop();
   // The barrier: true when fn returned normally. `failures` (may be null: one-shot work) counts the
-  // callback's throws; at kMaxHandlerFailures the caller switches it off.
+  // callback's throws in a row and is reset by a normal return; at kMaxHandlerFailures it throws
+  // (std::runtime_error naming the callback) out of loop(), and run() reports it to on_failure.
   template <class Fn>
   bool guarded(Fn&& fn, std::uint32_t* failures, const char* what, std::uint32_t id);
   void call(Handler& h, const can::CanFrame& frame, const char* what);

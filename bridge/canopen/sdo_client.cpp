@@ -100,7 +100,8 @@ std::future<R> via_future(Start start) {
 // can wait for a running one.
 class SdoClient::Core {
  public:
-  Core(BusLoop& loop, std::chrono::milliseconds timeout) : loop_(loop), timeout_(timeout) {}
+  Core(BusLoop& loop, std::chrono::milliseconds timeout, std::size_t max_upload)
+      : loop_(loop), timeout_(timeout), max_upload_(max_upload) {}
 
   void set_timer(BusLoop::TimerId timer) { timer_ = timer; }
 
@@ -361,6 +362,11 @@ class SdoClient::Core {
           return finish(node, completion(t.request, UploadResult(std::move(value))));
         }
         if (cmd & 0x01) t.size = get_u32(d);
+        // Refused before a byte is taken: the indicated size is what the server would send.
+        if (t.size && *t.size > max_upload_) {
+          return abort(node, sdo_abort::out_of_memory,
+                       fmt::format("{} bytes indicated, more than the {} an upload may bring", *t.size, max_upload_));
+        }
         t.step = Step::upload_segment;
         t.toggle = false;
         return send(node, {0x60, 0, 0, 0, 0, 0, 0, 0});
@@ -375,6 +381,11 @@ class SdoClient::Core {
         t.received.insert(t.received.end(), d.begin() + 1, d.end() - static_cast<std::ptrdiff_t>(unused));
         if (t.size && t.received.size() > *t.size) {
           return abort(node, sdo_abort::length_too_high, fmt::format("more than the {} bytes indicated", *t.size));
+        }
+        // A server that indicates no size (or keeps sending) is stopped at the limit too.
+        if (t.received.size() > max_upload_) {
+          return abort(node, sdo_abort::out_of_memory,
+                       fmt::format("more than the {} bytes an upload may bring", max_upload_));
         }
         if (cmd & 0x01) {
           if (t.size && t.received.size() != *t.size) {
@@ -422,6 +433,7 @@ class SdoClient::Core {
 
   BusLoop& loop_;
   const std::chrono::milliseconds timeout_;
+  const std::size_t max_upload_;
   BusLoop::TimerId timer_ = 0;
 
   std::mutex mutex_;
@@ -434,8 +446,8 @@ class SdoClient::Core {
 
 // ---- SdoClient -----------------------------------------------------------------------------------
 
-SdoClient::SdoClient(BusLoop& loop, std::chrono::milliseconds timeout)
-    : loop_(loop), timeout_(timeout), core_(std::make_shared<Core>(loop, timeout)) {
+SdoClient::SdoClient(BusLoop& loop, std::chrono::milliseconds timeout, std::size_t max_upload)
+    : loop_(loop), timeout_(timeout), core_(std::make_shared<Core>(loop, timeout, max_upload)) {
   if (timeout <= std::chrono::milliseconds::zero()) throw std::invalid_argument("SDO timeout must be positive");
   core_->set_timer(loop_.create_timer([core = core_] { core->on_timer(); }));
   for (std::uint8_t node = 1; node <= kMaxNode; ++node) {

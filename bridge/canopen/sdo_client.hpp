@@ -41,6 +41,11 @@ class SdoClient {
   using ReadDone = std::function<void(ReadResult)>;
 
   static constexpr std::chrono::milliseconds kDefaultTimeout{1000};
+  // The most an upload may bring. A server's size indication (or its segments, when it gives none)
+  // would otherwise decide how much the loop thread allocates: up to 4 GiB from one faulty or
+  // hostile device. Beyond the limit the client aborts with 05040005h (out of memory). The
+  // bridge's own reads are values, names and error fields: far below.
+  static constexpr std::size_t kDefaultMaxUpload = 64 * 1024;
 
   // A request from outside the bridge's own work (a DDS service call): refused at once, never
   // queued, when `max_waiting` such requests already wait for the node, so a flood of calls cannot
@@ -51,14 +56,15 @@ class SdoClient {
   };
 
   // Registers on 581h..5FFh and creates one timer: before the loop starts or on the loop thread.
-  // The loop must outlive the client.
-  explicit SdoClient(BusLoop& loop, std::chrono::milliseconds timeout = kDefaultTimeout);
+  // The loop must outlive the client. max_upload: see kDefaultMaxUpload.
+  explicit SdoClient(BusLoop& loop, std::chrono::milliseconds timeout = kDefaultTimeout,
+                     std::size_t max_upload = kDefaultMaxUpload);
   ~SdoClient();
   SdoClient(const SdoClient&) = delete;
   SdoClient& operator=(const SdoClient&) = delete;
 
-  // Any thread. node 1..127. An upload takes the server's bytes as they come; an expedited answer
-  // without size indication counts as 4 bytes.
+  // Any thread. node 1..127. An upload takes the server's bytes as they come, up to max_upload
+  // (then 05040005h); an expedited answer without size indication counts as 4 bytes.
   void upload(std::uint8_t node, std::uint16_t index, std::uint8_t sub, UploadDone done,
               std::optional<Limit> limit = std::nullopt);
   void download(std::uint8_t node, std::uint16_t index, std::uint8_t sub, Bytes data, DownloadDone done,

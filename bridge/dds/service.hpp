@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <chrono>
 #include <concepts>
+#include <cstdint>
 #include <condition_variable>
 #include <functional>
 #include <map>
@@ -15,6 +16,8 @@
 #include <set>
 #include <string>
 #include <thread>
+
+#include <fastdds/rtps/common/SerializedPayload.h>
 
 #include "dds/participant.hpp"
 #include "dds/request_ledger.hpp"
@@ -92,16 +95,51 @@ class ServiceServer {
 
  private:
   // A request runs once; a repeat gets the first answer, or nothing while the first still runs
-  // (its answer will reach the client: both carry the first request's identity).
+  // (its answer will reach the client: both carry the first request's identity). Refusals are
+  // answered here when the reply can say so (every service's can: Refusable).
   static void dispatch(const Request& req, const fdds::SampleInfo& info, const Writer<ReplyPS>& w,
                        const std::shared_ptr<Ledger>& ledger, const Handler& h) {
     const SampleIdentity request = Ledger::asked_as(info);
-    auto admission = ledger->admit(request);
+    auto admission = ledger->admit(request, fingerprint(req));
     switch (admission.seen) {
       case Ledger::Seen::first: return h(req, Responder(w, request, ledger));
       case Ledger::Seen::in_progress: return;
       case Ledger::Seen::answered: return Responder(w, request)(*admission.answer);
+      case Ledger::Seen::busy:
+        // Nothing ran under this identity: the refusal answers it, and asking again later may run it.
+        return refuse(w, request,
+                      "refused: " + std::to_string(Ledger::kMaxInProgress) +
+                          " requests of this service are still running; ask again once they are answered");
+      case Ledger::Seen::conflicting:
+        // Answered under the sample's own identity, so the first request's answer stays its own.
+        return refuse(w, info.sample_identity,
+                      "refused: this repeat names an earlier request but asks something else (a repeat must be "
+                      "the same request; a new request must not name another)");
     }
+  }
+
+  static void refuse(const Writer<ReplyPS>& w, const SampleIdentity& to, const std::string& why) {
+    if constexpr (Refusable<Reply>) {
+      Reply refusal;
+      refusal.success(false);
+      refusal.message(why);
+      Responder(w, to)(refusal);
+    }
+  }
+
+  // The request's content as the ledger compares it: FNV-1a over its CDR serialization, which
+  // covers every field of any generated type without a comparison to write per service.
+  static typename Ledger::Fingerprint fingerprint(const Request& req) {
+    RequestPS type;
+    // Fast DDS 2.x takes the sample as void* although serializing only reads it.
+    auto* data = const_cast<Request*>(&req);
+    eprosima::fastrtps::rtps::SerializedPayload_t payload(type.getSerializedSizeProvider(data)());
+    if (!type.serialize(data, &payload)) return 0;
+    std::uint64_t hash = 14695981039346656037ULL;
+    for (std::uint32_t i = 0; i < payload.length; ++i) {
+      hash = (hash ^ payload.data[i]) * 1099511628211ULL;
+    }
+    return hash;
   }
 
   // The permissions decide which partitions a client's writer may be in (Fast DDS checks them on

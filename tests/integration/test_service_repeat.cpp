@@ -3,6 +3,7 @@
 // related sample identity (README "Requests written faster than read"). The bridge must answer
 // the repeat with the first answer and must not press a momentary command a second time: what is
 // checked is the saw's RPDO1 on the bus (runs of frames with the manual-cut bit), not a counter.
+// A repeat that asks something else than the request it names is refused, under its own identity.
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -123,4 +124,20 @@ TEST(ServiceRepeat, ACommandAskedAgainIsPressedOnceAndAnsweredWithTheFirstAnswer
   EXPECT_TRUE(replies.of(next_params.sample_identity()).front().success());
   std::this_thread::sleep_for(300ms);  // the bit's clearing frame reaches the spy
   EXPECT_EQ(presses(line.spy(), 3, kManualCutBit), 2u) << "one press per request, none per repeat";
+
+  // A "repeat" that names the first request but asks something else is not that request: it is
+  // refused, answered under its own identity, and is not given the first cut's result.
+  srv::Command_Request other;
+  other.device("saw1");
+  other.command("tip_pulse");
+  const std::size_t first_answers = replies.of(first).size();
+  WriteParams mismatched;
+  mismatched.related_sample_identity(first);
+  ASSERT_TRUE(requests->write(other, mismatched));
+  ASSERT_TRUE(replies.wait_for(mismatched.sample_identity(), 1, 10s))
+      << "a repeat with other content got no answer of its own\n" << line.logs();
+  const auto refusal = replies.of(mismatched.sample_identity()).front();
+  EXPECT_FALSE(refusal.success());
+  EXPECT_NE(refusal.message().find("asks something else"), std::string::npos) << refusal.message();
+  EXPECT_EQ(replies.of(first).size(), first_answers) << "the first request's answer went to another request";
 }

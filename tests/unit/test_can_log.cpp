@@ -10,7 +10,9 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
+#include <future>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -498,6 +500,75 @@ TEST(RecordingBus, AFullRecordingCountsEveryFrameItCannotKeep) {
   for (std::size_t at = 0; at < text.size(); at += recorded_line.size()) {
     ASSERT_EQ(text.compare(at, recorded_line.size(), recorded_line), 0) << "line " << at / recorded_line.size();
   }
+}
+
+// The descriptor this process has open on `path` (the recording's own), or -1: the same inode.
+int open_descriptor_of(const std::string& path) {
+  struct stat want {};
+  if (::stat(path.c_str(), &want) != 0) return -1;
+  for (int fd = 0; fd < 1024; ++fd) {
+    struct stat st {};
+    if (::fstat(fd, &st) == 0 && st.st_dev == want.st_dev && st.st_ino == want.st_ino) return fd;
+  }
+  return -1;
+}
+
+// The stop is bounded whatever the file does, even when a write() never returns (a hung network
+// file system; here a FIFO nobody reads, written without O_NONBLOCK): the destructor used to wait
+// for it forever. Now it returns after kStopWait + kStopGrace and leaves the writer behind, which
+// ends on its own (and closes the file) once its write returns.
+TEST(RecordingBus, StoppingIsBoundedWhenAWriteNeverReturns) {
+  constexpr std::size_t kFrames = 5'000;  // ~225 kB of lines: more than the pipe holds (64 KiB)
+  std::string log;
+  for (std::size_t i = 0; i < kFrames; ++i) log += "(1700000000.000000) vcan0 181#0102030405060708\n";
+  const auto replayed = write_file("stuck_source.log", log);
+  const auto fifo = temp_path("stuck.fifo");
+  ::unlink(fifo.c_str());
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  auto inner = open_bus("log:" + replayed + "?pace=fast");
+  ASSERT_TRUE(inner) << inner.error().message;
+  auto rec = RecordingBus::open(std::move(*inner), fifo);
+  ASSERT_TRUE(rec) << rec.error().message;
+  // Makes the recording's writes block, as a file on a stuck disk does: the same descriptor, its
+  // O_NONBLOCK cleared (the recording sets it, and the kernel honours it for a FIFO).
+  const int fd = open_descriptor_of(fifo);
+  ASSERT_GE(fd, 0) << "the recording's descriptor was not found";
+  ASSERT_EQ(::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) & ~O_NONBLOCK), 0);
+
+  ASSERT_EQ(drain(**rec, kFrames, 60'000ms).size(), kFrames);
+  const auto stop_began = Clock::now();
+  auto stopped = std::async(std::launch::async, [&] { rec->reset(); });
+  const bool bounded =
+      stopped.wait_for(RecordingBus::kStopWait + RecordingBus::kStopGrace + 10s) == std::future_status::ready;
+  const auto stop_took = Clock::now() - stop_began;
+
+  // A reader now: it releases the blocked write (and a destructor that waits for it, so the test
+  // ends either way), and reads until the end of the file, which comes once the writer, left
+  // behind or not, has closed the recording (the FIFO's only writer).
+  UniqueFd reader{::open(fifo.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC)};
+  ASSERT_TRUE(reader);
+  std::size_t lines = 0;
+  bool end_of_file = false;
+  char buf[1 << 16];
+  for (const auto until = Clock::now() + 30s; !end_of_file && Clock::now() < until;) {
+    const ssize_t n = ::read(reader.get(), buf, sizeof buf);
+    if (n > 0) lines += static_cast<std::size_t>(std::count(buf, buf + n, '\n'));
+    end_of_file = n == 0;
+    if (n < 0) {
+      pollfd p{reader.get(), POLLIN, 0};
+      ::poll(&p, 1, 50);
+    }
+  }
+  stopped.get();
+  ::unlink(replayed.c_str());
+  ::unlink(fifo.c_str());
+  EXPECT_TRUE(bounded) << "the destructor waited for a write() that does not return";
+  EXPECT_LT(stop_took, RecordingBus::kStopWait + RecordingBus::kStopGrace + 5s);
+  EXPECT_TRUE(end_of_file) << "the writer left behind never ended";
+  // Whole lines only, never more than were recorded (the write under way when it was released
+  // may finish; what came after the deadline is dropped).
+  EXPECT_GT(lines, 0u);
+  EXPECT_LE(lines, kFrames);
 }
 
 TEST(RecordingBus, AnUnwritableFileFailsAtOpen) {

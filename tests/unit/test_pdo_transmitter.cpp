@@ -7,6 +7,7 @@
 #include <chrono>
 #include <future>
 #include <thread>
+#include <vector>
 
 #include "canopen/bus_loop.hpp"
 #include "canopen/pdo_transmitter.hpp"
@@ -115,13 +116,40 @@ TEST_F(Transmitter, EventTimerResendsUnchangedData) {
   EXPECT_LE(frames.size(), 8u);
 }
 
+// Remote-only types (252/253) never send on their own; a closed gate (the device not started)
+// sends nothing on any trigger and says so; once it opens, the next trigger sends. "Nothing sent"
+// is read from the transmitter's own hooks (they run on the loop thread before on_loop returns)
+// and from the bus without a settling time: the bus keeps its order, so a frame sent before the
+// one that proves the gate open would have reached the spy before it.
 TEST_F(Transmitter, RemoteOnlyTypesAndAClosedGateSendNothing) {
   make({.transmission_type = 253});
   on_loop([this] {
-    tx_->on_sync();
+    for (int i = 0; i < 3; ++i) tx_->on_sync();
     tx_->on_data();
   });
-  EXPECT_TRUE(sent_frames().empty());
+  EXPECT_EQ(sent_, 0) << "a remote-only PDO went out on its own";
+
+  gate_ = false;
+  value_ = 1;
+  on_loop([this] { tx_->reconfigure({.can_id = 0x181, .transmission_type = 1}); });  // every SYNC
+  on_loop([this] {
+    for (int i = 0; i < 3; ++i) tx_->on_sync();
+  });
+  EXPECT_EQ(sent_, 0) << "sent through a closed gate";
+  EXPECT_EQ(refused_, 3) << "each SYNC found the gate closed";
+
+  gate_ = true;
+  value_ = 2;
+  on_loop([this] { tx_->on_sync(); });
+  EXPECT_EQ(sent_, 1) << "the open gate let nothing out";
+  EXPECT_EQ(refused_, 3);
+  std::vector<lb::can::CanFrame> frames;
+  for (const auto until = std::chrono::steady_clock::now() + 5s;
+       (frames = spy_->frames(0x181)).empty() && std::chrono::steady_clock::now() < until;) {
+    std::this_thread::sleep_for(5ms);
+  }
+  ASSERT_EQ(frames.size(), 1u) << "before the gate opened, frames reached the bus";
+  EXPECT_EQ(frames[0].data[0], 2) << "the frame on the bus is not the one sent after the gate opened";
 }
 
 TEST_F(Transmitter, ClosedGateHoldsBackAndResendCatchesUp) {

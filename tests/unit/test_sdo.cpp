@@ -1123,5 +1123,53 @@ TEST_F(Sdo, LimitedRequestsAreRefusedAtTheLimitAndCancelledOnDemand) {
   EXPECT_EQ(ro.error().abort_code, sdo_abort::timed_out);
 }
 
+
+// An upload is bounded (SdoClient::kDefaultMaxUpload): a server indicating more is aborted with
+// 05040005h (out of memory) before a segment is asked for, so no device decides what the loop
+// thread allocates.
+TEST_F(Sdo, AnUploadIndicatingMoreThanTheLimitIsAbortedAtOnce) {
+  SdoClient& client = make_client();
+  start();
+  auto f = client.upload_async(7, 0x2000, 0);
+  expect_traffic(*tap_, {{0x607, {0x40, 0x00, 0x20, 0x00, 0, 0, 0, 0}}});
+  const auto size = static_cast<std::uint32_t>(SdoClient::kDefaultMaxUpload + 1);
+  ASSERT_TRUE(tap_->send(sdo_frame(0x587, {0x41, 0x00, 0x20, 0x00, static_cast<std::uint8_t>(size),
+                                           static_cast<std::uint8_t>(size >> 8), static_cast<std::uint8_t>(size >> 16),
+                                           static_cast<std::uint8_t>(size >> 24)})));
+  expect_traffic(*tap_, {{0x607, {0x80, 0x00, 0x20, 0x00, 0x05, 0x00, 0x04, 0x05}}});
+  auto r = wait(f);
+  ASSERT_FALSE(r);
+  EXPECT_EQ(r.error().abort_code, sdo_abort::out_of_memory);
+  EXPECT_TRUE(contains(r.error().message, "aborted by the client")) << r.error().message;
+  expect_quiet(*tap_);
+}
+
+// A server that indicates no size and never sends its last segment is stopped at the limit too:
+// the client asks for segments until the data would pass kDefaultMaxUpload, then aborts.
+TEST_F(Sdo, AnUploadWithoutSizeIsAbortedAtTheLimit) {
+  SdoClient& client = make_client();
+  start();
+  auto f = client.upload_async(7, 0x2000, 0);
+  expect_traffic(*tap_, {{0x607, {0x40, 0x00, 0x20, 0x00, 0, 0, 0, 0}}});
+  ASSERT_TRUE(tap_->send(sdo_frame(0x587, {0x40, 0x00, 0x20, 0x00, 0, 0, 0, 0})));  // segmented, no size
+  constexpr std::size_t kSegments = SdoClient::kDefaultMaxUpload / 7 + 1;  // the first past the limit
+  std::size_t segments = 0;
+  std::optional<CanFrame> last;
+  for (bool toggle = false; segments <= kSegments; toggle = !toggle) {
+    last = next_frame(*tap_);
+    ASSERT_TRUE(last) << "no request after " << segments << " segments";
+    if (last->data[0] != (toggle ? 0x70 : 0x60)) break;  // not a segment request: the client stopped
+    const auto t = static_cast<std::uint8_t>(toggle ? 0x10 : 0x00);
+    ASSERT_TRUE(tap_->send(sdo_frame(0x587, {t, 1, 2, 3, 4, 5, 6, 7})));  // 7 bytes, never the last
+    ++segments;
+  }
+  EXPECT_EQ(segments, kSegments) << "the client stopped asking elsewhere than at the limit";
+  ASSERT_TRUE(last);
+  EXPECT_EQ(fmt::format("{:03X} {}", last->id, hex(last->payload())), "607 80 00 20 00 05 00 04 05");
+  auto r = wait(f);
+  ASSERT_FALSE(r);
+  EXPECT_EQ(r.error().abort_code, sdo_abort::out_of_memory);
+}
+
 }  // namespace
 }  // namespace lb::canopen
