@@ -95,7 +95,7 @@ class ErrorControl {
   std::string waiting_;  // why the next boot is pending, or empty
   bool unmanaged_ = false;  // its boot failed while it runs: no retry until an event
   bool resetting_ = false;  // an NMT reset was sent, its boot-up not seen yet
-  RepeatLog boot_log_;  // an absent device is tried every retry interval: the same line once a minute  // its boot failed while it runs: no retry until an event
+  RepeatLog boot_log_;  // an absent device is tried every retry interval: the same line once a minute
   Counters counters_;
 };
 
