@@ -71,7 +71,7 @@ canopen::ObjectDictionary make_device_dictionary(const profiles::DeviceConfig& d
   const auto& id = device.simulation.identity;
   add(od, 0x1000, 0, DataType::unsigned32, ObjectAccess::ro, std::uint64_t{id.device_type.value_or(profile.device_type)});
   add(od, 0x1001, 0, DataType::unsigned8, ObjectAccess::ro, std::uint64_t{0});
-  add(od, 0x1005, 0, DataType::unsigned32, ObjectAccess::ro, std::uint64_t{canopen::cob::sync});
+  add(od, 0x1005, 0, DataType::unsigned32, ObjectAccess::rw, std::uint64_t{canopen::cob::sync});  // CiA 301: rw
   add(od, 0x1008, 0, DataType::visible_string, ObjectAccess::const_, simulated_device_name(device, profile));
   add(od, 0x1009, 0, DataType::visible_string, ObjectAccess::const_, std::string("sim-1"));
   add(od, 0x100A, 0, DataType::visible_string, ObjectAccess::const_, std::string("linebridge-sim 0.1"));

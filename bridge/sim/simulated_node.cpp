@@ -53,7 +53,16 @@ SimulatedNode::SimulatedNode(canopen::BusLoop& loop, const profiles::DeviceConfi
   link_image_objects();
   link_communication_objects();
   link_error_objects();
-  loop_.on_frame(canopen::cob::sync, [this](const can::CanFrame&) { on_sync(); });
+  listen_for_sync(canopen::cob::sync);
+}
+
+// A handler per identifier ever used for SYNC (the loop keeps handlers for its life): only the
+// one 1005h names now counts.
+void SimulatedNode::listen_for_sync(std::uint32_t id) {
+  if (!sync_ids_.insert(id).second) return;
+  loop_.on_frame(id, [this, id](const can::CanFrame&) {
+    if (id == sync_id_) on_sync();
+  });
 }
 
 void SimulatedNode::link_image_objects() {
@@ -85,6 +94,16 @@ void SimulatedNode::link_communication_objects() {
   auto& od = sdo_.dictionary();
   (void)od.set_on_read(0x1001, 0, [this] { return canopen::ObjectDictionary::Bytes{error_register_}; });
   (void)od.set_on_read(0x1017, 0, [this] { return bytes_of(static_cast<std::uint64_t>(heartbeat_period_.count()), 2); });
+  // 1005h COB-ID SYNC (CiA 301: rw). This device consumes SYNC only: bit 30 (it would produce it)
+  // and bit 29 (a 29-bit identifier) are refused; bits 0..10 name the identifier it listens to.
+  (void)od.set_on_read(0x1005, 0, [this] { return bytes_of(sync_id_, 4); });
+  (void)od.set_on_write(0x1005, 0, [this](std::span<const std::uint8_t> v) -> std::optional<std::uint32_t> {
+    const auto value = little_endian(v);
+    if ((value & 0x6000'0000U) != 0 || (value & 0x1FFF'F800U) != 0) return canopen::sdo_abort::value_range_exceeded;
+    sync_id_ = static_cast<std::uint32_t>(value & 0x7FF);
+    listen_for_sync(sync_id_);
+    return std::nullopt;
+  });
   (void)od.set_on_write(0x1017, 0, [this](std::span<const std::uint8_t> v) -> std::optional<std::uint32_t> {
     heartbeat_period_ = std::chrono::milliseconds(little_endian(v));
     nmt_.set_heartbeat_period(heartbeat_period_);
@@ -139,6 +158,7 @@ void SimulatedNode::on_reset(Reset kind) {
   }
   pdos_.reset();
   sdo_.reset();
+  sync_id_ = canopen::cob::sync;  // a communication object: back to its power-on value
   heartbeat_period_ = device_.simulation.heartbeat_period;
   nmt_.set_heartbeat_period(heartbeat_period_);
   last_sync_.reset();

@@ -42,11 +42,13 @@
 #include <cstdint>
 #include <functional>
 #include <optional>
+#include <set>
 #include <span>
 #include <string>
 #include <string_view>
 #include <vector>
 
+#include "canopen/cob_id.hpp"
 #include "canopen/process_image.hpp"
 #include "canopen/sdo_server.hpp"
 #include "profiles/line_config.hpp"
@@ -115,6 +117,7 @@ class SimulatedNode {
   void on_reset(NmtSlave::Reset kind);
   void on_state(canopen::NmtState from, canopen::NmtState to);
   void on_sync();
+  void listen_for_sync(std::uint32_t id);
   void on_short_rpdo(const profiles::PdoDef& pdo, std::size_t length, std::size_t needed);
   void link_image_objects();
   void link_communication_objects();
@@ -138,6 +141,8 @@ class SimulatedNode {
   std::vector<std::uint16_t> active_errors_;       // oldest first; what 1001h reflects
   std::vector<std::uint32_t> error_history_;       // 1003h sub 1.. : newest first, every EMCY sent
   std::optional<std::chrono::steady_clock::time_point> last_sync_;
+  std::uint32_t sync_id_ = canopen::cob::sync;  // 1005h bits 0..10
+  std::set<std::uint32_t> sync_ids_;            // identifiers with a SYNC handler
   std::uint64_t short_rpdos_ = 0;
   std::optional<std::chrono::steady_clock::time_point> last_short_emcy_;
 };

@@ -402,6 +402,38 @@ TEST_F(SimConformance, SynchronousTransmissionTypesCountSyncs) {
   EXPECT_EQ(master_->from(0x185).size(), 10u);
 }
 
+// CiA 301 1005h COB-ID SYNC is rw: a master may move SYNC to another identifier. The saw then takes
+// only that identifier as SYNC (its synchronous TPDO1 follows it, not 080h), refuses to produce
+// SYNC (bit 30) or a 29-bit identifier (bit 29) with 0609 0030h, and a reset communication puts
+// 080h back. (The simulator refused every write to 1005h before.)
+TEST_F(SimConformance, CobIdSyncIsWritable) {
+  start_sim({{"saw", kSaw}});
+  master_->nmt(kStart, kSaw);
+  EXPECT_EQ(master_->read(kSaw, 0x1005, 0).value, 0x80u);
+  EXPECT_EQ(master_->write_abort(kSaw, 0x1005, 0, 0x4000'0080, 4), 0x0609'0030u) << "this device cannot produce SYNC";
+  EXPECT_EQ(master_->write_abort(kSaw, 0x1005, 0, 0x2000'0080, 4), 0x0609'0030u) << "no 29-bit SYNC here";
+  ASSERT_TRUE(master_->write(kSaw, 0x1005, 0, 0x81, 4).ok);
+  EXPECT_EQ(master_->read(kSaw, 0x1005, 0).value, 0x81u);
+  master_->clear();
+  master_->syncs(5, 20ms);  // on 080h: no longer SYNC for the saw
+  for (int i = 0; i < 5; ++i) {
+    master_->send(lb::can::make_frame(0x081, {}));
+    std::this_thread::sleep_for(20ms);
+  }
+  EXPECT_TRUE(master_->wait_for([&] { return master_->from(0x185).size() >= 5; }, 2s));
+  // Every TPDO1 came after a SYNC on 081h, none after one on 080h: count them in order.
+  int after_080 = 0, after_081 = 0, last = 0;
+  for (const auto& s : master_->frames()) {
+    if (s.ours && s.frame.id == 0x080) last = 0x080;
+    if (s.ours && s.frame.id == 0x081) last = 0x081;
+    if (!s.ours && s.frame.id == 0x185) (last == 0x081 ? after_081 : after_080) += 1;
+  }
+  EXPECT_EQ(after_080, 0);
+  EXPECT_EQ(after_081, 5);
+  master_->nmt(kResetCommunication, kSaw);
+  EXPECT_TRUE(master_->wait_for([&] { return master_->read(kSaw, 0x1005, 0).value == 0x80u; }, 2s));
+}
+
 // CiA 301: 254/255 = on an event, never sooner than the inhibit time after the previous frame,
 // and again when the event timer expires. Saw 3.1 1A00h sub 0 = 3: the 16-bit manufacturer-specific
 // object rides in the unused bytes (8 bytes in all), and it changes.

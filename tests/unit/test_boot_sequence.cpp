@@ -60,8 +60,14 @@ TEST(BootSequence, AProfileWithoutPdosBootsAndStartsTheDevice) {
   master.start();
   device.start();
 
-  // The device is alive (pre-operational), so the boot does not wait for its heartbeat.
-  ASSERT_TRUE(spy.send(lb::can::make_frame(0x700 + kNode, {0x7F})));
+  // The device is alive (pre-operational, a heartbeat every 50 ms): the boot starts it after the
+  // first heartbeat that follows its configuration.
+  std::jthread heartbeats([&spy](std::stop_token stop) {
+    while (!stop.stop_requested()) {
+      (void)spy.send(lb::can::make_frame(0x700 + kNode, {0x7F}));
+      std::this_thread::sleep_for(50ms);
+    }
+  });
   const auto poll_online = [&] {
     std::promise<bool> p;
     auto f = p.get_future();
@@ -79,6 +85,8 @@ TEST(BootSequence, AProfileWithoutPdosBootsAndStartsTheDevice) {
   master.post([&] { boot.run([&](const co::BootReport& r) { done.set_value(r); }); });
   ASSERT_EQ(report_future.wait_for(10s), std::future_status::ready) << "the boot never ended";
   const co::BootReport report = report_future.get();
+  heartbeats.request_stop();
+  heartbeats.join();
   master.stop();
   device.stop();
 
