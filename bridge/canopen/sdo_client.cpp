@@ -345,14 +345,23 @@ class SdoClient::Core {
       spdlog::debug("{}: {}-byte frame on the SDO response identifier of node {} ignored", loop_.bus().uri(), f.len, node);
       return;
     }
-    if (cmd == 0x80) return fail(node, get_u32(d), SdoErrorOrigin::server);
     const auto other_object = [&] {
       return (d[1] | d[2] << 8) != t.request.index || d[3] != t.request.sub;
     };
+    // An initiate answer or an abort that names another object is a slow device's late answer to
+    // an earlier transfer that timed out: ignored, the transfer in flight goes on waiting for its own
+    // (it aborted the next, unrelated transfer before). Segment answers carry no object to tell.
+    const bool initiating = t.step == Step::upload_initiate || t.step == Step::download_initiate;
+    if (initiating && other_object()) {
+      spdlog::debug("{}: SDO answer of node {} for {:04X}h:{:02X}h ignored: the transfer in flight is {:04X}h:{:02X}h (a late "
+                    "answer to an earlier one)",
+                    loop_.bus().uri(), node, d[1] | d[2] << 8, d[3], t.request.index, t.request.sub);
+      return;
+    }
+    if (cmd == 0x80) return fail(node, get_u32(d), SdoErrorOrigin::server);
     switch (t.step) {
       case Step::upload_initiate: {
         if ((cmd & 0xE0) != 0x40) return unexpected(node, cmd);
-        if (other_object()) return abort(node, sdo_abort::general_error, "response names another object");
         if (cmd & 0x02) {
           // Expedited. Without the size flag the number of bytes is unspecified (CiA 301): a
           // caller that knows its type takes that many, anyone else all four.
@@ -399,7 +408,6 @@ class SdoClient::Core {
       }
       case Step::download_initiate: {
         if ((cmd & 0xE0) != 0x60) return unexpected(node, cmd);
-        if (other_object()) return abort(node, sdo_abort::general_error, "response names another object");
         if (expedited(t.request)) return finish(node, completion(t.request, DownloadResult()));
         t.step = Step::download_segment;
         t.toggle = false;

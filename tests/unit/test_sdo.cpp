@@ -764,6 +764,31 @@ TEST_F(Sdo, ResponsesWithNothingInFlightAreIgnored) {
   EXPECT_EQ(hex(*rb), "55 66");
 }
 
+// A slow device's answer to a transfer that timed out arrives while the next one (another object)
+// is in flight: it is not that transfer's answer and must not abort it (it did: "response names
+// another object", general error). The next transfer gets its own answer.
+TEST_F(Sdo, ALateAnswerToAnEarlierTransferDoesNotAbortTheNext) {
+  SdoClient& client = make_client(100ms);
+  start();
+  auto first = client.upload_async(7, 0x1000, 0);
+  auto second = client.upload_async(7, 0x1018, 1);
+  expect_traffic(*tap_, {{0x607, {0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0}}});
+  // No answer within 100 ms: the client aborts the first and sends the second.
+  expect_traffic(*tap_, {{0x607, {0x80, 0x00, 0x10, 0x00, 0x00, 0x00, 0x04, 0x05}},
+                         {0x607, {0x40, 0x18, 0x10, 0x01, 0, 0, 0, 0}}});
+  auto r1 = wait(first);
+  ASSERT_FALSE(r1);
+  EXPECT_EQ(r1.error().abort_code, sdo_abort::timed_out);
+  // Now the late answer to 1000h, and a late abort naming it, then the real answer to 1018h sub 1.
+  ASSERT_TRUE(tap_->send(sdo_frame(0x587, {0x43, 0x00, 0x10, 0x00, 0xA4, 0x01, 0x00, 0x00})));
+  ASSERT_TRUE(tap_->send(sdo_frame(0x587, {0x80, 0x00, 0x10, 0x00, 0x00, 0x00, 0x04, 0x05})));
+  ASSERT_TRUE(tap_->send(sdo_frame(0x587, {0x43, 0x18, 0x10, 0x01, 0x00, 0x00, 0x42, 0x4C})));
+  auto r2 = wait(second);
+  ASSERT_TRUE(r2) << r2.error().message;
+  EXPECT_EQ(hex(*r2), "00 00 42 4C");
+  expect_quiet(*tap_);  // the client aborted nothing
+}
+
 // ---- the server against raw frames ---------------------------------------------------------------
 
 TEST_F(Sdo, ServerRefusesBadCommandSpecifiersAndToggles) {
