@@ -23,8 +23,10 @@ AsyncLog::AsyncLog(std::string pattern) : pattern_(std::move(pattern)) {
 }
 
 AsyncLog::~AsyncLog() {
-  // Synchronous again for whatever logs during the rest of the exit; then the queue's thread
-  // writes what waits and ends.
+  // Synchronous again for whatever logs during the rest of the exit. The asynchronous logger is
+  // held here until its queue's thread has written what waits and ended (the pool's destructor
+  // joins it): so the logger is released on this thread, after the join, never by the worker.
+  auto async = spdlog::default_logger();
   auto sync = std::make_shared<spdlog::logger>(std::string(kName) + "-exit", std::make_shared<spdlog::sinks::stdout_color_sink_mt>());
   sync->set_level(spdlog::get_level());
   sync->set_pattern(pattern_);
