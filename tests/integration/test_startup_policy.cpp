@@ -333,6 +333,16 @@ TEST_F(StartupPolicy, AStopReachesARunningSawWhoseBootFails) {
   EXPECT_TRUE(frame_seen(line, 0x205, [](const lb::can::CanFrame& f) { return f.len == 8 && (f.data[0] & 0x03) == 0; }))
       << "program off never reached the running saw\n" << line.logs();
   for (const auto& f : line.spy().frames(0x205)) EXPECT_EQ(f.data[0] & 0x03, 0) << hex(f);
+  // A command that stops it (marked `stopping`) goes out: stop_immediately, 6020h bit 5, in RPDO1s
+  // for at least 100 ms. One that does not stop it (manual_cut) is refused.
+  const auto cut = line.command("saw1", "manual_cut");
+  EXPECT_FALSE(cut.success()) << "a manual cut was pressed on a saw the bridge has not started";
+  const auto stop = line.command("saw1", "stop_immediately");
+  ASSERT_TRUE(stop.success()) << stop.message() << "\n" << line.logs();
+  EXPECT_GE(stop.held_ms(), 100.0);
+  EXPECT_TRUE(frame_seen(line, 0x205, [](const lb::can::CanFrame& f) { return f.len == 8 && (f.data[0] & 0x20) != 0; }))
+      << "stop_immediately never reached the running saw\n" << line.logs();
+  for (const auto& f : line.spy().frames(0x205)) EXPECT_EQ(f.data[0] & 0x08, 0) << "a manual cut reached the saw: " << hex(f);
 }
 
 // A reset always leads to a boot: the saw's boot-up after the operator's NMT reset is lost (the
