@@ -373,8 +373,8 @@ TEST_F(StartupPolicy, AResetWhoseBootUpIsLostIsBootedAgain) {
     }
   }
   ASSERT_NE(reset_ns, 0) << line.logs();
-  EXPECT_TRUE(line.spy().frames(0x705).empty() ||
-              std::none_of(line.spy().frames(0x705).begin(), line.spy().frames(0x705).end(),
+  const auto heartbeats = line.spy().frames(0x705);
+  EXPECT_TRUE(std::none_of(heartbeats.begin(), heartbeats.end(),
                            [](const lb::can::CanFrame& f) { return f.len == 1 && f.data[0] == 0; }))
       << "the simulated device sent a boot-up: the test proves nothing";
   ASSERT_NE(sdo_ns, 0) << "no boot after the reset\n" << line.logs();
