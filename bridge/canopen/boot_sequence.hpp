@@ -109,12 +109,12 @@ class BootSequence {
   void run(Done done);
   void cancel();  // abandons the running attempt silently
   bool running() const { return running_; }
-  // The device's heartbeat came back while the attempt waits for it.
-  void heartbeat_back();
   const std::string& step() const { return step_; }
   const BootReport& report() const { return report_; }
 
  private:
+  // A heartbeat (not a boot-up) arrived: the attempt goes on if it waits for one.
+  void heartbeat_back();
   using Replies = std::vector<SdoReply>;
   void batch(std::vector<SdoRequest> requests, std::function<void(Replies)> then);
   void check_identity(const Replies& r);

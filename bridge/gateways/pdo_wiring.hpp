@@ -133,11 +133,8 @@ class PdoWiring {
   // extruder running): what a device the bridge has not started (again) must not be sent.
   bool carries_enabling() {
     for (const auto& r : rpdos_) {
-      std::array<std::uint8_t, 8> data{};
-      const auto len = codec_.pack(r.pdo, std::span<std::uint8_t, 8>(data));
-      if (!clear_enabling(ctx_.profile, codec_.pdos()[r.pdo].def->mapping, std::span<std::uint8_t>(data.data(), len)).empty()) {
-        return true;
-      }
+      auto data = payload(r);
+      if (!clear_enabling(ctx_.profile, mapping_in_use(r), data).empty()) return true;
     }
     return false;
   }
@@ -146,11 +143,9 @@ class PdoWiring {
   std::vector<std::string> switch_off_enabling() {
     std::vector<std::string> off;
     for (const auto& r : rpdos_) {
-      std::array<std::uint8_t, 8> data{};
-      const auto len = codec_.pack(r.pdo, std::span<std::uint8_t, 8>(data));
-      auto names = clear_enabling(ctx_.profile, codec_.pdos()[r.pdo].def->mapping, std::span<std::uint8_t>(data.data(), len));
-      if (names.empty()) continue;
-      if (auto ok = codec_.receive(r.pdo, std::span<const std::uint8_t>(data.data(), len)); !ok) continue;
+      auto data = payload(r);
+      auto names = clear_enabling(ctx_.profile, mapping_in_use(r), data);
+      if (names.empty() || !codec_.receive(r.pdo, data)) continue;
       off.insert(off.end(), names.begin(), names.end());
     }
     if (!off.empty()) on_data();
@@ -171,11 +166,7 @@ class PdoWiring {
   // Loop thread: the RPDOs' payloads, to put back what a refused change did.
   Image image() {
     Image out;
-    for (const auto& r : rpdos_) {
-      std::array<std::uint8_t, 8> data{};
-      const auto len = codec_.pack(r.pdo, std::span<std::uint8_t, 8>(data));
-      out.emplace_back(data.begin(), data.begin() + len);
-    }
+    for (const auto& r : rpdos_) out.push_back(payload(r));
     return out;
   }
   void restore_image(const Image& image) {
@@ -212,14 +203,22 @@ class PdoWiring {
     if (!persist_ || !started_once_) return;
     for (auto& r : rpdos_) {
       const auto& def = *codec_.pdos()[r.pdo].def;
-      std::array<std::uint8_t, 8> data{};
-      const auto len = codec_.pack(r.pdo, std::span<std::uint8_t, 8>(data));
-      ctx_.set_values->save(store_key(def), {identity_, 0, mapping_of(def), {data.begin(), data.begin() + len}});
+      ctx_.set_values->save(store_key(def), {identity_, 0, mapping_of(def), payload(r)});
     }
   }
 
+  // The RPDO's payload as it would go out now, and the mapping it goes out by (the device's, after
+  // its boot).
+  std::vector<std::uint8_t> payload(const Rpdo& r) {
+    std::array<std::uint8_t, 8> data{};
+    const auto len = codec_.pack(r.pdo, std::span<std::uint8_t, 8>(data));
+    return {data.begin(), data.begin() + len};
+  }
+  const canopen::PdoMapping& mapping_in_use(const Rpdo& r) const { return codec_.pdos()[r.pdo].binding.mapping(); }
+
   // Why a kept entry does not go back into this device, or nothing when it may.
-  std::optional<std::string> refuse_kept(const profiles::DevicePdo& def, const SetValueStore::Entry& kept) const {
+  std::optional<std::string> refuse_kept(const Rpdo& r, const SetValueStore::Entry& kept) const {
+    const auto& def = *codec_.pdos()[r.pdo].def;
     if (kept.mapping != mapping_of(def)) return "its mapping changed since";
     if (kept.identity != identity_) {
       return fmt::format("they were kept for another device (identity {:08X}:{:08X}:{:08X}:{:08X}, now {:08X}:{:08X}:{:08X}:{:08X})",
@@ -233,7 +232,7 @@ class PdoWiring {
     if (age > ctx_.startup.set_values_max_age.count()) {
       return fmt::format("they were last in force {} s ago, over set_values_max_age_s {}", age, ctx_.startup.set_values_max_age.count());
     }
-    if (auto ok = check_set_values(ctx_.profile, def.mapping, kept.payload); !ok) return "out of range: " + ok.error().message;
+    if (auto ok = check_set_values(ctx_.profile, mapping_in_use(r), kept.payload); !ok) return "out of range: " + ok.error().message;
     return std::nullopt;
   }
 
@@ -248,31 +247,25 @@ class PdoWiring {
     std::vector<std::string> cleared;
     for (auto& r : rpdos_) {
       const auto& def = *codec_.pdos()[r.pdo].def;
-      std::array<std::uint8_t, 8> data{};
-      std::size_t len = 0;
+      std::vector<std::uint8_t> data;
       if (first) {
         // The image is all zero until now: what comes back is what was kept.
         const auto kept = ctx_.set_values != nullptr ? ctx_.set_values->restored(store_key(def)) : std::nullopt;
         if (!kept) continue;
-        if (const auto why = refuse_kept(def, *kept)) {
+        if (const auto why = refuse_kept(r, *kept)) {
           notes.push_back(fmt::format("{} not restored: {}", def.name, *why));
           continue;
         }
-        len = std::min(kept->payload.size(), data.size());
-        std::copy_n(kept->payload.begin(), len, data.begin());
+        data = kept->payload;
         notes.push_back(fmt::format("{} restored", def.name));
       } else {
-        len = codec_.pack(r.pdo, std::span<std::uint8_t, 8>(data));
+        data = payload(r);
       }
-      if (scope == RestoreScope::nothing) data.fill(0);
+      if (scope == RestoreScope::nothing) std::fill(data.begin(), data.end(), std::uint8_t{0});
       if (scope == RestoreScope::non_enabling) {
-        for (auto& name : clear_enabling(ctx_.profile, def.mapping, std::span<std::uint8_t>(data.data(), len))) {
-          cleared.push_back(std::move(name));
-        }
+        for (auto& name : clear_enabling(ctx_.profile, mapping_in_use(r), data)) cleared.push_back(std::move(name));
       }
-      if (auto ok = codec_.receive(r.pdo, std::span<const std::uint8_t>(data.data(), len)); !ok) {
-        notes.push_back(fmt::format("{}: {}", def.name, ok.error().message));
-      }
+      if (auto ok = codec_.receive(r.pdo, data); !ok) notes.push_back(fmt::format("{}: {}", def.name, ok.error().message));
     }
     if (clear_momentary_) clear_momentary_();
     const char* found = facts.found_operational ? (ctx_.device.starts_itself ? "found operational, but it starts itself"

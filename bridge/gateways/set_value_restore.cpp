@@ -2,48 +2,19 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
+#include <array>
+
 #include "canopen/data_type.hpp"
 
 namespace lb::gateways {
 
 namespace {
 
-// The little-endian bit field [offset, offset + bits) of a payload (CiA 301 packs PDOs that way).
-std::uint64_t get_bits(std::span<const std::uint8_t> payload, unsigned offset, unsigned bits) {
-  std::uint64_t v = 0;
-  for (unsigned i = 0; i < bits; ++i) {
-    const unsigned at = offset + i;
-    if (at / 8 >= payload.size()) break;
-    if ((payload[at / 8] >> (at % 8)) & 1U) v |= std::uint64_t{1} << i;
-  }
-  return v;
-}
-
-void set_bits(std::span<std::uint8_t> payload, unsigned offset, unsigned bits, std::uint64_t v) {
-  for (unsigned i = 0; i < bits; ++i) {
-    const unsigned at = offset + i;
-    if (at / 8 >= payload.size()) break;
-    const auto mask = static_cast<std::uint8_t>(1U << (at % 8));
-    if ((v >> i) & 1U) payload[at / 8] |= mask;
-    else payload[at / 8] &= static_cast<std::uint8_t>(~mask);
-  }
-}
-
 std::int64_t as_signed(std::uint64_t v, unsigned bits) {
   if (bits == 0 || bits >= 64) return static_cast<std::int64_t>(v);
   const std::uint64_t sign = std::uint64_t{1} << (bits - 1);
   return static_cast<std::int64_t>((v ^ sign) - sign);
-}
-
-// Calls f(entry, object or null, offset) for every mapped entry that fits the payload.
-template <class F>
-void each_entry(const profiles::Profile& profile, std::span<const canopen::PdoEntry> mapping, std::size_t payload_bytes, F f) {
-  unsigned offset = 0;
-  for (const auto& e : mapping) {
-    if (offset + e.bits > payload_bytes * 8) return;
-    if (!e.is_dummy()) f(e, profile.object(e.index, e.sub), offset);
-    offset += e.bits;
-  }
 }
 
 }  // namespace
@@ -64,48 +35,59 @@ RestoreScope restore_scope(const profiles::StartupPolicy& policy, bool found_ope
                                                                                       : RestoreScope::non_enabling;
 }
 
-Result<void> check_set_values(const profiles::Profile& profile, std::span<const canopen::PdoEntry> mapping,
+Result<void> check_set_values(const profiles::Profile& profile, const canopen::PdoMapping& mapping,
                               std::span<const std::uint8_t> payload) {
-  std::string problem;
-  each_entry(profile, mapping, payload.size(), [&](const canopen::PdoEntry& e, const profiles::ObjectDef* obj, unsigned at) {
-    if (obj == nullptr || !problem.empty()) return;
-    const std::uint64_t raw = get_bits(payload, at, e.bits);
-    const std::int64_t value = canopen::is_signed_integer(obj->type) ? as_signed(raw, e.bits) : static_cast<std::int64_t>(raw);
+  canopen::PdoMapping::Values raw{};
+  if (auto r = mapping.unpack(payload, raw); !r) return r;
+  const auto entries = mapping.entries();
+  for (std::size_t i = 0; i < entries.size(); ++i) {
+    const auto& e = entries[i];
+    const auto* obj = e.is_dummy() ? nullptr : profile.object(e.index, e.sub);
+    if (obj == nullptr) continue;  // a dummy entry, or an object the profile does not know
     if (canopen::is_signed_integer(obj->type) || canopen::is_unsigned_integer(obj->type)) {
-      if (auto r = obj->check_raw(value); !r) return void(problem = r.error().message);
+      const auto value = canopen::is_signed_integer(obj->type) ? as_signed(raw[i], e.bits) : static_cast<std::int64_t>(raw[i]);
+      if (auto r = obj->check_raw(value); !r) return r.error();
     }
-    if (!obj->values.valid(raw)) return void(problem = fmt::format("{}: code {} is not one the profile defines", obj->name, raw));
+    if (!obj->values.valid(raw[i])) return make_error(fmt::format("{}: code {} is not one the profile defines", obj->name, raw[i]));
     for (const auto& set : profile.bitsets) {
       if (!set.applies_to(e.index, e.sub)) continue;
       for (const auto& f : set.bits) {
-        const auto v = f.extract(raw);
-        if (!f.in_range(v)) return void(problem = fmt::format("{}.{} value {} is out of its range", set.name, f.name, v));
+        if (!f.in_range(f.extract(raw[i]))) {
+          return make_error(fmt::format("{}.{} value {} is out of its range", set.name, f.name, f.extract(raw[i])));
+        }
       }
     }
-  });
-  if (!problem.empty()) return make_error(problem);
+  }
   return {};
 }
 
-std::vector<std::string> clear_enabling(const profiles::Profile& profile, std::span<const canopen::PdoEntry> mapping,
+std::vector<std::string> clear_enabling(const profiles::Profile& profile, const canopen::PdoMapping& mapping,
                                         std::span<std::uint8_t> payload) {
   std::vector<std::string> cleared;
-  each_entry(profile, mapping, payload.size(), [&](const canopen::PdoEntry& e, const profiles::ObjectDef* obj, unsigned at) {
-    std::uint64_t raw = get_bits(payload, at, e.bits);
-    if (obj != nullptr && obj->enabling) {
-      if (raw != 0) cleared.push_back(obj->name);
-      raw = 0;
+  canopen::PdoMapping::Values raw{};
+  if (!mapping.unpack(payload, raw)) return cleared;
+  const auto entries = mapping.entries();
+  for (std::size_t i = 0; i < entries.size(); ++i) {
+    const auto& e = entries[i];
+    if (e.is_dummy()) continue;
+    if (const auto* obj = profile.object(e.index, e.sub); obj != nullptr && obj->enabling && raw[i] != 0) {
+      cleared.push_back(obj->name);
+      raw[i] = 0;
     }
     for (const auto& set : profile.bitsets) {
       if (!set.applies_to(e.index, e.sub)) continue;
       for (const auto& f : set.bits) {
-        if (!f.enabling || f.extract(raw) == 0) continue;
+        if (!f.enabling || f.extract(raw[i]) == 0) continue;
         cleared.push_back(f.name);
-        raw = f.insert(raw, 0);
+        raw[i] = f.insert(raw[i], 0);
       }
     }
-    set_bits(payload, at, e.bits, raw);
-  });
+  }
+  if (cleared.empty()) return cleared;
+  // Packed back over the mapped bytes only: bytes after them (a manufacturer-specific tail) stay.
+  std::array<std::uint8_t, 8> packed{};
+  const auto n = mapping.pack(std::span<const std::uint64_t>(raw.data(), entries.size()), packed);
+  std::copy_n(packed.begin(), std::min<std::size_t>(n, payload.size()), payload.begin());
   return cleared;
 }
 

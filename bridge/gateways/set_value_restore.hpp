@@ -29,12 +29,13 @@ RestoreScope restore_scope(const profiles::StartupPolicy& policy, bool found_ope
 // A kept payload passes the checks a new set value passes: every mapped object of the profile
 // within its range (min/max, else its data type) and, for an enumeration, a code it defines;
 // every bit field within its printed range. Objects the profile does not know are not checked.
-Result<void> check_set_values(const profiles::Profile& profile, std::span<const canopen::PdoEntry> mapping,
+Result<void> check_set_values(const profiles::Profile& profile, const canopen::PdoMapping& mapping,
                               std::span<const std::uint8_t> payload);
 
 // Clears every enabling level (bit fields and objects marked `enabling` in the profile) in the
 // payload; returns the names of those that were set.
-std::vector<std::string> clear_enabling(const profiles::Profile& profile, std::span<const canopen::PdoEntry> mapping,
+// A payload shorter than the mapping is left as it is.
+std::vector<std::string> clear_enabling(const profiles::Profile& profile, const canopen::PdoMapping& mapping,
                                         std::span<std::uint8_t> payload);
 
 }  // namespace lb::gateways

@@ -13,6 +13,7 @@
 #include <sstream>
 
 #include "can/unique_fd.hpp"
+#include "profiles/config_file.hpp"
 
 namespace lb::gateways {
 
@@ -90,34 +91,19 @@ std::optional<std::pair<SetValueStore::Key, SetValueStore::Entry>> parse_line(co
 }
 
 Result<std::map<SetValueStore::Key, SetValueStore::Entry>> read_file(const std::string& path) {
-  std::map<SetValueStore::Key, SetValueStore::Entry> restored;
-  // O_NOFOLLOW: a link planted in the state directory is refused, never followed; O_NONBLOCK: a
-  // FIFO does not hang the start (it is refused as not a regular file just below).
-  can::UniqueFd fd(::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NOFOLLOW | O_NONBLOCK));
-  if (!fd) {
-    const int e = errno;
-    if (e == ENOENT) return restored;
-    if (e == ELOOP) return make_error(path + ": a symbolic link; the set values are kept only in a regular file");
-    return make_error(path + ": " + errno_text(e));
-  }
+  // A link planted in the state directory is refused, never followed; the rest (a FIFO, a
+  // directory, a file over the bound) is refused as any configuration file is.
   struct stat st {};
-  if (::fstat(fd.get(), &st) != 0) return make_error(path + ": " + errno_text(errno));
-  if (!S_ISREG(st.st_mode)) return make_error(path + ": not a regular file");
-  if (static_cast<std::size_t>(st.st_size) > SetValueStore::kMaxFileBytes) {
-    return make_error(path + ": larger than 1 MiB, not a set-value file");
+  if (::lstat(path.c_str(), &st) != 0) {
+    if (errno == ENOENT) return std::map<SetValueStore::Key, SetValueStore::Entry>{};
+    return make_error(path + ": " + errno_text(errno));
   }
-  std::string text(static_cast<std::size_t>(st.st_size), '\0');
-  std::size_t done = 0;
-  while (done < text.size()) {
-    const ssize_t n = ::read(fd.get(), text.data() + done, text.size() - done);
-    if (n < 0 && errno == EINTR) continue;
-    if (n < 0) return make_error(path + ": " + errno_text(errno));
-    if (n == 0) break;
-    done += static_cast<std::size_t>(n);
-  }
-  text.resize(done);
+  if (S_ISLNK(st.st_mode)) return make_error(path + ": a symbolic link; the set values are kept only in a regular file");
+  auto text = profiles::read_config_file(path, "set-value file", SetValueStore::kMaxFileBytes);
+  if (!text) return text.error();
 
-  std::stringstream in(text);
+  std::map<SetValueStore::Key, SetValueStore::Entry> restored;
+  std::stringstream in(*text);
   std::string line;
   bool format_seen = false;
   unsigned bad = 0;

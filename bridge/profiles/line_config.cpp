@@ -608,12 +608,6 @@ const BusConfig* LineConfig::bus(std::string_view name) const {
   return nullptr;
 }
 
-std::string_view to_string(StartupPolicy::AfterPowerLoss v) {
-  return v == StartupPolicy::AfterPowerLoss::nothing ? "nothing" : "non_enabling";
-}
-
-std::string_view to_string(StartupPolicy::Restart v) { return v == StartupPolicy::Restart::allowed ? "allowed" : "never"; }
-
 const DeviceConfig* LineConfig::device(std::string_view name) const {
   for (const auto& d : devices) {
     if (d.name == name) return &d;

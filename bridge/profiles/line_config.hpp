@@ -175,8 +175,6 @@ struct StartupPolicy {
   // allowed: its enabling levels too (the integrator has judged an automatic restart safe).
   Restart restart_after_power_loss = Restart::never;
 };
-std::string_view to_string(StartupPolicy::AfterPowerLoss v);
-std::string_view to_string(StartupPolicy::Restart v);
 
 struct DeviceConfig {
   std::string name;

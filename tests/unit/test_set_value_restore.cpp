@@ -40,10 +40,10 @@ const lb::profiles::Profile& profile(const char* id, const char* version) {
   if (p == nullptr) throw std::runtime_error(std::string("no profile ") + id);
   return *p;
 }
-std::vector<PdoEntry> mapping(std::initializer_list<std::uint32_t> words) {
+lb::canopen::PdoMapping mapping(std::initializer_list<std::uint32_t> words) {
   std::vector<PdoEntry> m;
   for (auto w : words) m.push_back(PdoEntry::from_u32(w));
-  return m;
+  return lb::canopen::PdoMapping::create(std::move(m)).value();
 }
 const auto kSawRpdo1 = mapping({0x60200010, 0x60050010, 0x60020020});
 const auto kPullerRpdo1 = mapping({0x60200010, 0x60020010});
