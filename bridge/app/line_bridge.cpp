@@ -99,6 +99,9 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
     const bool master = rt.config->role == profiles::BusRole::master;
     rt.nodes.push_back(std::make_unique<canopen::RemoteNode>(*rt.loop, dev.node_id, dev.heartbeat_timeout, master));
     rt.nodes.back()->believe_every_boot_up(dev.starts_itself);
+    if (rt.sync) {  // the bus's SYNC reaches the node's drivers (NodeDriver::on_sync)
+      rt.sync->on_sync([node = rt.nodes.back().get()] { node->tell([](canopen::NodeDriver& d) { d.on_sync(); }); });
+    }
     const gateways::DeviceContext ctx{*rt.loop,     *rt.nodes.back(), rt.sync.get(), rt.sdo.get(),          *bridge->dds_,
                                       config.line,  *rt.config,       dev,           dev.bridge_profile(), bridge->set_values_.get(),
                                       config.startup};

@@ -34,9 +34,6 @@ std::optional<BootError> compare_identity(char code, const char* what, const cha
 
 BootSequence::BootSequence(BusLoop& loop, RemoteNode& node, SdoClient& sdo, Settings settings)
     : loop_(loop), node_(node), sdo_(sdo), settings_(std::move(settings)) {
-  // The heartbeat the boot waits for is one that follows the configuration: a state, never the
-  // boot-up message (a device without a heartbeat producer sends only that).
-  node_.on_heartbeat([this](NmtState) { heartbeat_back(); });
   heartbeat_timer_ = loop_.create_timer([this] {
     if (!waiting_for_heartbeat_) return;
     waiting_for_heartbeat_ = false;
@@ -357,7 +354,7 @@ void BootSequence::await_heartbeat() {
   loop_.arm_timer(heartbeat_timer_, node_.heartbeat_timeout());
 }
 
-void BootSequence::heartbeat_back() {
+void BootSequence::heard(NmtState /*state*/) {
   if (!waiting_for_heartbeat_) return;
   waiting_for_heartbeat_ = false;
   loop_.disarm_timer(heartbeat_timer_);

@@ -11,7 +11,7 @@
 //   6. NMT start. Only now does the device count as configured and get RPDOs.
 // Then it reads 1008h/1009h/100Ah for the record. Each attempt ends with a report: started, or
 // failed with the CiA 302-2 error letter, the object, both values and the abort code. When to
-// boot (start-up, boot-up, lost state) is ErrorControl's decision. Every step is asynchronous on
+// boot (start-up, boot-up, lost state) is NodeStateMachine's decision. Every step is asynchronous on
 // the bus loop, so a device that does not answer delays nobody else.
 
 #include <chrono>
@@ -111,10 +111,13 @@ class BootSequence {
   bool running() const { return running_; }
   const std::string& step() const { return step_; }
   const BootReport& report() const { return report_; }
+  // Loop thread, told by the node state machine: a heartbeat (not a boot-up) arrived; the attempt
+  // goes on if it waits for one. The heartbeat the boot waits for is one that follows the
+  // configuration: a state, never the boot-up message (a device without a heartbeat producer
+  // sends only that).
+  void heard(NmtState state);
 
  private:
-  // A heartbeat (not a boot-up) arrived: the attempt goes on if it waits for one.
-  void heartbeat_back();
   using Replies = std::vector<SdoReply>;
   void batch(std::vector<SdoRequest> requests, std::function<void(Replies)> then);
   void check_identity(const Replies& r);

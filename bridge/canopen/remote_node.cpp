@@ -20,12 +20,12 @@ NmtState state_after(NmtCommand cmd) {
 
 }  // namespace
 
-std::string_view to_string(RemoteNode::Event event) {
+std::string_view to_string(NodeEvent event) {
   switch (event) {
-    case RemoteNode::Event::boot_up: return "boot-up";
-    case RemoteNode::Event::lost: return "heartbeat lost";
-    case RemoteNode::Event::returned: return "heartbeat (back)";
-    case RemoteNode::Event::unexpected_state: return "state not commanded";
+    case NodeEvent::boot_up: return "boot-up";
+    case NodeEvent::lost: return "heartbeat lost";
+    case NodeEvent::returned: return "heartbeat (back)";
+    case NodeEvent::unexpected_state: return "state not commanded";
   }
   return "?";
 }
@@ -63,8 +63,8 @@ Result<void> RemoteNode::command(NmtCommand cmd) {
 }
 
 Result<void> RemoteNode::use_pdos(std::span<const PdoInUse> pdos) {
-  for (const auto& l : pdo_listeners_) {
-    if (auto r = l(pdos); !r) return r;
+  for (auto* d : drivers_) {
+    if (auto r = d->on_config(pdos); !r) return r;
   }
   pdos_.assign(pdos.begin(), pdos.end());
   return {};
@@ -88,20 +88,20 @@ void RemoteNode::booted() {
   spdlog::info("{}: node {} booted (boot-up #{})", loop_.bus().uri(), node_id(), stats_.boot_ups);
   // CiA 301: a device starts without active errors; what it reported before is gone.
   update_errors([](ActiveErrors& e) { e.reset_by_boot_up(); });
-  emit(Event::boot_up, NmtState::boot_up);
+  emit(Event::boot_up);
 }
 
 void RemoteNode::changed(NmtState state, bool online) {
   const bool came_online = online && !was_online_;
   const bool went_offline = !online && was_online_;
   was_online_ = online;
-  for (const auto& l : listeners_) l(state, online);
+  for (auto* d : drivers_) d->on_nmt_change(state, online);
   if (went_offline) {
     if (boot_up_pending_) booted();  // a boot-up and then silence: a device whose heartbeat is off at power-on
     configured_ = false;
-    emit(Event::lost, state);
+    emit(Event::lost);
   } else if (came_online) {
-    emit(Event::returned, state);
+    emit(Event::returned);
   }
 }
 
@@ -112,7 +112,7 @@ void RemoteNode::changed(NmtState state, bool online) {
 void RemoteNode::heartbeat(NmtState state) {
   check_state(state);
   if (state == NmtState::boot_up) return;
-  for (const auto& l : heartbeat_listeners_) l(state);
+  for (auto* d : drivers_) d->on_heartbeat(state);
 }
 
 void RemoteNode::check_state(NmtState state) {
@@ -139,12 +139,12 @@ void RemoteNode::check_state(NmtState state) {
                node_id(), to_string(state), to_string(commanded_));
   configured_ = false;
   commanded_ = NmtState::unknown;
-  emit(Event::unexpected_state, state);
+  emit(Event::unexpected_state);
 }
 
-void RemoteNode::emit(Event event, NmtState state) {
+void RemoteNode::emit(Event event) {
   if (!may_transmit_) return;  // a monitor only watches
-  for (const auto& l : event_listeners_) l(event, state);
+  for (auto* d : drivers_) d->on_event(event);
 }
 
 void RemoteNode::on_emcy_frame(const can::CanFrame& frame) {
@@ -164,7 +164,7 @@ void RemoteNode::on_emcy_frame(const can::CanFrame& frame) {
                 loop_.bus().uri(), node_id(), e->error_code, emcy_family(e->error_code), e->error_register,
                 held_back_note(emcy_log_));
   }
-  for (const auto& l : emcy_listeners_) l(*e);
+  for (auto* d : drivers_) d->on_emcy(*e);
 }
 
 }  // namespace lb::canopen

@@ -1,13 +1,14 @@
 #pragma once
-// The master's view of one device: heartbeat supervision, the NMT state it was told to be in,
-// emergencies and active errors, counters for diagnostics, and the PDOs its last boot left in use.
-// It reports what makes the device's state unknown to the master (a boot-up, a lost heartbeat, a
-// state it was not told to take); what to do about it is the error control's business.
+// One device as heard and addressed on the bus: heartbeat supervision, the NMT state it was told
+// to be in, emergencies and active errors, counters for diagnostics, and the PDOs its last boot
+// left in use. It tells its drivers (NodeDriver, the gateways and, master role, the node state
+// machine) what it hears, including what makes the device's state unknown to the master (a
+// boot-up, a lost heartbeat, a state it was not told to take); what to do about it is the node
+// state machine's business (canopen/node_state_machine.hpp).
 
 #include <array>
 #include <chrono>
 #include <cstdint>
-#include <functional>
 #include <optional>
 #include <span>
 #include <string>
@@ -19,6 +20,7 @@
 #include "canopen/emcy.hpp"
 #include "canopen/heartbeat_consumer.hpp"
 #include "canopen/nmt.hpp"
+#include "canopen/node_driver.hpp"
 #include "canopen/pdo_parameters.hpp"
 
 namespace lb::canopen {
@@ -36,27 +38,8 @@ class RemoteNode {
     std::uint64_t malformed_heartbeats = 0;   // heartbeats without a state byte (ignored)
     std::uint32_t boot_ups_not_believed = 0;  // a boot-up, then a heartbeat saying operational
   };
-  // What makes the master lose track of the device's object dictionary.
-  enum class Event {
-    boot_up,           // a boot-up message: the device starts from its power-on values
-    lost,              // no heartbeat within the timeout
-    returned,          // a heartbeat while it was offline (the first one, or again after a loss)
-    unexpected_state,  // it reports a state the master did not command (pre-operational, stopped)
-  };
-  using ChangeListener = std::function<void(NmtState state, bool online)>;
-  using EmergencyListener = std::function<void(const Emergency&)>;
-  using EventListener = std::function<void(Event event, NmtState reported)>;
-  // Told the PDOs a boot found before the device is started; a refusal fails the boot.
-  using PdoListener = std::function<Result<void>(std::span<const PdoInUse> pdos)>;
-  // The active-error list changed other than by an EMCY (a boot-up, a reading from the device).
-  using ErrorsListener = std::function<void()>;
-  // What the boot found, told right before it sends NMT start (the last moment to decide what
-  // the device's first RPDO carries).
-  struct StartFacts {
-    bool found_operational = false;            // it reported operational before this start
-    std::array<std::uint32_t, 4> identity{};   // 1018h sub 1..4 as read (0 where absent)
-  };
-  using StartListener = std::function<void(const StartFacts&)>;
+  using Event = NodeEvent;
+  using StartFacts = canopen::StartFacts;
 
   // may_transmit = false for the monitor role: the node is observed, never commanded.
   RemoteNode(BusLoop& loop, std::uint8_t node_id, std::chrono::milliseconds heartbeat_timeout, bool may_transmit);
@@ -65,18 +48,11 @@ class RemoteNode {
   // followed by "operational" is believed too (otherwise it is a spoofed frame or a fault).
   void believe_every_boot_up(bool believe) { believe_every_boot_up_ = believe; }
 
-  // Registration before the loop starts.
-  void on_change(ChangeListener listener) { listeners_.push_back(std::move(listener)); }
-  void on_emergency(EmergencyListener listener) { emcy_listeners_.push_back(std::move(listener)); }
-  void on_event(EventListener listener) { event_listeners_.push_back(std::move(listener)); }
-  void on_pdos(PdoListener listener) { pdo_listeners_.push_back(std::move(listener)); }
-  void on_errors(ErrorsListener listener) { errors_listeners_.push_back(std::move(listener)); }
-  void on_start(StartListener listener) { start_listeners_.push_back(std::move(listener)); }
-  // Every heartbeat that carries a state (not a boot-up message), after the node took it.
-  void on_heartbeat(std::function<void(NmtState)> listener) { heartbeat_listeners_.push_back(std::move(listener)); }
+  // Before the loop starts: the drivers are told in the order they were attached.
+  void attach(NodeDriver& driver) { drivers_.push_back(&driver); }
 
   // Loop thread. Refused with the reason on a monitor bus. Records the state the device must take;
-  // after a reset the device is no longer configured (its boot-up, or ErrorControl's bound on
+  // after a reset the device is no longer configured (its boot-up, or the node state machine's bound on
   // waiting for it, starts a boot).
   Result<void> command(NmtCommand command);
   // Loop thread: an operator's NMT stop or enter pre-operational is kept until an operator starts
@@ -91,11 +67,16 @@ class RemoteNode {
     configured_ = configured;
     if (!configured) commanded_ = NmtState::unknown;
   }
-  // Loop thread, by the boot: the PDOs from now on; the first listener's refusal is returned.
+  // Loop thread, by the boot: the PDOs from now on; the first driver's refusal is returned.
   Result<void> use_pdos(std::span<const PdoInUse> pdos);
   // Loop thread, by the boot, right before NMT start.
   void starting(const StartFacts& facts) {
-    for (const auto& l : start_listeners_) l(facts);
+    for (auto* d : drivers_) d->on_start(facts);
+  }
+  // Loop thread: tells every driver (the state machine's transitions, the boot's end, the SYNC).
+  template <class Hook>
+  void tell(Hook hook) {
+    for (auto* d : drivers_) hook(*d);
   }
   // What the last start did with the set values in force (diagnostics), and the gateway's note of it.
   const std::string& set_values_at_start() const { return set_values_at_start_; }
@@ -116,11 +97,11 @@ class RemoteNode {
   const std::vector<PdoInUse>& pdos() const { return pdos_; }
   const ActiveErrors& errors() const { return errors_; }
   // Loop thread: changes the active-error list (with what the device lists, say) and tells the
-  // errors listeners.
+  // drivers.
   template <class Change>
   void update_errors(Change change) {
     change(errors_);
-    for (const auto& l : errors_listeners_) l();
+    for (auto* d : drivers_) d->on_errors();
   }
   Stats& stats() { return stats_; }
   const Stats& stats() const { return stats_; }
@@ -131,7 +112,7 @@ class RemoteNode {
   void changed(NmtState state, bool online);
   void heartbeat(NmtState state);
   void check_state(NmtState state);
-  void emit(Event event, NmtState state);
+  void emit(Event event);
   void on_emcy_frame(const can::CanFrame& frame);
 
   BusLoop& loop_;
@@ -148,20 +129,12 @@ class RemoteNode {
   Stats stats_;
   ActiveErrors errors_;
   std::vector<PdoInUse> pdos_;
-  std::vector<ChangeListener> listeners_;
-  std::vector<EmergencyListener> emcy_listeners_;
-  std::vector<EventListener> event_listeners_;
-  std::vector<PdoListener> pdo_listeners_;
+  std::vector<NodeDriver*> drivers_;
   LogRate emcy_log_;
   LogRate malformed_log_;
   LogRate spoof_log_{1};
-  std::vector<ErrorsListener> errors_listeners_;
-  std::vector<StartListener> start_listeners_;
-  std::vector<std::function<void(NmtState)>> heartbeat_listeners_;
   std::string set_values_at_start_;
   HeartbeatConsumer heartbeat_;
 };
-
-std::string_view to_string(RemoteNode::Event event);
 
 }  // namespace lb::canopen

@@ -90,18 +90,10 @@ DeviceServices::DeviceServices(DeviceContext context) : ctx_(context) {
   if (!iw) fail(iw.error());
   info_writer_ = *iw;
 
-  ctx_.node.on_emergency([this](const canopen::Emergency& e) { on_emergency(e); });
+  ctx_.node.attach(*this);
   configuration_bits_ = ctx_.profile.bitset("configuration_word");
   set_configuration_word(std::nullopt, configuration_bits_ == nullptr ? "profile " + ctx_.profile.key() + " has no configuration word"
                                                                       : "not read yet (read after the device's boot passed)");
-  if (ctx_.is_master() && ctx_.sdo != nullptr) {
-    // Service requests still waiting for a device that went offline could only time out one
-    // after the other: they are answered at once.
-    ctx_.node.on_change([this](canopen::NmtState, bool online) {
-      if (!online) ctx_.sdo->cancel_waiting(ctx_.device.node_id, ctx_.device.name + " went offline (no heartbeat)");
-    });
-  }
-
   if (ctx_.is_master() && ctx_.sdo != nullptr) {
     const auto& d = ctx_.device;
     canopen::BootSequence::Settings boot;
@@ -111,19 +103,23 @@ DeviceServices::DeviceServices(DeviceContext context) : ctx_(context) {
     boot.adopt_device_pdos = d.pdo_config == profiles::PdoConfigMode::adopt;
     for (const auto& w : d.configure) boot.writes.push_back({w.index, w.sub, w.type, w.value, w.verify});
     if (d.heartbeat_producer) boot.heartbeat_producer_ms = static_cast<std::uint16_t>(d.heartbeat_producer->count());
-    boot_ = std::make_unique<canopen::BootSequence>(ctx_.loop, ctx_.node, *ctx_.sdo, std::move(boot));
-    canopen::ErrorControl::Settings control;
+    canopen::NodeStateMachine::Settings control;
     control.on_state_unknown = d.on_state_unknown == profiles::StateUnknownAction::reset_node
                                    ? canopen::RecoveryAction::reset_node
                                    : canopen::RecoveryAction::reboot;
     control.retry = d.boot_retry;
     control.reset_bound = std::max(2 * d.heartbeat_timeout, std::chrono::milliseconds(2000));
-    control_ = std::make_unique<canopen::ErrorControl>(ctx_.loop, ctx_.node, *boot_, control,
-                                                       [this](const canopen::BootReport& r) { booted(r); });
+    machine_ = std::make_unique<canopen::NodeStateMachine>(ctx_.loop, ctx_.node, *ctx_.sdo, std::move(boot), control);
   }
 }
 
-void DeviceServices::on_emergency(const canopen::Emergency& e) {
+void DeviceServices::on_nmt_change(canopen::NmtState, bool online) noexcept {
+  if (!online && ctx_.is_master() && ctx_.sdo != nullptr) {
+    ctx_.sdo->cancel_waiting(ctx_.device.node_id, ctx_.device.name + " went offline (no heartbeat)");
+  }
+}
+
+void DeviceServices::on_emcy(const canopen::Emergency& e) noexcept {
   const auto& errors = ctx_.node.errors();
   msg::Emergency m;
   ddsl::set_stamp(m, e.timestamp_ns);
@@ -209,7 +205,7 @@ void DeviceServices::set_configuration_word(std::optional<std::uint64_t> raw, co
 }
 
 void DeviceServices::start() {
-  if (control_) control_->start();
+  if (machine_) machine_->start();
 }
 
 void DeviceServices::sdo_read(const srv::SdoRead_Request& req, ddsl::Respond<srv::SdoRead_Response> respond) {
@@ -348,31 +344,9 @@ void DeviceServices::nmt(const srv::Nmt_Request& request, ddsl::Respond<srv::Nmt
   if (!command) return reply(false, "unknown NMT command " + std::to_string(static_cast<int>(request.command())));
   if (auto why = refusal(); !why.empty()) return reply(false, why);
   const bool posted = ctx_.loop.try_post([this, c = *command, reply] {
-    // A device whose boot did not pass (or whose state became unknown since) may have lost its
-    // configuration: starting it would hand it RPDOs it may misread. Its boot starts it.
-    if (c == canopen::NmtCommand::start && !ctx_.node.configured()) {
-      const auto& e = report_.error;
-      const std::string why = e ? (e->code != 0 ? fmt::format("CiA 302-2 error {}: {}", e->code, e->message) : e->message)
-                                : boot_state();
-      return reply(false, ctx_.device.name + " has not passed its boot (" + why +
-                              "): NMT start refused; the bridge starts it when its boot passes (reset-node boots it again)");
-    }
-    auto r = ctx_.node.command(c);
-    if (!r) return reply(false, r.error().message);
+    // The node state machine keeps what an operator asks (canopen/node_state_machine.hpp).
+    if (auto r = machine_->operator_command(c); !r) return reply(false, ctx_.device.name + " " + r.error().message);
     spdlog::info("{}: NMT command {:02X}h sent on request", ctx_.device.name, static_cast<int>(c));
-    // What an operator asks is kept: a stop or pre-operational until an operator starts or resets
-    // the device (a heartbeat loss, a boot-up and the boot that follows do not undo it); a reset
-    // always leads to a boot.
-    switch (c) {
-      case canopen::NmtCommand::stop:
-      case canopen::NmtCommand::enter_pre_operational: ctx_.node.hold(c); break;
-      case canopen::NmtCommand::start: ctx_.node.release_hold(); break;
-      case canopen::NmtCommand::reset_node:
-      case canopen::NmtCommand::reset_communication:
-        ctx_.node.release_hold();
-        if (control_) control_->reset_sent(true);
-        break;
-    }
     // NMT is unconfirmed (CiA 301): only the device's heartbeat tells that it was heard. A device
     // that has none (offline) may be gone; sending may still help (a reset), claiming it did not.
     if (!ctx_.node.online()) {

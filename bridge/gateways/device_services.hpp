@@ -5,7 +5,7 @@
 // against the profile's access and range). Those services are line-wide (ManagementServices
 // serves them once per bridge and hands each request to the named device's handler here): a
 // Fast DDS endpoint pair per service and device would cost ~40 KiB each. In the master role it
-// also owns the device's boot sequence (presence check, SDO configuration, NMT start, identity).
+// also owns the device's node state machine (boot, error control, NMT: canopen/node_state_machine).
 // Device-type gateways add status, set values and typed configuration.
 
 #include <cstdint>
@@ -15,7 +15,8 @@
 #include <string>
 
 #include "canopen/boot_sequence.hpp"
-#include "canopen/error_control.hpp"
+#include "canopen/node_driver.hpp"
+#include "canopen/node_state_machine.hpp"
 #include "canopen/error_field.hpp"
 #include "dds/service.hpp"
 #include "gateways/device_context.hpp"
@@ -23,7 +24,7 @@
 
 namespace lb::gateways {
 
-class DeviceServices {
+class DeviceServices final : public canopen::NodeDriver {
  public:
   // Throws std::runtime_error at start-up when a topic cannot be created.
   explicit DeviceServices(DeviceContext context);
@@ -33,15 +34,25 @@ class DeviceServices {
   // Loop thread: the first boot (master role).
   void start();
   // Loop thread: "started", "failed (K): ...", a pending retry, "monitored" (monitor role).
-  std::string boot_state() const { return control_ ? control_->state() : "monitored"; }
-  std::string_view node_state() const { return control_ ? canopen::to_string(control_->node_state()) : "monitored"; }
+  std::string boot_state() const { return machine_ ? machine_->detail() : "monitored"; }
+  std::string_view node_state() const { return machine_ ? canopen::to_string(machine_->state()) : "monitored"; }
   // Loop thread: the last boot failed after the device answered SDO (not a device that is silent).
   bool answered_boot() const {
     return report_.error.has_value() && !(report_.error->code == 'B' && report_.error->abort_code == 0x05040000u);
   }
   // Loop thread: what the last finished boot found (empty before the first one).
   const canopen::BootReport& boot_report() const { return report_; }
-  canopen::ErrorControl::Counters boot_counters() const { return control_ ? control_->counters() : canopen::ErrorControl::Counters{}; }
+  canopen::NodeStateMachine::Counters boot_counters() const {
+    return machine_ ? machine_->counters() : canopen::NodeStateMachine::Counters{};
+  }
+
+  // NodeDriver.
+  void on_emcy(const canopen::Emergency& e) noexcept override;
+  // Service requests still waiting for a device that went offline could only time out one
+  // after the other: they are answered at once.
+  void on_nmt_change(canopen::NmtState state, bool online) noexcept override;
+  // After every boot attempt (master role).
+  void on_boot(const canopen::BootReport& report) noexcept override { booted(report); }
 
   // This device's part of the line-wide services; the request's `device` is already this one.
   // Called on a Fast DDS thread; checks what needs only the immutable profile and configuration
@@ -58,7 +69,6 @@ class DeviceServices {
 
  private:
   std::string refusal() const;  // why this bus takes no commands, or empty
-  void on_emergency(const canopen::Emergency& e);
   // Master role, after a boot that passed: 1001h reconciles the node's active errors, 1003h is
   // kept as the error history for info; then 6010h and info.
   void read_errors();
@@ -71,8 +81,7 @@ class DeviceServices {
   DeviceContext ctx_;
   ddsl::Writer<linebridge_msgs::msg::EmergencyPubSubType> emergency_writer_;
   ddsl::Writer<linebridge_msgs::msg::DeviceInfoPubSubType> info_writer_;
-  std::unique_ptr<canopen::BootSequence> boot_;
-  std::unique_ptr<canopen::ErrorControl> control_;
+  std::unique_ptr<canopen::NodeStateMachine> machine_;  // master role
   const profiles::BitSet* configuration_bits_ = nullptr;  // 6010h's named bits; null: the profile has none
   // Loop thread.
   canopen::BootReport report_;

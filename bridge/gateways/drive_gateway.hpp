@@ -41,6 +41,14 @@ class DriveGateway : public Gateway {
 
   const CommandService* commands() const override { return &command_service_; }
 
+  // NodeDriver: what the node hears (both roles). The SYNC is the PDOs' (PdoWiring).
+  void on_nmt_change(canopen::NmtState, bool) noexcept override {
+    pdos_.resend();  // a (re)started device gets the image at once
+    publish_status(ddsl::now_ns());
+  }
+  void on_emcy(const canopen::Emergency& e) noexcept override { publish_status(e.timestamp_ns); }
+  void on_errors() noexcept override { publish_status(ddsl::now_ns()); }
+
  private:
   void on_pdo(std::size_t pdo, const can::CanFrame& frame);
   void on_setpoint(const Setpoint& sp);
@@ -101,15 +109,7 @@ DriveGateway<Dds>::DriveGateway(DeviceContext context)
                 {.before_send = [this] { commands_.before_frame(); },
                  .sent = [this](auto at) { commands_.frame_sent(at); },
                  .not_sent = [this](std::string_view why) { commands_.frame_not_sent(why); }});
-  ctx_.node.on_change([this](canopen::NmtState, bool) {
-    pdos_.resend();  // a (re)started device gets the image at once
-    publish_status(ddsl::now_ns());
-  });
-  ctx_.node.on_emergency([this](const canopen::Emergency& e) { publish_status(e.timestamp_ns); });
-  ctx_.node.on_errors([this] { publish_status(ddsl::now_ns()); });
-  if (ctx_.sync != nullptr) {
-    ctx_.sync->on_sync([this] { pdos_.on_sync(); });
-  }
+  ctx_.node.attach(*this);
   // A restarted bridge goes on with the set values in force (a running puller keeps its speed);
   // a command held at the stop is not pressed again.
   pdos_.restore([this] {

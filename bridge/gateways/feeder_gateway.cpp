@@ -59,20 +59,7 @@ FeederGateway::FeederGateway(DeviceContext context)
   if (!sub) throw std::runtime_error(dev + ": " + sub.error().message);
   serve_services();
 
-  ctx_.node.on_change([this](canopen::NmtState, bool online) {
-    // A restarted control box gets the loom status again (it is a state; triggers and picks are
-    // events and are not repeated).
-    for (auto& r : pdos_.rpdos()) {
-      if (!codec_.carries(r.pdo, kLoomStatus)) continue;
-      r.transmitter->resend();
-      r.transmitter->on_data();
-    }
-    if (!online) feeder_count_ = -1;
-    publish_status(ddsl::now_ns());
-  });
-  ctx_.node.on_emergency([this](const canopen::Emergency& e) { on_emergency(e); });
-  ctx_.node.on_errors([this] { publish_status(ddsl::now_ns()); });
-  if (ctx_.sync != nullptr) ctx_.sync->on_sync([this] { pdos_.on_sync(); });  // a line may make them synchronous
+  ctx_.node.attach(*this);
   if (ctx_.is_master() && ctx_.sdo != nullptr) {
     poll_timer_ = ctx_.loop.create_timer([this] { poll(); });
     ctx_.loop.arm_timer(poll_timer_, kPollPeriod, kPollPeriod);
@@ -97,7 +84,19 @@ void FeederGateway::on_pdo(std::size_t pdo, const can::CanFrame& frame) {
   burst_.add(pdo, frame.timestamp_ns);  // a loom controller's RPDO (monitor role)
 }
 
-void FeederGateway::on_emergency(const canopen::Emergency& e) {
+// A restarted control box gets the loom status again (it is a state; triggers and picks are
+// events and are not repeated).
+void FeederGateway::on_nmt_change(canopen::NmtState, bool online) noexcept {
+  for (auto& r : pdos_.rpdos()) {
+    if (!codec_.carries(r.pdo, kLoomStatus)) continue;
+    r.transmitter->resend();
+    r.transmitter->on_data();
+  }
+  if (!online) feeder_count_ = -1;
+  publish_status(ddsl::now_ns());
+}
+
+void FeederGateway::on_emcy(const canopen::Emergency& e) noexcept {
   if (e.error_code == kFf10) {
     // Each FF10h replaces the set of feeders in error (an empty bitmap clears them all).
     const std::uint32_t bitmap = FeederCodec::ff10_bitmap(e.manufacturer);

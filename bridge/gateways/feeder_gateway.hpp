@@ -32,6 +32,11 @@ class FeederGateway : public Gateway {
   // Throws std::runtime_error at start-up when the profile lacks what a feeder needs.
   explicit FeederGateway(DeviceContext context);
 
+  // NodeDriver: what the node hears (both roles). The SYNC is the PDOs' (PdoWiring).
+  void on_nmt_change(canopen::NmtState state, bool online) noexcept override;
+  void on_emcy(const canopen::Emergency& e) noexcept override;
+  void on_errors() noexcept override { publish_status(ddsl::now_ns()); }
+
  private:
   using WriteReply = std::function<void(linebridge_msgs::srv::FeederWrite_Response)>;
   // One SDO read of a poll; value is nullopt when the device refused or did not answer.
@@ -43,7 +48,6 @@ class FeederGateway : public Gateway {
   };
 
   void on_pdo(std::size_t pdo, const can::CanFrame& frame);
-  void on_emergency(const canopen::Emergency& e);
   void poll();
   void read_chain(std::shared_ptr<std::vector<Read>> reads, std::size_t next);
   void publish_error_event(unsigned feeder, bool in_error, std::uint32_t bitmap, std::int64_t stamp_ns);

@@ -1,17 +1,22 @@
 #pragma once
-// A device gateway: lives as long as the bridge runs; all its work is driven by its bus loop and
-// its DDS subscriptions, so the only thing its owner does with it is keep it alive.
+// A device gateway: lives as long as the bridge runs; all its work is driven by its bus loop (as
+// one of its node's drivers: canopen/node_driver.hpp) and its DDS subscriptions, so the only thing
+// its owner does with it is keep it alive.
 
 #include <memory>
 
+#include "canopen/node_driver.hpp"
 #include "gateways/device_context.hpp"
 
 namespace lb::gateways {
 
 class CommandService;
 
-class Gateway {
+class Gateway : public canopen::NodeDriver {
  public:
+  Gateway() = default;
+  Gateway(const Gateway&) = delete;
+  Gateway& operator=(const Gateway&) = delete;
   virtual ~Gateway() = default;
 
   // The device's momentary commands for the line-wide `command` service, or null for a device

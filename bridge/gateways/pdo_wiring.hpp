@@ -23,6 +23,7 @@
 #include <string_view>
 #include <vector>
 
+#include "canopen/node_driver.hpp"
 #include "canopen/pdo_transmitter.hpp"
 #include "gateways/device_context.hpp"
 #include "gateways/pdo_specs.hpp"
@@ -31,7 +32,7 @@
 namespace lb::gateways {
 
 template <class Codec>
-class PdoWiring {
+class PdoWiring final : public canopen::NodeDriver {
  public:
   using Receive = std::function<void(std::size_t pdo, const can::CanFrame& frame)>;
   using Gate = std::function<bool()>;
@@ -77,17 +78,23 @@ class PdoWiring {
                             }
                           }})});
     }
-    if (ctx_.is_master()) {
-      ctx_.node.on_pdos([this](std::span<const canopen::PdoInUse> pdos) { return use(pdos); });
-      // A boot-up (believed: canopen/remote_node) starts the device from its power-on PDOs; one
-      // that was gone may come back as another device: its PDOs are verified again.
-      ctx_.node.on_event([this](canopen::RemoteNode::Event e, canopen::NmtState) {
-        if (e == canopen::RemoteNode::Event::boot_up || e == canopen::RemoteNode::Event::lost) {
-          pdos_verified_ = false;
-          safe_image_asked_ = false;
-        }
-      });
+    if (ctx_.is_master()) ctx_.node.attach(*this);
+  }
+  PdoWiring(const PdoWiring&) = delete;
+  PdoWiring& operator=(const PdoWiring&) = delete;
+
+  // NodeDriver (master role). The boot's PDOs are taken before the device is started.
+  Result<void> on_config(std::span<const canopen::PdoInUse> pdos) noexcept override { return use(pdos); }
+  // A boot-up (believed: canopen/remote_node) starts the device from its power-on PDOs; one that
+  // was gone may come back as another device: its PDOs are verified again.
+  void on_event(canopen::NodeEvent e) noexcept override {
+    if (e == canopen::NodeEvent::boot_up || e == canopen::NodeEvent::lost) {
+      pdos_verified_ = false;
+      safe_image_asked_ = false;
     }
+  }
+  void on_start(const canopen::StartFacts& facts) noexcept override {
+    if (restored_) starting(facts);
   }
 
   // Before the loop starts, once the gateway is complete (master role). clear_momentary takes out
@@ -104,7 +111,7 @@ class PdoWiring {
     if (clear_momentary_) clear_momentary_();
     if (!ctx_.is_master()) return;
     persist_ = ctx_.set_values != nullptr;
-    ctx_.node.on_start([this](const canopen::RemoteNode::StartFacts& facts) { starting(facts); });
+    restored_ = true;
   }
   // What a gateway learns about every frame of the RPDOs that carry one object (the control word,
   // for momentary commands), as the device's boot left them mapped.
@@ -116,10 +123,11 @@ class PdoWiring {
   // Before the loop starts.
   void observe(std::uint16_t index, RpdoObserver observer) { observers_.push_back({index, std::move(observer)}); }
 
-  // Loop thread.
-  void on_sync() {
+  // NodeDriver: the bus's SYNC (master role, where the bus produces it).
+  void on_sync() noexcept override {
     for (auto& r : rpdos_) r.transmitter->on_sync();
   }
+  // Loop thread.
   void on_data() {
     for (auto& r : rpdos_) r.transmitter->on_data();
     keep();
@@ -237,7 +245,7 @@ class PdoWiring {
   }
 
   // Loop thread, right before the device's NMT start.
-  void starting(const canopen::RemoteNode::StartFacts& facts) {
+  void starting(const canopen::StartFacts& facts) {
     identity_ = facts.identity;
     safe_image_asked_ = false;
     const auto scope = restore_scope(ctx_.startup, facts.found_operational, ctx_.device.starts_itself);
@@ -358,6 +366,7 @@ class PdoWiring {
   Gate gate_;
   std::vector<Rpdo> rpdos_;
   bool persist_ = false;
+  bool restored_ = false;               // restore() was called: each start decides the image
   bool started_once_ = false;           // loop thread: a start has decided the image
   bool pdos_verified_ = false;          // loop thread: a boot checked the device's PDOs since its last boot-up
   bool safe_image_asked_ = false;       // loop thread: an operator stopped a device the bridge has not started

@@ -51,16 +51,7 @@ SawGateway::SawGateway(DeviceContext context)
                 {.before_send = [this] { commands_.before_frame(); },
                  .sent = [this](auto at) { commands_.frame_sent(at); },
                  .not_sent = [this](std::string_view why) { commands_.frame_not_sent(why); }});
-  ctx_.node.on_change([this](canopen::NmtState, bool) {
-    // A device (re)started gets the current image at once from event-driven RPDOs too.
-    pdos_.resend();
-    publish_status(ddsl::now_ns());
-  });
-  ctx_.node.on_emergency([this](const canopen::Emergency& e) { publish_status(e.timestamp_ns); });
-  ctx_.node.on_errors([this] { publish_status(ddsl::now_ns()); });
-  if (ctx_.sync != nullptr) {
-    ctx_.sync->on_sync([this] { pdos_.on_sync(); });
-  }
+  ctx_.node.attach(*this);
   // A restarted bridge goes on with the set values in force (a running saw keeps its program);
   // a command held at the stop is not pressed again.
   pdos_.restore([this] {
@@ -72,6 +63,12 @@ SawGateway::SawGateway(DeviceContext context)
                                                               : "; RPDO1 image starts all zero (saw program off)")
                                 : "");
   publish_status(ddsl::now_ns());  // the device exists (offline) before its first heartbeat
+}
+
+// A device (re)started gets the current image at once from event-driven RPDOs too.
+void SawGateway::on_nmt_change(canopen::NmtState, bool) noexcept {
+  pdos_.resend();
+  publish_status(ddsl::now_ns());
 }
 
 void SawGateway::on_pdo(std::size_t pdo, const can::CanFrame& frame) {

@@ -28,6 +28,11 @@ class SawGateway : public Gateway {
 
   const CommandService* commands() const override { return &command_service_; }
 
+  // NodeDriver: what the node hears (both roles). The SYNC is the PDOs' (PdoWiring).
+  void on_nmt_change(canopen::NmtState state, bool online) noexcept override;
+  void on_emcy(const canopen::Emergency& e) noexcept override { publish_status(e.timestamp_ns); }
+  void on_errors() noexcept override { publish_status(ddsl::now_ns()); }
+
  private:
   void on_pdo(std::size_t pdo, const can::CanFrame& frame);
 

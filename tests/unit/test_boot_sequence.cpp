@@ -57,6 +57,13 @@ TEST(BootSequence, AProfileWithoutPdosBootsAndStartsTheDevice) {
   settings.identity.profile_number = kProfile;
   settings.identity.vendor_id = 0x1234;
   co::BootSequence boot(master, node, sdo, settings);  // settings.pdos: empty
+  // What the node state machine does for the boot: every heartbeat is told to it.
+  struct HeartbeatsToBoot final : co::NodeDriver {
+    explicit HeartbeatsToBoot(co::BootSequence& b) : boot(b) {}
+    void on_heartbeat(co::NmtState s) noexcept override { boot.heard(s); }
+    co::BootSequence& boot;
+  } to_boot(boot);
+  node.attach(to_boot);
   master.start();
   device.start();
 

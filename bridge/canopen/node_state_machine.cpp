@@ -1,0 +1,217 @@
+#include "canopen/node_state_machine.hpp"
+
+#include <fmt/format.h>
+#include <spdlog/spdlog.h>
+
+#include <algorithm>
+#include <string_view>
+
+namespace lb::canopen {
+
+std::string_view to_string(NodeState state) {
+  switch (state) {
+    case NodeState::unknown: return "unknown";
+    case NodeState::booting: return "booting";
+    case NodeState::boot_failed: return "boot failed";
+    case NodeState::running_unmanaged: return "running unmanaged";
+    case NodeState::operational: return "operational";
+    case NodeState::stopped_by_operator: return "stopped by operator";
+    case NodeState::resetting: return "resetting";
+    case NodeState::lost: return "lost";
+  }
+  return "?";
+}
+
+NodeStateMachine::NodeStateMachine(BusLoop& loop, RemoteNode& node, SdoClient& sdo, BootSequence::Settings boot,
+                                   Settings settings)
+    : loop_(loop), node_(node), boot_(loop, node, sdo, std::move(boot)), settings_(settings) {
+  node_.attach(*this);
+  timer_ = loop_.create_timer([this] {
+    const std::string why = waiting_;
+    waiting_.clear();
+    boot_now(why);
+  });
+  reset_timer_ = loop_.create_timer([this] {
+    if (boot_.running()) return;  // its boot-up came and started one
+    boot_now(fmt::format("no boot-up within {} ms after an NMT reset (lost?): its state is unknown", settings_.reset_bound.count()));
+  });
+}
+
+void NodeStateMachine::enter(NodeState next, std::string_view why) {
+  if (next == state_) return;
+  spdlog::info("{}: node {}: {} -> {} ({})", loop_.bus().uri(), node_.node_id(), to_string(state_), to_string(next), why);
+  state_ = next;
+  ++counters_.transitions;
+  node_.tell([next](NodeDriver& d) { d.on_state(next); });
+}
+
+NodeState NodeStateMachine::silent_state() const {
+  return node_.last_heartbeat_ns() == 0 && state_ == NodeState::unknown ? NodeState::unknown : NodeState::lost;
+}
+
+// Still checking and configuring (not the reads for the record after the start): what comes back
+// in between is its to handle. After the start, a loss or a return makes the state unknown again.
+bool NodeStateMachine::boot_under_way() const {
+  return boot_.running() && !boot_.report().started && !boot_.report().held_by_operator;
+}
+
+void NodeStateMachine::start() { boot_now("start-up"); }
+
+Result<void> NodeStateMachine::operator_command(NmtCommand command) {
+  // A device whose boot did not pass (or whose state became unknown since) may have lost its
+  // configuration: starting it would hand it RPDOs it may misread. Its boot starts it.
+  if (command == NmtCommand::start && !node_.configured()) {
+    const auto& e = boot_.report().error;
+    const std::string why = e ? (e->code != 0 ? fmt::format("CiA 302-2 error {}: {}", e->code, e->message) : e->message) : detail();
+    return make_error(fmt::format("{}: has not passed its boot ({}): NMT start refused; the bridge starts it when its boot "
+                                  "passes (reset-node boots it again)",
+                                  to_string(state_), why));
+  }
+  if (auto r = node_.command(command); !r) return r;
+  switch (command) {
+    case NmtCommand::stop:
+    case NmtCommand::enter_pre_operational:
+      node_.hold(command);
+      if (node_.configured()) enter(NodeState::stopped_by_operator, "an operator's NMT command");
+      break;
+    case NmtCommand::start:
+      node_.release_hold();
+      // Operational once its heartbeat says so (on_heartbeat).
+      break;
+    case NmtCommand::reset_node:
+    case NmtCommand::reset_communication:
+      node_.release_hold();
+      reset_sent(true);
+      break;
+  }
+  return {};
+}
+
+// A reset always leads to a boot: its boot-up starts one, and if none is believed within
+// reset_bound (a lost boot-up), a boot begins anyway; the device is never taken for started
+// meanwhile.
+void NodeStateMachine::reset_sent(bool by_operator) {
+  boot_.cancel();
+  loop_.disarm_timer(timer_);
+  if (by_operator) {
+    recent_.clear();
+    backoff_ = std::chrono::milliseconds(0);
+  }
+  waiting_ = "reset: waiting for its boot-up";
+  loop_.arm_timer(reset_timer_, settings_.reset_bound);
+  enter(NodeState::resetting, by_operator ? "an operator's NMT reset" : "NMT reset node sent to recover it");
+}
+
+std::string NodeStateMachine::detail() const {
+  if (!waiting_.empty()) return waiting_;
+  return boot_.step();
+}
+
+void NodeStateMachine::on_heartbeat(NmtState state) noexcept {
+  boot_.heard(state);
+  // Started (or released by an operator) and now heard operational: the condition for RPDOs.
+  if ((state_ == NodeState::booting || state_ == NodeState::stopped_by_operator) && node_.ready_for_pdos()) {
+    enter(NodeState::operational, "started, heard operational");
+  }
+}
+
+void NodeStateMachine::on_event(NodeEvent event) noexcept {
+  switch (event) {
+    case NodeEvent::boot_up:
+      loop_.disarm_timer(reset_timer_);
+      if (storm()) return;
+      return boot_now("boot-up");
+    case NodeEvent::lost:
+      if (boot_.report().started) ++counters_.state_unknown;
+      // After a reset a silence is expected: the bound on the wait for the boot-up decides.
+      if (state_ == NodeState::resetting) return;
+      if (state_ == NodeState::running_unmanaged) waiting_.clear();  // no retry timer stands behind that wait
+      enter(NodeState::lost, "no heartbeat within its timeout");
+      // Nothing to configure while it is gone, but a device whose heartbeat producer was reset to
+      // 0 only comes back if the master asks: probe it (the boot's first step) until it answers.
+      if (!boot_under_way() && waiting_.empty()) boot_now("heartbeat lost");
+      return;
+    case NodeEvent::returned:
+      if (boot_under_way()) {  // a boot under way goes on (it hears the heartbeat itself)
+        if (state_ != NodeState::resetting) enter(NodeState::booting, "heard while its boot probes it");
+        return;
+      }
+      if (node_.configured()) return;
+      if (storm()) return;
+      return recover("its heartbeat came (back) while the bridge did not know its state");
+    case NodeEvent::unexpected_state:
+      ++counters_.state_unknown;
+      if (storm()) return;
+      return recover(node_.state() == NmtState::stopped ? "it reports stopped unasked" : "it reports pre-operational unasked");
+  }
+}
+
+void NodeStateMachine::recover(const char* why) {
+  if (settings_.on_state_unknown == RecoveryAction::reset_node) {
+    spdlog::warn("{}: node {}: {}: its configuration may be gone, NMT reset node", loop_.bus().uri(), node_.node_id(), why);
+    boot_.cancel();
+    if (auto r = node_.command(NmtCommand::reset_node); r) return reset_sent(false);  // its boot-up starts the boot
+  }
+  boot_now(why);
+}
+
+void NodeStateMachine::boot_now(const std::string& why) {
+  loop_.disarm_timer(timer_);
+  loop_.disarm_timer(reset_timer_);
+  waiting_.clear();
+  ++counters_.boots;
+  if (boot_log_.allow(why)) spdlog::info("{}: node {}: boot ({}){}", loop_.bus().uri(), node_.node_id(), why, boot_log_.note());
+  // A node not heard now is probed (the boot's first step): it stays unknown or lost until it answers.
+  enter(node_.online() ? NodeState::booting : silent_state(), why);
+  boot_.run([this](const BootReport& r) { finished(r); });
+}
+
+void NodeStateMachine::boot_after(std::chrono::milliseconds delay, const std::string& why) {
+  boot_.cancel();
+  waiting_ = why;
+  loop_.arm_timer(timer_, delay);
+  enter(node_.online() ? NodeState::boot_failed : silent_state(), why);
+}
+
+bool NodeStateMachine::storm() {
+  const auto now = std::chrono::steady_clock::now();
+  recent_.push_back(now);
+  while (!recent_.empty() && now - recent_.front() > settings_.storm_window) recent_.pop_front();
+  if (recent_.size() < settings_.storm_count) {
+    backoff_ = std::chrono::milliseconds(0);
+    return false;
+  }
+  if (backoff_.count() == 0) ++counters_.storms;
+  backoff_ = std::min<std::chrono::milliseconds>(backoff_.count() == 0 ? settings_.retry : backoff_ * 2, settings_.max_backoff);
+  const auto why = fmt::format("boot-up storm: {} boot-ups or lost states within {} ms; next boot in {} ms", recent_.size(),
+                               settings_.storm_window.count(), backoff_.count());
+  spdlog::warn("{}: node {}: {}", loop_.bus().uri(), node_.node_id(), why);
+  boot_after(backoff_, why);
+  return true;
+}
+
+void NodeStateMachine::finished(const BootReport& report) {
+  if (report.started) {
+    ++counters_.boots_started;  // operational once heard so (on_heartbeat), which may be before this
+  } else if (report.held_by_operator) {
+    enter(NodeState::stopped_by_operator, "configured and kept as an operator left it");
+  } else if (const auto& e = report.error;
+             e && std::string_view("CDMNOJ").find(e->code) != std::string_view::npos && node_.online() &&
+             node_.state() == NmtState::operational) {
+    // It runs, and what failed does not change by asking again (its identity, a configuration it
+    // refuses): kept running as it is and reported, not booted every retry interval for ever.
+    // A boot-up, a heartbeat loss or an operator's reset boots it again.
+    ++counters_.boot_failures;
+    waiting_ = boot_.step() + "; it runs on unmanaged (not started by this bridge); a boot-up, a heartbeat loss or an "
+                              "operator's reset boots it again";
+    spdlog::warn("{}: node {}: boot failed while it runs: left running, not retried until it boots, is lost or is reset",
+                 loop_.bus().uri(), node_.node_id());
+    enter(NodeState::running_unmanaged, fmt::format("boot error {} while it runs", e->code));
+  } else {
+    ++counters_.boot_failures;
+    boot_after(settings_.retry, boot_.step() + fmt::format("; next try in {} ms", settings_.retry.count()));
+  }
+  node_.tell([&report](NodeDriver& d) { d.on_boot(report); });
+}
+
+}  // namespace lb::canopen

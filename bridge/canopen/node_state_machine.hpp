@@ -1,0 +1,114 @@
+#pragma once
+// The master's one owner of a remote node's state (CiA 302-2 error control and boot, master
+// role): it hears the node (RemoteNode: heartbeat, boot-up, states not commanded), runs its boot
+// (BootSequence), sends what NMT the master decides, keeps an operator's commands, and holds the
+// result as one explicit NodeState. Every transition is logged once and told to the node's
+// drivers (NodeDriver::on_state).
+//
+// When a device is booted: at start-up, after every believed boot-up, and whenever the master no
+// longer knows what its object dictionary holds: its heartbeat came back after a loss, or it
+// reports a state it was not told to take (it may have been reset without its boot-up reaching
+// the master, e.g. during a bus-off). Never a bare NMT start of such a device: it is booted again
+// (CiA 302-2 "boot slave"), or reset so that its boot-up starts the boot, as the line configures.
+// A reset always leads to a boot (bounded wait for the boot-up). A device that fails its boot is
+// tried again after the retry interval, unless it runs (then it is left running and reported);
+// one that keeps booting (a boot-up storm) is reported and backed off.
+//
+//   unknown ──heard──▶ booting ──passed, heard operational──▶ operational
+//      │                 │  ▲ └──failed──▶ boot failed ──retry──┘ │      │
+//      │                 │  │ └──failed while it runs──▶ running unmanaged
+//      │                 │  └──boot-up, state not commanded, back after loss──┐
+//      │                 └──held by an operator──▶ stopped by operator ◀──operator stop
+//      └── any state ──heartbeat lost──▶ lost;  operator/recovery reset ──▶ resetting ──▶ booting
+
+#include <chrono>
+#include <cstdint>
+#include <deque>
+#include <string>
+#include <string_view>
+
+#include "base/repeat_log.hpp"
+#include "base/result.hpp"
+#include "canopen/boot_sequence.hpp"
+#include "canopen/node_driver.hpp"
+#include "canopen/node_state.hpp"
+#include "canopen/remote_node.hpp"
+#include "canopen/sdo_client.hpp"
+
+namespace lb::canopen {
+
+enum class RecoveryAction { reboot, reset_node };
+
+class NodeStateMachine final : public NodeDriver {
+ public:
+  struct Settings {
+    RecoveryAction on_state_unknown = RecoveryAction::reboot;
+    std::chrono::milliseconds retry{5000};  // after a failed boot
+    // A storm: this many boot-ups or lost states within the window. Each further one doubles the
+    // wait before the next boot, up to max_backoff.
+    unsigned storm_count = 5;
+    std::chrono::milliseconds storm_window{60000};
+    std::chrono::milliseconds max_backoff{300000};
+    // After an NMT reset: how long to wait for the boot-up before booting anyway.
+    std::chrono::milliseconds reset_bound{2000};
+  };
+  struct Counters {
+    std::uint32_t boots = 0;           // attempts begun
+    std::uint32_t boots_started = 0;   // attempts that ended with NMT start
+    std::uint32_t boot_failures = 0;
+    std::uint32_t state_unknown = 0;   // lost-and-back and unexpected states
+    std::uint32_t storms = 0;          // times a storm began
+    std::uint32_t transitions = 0;     // changes of state()
+  };
+
+  // Before the loop starts: attaches itself to the node (as its first driver, so that it acts on
+  // an event before the gateways hear of the state it leads to).
+  NodeStateMachine(BusLoop& loop, RemoteNode& node, SdoClient& sdo, BootSequence::Settings boot, Settings settings);
+  NodeStateMachine(const NodeStateMachine&) = delete;
+  NodeStateMachine& operator=(const NodeStateMachine&) = delete;
+
+  void start();  // loop thread: the first boot
+
+  // Loop thread: an operator's NMT command. Start is refused for a device whose boot has not
+  // passed (its boot starts it); a stop or pre-operational is kept until an operator starts or
+  // resets the device, across heartbeat losses and boot-ups; a reset leads to a boot and ends a
+  // boot-up storm's back-off (a deliberate action).
+  Result<void> operator_command(NmtCommand command);
+
+  NodeState state() const { return state_; }
+  // Loop thread: what diagnostics show next to the state (the boot's step, a pending retry, a storm).
+  std::string detail() const;
+  const BootReport& report() const { return boot_.report(); }
+  const Counters& counters() const { return counters_; }
+
+  // NodeDriver, told by the node.
+  void on_event(NodeEvent event) noexcept override;
+  void on_heartbeat(NmtState state) noexcept override;
+
+ private:
+  void enter(NodeState next, std::string_view why);
+  NodeState silent_state() const;  // what a node not heard now is: unknown, or lost
+  void reset_sent(bool by_operator);
+  bool boot_under_way() const;
+  void recover(const char* why);
+  void boot_now(const std::string& why);
+  void boot_after(std::chrono::milliseconds delay, const std::string& why);
+  // Records a boot-up or lost state; true (and the delay armed) when it makes a storm.
+  bool storm();
+  void finished(const BootReport& report);
+
+  BusLoop& loop_;
+  RemoteNode& node_;
+  BootSequence boot_;
+  Settings settings_;
+  NodeState state_ = NodeState::unknown;
+  BusLoop::TimerId timer_;
+  BusLoop::TimerId reset_timer_;  // bounds the wait for the boot-up after a reset
+  std::deque<std::chrono::steady_clock::time_point> recent_;
+  std::chrono::milliseconds backoff_{0};
+  std::string waiting_;  // why the next boot is pending, or empty
+  RepeatLog boot_log_;  // an absent device is tried every retry interval: the same line once a minute
+  Counters counters_;
+};
+
+}  // namespace lb::canopen

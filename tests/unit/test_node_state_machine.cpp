@@ -1,0 +1,445 @@
+// NodeStateMachine on a scripted bus: no DDS, no processes. The device is a real SDO server on a
+// virtual bus plus a script of its NMT behaviour (it takes the master's NMT commands as CiA 301
+// says, sends its heartbeat every 50 ms, and can be told to fall silent, drop a boot-up or report
+// a state nobody commanded). Every transition of the master's view is checked as the drivers
+// hear it (NodeDriver::on_state), and what the master did as frames on the bus.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <chrono>
+#include <future>
+#include <mutex>
+#include <optional>
+#include <stdexcept>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "canopen/bus_loop.hpp"
+#include "canopen/node_state_machine.hpp"
+#include "canopen/remote_node.hpp"
+#include "canopen/sdo_client.hpp"
+#include "canopen/sdo_server.hpp"
+#include "support/bus_spy.hpp"
+
+using namespace std::chrono_literals;
+namespace co = lb::canopen;
+using co::NodeState;
+
+namespace {
+
+constexpr std::uint8_t kNode = 9;
+constexpr std::uint8_t kStart = 0x01, kStop = 0x02, kPreOp = 0x80, kResetNode = 0x81;  // CiA 301 NMT command specifiers
+constexpr std::uint8_t kBootUp = 0x00, kStopped = 0x04, kOperational = 0x05, kPreOperational = 0x7F;  // heartbeat states
+
+co::ObjectDictionary device_dictionary() {
+  co::ObjectDictionary od;
+  const auto add = [&](std::uint16_t index, std::uint8_t sub, co::DataType type, std::vector<std::uint8_t> value) {
+    if (auto r = od.add(index, sub, type, co::ObjectAccess::ro, std::move(value)); !r) throw std::runtime_error(r.error().message);
+  };
+  add(0x1000, 0, co::DataType::unsigned32, {0xA4, 0x01, 0x00, 0x00});  // profile 420 (1A4h)
+  add(0x1018, 1, co::DataType::unsigned32, {0x34, 0x12, 0x00, 0x00});  // vendor-ID 1234h
+  add(0x1018, 2, co::DataType::unsigned32, {0x01, 0x00, 0x00, 0x00});
+  add(0x1018, 3, co::DataType::unsigned32, {0x02, 0x00, 0x00, 0x00});
+  add(0x1018, 4, co::DataType::unsigned32, {0x03, 0x00, 0x00, 0x00});
+  return od;
+}
+
+// The device: CiA 301 NMT slave behaviour on its own loop, steered by the test.
+class ScriptedDevice {
+ public:
+  ScriptedDevice(const std::string& uri, std::uint8_t initial_state, bool silent)
+      : loop_(lb::can::open_bus(uri).value()), server_(loop_, kNode, device_dictionary()), state_(initial_state), silent_(silent) {
+    loop_.on_frame(0x000, [this](const lb::can::CanFrame& f) {
+      if (f.len != 2 || (f.data[1] != kNode && f.data[1] != 0)) return;
+      switch (f.data[0]) {
+        case kStart: state_ = kOperational; break;
+        case kStop: state_ = kStopped; break;
+        case kPreOp: state_ = kPreOperational; break;
+        default:  // reset node / communication: a boot-up, then pre-operational
+          state_ = kPreOperational;
+          if (drop_boot_up_) {
+            drop_boot_up_ = false;
+          } else {
+            send(kBootUp);
+          }
+      }
+    });
+    const auto timer = loop_.create_timer([this] {
+      if (!silent_) send(state_);
+    });
+    loop_.arm_timer(timer, 50ms, 50ms);
+    loop_.start();
+  }
+  ~ScriptedDevice() { loop_.stop(); }
+
+  void silence(bool silent) { on_loop([this, silent] { silent_ = silent; }); }
+  void drop_next_boot_up() { on_loop([this] { drop_boot_up_ = true; }); }
+  // A state nobody commanded (a local reset whose boot-up was lost, a service tool).
+  void report(std::uint8_t state) { on_loop([this, state] { state_ = state; }); }
+  // A power cycle: the boot-up, then pre-operational.
+  void power_cycle() {
+    on_loop([this] {
+      state_ = kPreOperational;
+      send(kBootUp);
+    });
+  }
+  std::uint8_t state() {
+    std::promise<std::uint8_t> p;
+    auto f = p.get_future();
+    loop_.post([&] { p.set_value(state_); });
+    return f.get();
+  }
+
+ private:
+  void send(std::uint8_t state) { (void)loop_.send(lb::can::make_frame(0x700 + kNode, {state})); }
+  template <class F>
+  void on_loop(F f) {
+    std::promise<void> p;
+    auto done = p.get_future();
+    loop_.post([&] {
+      f();
+      p.set_value();
+    });
+    done.wait();
+  }
+
+  co::BusLoop loop_;
+  co::SdoServer server_;
+  std::uint8_t state_;
+  bool silent_;
+  bool drop_boot_up_ = false;
+};
+
+// What a gateway plugged into the node hears of the state machine.
+class Recorder final : public co::NodeDriver {
+ public:
+  void on_state(NodeState s) noexcept override {
+    std::lock_guard lock(m_);
+    states_.push_back(s);
+  }
+  void on_boot(const co::BootReport& r) noexcept override {
+    std::lock_guard lock(m_);
+    boots_.push_back(r);
+  }
+  std::vector<NodeState> states() {
+    std::lock_guard lock(m_);
+    return states_;
+  }
+  std::vector<co::BootReport> boots() {
+    std::lock_guard lock(m_);
+    return boots_;
+  }
+
+ private:
+  std::mutex m_;
+  std::vector<NodeState> states_;
+  std::vector<co::BootReport> boots_;
+};
+
+class NodeStateMachineTest : public ::testing::Test {
+ protected:
+  void SetUp() override { uri_ = "virtual:nsm-" + std::to_string(::getpid()) + "-" + ::testing::UnitTest::GetInstance()->current_test_info()->name(); }
+  void TearDown() override {
+    if (master_) master_->stop();
+  }
+
+  // The master side: heartbeat timeout 300 ms, retry 300 ms, reset bound 600 ms, a storm is 3
+  // boot-ups within 10 s.
+  void start_master(std::uint8_t device_state, std::optional<std::uint32_t> vendor = 0x1234, bool silent = false) {
+    spy_ = std::make_unique<lb::test::BusSpy>(uri_);
+    device_ = std::make_unique<ScriptedDevice>(uri_, device_state, silent);
+    master_ = std::make_unique<co::BusLoop>(lb::can::open_bus(uri_).value());
+    sdo_ = std::make_unique<co::SdoClient>(*master_);
+    node_ = std::make_unique<co::RemoteNode>(*master_, kNode, 300ms, true);
+    co::BootSequence::Settings boot;
+    boot.identity.profile_number = 0x1A4;
+    boot.identity.vendor_id = vendor;
+    co::NodeStateMachine::Settings settings;
+    settings.retry = 300ms;
+    settings.reset_bound = 600ms;
+    settings.storm_count = 3;
+    settings.storm_window = 10s;
+    settings.max_backoff = 60s;
+    machine_ = std::make_unique<co::NodeStateMachine>(*master_, *node_, *sdo_, boot, settings);
+    node_->attach(recorder_);
+    master_->start();
+    master_->post([this] { machine_->start(); });
+  }
+
+  template <class T, class F>
+  T on_master(F f) {
+    std::promise<T> p;
+    auto r = p.get_future();
+    master_->post([&] { p.set_value(f()); });
+    return r.get();
+  }
+  NodeState state() { return on_master<NodeState>([this] { return machine_->state(); }); }
+  co::NodeStateMachine::Counters counters() { return on_master<co::NodeStateMachine::Counters>([this] { return machine_->counters(); }); }
+  lb::Result<void> operator_command(co::NmtCommand c) {
+    return on_master<lb::Result<void>>([this, c] { return machine_->operator_command(c); });
+  }
+
+  // Waits (generously) for the machine to be in `s`.
+  ::testing::AssertionResult reaches(NodeState s, std::chrono::seconds within = 15s) {
+    const auto deadline = std::chrono::steady_clock::now() + within;
+    while (std::chrono::steady_clock::now() < deadline) {
+      if (state() == s) return ::testing::AssertionSuccess();
+      std::this_thread::sleep_for(10ms);
+    }
+    return ::testing::AssertionFailure() << "never " << co::to_string(s) << "; it is " << co::to_string(state());
+  }
+  // Waits for the n-th NMT command `cs` to node 9 on the bus.
+  ::testing::AssertionResult nmt_seen(std::uint8_t cs, std::size_t n = 1, std::chrono::seconds within = 15s) {
+    const auto deadline = std::chrono::steady_clock::now() + within;
+    while (std::chrono::steady_clock::now() < deadline) {
+      if (nmt_count(cs) >= n) return ::testing::AssertionSuccess();
+      std::this_thread::sleep_for(10ms);
+    }
+    return ::testing::AssertionFailure() << "NMT " << int(cs) << " #" << n << " never on the bus";
+  }
+  std::size_t nmt_count(std::uint8_t cs) {
+    const auto f = spy_->frames(0x000);
+    return std::count_if(f.begin(), f.end(), [cs](const lb::can::CanFrame& x) { return x.len == 2 && x.data[0] == cs && x.data[1] == kNode; });
+  }
+  // The frames' positions on the bus: the last NMT `cs`, and whether an SDO request to the node
+  // came between `after` and it.
+  static std::ptrdiff_t last_nmt(const std::vector<lb::can::CanFrame>& frames, std::uint8_t cs) {
+    for (auto i = static_cast<std::ptrdiff_t>(frames.size()) - 1; i >= 0; --i) {
+      const auto& f = frames[static_cast<std::size_t>(i)];
+      if (f.id == 0 && f.len == 2 && f.data[0] == cs && f.data[1] == kNode) return i;
+    }
+    return -1;
+  }
+  static bool sdo_between(const std::vector<lb::can::CanFrame>& frames, std::ptrdiff_t from, std::ptrdiff_t to) {
+    for (auto i = from + 1; i < to; ++i) {
+      if (frames[static_cast<std::size_t>(i)].id == 0x600u + kNode) return true;
+    }
+    return false;
+  }
+
+  std::string uri_;
+  std::unique_ptr<lb::test::BusSpy> spy_;
+  std::unique_ptr<ScriptedDevice> device_;
+  std::unique_ptr<co::BusLoop> master_;
+  std::unique_ptr<co::SdoClient> sdo_;
+  std::unique_ptr<co::RemoteNode> node_;
+  std::unique_ptr<co::NodeStateMachine> machine_;
+  Recorder recorder_;
+};
+
+}  // namespace
+
+// unknown → booting → operational: SDO (the boot) before NMT start, and operational only once the
+// device's heartbeat says so.
+TEST_F(NodeStateMachineTest, AFreshDeviceIsBootedThenOperational) {
+  start_master(kPreOperational);
+  ASSERT_TRUE(reaches(NodeState::operational));
+  const auto frames = spy_->frames();
+  const auto start = last_nmt(frames, kStart);
+  ASSERT_GE(start, 0);
+  EXPECT_TRUE(sdo_between(frames, -1, start)) << "NMT start before any SDO";
+  EXPECT_EQ(recorder_.states(), (std::vector<NodeState>{NodeState::booting, NodeState::operational}));
+  EXPECT_EQ(device_->state(), kOperational);
+}
+
+// A device that answers SDO but sends no heartbeat stays unknown (its probe boots fail with K and
+// are retried), and is booted when it is heard.
+TEST_F(NodeStateMachineTest, ASilentDeviceStaysUnknownUntilHeard) {
+  start_master(kPreOperational, 0x1234, true);
+  const auto deadline = std::chrono::steady_clock::now() + 15s;
+  while (counters().boot_failures < 2) {
+    ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "the probe was not retried";
+    std::this_thread::sleep_for(10ms);
+  }
+  EXPECT_EQ(state(), NodeState::unknown);
+  EXPECT_EQ(nmt_count(kStart), 0u);
+  device_->silence(false);
+  ASSERT_TRUE(reaches(NodeState::operational));
+  const auto s = recorder_.states();
+  EXPECT_EQ(s, (std::vector<NodeState>{NodeState::booting, NodeState::operational})) << "a silent device is unknown, not a failed boot";
+}
+
+// boot failed (CiA 302-2 D: vendor-ID), retried after the retry interval, never started.
+TEST_F(NodeStateMachineTest, AWrongDeviceFailsItsBootAndIsRetriedNeverStarted) {
+  start_master(kPreOperational, 0x9999);
+  ASSERT_TRUE(reaches(NodeState::boot_failed));
+  const auto deadline = std::chrono::steady_clock::now() + 15s;
+  while (counters().boot_failures < 3) {
+    ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "not retried";
+    std::this_thread::sleep_for(10ms);
+  }
+  EXPECT_EQ(nmt_count(kStart), 0u);
+  const auto boots = recorder_.boots();
+  ASSERT_FALSE(boots.empty());
+  ASSERT_TRUE(boots.back().error);
+  EXPECT_EQ(boots.back().error->code, 'D');
+  EXPECT_EQ(state(), NodeState::boot_failed);
+  auto r = operator_command(co::NmtCommand::start);
+  ASSERT_FALSE(r);
+  EXPECT_NE(r.error().message.find("has not passed its boot"), std::string::npos) << r.error().message;
+  EXPECT_EQ(nmt_count(kStart), 0u) << "a refused start went on the bus";
+}
+
+// A running device whose boot fails on something asking again will not change (its identity) is
+// left running and reported: running unmanaged, no NMT command at all.
+TEST_F(NodeStateMachineTest, ARunningWrongDeviceIsLeftRunningUnmanaged) {
+  start_master(kOperational, 0x9999);
+  ASSERT_TRUE(reaches(NodeState::running_unmanaged));
+  EXPECT_EQ(spy_->frames(0x000).size(), 0u) << "an NMT command reached a device the bridge does not manage";
+  EXPECT_EQ(device_->state(), kOperational);
+  // A heartbeat loss ends it: lost, then probed again when it is back.
+  device_->silence(true);
+  ASSERT_TRUE(reaches(NodeState::lost));
+  device_->silence(false);
+  ASSERT_TRUE(reaches(NodeState::running_unmanaged));
+}
+
+// operational → lost → booting → operational: a device back after a loss is booted again (SDO
+// before the second NMT start), never started bare.
+TEST_F(NodeStateMachineTest, ADeviceBackAfterALossIsBootedAgain) {
+  start_master(kPreOperational);
+  ASSERT_TRUE(reaches(NodeState::operational));
+  device_->silence(true);
+  ASSERT_TRUE(reaches(NodeState::lost));
+  device_->report(kPreOperational);  // it lost power meanwhile, and its boot-up was not heard
+  device_->silence(false);
+  ASSERT_TRUE(nmt_seen(kStart, 2));
+  ASSERT_TRUE(reaches(NodeState::operational));
+  const auto frames = spy_->frames();
+  const auto first = std::find_if(frames.begin(), frames.end(), [](const auto& f) { return f.id == 0 && f.data[0] == kStart; }) - frames.begin();
+  EXPECT_TRUE(sdo_between(frames, first, last_nmt(frames, kStart))) << "started again without a boot";
+  const auto s = recorder_.states();
+  const std::vector<NodeState> expected{NodeState::booting, NodeState::operational, NodeState::lost, NodeState::booting,
+                                        NodeState::operational};
+  EXPECT_EQ(s, expected);
+}
+
+// A state nobody commanded (pre-operational while told operational): booted again.
+TEST_F(NodeStateMachineTest, AStateNotCommandedBootsItAgain) {
+  start_master(kPreOperational);
+  ASSERT_TRUE(reaches(NodeState::operational));
+  device_->report(kPreOperational);
+  ASSERT_TRUE(nmt_seen(kStart, 2));
+  ASSERT_TRUE(reaches(NodeState::operational));
+  EXPECT_EQ(counters().state_unknown, 1u);
+  const auto s = recorder_.states();
+  ASSERT_GE(s.size(), 4u);
+  EXPECT_EQ(s[2], NodeState::booting);
+}
+
+// A reset always leads to a boot: the device's boot-up is lost; after the bound the master boots
+// it (SDO, then NMT start), and it is never operational in between.
+TEST_F(NodeStateMachineTest, AResetWhoseBootUpIsLostEndsInABootNotInLimbo) {
+  start_master(kPreOperational);
+  ASSERT_TRUE(reaches(NodeState::operational));
+  device_->drop_next_boot_up();
+  ASSERT_TRUE(operator_command(co::NmtCommand::reset_node));
+  EXPECT_EQ(state(), NodeState::resetting);
+  ASSERT_TRUE(nmt_seen(kStart, 2));
+  ASSERT_TRUE(reaches(NodeState::operational));
+  const auto frames = spy_->frames();
+  EXPECT_TRUE(sdo_between(frames, last_nmt(frames, kResetNode), last_nmt(frames, kStart)));
+  const std::vector<NodeState> expected{NodeState::booting, NodeState::operational, NodeState::resetting, NodeState::booting,
+                                        NodeState::operational};
+  EXPECT_EQ(recorder_.states(), expected);
+}
+
+// A boot-up storm: backed off (boot failed, counted once), not booted at every boot-up; an
+// operator's reset ends the back-off and boots it.
+TEST_F(NodeStateMachineTest, ABootUpStormIsBackedOffAndAnOperatorResetEndsIt) {
+  start_master(kPreOperational);
+  ASSERT_TRUE(reaches(NodeState::operational));
+  // Power cycles one after the other (each boot-up believed at the heartbeat that follows it).
+  const auto deadline = std::chrono::steady_clock::now() + 30s;
+  for (int i = 0; i < 3 && state() != NodeState::boot_failed; ++i) {
+    const auto boots = counters().boots;
+    device_->power_cycle();
+    while (counters().boots == boots && state() != NodeState::boot_failed) {
+      ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "a power cycle was not acted on";
+      std::this_thread::sleep_for(10ms);
+    }
+  }
+  ASSERT_TRUE(reaches(NodeState::boot_failed));
+  EXPECT_EQ(counters().storms, 1u);
+  const auto starts = nmt_count(kStart);
+  EXPECT_EQ(device_->state(), kPreOperational);
+  ASSERT_TRUE(operator_command(co::NmtCommand::reset_node));
+  ASSERT_TRUE(nmt_seen(kStart, starts + 1));
+  ASSERT_TRUE(reaches(NodeState::operational));
+}
+
+// An operator's stop sticks: across a heartbeat loss and a power cycle the device is configured
+// again and put back in stopped (NMT stop), never started, until an operator starts it.
+TEST_F(NodeStateMachineTest, AnOperatorStopSticksUntilAnOperatorStarts) {
+  start_master(kPreOperational);
+  ASSERT_TRUE(reaches(NodeState::operational));
+  ASSERT_TRUE(operator_command(co::NmtCommand::stop));
+  EXPECT_EQ(state(), NodeState::stopped_by_operator);
+  device_->silence(true);
+  ASSERT_TRUE(reaches(NodeState::lost));
+  device_->power_cycle();  // while silent: its boot-up is heard, heartbeats resume below
+  device_->silence(false);
+  ASSERT_TRUE(nmt_seen(kStop, 2));
+  ASSERT_TRUE(reaches(NodeState::stopped_by_operator));
+  EXPECT_EQ(nmt_count(kStart), 1u) << "the stopped device was started without an operator";
+  EXPECT_EQ(device_->state(), kStopped);
+  ASSERT_TRUE(operator_command(co::NmtCommand::start));
+  ASSERT_TRUE(reaches(NodeState::operational));
+  EXPECT_EQ(device_->state(), kOperational);
+}
+
+// A spoofed boot-up next to a running device (its heartbeat goes on saying operational) is not
+// believed: no transition, no boot.
+TEST_F(NodeStateMachineTest, ASpoofedBootUpChangesNothing) {
+  start_master(kPreOperational);
+  ASSERT_TRUE(reaches(NodeState::operational));
+  const auto boots = counters().boots;
+  ASSERT_TRUE(spy_->send(lb::can::make_frame(0x700 + kNode, {kBootUp})));
+  const auto deadline = std::chrono::steady_clock::now() + 15s;
+  while (on_master<std::uint32_t>([this] { return node_->stats().boot_ups_not_believed; }) == 0) {
+    ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "the boot-up was never judged";
+    std::this_thread::sleep_for(10ms);
+  }
+  EXPECT_EQ(state(), NodeState::operational);
+  EXPECT_EQ(counters().boots, boots);
+  EXPECT_EQ(recorder_.states(), (std::vector<NodeState>{NodeState::booting, NodeState::operational}));
+}
+
+// The storm's back-off is a timeout too: when it ends, the device is booted again by itself
+// (boot failed → booting → operational), SDO before its NMT start.
+TEST_F(NodeStateMachineTest, ABootUpStormsBackOffEndsInABoot) {
+  start_master(kPreOperational);
+  ASSERT_TRUE(reaches(NodeState::operational));
+  const auto deadline = std::chrono::steady_clock::now() + 30s;
+  for (int i = 0; i < 3 && state() != NodeState::boot_failed; ++i) {
+    const auto boots = counters().boots;
+    device_->power_cycle();
+    while (counters().boots == boots && state() != NodeState::boot_failed) {
+      ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "a power cycle was not acted on";
+      std::this_thread::sleep_for(10ms);
+    }
+  }
+  ASSERT_TRUE(reaches(NodeState::boot_failed));
+  const auto starts = nmt_count(kStart);
+  ASSERT_TRUE(nmt_seen(kStart, starts + 1));  // after the back-off (retry: 300 ms), nobody asking
+  ASSERT_TRUE(reaches(NodeState::operational));
+  const auto s = recorder_.states();
+  const auto failed = std::find(s.begin(), s.end(), NodeState::boot_failed);
+  ASSERT_NE(failed, s.end());
+  ASSERT_LT(failed + 1, s.end());
+  EXPECT_EQ(*(failed + 1), NodeState::booting);
+  EXPECT_EQ(s.back(), NodeState::operational);
+  const auto frames = spy_->frames();
+  const auto last = last_nmt(frames, kStart);
+  std::ptrdiff_t previous = -1;
+  for (std::ptrdiff_t i = last - 1; i >= 0; --i) {
+    const auto& f = frames[static_cast<std::size_t>(i)];
+    if (f.id == 0x700u + kNode && f.len == 1 && f.data[0] == kBootUp) {
+      previous = i;
+      break;
+    }
+  }
+  EXPECT_TRUE(sdo_between(frames, previous, last)) << "started after the storm without a boot";
+}
