@@ -169,6 +169,7 @@ void DeviceServices::read_errors() {
 void DeviceServices::booted(const canopen::BootReport& report) {
   report_ = report;
   ++boots_reported_;
+  for (const auto& l : boot_listeners_) l(report);
   error_history_ = {};
   error_history_.remark = report.started ? "not read yet" : "not read: the boot did not pass";
   if (!report.started || ctx_.sdo == nullptr) return publish_info();
@@ -373,6 +374,7 @@ void DeviceServices::nmt(const srv::Nmt_Request& request, ddsl::Respond<srv::Nmt
         if (control_) control_->reset_sent(true);
         break;
     }
+    for (const auto& l : nmt_listeners_) l(c);
     // NMT is unconfirmed (CiA 301): only the device's heartbeat tells that it was heard. A device
     // that has none (offline) may be gone; sending may still help (a reset), claiming it did not.
     if (!ctx_.node.online()) {

@@ -13,6 +13,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "canopen/boot_sequence.hpp"
 #include "canopen/error_control.hpp"
@@ -32,6 +33,12 @@ class DeviceServices {
 
   // Loop thread: the first boot (master role).
   void start();
+  // Before the loop starts: told (loop thread) every boot attempt that ended, and every NMT
+  // command an operator's request sent (the line-level mandatory-device policy listens).
+  void on_boot(std::function<void(const canopen::BootReport&)> listener) { boot_listeners_.push_back(std::move(listener)); }
+  void on_operator_nmt(std::function<void(canopen::NmtCommand)> listener) { nmt_listeners_.push_back(std::move(listener)); }
+  // Loop thread: a boot is checking and configuring the device right now (master role).
+  bool booting() const { return control_ && control_->node_state() == canopen::NodeState::booting; }
   // Loop thread: "started", "failed (K): ...", a pending retry, "monitored" (monitor role).
   std::string boot_state() const { return control_ ? control_->state() : "monitored"; }
   std::string_view node_state() const { return control_ ? canopen::to_string(control_->node_state()) : "monitored"; }
@@ -81,6 +88,8 @@ class DeviceServices {
   bool reread_errors_ = false;
   linebridge_msgs::msg::ConfigurationWord configuration_word_;
   canopen::ErrorHistory error_history_;  // 1003h as the last boot that passed read it
+  std::vector<std::function<void(const canopen::BootReport&)>> boot_listeners_;
+  std::vector<std::function<void(canopen::NmtCommand)>> nmt_listeners_;
 };
 
 // The boot's findings as their DDS types.
