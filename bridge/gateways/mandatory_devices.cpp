@@ -155,11 +155,14 @@ void MandatoryDevices::stop_others(std::size_t failed) {
     }
     add_name(stopped, members_[j].name);
   }
-  spdlog::warn("{}: mandatory device {} (node {}): {}: {} (when_mandatory_fails: stop_others); kept stopped until an "
-               "operator starts them (nmt start), also when {} comes back",
-               bus_, f.name, f.node->node_id(), status_[failed].why,
-               stopped.empty() ? std::string("no device of the bus runs; the others wait for it") : "NMT stop to " + stopped,
-               f.name);
+  if (stopped.empty()) {
+    spdlog::warn("{}: mandatory device {} (node {}): {}: nothing the bridge started runs; the others wait for it", bus_, f.name,
+                 f.node->node_id(), status_[failed].why);
+    return;
+  }
+  spdlog::warn("{}: mandatory device {} (node {}): {}: NMT stop to {} (when_mandatory_fails: stop_others); kept stopped "
+               "until an operator starts them (nmt start), also when {} comes back",
+               bus_, f.name, f.node->node_id(), status_[failed].why, stopped, f.name);
 }
 
 void MandatoryDevices::open_gate() {
