@@ -130,17 +130,19 @@ std::string to_text(const msg::Diagnostics& d) {
       out += fmt::format("  bus {:<12} other master's or stray frames: {} (last: {})\n", b.name(), b.other_master_frames(),
                          b.other_master_last());
     }
+    if (!b.mandatory_state().empty()) out += fmt::format("  bus {:<12} MANDATORY DEVICES: {}\n", b.name(), b.mandatory_state());
   }
   for (const auto& n : d.nodes()) {
-    out += fmt::format("  {:<12} {:<10} node {:>3} {:<7} {:<15} heartbeat {:>6} boots {} PDOs in {} out {} short {} "
+    out += fmt::format("  {:<12} {:<10} node {:>3}{} {:<7} {:<15} heartbeat {:>6} boots {} PDOs in {} out {} short {} "
                        "EMCY {} | {}\n",
-                       n.device(), n.bus(), n.node_id(), n.online() ? "online" : "OFFLINE", to_text(n.nmt_state()),
+                       n.device(), n.bus(), n.node_id(), n.mandatory() ? " (mandatory)" : "", n.online() ? "online" : "OFFLINE", to_text(n.nmt_state()),
                        n.last_heartbeat_age_s() < 0 ? std::string("never") : fmt::format("{:.2f} s", n.last_heartbeat_age_s()),
                        n.boot_ups(), n.pdos_received(), n.pdos_sent(), n.pdo_length_errors(), n.emergencies(),
                        n.node_state().empty() || n.node_state() == "monitored" ? n.boot_state() : n.node_state() + ": " + n.boot_state());
     if (!n.boot_error().code().empty() && n.boot_state().rfind("failed", 0) != 0) {
       out += fmt::format("  {:<12} last boot failure: {}\n", "", to_text(n.boot_error()));
     }
+    if (!n.line_hold().empty()) out += fmt::format("  {:<12} held by the line: {}\n", "", n.line_hold());
     if (!n.set_values_at_start().empty()) out += fmt::format("  {:<12} last start: {}\n", "", n.set_values_at_start());
     if (n.boot_ups_not_believed() != 0) {
       out += fmt::format("  {:<12} boot-ups not believed (its next heartbeat said operational): {}\n", "", n.boot_ups_not_believed());

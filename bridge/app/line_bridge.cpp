@@ -114,6 +114,27 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
     managed.push_back({dev.name, dev.resolved_profile->device + ", " + dev.resolved_profile->key(), rt.services.back().get(),
                        rt.gateways.back()->commands()});
   }
+  // Mandatory devices (CiA 302-2 1F81h bit 3): one coordinator per master bus that has any, told
+  // the boots and operator commands of every device of the bus (in the bus's device order).
+  for (auto& rt : bridge->buses_) {
+    if (rt.config->role != profiles::BusRole::master) continue;
+    std::vector<gateways::MandatoryDevices::Member> members;
+    bool any = false;
+    for (const auto& dev : config.devices) {
+      if (dev.bus != rt.config->name) continue;
+      const auto i = members.size();
+      members.push_back({dev.name, rt.nodes[i].get(), dev.mandatory, [s = rt.services[i].get()] { return s->booting(); }});
+      any = any || dev.mandatory;
+    }
+    if (!any) continue;
+    rt.mandatory = std::make_unique<gateways::MandatoryDevices>(*rt.loop, "bus " + rt.config->name,
+                                                                config.startup.when_mandatory_fails, std::move(members));
+    for (std::size_t i = 0; i < rt.services.size(); ++i) {
+      auto* m = rt.mandatory.get();
+      rt.services[i]->on_operator_nmt([m, i](canopen::NmtCommand c) { m->operator_command(i, c); });
+    }
+  }
+
   // After every device: a request may name any of them from the moment the services are matched.
   auto management = gateways::ManagementServices::serve(*bridge->dds_, config.line, std::move(managed));
   if (!management) return management.error();
@@ -121,11 +142,11 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
 
   std::vector<gateways::DiagnosticsGateway::Bus> diag;
   for (const auto& rt : bridge->buses_) {
-    gateways::DiagnosticsGateway::Bus b{rt.config, rt.loop.get(), rt.other_master.get(), {}};
+    gateways::DiagnosticsGateway::Bus b{rt.config, rt.loop.get(), rt.other_master.get(), {}, rt.mandatory.get()};
     for (std::size_t i = 0; i < rt.nodes.size(); ++i) {
       for (const auto& dev : config.devices) {
         if (dev.bus == rt.config->name && dev.node_id == rt.nodes[i]->node_id()) {
-          b.devices.push_back({&dev, rt.nodes[i].get(), rt.services[i].get()});
+          b.devices.push_back({&dev, rt.nodes[i].get(), rt.services[i].get(), i});
         }
       }
     }

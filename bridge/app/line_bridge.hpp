@@ -22,6 +22,7 @@
 #include "gateways/diagnostics_gateway.hpp"
 #include "gateways/gateway.hpp"
 #include "gateways/management_services.hpp"
+#include "gateways/mandatory_devices.hpp"
 #include "gateways/set_value_store.hpp"
 #include "profiles/line_config.hpp"
 
@@ -68,6 +69,8 @@ class LineBridge {
     std::vector<std::unique_ptr<canopen::RemoteNode>> nodes;
     std::vector<std::unique_ptr<gateways::DeviceServices>> services;
     std::vector<std::unique_ptr<gateways::Gateway>> gateways;
+    // Master role, when a device of the bus is mandatory: the line-level policy for them.
+    std::unique_ptr<gateways::MandatoryDevices> mandatory;
   };
 
   // Before the buses: their gateways keep set values in it until they are gone.

@@ -100,12 +100,22 @@ void print_summary(const profiles::LineConfig& line, const std::vector<ddsl::Pla
     if (!b.record.empty()) fmt::print(out, ", recording to {}", b.record);
     if (b.realtime_priority != 0) fmt::print(out, ", loop at realtime priority {} (SCHED_FIFO)", b.realtime_priority);
     fmt::print(out, "\n");
+    std::string mandatory;
     for (const auto& d : line.devices) {
       if (d.bus != b.name) continue;
-      fmt::print(out, "  {} node {}: {} {} {} ({}), heartbeat timeout {} ms{}, pdo_config {}\n", d.name, d.node_id,
+      fmt::print(out, "  {} node {}: {} {} {} ({}), heartbeat timeout {} ms{}, pdo_config {}{}\n", d.name, d.node_id,
                  d.resolved_profile->device, d.profile, d.version, d.resolved_profile->title, d.heartbeat_timeout.count(),
                  d.heartbeat_producer ? fmt::format(" (producer {} ms written to 1017h)", d.heartbeat_producer->count()) : "",
-                 profiles::to_string(d.pdo_config));
+                 profiles::to_string(d.pdo_config), d.mandatory ? ", mandatory" : "");
+      if (d.mandatory) mandatory += (mandatory.empty() ? "" : ", ") + d.name;
+    }
+    if (!mandatory.empty()) {
+      fmt::print(out, "  mandatory devices: {}: no device of the bus is started before they passed their boot; if one is "
+                      "lost or fails its boot: {}\n",
+                 mandatory, fmt::format("{} ({})", profiles::to_string(line.startup.when_mandatory_fails),
+                                        line.startup.when_mandatory_fails == profiles::StartupPolicy::WhenMandatoryFails::stop_others
+                                            ? "every other device the bridge started gets NMT stop, kept until an operator starts it"
+                                            : "log and diagnostics; the line runs on"));
     }
   }
   // One line per topic: which way the bridge uses it and with what QoS.

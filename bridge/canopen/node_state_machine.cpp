@@ -112,6 +112,10 @@ void NodeStateMachine::on_heartbeat(NmtState state) noexcept {
   // Started (or released by an operator) and now heard operational: the condition for RPDOs.
   if ((state_ == NodeState::booting || state_ == NodeState::stopped_by_operator) && node_.ready_for_pdos()) {
     enter(NodeState::operational, "started, heard operational");
+  } else if (state_ == NodeState::operational && node_.operator_hold() && node_.configured() &&
+             node_.commanded_state() != NmtState::operational) {
+    // Held by a stop sent past this machine (the line's reaction to a lost mandatory device).
+    enter(NodeState::stopped_by_operator, "held stopped");
   }
 }
 

@@ -347,6 +347,7 @@ void DeviceServices::nmt(const srv::Nmt_Request& request, ddsl::Respond<srv::Nmt
     // The node state machine keeps what an operator asks (canopen/node_state_machine.hpp).
     if (auto r = machine_->operator_command(c); !r) return reply(false, ctx_.device.name + " " + r.error().message);
     spdlog::info("{}: NMT command {:02X}h sent on request", ctx_.device.name, static_cast<int>(c));
+    for (const auto& l : nmt_listeners_) l(c);
     // NMT is unconfirmed (CiA 301): only the device's heartbeat tells that it was heard. A device
     // that has none (offline) may be gone; sending may still help (a reset), claiming it did not.
     if (!ctx_.node.online()) {

@@ -13,6 +13,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "canopen/boot_sequence.hpp"
 #include "canopen/node_driver.hpp"
@@ -33,6 +34,11 @@ class DeviceServices final : public canopen::NodeDriver {
 
   // Loop thread: the first boot (master role).
   void start();
+  // Before the loop starts: told (loop thread) every NMT command an operator's request sent (the
+  // line-level mandatory-device policy listens).
+  void on_operator_nmt(std::function<void(canopen::NmtCommand)> listener) { nmt_listeners_.push_back(std::move(listener)); }
+  // Loop thread: a boot is checking and configuring the device right now (master role).
+  bool booting() const { return machine_ && machine_->state() == canopen::NodeState::booting; }
   // Loop thread: "started", "failed (K): ...", a pending retry, "monitored" (monitor role).
   std::string boot_state() const { return machine_ ? machine_->detail() : "monitored"; }
   std::string_view node_state() const { return machine_ ? canopen::to_string(machine_->state()) : "monitored"; }
@@ -90,6 +96,7 @@ class DeviceServices final : public canopen::NodeDriver {
   bool reread_errors_ = false;
   linebridge_msgs::msg::ConfigurationWord configuration_word_;
   canopen::ErrorHistory error_history_;  // 1003h as the last boot that passed read it
+  std::vector<std::function<void(canopen::NmtCommand)>> nmt_listeners_;
 };
 
 // The boot's findings as their DDS types.

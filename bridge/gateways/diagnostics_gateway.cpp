@@ -103,6 +103,10 @@ void DiagnosticsGateway::snapshot(std::size_t i) {
     b.yielding_to_other_master(bus.other_master->yielding());
     b.other_master_last(bus.other_master->last());
   }
+  if (bus.mandatory != nullptr) {
+    b.mandatory_missing(bus.mandatory->missing());
+    b.mandatory_state(bus.mandatory->state());
+  }
 
   std::vector<msg::NodeDiagnostics> nodes;
   // Heartbeat times are the frames' own: on a replay, the recording's. Their age is then taken on
@@ -121,6 +125,15 @@ void DiagnosticsGateway::snapshot(std::size_t i) {
     n.nmt_state(to_msg(d.node->state()));
     n.boot_state(d.services->boot_state());
     n.node_state(std::string(d.services->node_state()));
+    if (bus.mandatory != nullptr) {
+      n.mandatory(bus.mandatory->mandatory(d.index));
+      n.line_hold(bus.mandatory->hold_of(d.index));
+      // The node's hold is the line's, not an operator's: its state and boot state say so.
+      if (!n.line_hold().empty() && n.node_state() == "stopped by operator") {
+        n.node_state(n.line_hold().rfind("stopped", 0) == 0 ? "stopped by the line" : "waiting for a mandatory device");
+      }
+      if (!n.line_hold().empty() && n.boot_state().find("by the operator") != std::string::npos) n.boot_state(n.line_hold());
+    }
     n.set_values_at_start(d.node->set_values_at_start());
     if (const auto& e = d.services->boot_report().error) n.boot_error(to_msg(*e));
     const auto counters = d.services->boot_counters();

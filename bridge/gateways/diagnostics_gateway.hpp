@@ -16,6 +16,7 @@
 #include "canopen/remote_node.hpp"
 #include "dds/participant.hpp"
 #include "gateways/device_services.hpp"
+#include "gateways/mandatory_devices.hpp"
 #include "msgs/commonPubSubTypes.h"
 #include "profiles/line_config.hpp"
 
@@ -27,12 +28,14 @@ class DiagnosticsGateway {
     const profiles::DeviceConfig* config;
     const canopen::RemoteNode* node;
     const DeviceServices* services;
+    std::size_t index = 0;  // its place among the devices of its bus (MandatoryDevices' member)
   };
   struct Bus {
     const profiles::BusConfig* config;
     canopen::BusLoop* loop;
     const canopen::OtherMasterWatch* other_master;  // master role only
     std::vector<Device> devices;
+    const MandatoryDevices* mandatory = nullptr;  // master role, when a device of the bus is mandatory
   };
 
   // The process's own fields (the set-value store, the log), filled on the publishing thread.

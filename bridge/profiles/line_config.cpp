@@ -444,7 +444,7 @@ void claim_pdo_identifiers(const YamlSource& src, const YAML::Node& n, const Dev
 
 StartupPolicy parse_startup(const YamlSource& src, const YAML::Node& n) {
   src.expect_map(n, "startup");
-  src.check_keys(n, "startup", {"set_values_max_age_s", "after_power_loss", "restart_after_power_loss"});
+  src.check_keys(n, "startup", {"set_values_max_age_s", "after_power_loss", "restart_after_power_loss", "when_mandatory_fails"});
   StartupPolicy p;
   p.set_values_max_age = std::chrono::seconds(bounded<int>(src, n, "set_values_max_age_s", 3600, 0, 30 * 86400, "startup"));
   if (const auto v = src.optional<std::string>(n, "after_power_loss")) {
@@ -457,6 +457,11 @@ StartupPolicy parse_startup(const YamlSource& src, const YAML::Node& n) {
     else if (*v == "allowed") p.restart_after_power_loss = StartupPolicy::Restart::allowed;
     else src.fail(n["restart_after_power_loss"], "restart_after_power_loss must be never or allowed, not '" + *v + "'");
   }
+  if (const auto v = src.optional<std::string>(n, "when_mandatory_fails")) {
+    if (*v == "stop_others") p.when_mandatory_fails = StartupPolicy::WhenMandatoryFails::stop_others;
+    else if (*v == "report_only") p.when_mandatory_fails = StartupPolicy::WhenMandatoryFails::report_only;
+    else src.fail(n["when_mandatory_fails"], "when_mandatory_fails must be stop_others (every other device the bridge started is stopped until an operator starts it) or report_only, not '" + *v + "'");
+  }
   return p;
 }
 
@@ -464,7 +469,7 @@ DeviceConfig parse_device(const YamlSource& src, const YAML::Node& n, const Line
                           const ProfileRegistry& registry, std::vector<std::string>& warnings, Taken& taken) {
   src.check_keys(n, "device", {"name", "bus", "node_id", "profile", "version", "heartbeat_timeout_ms", "configure",
                                "boot_retry_ms", "pdos", "simulation", "identity", "pdo_config", "on_state_unknown",
-                               "heartbeat_producer_ms", "objects", "starts_itself"});
+                               "heartbeat_producer_ms", "objects", "starts_itself", "mandatory"});
   DeviceConfig dev;
   dev.name = src.required<std::string>(n, "name", "device");
   check_name(src, n["name"], dev.name);
@@ -531,6 +536,12 @@ DeviceConfig parse_device(const YamlSource& src, const YAML::Node& n, const Line
     else src.fail(n["on_state_unknown"], "on_state_unknown must be reboot or reset_node, not '" + *action + "'");
   }
   dev.starts_itself = src.optional<bool>(n, "starts_itself").value_or(false);
+  dev.mandatory = src.optional<bool>(n, "mandatory").value_or(false);
+  // Only a master starts and stops devices: on a monitor bus the key would promise what nobody does.
+  if (dev.mandatory && line.bus(dev.bus)->role == BusRole::monitor) {
+    src.fail(n["mandatory"], "device " + dev.name + ": mandatory is for a master bus: bus " + dev.bus +
+                                 " is in the monitor role, where the bridge never starts or stops a device");
+  }
   if (n["heartbeat_producer_ms"]) {
     const auto producer = bounded<int>(src, n, "heartbeat_producer_ms", 0, 1, 65535, "device " + dev.name);
     dev.heartbeat_producer = std::chrono::milliseconds(producer);
@@ -597,6 +608,9 @@ std::vector<DevicePdo> default_pdos(const Profile& profile, std::uint8_t node_id
 
 std::string_view to_string(BusRole role) { return role == BusRole::master ? "master" : "monitor"; }
 std::string_view to_string(PdoConfigMode mode) { return mode == PdoConfigMode::configure ? "configure" : "adopt"; }
+std::string_view to_string(StartupPolicy::WhenMandatoryFails policy) {
+  return policy == StartupPolicy::WhenMandatoryFails::stop_others ? "stop_others" : "report_only";
+}
 std::string_view to_string(StateUnknownAction action) {
   return action == StateUnknownAction::reboot ? "reboot" : "reset_node";
 }
@@ -709,6 +723,13 @@ Result<LineConfig> parse_line_config(const std::string& yaml_text, const std::st
     Taken taken;
     for (const auto& d : devices) cfg.devices.push_back(parse_device(src, d, cfg, *profiles, cfg.warnings, taken));
     warn_identity_by_profile_number_alone(cfg);
+    // A reaction chosen for mandatory devices when none is: most likely a forgotten `mandatory: true`.
+    if (const auto startup = root["startup"]; startup && startup["when_mandatory_fails"] &&
+                                              std::none_of(cfg.devices.begin(), cfg.devices.end(),
+                                                           [](const DeviceConfig& d) { return d.mandatory; })) {
+      cfg.warnings.push_back(src.where(startup["when_mandatory_fails"]) +
+                             ": when_mandatory_fails is set but no device is mandatory (mandatory: true): it has no effect");
+    }
     return cfg;
   } catch (const ConfigError& e) {
     return make_error(e.what());

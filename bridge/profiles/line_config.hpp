@@ -174,7 +174,15 @@ struct StartupPolicy {
   AfterPowerLoss after_power_loss = AfterPowerLoss::non_enabling;
   // allowed: its enabling levels too (the integrator has judged an automatic restart safe).
   Restart restart_after_power_loss = Restart::never;
+  // What a master bus does when one of its mandatory devices (DeviceConfig::mandatory, the CiA
+  // 302-2 1F81h bit 3 idea) is lost or fails its boot while the line runs: stop every other
+  // device the bridge started and keep it stopped until an operator starts it (CiA 302-2 1F80h
+  // bit 6 "stop all"), or only report it. Either way no device of the bus is started at start-up
+  // before every mandatory one passed its boot.
+  enum class WhenMandatoryFails { stop_others, report_only };
+  WhenMandatoryFails when_mandatory_fails = WhenMandatoryFails::stop_others;
 };
+std::string_view to_string(StartupPolicy::WhenMandatoryFails policy);
 
 struct DeviceConfig {
   std::string name;
@@ -194,6 +202,10 @@ struct DeviceConfig {
   // The device enters operational by itself at power-on (no NMT master needed): finding it
   // operational then proves nothing about a power loss, so it is treated as freshly booted.
   bool starts_itself = false;
+  // Master role: the line does not run without it (CiA 302-2 1F81h bit 3, off by default): no
+  // device of its bus is started before it passed its boot, and its loss or a failed boot while
+  // the line runs is handled by StartupPolicy::when_mandatory_fails.
+  bool mandatory = false;
   SimulationConfig simulation;
   const Profile* resolved_profile = nullptr;  // points into the registry the config was loaded with
   // The profile with the device's `objects:` (manufacturer-specific objects the line names), or

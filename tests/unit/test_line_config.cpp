@@ -553,6 +553,60 @@ TEST(LineConfig, StartupPolicyDefaultsAreSafeAndEachKeyIsChecked) {
   EXPECT_NE(error_of(replace(kGood, "dds:\n", "startup: {restore: true}\ndds:\n")).find("restore"), std::string::npos);
 }
 
+// Mandatory devices (CiA 302-2 1F81h bit 3): off by default, as 1F81h bit 3 is; the line's reaction
+// when one fails defaults to stop_others; each value is checked; a monitor bus cannot have one
+// (the bridge never starts or stops a device there); a reaction chosen with no mandatory device is
+// warned about.
+TEST(LineConfig, MandatoryDevicesAndWhatTheLineDoesWhenOneFails) {
+  using lb::profiles::StartupPolicy;
+  const auto registry = ProfileRegistry::builtin();
+  auto plain = parse_line_config(kGood, "line.yaml", registry);
+  ASSERT_TRUE(plain) << plain.error().message;
+  EXPECT_FALSE(plain->devices[0].mandatory);
+  EXPECT_EQ(plain->startup.when_mandatory_fails, StartupPolicy::WhenMandatoryFails::stop_others);
+
+  const auto mandatory = replace(kGood, "    heartbeat_timeout_ms: 300\n", "    heartbeat_timeout_ms: 300\n    mandatory: true\n");
+  auto m = parse_line_config(mandatory, "line.yaml", registry);
+  ASSERT_TRUE(m) << m.error().message;
+  EXPECT_TRUE(m->devices[0].mandatory);
+  EXPECT_EQ(m->startup.when_mandatory_fails, StartupPolicy::WhenMandatoryFails::stop_others);
+  EXPECT_TRUE(m->warnings.empty());
+
+  auto report = parse_line_config(replace(mandatory, "dds:\n", "startup: {when_mandatory_fails: report_only}\ndds:\n"), "line.yaml", registry);
+  ASSERT_TRUE(report) << report.error().message;
+  EXPECT_EQ(report->startup.when_mandatory_fails, StartupPolicy::WhenMandatoryFails::report_only);
+  auto stop = parse_line_config(replace(mandatory, "dds:\n", "startup: {when_mandatory_fails: stop_others}\ndds:\n"), "line.yaml", registry);
+  ASSERT_TRUE(stop) << stop.error().message;
+  EXPECT_EQ(stop->startup.when_mandatory_fails, StartupPolicy::WhenMandatoryFails::stop_others);
+
+  auto e = error_of(replace(mandatory, "dds:\n", "startup: {when_mandatory_fails: reset_all}\ndds:\n"));
+  EXPECT_NE(e.find("line.yaml:2:"), std::string::npos) << e;
+  EXPECT_NE(e.find("when_mandatory_fails must be stop_others"), std::string::npos) << e;
+  EXPECT_NE(e.find("'reset_all'"), std::string::npos) << e;
+  e = error_of(replace(kGood, "    heartbeat_timeout_ms: 300\n", "    heartbeat_timeout_ms: 300\n    mandatory: yes please\n"));
+  EXPECT_NE(e.find("line.yaml:"), std::string::npos) << e;
+  EXPECT_NE(e.find("mandatory"), std::string::npos) << e;
+  e = error_of(replace(kGood, "    heartbeat_timeout_ms: 300\n", "    heartbeat_timeout_ms: 300\n    mandatory_device: true\n"));
+  EXPECT_NE(e.find("mandatory_device"), std::string::npos) << e;
+
+  // On the monitor bus: refused, with the place and the reason.
+  const auto on_monitor = replace(mandatory, "    bus: ext\n", "    bus: mon\n");
+  e = error_of(on_monitor);
+  EXPECT_NE(e.find("line.yaml:"), std::string::npos) << e;
+  EXPECT_NE(e.find("device saw1: mandatory is for a master bus: bus mon is in the monitor role"), std::string::npos) << e;
+  // mandatory: false is what a monitor bus's device is anyway.
+  auto off = parse_line_config(replace(kGood, "    bus: ext\n    node_id: 3\n", "    bus: mon\n    node_id: 3\n    mandatory: false\n"),
+                               "line.yaml", registry);
+  ASSERT_TRUE(off) << off.error().message;
+
+  // A reaction without a mandatory device: accepted, and --check says it does nothing.
+  auto idle = parse_line_config(replace(kGood, "dds:\n", "startup: {when_mandatory_fails: report_only}\ndds:\n"), "line.yaml", registry);
+  ASSERT_TRUE(idle) << idle.error().message;
+  ASSERT_EQ(idle->warnings.size(), 1u);
+  EXPECT_NE(idle->warnings[0].find("no device is mandatory"), std::string::npos) << idle->warnings[0];
+  EXPECT_NE(idle->warnings[0].find("line.yaml:"), std::string::npos) << idle->warnings[0];
+}
+
 // Two master buses on one CAN network would hear each other's SYNC and NMT and silence each other.
 TEST(LineConfig, TwoMasterBusesOnOneInterfaceAreRefused) {
   const auto two = replace(kGood, "    interface: socketcan:can1\n    role: monitor\n", "    interface: virtual:x\n    role: master\n");
