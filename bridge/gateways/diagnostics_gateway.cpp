@@ -160,6 +160,7 @@ void DiagnosticsGateway::publish_loop() {
     for (const auto& nodes : node_snapshots_) d.nodes().insert(d.nodes().end(), nodes.begin(), nodes.end());
     lock.unlock();
     d.commands_lost(dds_.commands_lost());
+    d.bridge_incarnation(dds_.incarnation());  // what clients name in their requests to this run
     if (bridge_fields_) bridge_fields_(d);
     writer_.write(d);
     lock.lock();
