@@ -4,6 +4,7 @@
 #include <fmt/ranges.h>
 
 #include <map>
+#include <optional>
 
 #include "canopen/data_type.hpp"
 #include "dds/service.hpp"
@@ -18,21 +19,38 @@ namespace srv = linebridge_msgs::srv;
 
 namespace {
 
+// A reply, or why there is none. A refusal by a bridge that restarted after the request was first
+// sent is told apart from every other answer (restarted()): the request may have run before.
+template <class Rep>
+struct Answered {
+  std::optional<Error> error;       // no answer at all
+  typename Rep::type reply{};
+  bool bridge_restarted = false;
+
+  explicit operator bool() const { return !error; }
+  const typename Rep::type* operator->() const { return &reply; }
+};
+
+template <class Req, class Rep>
+Answered<Rep> ask(const std::string& path, const ServiceTarget& t, const typename Req::type& request) {
+  auto client = ddsl::ServiceClient<Req, Rep>::create(t.dds, path);
+  if (!client) return {client.error()};
+  auto answer = (*client)->ask(request, t.timeout);
+  if (!answer) return {answer.error()};
+  return {std::nullopt, answer->reply, answer->bridge_restarted()};
+}
+
 // The request's device field is filled in here: every call names its target device.
 template <class Req, class Rep>
-Result<typename Rep::type> call(const ServiceTarget& t, const std::string& name, typename Req::type request) {
+Answered<Rep> call(const ServiceTarget& t, const std::string& name, typename Req::type request) {
   request.device(t.device);
-  auto client = ddsl::ServiceClient<Req, Rep>::create(t.dds, ddsl::line_service_path(t.line, name));
-  if (!client) return client.error();
-  return (*client)->call(request, t.timeout);
+  return ask<Req, Rep>(ddsl::line_service_path(t.line, name), t, request);
 }
 
 // A device's own service (a feeder box's typed services): <line>/<device>/<service>.
 template <class Req, class Rep>
-Result<typename Rep::type> call_device(const ServiceTarget& t, const std::string& name, const typename Req::type& request) {
-  auto client = ddsl::ServiceClient<Req, Rep>::create(t.dds, t.line + "/" + t.device + "/" + name);
-  if (!client) return client.error();
-  return (*client)->call(request, t.timeout);
+Answered<Rep> call_device(const ServiceTarget& t, const std::string& name, const typename Req::type& request) {
+  return ask<Req, Rep>(t.line + "/" + t.device + "/" + name, t, request);
 }
 
 int report(bool ok, const std::string& what, const std::string& message, std::uint32_t abort_code = 0) {
@@ -50,9 +68,15 @@ int usage(const std::string& message) {
   return kExitUsage;
 }
 
-// No answer at all: no bridge, a timeout, a request that could not be sent.
-int no_answer(const Error& e) {
-  fmt::print(stderr, "no answer: {}\n", e.message);
+// No answer at all: no bridge, a timeout, a request that could not be sent; or the answer of a
+// bridge that restarted since the request was first sent (it did not run it; the first run may have).
+template <class Rep>
+int not_answered(const Answered<Rep>& a) {
+  if (a.bridge_restarted) {
+    fmt::print(stderr, "bridge restarted: {}\n", a.reply.message());
+    return kExitBridgeRestarted;
+  }
+  fmt::print(stderr, "no answer: {}\n", a.error->message);
   return kExitNoAnswer;
 }
 
@@ -78,7 +102,7 @@ int call_nmt(const ServiceTarget& t, const std::string& command) {
   srv::Nmt_Request req;
   req.command(kCommands.at(command));
   auto r = call<srv::Nmt_RequestPubSubType, srv::Nmt_ResponsePubSubType>(t, "nmt", req);
-  if (!r) return no_answer(r.error());
+  if (!r || r.bridge_restarted) return not_answered(r);
   return report(r->success(), "NMT " + command + " sent", r->message());
 }
 
@@ -88,7 +112,7 @@ int call_sdo_read(const ServiceTarget& t, std::uint16_t index, std::uint8_t sub,
   req.sub_index(sub);
   req.data_type(type);
   auto r = call<srv::SdoRead_RequestPubSubType, srv::SdoRead_ResponsePubSubType>(t, "sdo_read", req);
-  if (!r) return no_answer(r.error());
+  if (!r || r.bridge_restarted) return not_answered(r);
   return report(r->success(), fmt::format("{:04X}h:{:02X}h = {}", index, sub, value_text(r->value())), r->message(),
                 r->abort_code());
 }
@@ -111,7 +135,7 @@ int call_sdo_write(const ServiceTarget& t, std::uint16_t index, std::uint8_t sub
     return usage("'" + value + "' is not a " + type + " value");
   }
   auto r = call<srv::SdoWrite_RequestPubSubType, srv::SdoWrite_ResponsePubSubType>(t, "sdo_write", req);
-  if (!r) return no_answer(r.error());
+  if (!r || r.bridge_restarted) return not_answered(r);
   return report(r->success(), fmt::format("{:04X}h:{:02X}h written", index, sub), r->message(), r->abort_code());
 }
 
@@ -119,7 +143,7 @@ int call_get_parameter(const ServiceTarget& t, const std::string& name) {
   srv::GetParameter_Request req;
   req.parameter(name);
   auto r = call<srv::GetParameter_RequestPubSubType, srv::GetParameter_ResponsePubSubType>(t, "get_parameter", req);
-  if (!r) return no_answer(r.error());
+  if (!r || r.bridge_restarted) return not_answered(r);
   return report(r->success(), fmt::format("{} = {} {} (raw {})", name, r->value(), r->unit(), r->raw()), r->message(),
                 r->abort_code());
 }
@@ -129,7 +153,7 @@ int call_set_parameter(const ServiceTarget& t, const std::string& name, double v
   req.parameter(name);
   req.value(value);
   auto r = call<srv::SetParameter_RequestPubSubType, srv::SetParameter_ResponsePubSubType>(t, "set_parameter", req);
-  if (!r) return no_answer(r.error());
+  if (!r || r.bridge_restarted) return not_answered(r);
   return report(r->success(), fmt::format("{} set (raw {})", name, r->raw()), r->message(), r->abort_code());
 }
 
@@ -137,7 +161,7 @@ int call_command(const ServiceTarget& t, const std::string& name) {
   srv::Command_Request req;
   req.command(name);
   auto r = call<srv::Command_RequestPubSubType, srv::Command_ResponsePubSubType>(t, "command", req);
-  if (!r) return no_answer(r.error());
+  if (!r || r.bridge_restarted) return not_answered(r);
   return report(r->success(),
                 fmt::format("{}: on the bus in {} RPDO(s) over {:.1f} ms, then released{}{}", name, r->frames(), r->held_ms(),
                             r->message().empty() ? "" : "; ", r->message()),
@@ -165,7 +189,7 @@ int call_identity(const ServiceTarget& t) {
     req.sub_index(f.sub);
     req.data_type("UNSIGNED32");
     auto r = call<srv::SdoRead_RequestPubSubType, srv::SdoRead_ResponsePubSubType>(t, "sdo_read", req);
-    if (!r) return no_answer(r.error());
+    if (!r || r.bridge_restarted) return not_answered(r);
     if (!r->success()) {
       if (f.sub >= 2 && r->abort_code() == 0x0609'0011) {  // optional entries (CiA 301)
         lines += fmt::format("      # {}: the device has no {}\n", f.key, f.comment);
@@ -185,7 +209,7 @@ template <class Req>
 int feeder_call(const ServiceTarget& t, const std::string& service, const typename Req::type& request,
                 const std::string& what) {
   auto r = call_device<Req, srv::FeederWrite_ResponsePubSubType>(t, service, request);
-  if (!r) return no_answer(r.error());
+  if (!r || r.bridge_restarted) return not_answered(r);
   return report(r->success(), fmt::format("{} written ({:X}h)", what, r->raw()), r->message(), r->abort_code());
 }
 

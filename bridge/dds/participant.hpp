@@ -25,6 +25,7 @@
 #include <vector>
 
 #include "base/result.hpp"
+#include "dds/incarnation.hpp"
 #include "dds/lost_samples.hpp"
 #include "dds/security_files.hpp"
 #include "dds/writer_partitions.hpp"
@@ -284,6 +285,9 @@ class Participant {
 
   // Created with DDS Security (and proven to be in force).
   bool secured() const { return secured_; }
+  // This participant's run, drawn when it was created: the service servers on it answer only
+  // requests naming it (or none), and a bridge publishes it in its diagnostics (incarnation.hpp).
+  Incarnation incarnation() const { return incarnation_; }
   // Secured participants: whether a remote writer was matched in this partition and is still in
   // it (writer_partitions.hpp). Always false on an unsecured participant.
   bool writer_in_partition(const eprosima::fastrtps::rtps::GUID_t& writer, std::string_view partition) const;
@@ -359,6 +363,7 @@ class Participant {
   std::unique_ptr<fdds::DomainParticipantListener> listener_;
   bool secured_ = false;
   bool planning_ = false;
+  const Incarnation incarnation_ = draw_incarnation();
   std::vector<PlannedEndpoint> planned_;
   std::vector<std::string> site_notes_;  // guarded by mutex_
   fdds::DomainParticipant* participant_ = nullptr;

@@ -2,9 +2,12 @@
 // Request/reply over DDS (Fast DDS 2.9 has no RPC): a request topic and a reply topic per service,
 // ROS 2 style, replies correlated with requests by the request's sample identity. A client that
 // gets no answer asks again (the same request, naming the first: request_ledger.hpp), and the
-// server answers a repeat with the first answer instead of running the request twice.
+// server answers a repeat with the first answer instead of running the request twice. A request
+// names the run of the bridge it is for, so a repeat that reaches a restarted bridge is refused
+// rather than run again (incarnation.hpp).
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <concepts>
 #include <cstdint>
@@ -19,8 +22,12 @@
 
 #include <fastdds/rtps/common/SerializedPayload.h>
 
+#include "dds/incarnation.hpp"
 #include "dds/participant.hpp"
 #include "dds/request_ledger.hpp"
+#include "dds/topic_names.hpp"
+// The client learns the bridge's incarnation from its diagnostics before its first request.
+#include "msgs/commonPubSubTypes.h"
 
 namespace lb::ddsl {
 
@@ -47,6 +54,12 @@ concept Refusable = requires(Reply r) {
   r.success(false);
   r.message(std::string());
 };
+// Every request names the bridge run it is for, every reply the run that answered (common.idl).
+template <class Message>
+concept NamesIncarnation = requires(Message m, const Message& c) {
+  { c.bridge_incarnation() } -> std::convertible_to<Incarnation>;
+  m.bridge_incarnation(Incarnation{});
+};
 
 // Server side. The handler runs on a Fast DDS thread; it may answer at once or later, from any
 // thread, through the Responder it is given (answering twice is harmless, never is a bug).
@@ -61,10 +74,12 @@ class ServiceServer {
   class Responder {
    public:
     // ledger: where the answer is kept for a repeat of the request (none for an answer that is
-    // itself a repeat or needs no keeping).
-    Responder(Writer<ReplyPS> writer, SampleIdentity request, std::shared_ptr<Ledger> ledger = nullptr)
-        : writer_(writer), request_(request), ledger_(std::move(ledger)) {}
-    void operator()(const Reply& reply) const {
+    // itself a repeat or needs no keeping). incarnation: the server's, which every answer names.
+    Responder(Writer<ReplyPS> writer, SampleIdentity request, Incarnation incarnation, std::shared_ptr<Ledger> ledger = nullptr)
+        : writer_(writer), request_(request), incarnation_(incarnation), ledger_(std::move(ledger)) {}
+    void operator()(const Reply& answer) const {
+      Reply reply = answer;
+      if constexpr (NamesIncarnation<Reply>) reply.bridge_incarnation(incarnation_);
       if (ledger_) ledger_->answered(request_, reply);
       eprosima::fastrtps::rtps::WriteParams params;
       params.related_sample_identity(request_);
@@ -74,6 +89,7 @@ class ServiceServer {
    private:
     Writer<ReplyPS> writer_;
     SampleIdentity request_;
+    Incarnation incarnation_;
     std::shared_ptr<Ledger> ledger_;
   };
   using Handler = std::function<void(const Request&, Responder)>;
@@ -87,43 +103,49 @@ class ServiceServer {
     if constexpr (NamesDevice<Request> && Refusable<Reply>) {
       if (dds.secured()) return serve_by_partition(dds, path, *writer, std::move(ledger), std::move(handler));
     }
-    return dds.subscribe<RequestPS>(request_topic(path), QosKind::command,
-                                    [w = *writer, ledger, h = std::move(handler)](const Request& req, const fdds::SampleInfo& info) {
-                                      dispatch(req, info, w, ledger, h);
-                                    });
+    return dds.subscribe<RequestPS>(
+        request_topic(path), QosKind::command,
+        [w = *writer, own = dds.incarnation(), ledger, h = std::move(handler)](const Request& req, const fdds::SampleInfo& info) {
+          dispatch(req, info, w, own, ledger, h);
+        });
   }
 
  private:
   // A request runs once; a repeat gets the first answer, or nothing while the first still runs
   // (its answer will reach the client: both carry the first request's identity). Refusals are
   // answered here when the reply can say so (every service's can: Refusable).
-  static void dispatch(const Request& req, const fdds::SampleInfo& info, const Writer<ReplyPS>& w,
+  static void dispatch(const Request& req, const fdds::SampleInfo& info, const Writer<ReplyPS>& w, Incarnation own,
                        const std::shared_ptr<Ledger>& ledger, const Handler& h) {
     const SampleIdentity request = Ledger::asked_as(info);
+    if constexpr (NamesIncarnation<Request>) {
+      // Meant for an earlier run of the bridge, which this ledger never saw: it may have run there
+      // (a repeat after a kill), so it must not run here. Not recorded: every repeat is refused so.
+      if (!meant_for(req.bridge_incarnation(), own)) return refuse(w, own, request, std::string(kRestartedRefusal));
+    }
     auto admission = ledger->admit(request, fingerprint(req));
     switch (admission.seen) {
-      case Ledger::Seen::first: return h(req, Responder(w, request, ledger));
+      case Ledger::Seen::first: return h(req, Responder(w, request, own, ledger));
       case Ledger::Seen::in_progress: return;
-      case Ledger::Seen::answered: return Responder(w, request)(*admission.answer);
+      case Ledger::Seen::answered: return Responder(w, request, own)(*admission.answer);
       case Ledger::Seen::busy:
         // Nothing ran under this identity: the refusal answers it, and asking again later may run it.
-        return refuse(w, request,
+        return refuse(w, own, request,
                       "refused: " + std::to_string(Ledger::kMaxInProgress) +
                           " requests of this service are still running; ask again once they are answered");
       case Ledger::Seen::conflicting:
         // Answered under the sample's own identity, so the first request's answer stays its own.
-        return refuse(w, info.sample_identity,
+        return refuse(w, own, info.sample_identity,
                       "refused: this repeat names an earlier request but asks something else (a repeat must be "
                       "the same request; a new request must not name another)");
     }
   }
 
-  static void refuse(const Writer<ReplyPS>& w, const SampleIdentity& to, const std::string& why) {
+  static void refuse(const Writer<ReplyPS>& w, Incarnation own, const SampleIdentity& to, const std::string& why) {
     if constexpr (Refusable<Reply>) {
       Reply refusal;
       refusal.success(false);
       refusal.message(why);
-      Responder(w, to)(refusal);
+      Responder(w, to, own)(refusal);
     }
   }
 
@@ -148,16 +170,17 @@ class ServiceServer {
                                          std::shared_ptr<Ledger> ledger, Handler h) {
     return dds.subscribe_any_partition<RequestPS>(
         request_topic(path), QosKind::command,
-        [&dds, w, ledger = std::move(ledger), h = std::move(h)](const Request& req, const fdds::SampleInfo& info) {
+        [&dds, w, own = dds.incarnation(), ledger = std::move(ledger), h = std::move(h)](const Request& req,
+                                                                                          const fdds::SampleInfo& info) {
           const std::string device = req.device();
           if (!dds.writer_in_partition(info.sample_identity.writer_guid(), device)) {
             Reply refusal;
             refusal.success(false);
             refusal.message("refused: a request for device '" + device + "' is taken only from a writer in the DDS partition '" +
                             device + "' (secured line; the partition must be granted by the requester's permissions)");
-            return Responder(w, Ledger::asked_as(info))(refusal);
+            return Responder(w, Ledger::asked_as(info), own)(refusal);
           }
-          dispatch(req, info, w, ledger, h);
+          dispatch(req, info, w, own, ledger, h);
         });
   }
 };
@@ -169,21 +192,46 @@ class ServiceClient {
   using Request = typename RequestPS::type;
   using Reply = typename ReplyPS::type;
 
+  // A reply, with the bridge run the request named (the one this client last heard of when it
+  // first sent the request).
+  struct Answer {
+    Reply reply;
+    Incarnation asked_of = kAnyIncarnation;
+    // Refused unrun by a bridge that restarted after the request was first sent: it may or may
+    // not have run on the bridge before. (A bridge runs only what names it, so a reply from
+    // another run is this refusal; a success would be a bridge breaking that rule, not a restart.)
+    bool bridge_restarted() const {
+      if constexpr (NamesIncarnation<Reply> && Refusable<Reply>) {
+        return !reply.success() && refused_as_restarted(asked_of, reply.bridge_incarnation());
+      }
+      return false;
+    }
+  };
+
   static Result<std::unique_ptr<ServiceClient>> create(Participant& dds, const std::string& path) {
     auto client = std::make_unique<ServiceClient>(dds, path);
     if (!client->partitioned()) {
       auto writer = client->writer_for("");
       if (!writer) return writer.error();
     }
-    auto* raw = client.get();  // the subscription ends before the client does (member order)
+    auto* raw = client.get();  // the subscriptions end before the client does (member order)
     auto sub = dds.subscribe_scoped<ReplyPS>(reply_topic(path), QosKind::reply,
                                              [raw](const Reply& rep, const fdds::SampleInfo& info) { raw->received(rep, info); });
     if (!sub) return sub.error();
     client->subscription_ = std::move(*sub);
+    if constexpr (NamesIncarnation<Request>) {
+      // The bridge's diagnostics are transient-local: the current run's arrive as soon as matched.
+      auto diag = dds.subscribe_scoped<linebridge_msgs::msg::DiagnosticsPubSubType>(
+          topic_name(client->line(), kBridgeNamespace, "diagnostics"), QosKind::state,
+          [raw](const linebridge_msgs::msg::Diagnostics& d, const fdds::SampleInfo&) { raw->heard(d.bridge_incarnation()); });
+      if (!diag) return diag.error();
+      client->diagnostics_ = std::move(*diag);
+    }
     return client;
   }
   ServiceClient(Participant& dds, std::string path) : dds_(dds), path_(std::move(path)) {}
   ~ServiceClient() {
+    diagnostics_.reset();
     subscription_.reset();  // no reply callback after this line
     for (auto& [partition, writer] : writers_) dds_.remove_writer(writer.entity());
   }
@@ -193,6 +241,16 @@ class ServiceClient {
   // Waits for the server to be discovered (both directions), sends, waits for the matching reply,
   // asking again every kAskAgainAfter (the server runs the request once and answers each time).
   Result<Reply> call(const Request& request, std::chrono::milliseconds timeout) {
+    auto answer = ask(request, timeout);
+    if (!answer) return answer.error();
+    return std::move(answer->reply);
+  }
+
+  // As call(), and says which bridge run the request named: a request that names none
+  // (bridge_incarnation 0) is sent naming the run this client last heard of (the bridge's
+  // diagnostics, or a reply), waited for like the server; every repeat names the same run, so a
+  // bridge restarted meanwhile refuses the repeat instead of running the request a second time.
+  Result<Answer> ask(const Request& request, std::chrono::milliseconds timeout) {
     const auto deadline = std::chrono::steady_clock::now() + timeout;
     std::string partition;
     if constexpr (NamesDevice<Request>) {
@@ -200,12 +258,29 @@ class ServiceClient {
     }
     auto writer = writer_for(partition);
     if (!writer) return writer.error();
-    while (writer->matched() == 0 || dds_.matched_writers(reply_topic(path_)) == 0) {
-      if (std::chrono::steady_clock::now() > deadline) return make_error("no server for " + path_ + " (is the bridge running?)");
+    Request named = request;
+    const auto known = [&] {
+      if constexpr (NamesIncarnation<Request>) return named.bridge_incarnation() != kAnyIncarnation || heard_ != kAnyIncarnation;
+      return true;
+    };
+    while (writer->matched() == 0 || dds_.matched_writers(reply_topic(path_)) == 0 || !known()) {
+      if (std::chrono::steady_clock::now() > deadline) {
+        if (writer->matched() == 0 || dds_.matched_writers(reply_topic(path_)) == 0) {
+          return make_error("no server for " + path_ + " (is the bridge running?)");
+        }
+        return make_error("no diagnostics from the bridge of line " + line() + " (" +
+                          topic_name(line(), kBridgeNamespace, "diagnostics") +
+                          "): the request must name the run of the bridge it is for");
+      }
       std::this_thread::sleep_for(std::chrono::milliseconds(10));
     }
+    if constexpr (NamesIncarnation<Request>) {
+      if (named.bridge_incarnation() == kAnyIncarnation) named.bridge_incarnation(heard_);
+    }
+    Incarnation asked_of = kAnyIncarnation;
+    if constexpr (NamesIncarnation<Request>) asked_of = named.bridge_incarnation();
     eprosima::fastrtps::rtps::WriteParams params;
-    if (!writer->write(request, params)) return make_error("cannot send the request on " + request_topic(path_));
+    if (!writer->write(named, params)) return make_error("cannot send the request on " + request_topic(path_));
     const SampleIdentity id = params.sample_identity();
     const auto answered = [&] { return replies_.count(id) != 0; };
     std::unique_lock lock(mutex_);
@@ -216,12 +291,12 @@ class ServiceClient {
       lock.unlock();  // received() takes the lock on a Fast DDS thread, and a write may wait
       eprosima::fastrtps::rtps::WriteParams again;
       again.related_sample_identity(id);
-      writer->write(request, again);  // refused: the next turn asks again
+      writer->write(named, again);  // refused: the next turn asks again
       lock.lock();
     }
-    Reply reply = std::move(replies_.at(id));
+    Answer answer{std::move(replies_.at(id)), asked_of};
     replies_.erase(id);
-    return reply;
+    return answer;
   }
 
  private:
@@ -249,7 +324,17 @@ class ServiceClient {
     return *writer;
   }
 
+  // The line: the path's first part (<line>/bridge/<service> or <line>/<device>/<service>).
+  std::string line() const { return path_.substr(0, path_.find('/')); }
+
+  // The newest run heard of wins: a restarted bridge's diagnostics and replies follow the last
+  // ones of the run before.
+  void heard(Incarnation incarnation) {
+    if (incarnation != kAnyIncarnation) heard_ = incarnation;
+  }
+
   void received(const Reply& reply, const fdds::SampleInfo& info) {
+    if constexpr (NamesIncarnation<Reply>) heard(reply.bridge_incarnation());
     {
       std::lock_guard lock(mutex_);
       // Replies to other clients' requests arrive too; only ours are kept.
@@ -266,7 +351,9 @@ class ServiceClient {
   std::mutex mutex_;
   std::condition_variable cv_;
   std::map<SampleIdentity, Reply> replies_;
+  std::atomic<Incarnation> heard_{kAnyIncarnation};  // the bridge run last heard of
   std::unique_ptr<Participant::Subscription> subscription_;
+  std::unique_ptr<Participant::Subscription> diagnostics_;
 };
 
 }  // namespace lb::ddsl

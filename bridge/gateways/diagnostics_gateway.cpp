@@ -39,6 +39,9 @@ DiagnosticsGateway::DiagnosticsGateway(ddsl::Participant& dds, const std::string
 DiagnosticsGateway::~DiagnosticsGateway() { stop(); }
 
 void DiagnosticsGateway::start() {
+  // A first sample at once, not a period later: clients wait for the bridge's incarnation in it
+  // before their first request. The loops have not started, so their state is read here safely.
+  for (std::size_t i = 0; i < buses_.size(); ++i) snapshot(i);
   for (std::size_t i = 0; i < buses_.size(); ++i) {
     auto* loop = buses_[i].loop;
     const auto timer = loop->create_timer([this, i] { snapshot(i); });
@@ -163,7 +166,7 @@ void DiagnosticsGateway::snapshot(std::size_t i) {
 // happens after it is released so that no bus loop ever waits for it.
 void DiagnosticsGateway::publish_loop() {
   std::unique_lock lock(mutex_);
-  while (!cv_.wait_for(lock, period_, [this] { return stopping_; })) {
+  do {
     msg::Diagnostics d;
     const auto stamp = ddsl::to_stamp(ddsl::now_ns());
     d.stamp().sec(stamp.sec);
@@ -173,10 +176,11 @@ void DiagnosticsGateway::publish_loop() {
     for (const auto& nodes : node_snapshots_) d.nodes().insert(d.nodes().end(), nodes.begin(), nodes.end());
     lock.unlock();
     d.commands_lost(dds_.commands_lost());
+    d.bridge_incarnation(dds_.incarnation());  // what clients name in their requests to this run
     if (bridge_fields_) bridge_fields_(d);
     writer_.write(d);
     lock.lock();
-  }
+  } while (!cv_.wait_for(lock, period_, [this] { return stopping_; }));
 }
 
 }  // namespace lb::gateways

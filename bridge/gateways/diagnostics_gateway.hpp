@@ -46,7 +46,7 @@ class DiagnosticsGateway {
   DiagnosticsGateway(const DiagnosticsGateway&) = delete;
   DiagnosticsGateway& operator=(const DiagnosticsGateway&) = delete;
 
-  void start();  // arms the per-bus timers (before the loops start) and starts publishing
+  void start();  // before the loops start: a first snapshot, the per-bus timers, and publishing (the first at once)
   void stop();
 
  private:

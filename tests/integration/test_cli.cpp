@@ -265,7 +265,8 @@ TEST(CliWithoutBridge, SetAsksAgainUntilAnswered) {
 // naming its first request by sample identity, so the bridge answers the repeat from its first
 // answer instead of pressing twice (tests/integration/test_service_repeat.cpp shows that side).
 // The responder stands in for a bridge whose first answer was lost: it answers only a repeat,
-// and answers it as the bridge does, to the first request.
+// and answers it as the bridge does, to the first request. Like a bridge, it publishes its run in
+// its diagnostics; the first request and the repeat name that run.
 TEST(CliWithoutBridge, ServiceCallAsksAgainNamingTheFirstRequest) {
   ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   const std::string config = ::testing::TempDir() + "/cli_askagain_svc_" + std::to_string(::getpid()) + ".yaml";
@@ -275,6 +276,7 @@ TEST(CliWithoutBridge, ServiceCallAsksAgainNamingTheFirstRequest) {
   struct Seen {
     SampleIdentity self, related;
     std::string device, command;
+    lb::ddsl::Incarnation run;
   };
   std::mutex m;
   std::vector<Seen> seen;
@@ -286,17 +288,25 @@ TEST(CliWithoutBridge, ServiceCallAsksAgainNamingTheFirstRequest) {
   auto replies = p.writer<srv::Command_ResponsePubSubType>(lb::ddsl::reply_topic(path), QosKind::reply);
   ASSERT_TRUE(replies);
   answers = *replies;
+  auto diagnostics = p.writer<msg::DiagnosticsPubSubType>(lb::ddsl::topic_name("askagainsvc", "bridge", "diagnostics"),
+                                                         QosKind::state);
+  ASSERT_TRUE(diagnostics);
+  msg::Diagnostics d;
+  d.line("askagainsvc");
+  d.bridge_incarnation(p.incarnation());
+  ASSERT_TRUE(diagnostics->write(d));
   ASSERT_TRUE(p.subscribe<srv::Command_RequestPubSubType>(
       lb::ddsl::request_topic(path), QosKind::command, [&](const srv::Command_Request& rq, const lb::ddsl::fdds::SampleInfo& info) {
         {
           std::lock_guard lock(m);
-          seen.push_back({info.sample_identity, info.related_sample_identity, rq.device(), rq.command()});
+          seen.push_back({info.sample_identity, info.related_sample_identity, rq.device(), rq.command(), rq.bridge_incarnation()});
         }
         if (info.related_sample_identity == SampleIdentity::unknown()) return;  // the first answer "lost"
         srv::Command_Response r;
         r.success(true);
         r.frames(6);
         r.held_ms(120.0);
+        r.bridge_incarnation(rq.bridge_incarnation());
         eprosima::fastrtps::rtps::WriteParams params;
         params.related_sample_identity(info.related_sample_identity);
         answers.write(r, params);
@@ -312,4 +322,6 @@ TEST(CliWithoutBridge, ServiceCallAsksAgainNamingTheFirstRequest) {
   EXPECT_NE(seen[1].self, seen[0].self);
   EXPECT_EQ(seen[1].device, "saw1");
   EXPECT_EQ(seen[1].command, "manual_cut");
+  EXPECT_EQ(seen[0].run, p.incarnation()) << "the first request names the run the CLI heard of";
+  EXPECT_EQ(seen[1].run, seen[0].run) << "the repeat names the same run";
 }

@@ -1,0 +1,224 @@
+// A press whose bridge is killed (SIGKILL) before it answered is not pressed a second time by the
+// client's repeat to the next bridge (issue 24: 2 of 6 trials pressed twice). The real bridge,
+// simulator and bus: the first request reaches the first bridge, which puts the manual-cut bit on
+// the bus and is killed at once; a second bridge starts on the same bus and starts the saw; the
+// client asks again as it does when its answer is lost. What is checked is the saw's RPDO1 on the
+// bus (one run of frames with the bit, not a second rising edge) and the refusal the client gets;
+// linebridge-cli's answer and exit code likewise.
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+
+#include <algorithm>
+#include <chrono>
+#include <condition_variable>
+#include <map>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "dds/incarnation.hpp"
+#include "msgs/commonPubSubTypes.h"
+#include "msgs/sawPubSubTypes.h"
+#include "support/line_harness.hpp"
+
+namespace msg = linebridge_msgs::msg;
+namespace srv = linebridge_msgs::srv;
+using namespace std::chrono_literals;
+using Clock = std::chrono::steady_clock;
+using eprosima::fastrtps::rtps::SampleIdentity;
+using eprosima::fastrtps::rtps::WriteParams;
+using lb::ddsl::QosKind;
+
+namespace {
+
+constexpr std::uint8_t kSaw = 3;
+constexpr std::uint32_t kRpdo1 = 0x200u + kSaw;
+constexpr unsigned kManualCutBit = 3;  // saw control word 6040h (profile-decisions.md, saw 1.0 order)
+
+bool cut_bit(const lb::can::CanFrame& f) { return f.len >= 2 && ((f.data[0] | f.data[1] << 8) >> kManualCutBit & 1U) != 0; }
+
+// The presses on the bus: per run of RPDO1 frames with the bit, the time from its first frame to
+// the next RPDO1 without the bit (the frame that released it; -1 while none has).
+std::vector<double> presses(lb::test::BusSpy& spy) {
+  std::vector<double> held_ms;
+  std::int64_t since = 0;
+  bool in = false;
+  for (const auto& f : spy.frames(kRpdo1)) {
+    const bool on = cut_bit(f);
+    if (on && !in) {
+      since = f.timestamp_ns;
+      held_ms.push_back(-1);
+    }
+    if (!on && in) held_ms.back() = static_cast<double>(f.timestamp_ns - since) / 1e6;
+    in = on;
+  }
+  return held_ms;
+}
+
+std::string describe(const std::vector<double>& held) {
+  std::string s = std::to_string(held.size()) + " press(es), held (ms):";
+  for (double h : held) s += " " + std::to_string(h);
+  return s;
+}
+
+// Polls the spy until pred holds for its RPDO1 frames (a few ms apart: the kill must come before
+// the bridge's answer, which follows the first frame by at least 100 ms).
+template <class Pred>
+bool rpdo1_until(lb::test::LineHarness& line, Pred pred, std::chrono::seconds deadline = 30s) {
+  const auto end = Clock::now() + deadline;
+  while (Clock::now() < end) {
+    if (pred(line.spy().frames(kRpdo1))) return true;
+    std::this_thread::sleep_for(2ms);
+  }
+  return false;
+}
+
+const msg::NodeDiagnostics* node(const msg::Diagnostics& d, const std::string& device) {
+  for (const auto& n : d.nodes()) {
+    if (n.device() == device) return &n;
+  }
+  return nullptr;
+}
+
+class RequestAcrossRestart : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
+    line.start("  - {name: saw1, bus: b, node_id: 3, profile: cia420-4, version: '3.1', heartbeat_timeout_ms: 1000}\n");
+    ASSERT_TRUE(diag.subscribe(line.dds(), line.topic("bridge", "diagnostics"), QosKind::state));
+    first_run = started_run(0);
+    ASSERT_NE(first_run, lb::ddsl::kAnyIncarnation) << "the bridge never published its incarnation\n" << line.logs();
+  }
+
+  // Waits for diagnostics of a bridge run other than `not_this` that has started the saw (so the
+  // run would take a press), and for that run's RPDOs on the bus; returns its incarnation (0: none).
+  lb::ddsl::Incarnation started_run(lb::ddsl::Incarnation not_this) {
+    lb::ddsl::Incarnation run = lb::ddsl::kAnyIncarnation;
+    const bool ok = diag.wait(40s, [&](const std::vector<msg::Diagnostics>& v) {
+      if (v.empty() || v.back().bridge_incarnation() == not_this) return false;
+      const auto* saw = node(v.back(), "saw1");
+      if (saw == nullptr || saw->node_state() != "operational") return false;
+      run = v.back().bridge_incarnation();
+      return true;
+    });
+    if (!ok) return lb::ddsl::kAnyIncarnation;
+    const std::size_t before = line.spy().frames(kRpdo1).size();
+    if (!rpdo1_until(line, [&](const auto& f) { return f.size() >= before + 5; })) return lb::ddsl::kAnyIncarnation;
+    return run;
+  }
+
+  // Kills the bridge as soon as the manual-cut bit is on the bus (it has not answered yet), then
+  // starts a new bridge on the same bus; returns the new run once it has started the saw.
+  lb::ddsl::Incarnation kill_at_the_press_and_restart() {
+    const bool pressed = rpdo1_until(line, [](const auto& f) { return std::any_of(f.begin(), f.end(), cut_bit); });
+    EXPECT_TRUE(pressed) << "the first request never reached the bus\n" << line.logs();
+    if (!pressed) return lb::ddsl::kAnyIncarnation;
+    ::kill(line.bridge().pid(), SIGKILL);
+    const int status = line.bridge().stop();  // reaps it
+    EXPECT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL) << "the bridge ended otherwise: " << status;
+    line.start_bridge();
+    return started_run(first_run);
+  }
+
+  lb::test::LineHarness line{"reqrestart", 67};
+  lb::test::Collector<msg::DiagnosticsPubSubType> diag;
+  lb::ddsl::Incarnation first_run = lb::ddsl::kAnyIncarnation;
+};
+
+// The command service's replies as they arrive, by the request they answer.
+struct Replies {
+  std::mutex m;
+  std::condition_variable cv;
+  std::map<SampleIdentity, std::vector<srv::Command_Response>> by_request;
+
+  bool wait_for(const SampleIdentity& request, std::chrono::milliseconds timeout) {
+    std::unique_lock lock(m);
+    return cv.wait_for(lock, timeout, [&] { return !by_request[request].empty(); });
+  }
+  std::vector<srv::Command_Response> of(const SampleIdentity& request) {
+    std::lock_guard lock(m);
+    return by_request[request];
+  }
+};
+
+}  // namespace
+
+// A client as ServiceClient is, written by hand so that its repeat comes when the new bridge has
+// started the saw (it would take a press then): the request names the run it was first sent to.
+TEST_F(RequestAcrossRestart, ARepeatToTheNextBridgeIsRefusedAndTheCutIsPressedOnce) {
+  const auto path = lb::ddsl::line_service_path(line.line(), "command");
+  Replies replies;
+  ASSERT_TRUE(line.dds().subscribe<srv::Command_ResponsePubSubType>(
+      lb::ddsl::reply_topic(path), QosKind::reply, [&](const srv::Command_Response& r, const auto& info) {
+        {
+          std::lock_guard lock(replies.m);
+          replies.by_request[info.related_sample_identity].push_back(r);
+        }
+        replies.cv.notify_all();
+      }));
+  auto requests = line.dds().writer<srv::Command_RequestPubSubType>(lb::ddsl::request_topic(path), QosKind::command);
+  ASSERT_TRUE(requests);
+  const auto matched = [&] {
+    const auto end = Clock::now() + 20s;
+    while (requests->matched() == 0 || line.dds().matched_writers(lb::ddsl::reply_topic(path)) == 0) {
+      if (Clock::now() > end) return false;
+      std::this_thread::sleep_for(10ms);
+    }
+    return true;
+  };
+  ASSERT_TRUE(matched()) << line.logs();
+
+  srv::Command_Request cut;
+  cut.device("saw1");
+  cut.command("manual_cut");
+  cut.bridge_incarnation(first_run);
+  WriteParams first_params;
+  ASSERT_TRUE(requests->write(cut, first_params));
+  const SampleIdentity first = first_params.sample_identity();
+
+  const auto second_run = kill_at_the_press_and_restart();
+  ASSERT_NE(second_run, lb::ddsl::kAnyIncarnation) << "the second bridge never started the saw\n" << line.logs();
+  ASSERT_NE(second_run, first_run);
+  EXPECT_TRUE(replies.of(first).empty()) << "the first bridge answered before it was killed: the test proves nothing";
+  ASSERT_TRUE(matched()) << "the second bridge's command service never matched\n" << line.logs();
+
+  // The repeat, as a client whose answer is lost writes it: the same request, naming the first.
+  WriteParams again;
+  again.related_sample_identity(first);
+  ASSERT_TRUE(requests->write(cut, again));
+  ASSERT_TRUE(replies.wait_for(first, 10s)) << "the repeat got no answer\n" << line.logs();
+  const auto answer = replies.of(first).front();
+  EXPECT_FALSE(answer.success()) << "the repeat ran on the second bridge: " << answer.message();
+  EXPECT_EQ(answer.message(), std::string(lb::ddsl::kRestartedRefusal));
+  EXPECT_EQ(answer.bridge_incarnation(), second_run) << "the refusal names the bridge that refused";
+
+  // A second press, had the repeat run, has been released before its answer: 15 more RPDO1s.
+  const std::size_t after = line.spy().frames(kRpdo1).size();
+  ASSERT_TRUE(rpdo1_until(line, [&](const auto& f) { return f.size() >= after + 15; })) << line.logs();
+  const auto held = presses(line.spy());
+  ASSERT_EQ(held.size(), 1u) << "the cut was pressed again on the second bridge: " << describe(held);
+  EXPECT_GE(held.front(), 100.0) << "released by the second bridge's first RPDO1: " << describe(held);
+}
+
+// The CLI asks again every second by itself: whenever its repeat reaches the second bridge (before
+// or after it started the saw), it is refused, and the CLI says so with exit code 4.
+TEST_F(RequestAcrossRestart, TheCliSaysTheBridgeRestartedAndExitsWith4) {
+  lb::test::ChildProcess cli({LB_BIN_CLI, "--config", line.bridge_config(), "press", "saw1", "manual_cut", "--timeout", "90"},
+                             ::testing::TempDir() + "/reqrestart_cli_" + std::to_string(::getpid()) + ".log");
+  ASSERT_TRUE(cli.started());
+  ASSERT_NE(kill_at_the_press_and_restart(), lb::ddsl::kAnyIncarnation) << line.logs() << cli.log();
+  const auto end = Clock::now() + 60s;
+  while (cli.running() && Clock::now() < end) std::this_thread::sleep_for(20ms);
+  const int status = cli.stop();
+  ASSERT_TRUE(WIFEXITED(status)) << cli.log();
+  EXPECT_EQ(WEXITSTATUS(status), 4) << cli.log() << line.logs();
+  EXPECT_NE(cli.log().find("bridge restarted: " + std::string(lb::ddsl::kRestartedRefusal)), std::string::npos) << cli.log();
+
+  const std::size_t after = line.spy().frames(kRpdo1).size();
+  ASSERT_TRUE(rpdo1_until(line, [&](const auto& f) { return f.size() >= after + 15; })) << line.logs();
+  const auto held = presses(line.spy());
+  ASSERT_EQ(held.size(), 1u) << "the cut was pressed again on the second bridge: " << describe(held);
+  EXPECT_GE(held.front(), 100.0) << describe(held);
+}

@@ -1,0 +1,125 @@
+// A request names the run of the bridge it is for (dds/incarnation.hpp): the rule itself, and
+// ServiceServer/ServiceClient in one process, where a server "restarts" by being replaced with a
+// new participant while the first still holds the request unanswered (killed before answering).
+#include <gtest/gtest.h>
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <future>
+#include <mutex>
+#include <set>
+
+#include "dds/incarnation.hpp"
+#include "dds/participant.hpp"
+#include "dds/service.hpp"
+#include "dds/topic_names.hpp"
+#include "msgs/commonPubSubTypes.h"
+
+namespace msg = linebridge_msgs::msg;
+namespace srv = linebridge_msgs::srv;
+using namespace std::chrono_literals;
+using lb::ddsl::Incarnation;
+using lb::ddsl::kAnyIncarnation;
+
+TEST(BridgeIncarnation, DrawnAtRandomAndNeverAny) {
+  std::set<Incarnation> drawn;
+  for (int i = 0; i < 1000; ++i) {
+    const auto x = lb::ddsl::draw_incarnation();
+    EXPECT_NE(x, kAnyIncarnation);
+    drawn.insert(x);
+  }
+  EXPECT_EQ(drawn.size(), 1000u) << "64 random bits do not repeat in 1000 draws";
+}
+
+TEST(BridgeIncarnation, ARequestRunsOnlyOnTheRunItNamesOrOnAnyWhenItNamesNone) {
+  EXPECT_TRUE(lb::ddsl::meant_for(7, 7));
+  EXPECT_TRUE(lb::ddsl::meant_for(kAnyIncarnation, 7)) << "an old client's request runs";
+  EXPECT_FALSE(lb::ddsl::meant_for(7, 8)) << "meant for an earlier run";
+  // The reply names who answered: from another run than the one named, it is the refusal.
+  EXPECT_TRUE(lb::ddsl::refused_as_restarted(7, 8));
+  EXPECT_FALSE(lb::ddsl::refused_as_restarted(7, 7));
+  EXPECT_FALSE(lb::ddsl::refused_as_restarted(kAnyIncarnation, 8));
+}
+
+namespace {
+
+using Server = lb::ddsl::ServiceServer<srv::Command_RequestPubSubType, srv::Command_ResponsePubSubType>;
+using Client = lb::ddsl::ServiceClient<srv::Command_RequestPubSubType, srv::Command_ResponsePubSubType>;
+constexpr const char* kLine = "inc";
+
+// One run of a bridge: a participant with the command service and diagnostics naming its run.
+struct BridgeRun {
+  std::unique_ptr<lb::ddsl::Participant> dds;
+  lb::ddsl::Writer<msg::DiagnosticsPubSubType> diagnostics;
+
+  // answer: whether the handler answers (the first run is killed before it does).
+  BridgeRun(std::uint32_t domain, bool answer, std::atomic<int>& runs, std::promise<Incarnation>* named = nullptr) {
+    auto p = lb::ddsl::Participant::create({domain, true, "run"});
+    if (!p) throw std::runtime_error(p.error().message);
+    dds = std::move(*p);
+    auto served = Server::serve(*dds, lb::ddsl::line_service_path(kLine, "command"),
+                                [answer, &runs, named](const srv::Command_Request& req, Server::Responder respond) {
+                                  if (++runs == 1 && named != nullptr) named->set_value(req.bridge_incarnation());
+                                  if (!answer) return;
+                                  srv::Command_Response done;
+                                  done.success(true);
+                                  respond(done);
+                                });
+    if (!served) throw std::runtime_error(served.error().message);
+    auto w = dds->writer<msg::DiagnosticsPubSubType>(lb::ddsl::topic_name(kLine, "bridge", "diagnostics"),
+                                                     lb::ddsl::QosKind::state);
+    if (!w) throw std::runtime_error(w.error().message);
+    diagnostics = *w;
+    msg::Diagnostics d;
+    d.line(kLine);
+    d.bridge_incarnation(dds->incarnation());
+    diagnostics.write(d);  // transient-local: a client matched later still gets it
+  }
+};
+
+}  // namespace
+
+TEST(BridgeIncarnation, ARepeatThatReachesARestartedServerIsRefusedUnrunAndTheNextRequestRuns) {
+  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
+  constexpr std::uint32_t kDomain = 41;
+  auto client_dds = lb::ddsl::Participant::create({kDomain, true, "client"});
+  ASSERT_TRUE(client_dds) << client_dds.error().message;
+  auto client = Client::create(**client_dds, lb::ddsl::line_service_path(kLine, "command"));
+  ASSERT_TRUE(client) << client.error().message;
+
+  std::atomic<int> first_runs{0}, second_runs{0};
+  std::promise<Incarnation> named;
+  auto first = std::make_unique<BridgeRun>(kDomain, false, first_runs, &named);
+  const Incarnation first_run = first->dds->incarnation();
+
+  srv::Command_Request cut;
+  cut.device("saw1");
+  cut.command("manual_cut");
+  auto asked = std::async(std::launch::async, [&] { return (*client)->ask(cut, 30s); });
+  auto named_run = named.get_future();
+  ASSERT_EQ(named_run.wait_for(20s), std::future_status::ready) << "the request never reached the first run";
+  EXPECT_EQ(named_run.get(), first_run) << "the client names the run it heard of before its first send";
+
+  first.reset();  // killed before it answered
+  BridgeRun second(kDomain, true, second_runs);
+  ASSERT_NE(second.dds->incarnation(), first_run);
+
+  const auto answer = asked.get();  // the client asks again every second: the second run gets a repeat
+  ASSERT_TRUE(answer) << answer.error().message;
+  EXPECT_TRUE(answer->bridge_restarted());
+  EXPECT_FALSE(answer->reply.success());
+  EXPECT_EQ(answer->reply.message(), std::string(lb::ddsl::kRestartedRefusal));
+  EXPECT_EQ(answer->reply.bridge_incarnation(), second.dds->incarnation());
+  EXPECT_EQ(answer->asked_of, first_run);
+  EXPECT_EQ(first_runs, 1);
+  EXPECT_EQ(second_runs, 0) << "the repeat ran on the restarted server";
+
+  // The client has heard of the second run now (its refusal, its diagnostics): a new request runs.
+  const auto next = (*client)->ask(cut, 20s);
+  ASSERT_TRUE(next) << next.error().message;
+  EXPECT_TRUE(next->reply.success()) << next->reply.message();
+  EXPECT_FALSE(next->bridge_restarted());
+  EXPECT_EQ(next->asked_of, second.dds->incarnation());
+  EXPECT_EQ(second_runs, 1);
+}
