@@ -444,7 +444,7 @@ void claim_pdo_identifiers(const YamlSource& src, const YAML::Node& n, const Dev
 
 StartupPolicy parse_startup(const YamlSource& src, const YAML::Node& n) {
   src.expect_map(n, "startup");
-  src.check_keys(n, "startup", {"set_values_max_age_s", "after_power_loss", "restart_after_power_loss"});
+  src.check_keys(n, "startup", {"set_values_max_age_s", "after_power_loss", "restart_after_power_loss", "pdo_change_when_running"});
   StartupPolicy p;
   p.set_values_max_age = std::chrono::seconds(bounded<int>(src, n, "set_values_max_age_s", 3600, 0, 30 * 86400, "startup"));
   if (const auto v = src.optional<std::string>(n, "after_power_loss")) {
@@ -456,6 +456,13 @@ StartupPolicy parse_startup(const YamlSource& src, const YAML::Node& n) {
     if (*v == "never") p.restart_after_power_loss = StartupPolicy::Restart::never;
     else if (*v == "allowed") p.restart_after_power_loss = StartupPolicy::Restart::allowed;
     else src.fail(n["restart_after_power_loss"], "restart_after_power_loss must be never or allowed, not '" + *v + "'");
+  }
+  if (const auto v = src.optional<std::string>(n, "pdo_change_when_running")) {
+    using canopen::PdoChangeWhenRunning;
+    if (*v == "pre_operational") p.pdo_change_when_running = PdoChangeWhenRunning::pre_operational;
+    else if (*v == "keep_running") p.pdo_change_when_running = PdoChangeWhenRunning::keep_running;
+    else src.fail(n["pdo_change_when_running"], "pdo_change_when_running must be pre_operational (a running device is put in "
+                                                "pre-operational to write its PDOs) or keep_running, not '" + *v + "'");
   }
   return p;
 }

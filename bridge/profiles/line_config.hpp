@@ -11,6 +11,7 @@
 
 #include "base/result.hpp"
 #include "canopen/object_value.hpp"
+#include "canopen/pdo_parameters.hpp"
 #include "profiles/profile_registry.hpp"
 
 namespace lb::profiles {
@@ -174,6 +175,10 @@ struct StartupPolicy {
   AfterPowerLoss after_power_loss = AfterPowerLoss::non_enabling;
   // allowed: its enabling levels too (the integrator has judged an automatic restart safe).
   Restart restart_after_power_loss = Restart::never;
+  // A device found operational whose PDO parameters must change (CiA 301 lets it refuse them
+  // while a PDO is valid): pre_operational (NMT enter pre-operational, write, read back, start) or
+  // keep_running (not written; boot error J once, left running unmanaged).
+  canopen::PdoChangeWhenRunning pdo_change_when_running = canopen::PdoChangeWhenRunning::pre_operational;
 };
 
 struct DeviceConfig {

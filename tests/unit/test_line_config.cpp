@@ -553,6 +553,31 @@ TEST(LineConfig, StartupPolicyDefaultsAreSafeAndEachKeyIsChecked) {
   EXPECT_NE(error_of(replace(kGood, "dds:\n", "startup: {restore: true}\ndds:\n")).find("restore"), std::string::npos);
 }
 
+// What the boot does with a running device whose PDO parameters must change: pre_operational by
+// default (CiA 302-2: the master pauses it to write), keep_running on request; nothing else.
+TEST(LineConfig, PdoChangeWhenRunningIsPreOperationalByDefault) {
+  using lb::canopen::PdoChangeWhenRunning;
+  const auto registry = ProfileRegistry::builtin();
+  auto plain = parse_line_config(kGood, "line.yaml", registry);
+  ASSERT_TRUE(plain) << plain.error().message;
+  EXPECT_EQ(plain->startup.pdo_change_when_running, PdoChangeWhenRunning::pre_operational);
+  auto keep = parse_line_config(replace(kGood, "dds:\n", "startup: {pdo_change_when_running: keep_running}\ndds:\n"),
+                                "line.yaml", registry);
+  ASSERT_TRUE(keep) << keep.error().message;
+  EXPECT_EQ(keep->startup.pdo_change_when_running, PdoChangeWhenRunning::keep_running);
+  EXPECT_TRUE(keep->warnings.empty());
+  auto pre = parse_line_config(replace(kGood, "dds:\n", "startup: {pdo_change_when_running: pre_operational}\ndds:\n"),
+                               "line.yaml", registry);
+  ASSERT_TRUE(pre) << pre.error().message;
+  EXPECT_EQ(pre->startup.pdo_change_when_running, PdoChangeWhenRunning::pre_operational);
+  const auto e = error_of(replace(kGood, "dds:\n", "startup: {pdo_change_when_running: reset_node}\ndds:\n"));
+  EXPECT_NE(e.find("pdo_change_when_running must be pre_operational"), std::string::npos) << e;
+  // A misspelt key stays an error.
+  EXPECT_NE(error_of(replace(kGood, "dds:\n", "startup: {pdo_change_while_running: keep_running}\ndds:\n"))
+                .find("pdo_change_while_running"),
+            std::string::npos);
+}
+
 // Two master buses on one CAN network would hear each other's SYNC and NMT and silence each other.
 TEST(LineConfig, TwoMasterBusesOnOneInterfaceAreRefused) {
   const auto two = replace(kGood, "    interface: socketcan:can1\n    role: monitor\n", "    interface: virtual:x\n    role: master\n");
