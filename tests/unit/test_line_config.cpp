@@ -578,6 +578,27 @@ TEST(LineConfig, PdoChangeWhenRunningIsPreOperationalByDefault) {
             std::string::npos);
 }
 
+// Saw 3.1 makes its TPDOs' COB-IDs const (tables 3, 7): valid for good, so CiA 301 forbids writing
+// their inhibit time. A line that wants one is warned at --check (its boot would fail with J),
+// unless it adopts the device's value.
+TEST(LineConfig, InhibitTimeOfAPdoWithAConstCobIdIsWarnedAbout) {
+  const auto registry = ProfileRegistry::builtin();
+  const auto with = [&](const std::string& text) {
+    return parse_line_config(replace(kGood, "    simulation:\n", text + "    simulation:\n"), "line.yaml", registry);
+  };
+  auto r = with("    pdos: {tpdo1: {transmission_type: 254, inhibit_time_100us: 500}}\n");
+  ASSERT_TRUE(r) << r.error().message;
+  ASSERT_EQ(r->warnings.size(), 1u);
+  EXPECT_NE(r->warnings[0].find("tpdo1 inhibit_time_100us 500"), std::string::npos) << r->warnings[0];
+  EXPECT_NE(r->warnings[0].find("fails with J"), std::string::npos) << r->warnings[0];
+  r = with("    pdos: {tpdo1: {transmission_type: 254, event_timer_ms: 300}}\n");
+  ASSERT_TRUE(r) << r.error().message;
+  EXPECT_TRUE(r->warnings.empty());
+  r = with("    pdo_config: adopt\n    pdos: {tpdo1: {inhibit_time_100us: 500}}\n");
+  ASSERT_TRUE(r) << r.error().message;
+  EXPECT_TRUE(r->warnings.empty());
+}
+
 // Two master buses on one CAN network would hear each other's SYNC and NMT and silence each other.
 TEST(LineConfig, TwoMasterBusesOnOneInterfaceAreRefused) {
   const auto two = replace(kGood, "    interface: socketcan:can1\n    role: monitor\n", "    interface: virtual:x\n    role: master\n");
