@@ -35,6 +35,10 @@ std::optional<BootError> compare_identity(char code, const char* what, const cha
 BootSequence::BootSequence(BusLoop& loop, RemoteNode& node, SdoClient& sdo, Settings settings)
     : loop_(loop), node_(node), sdo_(sdo), settings_(std::move(settings)) {
   heartbeat_timer_ = loop_.create_timer([this] {
+    if (waiting_for_state_) {
+      waiting_for_state_ = false;
+      return write_pdos();
+    }
     if (!waiting_for_heartbeat_) return;
     waiting_for_heartbeat_ = false;
     const auto producer = report_.heartbeat_producer_ms;
@@ -50,6 +54,7 @@ void BootSequence::run(Done done) {
   running_ = true;
   done_ = std::move(done);
   report_ = {};
+  paused_running_ = false;
   planned_pdos_.clear();
   node_.set_configured(false);
   report_.was_operational = node_.online() && node_.state() == NmtState::operational;
@@ -70,6 +75,7 @@ void BootSequence::cancel() {
   ++generation_;
   running_ = false;
   waiting_for_heartbeat_ = false;
+  waiting_for_state_ = false;
   loop_.disarm_timer(heartbeat_timer_);
 }
 
@@ -201,7 +207,7 @@ void BootSequence::configure_pdos(std::vector<DevicePdo> devices) {
   std::vector<SdoRequest> writes;
   std::vector<PdoSpec> written;
   std::vector<PdoParameters> planned;
-  bool needs_not_operational = false;
+  std::optional<PdoMismatch> disrupts;  // the first change a running device cannot take
   planned_pdos_.clear();
   for (std::size_t i = 0; i < devices.size(); ++i) {
     const PdoSpec& line = settings_.pdos[i];
@@ -209,11 +215,12 @@ void BootSequence::configure_pdos(std::vector<DevicePdo> devices) {
     auto plan = plan_pdo(spec, devices[i]);
     if (!plan) {
       const auto& m = plan.error();
-      const bool fixed_mapping = m.index == spec.mapping_index;
+      // adopt takes everything of the device's PDO but its COB-ID.
+      const bool adoptable = !(m.index == spec.communication_index && m.sub == 1);
       return fail({'J', "PDO configuration", m.index, m.sub, m.expected, m.actual, 0,
                    fmt::format("node {}: {}{}", node_.node_id(), m.message,
-                               !settings_.adopt_device_pdos && fixed_mapping
-                                   ? " (pdo_config: adopt takes the device's mapping instead)"
+                               !settings_.adopt_device_pdos && adoptable
+                                   ? " (pdo_config: adopt takes the device's value instead)"
                                    : "")});
     }
     for (const auto& w : plan->writes) {
@@ -223,7 +230,7 @@ void BootSequence::configure_pdos(std::vector<DevicePdo> devices) {
       written.push_back(spec);
       planned.push_back(plan->result);
     }
-    needs_not_operational = needs_not_operational || plan->needs_not_operational;
+    if (!disrupts && plan->disrupts) disrupts = plan->disrupts;
     const auto& p = plan->result;
     const auto& w = line.wanted;
     const bool adopted = settings_.adopt_device_pdos &&
@@ -232,12 +239,53 @@ void BootSequence::configure_pdos(std::vector<DevicePdo> devices) {
     planned_pdos_.push_back({spec.name, plan->result, adopted});
   }
   if (writes.empty()) return use_pdos();
-  if (needs_not_operational && node_.state() == NmtState::operational) {
-    spdlog::info("{}: node {}: NMT enter pre-operational to change a PDO mapping", loop_.bus().uri(), node_.node_id());
-    (void)node_.command(NmtCommand::enter_pre_operational);
+  pdo_writes_ = {std::move(writes), std::move(written), std::move(planned), std::move(disrupts)};
+  if (node_.online()) return write_pdos();
+  // Whether it runs decides how its PDOs are written: its next heartbeat tells (a restarted
+  // bridge reads a device's parameters faster than it sends its heartbeat).
+  set_step("waiting for its heartbeat before writing PDO parameters");
+  waiting_for_state_ = true;
+  loop_.arm_timer(heartbeat_timer_, node_.heartbeat_timeout());
+}
+
+void BootSequence::write_pdos() {
+  PdoWrites pending = std::move(pdo_writes_);
+  pdo_writes_ = {};
+  const auto& disrupts = pending.disrupts;
+  // Still not heard (no heartbeat within its timeout: it may send none): pre_operational sends
+  // the command anyway (a pre-operational device ignores it), keep_running writes as to a device
+  // that does not run (a refusal is J, tried again after boot_retry_ms).
+  const bool heard = node_.online();
+  const bool running = heard && node_.state() == NmtState::operational;
+  const auto policy = settings_.pdo_change_when_running;
+  if (running && policy == PdoChangeWhenRunning::keep_running && disrupts) {
+    // Nothing is written: CiA 301 lets a device refuse these while the PDO is valid, and making it
+    // invalid (or the device pre-operational) would stop what the line is running. Reported once:
+    // NodeStateMachine does not retry a running device's J every boot_retry_ms.
+    return fail({'J', "PDO configuration", disrupts->index, disrupts->sub, disrupts->expected, disrupts->actual, 0,
+                 fmt::format("node {}: {}; the device runs, and CiA 301 lets a master change that only while the PDO "
+                             "is not valid: not written, the device is left running as it is "
+                             "(startup.pdo_change_when_running: keep_running; pre_operational would put it in "
+                             "pre-operational, write it and start it)",
+                             node_.node_id(), disrupts->message)});
   }
-  set_step(fmt::format("writing PDO parameters ({} writes)", writes.size()));
-  batch(writes, [this, writes, written = std::move(written), planned = std::move(planned)](Replies r) mutable {
+  if (policy == PdoChangeWhenRunning::pre_operational && (running || !heard)) {
+    // CiA 302-2: a master brings a device to pre-operational before it writes PDO parameters, so
+    // that what the device sends and takes never follows half a configuration (and a device may
+    // refuse them while a PDO is valid). NMT start follows the boot's heartbeat step as usual.
+    paused_running_ = running;
+    spdlog::info("{}: node {} {}: NMT enter pre-operational to write its PDO parameters (startup.pdo_change_when_running: "
+                 "pre_operational)",
+                 loop_.bus().uri(), node_.node_id(), running ? "is operational" : "sends no heartbeat");
+    if (auto r = node_.command(NmtCommand::enter_pre_operational); !r) {
+      return fail({'J', "PDO configuration", 0, 0, "", "", 0,
+                   fmt::format("node {}: NMT enter pre-operational could not be sent: {}", node_.node_id(), r.error().message)});
+    }
+  }
+  set_step(fmt::format("writing PDO parameters ({} writes)", pending.writes.size()));
+  auto writes = pending.writes;
+  batch(std::move(pending.writes), [this, writes = std::move(writes), written = std::move(pending.specs),
+                                    planned = std::move(pending.planned)](Replies r) mutable {
     if (r.back().error) {
       const auto& q = writes[r.size() - 1];
       return fail({'J', "PDO configuration", q.index, q.sub, to_string(q.value), "refused", r.back().error->abort_code,
@@ -355,6 +403,11 @@ void BootSequence::await_heartbeat() {
 }
 
 void BootSequence::heard(NmtState /*state*/) {
+  if (waiting_for_state_) {
+    waiting_for_state_ = false;
+    loop_.disarm_timer(heartbeat_timer_);
+    return write_pdos();
+  }
   if (!waiting_for_heartbeat_) return;
   waiting_for_heartbeat_ = false;
   loop_.disarm_timer(heartbeat_timer_);
@@ -364,8 +417,9 @@ void BootSequence::heard(NmtState /*state*/) {
 void BootSequence::start() {
   // Nothing in this attempt started it (an operational device is left running while it is
   // checked, a stopped one is put pre-operational), so operational now means it was running
-  // before: only the bridge or the line PC restarted, or its heartbeat was lost for a while.
-  report_.was_operational = node_.state() == NmtState::operational;
+  // before: only the bridge or the line PC restarted, or its heartbeat was lost for a while. One
+  // this attempt put in pre-operational to write its PDOs was running when the boot began.
+  report_.was_operational = paused_running_ || node_.state() == NmtState::operational;
   const auto& id = report_.identity;
   node_.starting({report_.was_operational, {id.vendor_id, id.product_code, id.revision_number, id.serial_number}});
   if (const auto hold = node_.operator_hold()) {
@@ -418,6 +472,7 @@ void BootSequence::read_names() {
 void BootSequence::fail(BootError error) {
   running_ = false;
   waiting_for_heartbeat_ = false;
+  waiting_for_state_ = false;
   loop_.disarm_timer(heartbeat_timer_);
   node_.set_configured(false);
   report_.identity.read_at_ns = now_ns();

@@ -5,7 +5,9 @@
 //   3. PDO configuration (then handed to the gateways): every PDO's communication and mapping parameters read and compared with
 //      what the master will decode and send; what differs is written in the CiA 301 order where
 //      the profile lets a master write it, and read back; what differs where the profile fixes it
-//      fails the boot (or, in adopt mode, the device's parameters are taken);
+//      fails the boot (or, in adopt mode, the device's parameters are taken). A device found
+//      operational whose PDOs must change is first put in pre-operational, or left running and
+//      reported (J) without a write it would refuse (Settings::pdo_change_when_running);
 //   4. the line's configuration writes, read back, then the heartbeat producer time 1017h;
 //   5. a heartbeat from the device;
 //   6. NMT start. Only now does the device count as configured and get RPDOs.
@@ -94,6 +96,8 @@ class BootSequence {
     ExpectedIdentity identity;
     std::vector<PdoSpec> pdos;
     bool adopt_device_pdos = false;
+    // A device found operational (or not heard yet) whose PDO parameters must change.
+    PdoChangeWhenRunning pdo_change_when_running = PdoChangeWhenRunning::pre_operational;
     std::vector<Write> writes;
     std::optional<std::uint16_t> heartbeat_producer_ms;  // written to 1017h when given
   };
@@ -123,6 +127,7 @@ class BootSequence {
   void check_identity(const Replies& r);
   void read_pdos(std::vector<PdoSpec> specs, std::function<void(std::vector<DevicePdo>)> then);
   void configure_pdos(std::vector<DevicePdo> devices);
+  void write_pdos();  // pdo_writes_, once the device's state is known (or its heartbeat timed out)
   void verify_pdos(std::vector<PdoSpec> specs, std::vector<PdoParameters> planned);
   void write_configuration();
   void verify_configuration();
@@ -142,6 +147,17 @@ class BootSequence {
   std::uint64_t generation_ = 0;  // a new attempt makes the callbacks of the old one no-ops
   bool running_ = false;
   bool waiting_for_heartbeat_ = false;
+  // This attempt sent the device, found operational, to pre-operational to write its PDOs: it
+  // still counts as found operational when it is started (RemoteNode::StartFacts).
+  bool paused_running_ = false;
+  bool waiting_for_state_ = false;  // a heartbeat before the PDO writes
+  struct PdoWrites {
+    std::vector<SdoRequest> writes;
+    std::vector<PdoSpec> specs;            // the PDOs written, to read back
+    std::vector<PdoParameters> planned;    // what they read back once written
+    std::optional<PdoMismatch> disrupts;   // the first change a running device cannot take
+  };
+  PdoWrites pdo_writes_;
   std::string step_ = "waiting";
   BootReport report_;
   std::vector<PdoInUse> planned_pdos_;

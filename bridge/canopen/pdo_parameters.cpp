@@ -75,6 +75,17 @@ class Planner {
     if (!writable(access)) {
       return refuse(spec_.communication_index, sub, std::to_string(want), std::to_string(have), what, access);
     }
+    // CiA 301: the inhibit time changes only while the PDO is not valid. A PDO whose COB-ID the
+    // profile fixes (saw 3.1: const) cannot be made invalid, so its inhibit time cannot be written,
+    // whatever the profile's table says of sub 3 (a device refuses it: Lely with 0609 0030h).
+    if (sub == 3 && have_.valid() && !can_invalidate()) {
+      return mismatch(spec_.communication_index, sub, std::to_string(want), std::to_string(have),
+                      fmt::format("{}: inhibit time {} sub 3 is {} on the device, the line wants {}; CiA 301 lets a "
+                                  "master change it only while the PDO is not valid, and the device profile makes the "
+                                  "COB-ID ({} sub 1) {}, so the bridge cannot make it invalid",
+                                  pdo_, hex(spec_.communication_index), have, want, hex(spec_.communication_index),
+                                  to_string(spec_.rules.cob_id)));
+    }
     return std::nullopt;
   }
 
@@ -110,9 +121,10 @@ class Planner {
     const auto map = spec_.mapping_index;
     const bool identifier_change = ((cob ^ have_.cob_id) & ~kCobIdNotValid) != 0;
     const bool mapping_change = entries_change_ || count_change_;
-    // CiA 301: a PDO's mapping and identifier change while it is not valid.
-    const bool can_invalidate = writable(spec_.rules.cob_id) || spec_.rules.cob_id == PdoAccess::valid_bit;
-    const bool invalidate = (mapping_change || identifier_change) && have_.valid() && can_invalidate;
+    const bool inhibit_change = spec_.transmit && want_.inhibit_time != have_.inhibit_time;
+    // CiA 301: a PDO's identifier, inhibit time and mapping change only while it is not valid
+    // (bit 31 set first, cleared last); the transmission type and event timer at any time.
+    const bool invalidate = (mapping_change || identifier_change || inhibit_change) && have_.valid() && can_invalidate();
     if (invalidate) p.writes.push_back({comm, 1, 32, have_.cob_id | kCobIdNotValid});
     if (entries_change_) {
       p.writes.push_back({map, 0, 8, 0});
@@ -125,10 +137,19 @@ class Planner {
     }
     if (mapping_change) p.writes.push_back({map, 0, 8, static_cast<std::uint32_t>(want_.mapping.size())});
     if (want_.transmission_type != have_.transmission_type) p.writes.push_back({comm, 2, 8, want_.transmission_type});
-    if (spec_.transmit && want_.inhibit_time != have_.inhibit_time) p.writes.push_back({comm, 3, 16, want_.inhibit_time});
+    if (inhibit_change) p.writes.push_back({comm, 3, 16, want_.inhibit_time});
     if (spec_.transmit && want_.event_timer != have_.event_timer) p.writes.push_back({comm, 5, 16, want_.event_timer});
-    if (invalidate || cob != have_.cob_id) p.writes.push_back({comm, 1, 32, cob});
+    if (cob != (invalidate ? have_.cob_id | kCobIdNotValid : have_.cob_id)) p.writes.push_back({comm, 1, 32, cob});
     p.needs_not_operational = mapping_change;
+    if (have_.valid() && identifier_change) {
+      p.disrupts = changing(comm, 1, "COB-ID", describe_cob_id(cob), describe_cob_id(have_.cob_id));
+    } else if (have_.valid() && inhibit_change) {
+      p.disrupts = changing(comm, 3, "inhibit time", std::to_string(want_.inhibit_time), std::to_string(have_.inhibit_time));
+    } else if (mapping_change) {
+      p.disrupts = changing(map, 0, "number of mapped objects", std::to_string(want_.mapping.size()),
+                            std::to_string(have_.mapping.size()));
+      if (entries_change_) p.disrupts->message = fmt::format("{}: its mapping ({}) differs from the line's", pdo_, hex(map));
+    }
     p.result = have_;
     p.result.cob_id = cob;
     p.result.transmission_type = want_.transmission_type;
@@ -138,6 +159,15 @@ class Planner {
     }
     p.result.mapping = want_.mapping;
     return p;
+  }
+
+  bool can_invalidate() const { return writable(spec_.rules.cob_id) || spec_.rules.cob_id == PdoAccess::valid_bit; }
+
+  PdoMismatch changing(std::uint16_t index, std::uint8_t sub, const char* what, std::string expected, std::string actual) const {
+    auto m = mismatch(index, sub, expected, actual,
+                      fmt::format("{}: {} {} sub {} is {} on the device, the line wants {}", pdo_, what, hex(index), sub,
+                                  actual, expected));
+    return m;
   }
 
   PdoMismatch mismatch(std::uint16_t index, std::uint8_t sub, std::string expected, std::string actual,

@@ -85,6 +85,18 @@ struct PdoPlan {
   std::vector<PdoWrite> writes;  // in CiA 301 order; empty when the device already matches
   PdoParameters result;          // what the device holds once they are done (to read back)
   bool needs_not_operational = false;  // a mapping change: the device must not be operational
+  // The first change that takes the PDO out of service while it is written (CiA 301 lets it
+  // change only while the PDO is not valid: another identifier, the inhibit time, the mapping),
+  // with both values; nullopt when the writes are only what a master may write to a valid PDO of
+  // a running device (transmission type, event timer, the valid bit itself).
+  std::optional<PdoMismatch> disrupts;
+};
+
+// What the boot does with a device it finds operational (it started itself, or only the line PC
+// restarted) whose PDO parameters must change (README, "Start-up and recovery policy").
+enum class PdoChangeWhenRunning {
+  pre_operational,  // NMT enter pre-operational, write and read back, then the boot goes on to its start
+  keep_running,     // left running: what needs the PDO not valid is not written (boot error J, once)
 };
 
 // The writes from `device` to `spec.wanted`, or the first difference the profile fixes.

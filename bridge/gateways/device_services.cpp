@@ -101,6 +101,7 @@ DeviceServices::DeviceServices(DeviceContext context) : ctx_(context) {
                      d.identity.vendor_id, d.identity.product_code, d.identity.revision, d.identity.serial_number};
     boot.pdos = pdo_specs(ctx_.profile, d);
     boot.adopt_device_pdos = d.pdo_config == profiles::PdoConfigMode::adopt;
+    boot.pdo_change_when_running = ctx_.startup.pdo_change_when_running;
     for (const auto& w : d.configure) boot.writes.push_back({w.index, w.sub, w.type, w.value, w.verify});
     if (d.heartbeat_producer) boot.heartbeat_producer_ms = static_cast<std::uint16_t>(d.heartbeat_producer->count());
     canopen::NodeStateMachine::Settings control;

@@ -406,6 +406,26 @@ std::vector<DevicePdo> resolve_pdos(const YamlSource& src, const YAML::Node* ove
   return pdos;
 }
 
+// CiA 301 lets a master change a TPDO's inhibit time only while the PDO is not valid; where the
+// profile fixes the COB-ID (saw 3.1: const) the PDO is valid for good, so the boot can never write
+// it: a line value other than the profile's default is a boot error J on every device that still
+// has the default. Said at --check, before the line runs.
+void warn_fixed_inhibit_times(const YamlSource& src, const YAML::Node& overrides, const DeviceConfig& dev,
+                              std::vector<std::string>& warnings) {
+  for (const auto& pdo : dev.pdos) {
+    const PdoDef* def = dev.bridge_profile().pdo(pdo.name);
+    if (def == nullptr || def->direction != PdoDirection::tx || def->rules.cob_id != PdoAccess::fixed) continue;
+    const YAML::Node o = overrides[pdo.name];
+    if (!o || !o.IsMap() || !o["inhibit_time_100us"] || pdo.inhibit.count() == 0) continue;
+    warnings.push_back(src.where(o["inhibit_time_100us"]) +
+                       fmt::format(": device {}: {} inhibit_time_100us {}: profile {} makes this PDO's COB-ID const, so "
+                                   "it cannot be made not valid and CiA 301 forbids writing its inhibit time; unless the "
+                                   "device already has that value (the profile's default is 0) its boot fails with J "
+                                   "(pdo_config: adopt takes the device's value)",
+                                   dev.name, pdo.name, pdo.inhibit.count() / 100, dev.bridge_profile().key()));
+  }
+}
+
 // What the devices so far use: the checks against all earlier devices stay linear in their number.
 struct Taken {
   std::unordered_set<std::string> device_names;
@@ -444,7 +464,8 @@ void claim_pdo_identifiers(const YamlSource& src, const YAML::Node& n, const Dev
 
 StartupPolicy parse_startup(const YamlSource& src, const YAML::Node& n) {
   src.expect_map(n, "startup");
-  src.check_keys(n, "startup", {"set_values_max_age_s", "after_power_loss", "restart_after_power_loss", "when_mandatory_fails"});
+  src.check_keys(n, "startup", {"set_values_max_age_s", "after_power_loss", "restart_after_power_loss", "when_mandatory_fails",
+                                 "pdo_change_when_running"});
   StartupPolicy p;
   p.set_values_max_age = std::chrono::seconds(bounded<int>(src, n, "set_values_max_age_s", 3600, 0, 30 * 86400, "startup"));
   if (const auto v = src.optional<std::string>(n, "after_power_loss")) {
@@ -461,6 +482,13 @@ StartupPolicy parse_startup(const YamlSource& src, const YAML::Node& n) {
     if (*v == "stop_others") p.when_mandatory_fails = StartupPolicy::WhenMandatoryFails::stop_others;
     else if (*v == "report_only") p.when_mandatory_fails = StartupPolicy::WhenMandatoryFails::report_only;
     else src.fail(n["when_mandatory_fails"], "when_mandatory_fails must be stop_others (every other device the bridge started is stopped until an operator starts it) or report_only, not '" + *v + "'");
+  }
+  if (const auto v = src.optional<std::string>(n, "pdo_change_when_running")) {
+    using canopen::PdoChangeWhenRunning;
+    if (*v == "pre_operational") p.pdo_change_when_running = PdoChangeWhenRunning::pre_operational;
+    else if (*v == "keep_running") p.pdo_change_when_running = PdoChangeWhenRunning::keep_running;
+    else src.fail(n["pdo_change_when_running"], "pdo_change_when_running must be pre_operational (a running device is put in "
+                                                "pre-operational to write its PDOs) or keep_running, not '" + *v + "'");
   }
   return p;
 }
@@ -529,6 +557,9 @@ DeviceConfig parse_device(const YamlSource& src, const YAML::Node& n, const Line
     if (*mode == "configure") dev.pdo_config = PdoConfigMode::configure;
     else if (*mode == "adopt") dev.pdo_config = PdoConfigMode::adopt;
     else src.fail(n["pdo_config"], "pdo_config must be configure (make the device match the line) or adopt (take the device's PDOs), not '" + *mode + "'");
+  }
+  if (dev.pdo_config == PdoConfigMode::configure && pdo_overrides) {
+    warn_fixed_inhibit_times(src, pdo_overrides, dev, warnings);
   }
   if (const auto action = src.optional<std::string>(n, "on_state_unknown")) {
     if (*action == "reboot") dev.on_state_unknown = StateUnknownAction::reboot;

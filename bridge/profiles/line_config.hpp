@@ -11,6 +11,7 @@
 
 #include "base/result.hpp"
 #include "canopen/object_value.hpp"
+#include "canopen/pdo_parameters.hpp"
 #include "profiles/profile_registry.hpp"
 
 namespace lb::profiles {
@@ -181,6 +182,10 @@ struct StartupPolicy {
   // before every mandatory one passed its boot.
   enum class WhenMandatoryFails { stop_others, report_only };
   WhenMandatoryFails when_mandatory_fails = WhenMandatoryFails::stop_others;
+  // A device found operational whose PDO parameters must change (CiA 301 lets it refuse them
+  // while a PDO is valid): pre_operational (NMT enter pre-operational, write, read back, start) or
+  // keep_running (not written; boot error J once, left running unmanaged).
+  canopen::PdoChangeWhenRunning pdo_change_when_running = canopen::PdoChangeWhenRunning::pre_operational;
 };
 std::string_view to_string(StartupPolicy::WhenMandatoryFails policy);
 

@@ -93,8 +93,9 @@ void DevicePdos::add_objects(std::size_t i) {
   if (rules.inhibit_time != PdoAccess::none) {
     add(comm, 3, DataType::unsigned16, rules.inhibit_time, [this, i] { return pdos_[i].now.inhibit_time; },
         [this, i](std::uint32_t v) {
-          return write_communication(i, pdos_[i].def->rules.inhibit_time, std::nullopt,
-                                     [v](Pdo& q) { q.now.inhibit_time = static_cast<std::uint16_t>(v); });
+          const auto inhibit = static_cast<std::uint16_t>(v);
+          return write_communication(i, pdos_[i].def->rules.inhibit_time, check_inhibit_time(pdos_[i].now, inhibit),
+                                     [inhibit](Pdo& q) { q.now.inhibit_time = inhibit; });
         });
   }
   if (rules.event_timer != PdoAccess::none) {
@@ -114,7 +115,7 @@ void DevicePdos::add_objects(std::size_t i) {
 
 std::optional<std::uint32_t> DevicePdos::write_cob_id(std::size_t i, std::uint32_t v) {
   Pdo& p = pdos_[i];
-  if (auto code = check_state(p.def->rules.cob_id, false, hooks_.operational(), p.now.valid())) return code;
+  if (auto code = check_state(p.def->rules.cob_id, hooks_.operational())) return code;
   if (auto code = check_cob_id(p.def->direction, p.def->rules.cob_id, p.now.cob_id, v)) return code;
   p.now.cob_id = v;
   communication_changed(p, i);
@@ -125,7 +126,7 @@ std::optional<std::uint32_t> DevicePdos::write_communication(std::size_t i, PdoA
                                                              std::optional<std::uint32_t> out_of_range,
                                                              const std::function<void(Pdo&)>& set) {
   Pdo& p = pdos_[i];
-  if (auto code = check_state(access, false, hooks_.operational(), p.now.valid())) return code;
+  if (auto code = check_state(access, hooks_.operational())) return code;
   if (out_of_range) return out_of_range;
   set(p);
   communication_changed(p, i);
@@ -135,7 +136,9 @@ std::optional<std::uint32_t> DevicePdos::write_communication(std::size_t i, PdoA
 std::optional<std::uint32_t> DevicePdos::write_count(std::size_t i, std::uint32_t v) {
   Pdo& p = pdos_[i];
   const auto count = static_cast<std::uint8_t>(v);
-  if (auto code = check_state(p.def->rules.mapping_count, true, hooks_.operational(), p.now.valid())) return code;
+  if (auto code = check_state(p.def->rules.mapping_count, hooks_.operational())) return code;
+  if (count == p.now.count) return std::nullopt;  // as Lely: the value it has is no change
+  if (auto code = check_mapping_while_valid(p.now, p.def->rules, hooks_.operational())) return code;
   if (auto code = check_mapping_count(p.now, p.def->rules, count)) return code;
   p.now.count = count;
   rebind(p);
@@ -144,9 +147,12 @@ std::optional<std::uint32_t> DevicePdos::write_count(std::size_t i, std::uint32_
 
 std::optional<std::uint32_t> DevicePdos::write_entry(std::size_t i, std::size_t entry, std::uint32_t v) {
   Pdo& p = pdos_[i];
-  if (auto code = check_state(p.def->rules.mapping, true, hooks_.operational(), p.now.valid())) return code;
-  // CiA 301: entries change only while sub 0 is 0 (the mapping switched off).
-  if (p.now.count != 0) return canopen::sdo_abort::unsupported_access;
+  if (auto code = check_state(p.def->rules.mapping, hooks_.operational())) return code;
+  if (v == p.now.entries[entry]) return std::nullopt;  // as Lely: the value it has is no change
+  if (auto code = check_mapping_while_valid(p.now, p.def->rules, hooks_.operational())) return code;
+  // CiA 301: entries change only while sub 0 is 0 (the mapping switched off); Lely answers
+  // CO_SDO_AC_PARAM_VAL (0609 0030h).
+  if (p.now.count != 0) return canopen::sdo_abort::value_range_exceeded;
   if (auto code = check_mapping_entry(p.def->direction, v, dictionary_, image_)) return code;
   p.now.entries[entry] = v;
   return std::nullopt;

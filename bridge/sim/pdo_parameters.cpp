@@ -117,11 +117,28 @@ std::optional<std::uint32_t> check_transmission_type(PdoDirection direction, std
   return abort::value_range_exceeded;
 }
 
-std::optional<std::uint32_t> check_state(PdoAccess access, bool mapping, bool operational, bool pdo_valid) {
-  if (!operational) return std::nullopt;
-  if (access == PdoAccess::rw_preop) return abort::cannot_store_device_state;
-  // CiA 301: a mapping changes only while the PDO is not valid or the device not operational.
-  if (mapping && access == PdoAccess::rw && pdo_valid) return abort::cannot_store_device_state;
+std::optional<std::uint32_t> check_state(PdoAccess access, bool operational) {
+  if (operational && access == PdoAccess::rw_preop) return abort::cannot_store_device_state;
+  return std::nullopt;
+}
+
+bool can_invalidate(const profiles::PdoRules& rules) {
+  return rules.cob_id == PdoAccess::rw || rules.cob_id == PdoAccess::rw_preop || rules.cob_id == PdoAccess::valid_bit;
+}
+
+std::optional<std::uint32_t> check_inhibit_time(const PdoParameters& pdo, std::uint16_t wanted) {
+  // CiA 301: "shall not be changed while the PDO exists"; Lely: CO_SDO_AC_PARAM_VAL.
+  if (pdo.valid() && wanted != pdo.inhibit_time) return abort::value_range_exceeded;
+  return std::nullopt;
+}
+
+std::optional<std::uint32_t> check_mapping_while_valid(const PdoParameters& pdo, const profiles::PdoRules& rules,
+                                                       bool operational) {
+  if (!pdo.valid()) return std::nullopt;
+  // CiA 301's sequence: COB-ID bit 31 set first. Lely: CO_SDO_AC_PARAM_VAL.
+  if (can_invalidate(rules)) return abort::value_range_exceeded;
+  // A PDO that can never be made invalid: the profile's rw mapping is taken while not operational.
+  if (operational) return abort::cannot_store_device_state;
   return std::nullopt;
 }
 

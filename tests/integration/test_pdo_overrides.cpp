@@ -37,7 +37,9 @@ const msg::PdoInfo* pdo(const msg::DeviceInfo& info, const std::string& name) {
 }  // namespace
 
 // Saw 3.1: only the transmission parameters are rw (tables 3, 7, 11); the bridge writes them and
-// the saw's PDOs follow them on the bus.
+// the saw's PDOs follow them on the bus. Its COB-IDs are const, so its PDOs are valid for good and
+// CiA 301 forbids writing their inhibit time: this saw comes with 50 ms from its factory (its
+// `simulation:`), which the line's 500 x 100 us matches, so nothing is written there.
 TEST(PdoOverrides, TransmissionTypesReachTheSawAndItsFramesFollowThem) {
   ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("pdo", 6);
@@ -50,7 +52,8 @@ TEST(PdoOverrides, TransmissionTypesReachTheSawAndItsFramesFollowThem) {
              "      tpdo1: {transmission_type: 254, inhibit_time_100us: 500, event_timer_ms: 300}\n"
              "      tpdo2: {transmission_type: 2}\n"
              "      rpdo1: {transmission_type: 255}\n"
-             "    simulation: {max_speed_m_per_min: 60, acceleration_m_per_min_s: 6000}\n");
+             "    simulation: {max_speed_m_per_min: 60, acceleration_m_per_min_s: 6000,\n"
+             "                 pdos: {tpdo1: {inhibit_time_100us: 500}}}\n");
   lb::test::Collector<msg::SawStatusPubSubType> status;
   lb::test::Collector<msg::SetpointResultPubSubType> results;
   lb::test::Collector<msg::DeviceInfoPubSubType> info;

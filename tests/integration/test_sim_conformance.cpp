@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cstdint>
+#include <filesystem>
 #include <fstream>
 #include <functional>
 #include <future>
@@ -34,20 +35,37 @@ using lb::can::CanFrame;
 namespace {
 
 // The line the simulator plays. Node-IDs are this test's choice.
-constexpr std::uint8_t kSaw = 5, kFeeder = 6, kCorrugator = 7, kPuller = 8, kSaw2 = 9;
+constexpr std::uint8_t kSaw = 5, kFeeder = 6, kCorrugator = 7, kPuller = 8, kSaw2 = 9, kPullerRw = 10;
 constexpr std::uint32_t kSaw2DeviceType = 0x000201A4, kSaw2Vendor = 0x0000ABCD, kSaw2Product = 0x00001234,
                         kSaw2Revision = 0x00020003, kSaw2Serial = 0x00C0FFEE;
 
 // CiA 301 abort codes.
-constexpr std::uint32_t kTimeout = 0x05040000, kUnsupported = 0x06010000, kReadOnly = 0x06010002,
+constexpr std::uint32_t kTimeout = 0x05040000, kReadOnly = 0x06010002,
                         kNoObject = 0x06020000, kCannotMap = 0x06040041, kLengthExceeded = 0x06040042,
                         kNoSub = 0x06090011, kRange = 0x06090030, kDeviceState = 0x08000022;
 
 // NMT commands (CiA 301).
 constexpr std::uint8_t kStart = 0x01, kStop = 0x02, kPreOperational = 0x80, kResetNode = 0x81, kResetCommunication = 0x82;
 
-std::string line_config(const std::string& bus) {
+// A puller whose COB-IDs are CiA 301's rw (the 1.0 text makes them ro): the plain CiA 301 device,
+// whose PDOs a master can make invalid and remap. Its profile file is the puller 1.0 one with that
+// one change, as version 9.1.
+std::string puller_rw_profile() {
+  std::ifstream in(std::string(LB_SOURCE_DIR) + "/config/profiles/cia420-2-puller-1.0.yaml");
+  std::stringstream text;
+  text << in.rdbuf();
+  auto s = text.str();
+  const auto replace_all = [&s](const std::string& from, const std::string& to) {
+    for (auto pos = s.find(from); pos != std::string::npos; pos = s.find(from, pos + to.size())) s.replace(pos, from.size(), to);
+  };
+  replace_all("version: \"1.0\"", "version: \"9.1\"");
+  replace_all("access: {cob_id: ro, transmission_type: rw}", "access: {cob_id: rw, transmission_type: rw}");
+  return s;
+}
+
+std::string line_config(const std::string& bus, const std::string& profiles_dir) {
   return "line: conformance\n"
+         "profiles_dir: '" + profiles_dir + "'\n"
          "buses:\n"
          "  - {name: c, interface: '" + bus + "'}\n"
          "devices:\n"
@@ -75,7 +93,8 @@ std::string line_config(const std::string& bus) {
          "      identity: {device_type: 0x000201A4, vendor_id: 0x0000ABCD, product_code: 0x00001234, revision: 0x00020003,"
          " serial_number: 0x00C0FFEE}\n"
          "      pdos: {tpdo2: {transmission_type: 3, mapping: [0x60070020, 0x60010020]}}\n"
-         "      ignore_writes: [{index: 0x6006}, {index: 0x1801, sub: 2}]\n";
+         "      ignore_writes: [{index: 0x6006}, {index: 0x1801, sub: 2}]\n"
+         "  - {name: puller_rw, bus: c, node_id: 10, profile: cia420-2, version: '9.1'}\n";
 }
 
 struct Seen {
@@ -241,7 +260,10 @@ class SimConformance : public ::testing::Test {
     bus_ = "virtual:conf-" + tag_;
     bus_.resize(std::min<std::size_t>(bus_.size(), 90));
     config_ = ::testing::TempDir() + "/conformance_" + tag_ + ".yaml";
-    std::ofstream(config_) << line_config(bus_);
+    const auto profiles = ::testing::TempDir() + "/conformance_profiles_" + tag_;
+    std::filesystem::create_directories(profiles);
+    std::ofstream(profiles + "/cia420-2-puller-9.1.yaml") << puller_rw_profile();
+    std::ofstream(config_) << line_config(bus_, profiles);
     master_ = std::make_unique<PeerMaster>(bus_);  // first member: the hub lives in this process
   }
   void TearDown() override {
@@ -435,22 +457,26 @@ TEST_F(SimConformance, CobIdSyncIsWritable) {
 }
 
 // CiA 301: 254/255 = on an event, never sooner than the inhibit time after the previous frame,
-// and again when the event timer expires. Saw 3.1 1A00h sub 0 = 3: the 16-bit manufacturer-specific
-// object rides in the unused bytes (8 bytes in all), and it changes.
+// and again when the event timer expires. Corrugator 3.1 TPDO1 (table 3: only the COB-ID's valid
+// bit is writable; the inhibit time is written while the PDO is not valid, CiA 301), 1A00h sub 0
+// = 4 (table 5): the 16-bit manufacturer-specific object rides in the unused bytes (8 bytes in
+// all), and it changes.
 TEST_F(SimConformance, EventDrivenTpdoObeysInhibitTimeAndEventTimer) {
-  start_sim({{"saw", kSaw}});
-  write(kSaw, 0x1A00, 0, 3, 1);
-  write(kSaw, 0x1800, 2, 254, 1);
-  write(kSaw, 0x1800, 3, 500, 2);  // 50 ms
-  write(kSaw, 0x1800, 5, 300, 2);  // 300 ms
-  master_->nmt(kStart, kSaw);
+  start_sim({{"corrugator", kCorrugator}});
+  write(kCorrugator, 0x1800, 1, 0xC0000187, 4);  // not valid
+  write(kCorrugator, 0x1A00, 0, 4, 1);
+  write(kCorrugator, 0x1800, 2, 254, 1);
+  write(kCorrugator, 0x1800, 3, 500, 2);  // 50 ms
+  write(kCorrugator, 0x1800, 5, 300, 2);  // 300 ms
+  write(kCorrugator, 0x1800, 1, 0x40000187, 4);  // valid again
+  master_->nmt(kStart, kCorrugator);
   master_->clear();
   master_->sync_every(10ms);  // the manufacturer word changes at every SYNC: events come faster than allowed
   std::this_thread::sleep_for(1500ms);
   master_->stop_sync();
-  const auto busy = master_->from(0x185);
+  const auto busy = master_->from(0x187);
   ASSERT_GE(busy.size(), 10u) << log();
-  for (const auto& s : busy) EXPECT_EQ(s.frame.len, 8) << "6030h (16) + 6000h (32) + the manufacturer word (16)";
+  for (const auto& s : busy) EXPECT_EQ(s.frame.len, 8) << "6030h, 6000h, 6006h (16 each) + the manufacturer word (16)";
   // Gaps are measured where the frames arrive: on a loaded machine a late delivery shortens the
   // next gap, so single gaps prove little. Without the inhibit time the frames would come every
   // 10 ms (one per SYNC: 150 in 1.5 s, median gap 10 ms); with it at most one per 50 ms.
@@ -466,7 +492,7 @@ TEST_F(SimConformance, EventDrivenTpdoObeysInhibitTimeAndEventTimer) {
   std::this_thread::sleep_for(100ms);
   master_->clear();
   std::this_thread::sleep_for(1600ms);
-  const auto quiet = master_->from(0x185);
+  const auto quiet = master_->from(0x187);
   ASSERT_GE(quiet.size(), 4u) << log();
   ASSERT_LE(quiet.size(), 7u) << log();
   EXPECT_GE(median(gaps_ms(quiet)), 270.0) << "event timer 300 ms";
@@ -548,7 +574,7 @@ TEST_F(SimConformance, RemappedTpdoCarriesTheNewLayout) {
   // The COB-ID is ro, so the PDO stays valid: no remapping while operational.
   EXPECT_EQ(master_->write_abort(kPuller, 0x1A01, 0, 0, 1), kDeviceState);
   master_->nmt(kPreOperational, kPuller);
-  EXPECT_EQ(master_->write_abort(kPuller, 0x1A01, 1, 0x60080020, 4), kUnsupported) << "sub 0 is not 0";
+  EXPECT_EQ(master_->write_abort(kPuller, 0x1A01, 1, 0x60080020, 4), kRange) << "sub 0 is not 0";
   write(kPuller, 0x1A01, 0, 0, 1);
   EXPECT_EQ(master_->write_abort(kPuller, 0x1A01, 1, 0x7FFF0010, 4), kNoObject);
   EXPECT_EQ(master_->write_abort(kPuller, 0x1A01, 1, 0x60040020, 4), kCannotMap) << "6004h is 16 bits";
@@ -575,6 +601,101 @@ TEST_F(SimConformance, RemappedTpdoCarriesTheNewLayout) {
   EXPECT_EQ(master_->from(0x188).back().frame.len, 8) << "TPDO1 now maps 6008h twice";
 }
 
+// What CiA 301 lets a master write of a PDO while it is valid (COB-ID bit 31 = 0), and what a
+// device refuses then, as Lely CANopen's slave refuses it (its 1400h/1800h/1600h/1A00h download
+// indications), every refusal with 0609 0030h "value range of parameter exceeded". Expected values
+// by hand from CiA 301 7.5.2.35-7.5.2.38 (cia301-essentials.md) and the profiles' tables.
+
+// Sub 1: a valid PDO keeps its identifier; its valid bit alone may change, in any NMT state.
+TEST_F(SimConformance, CobIdOfAValidPdoKeepsItsIdentifier) {
+  start_sim({{"puller_rw", kPullerRw}, {"corrugator", kCorrugator}});
+  // Puller (9.1: CiA 301 rw COB-IDs) TPDO2 1801h: 4000 0280h + 0Ah, valid.
+  EXPECT_EQ(read(kPullerRw, 0x1801, 1), 0x4000028Au);
+  EXPECT_EQ(master_->write_abort(kPullerRw, 0x1801, 1, 0x40000290, 4), kRange) << "another identifier while valid";
+  EXPECT_EQ(master_->write_abort(kPullerRw, 0x1801, 1, 0x6000028A, 4), kRange) << "bit 29 while valid";
+  EXPECT_EQ(read(kPullerRw, 0x1801, 1), 0x4000028Au);
+  write(kPullerRw, 0x1801, 1, 0xC000028A, 4);  // the same identifier, not valid
+  EXPECT_EQ(read(kPullerRw, 0x1801, 1), 0xC000028Au);
+  write(kPullerRw, 0x1801, 1, 0xC0000290, 4);  // not valid: another identifier may be set
+  write(kPullerRw, 0x1801, 1, 0x40000290, 4);  // and made valid
+  EXPECT_EQ(read(kPullerRw, 0x1801, 1), 0x40000290u);
+  // Operational: the valid bit still toggles (corrugator 3.1 table 3: only it is writable).
+  master_->nmt(kStart, kCorrugator);
+  write(kCorrugator, 0x1800, 1, 0xC0000187, 4);
+  EXPECT_EQ(read(kCorrugator, 0x1800, 1), 0xC0000187u);
+  write(kCorrugator, 0x1800, 1, 0x40000187, 4);
+  EXPECT_EQ(read(kCorrugator, 0x1800, 1), 0x40000187u);
+}
+
+// Sub 3: "shall not be changed while the PDO exists": refused while valid, in pre-operational and
+// operational alike; written once the PDO is not valid. A PDO whose COB-ID the profile makes const
+// (saw 3.1 tables 3 and 11) can never be made invalid, so its inhibit time is never written.
+TEST_F(SimConformance, InhibitTimeOnlyWhileThePdoIsNotValid) {
+  start_sim({{"corrugator", kCorrugator}, {"saw", kSaw}});
+  EXPECT_EQ(read(kCorrugator, 0x1800, 3), 0u);
+  EXPECT_EQ(master_->write_abort(kCorrugator, 0x1800, 3, 100, 2), kRange) << "pre-operational, valid";
+  master_->nmt(kStart, kCorrugator);
+  EXPECT_EQ(master_->write_abort(kCorrugator, 0x1800, 3, 100, 2), kRange) << "operational, valid";
+  EXPECT_EQ(read(kCorrugator, 0x1800, 3), 0u);
+  // The CiA 301 order: not valid, the inhibit time, valid again (here while operational).
+  write(kCorrugator, 0x1800, 1, 0xC0000187, 4);
+  write(kCorrugator, 0x1800, 3, 100, 2);
+  write(kCorrugator, 0x1800, 1, 0x40000187, 4);
+  EXPECT_EQ(read(kCorrugator, 0x1800, 3), 100u);
+  EXPECT_EQ(master_->write_abort(kCorrugator, 0x1800, 3, 200, 2), kRange) << "valid again";
+  EXPECT_EQ(read(kCorrugator, 0x1800, 3), 100u);
+  // Saw 3.1: COB-ID const, always valid: TPDO1's and RPDO1's inhibit times are refused.
+  EXPECT_EQ(master_->write_abort(kSaw, 0x1800, 3, 100, 2), kRange);
+  EXPECT_EQ(master_->write_abort(kSaw, 0x1400, 3, 100, 2), kRange);
+  EXPECT_EQ(read(kSaw, 0x1800, 3), 0u);
+}
+
+// Sub 2 and sub 5: a master may change a valid PDO's transmission type and event timer, also while
+// the device is operational (CiA 301 puts no condition on them).
+TEST_F(SimConformance, TransmissionTypeAndEventTimerOfAValidPdo) {
+  start_sim({{"corrugator", kCorrugator}, {"saw", kSaw}});
+  master_->nmt(kStart, kCorrugator);
+  master_->nmt(kStart, kSaw);
+  write(kCorrugator, 0x1800, 2, 254, 1);
+  write(kCorrugator, 0x1800, 5, 300, 2);
+  EXPECT_EQ(read(kCorrugator, 0x1800, 2), 254u);
+  EXPECT_EQ(read(kCorrugator, 0x1800, 5), 300u);
+  EXPECT_EQ(read(kCorrugator, 0x1800, 1), 0x40000187u) << "still valid";
+  write(kSaw, 0x1801, 2, 2, 1);  // COB-ID const: valid for good, and still writable
+  write(kSaw, 0x1801, 5, 250, 2);
+  EXPECT_EQ(read(kSaw, 0x1801, 2), 2u);
+  EXPECT_EQ(read(kSaw, 0x1801, 5), 250u);
+}
+
+// The mapping (sub 0 and the entries) changes only while the PDO is not valid and, for an entry,
+// while sub 0 is 0 (CiA 301's sequence: not valid, sub 0 = 0, entries, sub 0 = n, valid).
+TEST_F(SimConformance, MappingOnlyWhileThePdoIsNotValid) {
+  start_sim({{"puller_rw", kPullerRw}, {"corrugator", kCorrugator}});
+  // Puller 9.1 TPDO2 1A01h: 6004 00 10h, 6008 00 20h; valid, pre-operational.
+  EXPECT_EQ(master_->write_abort(kPullerRw, 0x1A01, 0, 0, 1), kRange) << "sub 0 of a valid PDO";
+  EXPECT_EQ(master_->write_abort(kPullerRw, 0x1A01, 1, 0x60080020, 4), kRange) << "an entry of a valid PDO";
+  master_->nmt(kStart, kPullerRw);
+  EXPECT_EQ(master_->write_abort(kPullerRw, 0x1A01, 0, 0, 1), kRange) << "operational, valid";
+  master_->nmt(kPreOperational, kPullerRw);
+  EXPECT_EQ(mapping(kPullerRw, 0x1A01), (Entries{0x60040010, 0x60080020}));
+  write(kPullerRw, 0x1801, 1, 0xC000028A, 4);
+  EXPECT_EQ(master_->write_abort(kPullerRw, 0x1A01, 1, 0x60080020, 4), kRange) << "not valid, but sub 0 is 2";
+  write(kPullerRw, 0x1A01, 0, 0, 1);
+  write(kPullerRw, 0x1A01, 1, 0x60080020, 4);
+  write(kPullerRw, 0x1A01, 2, 0x60040010, 4);
+  write(kPullerRw, 0x1A01, 0, 2, 1);
+  write(kPullerRw, 0x1801, 1, 0x4000028A, 4);
+  EXPECT_EQ(mapping(kPullerRw, 0x1A01), (Entries{0x60080020, 0x60040010}));
+  // Corrugator 3.1 TPDO1, 1A00h sub 0 "rw (constant in NMT operational state)", 00h, 03h to 04h,
+  // COB-ID valid bit writable: not while valid, even in pre-operational.
+  EXPECT_EQ(master_->write_abort(kCorrugator, 0x1A00, 0, 4, 1), kRange);
+  EXPECT_EQ(read(kCorrugator, 0x1A00, 0), 3u);
+  write(kCorrugator, 0x1800, 1, 0xC0000187, 4);
+  write(kCorrugator, 0x1A00, 0, 4, 1);
+  write(kCorrugator, 0x1800, 1, 0x40000187, 4);
+  EXPECT_EQ(read(kCorrugator, 0x1A00, 0), 4u);
+}
+
 // NMT reset node: every power-on value; reset communication: the communication objects only.
 // Both drop pending RPDOs, and so does leaving operational. Stopped: no SDO answer at all.
 TEST_F(SimConformance, NmtResetsRestorePowerOnValues) {
@@ -584,14 +705,14 @@ TEST_F(SimConformance, NmtResetsRestorePowerOnValues) {
   const auto set_everything = [&] {
     write(kSaw, 0x1017, 0, 250, 2);
     write(kSaw, 0x1801, 2, 3, 1);
-    write(kSaw, 0x1800, 3, 77, 2);
+    write(kSaw, 0x1800, 5, 77, 2);  // the event timer: the inhibit time of a valid PDO cannot be written
     write(kSaw, 0x1A00, 0, 3, 1);
     write(kSaw, 0x6006, 0, 12345, 4);
   };
   const auto expect_communication_power_on = [&] {
     EXPECT_EQ(read(kSaw, 0x1017, 0), 100u);
     EXPECT_EQ(read(kSaw, 0x1801, 2), 1u);
-    EXPECT_EQ(read(kSaw, 0x1800, 3), 0u);
+    EXPECT_EQ(read(kSaw, 0x1800, 5), 0u);
     EXPECT_EQ(read(kSaw, 0x1A00, 0), 2u);
   };
   set_everything();

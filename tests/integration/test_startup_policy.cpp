@@ -176,6 +176,14 @@ class StartupPolicy : public ::testing::Test {
       return n != nullptr && n->set_values_at_start().find(text) != std::string::npos;
     });
   }
+  // Diagnostics say the device's node_state is `state`.
+  bool node_state_is(const std::string& device, const std::string& state) {
+    return diag.wait(30s, [&](const std::vector<msg::Diagnostics>& v) {
+      if (v.empty()) return false;
+      const auto* n = node(v.back(), device);
+      return n != nullptr && n->node_state() == state;
+    });
+  }
   std::string last_note(const std::string& device) {
     const auto v = diag.samples();
     const auto* n = v.empty() ? nullptr : node(v.back(), device);
@@ -427,6 +435,113 @@ TEST_F(StartupPolicy, AnOperatorsStopSurvivesAHeartbeatLossAndReturn) {
   const auto go = line.nmt("saw1", srv::NMT_START);
   ASSERT_TRUE(go.success()) << go.message();
   ASSERT_TRUE(saw_status.wait_last(10s, operational)) << line.logs();
+}
+
+// A device found operational whose PDO parameters must change: the restarted bridge's line file
+// wants corrugator 3.1 TPDO1's inhibit time at 10 ms (1800h sub 3 = 100), the corrugator runs with
+// 0. CiA 301 lets a device refuse that while the PDO is valid, so the bridge (the default
+// startup.pdo_change_when_running: pre_operational) sends NMT enter pre-operational first
+// (000#8007), writes COB-ID not valid (C000 0187h, table 3: only its valid bit is writable), the
+// inhibit time, COB-ID valid (4000 0187h), reads back, and starts it (000#0107): no boot error.
+// It still counts as found operational for its set values.
+TEST_F(StartupPolicy, ARunningDeviceWhosePdosMustChangeIsPausedWrittenAndStarted) {
+  lb::test::LineHarness line("startup", 67);
+  line.start(device("corr1", 7, "cia420-3", "3.1"));
+  ASSERT_TRUE(diag.subscribe(line.dds(), line.topic("bridge", "diagnostics"), QosKind::state));
+  ASSERT_TRUE(node_state_is("corr1", "operational")) << line.logs();
+
+  ASSERT_EQ(line.bridge().stop(), 0) << line.logs();
+  std::ofstream(line.bridge_config(), std::ios::app) << "    pdos: {tpdo1: {inhibit_time_100us: 100}}\n";
+  line.spy().clear();
+  line.start_bridge();
+  ASSERT_TRUE(frame_seen(line, 0x000, [](const lb::can::CanFrame& f) { return f.len == 2 && f.data[0] == 0x01 && f.data[1] == 7; }))
+      << "never started\n" << line.logs();
+
+  const auto frames = line.spy().frames();
+  const auto nmt = [&](std::uint8_t command) {
+    for (std::size_t i = 0; i < frames.size(); ++i) {
+      if (frames[i].id == 0x000 && frames[i].len == 2 && frames[i].data[0] == command && frames[i].data[1] == 7) return i;
+    }
+    return frames.size();
+  };
+  // The expedited downloads to node 7 (SDO request 607h, command 23h/27h/2Bh/2Fh), in bus order.
+  std::vector<std::size_t> downloads;
+  std::size_t first_read_back = frames.size();
+  for (std::size_t i = 0; i < frames.size(); ++i) {
+    const auto& f = frames[i];
+    if (f.id != 0x607 || f.len != 8) continue;
+    if ((f.data[0] & 0xF3) == 0x23) downloads.push_back(i);
+    if (f.data[0] == 0x40 && !downloads.empty() && first_read_back == frames.size()) first_read_back = i;
+  }
+  const auto pre_operational = nmt(0x80), start = nmt(0x01);
+  ASSERT_LT(pre_operational, frames.size()) << "no NMT enter pre-operational (000#8007)\n" << line.logs();
+  ASSERT_EQ(downloads.size(), 3u) << line.logs();
+  EXPECT_LT(pre_operational, downloads[0]) << "a PDO parameter written while the device ran";
+  EXPECT_EQ(hex(frames[downloads[0]]), "23001801870100C0") << "COB-ID not valid";
+  EXPECT_EQ(hex(frames[downloads[1]]), "2B00180364000000") << "inhibit time 100 x 100 us";
+  EXPECT_EQ(hex(frames[downloads[2]]), "2300180187010040") << "COB-ID valid again";
+  EXPECT_GT(first_read_back, downloads[2]) << "no read back after the writes";
+  EXPECT_LT(first_read_back, start) << "started before the read back";
+  EXPECT_LT(downloads[2], start);
+  for (const auto& f : frames) {
+    EXPECT_FALSE(f.id == 0x587 && f.data[0] == 0x80) << "the corrugator refused a write: " << hex(f);
+  }
+  // Diagnostics of the restarted bridge (the collector also holds the first one's): its start
+  // note says found operational ("found not operational" does not contain that).
+  ASSERT_TRUE(start_note("corr1", "found operational")) << last_note("corr1") << line.logs();
+  ASSERT_TRUE(node_state_is("corr1", "operational")) << line.logs();
+  const auto d = diag.samples().back();
+  EXPECT_EQ(node(d, "corr1")->boot_error().code(), "") << node(d, "corr1")->boot_error().message();
+  EXPECT_EQ(line.read_unsigned("corr1", 0x1800, 3, "UNSIGNED16"), 100u);
+}
+
+// The same, with startup.pdo_change_when_running: keep_running: the running corrugator is neither
+// paused nor written (no 000#8007, no write to 1800h), its boot fails once with J naming 1800h
+// sub 3, and it runs on unmanaged: over several boot_retry_ms (1 s) it is not booted again (no
+// second read of 1000h, the boot's first step) and it stays operational.
+TEST_F(StartupPolicy, KeepRunningLeavesARunningDeviceRunningAndReportsItOnce) {
+  lb::test::LineHarness line("startup", 68);
+  line.start(device("corr1", 7, "cia420-3", "3.1"), "", "", "startup: {pdo_change_when_running: keep_running}\n");
+  ASSERT_TRUE(diag.subscribe(line.dds(), line.topic("bridge", "diagnostics"), QosKind::state));
+  ASSERT_TRUE(node_state_is("corr1", "operational")) << line.logs();
+
+  ASSERT_EQ(line.bridge().stop(), 0) << line.logs();
+  std::ofstream(line.bridge_config(), std::ios::app) << "    pdos: {tpdo1: {inhibit_time_100us: 100}}\n";
+  line.spy().clear();
+  line.start_bridge();
+  ASSERT_TRUE(diag.wait_last(30s, [](const msg::Diagnostics& d) {
+    const auto* n = node(d, "corr1");
+    return n != nullptr && n->boot_error().code() == "J" && n->node_state() == "running unmanaged";
+  })) << line.logs();
+  const auto failed = diag.samples().back();
+  const auto& error = node(failed, "corr1")->boot_error();
+  EXPECT_EQ(error.index(), 0x1800);
+  EXPECT_EQ(error.sub_index(), 3);
+  EXPECT_EQ(error.expected(), "100");
+  EXPECT_EQ(error.actual(), "0");
+  const auto boots = node(failed, "corr1")->boots();
+
+  // Four retry intervals later, counted in the corrugator's own heartbeats (100 ms): 40 of them.
+  const auto heartbeats = frames_of(line, 0x707, 40 + line.spy().frames(0x707).size());
+  ASSERT_GE(heartbeats.size(), 40u) << line.logs();
+  for (const auto& f : heartbeats) EXPECT_EQ(hex(f), "05") << "the corrugator left operational";
+  std::size_t device_type_reads = 0;
+  for (const auto& f : line.spy().frames()) {
+    EXPECT_FALSE(f.id == 0x000 && f.len == 2 && f.data[1] == 7 && f.data[0] != 0x01) << "an NMT command to it: " << hex(f);
+    if (f.id == 0x607 && f.len == 8 && (f.data[0] & 0xF3) == 0x23 && f.data[1] == 0x00 && f.data[2] == 0x18) {
+      ADD_FAILURE() << "a write to 1800h: " << hex(f);
+    }
+    if (f.id == 0x607 && f.len == 8 && f.data[0] == 0x40 && f.data[1] == 0x00 && f.data[2] == 0x10 && f.data[3] == 0) {
+      ++device_type_reads;
+    }
+  }
+  EXPECT_EQ(device_type_reads, 1u) << "booted again while it runs unmanaged\n" << line.logs();
+  EXPECT_FALSE(line.spy().frames(0x187).empty()) << "its TPDO1 stopped";
+  ASSERT_TRUE(diag.wait_last(5s, [&](const msg::Diagnostics& d) {
+    const auto* n = node(d, "corr1");
+    return n != nullptr && n->node_state() == "running unmanaged" && n->boots() == boots;
+  })) << line.logs();
+  EXPECT_EQ(line.bridge_log_count("boot of node 7 failed"), 1u) << line.logs();
 }
 
 }  // namespace

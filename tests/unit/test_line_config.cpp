@@ -607,6 +607,52 @@ TEST(LineConfig, MandatoryDevicesAndWhatTheLineDoesWhenOneFails) {
   EXPECT_NE(idle->warnings[0].find("line.yaml:"), std::string::npos) << idle->warnings[0];
 }
 
+// What the boot does with a running device whose PDO parameters must change: pre_operational by
+// default (CiA 302-2: the master pauses it to write), keep_running on request; nothing else.
+TEST(LineConfig, PdoChangeWhenRunningIsPreOperationalByDefault) {
+  using lb::canopen::PdoChangeWhenRunning;
+  const auto registry = ProfileRegistry::builtin();
+  auto plain = parse_line_config(kGood, "line.yaml", registry);
+  ASSERT_TRUE(plain) << plain.error().message;
+  EXPECT_EQ(plain->startup.pdo_change_when_running, PdoChangeWhenRunning::pre_operational);
+  auto keep = parse_line_config(replace(kGood, "dds:\n", "startup: {pdo_change_when_running: keep_running}\ndds:\n"),
+                                "line.yaml", registry);
+  ASSERT_TRUE(keep) << keep.error().message;
+  EXPECT_EQ(keep->startup.pdo_change_when_running, PdoChangeWhenRunning::keep_running);
+  EXPECT_TRUE(keep->warnings.empty());
+  auto pre = parse_line_config(replace(kGood, "dds:\n", "startup: {pdo_change_when_running: pre_operational}\ndds:\n"),
+                               "line.yaml", registry);
+  ASSERT_TRUE(pre) << pre.error().message;
+  EXPECT_EQ(pre->startup.pdo_change_when_running, PdoChangeWhenRunning::pre_operational);
+  const auto e = error_of(replace(kGood, "dds:\n", "startup: {pdo_change_when_running: reset_node}\ndds:\n"));
+  EXPECT_NE(e.find("pdo_change_when_running must be pre_operational"), std::string::npos) << e;
+  // A misspelt key stays an error.
+  EXPECT_NE(error_of(replace(kGood, "dds:\n", "startup: {pdo_change_while_running: keep_running}\ndds:\n"))
+                .find("pdo_change_while_running"),
+            std::string::npos);
+}
+
+// Saw 3.1 makes its TPDOs' COB-IDs const (tables 3, 7): valid for good, so CiA 301 forbids writing
+// their inhibit time. A line that wants one is warned at --check (its boot would fail with J),
+// unless it adopts the device's value.
+TEST(LineConfig, InhibitTimeOfAPdoWithAConstCobIdIsWarnedAbout) {
+  const auto registry = ProfileRegistry::builtin();
+  const auto with = [&](const std::string& text) {
+    return parse_line_config(replace(kGood, "    simulation:\n", text + "    simulation:\n"), "line.yaml", registry);
+  };
+  auto r = with("    pdos: {tpdo1: {transmission_type: 254, inhibit_time_100us: 500}}\n");
+  ASSERT_TRUE(r) << r.error().message;
+  ASSERT_EQ(r->warnings.size(), 1u);
+  EXPECT_NE(r->warnings[0].find("tpdo1 inhibit_time_100us 500"), std::string::npos) << r->warnings[0];
+  EXPECT_NE(r->warnings[0].find("fails with J"), std::string::npos) << r->warnings[0];
+  r = with("    pdos: {tpdo1: {transmission_type: 254, event_timer_ms: 300}}\n");
+  ASSERT_TRUE(r) << r.error().message;
+  EXPECT_TRUE(r->warnings.empty());
+  r = with("    pdo_config: adopt\n    pdos: {tpdo1: {inhibit_time_100us: 500}}\n");
+  ASSERT_TRUE(r) << r.error().message;
+  EXPECT_TRUE(r->warnings.empty());
+}
+
 // Two master buses on one CAN network would hear each other's SYNC and NMT and silence each other.
 TEST(LineConfig, TwoMasterBusesOnOneInterfaceAreRefused) {
   const auto two = replace(kGood, "    interface: socketcan:can1\n    role: monitor\n", "    interface: virtual:x\n    role: master\n");

@@ -274,3 +274,74 @@ TEST(PdoPlan, AbsentOptionalPdoIsNotUsed) {
   EXPECT_TRUE(plan->writes.empty());
   EXPECT_FALSE(plan->result.valid());
 }
+
+// CiA 301: the inhibit time changes only while the PDO is not valid. Corrugator 3.1 TPDO1 (table
+// 3: only the valid bit of its COB-ID is writable; inhibit time rw): an inhibit-time difference
+// alone is written between COB-ID C000 0187h and 4000 0187h, and takes the PDO out of service.
+TEST(PdoPlan, InhibitTimeAloneIsWrittenWhileThePdoIsNotValid) {
+  PdoSpec spec;
+  spec.name = "tpdo1";
+  spec.communication_index = 0x1800;
+  spec.mapping_index = 0x1A00;
+  spec.wanted = {0x187, 1, 100, 0, {PdoEntry::from_u32(0x60300010)}};
+  spec.rules.cob_id = PdoAccess::valid_bit;
+  const auto plan = plan_pdo(spec, device(0x40000187, 1, {0x60300010}));
+  ASSERT_TRUE(plan) << plan.error().message;
+  expect_writes(*plan, {{0x1800, 1, 0xC0000187}, {0x1800, 3, 100}, {0x1800, 1, 0x40000187}});
+  EXPECT_FALSE(plan->needs_not_operational);
+  ASSERT_TRUE(plan->disrupts);
+  EXPECT_EQ(plan->disrupts->index, 0x1800);
+  EXPECT_EQ(plan->disrupts->sub, 3);
+  EXPECT_EQ(plan->disrupts->expected, "100");
+  EXPECT_EQ(plan->disrupts->actual, "0");
+
+  // A PDO the device has not valid: written as it is, made valid last; nothing to take out of service.
+  const auto off = plan_pdo(spec, device(0xC0000187, 1, {0x60300010}));
+  ASSERT_TRUE(off) << off.error().message;
+  expect_writes(*off, {{0x1800, 3, 100}, {0x1800, 1, 0x40000187}});
+  EXPECT_FALSE(off->disrupts);
+}
+
+// CiA 301 lets a master write the transmission type and the event timer of a valid PDO: no
+// invalidation, and nothing a running device cannot take.
+TEST(PdoPlan, TransmissionTypeAndEventTimerNeedNoInvalidation) {
+  auto spec = puller_tpdo2();
+  spec.rules.cob_id = PdoAccess::rw;
+  spec.wanted.transmission_type = 254;
+  spec.wanted.event_timer = 300;
+  const auto plan = plan_pdo(spec, device(0x40000286, 1, {0x60040010, 0x60080020}));
+  ASSERT_TRUE(plan) << plan.error().message;
+  expect_writes(*plan, {{0x1801, 2, 254}, {0x1801, 5, 300}});
+  EXPECT_FALSE(plan->disrupts);
+}
+
+// Saw 3.1 TPDO1/TPDO2: COB-ID const (tables 3, 7), so the PDO can never be made invalid and its
+// inhibit time never written, whatever the table says of sub 3: refused with both values (the
+// boot's J); adopt takes the device's value.
+TEST(PdoPlan, InhibitTimeOfAPdoWhoseCobIdIsConstIsRefused) {
+  auto spec = saw_tpdo2();
+  spec.wanted.inhibit_time = 500;
+  const auto d = device(0x40000285, 1, {0x60010020, 0x60070020});
+  const auto plan = plan_pdo(spec, d);
+  ASSERT_FALSE(plan);
+  EXPECT_EQ(plan.error().index, 0x1801);
+  EXPECT_EQ(plan.error().sub, 3);
+  EXPECT_EQ(plan.error().expected, "500");
+  EXPECT_EQ(plan.error().actual, "0");
+  EXPECT_NE(plan.error().message.find("not valid"), std::string::npos) << plan.error().message;
+  const auto adopted = adopt_device_pdo(spec, d);
+  const auto kept = plan_pdo(adopted, d);
+  ASSERT_TRUE(kept) << kept.error().message;
+  EXPECT_TRUE(kept->writes.empty());
+  EXPECT_EQ(kept->result.inhibit_time, 0);
+}
+
+// A mapping change takes the PDO out of service too (a running device keeps it only by pausing).
+TEST(PdoPlan, MappingChangeDisruptsThePdo) {
+  auto spec = puller_tpdo2();
+  spec.wanted.mapping = {PdoEntry::from_u32(0x60080020), PdoEntry::from_u32(0x60040010)};
+  const auto plan = plan_pdo(spec, device(0x40000286, 1, {0x60040010, 0x60080020}));
+  ASSERT_TRUE(plan) << plan.error().message;
+  ASSERT_TRUE(plan->disrupts);
+  EXPECT_EQ(plan->disrupts->index, 0x1A01);
+}
