@@ -395,17 +395,25 @@ TEST_F(SimConformance, SynchronousTransmissionTypesCountSyncs) {
   start_sim({{"saw", kSaw}});
   write(kSaw, 0x1801, 2, 2, 1);  // TPDO2 after every 2nd SYNC
   master_->nmt(kStart, kSaw);
-  std::this_thread::sleep_for(100ms);
+  // Started (its heartbeat says operational) before the first SYNC it is to count.
+  ASSERT_TRUE(master_->wait_frame(0x705, [](const CanFrame& f) { return f.len == 1 && f.data[0] == 0x05; }, 10s)) << log();
   master_->clear();
-  master_->syncs(20, 40ms);
-  std::this_thread::sleep_for(100ms);
-  // Which SYNC (1..20) each TPDO went out after, in the one order the recorder saw.
+  // SYNC by SYNC, each after the device answered the one before (a loaded machine delays frames;
+  // a fixed period would let an answer be counted after the next SYNC).
+  for (std::size_t k = 1; k <= 20; ++k) {
+    master_->syncs(1, 0ms);
+    ASSERT_TRUE(master_->wait_for([&] { return master_->from(0x185).size() >= k; }, 10s)) << "no TPDO1 after SYNC " << k;
+  }
+  ASSERT_TRUE(master_->wait_for([&] { return master_->from(0x285).size() >= 10; }, 10s));
+  // Which SYNC (1..20) each TPDO went out after, in the one order the recorder saw. The device
+  // sends TPDO2 after TPDO1 on the same SYNC, so a TPDO2 follows as many TPDO1s as SYNCs it counted.
   int syncs = 0;
+  int tpdo1_seen = 0;
   std::vector<int> tpdo1, tpdo2;
   for (const auto& s : master_->frames()) {
     if (s.ours && s.frame.id == 0x080) ++syncs;
-    if (!s.ours && s.frame.id == 0x185) tpdo1.push_back(syncs);
-    if (!s.ours && s.frame.id == 0x285) tpdo2.push_back(syncs);
+    if (!s.ours && s.frame.id == 0x185) tpdo1.push_back(syncs), ++tpdo1_seen;
+    if (!s.ours && s.frame.id == 0x285) tpdo2.push_back(tpdo1_seen);
   }
   EXPECT_EQ(syncs, 20);
   std::vector<int> every(20), even;
@@ -419,7 +427,8 @@ TEST_F(SimConformance, SynchronousTransmissionTypesCountSyncs) {
   write(kSaw, 0x1801, 2, 252, 1);
   master_->clear();
   master_->syncs(10, 20ms);
-  std::this_thread::sleep_for(100ms);
+  // TPDO2 would follow TPDO1 on the same SYNC: once the 10th TPDO1 is here, so would be a TPDO2.
+  ASSERT_TRUE(master_->wait_for([&] { return master_->from(0x185).size() >= 10; }, 10s));
   EXPECT_TRUE(master_->from(0x285).empty());
   EXPECT_EQ(master_->from(0x185).size(), 10u);
 }

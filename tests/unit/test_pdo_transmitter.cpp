@@ -54,9 +54,19 @@ class Transmitter : public ::testing::Test {
     });
     done.get_future().wait();
   }
-  std::vector<lb::can::CanFrame> sent_frames(std::chrono::milliseconds settle = 100ms) {
+  // The frames on the bus: after `settle` (for a test that lets timers run), every frame the
+  // transmitter reported sent by then, waited for as it reaches the spy (generously: a loaded
+  // machine delays delivery, never the count).
+  std::vector<lb::can::CanFrame> sent_frames(std::chrono::milliseconds settle = 0ms) {
     std::this_thread::sleep_for(settle);
-    return spy_->frames(0x181);
+    const auto expected = static_cast<std::size_t>(sent_.load());
+    const auto deadline = std::chrono::steady_clock::now() + 10s;
+    auto frames = spy_->frames(0x181);
+    while (frames.size() < expected && std::chrono::steady_clock::now() < deadline) {
+      std::this_thread::sleep_for(2ms);
+      frames = spy_->frames(0x181);
+    }
+    return frames;
   }
 
   std::unique_ptr<lb::test::BusSpy> spy_;
