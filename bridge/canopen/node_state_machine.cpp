@@ -55,7 +55,10 @@ bool NodeStateMachine::boot_under_way() const {
   return boot_.running() && !boot_.report().started && !boot_.report().held_by_operator;
 }
 
-void NodeStateMachine::start() { boot_now("start-up"); }
+void NodeStateMachine::start() {
+  started_ = true;
+  boot_now("start-up");
+}
 
 Result<void> NodeStateMachine::operator_command(NmtCommand command) {
   // A device whose boot did not pass (or whose state became unknown since) may have lost its
@@ -120,6 +123,9 @@ void NodeStateMachine::on_heartbeat(NmtState state) noexcept {
 }
 
 void NodeStateMachine::on_event(NodeEvent event) noexcept {
+  // Heard before the start-up boot began (the loop runs before start() is posted): that boot
+  // checks it; acting on the event too would boot it twice (the second cancelling the first).
+  if (!started_) return;
   switch (event) {
     case NodeEvent::boot_up:
       loop_.disarm_timer(reset_timer_);

@@ -102,6 +102,7 @@ class NodeStateMachine final : public NodeDriver {
   BootSequence boot_;
   Settings settings_;
   NodeState state_ = NodeState::unknown;
+  bool started_ = false;  // start() was called: events before it are the start-up boot's
   BusLoop::TimerId timer_;
   BusLoop::TimerId reset_timer_;  // bounds the wait for the boot-up after a reset
   std::deque<std::chrono::steady_clock::time_point> recent_;
