@@ -80,17 +80,21 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   fuzz::ScriptedBus& bus = *owned;
   canopen::BusLoop loop(std::move(owned));
   canopen::RemoteNode remote(loop, kNode, std::chrono::minutes(1), master);  // no timeout within one input
-  std::uint64_t emergencies = 0;
-  remote.on_emergency([&emergencies](const canopen::Emergency& e) {
-    ++emergencies;
-    (void)canopen::emcy_family(e.error_code);
-  });
-  remote.on_change([](canopen::NmtState, bool) {});
-  remote.on_event([](canopen::RemoteNode::Event e, canopen::NmtState) { (void)canopen::to_string(e); });
-  remote.on_pdos([](std::span<const canopen::PdoInUse> pdos) -> Result<void> {
-    if (pdos.size() > 2) return make_error("too many");
-    return {};
-  });
+  // What a gateway plugged into the node hears (canopen::NodeDriver).
+  struct Driver final : canopen::NodeDriver {
+    std::uint64_t emergencies = 0;
+    void on_emcy(const canopen::Emergency& e) noexcept override {
+      ++emergencies;
+      (void)canopen::emcy_family(e.error_code);
+    }
+    void on_event(canopen::NodeEvent e) noexcept override { (void)canopen::to_string(e); }
+    Result<void> on_config(std::span<const canopen::PdoInUse> pdos) noexcept override {
+      if (pdos.size() > 2) return make_error("too many");
+      return {};
+    }
+  } driver;
+  remote.attach(driver);
+  const std::uint64_t& emergencies = driver.emergencies;
   node = &remote;
   fuzz::run_script(loop, bus);
 
