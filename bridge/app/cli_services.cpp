@@ -10,6 +10,7 @@
 #include "dds/service.hpp"
 #include "dds/topic_names.hpp"
 #include "app/cli_exit.hpp"
+#include "gateways/bridge_runs.hpp"
 #include "msgs/commonPubSubTypes.h"
 #include "msgs/feederPubSubTypes.h"
 
@@ -33,7 +34,7 @@ struct Answered {
 
 template <class Req, class Rep>
 Answered<Rep> ask(const std::string& path, const ServiceTarget& t, const typename Req::type& request) {
-  auto client = ddsl::ServiceClient<Req, Rep>::create(t.dds, path);
+  auto client = ddsl::ServiceClient<Req, Rep>::create(t.dds, path, gateways::bridge_runs(t.line));
   if (!client) return {client.error()};
   auto answer = (*client)->ask(request, t.timeout);
   if (!answer) return {answer.error()};

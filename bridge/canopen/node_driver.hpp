@@ -47,6 +47,8 @@ class NodeDriver {
   virtual Result<void> on_config(std::span<const PdoInUse> /*pdos*/) noexcept { return {}; }
   // Right before the boot sends NMT start.
   virtual void on_start(const StartFacts& /*facts*/) noexcept {}
+  // An NMT command went out to the node, whoever sent it (the boot, an operator, the line).
+  virtual void on_command(NmtCommand /*command*/) noexcept {}
   // The state the device reports or its online flag changed (both roles).
   virtual void on_nmt_change(NmtState /*state*/, bool /*online*/) noexcept {}
   // Every heartbeat that carries a state (not a boot-up message), after the node took it.

@@ -70,23 +70,17 @@ Result<void> NodeStateMachine::operator_command(NmtCommand command) {
                                   "passes (reset-node boots it again)",
                                   to_string(state_), why));
   }
-  if (auto r = node_.command(command); !r) return r;
-  switch (command) {
-    case NmtCommand::stop:
-    case NmtCommand::enter_pre_operational:
-      node_.hold(command);
-      if (node_.configured()) enter(NodeState::stopped_by_operator, "an operator's NMT command");
-      break;
-    case NmtCommand::start:
-      node_.release_hold();
-      // Operational once its heartbeat says so (on_heartbeat).
-      break;
-    case NmtCommand::reset_node:
-    case NmtCommand::reset_communication:
-      node_.release_hold();
-      reset_sent(true);
-      break;
+  // Kept before it is sent, so that the command is seen as held (on_command); put back as it was
+  // when it cannot be sent.
+  const auto before = node_.operator_hold();
+  if (command == NmtCommand::stop || command == NmtCommand::enter_pre_operational) node_.hold(command);
+  else node_.release_hold();  // a start (operational once its heartbeat says so), a reset (a boot follows)
+  if (auto r = node_.command(command); !r) {
+    if (before) node_.hold(*before);
+    else node_.release_hold();
+    return r;
   }
+  if (command == NmtCommand::reset_node || command == NmtCommand::reset_communication) reset_sent(true);
   return {};
 }
 
@@ -115,11 +109,15 @@ void NodeStateMachine::on_heartbeat(NmtState state) noexcept {
   // Started (or released by an operator) and now heard operational: the condition for RPDOs.
   if ((state_ == NodeState::booting || state_ == NodeState::stopped_by_operator) && node_.ready_for_pdos()) {
     enter(NodeState::operational, "started, heard operational");
-  } else if (state_ == NodeState::operational && node_.operator_hold() && node_.configured() &&
-             node_.commanded_state() != NmtState::operational) {
-    // Held by a stop sent past this machine (the line's reaction to a lost mandatory device).
-    enter(NodeState::stopped_by_operator, "held stopped");
   }
+}
+
+// Whoever sends it (an operator here, the line's reaction to a lost mandatory device through the
+// node): a kept stop or pre-operational takes a configured node out of operational. One sent by a
+// boot comes before the boot ends (not configured yet): its end decides (finished()).
+void NodeStateMachine::on_command(NmtCommand command) noexcept {
+  const auto& hold = node_.operator_hold();
+  if (hold && *hold == command && node_.configured()) enter(NodeState::stopped_by_operator, "a kept NMT stop or pre-operational");
 }
 
 void NodeStateMachine::on_event(NodeEvent event) noexcept {

@@ -84,6 +84,7 @@ class NodeStateMachine final : public NodeDriver {
   // NodeDriver, told by the node.
   void on_event(NodeEvent event) noexcept override;
   void on_heartbeat(NmtState state) noexcept override;
+  void on_command(NmtCommand command) noexcept override;
 
  private:
   void enter(NodeState next, std::string_view why);

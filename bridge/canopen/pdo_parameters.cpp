@@ -164,10 +164,8 @@ class Planner {
   bool can_invalidate() const { return writable(spec_.rules.cob_id) || spec_.rules.cob_id == PdoAccess::valid_bit; }
 
   PdoMismatch changing(std::uint16_t index, std::uint8_t sub, const char* what, std::string expected, std::string actual) const {
-    auto m = mismatch(index, sub, expected, actual,
-                      fmt::format("{}: {} {} sub {} is {} on the device, the line wants {}", pdo_, what, hex(index), sub,
-                                  actual, expected));
-    return m;
+    auto message = fmt::format("{}: {} {} sub {} is {} on the device, the line wants {}", pdo_, what, hex(index), sub, actual, expected);
+    return mismatch(index, sub, std::move(expected), std::move(actual), std::move(message));
   }
 
   PdoMismatch mismatch(std::uint16_t index, std::uint8_t sub, std::string expected, std::string actual,

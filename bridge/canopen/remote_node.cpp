@@ -59,6 +59,7 @@ Result<void> RemoteNode::command(NmtCommand cmd) {
   if (cmd == NmtCommand::reset_node || cmd == NmtCommand::reset_communication) configured_ = false;
   confirmed_ = false;
   commanded_at_ = std::chrono::steady_clock::now();
+  for (auto* d : drivers_) d->on_command(cmd);
   return {};
 }
 

@@ -25,9 +25,6 @@
 #include "dds/incarnation.hpp"
 #include "dds/participant.hpp"
 #include "dds/request_ledger.hpp"
-#include "dds/topic_names.hpp"
-// The client learns the bridge's incarnation from its diagnostics before its first request.
-#include "msgs/commonPubSubTypes.h"
 
 namespace lb::ddsl {
 
@@ -185,6 +182,12 @@ class ServiceServer {
   }
 };
 
+// Where a client hears which run of the bridge serves it before its first request: a subscription
+// that tells `heard` each incarnation announced (the layer that knows the bridge's announcement,
+// its diagnostics, provides it: gateways/bridge_runs.hpp; this layer knows no message type).
+using RunAnnouncements =
+    std::function<Result<std::unique_ptr<Participant::Subscription>>(Participant& dds, std::function<void(Incarnation)> heard)>;
+
 // Client side, for the CLI and tests: call() blocks the calling thread (never a Fast DDS thread).
 template <class RequestPS, class ReplyPS>
 class ServiceClient {
@@ -208,7 +211,10 @@ class ServiceClient {
     }
   };
 
-  static Result<std::unique_ptr<ServiceClient>> create(Participant& dds, const std::string& path) {
+  // With `announcements`, a request is sent only once the run it is for is known (announced, or
+  // from a reply); without, a first request names none and runs on whichever bridge takes it.
+  static Result<std::unique_ptr<ServiceClient>> create(Participant& dds, const std::string& path,
+                                                       const RunAnnouncements& announcements = {}) {
     auto client = std::make_unique<ServiceClient>(dds, path);
     if (!client->partitioned()) {
       auto writer = client->writer_for("");
@@ -220,18 +226,17 @@ class ServiceClient {
     if (!sub) return sub.error();
     client->subscription_ = std::move(*sub);
     if constexpr (NamesIncarnation<Request>) {
-      // The bridge's diagnostics are transient-local: the current run's arrive as soon as matched.
-      auto diag = dds.subscribe_scoped<linebridge_msgs::msg::DiagnosticsPubSubType>(
-          topic_name(client->line(), kBridgeNamespace, "diagnostics"), QosKind::state,
-          [raw](const linebridge_msgs::msg::Diagnostics& d, const fdds::SampleInfo&) { raw->heard(d.bridge_incarnation()); });
-      if (!diag) return diag.error();
-      client->diagnostics_ = std::move(*diag);
+      if (announcements) {
+        auto runs = announcements(dds, [raw](Incarnation i) { raw->heard(i); });
+        if (!runs) return runs.error();
+        client->announcements_ = std::move(*runs);
+      }
     }
     return client;
   }
   ServiceClient(Participant& dds, std::string path) : dds_(dds), path_(std::move(path)) {}
   ~ServiceClient() {
-    diagnostics_.reset();
+    announcements_.reset();
     subscription_.reset();  // no reply callback after this line
     for (auto& [partition, writer] : writers_) dds_.remove_writer(writer.entity());
   }
@@ -260,7 +265,9 @@ class ServiceClient {
     if (!writer) return writer.error();
     Request named = request;
     const auto known = [&] {
-      if constexpr (NamesIncarnation<Request>) return named.bridge_incarnation() != kAnyIncarnation || heard_ != kAnyIncarnation;
+      if constexpr (NamesIncarnation<Request>) {
+        return !announcements_ || named.bridge_incarnation() != kAnyIncarnation || heard_ != kAnyIncarnation;
+      }
       return true;
     };
     while (writer->matched() == 0 || dds_.matched_writers(reply_topic(path_)) == 0 || !known()) {
@@ -268,9 +275,8 @@ class ServiceClient {
         if (writer->matched() == 0 || dds_.matched_writers(reply_topic(path_)) == 0) {
           return make_error("no server for " + path_ + " (is the bridge running?)");
         }
-        return make_error("no diagnostics from the bridge of line " + line() + " (" +
-                          topic_name(line(), kBridgeNamespace, "diagnostics") +
-                          "): the request must name the run of the bridge it is for");
+        return make_error("the bridge serving " + path_ + " announced no run (its diagnostics): the request must "
+                          "name the run of the bridge it is for");
       }
       std::this_thread::sleep_for(std::chrono::milliseconds(10));
     }
@@ -324,9 +330,6 @@ class ServiceClient {
     return *writer;
   }
 
-  // The line: the path's first part (<line>/bridge/<service> or <line>/<device>/<service>).
-  std::string line() const { return path_.substr(0, path_.find('/')); }
-
   // The newest run heard of wins: a restarted bridge's diagnostics and replies follow the last
   // ones of the run before.
   void heard(Incarnation incarnation) {
@@ -353,7 +356,7 @@ class ServiceClient {
   std::map<SampleIdentity, Reply> replies_;
   std::atomic<Incarnation> heard_{kAnyIncarnation};  // the bridge run last heard of
   std::unique_ptr<Participant::Subscription> subscription_;
-  std::unique_ptr<Participant::Subscription> diagnostics_;
+  std::unique_ptr<Participant::Subscription> announcements_;  // the runs announced (null: none asked for)
 };
 
 }  // namespace lb::ddsl

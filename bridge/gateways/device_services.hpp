@@ -38,7 +38,11 @@ class DeviceServices final : public canopen::NodeDriver {
   // line-level mandatory-device policy listens).
   void on_operator_nmt(std::function<void(canopen::NmtCommand)> listener) { nmt_listeners_.push_back(std::move(listener)); }
   // Loop thread: a boot is checking and configuring the device right now (master role).
-  bool booting() const { return machine_ && machine_->state() == canopen::NodeState::booting; }
+  bool booting() const { return state() == canopen::NodeState::booting; }
+  // Loop thread: the node state machine's state (master role; nullopt: monitored).
+  std::optional<canopen::NodeState> state() const {
+    return machine_ ? std::optional<canopen::NodeState>(machine_->state()) : std::nullopt;
+  }
   // Loop thread: "started", "failed (K): ...", a pending retry, "monitored" (monitor role).
   std::string boot_state() const { return machine_ ? machine_->detail() : "monitored"; }
   std::string_view node_state() const { return machine_ ? canopen::to_string(machine_->state()) : "monitored"; }

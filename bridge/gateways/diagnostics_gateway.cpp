@@ -132,10 +132,11 @@ void DiagnosticsGateway::snapshot(std::size_t i) {
       n.mandatory(bus.mandatory->mandatory(d.index));
       n.line_hold(bus.mandatory->hold_of(d.index));
       // The node's hold is the line's, not an operator's: its state and boot state say so.
-      if (!n.line_hold().empty() && n.node_state() == "stopped by operator") {
-        n.node_state(n.line_hold().rfind("stopped", 0) == 0 ? "stopped by the line" : "waiting for a mandatory device");
+      if (const auto held = bus.mandatory->held_as(d.index);
+          !held.empty() && d.services->state() == canopen::NodeState::stopped_by_operator) {
+        n.node_state(std::string(held));
+        n.boot_state(n.line_hold());
       }
-      if (!n.line_hold().empty() && n.boot_state().find("by the operator") != std::string::npos) n.boot_state(n.line_hold());
     }
     n.set_values_at_start(d.node->set_values_at_start());
     if (const auto& e = d.services->boot_report().error) n.boot_error(to_msg(*e));

@@ -238,6 +238,15 @@ std::string MandatoryDevices::state() const {
   return held.empty() ? std::string() : "every mandatory device passed its boot" + kept;
 }
 
+std::string_view MandatoryDevices::held_as(std::size_t i) const {
+  switch (status_[i].hold) {
+    case Hold::none: return {};
+    case Hold::waiting: return "waiting for a mandatory device";
+    case Hold::stopped: return "stopped by the line";
+  }
+  return {};
+}
+
 std::string MandatoryDevices::hold_of(std::size_t i) const {
   const auto& st = status_[i];
   switch (st.hold) {

@@ -26,6 +26,7 @@
 #include <functional>
 #include <memory>
 #include <string>
+#include <string_view>
 #include <vector>
 
 #include "canopen/boot_sequence.hpp"
@@ -61,6 +62,8 @@ class MandatoryDevices {
   std::vector<std::string> missing() const;  // mandatory devices that have not passed their boot (now)
   std::string state() const;                 // the line's situation in one line ("" when nothing to say)
   std::string hold_of(std::size_t i) const;  // why member i is held by the line ("" when it is not)
+  // What diagnostics call member i's state while the line holds it ("" when it does not).
+  std::string_view held_as(std::size_t i) const;
   bool mandatory(std::size_t i) const { return members_[i].mandatory; }
   Policy policy() const { return policy_; }
 

@@ -69,7 +69,18 @@ TEST(PdoOverrides, TransmissionTypesReachTheSawAndItsFramesFollowThem) {
   })) << line.logs();
   ASSERT_TRUE(wait_matched(line, *writer, line.topic("saw1", "setpoint_result")));
 
-  // In the device now (1800h sub 2/3/5, 1801h sub 2, 1400h sub 2), and reported on info.
+  // On the bus, the bridge's boot wrote the transmission type (expedited download of 1800h sub 2
+  // = 254: 2F 00 18 02 FE) and never the inhibit time (no download to 1800h sub 3): the line's
+  // value and the saw's own, both 500 in this file, are the same assumption, so only the absence
+  // of a write says something about the bridge here.
+  bool type_written = false;
+  for (const auto& f : line.spy().frames(0x605)) {
+    if (f.len != 8 || (f.data[0] & 0xE0) != 0x20 || f.data[1] != 0x00 || f.data[2] != 0x18) continue;
+    EXPECT_NE(f.data[3], 3) << "the bridge wrote the inhibit time of a PDO it cannot make invalid";
+    type_written = type_written || (f.data[0] == 0x2F && f.data[3] == 2 && f.data[4] == 254);
+  }
+  EXPECT_TRUE(type_written) << "1800h sub 2 = 254 never written";
+  // In the device now (1800h sub 2/5, 1801h sub 2, 1400h sub 2; sub 3 its own), and reported on info.
   EXPECT_EQ(line.read_unsigned("saw1", 0x1800, 2, "UNSIGNED8"), 254u);
   EXPECT_EQ(line.read_unsigned("saw1", 0x1800, 3, "UNSIGNED16"), 500u);
   EXPECT_EQ(line.read_unsigned("saw1", 0x1800, 5, "UNSIGNED16"), 300u);

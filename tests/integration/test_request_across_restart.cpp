@@ -11,9 +11,6 @@
 
 #include <algorithm>
 #include <chrono>
-#include <condition_variable>
-#include <map>
-#include <mutex>
 #include <string>
 #include <thread>
 #include <vector>
@@ -22,6 +19,7 @@
 #include "msgs/commonPubSubTypes.h"
 #include "msgs/sawPubSubTypes.h"
 #include "support/line_harness.hpp"
+#include "support/raw_command_client.hpp"
 
 namespace msg = linebridge_msgs::msg;
 namespace srv = linebridge_msgs::srv;
@@ -127,47 +125,13 @@ class RequestAcrossRestart : public ::testing::Test {
   lb::ddsl::Incarnation first_run = lb::ddsl::kAnyIncarnation;
 };
 
-// The command service's replies as they arrive, by the request they answer.
-struct Replies {
-  std::mutex m;
-  std::condition_variable cv;
-  std::map<SampleIdentity, std::vector<srv::Command_Response>> by_request;
-
-  bool wait_for(const SampleIdentity& request, std::chrono::milliseconds timeout) {
-    std::unique_lock lock(m);
-    return cv.wait_for(lock, timeout, [&] { return !by_request[request].empty(); });
-  }
-  std::vector<srv::Command_Response> of(const SampleIdentity& request) {
-    std::lock_guard lock(m);
-    return by_request[request];
-  }
-};
-
 }  // namespace
 
 // A client as ServiceClient is, written by hand so that its repeat comes when the new bridge has
 // started the saw (it would take a press then): the request names the run it was first sent to.
 TEST_F(RequestAcrossRestart, ARepeatToTheNextBridgeIsRefusedAndTheCutIsPressedOnce) {
-  const auto path = lb::ddsl::line_service_path(line.line(), "command");
-  Replies replies;
-  ASSERT_TRUE(line.dds().subscribe<srv::Command_ResponsePubSubType>(
-      lb::ddsl::reply_topic(path), QosKind::reply, [&](const srv::Command_Response& r, const auto& info) {
-        {
-          std::lock_guard lock(replies.m);
-          replies.by_request[info.related_sample_identity].push_back(r);
-        }
-        replies.cv.notify_all();
-      }));
-  auto requests = line.dds().writer<srv::Command_RequestPubSubType>(lb::ddsl::request_topic(path), QosKind::command);
-  ASSERT_TRUE(requests);
-  const auto matched = [&] {
-    const auto end = Clock::now() + 20s;
-    while (requests->matched() == 0 || line.dds().matched_writers(lb::ddsl::reply_topic(path)) == 0) {
-      if (Clock::now() > end) return false;
-      std::this_thread::sleep_for(10ms);
-    }
-    return true;
-  };
+  lb::test::RawCommandClient client(line.dds(), lb::ddsl::line_service_path(line.line(), "command"));
+  const auto matched = [&] { return client.matched(20s); };
   ASSERT_TRUE(matched()) << line.logs();
 
   srv::Command_Request cut;
@@ -175,21 +139,21 @@ TEST_F(RequestAcrossRestart, ARepeatToTheNextBridgeIsRefusedAndTheCutIsPressedOn
   cut.command("manual_cut");
   cut.bridge_incarnation(first_run);
   WriteParams first_params;
-  ASSERT_TRUE(requests->write(cut, first_params));
+  ASSERT_TRUE(client.write(cut, first_params));
   const SampleIdentity first = first_params.sample_identity();
 
   const auto second_run = kill_at_the_press_and_restart();
   ASSERT_NE(second_run, lb::ddsl::kAnyIncarnation) << "the second bridge never started the saw\n" << line.logs();
   ASSERT_NE(second_run, first_run);
-  EXPECT_TRUE(replies.of(first).empty()) << "the first bridge answered before it was killed: the test proves nothing";
+  EXPECT_TRUE(client.of(first).empty()) << "the first bridge answered before it was killed: the test proves nothing";
   ASSERT_TRUE(matched()) << "the second bridge's command service never matched\n" << line.logs();
 
   // The repeat, as a client whose answer is lost writes it: the same request, naming the first.
   WriteParams again;
   again.related_sample_identity(first);
-  ASSERT_TRUE(requests->write(cut, again));
-  ASSERT_TRUE(replies.wait_for(first, 10s)) << "the repeat got no answer\n" << line.logs();
-  const auto answer = replies.of(first).front();
+  ASSERT_TRUE(client.write(cut, again));
+  ASSERT_TRUE(client.wait_for(first, 1, 10s)) << "the repeat got no answer\n" << line.logs();
+  const auto answer = client.of(first).front();
   EXPECT_FALSE(answer.success()) << "the repeat ran on the second bridge: " << answer.message();
   EXPECT_EQ(answer.message(), std::string(lb::ddsl::kRestartedRefusal));
   EXPECT_EQ(answer.bridge_incarnation(), second_run) << "the refusal names the bridge that refused";

@@ -7,15 +7,13 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
-#include <condition_variable>
-#include <map>
-#include <mutex>
 #include <thread>
 #include <vector>
 
 #include "msgs/commonPubSubTypes.h"
 #include "msgs/sawPubSubTypes.h"
 #include "support/line_harness.hpp"
+#include "support/raw_command_client.hpp"
 
 namespace msg = linebridge_msgs::msg;
 namespace srv = linebridge_msgs::srv;
@@ -40,22 +38,6 @@ unsigned presses(lb::test::BusSpy& spy, std::uint8_t node, unsigned bit) {
   return runs;
 }
 
-// The command service's replies as they arrive, by the request they answer.
-struct Replies {
-  std::mutex m;
-  std::condition_variable cv;
-  std::map<SampleIdentity, std::vector<srv::Command_Response>> by_request;
-
-  bool wait_for(const SampleIdentity& request, std::size_t count, std::chrono::milliseconds timeout) {
-    std::unique_lock lock(m);
-    return cv.wait_for(lock, timeout, [&] { return by_request[request].size() >= count; });
-  }
-  std::vector<srv::Command_Response> of(const SampleIdentity& request) {
-    std::lock_guard lock(m);
-    return by_request[request];
-  }
-};
-
 }  // namespace
 
 TEST(ServiceRepeat, ACommandAskedAgainIsPressedOnceAndAnsweredWithTheFirstAnswer) {
@@ -69,44 +51,28 @@ TEST(ServiceRepeat, ACommandAskedAgainIsPressedOnceAndAnsweredWithTheFirstAnswer
   })) << line.logs();
 
   // A raw client: the request writer and the reply reader of the line-wide command service.
-  const auto path = lb::ddsl::line_service_path(line.line(), "command");
-  Replies replies;  // declared before the subscription's participant is used: outlives its callbacks
-  ASSERT_TRUE(line.dds().subscribe<srv::Command_ResponsePubSubType>(
-      lb::ddsl::reply_topic(path), QosKind::reply, [&](const srv::Command_Response& r, const auto& info) {
-        {
-          std::lock_guard lock(replies.m);
-          replies.by_request[info.related_sample_identity].push_back(r);
-        }
-        replies.cv.notify_all();
-      }));
-  auto requests = line.dds().writer<srv::Command_RequestPubSubType>(lb::ddsl::request_topic(path), QosKind::command);
-  ASSERT_TRUE(requests);
-  const auto deadline = std::chrono::steady_clock::now() + 20s;
-  while ((requests->matched() == 0 || line.dds().matched_writers(lb::ddsl::reply_topic(path)) == 0) &&
-         std::chrono::steady_clock::now() < deadline) {
-    std::this_thread::sleep_for(10ms);
-  }
-  ASSERT_GT(requests->matched(), 0) << line.logs();
+  lb::test::RawCommandClient client(line.dds(), lb::ddsl::line_service_path(line.line(), "command"));
+  ASSERT_TRUE(client.matched(20s)) << line.logs();
 
   srv::Command_Request cut;
   cut.device("saw1");
   cut.command("manual_cut");
   WriteParams first_params;
-  ASSERT_TRUE(requests->write(cut, first_params));
+  ASSERT_TRUE(client.write(cut, first_params));
   const SampleIdentity first = first_params.sample_identity();
   const auto ask_again = [&] {
     WriteParams again;
     again.related_sample_identity(first);
-    ASSERT_TRUE(requests->write(cut, again));
+    ASSERT_TRUE(client.write(cut, again));
     EXPECT_NE(again.sample_identity(), first) << "a repeat is a sample of its own";
   };
   ask_again();  // at once: the first is still being pressed (at least 100 ms)
-  ASSERT_TRUE(replies.wait_for(first, 1, 10s)) << line.logs();
-  const std::size_t before = replies.of(first).size();
+  ASSERT_TRUE(client.wait_for(first, 1, 10s)) << line.logs();
+  const std::size_t before = client.of(first).size();
   ask_again();  // after its answer: as a client whose answer was lost does
-  ASSERT_TRUE(replies.wait_for(first, before + 1, 10s)) << "the repeat is answered, to the first request\n" << line.logs();
+  ASSERT_TRUE(client.wait_for(first, before + 1, 10s)) << "the repeat is answered, to the first request\n" << line.logs();
 
-  const auto answers = replies.of(first);
+  const auto answers = client.of(first);
   ASSERT_GE(answers.size(), 2u);
   EXPECT_TRUE(answers.front().success()) << answers.front().message();
   EXPECT_GE(answers.front().held_ms(), 100.0);
@@ -119,9 +85,9 @@ TEST(ServiceRepeat, ACommandAskedAgainIsPressedOnceAndAnsweredWithTheFirstAnswer
 
   // A new request (no related identity) is pressed again: the count below sees a second press.
   WriteParams next_params;
-  ASSERT_TRUE(requests->write(cut, next_params));
-  ASSERT_TRUE(replies.wait_for(next_params.sample_identity(), 1, 10s)) << line.logs();
-  EXPECT_TRUE(replies.of(next_params.sample_identity()).front().success());
+  ASSERT_TRUE(client.write(cut, next_params));
+  ASSERT_TRUE(client.wait_for(next_params.sample_identity(), 1, 10s)) << line.logs();
+  EXPECT_TRUE(client.of(next_params.sample_identity()).front().success());
   std::this_thread::sleep_for(300ms);  // the bit's clearing frame reaches the spy
   EXPECT_EQ(presses(line.spy(), 3, kManualCutBit), 2u) << "one press per request, none per repeat";
 
@@ -130,14 +96,14 @@ TEST(ServiceRepeat, ACommandAskedAgainIsPressedOnceAndAnsweredWithTheFirstAnswer
   srv::Command_Request other;
   other.device("saw1");
   other.command("tip_pulse");
-  const std::size_t first_answers = replies.of(first).size();
+  const std::size_t first_answers = client.of(first).size();
   WriteParams mismatched;
   mismatched.related_sample_identity(first);
-  ASSERT_TRUE(requests->write(other, mismatched));
-  ASSERT_TRUE(replies.wait_for(mismatched.sample_identity(), 1, 10s))
+  ASSERT_TRUE(client.write(other, mismatched));
+  ASSERT_TRUE(client.wait_for(mismatched.sample_identity(), 1, 10s))
       << "a repeat with other content got no answer of its own\n" << line.logs();
-  const auto refusal = replies.of(mismatched.sample_identity()).front();
+  const auto refusal = client.of(mismatched.sample_identity()).front();
   EXPECT_FALSE(refusal.success());
   EXPECT_NE(refusal.message().find("asks something else"), std::string::npos) << refusal.message();
-  EXPECT_EQ(replies.of(first).size(), first_answers) << "the first request's answer went to another request";
+  EXPECT_EQ(client.of(first).size(), first_answers) << "the first request's answer went to another request";
 }

@@ -168,6 +168,17 @@ class StartupPolicy : public ::testing::Test {
     return false;
   }
 
+  // The corrugator runs, started by a first bridge; the bridge is restarted with a line file that
+  // wants its TPDO1's inhibit time at 10 ms (1800h sub 3 = 100; the corrugator has 0).
+  void restart_wanting_another_inhibit_time(lb::test::LineHarness& line) {
+    ASSERT_TRUE(diag.subscribe(line.dds(), line.topic("bridge", "diagnostics"), QosKind::state));
+    ASSERT_TRUE(node_state_is("corr1", "operational")) << line.logs();
+    ASSERT_EQ(line.bridge().stop(), 0) << line.logs();
+    std::ofstream(line.bridge_config(), std::ios::app) << "    pdos: {tpdo1: {inhibit_time_100us: 100}}\n";
+    line.spy().clear();
+    line.start_bridge();
+  }
+
   // The diagnostics' note of a device's last start, once it contains `text`.
   bool start_note(const std::string& device, const std::string& text) {
     return diag.wait(20s, [&](const std::vector<msg::Diagnostics>& v) {
@@ -447,13 +458,7 @@ TEST_F(StartupPolicy, AnOperatorsStopSurvivesAHeartbeatLossAndReturn) {
 TEST_F(StartupPolicy, ARunningDeviceWhosePdosMustChangeIsPausedWrittenAndStarted) {
   lb::test::LineHarness line("startup", 67);
   line.start(device("corr1", 7, "cia420-3", "3.1"));
-  ASSERT_TRUE(diag.subscribe(line.dds(), line.topic("bridge", "diagnostics"), QosKind::state));
-  ASSERT_TRUE(node_state_is("corr1", "operational")) << line.logs();
-
-  ASSERT_EQ(line.bridge().stop(), 0) << line.logs();
-  std::ofstream(line.bridge_config(), std::ios::app) << "    pdos: {tpdo1: {inhibit_time_100us: 100}}\n";
-  line.spy().clear();
-  line.start_bridge();
+  ASSERT_NO_FATAL_FAILURE(restart_wanting_another_inhibit_time(line));
   ASSERT_TRUE(frame_seen(line, 0x000, [](const lb::can::CanFrame& f) { return f.len == 2 && f.data[0] == 0x01 && f.data[1] == 7; }))
       << "never started\n" << line.logs();
 
@@ -502,13 +507,7 @@ TEST_F(StartupPolicy, ARunningDeviceWhosePdosMustChangeIsPausedWrittenAndStarted
 TEST_F(StartupPolicy, KeepRunningLeavesARunningDeviceRunningAndReportsItOnce) {
   lb::test::LineHarness line("startup", 68);
   line.start(device("corr1", 7, "cia420-3", "3.1"), "", "", "startup: {pdo_change_when_running: keep_running}\n");
-  ASSERT_TRUE(diag.subscribe(line.dds(), line.topic("bridge", "diagnostics"), QosKind::state));
-  ASSERT_TRUE(node_state_is("corr1", "operational")) << line.logs();
-
-  ASSERT_EQ(line.bridge().stop(), 0) << line.logs();
-  std::ofstream(line.bridge_config(), std::ios::app) << "    pdos: {tpdo1: {inhibit_time_100us: 100}}\n";
-  line.spy().clear();
-  line.start_bridge();
+  ASSERT_NO_FATAL_FAILURE(restart_wanting_another_inhibit_time(line));
   ASSERT_TRUE(diag.wait_last(30s, [](const msg::Diagnostics& d) {
     const auto* n = node(d, "corr1");
     return n != nullptr && n->boot_error().code() == "J" && n->node_state() == "running unmanaged";

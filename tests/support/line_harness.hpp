@@ -18,6 +18,7 @@
 #include "dds/participant.hpp"
 #include "dds/service.hpp"
 #include "dds/topic_names.hpp"
+#include "gateways/bridge_runs.hpp"
 #include "msgs/commonPubSubTypes.h"
 #include "support/bus_spy.hpp"
 #include "support/child_process.hpp"
@@ -104,7 +105,7 @@ class LineHarness {
   template <class Client, class Request>
   auto call(std::unique_ptr<Client>& slot, const std::string& service, Request request) {
     if (!slot) {
-      auto c = Client::create(*dds_, ddsl::line_service_path(name_, service));
+      auto c = Client::create(*dds_, ddsl::line_service_path(name_, service), gateways::bridge_runs(name_));
       if (!c) throw std::runtime_error(c.error().message);
       slot = std::move(*c);
     }

@@ -181,23 +181,37 @@ class NodeStateMachineTest : public ::testing::Test {
     return on_master<lb::Result<void>>([this, c] { return machine_->operator_command(c); });
   }
 
-  // Waits (generously) for the machine to be in `s`.
-  ::testing::AssertionResult reaches(NodeState s, std::chrono::seconds within = 15s) {
+  // Waits (generously) until `done()`.
+  template <class Done>
+  static bool eventually(Done done, std::chrono::seconds within = 15s) {
     const auto deadline = std::chrono::steady_clock::now() + within;
-    while (std::chrono::steady_clock::now() < deadline) {
-      if (state() == s) return ::testing::AssertionSuccess();
+    while (!done()) {
+      if (std::chrono::steady_clock::now() > deadline) return false;
       std::this_thread::sleep_for(10ms);
     }
+    return true;
+  }
+  // Waits for the machine to be in `s`.
+  ::testing::AssertionResult reaches(NodeState s) {
+    if (eventually([&] { return state() == s; })) return ::testing::AssertionSuccess();
     return ::testing::AssertionFailure() << "never " << co::to_string(s) << "; it is " << co::to_string(state());
   }
   // Waits for the n-th NMT command `cs` to node 9 on the bus.
-  ::testing::AssertionResult nmt_seen(std::uint8_t cs, std::size_t n = 1, std::chrono::seconds within = 15s) {
-    const auto deadline = std::chrono::steady_clock::now() + within;
-    while (std::chrono::steady_clock::now() < deadline) {
-      if (nmt_count(cs) >= n) return ::testing::AssertionSuccess();
-      std::this_thread::sleep_for(10ms);
-    }
+  ::testing::AssertionResult nmt_seen(std::uint8_t cs, std::size_t n = 1) {
+    if (eventually([&] { return nmt_count(cs) >= n; })) return ::testing::AssertionSuccess();
     return ::testing::AssertionFailure() << "NMT " << int(cs) << " #" << n << " never on the bus";
+  }
+  // Power cycles, one after the other (each boot-up believed at the heartbeat that follows it),
+  // until the machine backs the device off as a boot-up storm (3 in the fixture's window).
+  ::testing::AssertionResult storm() {
+    for (int i = 0; i < 3 && state() != NodeState::boot_failed; ++i) {
+      const auto boots = counters().boots;
+      device_->power_cycle();
+      if (!eventually([&] { return counters().boots != boots || state() == NodeState::boot_failed; })) {
+        return ::testing::AssertionFailure() << "power cycle " << i + 1 << " was not acted on";
+      }
+    }
+    return reaches(NodeState::boot_failed);
   }
   std::size_t nmt_count(std::uint8_t cs) {
     const auto f = spy_->frames(0x000);
@@ -248,11 +262,7 @@ TEST_F(NodeStateMachineTest, AFreshDeviceIsBootedThenOperational) {
 // are retried), and is booted when it is heard.
 TEST_F(NodeStateMachineTest, ASilentDeviceStaysUnknownUntilHeard) {
   start_master(kPreOperational, 0x1234, true);
-  const auto deadline = std::chrono::steady_clock::now() + 15s;
-  while (counters().boot_failures < 2) {
-    ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "the probe was not retried";
-    std::this_thread::sleep_for(10ms);
-  }
+  ASSERT_TRUE(eventually([&] { return counters().boot_failures >= 2; })) << "the probe was not retried";
   EXPECT_EQ(state(), NodeState::unknown);
   EXPECT_EQ(nmt_count(kStart), 0u);
   device_->silence(false);
@@ -265,11 +275,7 @@ TEST_F(NodeStateMachineTest, ASilentDeviceStaysUnknownUntilHeard) {
 TEST_F(NodeStateMachineTest, AWrongDeviceFailsItsBootAndIsRetriedNeverStarted) {
   start_master(kPreOperational, 0x9999);
   ASSERT_TRUE(reaches(NodeState::boot_failed));
-  const auto deadline = std::chrono::steady_clock::now() + 15s;
-  while (counters().boot_failures < 3) {
-    ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "not retried";
-    std::this_thread::sleep_for(10ms);
-  }
+  ASSERT_TRUE(eventually([&] { return counters().boot_failures >= 3; })) << "not retried";
   EXPECT_EQ(nmt_count(kStart), 0u);
   const auto boots = recorder_.boots();
   ASSERT_FALSE(boots.empty());
@@ -351,17 +357,7 @@ TEST_F(NodeStateMachineTest, AResetWhoseBootUpIsLostEndsInABootNotInLimbo) {
 TEST_F(NodeStateMachineTest, ABootUpStormIsBackedOffAndAnOperatorResetEndsIt) {
   start_master(kPreOperational);
   ASSERT_TRUE(reaches(NodeState::operational));
-  // Power cycles one after the other (each boot-up believed at the heartbeat that follows it).
-  const auto deadline = std::chrono::steady_clock::now() + 30s;
-  for (int i = 0; i < 3 && state() != NodeState::boot_failed; ++i) {
-    const auto boots = counters().boots;
-    device_->power_cycle();
-    while (counters().boots == boots && state() != NodeState::boot_failed) {
-      ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "a power cycle was not acted on";
-      std::this_thread::sleep_for(10ms);
-    }
-  }
-  ASSERT_TRUE(reaches(NodeState::boot_failed));
+  ASSERT_TRUE(storm());
   EXPECT_EQ(counters().storms, 1u);
   const auto starts = nmt_count(kStart);
   EXPECT_EQ(device_->state(), kPreOperational);
@@ -397,11 +393,8 @@ TEST_F(NodeStateMachineTest, ASpoofedBootUpChangesNothing) {
   ASSERT_TRUE(reaches(NodeState::operational));
   const auto boots = counters().boots;
   ASSERT_TRUE(spy_->send(lb::can::make_frame(0x700 + kNode, {kBootUp})));
-  const auto deadline = std::chrono::steady_clock::now() + 15s;
-  while (on_master<std::uint32_t>([this] { return node_->stats().boot_ups_not_believed; }) == 0) {
-    ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "the boot-up was never judged";
-    std::this_thread::sleep_for(10ms);
-  }
+  ASSERT_TRUE(eventually([&] { return on_master<std::uint32_t>([this] { return node_->stats().boot_ups_not_believed; }) != 0; }))
+      << "the boot-up was never judged";
   EXPECT_EQ(state(), NodeState::operational);
   EXPECT_EQ(counters().boots, boots);
   EXPECT_EQ(recorder_.states(), (std::vector<NodeState>{NodeState::booting, NodeState::operational}));
@@ -412,16 +405,7 @@ TEST_F(NodeStateMachineTest, ASpoofedBootUpChangesNothing) {
 TEST_F(NodeStateMachineTest, ABootUpStormsBackOffEndsInABoot) {
   start_master(kPreOperational);
   ASSERT_TRUE(reaches(NodeState::operational));
-  const auto deadline = std::chrono::steady_clock::now() + 30s;
-  for (int i = 0; i < 3 && state() != NodeState::boot_failed; ++i) {
-    const auto boots = counters().boots;
-    device_->power_cycle();
-    while (counters().boots == boots && state() != NodeState::boot_failed) {
-      ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "a power cycle was not acted on";
-      std::this_thread::sleep_for(10ms);
-    }
-  }
-  ASSERT_TRUE(reaches(NodeState::boot_failed));
+  ASSERT_TRUE(storm());
   const auto starts = nmt_count(kStart);
   ASSERT_TRUE(nmt_seen(kStart, starts + 1));  // after the back-off (retry: 300 ms), nobody asking
   ASSERT_TRUE(reaches(NodeState::operational));
