@@ -55,12 +55,12 @@ in_root() {
 step "apt-get install ./$(basename "$deb")"
 in_root sh -c "apt-get -q update >/dev/null && DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends /tmp/$(basename "$deb") | tail -n 3"
 in_root dpkg -s linebridge | sed -n '1,/^Description/p'
-in_root sh -c 'ls -l /usr/bin/linebridge* /usr/libexec/linebridge /lib/systemd/system/linebridge.service; ls -ld /etc/linebridge /etc/linebridge/line.yaml /var/lib/linebridge; id linebridge'
+in_root sh -c 'ls -l /usr/bin/linebridge* /usr/libexec/linebridge /lib/systemd/system/linebridge-bus.service /lib/systemd/system/linebridge-dds.service; ls -ld /etc/linebridge /etc/linebridge/line.yaml /var/lib/linebridge; id linebridge'
 
 step "systemd-analyze (the installed unit)"
-unit=$target/lib/systemd/system/linebridge.service
-systemd-analyze verify --root="$target" linebridge.service 2>&1 | grep -v 'Cannot add dependency job\|network-online' || true
-systemd-analyze security --offline=true --root="$target" linebridge.service 2>&1 | tail -n 3 || true
+unit=$target/lib/systemd/system/linebridge-bus.service
+systemd-analyze verify --root="$target" linebridge-bus.service linebridge-dds.service 2>&1 | grep -v 'Cannot add dependency job\|network-online' || true
+systemd-analyze security --offline=true --root="$target" linebridge-dds.service 2>&1 | tail -n 3 || true
 grep -E '^(Type|WatchdogSec|User|CapabilityBoundingSet|Restart|RestartPreventExitStatus)=' "$unit"
 
 step "the installed binaries, in the root, inside a private network namespace"

@@ -150,6 +150,12 @@ std::string to_text(const msg::Diagnostics& d) {
   }
   if (!d.set_value_store().empty()) out += fmt::format("  set values in force: {}\n", d.set_value_store());
   if (d.log_lines_dropped() != 0) out += fmt::format("  log lines dropped (queue full): {}\n", d.log_lines_dropped());
+  if (const auto& side = d.dds_side(); side.connects() != 0) {
+    out += fmt::format("  DDS process: {}, {} connection(s) since the bus process started; {} sample(s) dropped, {} not "
+                       "forwarded; {} remote participant(s)\n",
+                       side.connected() ? "connected" : "NOT CONNECTED", side.connects(), side.samples_dropped(),
+                       side.samples_not_forwarded(), side.remote_participants());
+  }
   return out;
 }
 

@@ -155,7 +155,8 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
   try {
     bridge->diagnostics_ = std::make_unique<gateways::DiagnosticsGateway>(
         *bridge->dds_, config.line, std::move(diag),
-        [store = bridge->set_values_.get(), problem = bridge->store_problem_](linebridge_msgs::msg::Diagnostics& d) {
+        [store = bridge->set_values_.get(), problem = bridge->store_problem_,
+         channel = bridge->dds_->channel()](linebridge_msgs::msg::Diagnostics& d) {
           if (store == nullptr) {
             d.set_value_store(problem);
           } else {
@@ -163,6 +164,16 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
             d.set_value_store(failing.empty() ? "kept in " + store->path() : "failing: " + failing);
           }
           d.log_lines_dropped(log_lines_dropped());
+          if (channel != nullptr) {
+            const auto c = channel->counters();
+            auto& side = d.dds_side();
+            side.connected(c.connected);
+            side.connects(c.connects);
+            side.samples_dropped(c.dropped_no_peer + c.dropped_queue_full);
+            side.samples_not_forwarded(c.dds.samples_not_forwarded);
+            side.remote_participants(c.dds.remote_participants);
+            side.remote_participants_refused(c.dds.remote_participants_refused);
+          }
         });
   } catch (const std::runtime_error& e) {
     return make_error(e.what());

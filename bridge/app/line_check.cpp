@@ -19,7 +19,7 @@
 namespace lb::app {
 namespace {
 
-// Where the packaged service may write (ReadWritePaths / StateDirectory of linebridge.service).
+// Where the packaged service may write (ReadWritePaths / StateDirectory of linebridge-bus.service).
 constexpr std::string_view kServiceStateDir = "/var/lib/linebridge";
 
 // A bus that is never opened: the gateways register on it as on a real one, and nothing reaches CAN.

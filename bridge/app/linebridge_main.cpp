@@ -5,12 +5,56 @@
 #include "app/arguments.hpp"
 #include "app/async_log.hpp"
 #include "app/dds_options.hpp"
+#include "app/dds_side.hpp"
+#include "app/dds_supervisor.hpp"
 #include "app/line_bridge.hpp"
 #include "app/line_check.hpp"
 #include "app/line_config_source.hpp"
 #include "app/run_until_signal.hpp"
 #include "app/service_notifier.hpp"
 #include "dds/fastdds_log.hpp"
+#include "dds/security_files.hpp"
+#include "link/bus_channel.hpp"
+
+#include <stdlib.h>
+#include <sys/mman.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstring>
+
+#include <filesystem>
+
+namespace {
+
+// --part both: a private directory for the channel (mode 0700), removed at exit.
+class PrivateDir {
+ public:
+  PrivateDir() {
+    const char* base = std::getenv("RUNTIME_DIRECTORY");
+    if (base == nullptr) base = std::getenv("XDG_RUNTIME_DIR");
+    std::string tmpl = std::string(base != nullptr ? base : "/tmp") + "/linebridge-XXXXXX";
+    if (::mkdtemp(tmpl.data()) != nullptr) path_ = tmpl;
+  }
+  ~PrivateDir() {
+    std::error_code ignored;
+    if (!path_.empty()) std::filesystem::remove_all(path_, ignored);
+  }
+  PrivateDir(const PrivateDir&) = delete;
+  PrivateDir& operator=(const PrivateDir&) = delete;
+  const std::string& path() const { return path_; }
+
+ private:
+  std::string path_;
+};
+
+std::string own_executable() {
+  std::error_code ec;
+  auto p = std::filesystem::read_symlink("/proc/self/exe", ec);
+  return ec ? std::string("/proc/self/exe") : p.string();
+}
+
+}  // namespace
 
 int main(int argc, char** argv) {
   namespace app = lb::app;
@@ -20,6 +64,9 @@ int main(int argc, char** argv) {
   std::string check_path;
   double duration_s = 0;
   std::string log_level = "info";
+  std::string part = "both";
+  std::string channel_path;
+  bool lock_memory = false;
   cli.add_option("-c,--config", config_path, "line configuration (YAML); default: the built-in demo line")
       ->check(app::non_empty_path());
   cli.add_option("--check", check_path,
@@ -28,12 +75,30 @@ int main(int argc, char** argv) {
       ->check(app::non_empty_path());
   cli.add_option("-d,--duration", duration_s, "stop after this many seconds (default 0: run until SIGINT/SIGTERM)")
       ->check(app::duration_seconds());
+  cli.add_option("--part", part,
+                 "both (default: the bus process, which starts its DDS process and restarts it), bus (CAN, the "
+                 "CANopen master, no DDS), dds (the DDS side of a running bus process), single (one process, for "
+                 "comparison)")
+      ->check(CLI::IsMember({"both", "bus", "dds", "single"}))
+      ->capture_default_str();
+  cli.add_option("--channel", channel_path,
+                 "the channel between the bus and DDS processes (a socket path); --part bus and dds need it, both "
+                 "makes a private one")
+      ->check(app::non_empty_path());
+  cli.add_flag("--lock-memory", lock_memory,
+               "the bus process locks its memory (mlockall): its loops never wait for a page from swap (needs "
+               "LimitMEMLOCK or CAP_IPC_LOCK; refused: a warning, the bus runs on)");
   cli.add_option("--log-level", log_level, "trace, debug, info, warn, error, critical, off")
       ->check(app::log_level())
       ->capture_default_str();
   if (const int code = app::parse(cli, argc, argv); code >= 0) return code;
   spdlog::set_level(spdlog::level::from_str(log_level));
-  spdlog::set_pattern("%H:%M:%S.%e [bridge] %^%l%$ %v");
+  const std::string pattern = std::string("%H:%M:%S.%e [") + (part == "dds" ? "dds" : "bridge") + "] %^%l%$ %v";
+  spdlog::set_pattern(pattern);
+  if ((part == "bus" || part == "dds") && channel_path.empty()) {
+    spdlog::error("--part {} needs --channel PATH", part);
+    return app::kExitUsage;
+  }
 
   const auto registry = lb::profiles::ProfileRegistry::builtin();
   if (!check_path.empty()) {
@@ -42,7 +107,7 @@ int main(int argc, char** argv) {
   }
 
   // From here on no bus loop waits for the log.
-  const app::AsyncLog async_log("%H:%M:%S.%e [bridge] %^%l%$ %v");
+  const app::AsyncLog async_log(pattern);
   app::block_stop_signals();
   auto config = app::load_config(config_path, registry);
   if (!config) {
@@ -52,22 +117,68 @@ int main(int argc, char** argv) {
   for (const auto& w : config->warnings) spdlog::warn("{}", w);
   // Fast DDS's warnings (a reader refusing samples among them) and errors in this log, rate-limited.
   const lb::ddsl::FastDdsLogRoute fastdds_log;
-  // DDS first: a secured participant that cannot prove security is in force is a configuration
-  // error (exit 2), like a bad security file or DDS profile; nothing runs unsecured by mistake.
   const auto dds_options = app::bridge_participant_options(*config);
-  auto dds = lb::ddsl::Participant::create_checked(dds_options);
-  if (!dds) {
-    spdlog::error("{}", dds.error().message);
-    return dds.error().configuration ? app::kExitUsage : app::kExitFailure;
+  if (part == "dds") return app::run_dds_side(dds_options, config->line, channel_path, app::duration_ms(duration_s));
+
+  std::unique_ptr<lb::link::BusChannel> channel;
+  std::unique_ptr<lb::ddsl::Participant> dds;
+  std::optional<PrivateDir> private_dir;
+  if (part == "single") {
+    // DDS first: a secured participant that cannot prove security is in force is a configuration
+    // error (exit 2), like a bad security file or DDS profile; nothing runs unsecured by mistake.
+    auto created = lb::ddsl::Participant::create_checked(dds_options);
+    if (!created) {
+      spdlog::error("{}", created.error().message);
+      return created.error().configuration ? app::kExitUsage : app::kExitFailure;
+    }
+    if (dds_options.security) spdlog::info("{}", app::security_summary(dds_options));
+    dds = std::move(*created);
+  } else {
+    // The security files are checked before the buses open (the DDS process proves security in
+    // force): a bad file is a configuration error here too, and no device is started for nothing.
+    if (dds_options.security) {
+      if (auto files = lb::ddsl::check_security_files(*dds_options.security, dds_options.domain); !files) {
+        spdlog::error("{}", files.error().message);
+        return app::kExitUsage;
+      }
+    }
+    if (part == "both") {
+      private_dir.emplace();
+      if (private_dir->path().empty()) {
+        spdlog::error("cannot make a private directory for the channel");
+        return app::kExitFailure;
+      }
+      channel_path = private_dir->path() + "/channel.sock";
+    }
+    auto opened = lb::link::BusChannel::open({channel_path, config->line, lb::ddsl::draw_incarnation()});
+    if (!opened) {
+      spdlog::error("{}", opened.error().message);
+      return app::kExitFailure;
+    }
+    channel = std::move(*opened);
+    dds = lb::ddsl::Participant::over_channel(dds_options, *channel);
   }
-  if (dds_options.security) spdlog::info("{}", app::security_summary(dds_options));
-  auto bridge = app::LineBridge::create(*config, std::move(*dds));
+  auto bridge = app::LineBridge::create(*config, std::move(dds));
+  if (lock_memory && bridge) {
+    if (::mlockall(MCL_CURRENT | MCL_FUTURE) == 0) {
+      spdlog::info("memory locked (mlockall)");
+    } else {
+      spdlog::warn("--lock-memory: mlockall refused ({}); the bus runs on with pageable memory", std::strerror(errno));
+    }
+  }
   if (!bridge) {
     spdlog::error("start-up failed: {}", bridge.error().message);
     return app::kExitFailure;
   }
   for (const auto& note : (*bridge)->dds().site_notes()) spdlog::warn("DDS profiles: {}", note);
   (*bridge)->start();
+  if (channel) channel->start();
+  std::optional<app::DdsSupervisor> supervisor;
+  if (part == "both") {
+    std::vector<std::string> dds_argv{own_executable(), "--part", "dds", "--channel", channel_path, "--log-level", log_level};
+    if (!config_path.empty()) dds_argv.insert(dds_argv.end(), {"--config", std::filesystem::absolute(config_path).string()});
+    supervisor.emplace(std::move(dds_argv), [c = channel.get()] { return c->counters().connects; });
+  }
   spdlog::info("line {}: {} bus(es), {} device(s), DDS domain {}{}{}{}", config->line, config->buses.size(),
                config->devices.size(), config->dds.domain, config->dds.localhost_only ? " (localhost only)" : "",
                config->dds.discovery_servers.empty() ? "" : ", through discovery servers",
@@ -78,6 +189,12 @@ int main(int argc, char** argv) {
   }
   const int sig = app::run_until_signal(app::duration_ms(duration_s));
   notifier.stopping();
+  const bool dds_refused = supervisor && supervisor->refused_configuration();
+  supervisor.reset();
+  if (dds_refused) {
+    (*bridge)->stop();
+    return app::kExitUsage;
+  }
   if (const auto failure = (*bridge)->failure()) {
     // Exit non-zero so the service manager restarts the bridge rather than keep a line without its loop.
     spdlog::critical("stopping: {}", *failure);

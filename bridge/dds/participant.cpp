@@ -1,4 +1,7 @@
 #include "dds/participant.hpp"
+#include "dds/raw_type.hpp"
+
+#include <spdlog/spdlog.h>
 
 #include <fastdds/dds/domain/DomainParticipantFactory.hpp>
 #include <fastdds/dds/domain/DomainParticipantListener.hpp>
@@ -336,6 +339,33 @@ Result<std::unique_ptr<Participant>, CreateError> Participant::plan(const Partic
   return p;
 }
 
+std::unique_ptr<Participant> Participant::over_channel(const ParticipantOptions& options, link::BusChannel& channel) {
+  auto p = std::make_unique<Participant>(Key{});
+  p->channel_ = &channel;
+  p->incarnation_ = channel.incarnation();
+  // The DDS process proves security is in force before it serves the channel; this side needs to
+  // know only that the line is secured (line-wide requests are then taken by partition).
+  p->secured_ = options.security.has_value();
+  return p;
+}
+
+void Participant::heard_partitions(const eprosima::fastrtps::rtps::GUID_t& writer, const std::vector<std::string>& partitions) {
+  std::lock_guard lock(mutex_);
+  // Bounded: writers come and go with clients; a writer forgotten here is told again with its next sample.
+  if (channel_partitions_.size() >= 1024) channel_partitions_.clear();
+  channel_partitions_[writer] = partitions;
+}
+
+void Participant::undecodable(const std::string& topic) {
+  static constexpr auto kEvery = std::chrono::seconds(10);
+  std::lock_guard lock(mutex_);
+  const auto now = std::chrono::steady_clock::now();
+  if (now - last_undecodable_log_ >= kEvery) {
+    last_undecodable_log_ = now;
+    spdlog::warn("a sample on {} from the DDS process is not of its type: dropped", topic);
+  }
+}
+
 void Participant::record_plan(PlannedEndpoint endpoint) {
   std::lock_guard lock(mutex_);
   // The QoS the site profiles would give it: what they set that is not applied becomes a note.
@@ -357,7 +387,59 @@ std::vector<std::string> Participant::site_notes() const {
 }
 
 bool Participant::writer_in_partition(const eprosima::fastrtps::rtps::GUID_t& writer, std::string_view partition) const {
+  if (channel_ != nullptr) {
+    std::lock_guard lock(mutex_);
+    const auto it = channel_partitions_.find(writer);
+    return it != channel_partitions_.end() && std::find(it->second.begin(), it->second.end(), partition) != it->second.end();
+  }
   return writer_partitions_ != nullptr && writer_partitions_->contains(writer, partition);
+}
+
+Result<fdds::DataWriter*> Participant::raw_writer(const link::Declare& d) {
+  auto t = topic_for_type(d.topic, fdds::TypeSupport(std::make_unique<RawType>(d.type, d.max_size).release()));
+  if (!t) return t.error();
+  auto* w = create_writer(*t, static_cast<QosKind>(d.qos_kind), d.partition);
+  if (w == nullptr) {
+    return make_error("cannot create DDS writer on " + d.topic +
+                      (d.partition.empty() ? "" : " in partition '" + d.partition + "'") +
+                      (secured_ ? " (do this identity's permissions grant it?)" : ""));
+  }
+  return w;
+}
+
+namespace {
+class RawListener : public fdds::DataReaderListener {
+ public:
+  RawListener(Participant::RawCallback cb, const WriterPartitions* partitions, bool any_partition)
+      : cb_(std::move(cb)), partitions_(partitions), any_partition_(any_partition) {}
+  void on_data_available(fdds::DataReader* reader) override {
+    RawSample sample;
+    fdds::SampleInfo info;
+    while (reader->take_next_sample(&sample, &info) == eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK) {
+      if (!info.valid_data) continue;
+      std::vector<std::string> in;
+      if (any_partition_ && partitions_ != nullptr) in = partitions_->of(info.sample_identity.writer_guid());
+      cb_(sample.cdr, info, std::move(in));
+    }
+  }
+
+ private:
+  Participant::RawCallback cb_;
+  const WriterPartitions* partitions_;
+  bool any_partition_;
+};
+}  // namespace
+
+Result<void> Participant::subscribe_raw(const link::Declare& d, RawCallback callback) {
+  auto t = topic_for_type(d.topic, fdds::TypeSupport(std::make_unique<RawType>(d.type, d.max_size).release()));
+  if (!t) return t.error();
+  auto listener = std::make_unique<RawListener>(std::move(callback), writer_partitions_.get(), d.any_partition);
+  if (create_reader(*t, static_cast<QosKind>(d.qos_kind), d.keep_last, listener.get(), d.any_partition) == nullptr) {
+    return make_error("cannot create DDS reader on " + d.topic);
+  }
+  std::lock_guard lock(mutex_);
+  listeners_.push_back(std::move(listener));
+  return {};
 }
 
 fdds::Publisher* Participant::publisher_in(const std::string& partition) {

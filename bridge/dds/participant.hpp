@@ -12,6 +12,7 @@
 #include <fastdds/dds/topic/Topic.hpp>
 #include <fastdds/dds/topic/TypeSupport.hpp>
 
+#include <chrono>
 #include <cstdint>
 #include <functional>
 #include <map>
@@ -25,10 +26,13 @@
 #include <vector>
 
 #include "base/result.hpp"
+#include "dds/cdr.hpp"
+#include "dds/channel_identity.hpp"
 #include "dds/incarnation.hpp"
 #include "dds/lost_samples.hpp"
 #include "dds/security_files.hpp"
 #include "dds/writer_partitions.hpp"
+#include "link/bus_channel.hpp"
 
 namespace lb::ddsl {
 
@@ -141,18 +145,31 @@ class Writer {
   using Sample = typename PubSubType::type;
   Writer() = default;
   explicit Writer(fdds::DataWriter* writer) : writer_(writer) {}
+  // A writer of the DDS process, reached through the channel (a bus process's participant).
+  Writer(link::BusChannel& channel, std::uint32_t id) : channel_(&channel), id_(id) {}
 
-  // Thread-safe (Fast DDS serialises writes). False when the writer refused the sample.
+  // Thread-safe (Fast DDS serialises writes). False when the writer refused the sample. Over the
+  // channel: true once handed on (the channel counts what it drops).
   bool write(const Sample& sample) const {
+    if (channel_ != nullptr) {
+      channel_->publish(id_, to_cdr(sample));
+      return true;
+    }
     return writer_ != nullptr && writer_->write(const_cast<Sample*>(&sample));  // API takes void*
   }
-  // With parameters: the related sample identity of a reply in, the written sample's identity out.
+  // With parameters: the related sample identity of a reply in, the written sample's identity out
+  // (not over the channel: the DDS process writes it later).
   bool write(const Sample& sample, eprosima::fastrtps::rtps::WriteParams& params) const {
+    if (channel_ != nullptr) {
+      channel_->publish(id_, to_cdr(sample), to_link(params.related_sample_identity()));
+      return true;
+    }
     return writer_ != nullptr && writer_->write(const_cast<Sample*>(&sample), params);
   }
   eprosima::fastrtps::rtps::GUID_t guid() const { return writer_->guid(); }
   fdds::DataWriter* entity() const { return writer_; }
   int matched() const {
+    if (writer_ == nullptr) return 0;
     fdds::PublicationMatchedStatus status;
     writer_->get_publication_matched_status(status);
     return status.current_count;
@@ -160,6 +177,8 @@ class Writer {
 
  private:
   fdds::DataWriter* writer_ = nullptr;
+  link::BusChannel* channel_ = nullptr;
+  std::uint32_t id_ = 0;
 };
 
 template <class PubSubType>
@@ -177,6 +196,12 @@ class Participant {
   // network (linebridge --check). Its writers write nothing.
   static Result<std::unique_ptr<Participant>, CreateError> plan(const ParticipantOptions& options);
   const std::vector<PlannedEndpoint>& planned() const { return planned_; }
+  // A bus process's participant (docs/bus-isolation.md): no DDS entity at all. Its writers and
+  // readers are declared to the DDS process through `channel` (which must outlive it), samples
+  // cross it as CDR; the service servers, their ledgers and the run (incarnation: the channel's)
+  // stay on this side, so a restarted DDS process changes nothing a client can tell but a pause.
+  static std::unique_ptr<Participant> over_channel(const ParticipantOptions& options, link::BusChannel& channel);
+  const link::BusChannel* channel() const { return channel_; }
   // What the site's profiles set that was not applied (contract QoS, transports over
   // localhost_only, ...), one line each, for the log and --check.
   std::vector<std::string> site_notes() const;
@@ -187,6 +212,7 @@ class Participant {
   template <class PubSubType>
   Result<Writer<PubSubType>> writer(const std::string& topic, QosKind kind) {
     if (planning_) return plan_endpoint<PubSubType, Writer<PubSubType>>(topic, kind, true);
+    if (channel_ != nullptr) return channel_writer<PubSubType>(topic, kind, {});
     auto t = topic_for<PubSubType>(topic);
     if (!t) return t.error();
     auto* w = create_writer(*t, kind);
@@ -199,6 +225,7 @@ class Participant {
   template <class PubSubType>
   Result<Writer<PubSubType>> writer(const std::string& topic, QosKind kind, const std::string& partition) {
     if (planning_) return plan_endpoint<PubSubType, Writer<PubSubType>>(topic, kind, true, partition);
+    if (channel_ != nullptr) return channel_writer<PubSubType>(topic, kind, partition);
     auto t = topic_for<PubSubType>(topic);
     if (!t) return t.error();
     auto* w = create_writer(*t, kind, partition);
@@ -216,6 +243,7 @@ class Participant {
   Result<void> subscribe(const std::string& topic, QosKind kind, SampleCallback<PubSubType> callback,
                          int keep_last = 0) {
     if (planning_) return plan_endpoint<PubSubType, void>(topic, kind, false);
+    if (channel_ != nullptr) return channel_reader<PubSubType>(topic, kind, std::move(callback), keep_last, false);
     auto t = topic_for<PubSubType>(topic);
     if (!t) return t.error();
     auto listener = std::make_unique<TypedListener<PubSubType>>(std::move(callback), gate_, lost_for(kind), topic);
@@ -250,6 +278,7 @@ class Participant {
       record_plan(PlannedEndpoint{topic, PubSubType().getName(), kind, false, {}});
       return std::make_unique<Subscription>(*this, nullptr, nullptr);
     }
+    if (channel_ != nullptr) return make_error("a scoped subscription needs a DDS participant, not a channel: " + topic);
     auto t = topic_for<PubSubType>(topic);
     if (!t) return t.error();
     auto listener = std::make_unique<TypedListener<PubSubType>>(std::move(callback), gate_, lost_for(kind), topic);
@@ -262,6 +291,7 @@ class Participant {
   template <class PubSubType>
   Result<void> subscribe_any_partition(const std::string& topic, QosKind kind, SampleCallback<PubSubType> callback) {
     if (planning_) return plan_endpoint<PubSubType, void>(topic, kind, false, "*");
+    if (channel_ != nullptr) return channel_reader<PubSubType>(topic, kind, std::move(callback), 0, true);
     auto t = topic_for<PubSubType>(topic);
     if (!t) return t.error();
     auto listener = std::make_unique<TypedListener<PubSubType>>(std::move(callback), gate_, lost_for(kind), topic);
@@ -273,6 +303,15 @@ class Participant {
     return {};
   }
   void remove_writer(fdds::DataWriter* writer);
+
+  // The DDS process's endpoints (app/dds_side.hpp): of a type it knows only by name and size, as
+  // the bus process declared it, samples as CDR bytes (raw_type.hpp). The callback runs on a Fast
+  // DDS thread with the sample's info and, for an any-partition reader, the partitions its writer
+  // is trusted in.
+  Result<fdds::DataWriter*> raw_writer(const link::Declare& declaration);
+  using RawCallback = std::function<void(const std::vector<std::uint8_t>& cdr, const fdds::SampleInfo& info,
+                                         std::vector<std::string> partitions)>;
+  Result<void> subscribe_raw(const link::Declare& declaration, RawCallback callback);
 
   // Any thread but a callback's: waits for the sample callbacks running now and lets no other run
   // after it returns (samples are then left unread). For an orderly shutdown: what the callbacks
@@ -342,6 +381,50 @@ class Participant {
   void record_plan(PlannedEndpoint endpoint);
 
   template <class PubSubType>
+  static link::Declare declaration(const std::string& topic, QosKind kind, bool writer, const std::string& partition,
+                                   int keep_last, bool any_partition) {
+    PubSubType type;
+    link::Declare d;
+    d.writer = writer;
+    d.any_partition = any_partition;
+    d.qos_kind = static_cast<std::uint8_t>(kind);
+    d.keep_last = keep_last;
+    d.max_size = type.m_typeSize;
+    d.topic = topic;
+    d.type = type.getName();
+    d.partition = partition;
+    return d;
+  }
+  template <class PubSubType>
+  Result<Writer<PubSubType>> channel_writer(const std::string& topic, QosKind kind, const std::string& partition) {
+    const auto id = channel_->declare(declaration<PubSubType>(topic, kind, true, partition, 0, false), kind == QosKind::state);
+    return Writer<PubSubType>(*channel_, id);
+  }
+  // The channel's thread runs the callback, as a Fast DDS listener thread would, behind the same gate.
+  template <class PubSubType>
+  Result<void> channel_reader(const std::string& topic, QosKind kind, SampleCallback<PubSubType> callback, int keep_last,
+                              bool any_partition) {
+    channel_->declare_reader(
+        declaration<PubSubType>(topic, kind, false, any_partition ? "*" : "", keep_last, any_partition),
+        [this, cb = std::move(callback), gate = gate_, lost = lost_for(kind), topic, any_partition](const link::Sample& s) {
+          std::shared_lock lock(gate->mutex);
+          if (gate->closed) return;
+          typename PubSubType::type sample;
+          if (!from_cdr(s.payload, sample)) return undecodable(topic);
+          fdds::SampleInfo info;
+          info.valid_data = true;
+          info.sample_identity = from_link(s.identity);
+          info.related_sample_identity = from_link(s.related);
+          if (any_partition) heard_partitions(info.sample_identity.writer_guid(), s.partitions);
+          if (lost) lost->seen(info.sample_identity, topic);
+          cb(sample, info);
+        });
+    return {};
+  }
+  void heard_partitions(const eprosima::fastrtps::rtps::GUID_t& writer, const std::vector<std::string>& partitions);
+  void undecodable(const std::string& topic);
+
+  template <class PubSubType>
   Result<fdds::Topic*> topic_for(const std::string& name) {
     // TypeSupport takes ownership of a raw pointer by API design.
     return topic_for_type(name, fdds::TypeSupport(std::make_unique<PubSubType>().release()));
@@ -363,7 +446,11 @@ class Participant {
   std::unique_ptr<fdds::DomainParticipantListener> listener_;
   bool secured_ = false;
   bool planning_ = false;
-  const Incarnation incarnation_ = draw_incarnation();
+  Incarnation incarnation_ = draw_incarnation();
+  link::BusChannel* channel_ = nullptr;
+  // Over the channel: the partitions the DDS process last said a writer is in (guarded by mutex_).
+  std::map<eprosima::fastrtps::rtps::GUID_t, std::vector<std::string>> channel_partitions_;
+  std::chrono::steady_clock::time_point last_undecodable_log_{};
   std::vector<PlannedEndpoint> planned_;
   std::vector<std::string> site_notes_;  // guarded by mutex_
   fdds::DomainParticipant* participant_ = nullptr;

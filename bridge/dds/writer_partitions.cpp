@@ -29,6 +29,12 @@ void WriterPartitions::on_publisher_discovery(eprosima::fastdds::dds::DomainPart
   }
 }
 
+std::vector<std::string> WriterPartitions::of(const Guid& writer) const {
+  std::lock_guard lock(mutex_);
+  const auto it = partitions_.find(writer);
+  return it == partitions_.end() ? std::vector<std::string>{} : it->second;
+}
+
 bool WriterPartitions::contains(const Guid& writer, std::string_view partition) const {
   std::lock_guard lock(mutex_);
   const auto it = partitions_.find(writer);

@@ -28,6 +28,8 @@ class WriterPartitions : public eprosima::fastdds::dds::DomainParticipantListene
 
   // True when the writer was discovered in this partition and has not left it since.
   bool contains(const Guid& writer, std::string_view partition) const;
+  // Every partition the writer is trusted in (for the DDS process to hand on with its samples).
+  std::vector<std::string> of(const Guid& writer) const;
 
  private:
   mutable std::mutex mutex_;

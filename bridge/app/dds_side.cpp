@@ -1,0 +1,169 @@
+#include "app/dds_side.hpp"
+
+#include <signal.h>
+#include <spdlog/spdlog.h>
+#include <systemd/sd-daemon.h>
+
+#include <atomic>
+#include <map>
+#include <memory>
+#include <thread>
+
+#include "app/arguments.hpp"
+#include "app/dds_options.hpp"
+#include "app/run_until_signal.hpp"
+#include "dds/channel_identity.hpp"
+#include "dds/raw_type.hpp"
+#include "link/dds_channel.hpp"
+
+namespace lb::app {
+namespace {
+
+namespace fdds = eprosima::fastdds::dds;
+
+// How long a relayed sample may wait for the bus side before it is dropped (and counted): a bus
+// side that stalls that long has its own watchdog to answer to.
+constexpr int kSendTimeoutMs = 200;
+// The bus side pings every second; without one for this long its DDS side stops feeding its own
+// watchdog (a DDS side cut off from its bus serves nothing true).
+constexpr auto kBusSilence = std::chrono::seconds(3);
+constexpr auto kConnectFor = std::chrono::seconds(10);
+
+bool stop_pending() {
+  const sigset_t set = stop_signals();
+  const timespec zero{0, 0};
+  return sigtimedwait(&set, nullptr, &zero) > 0;
+}
+
+class Relay {
+ public:
+  Relay(ddsl::Participant& dds, link::DdsChannel& channel) : dds_(dds), channel_(channel) {}
+
+  Result<void> declare(const link::Declare& d) {
+    if (d.writer) {
+      auto w = dds_.raw_writer(d);
+      if (!w) return w.error();
+      writers_[d.id] = *w;
+      return {};
+    }
+    return dds_.subscribe_raw(d, [this, id = d.id](const std::vector<std::uint8_t>& cdr, const fdds::SampleInfo& info,
+                                                   std::vector<std::string> partitions) {
+      link::Sample s;
+      s.id = id;
+      s.identity = ddsl::to_link(info.sample_identity);
+      s.related = ddsl::to_link(info.related_sample_identity);
+      s.partitions = std::move(partitions);
+      s.payload = cdr;
+      if (!channel_.send(s)) not_forwarded_.fetch_add(1, std::memory_order_relaxed);
+    });
+  }
+
+  void publish(link::Sample& s) {
+    const auto it = writers_.find(s.id);
+    if (it == writers_.end()) return;
+    ddsl::RawSample raw{std::move(s.payload)};
+    if (s.related == link::Identity{}) {
+      it->second->write(&raw);
+      return;
+    }
+    eprosima::fastrtps::rtps::WriteParams params;
+    params.related_sample_identity(ddsl::from_link(s.related));
+    it->second->write(&raw, params);
+  }
+
+  link::DdsStats stats() const {
+    link::DdsStats st;
+    st.samples_not_forwarded = not_forwarded_.load(std::memory_order_relaxed);
+    return st;
+  }
+
+ private:
+  ddsl::Participant& dds_;
+  link::DdsChannel& channel_;
+  std::map<std::uint32_t, fdds::DataWriter*> writers_;  // main thread only
+  std::atomic<std::uint64_t> not_forwarded_{0};
+};
+
+}  // namespace
+
+int run_dds_side(const ddsl::ParticipantOptions& options, const std::string& line, const std::string& channel_path,
+                 std::chrono::milliseconds duration) {
+  const auto started = std::chrono::steady_clock::now();
+  auto dds = ddsl::Participant::create_checked(options);
+  if (!dds) {
+    spdlog::error("{}", dds.error().message);
+    return dds.error().configuration ? kExitUsage : kExitFailure;
+  }
+  if (options.security) spdlog::info("{}", security_summary(options));
+
+  std::unique_ptr<link::DdsChannel> channel;
+  while (true) {
+    auto c = link::DdsChannel::connect(channel_path, kSendTimeoutMs);
+    if (c) {
+      channel = std::move(*c);
+      break;
+    }
+    if (std::chrono::steady_clock::now() - started > kConnectFor) {
+      spdlog::error("no bus process on {}: {}", channel_path, c.error().message);
+      return kExitFailure;
+    }
+    if (stop_pending()) return kExitOk;
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+  }
+
+  Relay relay(**dds, *channel);
+  uint64_t watchdog_usec = 0;
+  const bool watchdog = sd_watchdog_enabled(0, &watchdog_usec) > 0;
+  auto last_ping = std::chrono::steady_clock::now();
+  auto next_tick = last_ping;
+  bool ready = false;
+  std::size_t endpoints = 0;
+  while (true) {
+    const auto now = std::chrono::steady_clock::now();
+    if (duration.count() > 0 && now - started >= duration) return kExitOk;
+    if (stop_pending()) {
+      sd_notify(0, "STOPPING=1");
+      return kExitOk;
+    }
+    if (now >= next_tick) {
+      next_tick = now + std::chrono::seconds(1);
+      channel->send(relay.stats());
+      if (watchdog && ready && now - last_ping < kBusSilence) sd_notify(0, "WATCHDOG=1");
+    }
+    auto message = channel->receive(100);
+    if (!message) {
+      spdlog::error("channel {}: {}; this DDS side ends (its supervisor starts another)", channel_path, message.error().message);
+      return kExitFailure;
+    }
+    if (!*message) continue;
+    auto& m = **message;
+    if (auto* hello = std::get_if<link::Hello>(&m)) {
+      if (hello->line != line) {
+        spdlog::error("channel {} serves line '{}', this DDS side is configured for '{}'", channel_path, hello->line, line);
+        return kExitUsage;
+      }
+      spdlog::info("channel {}: bus process pid {} of line {}", channel_path, hello->pid, hello->line);
+    } else if (auto* declare = std::get_if<link::Declare>(&m)) {
+      if (auto made = relay.declare(*declare); !made) {
+        spdlog::error("{}", made.error().message);
+        return (*dds)->secured() ? kExitUsage : kExitFailure;
+      }
+      ++endpoints;
+    } else if (auto* sample = std::get_if<link::Sample>(&m)) {
+      relay.publish(*sample);
+    } else if (std::holds_alternative<link::Ready>(m)) {
+      if (!ready) {
+        ready = true;
+        sd_notifyf(0, "READY=1\nSTATUS=%zu DDS endpoint(s) of line %s", endpoints, line.c_str());
+        spdlog::info("DDS side of line {} ready: {} endpoint(s) on domain {}", line, endpoints, options.domain);
+        // Once every endpoint exists: what the site's profiles set of them that is not applied.
+        for (const auto& note : (*dds)->site_notes()) spdlog::warn("DDS profiles: {}", note);
+      }
+      last_ping = std::chrono::steady_clock::now();
+    } else if (std::holds_alternative<link::Ping>(m)) {
+      last_ping = std::chrono::steady_clock::now();
+    }
+  }
+}
+
+}  // namespace lb::app

@@ -1,0 +1,52 @@
+#pragma once
+// One command for both processes of a line (linebridge --part both, the default: development,
+// the demo, the tests): the bus process starts its DDS process as a child and starts another
+// whenever it ends, as systemd does for the two units of a line. The child dies with its parent
+// (PR_SET_PDEATHSIG), and is told nothing of systemd (the parent is the service).
+
+#include <sys/types.h>
+
+#include <atomic>
+#include <condition_variable>
+#include <cstdint>
+#include <functional>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+namespace lb::app {
+
+class DdsSupervisor {
+ public:
+  // argv: the DDS process's command line (argv[0] an absolute path). served: how many DDS
+  // processes the channel has taken so far (BusChannel::Counters::connects): one that ends after it
+  // was served is replaced at once (a kill, an abort under a flood); one that ends before is
+  // failing at start-up and is retried after a growing pause (100 ms doubling to 5 s).
+  DdsSupervisor(std::vector<std::string> argv, std::function<std::uint64_t()> served);
+  ~DdsSupervisor();  // stops: SIGTERM to the child, SIGKILL if it has not ended within 2 s
+  DdsSupervisor(const DdsSupervisor&) = delete;
+  DdsSupervisor& operator=(const DdsSupervisor&) = delete;
+
+  // The DDS process refused the configuration (exit 2): starting it again cannot help; the
+  // supervisor stops trying and asks the process to stop (request_stop()).
+  bool refused_configuration() const { return refused_; }
+  pid_t child() const { return child_.load(); }
+
+ private:
+  void run();
+  pid_t spawn();
+
+  std::vector<std::string> argv_;
+  std::function<std::uint64_t()> served_;
+  std::vector<std::string> env_;
+  std::atomic<pid_t> child_{0};
+  std::atomic<bool> refused_{false};
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  bool stop_ = false;
+  std::thread thread_;
+};
+
+}  // namespace lb::app

@@ -1,0 +1,243 @@
+#include "link/bus_channel.hpp"
+
+#include <poll.h>
+#include <spdlog/spdlog.h>
+#include <sys/eventfd.h>
+#include <sys/socket.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <chrono>
+#include <cstring>
+
+#include "base/log_rate.hpp"
+
+namespace lb::link {
+namespace {
+constexpr auto kPingEvery = std::chrono::seconds(1);
+}
+
+Result<std::unique_ptr<BusChannel>> BusChannel::open(Options options) {
+  auto listener = listen_channel(options.path);
+  if (!listener) return listener.error();
+  return std::make_unique<BusChannel>(std::move(options), std::move(*listener));
+}
+
+BusChannel::BusChannel(Options options, UniqueFd listener)
+    : options_(std::move(options)), listener_(std::move(listener)), wake_fd_(::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC)) {}
+
+BusChannel::~BusChannel() {
+  stop();
+  ::unlink(options_.path.c_str());
+}
+
+std::uint32_t BusChannel::declare(Declare declaration, bool latest) {
+  std::lock_guard lock(mutex_);
+  declaration.id = static_cast<std::uint32_t>(endpoints_.size());
+  if (connected_) backlog_.push_back(encode(declaration));
+  endpoints_.push_back({std::move(declaration), latest, {}});
+  wake();
+  return endpoints_.back().declaration.id;
+}
+
+std::uint32_t BusChannel::declare_reader(Declare declaration, SampleHandler handler) {
+  declaration.writer = false;
+  const auto id = declare(std::move(declaration), false);
+  std::lock_guard lock(mutex_);
+  endpoints_[id].handler = std::move(handler);
+  return id;
+}
+
+void BusChannel::start() {
+  if (thread_.joinable()) return;
+  thread_ = std::thread([this] { run(); });
+}
+
+void BusChannel::stop() {
+  stop_ = true;
+  wake();
+  if (thread_.joinable()) thread_.join();
+}
+
+void BusChannel::wake() {
+  const std::uint64_t one = 1;
+  [[maybe_unused]] const auto n = ::write(wake_fd_.get(), &one, sizeof(one));
+}
+
+void BusChannel::publish(std::uint32_t id, std::vector<std::uint8_t> payload, const Identity& related) {
+  {
+    std::lock_guard lock(mutex_);
+    if (id >= endpoints_.size()) return;
+    Sample sample;
+    sample.id = id;
+    sample.related = related;
+    sample.payload = std::move(payload);
+    if (endpoints_[id].latest) {
+      // Kept while no DDS side is there: the next one's snapshot starts from it.
+      latest_[id] = encode(sample);
+      if (connected_) dirty_.insert(id);
+    } else if (!connected_) {
+      ++counters_.dropped_no_peer;
+      return;
+    } else if (queue_.size() >= options_.queue_limit) {
+      ++counters_.dropped_queue_full;
+      return;
+    } else {
+      queue_.push_back(encode(sample));
+    }
+  }
+  wake();
+}
+
+BusChannel::Counters BusChannel::counters() const {
+  std::lock_guard lock(mutex_);
+  return counters_;
+}
+
+std::optional<BusChannel::Datagram> BusChannel::next_datagram() {
+  if (!backlog_.empty()) {
+    auto d = std::move(backlog_.front());
+    backlog_.pop_front();
+    return d;
+  }
+  if (!queue_.empty()) {
+    auto d = std::move(queue_.front());
+    queue_.pop_front();
+    ++counters_.samples_sent;
+    return d;
+  }
+  if (!dirty_.empty()) {
+    const auto id = *dirty_.begin();
+    dirty_.erase(dirty_.begin());
+    ++counters_.samples_sent;
+    return latest_.at(id);
+  }
+  return std::nullopt;
+}
+
+void BusChannel::run() {
+  auto next_ping = std::chrono::steady_clock::now() + kPingEvery;
+  while (!stop_) {
+    bool pending = unsent_.has_value();
+    if (!pending) {
+      std::lock_guard lock(mutex_);
+      pending = connected_ && (!backlog_.empty() || !queue_.empty() || !dirty_.empty());
+    }
+    pollfd fds[3] = {{listener_.get(), POLLIN, 0}, {wake_fd_.get(), POLLIN, 0}, {peer_.get(), POLLIN, 0}};
+    if (peer_ && pending) fds[2].events |= POLLOUT;
+    const auto wait = std::chrono::duration_cast<std::chrono::milliseconds>(next_ping - std::chrono::steady_clock::now());
+    const int n = ::poll(fds, peer_ ? 3 : 2, static_cast<int>(std::max<long>(0, wait.count())));
+    if (n < 0 && errno != EINTR) {
+      spdlog::error("channel {}: poll: {}", options_.path, std::strerror(errno));
+      return;
+    }
+    if (fds[1].revents & POLLIN) {
+      std::uint64_t v;
+      [[maybe_unused]] const auto r = ::read(wake_fd_.get(), &v, sizeof(v));
+    }
+    if (fds[0].revents & POLLIN) accept_peer();
+    if (peer_ && (fds[2].revents & (POLLIN | POLLHUP | POLLERR))) read_peer();
+    if (std::chrono::steady_clock::now() >= next_ping) {
+      next_ping = std::chrono::steady_clock::now() + kPingEvery;
+      std::lock_guard lock(mutex_);
+      if (connected_) backlog_.push_back(encode(Ping{}));
+    }
+    if (peer_ && !flush()) drop_peer("the DDS side's socket failed");
+  }
+}
+
+void BusChannel::accept_peer() {
+  auto peer = accept_channel(listener_.get());
+  if (!peer) {
+    {
+      std::lock_guard lock(mutex_);
+      ++counters_.peers_refused;
+    }
+    spdlog::warn("channel {}: {}", options_.path, peer.error().message);
+    return;
+  }
+  if (peer_) drop_peer("another DDS side connected (pid " + std::to_string(peer->pid) + ")");
+  peer_ = std::move(peer->fd);
+  unsent_.reset();
+  std::lock_guard lock(mutex_);
+  connected_ = true;
+  ++counters_.connects;
+  counters_.connected = true;
+  // A new DDS side knows nothing: every endpoint, then the newest state, then Ready.
+  backlog_.clear();
+  queue_.clear();
+  dirty_.clear();
+  backlog_.push_back(encode(Hello{kChannelVersion, options_.line, options_.incarnation, static_cast<std::int32_t>(::getpid())}));
+  for (const auto& e : endpoints_) backlog_.push_back(encode(e.declaration));
+  for (const auto& [id, datagram] : latest_) {
+    backlog_.push_back(datagram);
+    ++counters_.samples_sent;
+  }
+  backlog_.push_back(encode(Ready{static_cast<std::uint32_t>(endpoints_.size())}));
+  spdlog::info("channel {}: DDS side connected (pid {}); {} endpoints and {} state samples sent", options_.path, peer->pid,
+               endpoints_.size(), latest_.size());
+}
+
+void BusChannel::drop_peer(const std::string& why) {
+  peer_.reset();
+  unsent_.reset();
+  std::lock_guard lock(mutex_);
+  connected_ = false;
+  counters_.connected = false;
+  backlog_.clear();
+  queue_.clear();
+  dirty_.clear();
+  spdlog::warn("channel {}: DDS side gone ({}); the bus runs on, events and answers are dropped until it is back", options_.path,
+               why);
+}
+
+void BusChannel::read_peer() {
+  for (int i = 0; i < 64 && peer_; ++i) {
+    const auto n = ::recv(peer_.get(), buffer_.data(), buffer_.size(), MSG_DONTWAIT);
+    if (n < 0) {
+      if (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR) return;
+      return drop_peer(std::strerror(errno));
+    }
+    if (n == 0) return drop_peer("it closed the channel");
+    auto message = decode(std::span(buffer_.data(), static_cast<std::size_t>(n)));
+    if (!message) {
+      std::lock_guard lock(mutex_);
+      ++counters_.bad_messages;
+      spdlog::warn("channel {}: {}", options_.path, message.error().message);
+      continue;
+    }
+    if (auto* stats = std::get_if<DdsStats>(&*message)) {
+      std::lock_guard lock(mutex_);
+      counters_.dds = *stats;
+      continue;
+    }
+    auto* sample = std::get_if<Sample>(&*message);
+    if (sample == nullptr) continue;  // nothing else is meant for this side
+    SampleHandler handler;
+    {
+      std::lock_guard lock(mutex_);
+      ++counters_.samples_received;
+      if (sample->id < endpoints_.size()) handler = endpoints_[sample->id].handler;
+    }
+    if (handler) handler(*sample);
+  }
+}
+
+bool BusChannel::flush() {
+  for (int i = 0; i < 256; ++i) {
+    if (!unsent_) {
+      std::lock_guard lock(mutex_);
+      unsent_ = next_datagram();
+    }
+    if (!unsent_) return true;
+    const auto n = ::send(peer_.get(), unsent_->data(), unsent_->size(), MSG_DONTWAIT | MSG_NOSIGNAL);
+    if (n < 0) {
+      if (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR) return true;  // full: POLLOUT tells when
+      return false;
+    }
+    unsent_.reset();
+  }
+  return true;
+}
+
+}  // namespace lb::link

@@ -1,0 +1,111 @@
+#pragma once
+// The bus process's end of the channel to its DDS process (docs/bus-isolation.md). It listens;
+// the DDS process connects, and may die and come back at any moment without the bus side noticing
+// more than a counter. On every connection it sends the endpoints declared, then a snapshot (the
+// latest sample of every state endpoint), then Ready.
+//
+// Never blocks its callers, which are bus loops: publish() copies and returns. A state endpoint
+// keeps only its latest sample (a slow DDS side sees fewer, never older ones); other samples wait
+// in one bounded queue, and what does not fit, or finds no DDS side, is dropped and counted. One
+// thread of its own does all socket work and runs the handlers of samples from the DDS side (it
+// plays the role Fast DDS's listener threads had: handlers post to bus loops and never block).
+
+#include <atomic>
+#include <cstdint>
+#include <deque>
+#include <functional>
+#include <map>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <set>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "base/result.hpp"
+#include "link/channel_message.hpp"
+#include "link/channel_socket.hpp"
+
+namespace lb::link {
+
+class BusChannel {
+ public:
+  struct Options {
+    std::string path;
+    std::string line;
+    std::uint64_t incarnation = 0;
+    std::size_t queue_limit = 4096;  // samples of non-state endpoints waiting for the DDS side
+  };
+  struct Counters {
+    bool connected = false;
+    std::uint64_t connects = 0;          // DDS sides accepted since start
+    std::uint64_t peers_refused = 0;     // connections refused (credentials)
+    std::uint64_t samples_sent = 0;
+    std::uint64_t samples_received = 0;
+    std::uint64_t dropped_no_peer = 0;   // events and answers while no DDS side was connected
+    std::uint64_t dropped_queue_full = 0;
+    std::uint64_t bad_messages = 0;      // from the DDS side, not decodable
+    DdsStats dds;                        // the DDS side's last report
+  };
+  using SampleHandler = std::function<void(const Sample&)>;
+
+  static Result<std::unique_ptr<BusChannel>> open(Options options);
+  explicit BusChannel(Options options, UniqueFd listener);
+  ~BusChannel();
+  BusChannel(const BusChannel&) = delete;
+  BusChannel& operator=(const BusChannel&) = delete;
+
+  // Endpoints: declared at start-up (also later: a connected DDS side is told at once). `latest`:
+  // only the newest sample matters (state topics).
+  std::uint32_t declare(Declare declaration, bool latest);
+  // A reader's samples from the DDS side reach `handler` on the channel's thread.
+  std::uint32_t declare_reader(Declare declaration, SampleHandler handler);
+
+  void start();
+  void stop();  // idempotent; the destructor stops
+
+  // Any thread; never blocks on the DDS side.
+  void publish(std::uint32_t id, std::vector<std::uint8_t> payload, const Identity& related = {});
+
+  Counters counters() const;
+  const std::string& path() const { return options_.path; }
+  std::uint64_t incarnation() const { return options_.incarnation; }
+
+ private:
+  struct Endpoint {
+    Declare declaration;
+    bool latest = false;
+    SampleHandler handler;
+  };
+  using Datagram = std::vector<std::uint8_t>;
+
+  void run();
+  void accept_peer();
+  void read_peer();
+  bool flush();  // false when the peer is gone
+  void drop_peer(const std::string& why);
+  void wake();
+  std::optional<Datagram> next_datagram();  // under mutex_
+
+  const Options options_;
+  UniqueFd listener_;
+  UniqueFd wake_fd_;
+  UniqueFd peer_;  // channel thread only
+
+  mutable std::mutex mutex_;
+  std::vector<Endpoint> endpoints_;               // by id
+  std::map<std::uint32_t, Datagram> latest_;      // state endpoints: the newest sample, encoded
+  std::set<std::uint32_t> dirty_;                 // latest_ entries not sent to this peer yet
+  std::deque<Datagram> queue_;                    // other samples, in order
+  std::deque<Datagram> backlog_;                  // a new peer's declarations and snapshot, first
+  bool connected_ = false;
+  Counters counters_;
+  std::optional<Datagram> unsent_;                // channel thread: a datagram the socket refused (full)
+  std::vector<std::uint8_t> buffer_ = std::vector<std::uint8_t>(kMaxMessage);  // channel thread: receiving
+
+  std::atomic<bool> stop_{false};
+  std::thread thread_;
+};
+
+}  // namespace lb::link

@@ -1,0 +1,229 @@
+// The channel between a line's bus process and its DDS process, on real Unix sockets: its
+// messages, who may connect, what a (re)connecting DDS side is sent, and that the bus side's
+// publish never waits for a DDS side that does not read.
+#include <gtest/gtest.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include <chrono>
+#include <condition_variable>
+#include <filesystem>
+#include <fstream>
+#include <mutex>
+#include <thread>
+
+#include "link/bus_channel.hpp"
+#include "link/channel_message.hpp"
+#include "link/dds_channel.hpp"
+
+using namespace std::chrono_literals;
+using namespace lb::link;
+
+namespace {
+
+std::string socket_path(const std::string& name) {
+  return ::testing::TempDir() + "/lb_channel_" + name + "_" + std::to_string(::getpid()) + ".sock";
+}
+
+// The next message of a kind, skipping pings (the bus side sends one every second).
+template <class T>
+T next(DdsChannel& c) {
+  const auto deadline = std::chrono::steady_clock::now() + 20s;
+  while (std::chrono::steady_clock::now() < deadline) {
+    auto m = c.receive(200);
+    if (!m) throw std::runtime_error(m.error().message);
+    if (!*m || std::holds_alternative<Ping>(**m)) continue;
+    if (auto* t = std::get_if<T>(&**m)) return *t;
+    throw std::runtime_error("another message came first (index " + std::to_string((*m)->index()) + ")");
+  }
+  throw std::runtime_error("no message within 20 s");
+}
+
+// The first message of a kind, whatever comes before it.
+template <class T>
+T skip_to(DdsChannel& c) {
+  const auto deadline = std::chrono::steady_clock::now() + 20s;
+  while (std::chrono::steady_clock::now() < deadline) {
+    auto m = c.receive(200);
+    if (!m) throw std::runtime_error(m.error().message);
+    if (*m) {
+      if (auto* t = std::get_if<T>(&**m)) return *t;
+    }
+  }
+  throw std::runtime_error("no such message within 20 s");
+}
+
+Declare state_topic(const std::string& topic) {
+  Declare d;
+  d.topic = topic;
+  d.type = "linebridge_msgs::msg::dds_::SawStatus_";
+  d.max_size = 128;
+  return d;
+}
+
+}  // namespace
+
+TEST(ChannelMessage, EveryMessageSurvivesItsEncodingAndTruncationIsRefused) {
+  Sample s;
+  s.id = 7;
+  s.identity.guid[0] = 0x01;
+  s.identity.guid[15] = 0xFE;
+  s.identity.seq_high = -1;
+  s.identity.seq_low = 42;
+  s.partitions = {"saw1", "saw2"};
+  s.payload = {0x00, 0x01, 0x00, 0x00, 0xAA, 0xBB};
+  const auto bytes = encode(s);
+  auto back = decode(bytes);
+  ASSERT_TRUE(back) << back.error().message;
+  const auto& got = std::get<Sample>(*back);
+  EXPECT_EQ(got.id, 7u);
+  EXPECT_EQ(got.identity, s.identity);
+  EXPECT_EQ(got.partitions, s.partitions);
+  EXPECT_EQ(got.payload, s.payload);
+
+  for (std::size_t n = 0; n < bytes.size(); ++n) {
+    EXPECT_FALSE(decode(std::span(bytes.data(), n))) << "a datagram cut to " << n << " bytes was taken";
+  }
+  auto longer = bytes;
+  longer.push_back(0);
+  EXPECT_FALSE(decode(longer));
+}
+
+TEST(ChannelMessage, AnotherVersionIsRefusedWithTheReason) {
+  auto bytes = encode(Ping{});
+  bytes[2] = static_cast<std::uint8_t>(kChannelVersion + 1);
+  auto m = decode(bytes);
+  ASSERT_FALSE(m);
+  EXPECT_NE(m.error().message.find("version"), std::string::npos) << m.error().message;
+}
+
+TEST(ChannelSocket, TheSocketFileIsOpenOnlyToTheServicesUserAndGroup) {
+  const auto path = socket_path("mode");
+  auto channel = BusChannel::open({path, "l", 1});
+  ASSERT_TRUE(channel) << channel.error().message;
+  struct stat st {};
+  ASSERT_EQ(::stat(path.c_str(), &st), 0);
+  EXPECT_TRUE(S_ISSOCK(st.st_mode));
+  EXPECT_EQ(st.st_mode & 0777, 0660u);
+}
+
+TEST(ChannelSocket, AFileThatIsNotASocketIsNeverReplaced) {
+  const auto path = socket_path("file");
+  { std::ofstream(path) << "mine"; }
+  auto channel = BusChannel::open({path, "l", 1});
+  ASSERT_FALSE(channel);
+  EXPECT_NE(channel.error().message.find("not a socket"), std::string::npos) << channel.error().message;
+  EXPECT_TRUE(std::filesystem::exists(path));
+  std::filesystem::remove(path);
+}
+
+TEST(BusChannel, EveryConnectionGetsTheEndpointsThenTheNewestStateThenReady) {
+  const auto path = socket_path("snapshot");
+  auto opened = BusChannel::open({path, "line7", 99});
+  ASSERT_TRUE(opened) << opened.error().message;
+  auto& bus = **opened;
+  const auto status = bus.declare(state_topic("rt/line7/saw1/status"), true);
+  Declare reader = state_topic("rt/line7/saw1/setpoint");
+  const auto setpoint = bus.declare_reader(reader, [](const Sample&) {});
+  bus.start();
+  // Before any DDS side: kept (latest only), nothing sent.
+  bus.publish(status, {0, 1, 0, 0, 1});
+  bus.publish(status, {0, 1, 0, 0, 2});
+
+  for (int connection = 1; connection <= 2; ++connection) {
+    auto dds = DdsChannel::connect(path, 1000);
+    ASSERT_TRUE(dds) << dds.error().message;
+    const auto hello = next<Hello>(**dds);
+    EXPECT_EQ(hello.line, "line7");
+    EXPECT_EQ(hello.incarnation, 99u);
+    const auto d1 = next<Declare>(**dds);
+    EXPECT_EQ(d1.id, status);
+    EXPECT_TRUE(d1.writer);
+    EXPECT_EQ(d1.topic, "rt/line7/saw1/status");
+    const auto d2 = next<Declare>(**dds);
+    EXPECT_EQ(d2.id, setpoint);
+    EXPECT_FALSE(d2.writer);
+    const auto snap = next<Sample>(**dds);
+    EXPECT_EQ(snap.id, status);
+    EXPECT_EQ(snap.payload, (std::vector<std::uint8_t>{0, 1, 0, 0, 2})) << "the newest state, not the first";
+    EXPECT_EQ(next<Ready>(**dds).endpoints, 2u);
+    // A sample now goes straight through.
+    bus.publish(status, {0, 1, 0, 0, 3});
+    EXPECT_EQ(next<Sample>(**dds).payload, (std::vector<std::uint8_t>{0, 1, 0, 0, 3}));
+    bus.publish(status, {0, 1, 0, 0, 2});  // the next connection's snapshot
+  }
+  const auto deadline = std::chrono::steady_clock::now() + 20s;
+  while (bus.counters().connects < 2 && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(10ms);
+  EXPECT_EQ(bus.counters().connects, 2u);
+}
+
+TEST(BusChannel, SamplesFromTheDdsSideReachTheirReaderWithTheirIdentity) {
+  const auto path = socket_path("reader");
+  auto opened = BusChannel::open({path, "l", 1});
+  ASSERT_TRUE(opened);
+  auto& bus = **opened;
+  std::mutex m;
+  std::condition_variable cv;
+  std::vector<Sample> got;
+  const auto id = bus.declare_reader(state_topic("rq/l/bridge/nmtRequest"), [&](const Sample& s) {
+    std::lock_guard lock(m);
+    got.push_back(s);
+    cv.notify_all();
+  });
+  bus.start();
+  auto dds = DdsChannel::connect(path, 1000);
+  ASSERT_TRUE(dds);
+  skip_to<Ready>(**dds);
+  Sample s;
+  s.id = id;
+  s.identity.guid[3] = 9;
+  s.identity.seq_low = 5;
+  s.partitions = {"saw1"};
+  s.payload = {0, 1, 0, 0, 7};
+  ASSERT_TRUE((*dds)->send(s));
+  Sample unknown = s;
+  unknown.id = 1000;  // no such endpoint: dropped, not a crash
+  ASSERT_TRUE((*dds)->send(unknown));
+  std::unique_lock lock(m);
+  ASSERT_TRUE(cv.wait_for(lock, 20s, [&] { return !got.empty(); }));
+  EXPECT_EQ(got[0].identity, s.identity);
+  EXPECT_EQ(got[0].partitions, s.partitions);
+  EXPECT_EQ(got[0].payload, s.payload);
+}
+
+TEST(BusChannel, ADdsSideThatStopsReadingNeverHoldsUpThePublisher) {
+  const auto path = socket_path("stalled");
+  auto opened = BusChannel::open({path, "l", 1, 64});
+  ASSERT_TRUE(opened);
+  auto& bus = **opened;
+  Declare event = state_topic("rt/l/saw1/cut");
+  const auto cuts = bus.declare(event, false);
+  const auto status = bus.declare(state_topic("rt/l/saw1/status"), true);
+  bus.start();
+  auto dds = DdsChannel::connect(path, 1000);  // connected, and never reads again
+  ASSERT_TRUE(dds);
+  const auto deadline = std::chrono::steady_clock::now() + 20s;
+  while (!bus.counters().connected && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(10ms);
+  ASSERT_TRUE(bus.counters().connected);
+  // Far more than the socket's buffer and the queue hold: a publish that waited would hang here.
+  const std::vector<std::uint8_t> payload(1000, 0x55);
+  for (int i = 0; i < 20000; ++i) {
+    bus.publish(cuts, payload);
+    bus.publish(status, payload);
+  }
+  const auto c = bus.counters();
+  EXPECT_GT(c.dropped_queue_full, 0u) << "events beyond the queue are dropped and counted";
+  EXPECT_LT(c.samples_sent, 20000u);
+}
+
+TEST(BusChannel, WithNoDdsSideEventsAreDroppedAndCounted) {
+  const auto path = socket_path("nopeer");
+  auto opened = BusChannel::open({path, "l", 1});
+  ASSERT_TRUE(opened);
+  auto& bus = **opened;
+  const auto cuts = bus.declare(state_topic("rt/l/saw1/cut"), false);
+  bus.start();
+  bus.publish(cuts, {0, 1, 0, 0});
+  bus.publish(cuts, {0, 1, 0, 0});
+  EXPECT_EQ(bus.counters().dropped_no_peer, 2u);
+}
