@@ -119,7 +119,7 @@ img_key=$(printf '%s %s %s' "$img_key" "$kver" "$(md5sum <"$here/systemd-vm/init
 image="$rdir/root-$img_key.img"
 initramfs="$rdir/initramfs-$img_key.cpio"
 # Modules the guest loads before its root exists (the rest of the kernel's modules are not needed).
-want=" virtio_mmio virtio_blk ext4 9p 9pnet_virtio virtio_console can can_raw can_dev vcan "
+want=" virtio_mmio virtio_blk crc32c_generic ext4 9p 9pnet_virtio virtio_console can can_raw can_dev vcan "
 mods=$(awk -F: -v want="$want" '
   { n = $1; sub(/.*\//, "", n); sub(/\.ko$/, "", n); gsub(/-/, "_", n) }
   index(want, " " n " ") { print $1; print $2 }' "$kdir/root/lib/modules/$kver/modules.dep" | tr ' ' '\n' | sort -u)
@@ -159,7 +159,7 @@ FSTAB
   copy_modules "$tree"
   size=$(( $(du -sm "$tree" | cut -f1) + 384 ))
   rm -f "$image.tmp"
-  mke2fs -q -t ext4 -L lbroot -d "$tree" "$image.tmp" "${size}M" || die "mke2fs -d failed"
+  mke2fs -q -t ext4 -L lbroot -d "$tree" "$image.tmp" "${size}M" >/dev/null || die "mke2fs -d failed"
   # The initramfs: busybox, its /init, the modules above.
   ird=$(mktemp -d "${TMPDIR:-/tmp}/systemd-vm-initrd.XXXXXX")
   mkdir -p "$ird/bin"

@@ -15,7 +15,7 @@ fail() {
   poweroff -f
 }
 
-for m in virtio_mmio virtio_blk ext4 9p 9pnet_virtio virtio_console can can_raw can_dev vcan; do
+for m in virtio_mmio virtio_blk crc32c_generic ext4 9p 9pnet_virtio virtio_console can can_raw can_dev vcan; do
   modprobe "$m" || fail "cannot load module $m"
 done
 
