@@ -26,8 +26,21 @@ ddsl::ParticipantOptions line_options(const profiles::LineConfig& line, std::str
 
 ddsl::ParticipantOptions bridge_participant_options(const profiles::LineConfig& line) {
   auto o = line_options(line, "linebridge/" + line.line);
-  if (line.dds.security) o.security = files_of(*line.dds.security);
+  if (line.dds.security) {
+    o.security = files_of(*line.dds.security);
+    o.security->grant_policy = grant_policy(line);
+  }
   return o;
+}
+
+ddsl::GrantPolicy grant_policy(const profiles::LineConfig& line) {
+  ddsl::GrantPolicy policy;
+  policy.line = line.line;
+  for (const auto& d : line.devices) policy.devices.push_back(d.name);
+  if (line.dds.security) {
+    if (auto subject = ddsl::certificate_subject(line.dds.security->certificate)) policy.bridge_subject = *subject;
+  }
+  return policy;
 }
 
 Result<ddsl::ParticipantOptions> client_participant_options(const profiles::LineConfig& line, std::string name,

@@ -14,6 +14,10 @@ namespace lb::app {
 
 ddsl::ParticipantOptions bridge_participant_options(const profiles::LineConfig& line);
 
+// What the grants of the line's permissions documents are judged against (grant_audit.hpp): the
+// line, its devices and the bridge's identity (its certificate's subject; empty if unreadable).
+ddsl::GrantPolicy grant_policy(const profiles::LineConfig& line);
+
 // identity_dir empty: only for an unsecured line. A secured line without an identity, or an
 // identity for an unsecured line, is a configuration error.
 Result<ddsl::ParticipantOptions> client_participant_options(const profiles::LineConfig& line, std::string name,

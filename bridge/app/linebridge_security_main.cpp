@@ -112,9 +112,11 @@ int main(int argc, char** argv) {
                                       : lb::app::client_participant_options(*config, "check", identity_dir);
   if (!options) return fmt::print(stderr, "{}\n", options.error().message), 2;
   if (!options->security) return fmt::print(stderr, "line {} is not secured (no dds.security)\n", config->line), 2;
+  options->security->grant_policy = lb::app::grant_policy(*config);  // a client's grants too, not only the bridge's
   if (auto ok = lb::ddsl::check_security_files(*options->security, config->dds.domain); !ok) {
     return fmt::print(stderr, "{}\n", ok.error().message), 2;
   }
+  for (const auto& w : lb::ddsl::grant_warnings(*options->security, config->dds.domain)) fmt::print("warning: {}\n", w);
   auto s = lb::ddsl::certificate_subject(options->security->certificate);
   fmt::print("ok: {} on domain {}: identity '{}' ({}), permissions {}, governance {}\n", config->line, config->dds.domain,
              s ? *s : "?", options->security->certificate, options->security->permissions, options->security->governance);

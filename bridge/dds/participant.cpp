@@ -269,6 +269,11 @@ Result<fdds::DomainParticipantQos> participant_qos(const ParticipantOptions& opt
   auto qos = base_qos(options, notes != nullptr ? *notes : ignored);
   if (!qos) return qos.error();
   if (options.security) add_security(*qos, *options.security);
+  // Fast DDS 2.9 announces the host name, the user and the process id in every participant's
+  // discovery data (propagated properties), unencrypted before authentication: nothing a peer
+  // needs, and a map of the plant for anyone who listens.
+  std::erase_if(qos->properties().properties(),
+                [](const eprosima::fastrtps::rtps::Property& p) { return p.name().rfind("fastdds.physical_data.", 0) == 0; });
   return qos;
 }
 
@@ -299,6 +304,7 @@ Result<std::unique_ptr<Participant>, CreateError> Participant::create_checked(co
     if (auto files = check_security_files(*options.security, options.domain); !files) {
       return CreateError{files.error().message, true};
     }
+    for (auto& w : grant_warnings(*options.security, options.domain)) p->site_notes_.push_back(std::move(w));
     p->writer_partitions_ = std::make_unique<WriterPartitions>();
   }
   auto qos = participant_qos(options, &p->site_notes_);
@@ -332,6 +338,7 @@ Result<std::unique_ptr<Participant>, CreateError> Participant::plan(const Partic
     if (auto files = check_security_files(*options.security, options.domain); !files) {
       return CreateError{files.error().message, true};
     }
+    for (auto& w : grant_warnings(*options.security, options.domain)) p->site_notes_.push_back(std::move(w));
     p->secured_ = true;  // so the plan has the secured line's endpoints (requests in every partition)
   }
   auto qos = participant_qos(options, &p->site_notes_);

@@ -10,6 +10,9 @@
 #include <openssl/x509v3.h>
 #include <tinyxml2.h>
 
+#include "dds/governance_audit.hpp"
+#include "dds/security_properties.hpp"
+
 #include <algorithm>
 #include <cerrno>
 #include <cstdio>
@@ -501,10 +504,15 @@ Result<void> check_security_files(const SecurityFiles& f, std::uint32_t domain) 
   const auto permission_cas = check_ca("permissions_ca", f.permissions_ca, problems);
   if (auto xml = signed_content("governance", f.governance, permission_cas, f.permissions_ca, problems)) {
     check_governance(f.governance, *xml, domain, problems);
+    for (const auto& p : governance_protection_problems(*xml, domain)) problems.add("governance", f.governance, p);
   }
   if (auto xml = signed_content("permissions", f.permissions, permission_cas, f.permissions_ca, problems)) {
     check_permissions(f, *xml, cert ? subject_of(cert.get()) : std::string(), domain, problems);
+    if (f.grant_policy) {
+      for (const auto& e : audit_grants(*xml, *f.grant_policy, domain).errors) problems.add("permissions", f.permissions, e);
+    }
   }
+  for (const auto& [key, why] : security_property_problems(f.properties)) problems.add("dds.security.properties", key, why);
   return problems.result();
 }
 

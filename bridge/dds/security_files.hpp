@@ -6,11 +6,13 @@
 // found here, with the file and the reason, the way Fast DDS would judge it.
 
 #include <cstdint>
+#include <optional>
 #include <string>
 #include <utility>
 #include <vector>
 
 #include "base/result.hpp"
+#include "dds/grant_audit.hpp"
 
 namespace lb::ddsl {
 
@@ -27,6 +29,10 @@ struct SecurityFiles {
   // More participant properties for Fast DDS's security plugins (e.g. a key password), applied
   // after the bridge's own; the files above cannot be replaced this way.
   std::vector<std::pair<std::string, std::string>> properties;
+  // When set, every grant of the permissions document is compared with what its role is given
+  // (grant_audit.hpp): the bridge's own file at start and --check, a client's in
+  // `linebridge-security check --identity`. Test participants leave it unset.
+  std::optional<GrantPolicy> grant_policy = std::nullopt;
 };
 
 // Every problem found, one per line, each naming its file: unreadable files, certificates that are

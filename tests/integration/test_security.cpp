@@ -507,9 +507,10 @@ TEST_P(MisspelledPlugin, BridgeRefusesToStartUnsecured) {
 
 INSTANTIATE_TEST_SUITE_P(
     Security, MisspelledPlugin,
-    ::testing::Values(Misspelled{"dds.sec.auth.plugin", "builtin.PKI_DH", "authentication is not in force"},
-                      Misspelled{"dds.sec.access.plugin", "builtin.Access-Permission", "access control is not in force"},
-                      Misspelled{"dds.sec.crypto.plugin", "builtin.AES-GCM", "encryption is not in force"}),
+    // Refused before Fast DDS sees them (security_properties.hpp); security_proof.cpp stays the backstop.
+    ::testing::Values(Misspelled{"dds.sec.auth.plugin", "builtin.PKI_DH", "is not a plugin Fast DDS 2.9.1 has"},
+                      Misspelled{"dds.sec.access.plugin", "builtin.Access-Permission", "is not a plugin Fast DDS 2.9.1 has"},
+                      Misspelled{"dds.sec.crypto.plugin", "builtin.AES-GCM", "is not a plugin Fast DDS 2.9.1 has"}),
     [](const auto& param) { return std::string(param.index == 0 ? "Auth" : param.index == 1 ? "Access" : "Crypto"); });
 
 TEST_F(BridgeRefuses, EachBrokenFileIsNamedWithItsReason) {
