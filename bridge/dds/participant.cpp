@@ -11,6 +11,7 @@
 #include <fastrtps/utils/IPLocator.h>
 
 #include <algorithm>
+#include <atomic>
 #include <chrono>
 #include <filesystem>
 #include <sstream>
@@ -65,6 +66,12 @@ Result<fdds::DomainParticipantQos> base_qos(const ParticipantOptions& options, s
   if (discovery.initial_announcements == fast.initial_announcements) {
     discovery.initial_announcements.count = 5;
     discovery.initial_announcements.period = eprosima::fastrtps::Duration_t(0, 50'000'000);
+  }
+  // Remote participants, bounded (ParticipantOptions::max_remote_participants says why). The
+  // limit counts this participant's own entry too. A site profile's own limit wins.
+  if (options.max_remote_participants > 0 && qos.allocation().participants == pristine.allocation().participants) {
+    const auto remote = static_cast<std::size_t>(std::min(options.max_remote_participants, ParticipantOptions::kMaxRemoteParticipantsLimit));
+    qos.allocation().participants = eprosima::fastrtps::ResourceLimitedContainerConfig{2, remote + 1, 4};
   }
   // Transports. UDP only unless the line asks for shared memory: Fast DDS 2.9's shared-memory
   // transport carries nothing between processes of different users (measured: a bridge running as
@@ -227,19 +234,36 @@ std::string guid_text(const T& guid) {
   return s.str();
 }
 
-// Discovery callbacks of a participant: the secured bridge's partition bookkeeping first (it must
-// run before matching), then a tool's observer.
+}  // namespace
+
+struct RemoteTally {
+  std::atomic<int> known{0};
+  std::atomic<std::uint64_t> refused{0}, departed{0};
+};
+
+namespace {
+
+// Discovery callbacks of a participant: the remote participants' tally, the secured bridge's
+// partition bookkeeping (it must run before matching), then a tool's observer.
 class Listener : public fdds::DomainParticipantListener {
  public:
-  Listener(WriterPartitions* partitions, DiscoveryObserver observer)
-      : partitions_(partitions), observer_(std::move(observer)) {}
+  Listener(RemoteTally& tally, WriterPartitions* partitions, DiscoveryObserver observer)
+      : tally_(tally), partitions_(partitions), observer_(std::move(observer)) {}
 
   void on_participant_discovery(fdds::DomainParticipant*, eprosima::fastrtps::rtps::ParticipantDiscoveryInfo&& info) override {
-    if (!observer_) return;
     using S = eprosima::fastrtps::rtps::ParticipantDiscoveryInfo;
     const bool removed = info.status == S::REMOVED_PARTICIPANT || info.status == S::DROPPED_PARTICIPANT;
+    if (info.status == S::DISCOVERED_PARTICIPANT) ++tally_.known;
+    if (removed) {
+      --tally_.known;
+      ++tally_.departed;
+    }
+    if (!observer_) return;
     observer_({DiscoveryEvent::Kind::participant, removed, guid_text(info.info.m_guid.guidPrefix),
                info.info.m_participantName.to_string(), {}, {}, {}});
+  }
+  void onParticipantAuthentication(fdds::DomainParticipant*, eprosima::fastrtps::rtps::ParticipantAuthenticationInfo&& info) override {
+    if (info.status == eprosima::fastrtps::rtps::ParticipantAuthenticationInfo::UNAUTHORIZED_PARTICIPANT) ++tally_.refused;
   }
   void on_publisher_discovery(fdds::DomainParticipant* participant, eprosima::fastrtps::rtps::WriterDiscoveryInfo&& info) override {
     if (partitions_ != nullptr) partitions_->on_publisher_discovery(participant, eprosima::fastrtps::rtps::WriterDiscoveryInfo(info));
@@ -258,6 +282,7 @@ class Listener : public fdds::DomainParticipantListener {
   }
 
  private:
+  RemoteTally& tally_;
   WriterPartitions* partitions_;
   DiscoveryObserver observer_;
 };
@@ -309,9 +334,8 @@ Result<std::unique_ptr<Participant>, CreateError> Participant::create_checked(co
   }
   auto qos = participant_qos(options, &p->site_notes_);
   if (!qos) return CreateError{qos.error().message, true};
-  if (p->writer_partitions_ || options.on_discovery) {
-    p->listener_ = std::make_unique<Listener>(p->writer_partitions_.get(), options.on_discovery);
-  }
+  p->remote_tally_ = std::make_shared<RemoteTally>();
+  p->listener_ = std::make_unique<Listener>(*p->remote_tally_, p->writer_partitions_.get(), options.on_discovery);
   auto* factory = fdds::DomainParticipantFactory::get_instance();
   p->participant_ = factory->create_participant(options.domain, *qos, p->listener_.get(), fdds::StatusMask::none());
   if (p->participant_ == nullptr) {
@@ -391,6 +415,11 @@ std::vector<std::string> Participant::site_notes() const {
     if (std::find(unique.begin(), unique.end(), n) == unique.end()) unique.push_back(n);
   }
   return unique;
+}
+
+RemoteCounts Participant::remote_counts() const {
+  if (!remote_tally_) return {};
+  return {remote_tally_->known.load(), remote_tally_->refused.load(), remote_tally_->departed.load()};
 }
 
 bool Participant::writer_in_partition(const eprosima::fastrtps::rtps::GUID_t& writer, std::string_view partition) const {

@@ -90,6 +90,23 @@ struct ParticipantOptions {
   // Fast DDS's shared-memory transport besides UDP. Off by default: in Fast DDS 2.9 it silently
   // carries nothing between processes of different users (the service's and an operator's).
   bool shared_memory = false;
+  // Remote participants this one keeps at most, authenticated or not (Fast DDS's
+  // allocation().participants; 0: Fast DDS's unbounded default). Past it, announcements of new
+  // participants are dropped until one leaves. Why a bound at all: with Fast DDS 2.9.1 every
+  // participant announced to a secured participant starts a handshake whose message waits in a
+  // 100-entry history; forged announcements fill it and the next real handshake aborts the
+  // process (SecurityManager.cpp:1498, issue 25; BENCHMARKS.md "Forged discovery flood").
+  int max_remote_participants = kDefaultMaxRemoteParticipants;
+  static constexpr int kDefaultMaxRemoteParticipants = 32;
+  // Below Fast DDS 2.9.1's 100 pending handshake messages, whatever a line file asks.
+  static constexpr int kMaxRemoteParticipantsLimit = 90;
+};
+
+// Remote participants as this participant's discovery reported them.
+struct RemoteCounts {
+  int known = 0;               // announced and not gone (on a secured participant: authenticated or pending)
+  std::uint64_t refused = 0;   // failed authentication since start (secured participants)
+  std::uint64_t departed = 0;  // removed or dropped (lease expired) since start
 };
 
 // A DDS entity the bridge would create, as a planning participant records it (linebridge --check).
@@ -180,6 +197,8 @@ class Writer {
   link::BusChannel* channel_ = nullptr;
   std::uint32_t id_ = 0;
 };
+
+struct RemoteTally;  // what the discovery callbacks counted (participant.cpp)
 
 template <class PubSubType>
 using SampleCallback = std::function<void(const typename PubSubType::type&, const fdds::SampleInfo&)>;
@@ -322,6 +341,11 @@ class Participant {
   // Set values and requests clients wrote that never reached a callback (dds/lost_samples.hpp).
   std::uint64_t commands_lost() const { return lost_commands_->lost(); }
 
+  // Remote participants now and since start (discovery callbacks). Announcements dropped at
+  // max_remote_participants are not counted: Fast DDS 2.9.1 reports them only as its warning
+  // "Maximum number of participant proxies ... reached" in the log.
+  RemoteCounts remote_counts() const;
+
   // Created with DDS Security (and proven to be in force).
   bool secured() const { return secured_; }
   // This participant's run, drawn when it was created: the service servers on it answer only
@@ -444,6 +468,7 @@ class Participant {
   // Declared before the participant's entities: Fast DDS calls it until the participant is deleted.
   std::unique_ptr<WriterPartitions> writer_partitions_;
   std::unique_ptr<fdds::DomainParticipantListener> listener_;
+  std::shared_ptr<RemoteTally> remote_tally_;
   bool secured_ = false;
   bool planning_ = false;
   Incarnation incarnation_ = draw_incarnation();

@@ -139,7 +139,7 @@ std::vector<DdsDiscoveryServer> parse_discovery_servers(const YamlSource& src, c
 
 DdsConfig parse_dds(const YamlSource& src, const YAML::Node& n) {
   src.check_keys(n, "dds", {"domain", "localhost_only", "security", "profiles_file", "participant_profile",
-                            "discovery_servers", "shared_memory"});
+                            "discovery_servers", "shared_memory", "max_remote_participants"});
   DdsConfig dds;
   dds.domain = bounded<std::uint32_t>(src, n, "domain", 0, 0, 232, "dds");  // DDS/RTPS port mapping limit
   dds.localhost_only = src.optional<bool>(n, "localhost_only").value_or(true);
@@ -151,6 +151,9 @@ DdsConfig parse_dds(const YamlSource& src, const YAML::Node& n) {
   dds.participant_profile = src.optional<std::string>(n, "participant_profile").value_or("");
   if (n["participant_profile"] && dds.participant_profile.empty()) src.fail(n["participant_profile"], "participant_profile is empty");
   dds.shared_memory = src.optional<bool>(n, "shared_memory").value_or(false);
+  // At most 90: Fast DDS 2.9.1 keeps each pending handshake's message in a history of 100, and a
+  // full one aborts the process at the next handshake (BENCHMARKS.md "Forged discovery flood").
+  dds.max_remote_participants = bounded<int>(src, n, "max_remote_participants", 32, 1, 90, "dds");
   if (n["discovery_servers"]) dds.discovery_servers = parse_discovery_servers(src, n["discovery_servers"], dds.localhost_only);
   return dds;
 }

@@ -46,6 +46,9 @@ struct DdsConfig {
   std::string participant_profile;  // a participant profile of it by name; "" = its default one
   std::vector<DdsDiscoveryServer> discovery_servers;  // none: simple (multicast) discovery
   bool shared_memory = false;       // Fast DDS's shared-memory transport besides UDP (one user only)
+  // Remote participants kept at most (authenticated or pending); more announcements are dropped
+  // until one leaves. Bounds what forged announcements can hold (issue 25).
+  int max_remote_participants = 32;
 };
 
 struct BusConfig {

@@ -11,6 +11,7 @@
 #include <chrono>
 #include <fstream>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <string>
 #include <thread>
@@ -63,9 +64,9 @@ class LineHarness {
     const auto dir = ::testing::TempDir();
     const auto write = [&](const std::string& who, const std::string& devs) {
       const auto path = dir + "/" + name_ + "_" + who + "_" + tag_ + ".yaml";
-      std::ofstream(path) << "line: " << name_ << "\n" << line_keys << "dds: {domain: " << domain_
-                          << "}\nbuses:\n  - {name: b, interface: '" << bus_ << "'" << bus_keys << "}\ndevices:\n"
-                          << devs;
+      std::ofstream(path) << "line: " << name_ << "\n" << line_keys << "dds:\n  domain: " << domain_ << "\n"
+                          << dds_keys_ << "buses:\n  - {name: b, interface: '" << bus_ << "'" << bus_keys
+                          << "}\ndevices:\n" << devs;
       return path;
     };
     bridge_config_ = write("bridge", devices);
@@ -73,7 +74,9 @@ class LineHarness {
     spy_ = std::make_unique<BusSpy>(bus_);  // first member: the hub lives in this process
     start_sim();
     start_bridge();
-    auto dds = ddsl::Participant::create({domain_, true, name_ + "-test"});
+    ddsl::ParticipantOptions options{domain_, true, name_ + "-test"};
+    if (participant_options_) options = *participant_options_;
+    auto dds = ddsl::Participant::create(options);
     if (!dds) throw std::runtime_error(dds.error().message);
     dds_ = std::move(*dds);
   }
@@ -89,6 +92,12 @@ class LineHarness {
     argv.insert(argv.end(), {LB_BIN_BRIDGE, "--config", bridge_config_});
     bridge_ = std::make_unique<ChildProcess>(std::move(argv), ::testing::TempDir() + "/" + name_ + "_bridge_" + tag_ + ".log");
   }
+  // Before start(): more keys of the line file's dds: block, indented by two (a secured line's
+  // "  security:\n    ...", TestPki::security_yaml()).
+  void set_dds_keys(std::string yaml) { dds_keys_ = std::move(yaml); }
+  // Before start(): this test's participant with these options (a secured line's identity)
+  // instead of an unsecured one on the line's domain.
+  void set_participant_options(ddsl::ParticipantOptions options) { participant_options_ = std::move(options); }
   // Before start(): the bridge is started through this command (an absolute path and its
   // arguments, e.g. setpriv to take a capability away), which must exec it.
   void set_bridge_launcher(std::vector<std::string> argv) { bridge_launcher_ = std::move(argv); }
@@ -165,6 +174,8 @@ class LineHarness {
   std::string bus_;
   std::string bridge_config_, sim_config_;
   std::vector<std::string> bridge_launcher_;
+  std::string dds_keys_;
+  std::optional<ddsl::ParticipantOptions> participant_options_;
   std::unique_ptr<BusSpy> spy_;
   std::unique_ptr<ChildProcess> sim_, bridge_;
   std::unique_ptr<ddsl::Participant> dds_;
