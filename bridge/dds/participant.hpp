@@ -95,7 +95,9 @@ struct ParticipantOptions {
   // participants are dropped until one leaves. Why a bound at all: with Fast DDS 2.9.1 every
   // participant announced to a secured participant starts a handshake whose message waits in a
   // 100-entry history; forged announcements fill it and the next real handshake aborts the
-  // process (SecurityManager.cpp:1498, issue 25; BENCHMARKS.md "Forged discovery flood").
+  // process (SecurityManager.cpp:1498, issue 25; BENCHMARKS.md "Forged discovery flood"). The
+  // bridge's DDS process runs unbounded and ends itself past this number instead (dds_side.cpp):
+  // forged participants kept the bound's slots after a flood, locking real clients out.
   int max_remote_participants = kDefaultMaxRemoteParticipants;
   static constexpr int kDefaultMaxRemoteParticipants = 32;
   // Below Fast DDS 2.9.1's 100 pending handshake messages, whatever a line file asks.

@@ -3,9 +3,11 @@
 // secured line's discovery multicast by the real bench-forged-announcements. Fast DDS 2.9.1 starts
 // a handshake with each; unbounded, 3,000 of them filled its 100-entry handshake history and the
 // next real handshake aborted the bridge (SecurityManager.cpp:1498, exit 134) and SYNC with it.
-// The bridge bounds its remote participants (dds.max_remote_participants, default 32); this test
-// watches the bus with the spy through both floods: SYNC keeps its period, the bridge lives, and a
-// legitimate client that authenticates after the flood is answered within a bound.
+// The bridge is two processes: its DDS process, past dds.max_remote_participants (default 32),
+// ends and its bus process starts a fresh one (which forgets the forged participants). This test
+// watches the bus with the spy through both floods: the bus process lives and SYNC keeps its
+// period throughout, and a legitimate client that authenticates after the flood is answered
+// within a bound.
 // Runs inside launch_scripts/netns-run.sh (CTest does that): the flood never leaves the namespace.
 #include <gtest/gtest.h>
 #include <sys/wait.h>
@@ -36,17 +38,14 @@ namespace {
 constexpr std::uint32_t kDomain = 45;
 constexpr std::uint32_t kSync = 0x080;
 constexpr int kSyncPeriodMs = 20;
-// The widest SYNC gap allowed while the flood runs. The bridge sends SYNC every 20 ms; on this
-// test's two cores, shared with the flood tool, the simulator and Fast DDS's threads (and other
-// tests), gaps of up to 81 ms were measured with the bridge healthy. A dead bridge sends no SYNC
-// at all (the gap grows until the end of the watch), so 250 ms (12 periods) tells one from the
-// other without tripping on scheduling noise.
-constexpr auto kMaxSyncGap = 250ms;
-// A legitimate client's first answer after the flood stops. The forged participants occupy the
-// bridge's remote-participant slots until their announced lease (10 s, as the replayed
-// participant's) expires; then the client's announcement is taken, authenticated (~1.1 s with
-// the handshake's resend) and answered. Measured: see BENCHMARKS.md "Forged discovery flood".
-constexpr auto kAnswerBound = 30s;
+// No SYNC missed: the bus loop runs at realtime priority (as the packaged unit allows), so the
+// flood's load on the DDS process, the flood tool and Fast DDS's threads cannot delay it; a gap of
+// two periods would be a missing SYNC.
+constexpr auto kMaxSyncGap = std::chrono::milliseconds(2 * kSyncPeriodMs);
+// A legitimate client's first answer after the flood stops: the DDS process notices the flood
+// within a second and a fresh one is up in well under one; the client then authenticates (~1.1 s
+// with Fast DDS's handshake resend) and is answered.
+constexpr auto kAnswerBound = 20s;
 const std::string kDevices =
     "  - {name: saw1, bus: b, node_id: 5, profile: cia420-4, version: '3.1', heartbeat_timeout_ms: 400,\n"
     "     simulation: {heartbeat_period_ms: 100}}\n";
@@ -91,7 +90,7 @@ class DiscoveryFlood : public ::testing::Test {
     pki_->issue("replayed", "observer");  // the participant whose announcement the flood replays
     line_.set_dds_keys("  localhost_only: true\n" + pki_->security_yaml());
     line_.set_participant_options(pki_->options(kDomain, observer_, "flood-observer"));
-    ASSERT_NO_THROW(line_.start(kDevices, "", ", sync_period_ms: " + std::to_string(kSyncPeriodMs)));
+    ASSERT_NO_THROW(line_.start(kDevices, "", ", sync_period_ms: " + std::to_string(kSyncPeriodMs) + ", realtime_priority: 20"));
     ASSERT_TRUE(line_.dds().secured());
     ASSERT_TRUE(line_.bridge().wait_log("DDS security in force", 20s)) << line_.logs();
     ASSERT_TRUE(eventually(20s, [&] { return line_.spy().frames(kSync).size() >= 10; })) << "no SYNC\n" << line_.logs();
@@ -147,43 +146,34 @@ class DiscoveryFlood : public ::testing::Test {
   lb::test::LineHarness line_{"flood", kDomain};
 };
 
-TEST_F(DiscoveryFlood, SyncKeepsItsPeriodAndTheBridgeLivesThrough200And3000) {
+TEST_F(DiscoveryFlood, TheBusKeepsItsSyncAndARealClientIsAnsweredAfter200And3000) {
   const auto watch_from = lb::ddsl::now_ns();
+  const auto bus_pid = line_.bridge().pid();
+  std::size_t restarts_before = 0;
   for (const int n : {200, 3000}) {
     SCOPED_TRACE("flood of " + std::to_string(n));
     ASSERT_NO_FATAL_FAILURE(flood(n));
-    // A legitimate client authenticating after the flood is what aborted the unbounded bridge.
     const auto answered = legitimate_read();
-    // The bridge is still the process the test started: in the single-process design its abort
-    // stops SYNC for the whole line.
-    ASSERT_TRUE(line_.bridge().running()) << "the bridge died during or after the flood of " << n << "\n" << line_.logs();
-    std::printf("flood=%d answered=%s after_ms=%lld\n", n, answered ? "yes" : "no",
-                answered ? static_cast<long long>(std::chrono::duration_cast<std::chrono::milliseconds>(*answered).count()) : -1LL);
+    // The bus process is still the one the test started: only its DDS process may go.
+    ASSERT_TRUE(line_.bridge().running()) << "the bus process died during or after the flood of " << n << "\n" << line_.logs();
+    ASSERT_EQ(line_.bridge().pid(), bus_pid);
+    const auto restarts = line_.bridge_log_count("a new DDS process starts");
+    std::printf("flood=%d answered=%s after_ms=%lld dds_restarts=%zu\n", n, answered ? "yes" : "no",
+                answered ? static_cast<long long>(std::chrono::duration_cast<std::chrono::milliseconds>(*answered).count()) : -1LL,
+                restarts - restarts_before);
+    // The flood reached the DDS side (it is not vacuous): it ended at least once because of it.
+    EXPECT_GT(restarts, restarts_before) << "the DDS process never noticed the flood of " << n << "\n" << line_.logs();
+    restarts_before = restarts;
+    EXPECT_TRUE(answered.has_value()) << "no answer within " << kAnswerBound.count() << " s after the flood of " << n << "\n"
+                                      << line_.logs();
   }
   const auto [gap, syncs] = widest_sync_gap(line_.spy(), watch_from);
   const auto watched_ms = (lb::ddsl::now_ns() - watch_from) / 1'000'000;
   std::printf("widest_sync_gap_ms=%lld syncs=%zu watched_ms=%lld\n", static_cast<long long>(gap.count()), syncs,
               static_cast<long long>(watched_ms));
-  EXPECT_LE(gap, kMaxSyncGap) << "SYNC stalled during the floods";
+  EXPECT_LT(gap, kMaxSyncGap) << "a SYNC was missed during the floods";
   // Every period of the watch had its SYNC (a stop would show here as missing ones).
-  EXPECT_GE(syncs, static_cast<std::size_t>(watched_ms / kSyncPeriodMs * 8 / 10));
-  EXPECT_NE(line_.bridge_log_count("Maximum number of participant proxies"), 0u)
-      << "the flood never reached the bridge's bound: it tested nothing\n" << line_.logs();
-}
-
-// Fails today (measured once: no answer within 30 s after the flood of 200): the forged
-// participants hold the bridge's 32 remote-participant slots longer than their 10 s lease should
-// allow, so a new client's announcement is dropped at the bound. Disabled so the suite stays
-// green; the lead decides (a larger bound, the DDS process's restart, or finding why the slots
-// stay taken). The process and SYNC surviving are proven above.
-TEST_F(DiscoveryFlood, DISABLED_ALegitimateClientIsAnsweredWithinBoundAfterTheFlood) {
-  for (const int n : {200, 3000}) {
-    SCOPED_TRACE("flood of " + std::to_string(n));
-    ASSERT_NO_FATAL_FAILURE(flood(n));
-    const auto answered = legitimate_read();
-    ASSERT_TRUE(line_.bridge().running()) << line_.logs();
-    ASSERT_TRUE(answered.has_value()) << "no answer within " << kAnswerBound.count() << " s after the flood of " << n;
-  }
+  EXPECT_GE(syncs, static_cast<std::size_t>(watched_ms / kSyncPeriodMs * 9 / 10));
 }
 
 }  // namespace
