@@ -60,7 +60,10 @@ int main(int argc, char** argv) {
     spdlog::error("{}", dds.error().message);
     return dds.error().configuration ? app::kExitUsage : app::kExitFailure;
   }
-  if (dds_options.security) spdlog::info("{}", app::security_summary(dds_options));
+  if (dds_options.security) {
+    spdlog::info("{}", app::security_summary(dds_options));
+    for (const auto& w : lb::ddsl::security_warnings(*dds_options.security)) spdlog::warn("DDS security: {}", w);
+  }
   auto bridge = app::LineBridge::create(*config, std::move(*dds));
   if (!bridge) {
     spdlog::error("start-up failed: {}", bridge.error().message);

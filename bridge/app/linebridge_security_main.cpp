@@ -115,6 +115,7 @@ int main(int argc, char** argv) {
   if (auto ok = lb::ddsl::check_security_files(*options->security, config->dds.domain); !ok) {
     return fmt::print(stderr, "{}\n", ok.error().message), 2;
   }
+  for (const auto& w : lb::ddsl::security_warnings(*options->security)) fmt::print("warning: {}\n", w);
   auto s = lb::ddsl::certificate_subject(options->security->certificate);
   fmt::print("ok: {} on domain {}: identity '{}' ({}), permissions {}, governance {}\n", config->line, config->dds.domain,
              s ? *s : "?", options->security->certificate, options->security->permissions, options->security->governance);
