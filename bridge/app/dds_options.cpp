@@ -6,7 +6,8 @@ namespace lb::app {
 namespace {
 
 ddsl::SecurityFiles files_of(const profiles::DdsSecurityConfig& s) {
-  return {s.identity_ca, s.certificate, s.private_key, s.permissions_ca, s.governance, s.permissions, s.properties};
+  return {s.identity_ca, s.certificate, s.private_key, s.permissions_ca, s.governance, s.permissions, s.properties,
+          s.identity_crl};
 }
 
 // The line file's site settings, the same for the bridge and every client of the line.

@@ -138,7 +138,8 @@ void print_summary(const profiles::LineConfig& line, const std::vector<ddsl::Pla
 int check_line(const std::string& path, const profiles::ProfileRegistry& registry, std::FILE* out, std::FILE* err) {
   auto config = load_config(path, registry);
   if (!config) return fmt::print(err, "{}\n", config.error().message), kExitUsage;
-  auto dds = ddsl::Participant::plan(bridge_participant_options(*config));
+  const auto dds_options = bridge_participant_options(*config);
+  auto dds = ddsl::Participant::plan(dds_options);
   if (!dds) return fmt::print(err, "{}\n", dds.error().message), kExitUsage;
   auto* planning = dds->get();
   auto bridge = LineBridge::create(*config, std::move(*dds), [](const profiles::BusConfig& b) -> Result<std::unique_ptr<can::Bus>> {
@@ -156,6 +157,9 @@ int check_line(const std::string& path, const profiles::ProfileRegistry& registr
   }
   check_profile_names(*config, planning->planned(), warnings);
   for (const auto& n : planning->site_notes()) warnings.push_back(n);
+  if (dds_options.security) {
+    for (const auto& w : ddsl::security_warnings(*dds_options.security)) warnings.push_back("DDS security: " + w);
+  }
 
   print_summary(*config, planning->planned(), out);
   for (const auto& w : warnings) fmt::print(out, "warning: {}\n", w);

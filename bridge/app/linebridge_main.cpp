@@ -118,6 +118,9 @@ int main(int argc, char** argv) {
   // Fast DDS's warnings (a reader refusing samples among them) and errors in this log, rate-limited.
   const lb::ddsl::FastDdsLogRoute fastdds_log;
   const auto dds_options = app::bridge_participant_options(*config);
+  if (dds_options.security && part != "dds") {
+    for (const auto& w : lb::ddsl::security_warnings(*dds_options.security)) spdlog::warn("DDS security: {}", w);
+  }
   if (part == "dds") return app::run_dds_side(dds_options, config->line, channel_path, app::duration_ms(duration_s));
 
   std::unique_ptr<lb::link::BusChannel> channel;

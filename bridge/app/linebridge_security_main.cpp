@@ -117,6 +117,7 @@ int main(int argc, char** argv) {
     return fmt::print(stderr, "{}\n", ok.error().message), 2;
   }
   for (const auto& w : lb::ddsl::grant_warnings(*options->security, config->dds.domain)) fmt::print("warning: {}\n", w);
+  for (const auto& w : lb::ddsl::security_warnings(*options->security)) fmt::print("warning: {}\n", w);
   auto s = lb::ddsl::certificate_subject(options->security->certificate);
   fmt::print("ok: {} on domain {}: identity '{}' ({}), permissions {}, governance {}\n", config->line, config->dds.domain,
              s ? *s : "?", options->security->certificate, options->security->permissions, options->security->governance);

@@ -147,6 +147,7 @@ void add_security(fdds::DomainParticipantQos& qos, const SecurityFiles& files) {
   set("dds.sec.access.builtin.Access-Permissions.permissions_ca", file_uri(files.permissions_ca));
   set("dds.sec.access.builtin.Access-Permissions.governance", file_uri(files.governance));
   set("dds.sec.access.builtin.Access-Permissions.permissions", file_uri(files.permissions));
+  if (!files.identity_crl.empty()) set("dds.sec.auth.builtin.PKI-DH.identity_crl", file_uri(files.identity_crl));
   set("dds.sec.crypto.plugin", "builtin.AES-GCM-GMAC");
   for (const auto& [name, value] : files.properties) set(name, value);
 }

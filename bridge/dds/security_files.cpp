@@ -1,5 +1,8 @@
 #include "dds/security_files.hpp"
 
+#include "dds/key_files.hpp"
+#include "dds/revocation.hpp"
+
 #include <openssl/bio.h>
 #include <openssl/err.h>
 #include <openssl/evp.h>
@@ -501,6 +504,12 @@ Result<void> check_security_files(const SecurityFiles& f, std::uint32_t domain) 
   const auto identity_cas = check_ca("identity_ca", f.identity_ca, problems);
   Cert cert = check_certificate(f, identity_cas, problems);
   check_private_key(f, cert.get(), problems);
+  if (auto mode = private_key_mode_problem(f.private_key)) problems.add("private_key", f.private_key, *mode);
+  if (!f.identity_crl.empty()) {
+    for (const auto& p : check_identity_crl(f.identity_crl, f.identity_ca, f.certificate, std::time(nullptr)).problems) {
+      problems.add(p.key, p.path, p.why);
+    }
+  }
   const auto permission_cas = check_ca("permissions_ca", f.permissions_ca, problems);
   if (auto xml = signed_content("governance", f.governance, permission_cas, f.permissions_ca, problems)) {
     check_governance(f.governance, *xml, domain, problems);
@@ -514,6 +523,19 @@ Result<void> check_security_files(const SecurityFiles& f, std::uint32_t domain) 
   }
   for (const auto& [key, why] : security_property_problems(f.properties)) problems.add("dds.security.properties", key, why);
   return problems.result();
+}
+
+std::vector<std::string> security_warnings(const SecurityFiles& f) {
+  std::vector<std::string> out;
+  if (!f.identity_crl.empty()) {
+    for (const auto& w : check_identity_crl(f.identity_crl, f.identity_ca, f.certificate, std::time(nullptr)).warnings) {
+      out.push_back(w.text());
+    }
+  }
+  const std::vector<std::string> in_use{f.identity_ca, f.certificate, f.private_key, f.permissions_ca,
+                                        f.governance,  f.permissions, f.identity_crl};
+  for (const auto& w : ca_keys_beside(in_use, {f.identity_ca, f.permissions_ca}, f.private_key)) out.push_back(w.text());
+  return out;
 }
 
 }  // namespace lb::ddsl

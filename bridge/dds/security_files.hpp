@@ -33,6 +33,8 @@ struct SecurityFiles {
   // (grant_audit.hpp): the bridge's own file at start and --check, a client's in
   // `linebridge-security check --identity`. Test participants leave it unset.
   std::optional<GrantPolicy> grant_policy = std::nullopt;
+  // The identity CA's certificate revocation list (dds.security identity_crl); empty: none.
+  std::string identity_crl = {};
 };
 
 // Every problem found, one per line, each naming its file: unreadable files, certificates that are
@@ -41,6 +43,10 @@ struct SecurityFiles {
 // signing, a permissions document without a valid grant for the certificate's subject (the
 // subject in another order, the grant expired), a governance that does not protect the domain.
 Result<void> check_security_files(const SecurityFiles& files, std::uint32_t domain);
+
+// What does not stop a start but should be seen (logged, printed by the pre-flight checks): an
+// identity CRL whose next update is near, CA private keys beside the identity in use.
+std::vector<std::string> security_warnings(const SecurityFiles& files);
 
 // The subject of a PEM certificate in RFC 2253 order, as Fast DDS compares it with grants.
 Result<std::string> certificate_subject(const std::string& certificate_path);

@@ -69,11 +69,13 @@ double positive(const YamlSource& src, const YAML::Node& map, std::string_view k
 constexpr std::array kFileProperties{
     "dds.sec.auth.builtin.PKI-DH.identity_ca",          "dds.sec.auth.builtin.PKI-DH.identity_certificate",
     "dds.sec.auth.builtin.PKI-DH.private_key",          "dds.sec.access.builtin.Access-Permissions.permissions_ca",
-    "dds.sec.access.builtin.Access-Permissions.governance", "dds.sec.access.builtin.Access-Permissions.permissions"};
+    "dds.sec.access.builtin.Access-Permissions.governance", "dds.sec.access.builtin.Access-Permissions.permissions",
+    "dds.sec.auth.builtin.PKI-DH.identity_crl"};
 
 DdsSecurityConfig parse_dds_security(const YamlSource& src, const YAML::Node& n) {
   src.check_keys(n, "dds.security",
-                 {"identity_ca", "certificate", "private_key", "permissions_ca", "governance", "permissions", "properties"});
+                 {"identity_ca", "certificate", "private_key", "permissions_ca", "governance", "permissions", "identity_crl",
+                  "properties"});
   // Relative paths are taken from the line file's folder, wherever the bridge is started.
   const std::filesystem::path base = std::filesystem::path(src.name()).parent_path();
   const auto file = [&](const char* key) {
@@ -89,6 +91,7 @@ DdsSecurityConfig parse_dds_security(const YamlSource& src, const YAML::Node& n)
   s.permissions_ca = file("permissions_ca");
   s.governance = file("governance");
   s.permissions = file("permissions");
+  if (n["identity_crl"]) s.identity_crl = file("identity_crl");
   if (const YAML::Node props = n["properties"]) {
     src.expect_map(props, "dds.security.properties");
     for (const auto& kv : props) {

@@ -29,6 +29,7 @@ struct DdsSecurityConfig {
   std::string governance;
   std::string permissions;
   std::vector<std::pair<std::string, std::string>> properties;
+  std::string identity_crl;  // optional: the identity CA's revocation list; empty: none
 };
 
 // dds.discovery_servers: a Fast DDS discovery server (fast-discovery-server -i id -l address -p port).

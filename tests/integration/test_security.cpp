@@ -457,6 +457,95 @@ TEST_F(SecuredLine, TheBridgeJudgesPartitionsOnItsOwnSide) {
 }
 
 // ------------------------------------------------------------------------------------------------
+// Revocation (dds.security identity_crl, launch_scripts/pki.sh revoke) and when it takes effect.
+
+TEST_F(SecuredLine, ARevokedOperatorIsRefusedOnceTheBridgeRestartsAndTheOthersKeepWorking) {
+  ASSERT_NO_FATAL_FAILURE(start_line());
+  const auto op1 = pki_->issue("op1", "operator", "saw1");
+  const auto op2 = pki_->issue("op2", "operator", "saw1");
+  // The revoked operator's own line file names no CRL: a client cannot be trusted to refuse itself.
+  const std::string no_crl = dir_ + "/line_without_crl.yaml";
+  {
+    std::string sec = pki_->security_yaml();
+    sec.erase(sec.find("    identity_crl:"));
+    std::ofstream(no_crl) << line_yaml(sec);
+  }
+  const auto set = [&](const std::string& config, const std::string& identity, const char* percent, const char* timeout) {
+    lb::test::ChildProcess p({LB_BIN_CLI, "--config", config, "--identity", identity, "set", "saw1", "--program", "on",
+                              "--sync-speed-percent", percent, "--product-length-m", "1.0", "--timeout", timeout},
+                             dir_ + "/cli_" + std::to_string(++cli_runs_) + ".log");
+    eventually(60s, [&] { return !p.running(); });
+    const int status = p.stop();
+    return CliRun{WIFEXITED(status) ? WEXITSTATUS(status) : -1, p.log()};
+  };
+  // A (re)started bridge refuses set values until the saw passed its boot: asked again until then.
+  const auto set_after_boot = [&](const std::string& config, const std::string& identity, const char* percent) {
+    const auto end = Clock::now() + 60s;
+    CliRun r = set(config, identity, percent, "20");
+    while (r.output.find("has not passed its boot") != std::string::npos && Clock::now() < end) {
+      std::this_thread::sleep_for(200ms);
+      r = set(config, identity, percent, "20");
+    }
+    return r;
+  };
+  const auto rpdo_changed = [&] { return eventually(3s, [&] { return payloads(*spy_, kRpdo1Saw1).size() > 1; }); };
+
+  spy_->clear();
+  auto r = set_after_boot(no_crl, op1, "40");
+  ASSERT_EQ(r.exit_code, 0) << "op1 before its revocation\n" << r.output << logs();
+  ASSERT_TRUE(rpdo_changed()) << "op1's set value never reached CAN";
+
+  pki_->revoke("op1");
+  // Measured, not assumed: does the running bridge re-read the CRL file? (Fast DDS 2.9.1 reads it
+  // when the participant is created.) The README's "takes effect when the bridge restarts" rests
+  // on this.
+  spy_->clear();
+  r = set(no_crl, op1, "45", "10");
+  std::printf("after pki.sh revoke, the running bridge (not restarted) %s op1: exit %d\n",
+              r.exit_code == 0 ? "still accepts" : "refuses", r.exit_code);
+  EXPECT_EQ(r.exit_code, 0) << "the running bridge refused op1 before its restart: the README says otherwise\n" << r.output;
+
+  // The documented step: restart the bridge. It reads the new CRL.
+  ASSERT_EQ(bridge_->stop(), 0) << logs();
+  bridge_ = std::make_unique<lb::test::ChildProcess>(std::vector<std::string>{LB_BIN_BRIDGE, "--config", config_path_},
+                                                     dir_ + "/bridge_restarted.log");
+  ASSERT_TRUE(bridge_->started());
+  // Another operator first: the restarted bridge is up and answers secured operators.
+  spy_->clear();
+  r = set_after_boot(config_path_, op2, "50");
+  ASSERT_EQ(r.exit_code, 0) << "op2 after the restart\n" << r.output << logs();
+  // (Its RPDO may be the first the restarted bridge sends: no change to see. The value in force is
+  // what RPDO1 carries a few SYNCs after the answer.)
+  const std::size_t answered_at = spy_->frames(kRpdo1Saw1).size();
+  ASSERT_TRUE(eventually(3s, [&] { return spy_->frames(kRpdo1Saw1).size() >= answered_at + 5; }))
+      << "no RPDO1 of saw1 after the restart";
+  const auto in_force = spy_->frames(kRpdo1Saw1).back().data;
+
+  // op1, with a line file without the CRL (its own side does not refuse it): nothing matches it.
+  spy_->clear();
+  r = set(no_crl, op1, "60", "8");
+  EXPECT_EQ(r.exit_code, 3) << "the revoked op1 was answered\n" << r.output << logs();
+  EXPECT_NE(r.output.find("no online status"), std::string::npos) << r.output;
+  EXPECT_EQ(payloads(*spy_, kRpdo1Saw1), (std::set<std::array<std::uint8_t, 8>>{in_force}))
+      << "RPDO1 of saw1 changed after op1 was revoked";
+  // op1 with the line's own file: refused on its own side before anything is sent, with the reason.
+  r = set(config_path_, op1, "60", "8");
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("it revokes this participant's own certificate " + op1 + "/cert.pem"), std::string::npos)
+      << r.output;
+
+  // The control after the refusal: op2 still sets saw1, the observer still sees both saws.
+  spy_->clear();
+  r = set(config_path_, op2, "55", "10");
+  EXPECT_EQ(r.exit_code, 0) << r.output << logs();
+  EXPECT_TRUE(rpdo_changed()) << "op2's second set value never reached CAN";
+  EXPECT_TRUE(eventually(10s, [this] {
+    std::lock_guard lock(m_);
+    return online_["saw1"] && online_["saw2"];
+  })) << "the observer lost the saws";
+}
+
+// ------------------------------------------------------------------------------------------------
 // Fail-closed start-up.
 
 class BridgeRefuses : public SecuredLine {
@@ -537,8 +626,8 @@ TEST_F(BridgeRefuses, EachBrokenFileIsNamedWithItsReason) {
   const auto expired = variant("expired", replaced(replaced(bridge_xml, not_after, "2020-01-02T00:00:00"),
                                                    between(bridge_xml, "<not_before>", "</not_before>"), "2019-01-01T00:00:00"));
   const auto reordered = variant("reordered", replaced(bridge_xml, subject, "O=linebridge,CN=bridge"));
-  pki_->openssl("smime -sign -in bridge/permissions.xml -out notext.p7s -signer ca/permissions_ca.pem -inkey ca/permissions_ca.key");
-  pki_->openssl("smime -sign -text -in bridge/permissions.xml -out edited.p7s -signer ca/permissions_ca.pem -inkey ca/permissions_ca.key");
+  pki_->openssl("smime -sign -in bridge/permissions.xml -out notext.p7s -signer ca/permissions_ca.pem -inkey ca-private/permissions_ca.key");
+  pki_->openssl("smime -sign -text -in bridge/permissions.xml -out edited.p7s -signer ca/permissions_ca.pem -inkey ca-private/permissions_ca.key");
   {
     std::string edited = lb::test::read_text(pki + "/edited.p7s");
     edited = replaced(edited, "<default>DENY</default>", "<default>ALLOW</default>");

@@ -44,6 +44,8 @@ class TestPki {
         (devices.empty() ? "" : " --devices " + devices));
     return dir_ + "/" + name;
   }
+  // pki.sh revoke: NAME's certificate revoked, ca/identity_crl.pem re-issued.
+  void revoke(const std::string& name) const { run("revoke --dir '" + dir_ + "' --name " + name); }
   // pki.sh sign: FILE.xml -> FILE.p7s with this PKI's permissions CA.
   void sign(const std::string& xml) const { run("sign --dir '" + dir_ + "' '" + xml + "'"); }
   // openssl, with this PKI's folder as the working directory; throws on failure.
@@ -57,6 +59,7 @@ class TestPki {
   std::string identity_ca() const { return dir_ + "/ca/identity_ca.pem"; }
   std::string permissions_ca() const { return dir_ + "/ca/permissions_ca.pem"; }
   std::string governance() const { return dir_ + "/governance.p7s"; }
+  std::string identity_crl() const { return dir_ + "/ca/identity_crl.pem"; }
 
   // The dds.security block of a line file for an identity folder (the bridge's by default).
   std::string security_yaml(const std::string& identity = "") const {
@@ -67,13 +70,14 @@ class TestPki {
            "    governance: " + governance() + "\n"
            "    certificate: " + id + "/cert.pem\n"
            "    private_key: " + id + "/key.pem\n"
-           "    permissions: " + id + "/permissions.p7s\n";
+           "    permissions: " + id + "/permissions.p7s\n"
+           "    identity_crl: " + identity_crl() + "\n";
   }
 
   // The files of a secured test participant with this identity.
   ddsl::SecurityFiles files(const std::string& identity) const {
     return {identity_ca(), identity + "/cert.pem", identity + "/key.pem", permissions_ca(), governance(),
-            identity + "/permissions.p7s", {}};
+            identity + "/permissions.p7s", {}, identity_crl()};
   }
   ddsl::ParticipantOptions options(std::uint32_t domain, const std::string& identity, const std::string& name) const {
     return {domain, true, name, files(identity)};
