@@ -6,8 +6,9 @@ namespace lb::app {
 namespace {
 
 ddsl::SecurityFiles files_of(const profiles::DdsSecurityConfig& s) {
-  return {s.identity_ca, s.certificate, s.private_key, s.permissions_ca, s.governance, s.permissions, s.properties,
-          s.identity_crl};
+  ddsl::SecurityFiles files{s.identity_ca, s.certificate, s.private_key, s.permissions_ca, s.governance, s.permissions, s.properties};
+  files.identity_crl = s.identity_crl;
+  return files;
 }
 
 // The line file's site settings, the same for the bridge and every client of the line.

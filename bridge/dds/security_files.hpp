@@ -29,12 +29,12 @@ struct SecurityFiles {
   // More participant properties for Fast DDS's security plugins (e.g. a key password), applied
   // after the bridge's own; the files above cannot be replaced this way.
   std::vector<std::pair<std::string, std::string>> properties;
+  // The identity CA's certificate revocation list (dds.security identity_crl); empty: none.
+  std::string identity_crl = {};
   // When set, every grant of the permissions document is compared with what its role is given
   // (grant_audit.hpp): the bridge's own file at start and --check, a client's in
   // `linebridge-security check --identity`. Test participants leave it unset.
   std::optional<GrantPolicy> grant_policy = std::nullopt;
-  // The identity CA's certificate revocation list (dds.security identity_crl); empty: none.
-  std::string identity_crl = {};
 };
 
 // Every problem found, one per line, each naming its file: unreadable files, certificates that are
