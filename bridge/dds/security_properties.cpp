@@ -55,7 +55,10 @@ std::string_view closest(std::string_view key) {
 std::vector<std::pair<std::string, std::string>> security_property_problems(
     const std::vector<std::pair<std::string, std::string>>& properties) {
   std::vector<std::pair<std::string, std::string>> problems;
-  for (const auto& [key, value] : properties) {
+  for (const auto& property : properties) {
+    // Named, not a structured binding: clang 14 cannot capture one in the lambda below.
+    const std::string& key = property.first;
+    const std::string& value = property.second;
     const auto plugin = std::find_if(kPlugins.begin(), kPlugins.end(), [&](const Plugin& p) { return p.key == key; });
     if (plugin != kPlugins.end()) {
       if (value != plugin->builtin) {

@@ -57,6 +57,11 @@ void BusChannel::stop() {
   stop_ = true;
   wake();
   if (thread_.joinable()) thread_.join();
+  // The DDS side sees the channel end now, not when this object goes.
+  std::lock_guard lock(mutex_);
+  peer_.reset();
+  connected_ = false;
+  counters_.connected = false;
 }
 
 void BusChannel::wake() {
@@ -72,10 +77,20 @@ void BusChannel::publish(std::uint32_t id, std::vector<std::uint8_t> payload, co
     sample.id = id;
     sample.related = related;
     sample.payload = std::move(payload);
+    auto datagram = encode(sample);
+    // Nothing waits before it: sent from here (never blocking: MSG_DONTWAIT), which spares the
+    // channel thread's wake-up; a full socket leaves it to the channel thread.
+    const bool direct = connected_ && peer_ && !unsent_ && backlog_.empty() && queue_.empty() && dirty_.empty() &&
+                        ::send(peer_.get(), datagram.data(), datagram.size(), MSG_DONTWAIT | MSG_NOSIGNAL) ==
+                            static_cast<ssize_t>(datagram.size());
+    if (direct) ++counters_.samples_sent;
     if (endpoints_[id].latest) {
       // Kept while no DDS side is there: the next one's snapshot starts from it.
-      latest_[id] = encode(sample);
-      if (connected_) dirty_.insert(id);
+      latest_[id] = std::move(datagram);
+      if (connected_ && !direct) dirty_.insert(id);
+      if (direct) return;
+    } else if (direct) {
+      return;
     } else if (!connected_) {
       ++counters_.dropped_no_peer;
       return;
@@ -83,7 +98,7 @@ void BusChannel::publish(std::uint32_t id, std::vector<std::uint8_t> payload, co
       ++counters_.dropped_queue_full;
       return;
     } else {
-      queue_.push_back(encode(sample));
+      queue_.push_back(std::move(datagram));
     }
   }
   wake();
@@ -118,10 +133,10 @@ std::optional<BusChannel::Datagram> BusChannel::next_datagram() {
 void BusChannel::run() {
   auto next_ping = std::chrono::steady_clock::now() + kPingEvery;
   while (!stop_) {
-    bool pending = unsent_.has_value();
-    if (!pending) {
+    bool pending = false;
+    {
       std::lock_guard lock(mutex_);
-      pending = connected_ && (!backlog_.empty() || !queue_.empty() || !dirty_.empty());
+      pending = unsent_.has_value() || (connected_ && (!backlog_.empty() || !queue_.empty() || !dirty_.empty()));
     }
     pollfd fds[3] = {{listener_.get(), POLLIN, 0}, {wake_fd_.get(), POLLIN, 0}, {peer_.get(), POLLIN, 0}};
     if (peer_ && pending) fds[2].events |= POLLOUT;
@@ -157,9 +172,9 @@ void BusChannel::accept_peer() {
     return;
   }
   if (peer_) drop_peer("another DDS side connected (pid " + std::to_string(peer->pid) + ")");
+  std::lock_guard lock(mutex_);
   peer_ = std::move(peer->fd);
   unsent_.reset();
-  std::lock_guard lock(mutex_);
   connected_ = true;
   ++counters_.connects;
   counters_.connected = true;
@@ -179,9 +194,9 @@ void BusChannel::accept_peer() {
 }
 
 void BusChannel::drop_peer(const std::string& why) {
+  std::lock_guard lock(mutex_);
   peer_.reset();
   unsent_.reset();
-  std::lock_guard lock(mutex_);
   connected_ = false;
   counters_.connected = false;
   backlog_.clear();
@@ -223,19 +238,21 @@ void BusChannel::read_peer() {
   }
 }
 
+// Sends under the lock (publishers send directly when nothing waits, so the order needs it), in
+// batches of 8 non-blocking sends, so a publisher waits a few microseconds at most.
 bool BusChannel::flush() {
-  for (int i = 0; i < 256; ++i) {
-    if (!unsent_) {
-      std::lock_guard lock(mutex_);
-      unsent_ = next_datagram();
+  for (int batch = 0; batch < 32; ++batch) {
+    std::lock_guard lock(mutex_);
+    for (int i = 0; i < 8; ++i) {
+      if (!unsent_) unsent_ = next_datagram();
+      if (!unsent_) return true;
+      const auto n = ::send(peer_.get(), unsent_->data(), unsent_->size(), MSG_DONTWAIT | MSG_NOSIGNAL);
+      if (n < 0) {
+        if (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR) return true;  // full: POLLOUT tells when
+        return false;
+      }
+      unsent_.reset();
     }
-    if (!unsent_) return true;
-    const auto n = ::send(peer_.get(), unsent_->data(), unsent_->size(), MSG_DONTWAIT | MSG_NOSIGNAL);
-    if (n < 0) {
-      if (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR) return true;  // full: POLLOUT tells when
-      return false;
-    }
-    unsent_.reset();
   }
   return true;
 }

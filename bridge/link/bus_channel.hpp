@@ -91,7 +91,7 @@ class BusChannel {
   const Options options_;
   UniqueFd listener_;
   UniqueFd wake_fd_;
-  UniqueFd peer_;  // channel thread only
+  UniqueFd peer_;  // changed by the channel thread under mutex_; publishers send on it under mutex_
 
   mutable std::mutex mutex_;
   std::vector<Endpoint> endpoints_;               // by id
@@ -101,7 +101,7 @@ class BusChannel {
   std::deque<Datagram> backlog_;                  // a new peer's declarations and snapshot, first
   bool connected_ = false;
   Counters counters_;
-  std::optional<Datagram> unsent_;                // channel thread: a datagram the socket refused (full)
+  std::optional<Datagram> unsent_;                // a datagram the socket refused (full): sent first
   std::vector<std::uint8_t> buffer_ = std::vector<std::uint8_t>(kMaxMessage);  // channel thread: receiving
 
   std::atomic<bool> stop_{false};
