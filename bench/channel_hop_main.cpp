@@ -22,6 +22,7 @@
 #include <chrono>
 #include <condition_variable>
 #include <cstdio>
+#include <cstdlib>
 #include <cstring>
 #include <ctime>
 #include <filesystem>
@@ -33,7 +34,7 @@
 #include "link/bus_channel.hpp"
 #include "link/dds_channel.hpp"
 
-namespace link = lb::link;
+namespace lk = lb::link;
 using namespace std::chrono_literals;
 
 namespace {
@@ -75,9 +76,9 @@ void print(const char* key, const std::vector<std::int64_t>& v) {
 // The DDS side: connect, wait for Ready, echo every status sample as a set-value sample. Writes
 // its bus -> DDS latencies (ns, one a line) to `out` at the end.
 int dds_side(const std::string& path, const std::string& out, std::uint64_t expect) {
-  std::unique_ptr<link::DdsChannel> channel;
+  std::unique_ptr<lk::DdsChannel> channel;
   for (int i = 0; i < 500 && !channel; ++i) {
-    if (auto c = link::DdsChannel::connect(path, 100)) channel = std::move(*c);
+    if (auto c = lk::DdsChannel::connect(path, 100)) channel = std::move(*c);
     else std::this_thread::sleep_for(10ms);
   }
   if (!channel) {
@@ -87,18 +88,22 @@ int dds_side(const std::string& path, const std::string& out, std::uint64_t expe
   std::vector<std::int64_t> lat;
   lat.reserve(expect);
   bool ready = false;
+  std::uint32_t status_id = kStatusId, set_id = kSetId;  // as the bus side declared them
   for (;;) {
     auto m = channel->receive(2000);
     if (!m) break;  // the bus side closed: done
     if (!*m) continue;
-    if (std::holds_alternative<link::Ready>(**m)) ready = true;
-    auto* s = std::get_if<link::Sample>(&**m);
-    if (!s || !ready || s->id != kStatusId) continue;
+    if (std::holds_alternative<lk::Ready>(**m)) ready = true;
+    if (const auto* d = std::get_if<lk::Declare>(&**m)) (d->writer ? status_id : set_id) = d->id;
+    auto* s = std::get_if<lk::Sample>(&**m);
+    if (!s || !ready || s->id != status_id) continue;
     const auto now = mono_ns();
     lat.push_back(now - take(s->payload, 8));
-    link::Sample echo{kSetId, {}, {}, {}, std::move(s->payload)};
+    lk::Sample echo{set_id, {}, {}, {}, std::move(s->payload)};
     put(echo.payload, 16, mono_ns());
     channel->send(echo);
+    // The last one: done (the bus side's stop() does not close an accepted channel at once).
+    if (static_cast<std::uint64_t>(take(echo.payload, 0)) >= expect) break;
   }
   if (FILE* f = std::fopen(out.c_str(), "w")) {
     for (auto v : lat) std::fprintf(f, "%lld\n", static_cast<long long>(v));
@@ -110,7 +115,7 @@ int dds_side(const std::string& path, const std::string& out, std::uint64_t expe
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App cli{"bench-channel-hop: one sample's latency through link::BusChannel -> link::DdsChannel and back"};
+  CLI::App cli{"bench-channel-hop: one sample's latency through lk::BusChannel -> lk::DdsChannel and back"};
   std::uint64_t count = 20000;
   std::uint64_t warmup = 500;
   int interval_us = 500;
@@ -139,7 +144,7 @@ int main(int argc, char** argv) {
 
   // The bus side first (it listens), then the DDS side in a child process (forked before any
   // thread exists in this one).
-  auto opened = link::BusChannel::open({path, "bench", 1});
+  auto opened = lk::BusChannel::open({path, "bench", 1});
   if (!opened) {
     std::fprintf(stderr, "bench-channel-hop: %s\n", opened.error().message.c_str());
     return 1;
@@ -161,10 +166,10 @@ int main(int argc, char** argv) {
   std::vector<std::int64_t> rtt, dds2bus;
   rtt.reserve(total);
   dds2bus.reserve(total);
-  link::Declare status{kStatusId, true, false, 0, 0, static_cast<std::uint32_t>(size), "rt/bench/hop/status", "bench::Status", ""};
-  link::Declare set{kSetId, false, false, 0, 0, static_cast<std::uint32_t>(size), "rt/bench/hop/set", "bench::Set", ""};
+  lk::Declare status{kStatusId, true, false, 0, 0, static_cast<std::uint32_t>(size), "rt/bench/hop/status", "bench::Status", ""};
+  lk::Declare set{kSetId, false, false, 0, 0, static_cast<std::uint32_t>(size), "rt/bench/hop/set", "bench::Set", ""};
   const auto status_id = bus.declare(status, latest);
-  bus.declare_reader(set, [&](const link::Sample& s) {
+  bus.declare_reader(set, [&](const lk::Sample& s) {
     const auto now = mono_ns();
     if (s.payload.size() < 24) return;
     std::lock_guard lock(m);
