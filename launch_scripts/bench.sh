@@ -5,11 +5,13 @@
 #
 #   launch_scripts/bench.sh [--quick] [--runs K] [--only FIGURES] [--build-dir DIR] [--no-build]
 #                           [--out DIR] [--buses "1 2 4 8 ..."] [--no-pin] [--nice N] [--profile]
+#                           [--no-single]
 #
 #   --quick          fewer samples and shorter steps (about 2 min instead of about 6 per run)
 #   --runs K         measure every figure K times; the table shows the median and the range
 #   --only FIGURES   comma-separated subset of: can2dds,dds2can,throughput,memory,startup,security,
-#                    jitter,soak (the last two are not in the default set: run them by name)
+#                    jitter,soak,hop,hopjitter (the last four are not in the default set: run
+#                    them by name)
 #   --build-dir DIR  where the build is (default build-bench); it is configured (Release) and
 #                    built first unless --no-build
 #   --out DIR        keep raw latencies, logs and the exact commands there (default: a new
@@ -28,6 +30,8 @@
 #                    halts between wake-ups (what idle=poll or /dev/cpu_dma_latency do on a line
 #                    PC: a halted virtual CPU can wake milliseconds late); it runs only when
 #                    nothing else wants the core
+#   --no-single      can2dds, dds2can: measure only the split bridge (the default `--part both`),
+#                    not also the one-process `--part single` beside it
 #   --profile        record the bridge with perf (call graphs) during every throughput step;
 #                    perf.data and a report per step in the output directory
 #
@@ -36,9 +40,13 @@
 #               subscriber in a third process. In the same run, alternating in chunks: the floor
 #               (the bare bus hop and the bare Fast DDS hop, same type, QoS and rate, summed) and
 #               a bare relay on the same three-process path. Overhead = bridge minus floor.
+#               The bridge is the split one (`linebridge`, --part both: its bus process and the
+#               DDS process it starts, both on the bridge's core); beside it, alternating, the
+#               one-process `--part single` (issue 25: what the extra hop costs = split - single).
 #   dds2can     a set value written by another process -> its RPDO1 on the bus. Floor: a bare
 #               relay (Fast DDS listener that sends the frame); also the relay through the
-#               bridge's BusLoop hand-over.
+#               bridge's BusLoop hand-over. The split bridge and `--part single` alternate, as in
+#               can2dds.
 #   throughput  N buses x 30 saws at 8000 frames/s each: the largest N with no frame lost and no
 #               sample missing, the largest N whose frames the bridge all took, the bridge's CPU;
 #               and what one bus costs a bare Fast DDS writer and a bare bus reader.
@@ -63,6 +71,14 @@
 #               the bare Fast DDS hop, CAN->DDS and DDS->CAN through the bridge, and start-up
 #               (1 saw) of a line secured by launch_scripts/pki.sh (PKI-DH, access control,
 #               discovery, liveliness, metadata and data ENCRYPT) against the same line unsecured.
+#   hop         the channel between the bus and the DDS process by itself (bench-channel-hop:
+#               link::BusChannel -> link::DdsChannel and back, one 128-byte sample in flight,
+#               p50/p99 one way and round trip); the same through iceoryx when bench-iceoryx-hop
+#               is built (-DLINEBRIDGE_BENCH_ICEORYX=ON) and iox-roudi is installed.
+#   hopjitter   SYNC jitter of a secured master line (30 saws at full load) with the DDS side under
+#               stress, the split bridge and `--part single` alternating: load alone; 20 observer
+#               participants on every status topic (bench-observers); the forged-discovery flood
+#               (bench-forged-announcements, 3,000 announcements at 2,000/s, repeated).
 set -euo pipefail
 
 usage() { sed -n '2,/^set -euo/p' "$0" | grep '^#' | sed 's/^# \{0,1\}//'; exit 2; }
@@ -79,6 +95,7 @@ buses_list=""
 pin=1
 niceness=0
 profile=0
+single=1
 jitter_rate=""
 rt_priority=0
 keep_awake=0
@@ -95,6 +112,7 @@ while (($#)); do
     --no-pin) pin=0 ;;
     --nice) niceness=${2:?}; shift ;;
     --profile) profile=1 ;;
+    --no-single) single=0 ;;
     --jitter-rate) jitter_rate=${2:?}; shift ;;
     --realtime-priority) rt_priority=${2:?}; shift ;;
     --keep-awake) keep_awake=1 ;;
@@ -108,7 +126,7 @@ done
 [[ $rt_priority =~ ^[0-9]+$ ]] && ((rt_priority <= 99)) || { echo "bench.sh: --realtime-priority takes 0..99" >&2; exit 2; }
 ((!keep_awake || pin)) || { echo "bench.sh: --keep-awake keeps the bridge's core awake: it needs pinning (no --no-pin)" >&2; exit 2; }
 for f in ${only//,/ }; do
-  [[ $f =~ ^(can2dds|dds2can|throughput|memory|startup|security|jitter|soak)$ ]] || { echo "bench.sh: unknown figure $f" >&2; exit 2; }
+  [[ $f =~ ^(can2dds|dds2can|throughput|memory|startup|security|jitter|soak|hop|hopjitter)$ ]] || { echo "bench.sh: unknown figure $f" >&2; exit 2; }
 done
 
 # Outside the namespace: build (no DDS here), then re-enter through the wrapper.
@@ -124,7 +142,10 @@ if [ "${LINEBRIDGE_NETNS:-}" != "1" ]; then
     fi
     cmake --build "$build_dir" --target linebridge linebridge-sim linebridge-security bench-config bench-inject bench-can-sink \
       bench-status-pub bench-status-sub bench-setpoint bench-relay bench-can-relay bench-startup bench-stats \
-      bench-sync-jitter bench-frozen-reader bench-timer-floor bench-request-flood >&2
+      bench-sync-jitter bench-frozen-reader bench-timer-floor bench-request-flood bench-channel-hop bench-observers \
+      bench-forged-announcements >&2
+    # The iceoryx comparison, when that build has it (-DLINEBRIDGE_BENCH_ICEORYX=ON).
+    if grep -q '^LINEBRIDGE_BENCH_ICEORYX:BOOL=ON' "$build_dir/CMakeCache.txt"; then cmake --build "$build_dir" --target bench-iceoryx-hop >&2; fi
   fi
   [ -n "$out_dir" ] || out_dir=$(mktemp -d /tmp/linebridge-bench.XXXXXX)
   mkdir -p "$out_dir"
@@ -209,6 +230,18 @@ stop() { kill -TERM "$1" 2>/dev/null || true; finish "$1" || true; }
 
 # utime + stime in ticks; empty when the process is gone.
 cpu_ticks() { awk '{ sub(/.*\) /, ""); print $12 + $13 }' "/proc/$1/stat" 2>/dev/null || true; }
+# The same for a process and its children (the split bridge: the bus process and its DDS process).
+tree_ticks() {
+  local t c x
+  t=$(cpu_ticks "$1")
+  [ -n "$t" ] || return 0
+  for c in $(cat /proc/"$1"/task/*/children 2>/dev/null); do
+    x=$(cpu_ticks "$c"); t=$((t + ${x:-0}))
+  done
+  echo "$t"
+}
+# bridge_part bridge|single: the bridge's extra arguments (bridge: none, the default split).
+bridge_part() { [ "$1" != single ] || echo "--part single"; }
 # cpu_percent T0_TICKS T1_TICKS T0_NS T1_NS: % of one core over the interval (empty if unknown).
 cpu_percent() {
   [ -n "$1" ] && [ -n "$2" ] || return 0
@@ -273,7 +306,8 @@ dds_floor() {  # DIR
   finish $pub || true
 }
 
-# path_can2dds DIR PREFIX bridge|relay: injector -> the bridge (or the bare relay) -> subscriber.
+# path_can2dds DIR PREFIX bridge|single|relay: injector -> the bridge (split; or --part single; or
+# the bare relay) -> subscriber.
 path_can2dds() {
   local d=$1 p=$2 what=$3 inj sub br
   next_domain
@@ -291,16 +325,16 @@ path_can2dds() {
   if [ "$what" = relay ]; then
     start "$d/relay" "${pin_cmd[@]}" "$bin/bench-can-relay" --prefix "$p" --devices $devices --domain $domain
   else
-    start "$d/bridge" "${pin_cmd[@]}" "$bridge_bin" --config "$d/line.yaml"
+    start "$d/bridge" "${pin_cmd[@]}" "$bridge_bin" --config "$d/line.yaml" $(bridge_part "$what")
   fi
   br=$pid
   wait_file "$d/sub.ready" $sub
   sleep 0.5
   local c0 t0 c1 t1
-  c0=$(cpu_ticks $br); t0=$(now_ns)
+  c0=$(tree_ticks $br); t0=$(now_ns)
   touch "$d/go"
   while [ ! -s "$d/inject.out" ] && kill -0 $inj 2>/dev/null; do sleep 0.05; done
-  c1=$(cpu_ticks $br); t1=$(now_ns)
+  c1=$(tree_ticks $br); t1=$(now_ns)
   finish $sub || echo "bench.sh: can2dds: samples missing (see $d/sub.out)" >&2
   touch "$d/stop"
   finish $inj || true
@@ -315,14 +349,22 @@ fig_can2dds() {  # RUN
   local d="$out_dir/can2dds/run$1" c
   vals="$d/values"; mkdir -p "$d"; : >"$vals"
   for ((c = 1; c <= chunks; c++)); do
-    mkdir -p "$d/bus/c$c" "$d/dds/c$c" "$d/bridge/c$c" "$d/relay/c$c"
+    mkdir -p "$d/bus/c$c" "$d/dds/c$c" "$d/bridge/c$c" "$d/relay/c$c" "$d/single/c$c"
     bus_floor "$d/bus/c$c" "c2d-bus-$1-$c"
     dds_floor "$d/dds/c$c"
     path_can2dds "$d/bridge/c$c" "c2d-br-$1-$c" bridge
+    ((!single)) || path_can2dds "$d/single/c$c" "c2d-single-$1-$c" single
     path_can2dds "$d/relay/c$c" "c2d-relay-$1-$c" relay
   done
   local set
   for set in bus dds bridge relay; do cat "$d/$set"/c*/$set.lat >"$d/$set.lat"; done
+  if ((single)); then
+    cat "$d"/single/c*/single.lat >"$d/single.lat"
+    # What the extra hop costs: the split bridge over the one-process bridge, same run.
+    "$bin/bench-stats" overhead "$d/bridge.lat" "$d/single.lat" | sed -n 's/^floor_/can2dds_single_/p; s/^overhead_/can2dds_split_over_single_/p' >>"$vals"
+    sed -n "s/^chunk_single_cpu_pct=//p" "$vals" | awk '{ s += $1 } END { if (NR) printf "can2dds_single_cpu_pct=%.1f\n", s / NR }' >>"$vals"
+    sed -n "s/^chunk_single_missing=//p" "$vals" | awk '{ s += $1 } END { printf "can2dds_single_missing=%d\n", s }' >>"$vals"
+  fi
   "$bin/bench-stats" overhead "$d/bridge.lat" "$d/bus.lat" "$d/dds.lat" | sed 's/^/can2dds_/' >>"$vals"
   "$bin/bench-stats" overhead "$d/bridge.lat" "$d/relay.lat" | sed -n 's/^floor_/can2dds_relay_/p; s/^overhead_/can2dds_over_relay_/p' >>"$vals"
   "$bin/bench-stats" summary "$d/bus.lat" | sed 's/^lat_/can2dds_bus_/' >>"$vals"
@@ -334,20 +376,20 @@ fig_can2dds() {  # RUN
   done
 }
 
-setpoint_bridge() {  # DIR PREFIX: the bridge in the master role (the saw booted and online, as
+setpoint_bridge() {  # DIR PREFIX [bridge|single]: the bridge (split, or --part single) in the master role (the saw booted and online, as
   # set values require), RPDO1 event-driven so the frame leaves when the value is applied instead
   # of at the next SYNC.
-  local d=$1 p=$2 sp sim br
+  local d=$1 p=$2 what=${3:-bridge} sp sim br
   next_domain
   secured engineer  # set values of every device
   "$bin/bench-config" --buses 1 --devices 1 --domain $domain --prefix "$p" --role master --rpdo-event "${sec_cfg[@]}" >"$d/line.yaml"
   start "$d/setpoint" "${harness_cmd[@]}" "$bin/bench-setpoint" --prefix "$p" --domain $domain --count $sp_samples --warmup $sp_warmup \
-    --ready "$d/setpoint.ready" --go "$d/go" --out "$d/bridge.lat" "${sec[@]}"
+    --ready "$d/setpoint.ready" --go "$d/go" --out "$d/$what.lat" "${sec[@]}"
   sp=$pid
   wait_file "$d/setpoint.ready" $sp
   start "$d/sim" "${harness_cmd[@]}" "$sim_bin" --config "$d/line.yaml"
   sim=$pid
-  start "$d/bridge" "${pin_cmd[@]}" "$bridge_bin" --config "$d/line.yaml"
+  start "$d/bridge" "${pin_cmd[@]}" "$bridge_bin" --config "$d/line.yaml" $(bridge_part "$what")
   br=$pid
   touch "$d/go"
   finish $sp || echo "bench.sh: dds2can: set values lost (see $d/setpoint.out)" >&2
@@ -355,7 +397,7 @@ setpoint_bridge() {  # DIR PREFIX: the bridge in the master role (the saw booted
   stop $sim
   local lost
   lost=$(get "$d/setpoint.out" setpoint_lost)
-  echo "chunk_lost=${lost:-$sp_samples}" >>"$vals"
+  if [ "$what" = single ]; then echo "chunk_single_lost=${lost:-$sp_samples}" >>"$vals"; else echo "chunk_lost=${lost:-$sp_samples}" >>"$vals"; fi
 }
 
 setpoint_relay() {  # DIR PREFIX [--handoff]: the same client against a bare relay
@@ -378,8 +420,9 @@ fig_dds2can() {  # RUN
   local d="$out_dir/dds2can/run$1" c
   vals="$d/values"; mkdir -p "$d"; : >"$vals"
   for ((c = 1; c <= chunks; c++)); do
-    mkdir -p "$d/bridge/c$c" "$d/relay/c$c" "$d/handoff/c$c"
+    mkdir -p "$d/bridge/c$c" "$d/relay/c$c" "$d/handoff/c$c" "$d/single/c$c"
     setpoint_bridge "$d/bridge/c$c" "d2c-br-$1-$c"
+    ((!single)) || setpoint_bridge "$d/single/c$c" "d2c-single-$1-$c" single
     setpoint_relay "$d/relay/c$c" "d2c-relay-$1-$c"
     setpoint_relay "$d/handoff/c$c" "d2c-handoff-$1-$c" --handoff
   done
@@ -389,6 +432,11 @@ fig_dds2can() {  # RUN
   "$bin/bench-stats" overhead "$d/bridge.lat" "$d/relay.lat" | sed 's/^/dds2can_/' >>"$vals"
   "$bin/bench-stats" overhead "$d/handoff.lat" "$d/relay.lat" | sed -n 's/^bridge_/dds2can_handoff_/p' >>"$vals"
   sed -n 's/^chunk_lost=//p' "$vals" | awk '{ s += $1 } END { printf "dds2can_lost=%d\n", s }' >>"$vals"
+  if ((single)); then
+    cat "$d"/single/c*/single.lat >"$d/single.lat"
+    "$bin/bench-stats" overhead "$d/bridge.lat" "$d/single.lat" | sed -n 's/^floor_/dds2can_single_/p; s/^overhead_/dds2can_split_over_single_/p' >>"$vals"
+    sed -n 's/^chunk_single_lost=//p' "$vals" | awk '{ s += $1 } END { printf "dds2can_single_lost=%d\n", s }' >>"$vals"
+  fi
 }
 
 # throughput_step DIR N -> key=value lines in DIR/step, exit 0 when nothing was lost.
@@ -780,6 +828,110 @@ fig_security() {  # RUN
   done
 }
 
+# The channel between the bus and the DDS process by itself: the real link::BusChannel and
+# link::DdsChannel in two processes, one sample in flight; the same through iceoryx when built.
+# Both processes on the bridge's core (as the split bridge runs in these benchmarks), then spread
+# over every core.
+fig_hop() {  # RUN
+  local d="$out_dir/hop/run$1" n=20000 where roudi
+  ((!quick)) || n=5000
+  mkdir -p "$d"
+  vals="$d/values"; : >"$vals"
+  for where in core spread; do
+    local cpu=()
+    [ $where = spread ] || cpu=("${pin_cmd[@]}")
+    printf '%s\n' "${cpu[*]} $bin/bench-channel-hop --count $n --dir $d" >>"$commands"
+    "${cpu[@]}" "$bin/bench-channel-hop" --count $n --dir "$d" >"$d/unix-$where.out" 2>"$d/unix-$where.err" || true
+    sed -n "s/^hop_\([a-z0-9_]*\)=\([0-9.]*\)$/hop_unix_${where}_\1=\2/p" "$d/unix-$where.out" >>"$vals"
+    if [ -x "$bin/bench-iceoryx-hop" ] && command -v iox-roudi >/dev/null; then
+      start "$d/roudi-$where" iox-roudi
+      roudi=$pid
+      sleep 1
+      printf '%s\n' "${cpu[*]} $bin/bench-iceoryx-hop --count $n" >>"$commands"
+      "${cpu[@]}" "$bin/bench-iceoryx-hop" --count $n >"$d/iceoryx-$where.out" 2>"$d/iceoryx-$where.err" || true
+      stop $roudi
+      sed -n "s/^hop_\([a-z0-9_]*\)=\([0-9.]*\)$/hop_iceoryx_${where}_\1=\2/p" "$d/iceoryx-$where.out" >>"$vals"
+    fi
+  done
+}
+
+# hopjitter_step DIR SCENARIO bridge|single: a secured master line (30 saws at full load, an EMCY
+# burst), the split bridge or --part single pinned to its core, and the DDS side's burden: quiet
+# (none), observers (20 observer participants on every status topic), flood (forged discovery
+# announcements, 3,000 at 2,000/s, again and again while the meter runs). The meter reports the
+# SYNC periods; the bridge's CPU (both processes) and its bus process's alone.
+hopjitter_step() {
+  local d=$1 scenario=$2 what=$3 inj bridge meter obs="" flood="" prefix="hj-$scenario-$3-$RANDOM"
+  local rate=${jitter_rate:-$full_rate}
+  mkdir -p "$d"
+  next_domain
+  secured observer
+  "$bin/bench-config" --buses 1 --devices $devices --domain $domain --prefix "$prefix" --role master \
+    --realtime-priority $rt_priority "${sec_cfg[@]}" >"$d/line.yaml"
+  start "$d/inject" "${harness_cmd[@]}" "$bin/bench-inject" --buses 1 --devices $devices --rate $rate \
+    --count $((rate * (jitter_s + 120))) --prefix "$prefix" --ready "$d/inject.ready" --go "$d/go" --linger 1
+  inj=$pid
+  wait_file "$d/inject.ready" $inj
+  start "$d/bridge" "${pin_cmd[@]}" "$bridge_bin" --config "$d/line.yaml" --log-level warn $(bridge_part "$what")
+  bridge=$pid
+  sleep 3
+  if [ "$scenario" = observers ]; then
+    start "$d/observers" "${harness_cmd[@]}" "$bin/bench-observers" --participants 20 --devices $devices --domain $domain \
+      --ready "$d/observers.ready" "${sec[@]}"
+    obs=$pid
+    wait_file "$d/observers.ready" $obs 180 || true
+  fi
+  touch "$d/go"
+  sleep 2
+  local dds0 c0 b0 t0 c1 b1 t1
+  dds0=$(cat /proc/$bridge/task/*/children 2>/dev/null | tr '\n' ' ')
+  c0=$(tree_ticks $bridge); b0=$(cpu_ticks $bridge); t0=$(now_ns)
+  if [ "$scenario" = flood ]; then
+    start "$d/flood" "${harness_cmd[@]}" bash -c 'end=$((SECONDS + $1)); shift; n=0
+      while ((SECONDS < end)); do "$@" || echo "flood_tool_failed=1"; n=$((n + 1)); done; echo "flood_rounds=$n"' \
+      flood $jitter_s "$bin/bench-forged-announcements" --domain $domain --pki "$secure_pki" --identity observer --count 3000 --rate 2000
+    flood=$pid
+  fi
+  "${harness_cmd[@]}" "$bin/bench-sync-jitter" --bus "virtual:$prefix-0" --duration $jitter_s \
+    --emcy-rate 1000 --emcy-devices $devices --out "$d/periods" "${sentinel_args[@]}" >"$d/meter.out" 2>"$d/meter.err" || true
+  printf '%s\n' "$bin/bench-sync-jitter --bus virtual:$prefix-0 --duration $jitter_s --emcy-rate 1000 --emcy-devices $devices --out $d/periods ${sentinel_args[*]}" >>"$commands"
+  c1=$(tree_ticks $bridge); b1=$(cpu_ticks $bridge); t1=$(now_ns)
+  {
+    echo "bridge_alive=$(kill -0 $bridge 2>/dev/null && echo 1 || echo 0)"
+    echo "cpu_pct=$(cpu_percent "$c0" "$c1" "$t0" "$t1")"
+    echo "bus_cpu_pct=$(cpu_percent "$b0" "$b1" "$t0" "$t1")"
+    echo "dds_pids_before=$dds0"
+    echo "dds_pids_after=$(cat /proc/$bridge/task/*/children 2>/dev/null | tr '\n' ' ')"
+  } >>"$d/meter.out"
+  [ -z "$flood" ] || finish $flood || true
+  [ -z "$obs" ] || stop $obs
+  stop $bridge
+  stop $inj
+}
+
+fig_hopjitter() {  # RUN
+  local d="$out_dir/hopjitter/run$1" scenario what k
+  mkdir -p "$d"
+  vals="$d/values"; : >"$vals"
+  security_pki "$d/pki"
+  secure_pki="$d/pki"
+  for scenario in quiet observers flood; do
+    for what in bridge single; do
+      echo "hopjitter: $scenario, $what" >&2
+      hopjitter_step "$d/$scenario-$what" $scenario $what
+      for k in syncs expected_syncs p50_us p99_us p999_us max_us longest_period_us host_stalls clean_p50_us clean_p99_us clean_p999_us clean_max_us; do
+        echo "hopjitter_${scenario}_${what}_$k=$(get "$d/$scenario-$what/meter.out" jitter_$k)" >>"$vals"
+      done
+      for k in bridge_alive cpu_pct bus_cpu_pct; do
+        echo "hopjitter_${scenario}_${what}_$k=$(get "$d/$scenario-$what/meter.out" $k)" >>"$vals"
+      done
+      # The DDS process replaced during the step (its PID changed): the supervisor restarted it.
+      [ "$what" = single ] || echo "hopjitter_${scenario}_${what}_dds_replaced=$([ "$(get "$d/$scenario-$what/meter.out" dds_pids_before)" = "$(get "$d/$scenario-$what/meter.out" dds_pids_after)" ] && echo 0 || echo 1)" >>"$vals"
+    done
+  done
+  secure_pki=""
+}
+
 # ------------------------------------------------------------------------------------------------
 want() { [[ ",$only," == *",$1,"* ]]; }
 begin=$(date +%s)
@@ -789,7 +941,7 @@ if ((report_only)); then
   [ -n "$runs" ] || { echo "bench.sh: no measurements in $out_dir" >&2; exit 1; }
 else
   for ((r = 1; r <= runs; r++)); do
-    for f in can2dds dds2can throughput memory startup security jitter soak; do
+    for f in can2dds dds2can throughput memory startup security jitter soak hop hopjitter; do
       if want $f; then
         echo "== $f, run $r of $runs" >&2
         "fig_$f" $r
@@ -833,7 +985,12 @@ cmd() { echo "launch_scripts/bench.sh --only $1$quick_flag --runs $runs$run_flag
     echo "| CAN->DDS samples (n per set), missing | $(stat can2dds can2dds_bridge_n), $(stat can2dds can2dds_bridge_missing) | 0 missing | $(verdict "$(median can2dds can2dds_bridge_missing)" "<=" 0) | \`$(cmd can2dds)\` |"
     echo "| CAN->DDS bare relay (same 3-process path, no bridge logic) p50 / p99 / p99.9 (µs) | $(stat can2dds can2dds_relay_p50_us) / $(stat can2dds can2dds_relay_p99_us) / $(stat can2dds can2dds_relay_p999_us) | | | \`$(cmd can2dds)\` |"
     echo "| CAN->DDS bridge minus bare relay p50 / p99 (µs) | $(stat can2dds can2dds_over_relay_p50_us) / $(stat can2dds can2dds_over_relay_p99_us) | | | \`$(cmd can2dds)\` |"
-    echo "| CPU at $lat_rate frames/s, 1 bus x $devices saws (% of a core): bridge; bare relay | $(stat can2dds can2dds_bridge_cpu_pct); $(stat can2dds can2dds_relay_cpu_pct) | | | \`$(cmd can2dds)\` |"
+    echo "| CPU at $lat_rate frames/s, 1 bus x $devices saws (% of a core): bridge (split: both processes); bare relay | $(stat can2dds can2dds_bridge_cpu_pct); $(stat can2dds can2dds_relay_cpu_pct) | | | \`$(cmd can2dds)\` |"
+    if ((single)); then
+      echo "| CAN->DDS one-process bridge (--part single), same run, p50 / p99 / p99.9 (µs); CPU (% of a core); missing | $(stat can2dds can2dds_single_p50_us) / $(stat can2dds can2dds_single_p99_us) / $(stat can2dds can2dds_single_p999_us); $(stat can2dds can2dds_single_cpu_pct); $(stat can2dds can2dds_single_missing) | | | \`$(cmd can2dds)\` |"
+      echo "| CAN->DDS the hop's cost: split minus single, p50 (µs) | $(stat can2dds can2dds_split_over_single_p50_us) | <= 20 | $(verdict "$(median can2dds can2dds_split_over_single_p50_us)" "<=" 20) | \`$(cmd can2dds)\` |"
+      echo "| CAN->DDS split minus single, p99 / p99.9 (µs) | $(stat can2dds can2dds_split_over_single_p99_us) / $(stat can2dds can2dds_split_over_single_p999_us) | | | \`$(cmd can2dds)\` |"
+    fi
   fi
   if want dds2can; then
     echo "| DDS->CAN latency, bridge p50 / p99 / p99.9 / max (µs) | $(stat dds2can dds2can_bridge_p50_us) / $(stat dds2can dds2can_bridge_p99_us) / $(stat dds2can dds2can_bridge_p999_us) / $(stat dds2can dds2can_bridge_max_us) | | | \`$(cmd dds2can)\` |"
@@ -842,6 +999,11 @@ cmd() { echo "launch_scripts/bench.sh --only $1$quick_flag --runs $runs$run_flag
     echo "| DDS->CAN overhead over the floor, p50 (µs) | $(stat dds2can dds2can_overhead_p50_us) | <= 20 | $(verdict "$(median dds2can dds2can_overhead_p50_us)" "<=" 20) | \`$(cmd dds2can)\` |"
     echo "| DDS->CAN overhead over the floor, p99 (µs) | $(stat dds2can dds2can_overhead_p99_us) | <= 100 | $(verdict "$(median dds2can dds2can_overhead_p99_us)" "<=" 100) | \`$(cmd dds2can)\` |"
     echo "| DDS->CAN set values (n per set), lost | $(stat dds2can dds2can_bridge_n), $(stat dds2can dds2can_lost) | 0 lost | $(verdict "$(median dds2can dds2can_lost)" "<=" 0) | \`$(cmd dds2can)\` |"
+    if ((single)); then
+      echo "| DDS->CAN one-process bridge (--part single), same run, p50 / p99 / p99.9 (µs); lost | $(stat dds2can dds2can_single_p50_us) / $(stat dds2can dds2can_single_p99_us) / $(stat dds2can dds2can_single_p999_us); $(stat dds2can dds2can_single_lost) | | | \`$(cmd dds2can)\` |"
+      echo "| DDS->CAN the hop's cost: split minus single, p50 (µs) | $(stat dds2can dds2can_split_over_single_p50_us) | <= 20 | $(verdict "$(median dds2can dds2can_split_over_single_p50_us)" "<=" 20) | \`$(cmd dds2can)\` |"
+      echo "| DDS->CAN split minus single, p99 / p99.9 (µs) | $(stat dds2can dds2can_split_over_single_p99_us) / $(stat dds2can dds2can_split_over_single_p999_us) | | | \`$(cmd dds2can)\` |"
+    fi
   fi
   if want throughput; then
     echo "| Buses x $devices saws at $full_rate frames/s, no frame lost, no sample missing (bridge pinned to 1 core) | $(stat throughput throughput_max_buses) (tried: $buses_list) | >= 8 | $(verdict "$(median throughput throughput_max_buses)" ">=" 8) | \`$(cmd throughput)\` |"
@@ -896,6 +1058,25 @@ cmd() { echo "launch_scripts/bench.sh --only $1$quick_flag --runs $runs$run_flag
     echo "| Soak: SYNCs seen / expected; SYNC period deviation p50 / p99 / p99.9 / max (µs) | $(stat soak soak_sync_syncs) / $(stat soak soak_sync_expected_syncs); $(stat soak soak_sync_p50_us) / $(stat soak soak_sync_p99_us) / $(stat soak soak_sync_p999_us) / $(stat soak soak_sync_max_us) | | | \`$(cmd soak)\` |"
     echo "| Soak: service requests sent / answered / refused / unanswered (per s); set values written (per s) | $(stat soak soak_flood_requests_sent) / $(stat soak soak_flood_requests_answered) / $(stat soak soak_flood_requests_refused) / $(stat soak soak_flood_requests_unanswered) ($(stat soak soak_flood_requests_per_s)); $(stat soak soak_flood_setpoints_written) ($(stat soak soak_flood_setpoints_per_s)) | | | \`$(cmd soak)\` |"
     echo "| Soak: the bridge's own counts: requests refused at a full loop queue; commands lost before the bridge | $(stat soak soak_flood_bridge_requests_refused); $(stat soak soak_flood_bridge_commands_lost) | | | \`$(cmd soak)\` |"
+  fi
+  if want hop; then
+    for mw in "unix:core:Unix socket (link::BusChannel -> link::DdsChannel), both processes on one core" \
+              "unix:spread:Unix socket, processes spread over the cores" \
+              "iceoryx:core:iceoryx publisher/subscriber (RouDi), both processes on one core" \
+              "iceoryx:spread:iceoryx, processes spread over the cores"; do
+      m=${mw%%:*}; rest=${mw#*:}; where=${rest%%:*}; k="hop_${m}_${where}"
+      [ -n "$(stat hop ${k}_samples)" ] || { echo "| Channel hop, ${rest#*:}: not measured (not built: -DLINEBRIDGE_BENCH_ICEORYX=ON, iox-roudi) | | | | |"; continue; }
+      echo "| Channel hop, ${rest#*:}: bus->DDS p50 / p99 / p99.9; DDS->bus p50 / p99; round trip p50 / p99 (µs); lost | $(stat hop ${k}_bus2dds_p50_us) / $(stat hop ${k}_bus2dds_p99_us) / $(stat hop ${k}_bus2dds_p999_us); $(stat hop ${k}_dds2bus_p50_us) / $(stat hop ${k}_dds2bus_p99_us); $(stat hop ${k}_rtt_p50_us) / $(stat hop ${k}_rtt_p99_us); $(stat hop ${k}_lost) | | | \`$(cmd hop)\` |"
+    done
+  fi
+  if want hopjitter; then
+    for sc in "quiet:load alone" "observers:+ 20 observer participants" "flood:+ forged discovery flood"; do
+      k=${sc%%:*}
+      for what in bridge:split single:single; do
+        w=${what%%:*}; p="hopjitter_${k}_${w}"
+        echo "| SYNC jitter, secured line, 30 saws at ${jitter_rate:-$full_rate} frames/s + 1000 EMCY/s ${sc#*:}, ${what#*:}: p50 / p99 / p99.9 / max (µs); SYNCs seen / expected; CPU all / bus process (% of a core); alive | $(stat hopjitter ${p}_p50_us) / $(stat hopjitter ${p}_p99_us) / $(stat hopjitter ${p}_p999_us) / $(stat hopjitter ${p}_max_us); $(stat hopjitter ${p}_syncs) / $(stat hopjitter ${p}_expected_syncs); $(stat hopjitter ${p}_cpu_pct) / $(stat hopjitter ${p}_bus_cpu_pct); $(stat hopjitter ${p}_bridge_alive) | | | \`$(cmd hopjitter)\` |"
+      done
+    done
   fi
   if want security; then
     for what in "dds:bare Fast DDS hop, $devices status topics at $lat_rate samples/s" "can2dds:CAN->DDS through the bridge" \
