@@ -51,8 +51,11 @@ constexpr bool kSanitized = false;
 #endif
 // No SYNC missed: a gap of two periods is one missing (sanitized: no stop, 250 ms).
 constexpr std::int64_t kWidestSyncGapNs = kSanitized ? 250'000'000 : 2 * kSyncPeriodNs;
-// The DDS side back and publishing after each kill (sanitized: 10 s).
-constexpr double kBackWithinMs = kSanitized ? 10'000.0 : 1'000.0;
+// A new DDS process's first status sample at this test's subscriber after each kill (sanitized:
+// 10 s). The DDS process itself is ready within 0.1 s of the kill (its log); the rest is Fast DDS
+// discovery between it and this subscriber, whose resends put one kill in 20 near 1 s (measured:
+// p50 90 ms, max 985 ms), so the bound is 2 s and the distribution is printed.
+constexpr double kBackWithinMs = kSanitized ? 10'000.0 : 2'000.0;
 
 // The children of a process, from every one of its threads' lists (the supervisor thread forks).
 std::vector<pid_t> children_of(pid_t pid) {
@@ -272,7 +275,8 @@ TEST_F(BusIsolation, KillingTheDdsProcessTwentyTimesChangesNothingOnTheBus) {
   EXPECT_GT(heartbeats.size(), 20u);
   // No SYNC missed (the bus loop at realtime priority, as the packaged unit allows).
   EXPECT_LT(widest, kWidestSyncGapNs) << summary.str();
-  // The DDS side is back and publishing within 1 s of every kill.
+  // A new DDS process publishing, as a subscriber sees it, after every kill.
   EXPECT_LT(back_ms.back(), kBackWithinMs) << summary.str();
+  EXPECT_LT(back_ms[back_ms.size() / 2], 1000.0) << summary.str();
   EXPECT_TRUE(bridge_->running()) << logs();
 }
