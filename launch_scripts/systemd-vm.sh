@@ -11,8 +11,7 @@
 # MainPID). Prints the guest's log and a summary with the measured times. Slow (minutes): not in CI.
 #   launch_scripts/systemd-vm.sh [OPTIONS]
 # Options:
-#   --units "A.service B.service"  the units under test, in start order (default linebridge.service;
-#                      after the split: "linebridge-bus.service linebridge-dds.service")
+#   --units "A.service B.service"  the units under test, in start order (default linebridge-bus.service linebridge-dds.service;
 #   --bus-unit UNIT    the unit that sends SYNC (default: the first of --units)
 #   --margin S         slack over WatchdogSec + RestartSec for a restart under TCG (default 20)
 #   --gap-periods N    largest SYNC gap while a non-bus unit is killed, in periods (default 3)
@@ -29,7 +28,7 @@
 set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 root=$(cd "$here/.." && pwd)
-units=linebridge.service
+units="linebridge-bus.service linebridge-dds.service"
 bus_unit=""
 margin=20
 gap_periods=3

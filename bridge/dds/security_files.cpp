@@ -1,4 +1,5 @@
 #include "dds/security_files.hpp"
+#include "dds/openssl_ptr.hpp"
 
 #include "dds/key_files.hpp"
 #include "dds/revocation.hpp"
@@ -30,20 +31,13 @@
 namespace lb::ddsl {
 namespace {
 
-// OpenSSL objects owned by unique_ptr: F is the library's own free function.
-template <auto F>
-struct Free {
-  template <class T>
-  void operator()(T* p) const {
-    F(p);
-  }
-};
-using Bio = std::unique_ptr<BIO, Free<BIO_free_all>>;
-using Cert = std::unique_ptr<X509, Free<X509_free>>;
-using Store = std::unique_ptr<X509_STORE, Free<X509_STORE_free>>;
-using StoreCtx = std::unique_ptr<X509_STORE_CTX, Free<X509_STORE_CTX_free>>;
-using Key = std::unique_ptr<EVP_PKEY, Free<EVP_PKEY_free>>;
-using Pkcs7 = std::unique_ptr<PKCS7, Free<PKCS7_free>>;
+// OpenSSL objects owned by unique_ptr (openssl_ptr.hpp).
+using Bio = ossl::Bio;
+using Cert = ossl::Cert;
+using Store = ossl::Store;
+using StoreCtx = ossl::StoreCtx;
+using Key = ossl::Key;
+using Pkcs7 = std::unique_ptr<PKCS7, ossl::Free<PKCS7_free>>;
 struct FreeCertStack {
   void operator()(STACK_OF(X509) * s) const { sk_X509_free(s); }  // the certificates belong to the PKCS7
 };
