@@ -26,6 +26,7 @@
 #include "base/result.hpp"
 #include "link/channel_message.hpp"
 #include "link/channel_socket.hpp"
+#include "link/pi_mutex.hpp"
 
 namespace lb::link {
 
@@ -93,7 +94,7 @@ class BusChannel {
   UniqueFd wake_fd_;
   UniqueFd peer_;  // changed by the channel thread under mutex_; publishers send on it under mutex_
 
-  mutable std::mutex mutex_;
+  mutable PiMutex mutex_;  // shared with realtime bus loops (publish): priority inheritance
   std::vector<Endpoint> endpoints_;               // by id
   std::map<std::uint32_t, Datagram> latest_;      // state endpoints: the newest sample, encoded
   std::set<std::uint32_t> dirty_;                 // latest_ entries not sent to this peer yet
