@@ -61,24 +61,12 @@ class Problems {
   std::vector<std::string> lines_;
 };
 
-std::optional<std::string> read_file(const std::string& path, std::string& why) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) {
-    why = "cannot read it: " + std::generic_category().message(errno);
-    return std::nullopt;
-  }
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-Bio memory_bio(const std::string& bytes) { return Bio(BIO_new_mem_buf(bytes.data(), static_cast<int>(bytes.size()))); }
-
-std::string bio_text(BIO* bio) {
-  BUF_MEM* mem = nullptr;
-  BIO_get_mem_ptr(bio, &mem);
-  return mem == nullptr ? std::string() : std::string(mem->data, mem->length);
-}
+// The readers openssl_ptr.hpp shares with the revocation and key-file checks.
+using ossl::bio_text;
+using ossl::memory_bio;
+using ossl::read_certificates;
+using ossl::time_text;
+constexpr auto& read_file = ossl::read_whole_file;
 
 std::string openssl_error() {
   const unsigned long e = ERR_peek_last_error();
@@ -90,11 +78,7 @@ std::string openssl_error() {
 }
 
 // As Fast DDS prints it (PKIDH.cpp): RFC 2253 order, most specific first.
-std::string subject_of(X509* cert) {
-  Bio out(BIO_new(BIO_s_mem()));
-  X509_NAME_print_ex(out.get(), X509_get_subject_name(cert), 0, XN_FLAG_RFC2253 & ~ASN1_STRFLGS_ESC_MSB);
-  return bio_text(out.get());
-}
+std::string subject_of(X509* cert) { return ossl::name_text(X509_get_subject_name(cert)); }
 
 // Two CAs may carry the same name: the fingerprint tells them apart in a message.
 std::string fingerprint(X509* cert) {
@@ -108,20 +92,6 @@ std::string fingerprint(X509* cert) {
     out += hex;
   }
   return out + "...";
-}
-
-std::string time_text(const ASN1_TIME* t) {
-  Bio out(BIO_new(BIO_s_mem()));
-  ASN1_TIME_print(out.get(), t);
-  return bio_text(out.get());
-}
-
-std::vector<Cert> read_certificates(const std::string& pem) {
-  std::vector<Cert> certs;
-  Bio in = memory_bio(pem);
-  while (X509* c = PEM_read_bio_X509(in.get(), nullptr, nullptr, nullptr)) certs.emplace_back(c);
-  ERR_clear_error();  // the end of the file reads as an error
-  return certs;
 }
 
 Store store_of(const std::vector<Cert>& cas) {

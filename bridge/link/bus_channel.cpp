@@ -34,7 +34,7 @@ BusChannel::~BusChannel() {
 std::uint32_t BusChannel::declare(Declare declaration, bool latest) {
   std::lock_guard lock(mutex_);
   declaration.id = static_cast<std::uint32_t>(endpoints_.size());
-  if (connected_) backlog_.push_back(encode(declaration));
+  if (counters_.connected) backlog_.push_back(encode(declaration));
   endpoints_.push_back({std::move(declaration), latest, {}});
   wake();
   return endpoints_.back().declaration.id;
@@ -60,7 +60,6 @@ void BusChannel::stop() {
   // The DDS side sees the channel end now, not when this object goes.
   std::lock_guard lock(mutex_);
   peer_.reset();
-  connected_ = false;
   counters_.connected = false;
 }
 
@@ -80,18 +79,18 @@ void BusChannel::publish(std::uint32_t id, std::vector<std::uint8_t> payload, co
     auto datagram = encode(sample);
     // Nothing waits before it: sent from here (never blocking: MSG_DONTWAIT), which spares the
     // channel thread's wake-up; a full socket leaves it to the channel thread.
-    const bool direct = connected_ && peer_ && !unsent_ && backlog_.empty() && queue_.empty() && dirty_.empty() &&
+    const bool direct = counters_.connected && peer_ && !unsent_ && backlog_.empty() && queue_.empty() && dirty_.empty() &&
                         ::send(peer_.get(), datagram.data(), datagram.size(), MSG_DONTWAIT | MSG_NOSIGNAL) ==
                             static_cast<ssize_t>(datagram.size());
     if (direct) ++counters_.samples_sent;
     if (endpoints_[id].latest) {
       // Kept while no DDS side is there: the next one's snapshot starts from it.
       latest_[id] = std::move(datagram);
-      if (connected_ && !direct) dirty_.insert(id);
+      if (counters_.connected && !direct) dirty_.insert(id);
       if (direct) return;
     } else if (direct) {
       return;
-    } else if (!connected_) {
+    } else if (!counters_.connected) {
       ++counters_.dropped_no_peer;
       return;
     } else if (queue_.size() >= options_.queue_limit) {
@@ -136,7 +135,7 @@ void BusChannel::run() {
     bool pending = false;
     {
       std::lock_guard lock(mutex_);
-      pending = unsent_.has_value() || (connected_ && (!backlog_.empty() || !queue_.empty() || !dirty_.empty()));
+      pending = unsent_.has_value() || (counters_.connected && (!backlog_.empty() || !queue_.empty() || !dirty_.empty()));
     }
     pollfd fds[3] = {{listener_.get(), POLLIN, 0}, {wake_fd_.get(), POLLIN, 0}, {peer_.get(), POLLIN, 0}};
     if (peer_ && pending) fds[2].events |= POLLOUT;
@@ -155,7 +154,7 @@ void BusChannel::run() {
     if (std::chrono::steady_clock::now() >= next_ping) {
       next_ping = std::chrono::steady_clock::now() + kPingEvery;
       std::lock_guard lock(mutex_);
-      if (connected_) backlog_.push_back(encode(Ping{}));
+      if (counters_.connected) backlog_.push_back(encode(Ping{}));
     }
     if (peer_ && !flush()) drop_peer("the DDS side's socket failed");
   }
@@ -175,7 +174,6 @@ void BusChannel::accept_peer() {
   std::lock_guard lock(mutex_);
   peer_ = std::move(peer->fd);
   unsent_.reset();
-  connected_ = true;
   ++counters_.connects;
   counters_.connected = true;
   // A new DDS side knows nothing: every endpoint, then the newest state, then Ready.
@@ -197,7 +195,6 @@ void BusChannel::drop_peer(const std::string& why) {
   std::lock_guard lock(mutex_);
   peer_.reset();
   unsent_.reset();
-  connected_ = false;
   counters_.connected = false;
   backlog_.clear();
   queue_.clear();

@@ -100,7 +100,6 @@ class BusChannel {
   std::set<std::uint32_t> dirty_;                 // latest_ entries not sent to this peer yet
   std::deque<Datagram> queue_;                    // other samples, in order
   std::deque<Datagram> backlog_;                  // a new peer's declarations and snapshot, first
-  bool connected_ = false;
   Counters counters_;
   std::optional<Datagram> unsent_;                // a datagram the socket refused (full): sent first
   std::vector<std::uint8_t> buffer_ = std::vector<std::uint8_t>(kMaxMessage);  // channel thread: receiving

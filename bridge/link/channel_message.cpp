@@ -125,8 +125,6 @@ void put_body(Writer&, const Ping&) {}
 void put_body(Writer& w, const DdsStats& m) {
   w.put(m.remote_participants);
   w.put(m.remote_participants_refused);
-  w.put(m.remote_writers);
-  w.put(m.remote_readers);
   w.put(m.samples_not_forwarded);
 }
 
@@ -171,8 +169,6 @@ Message get_body(Reader& r, std::uint8_t type) {
       DdsStats m;
       m.remote_participants = r.get<std::uint32_t>();
       m.remote_participants_refused = r.get<std::uint64_t>();
-      m.remote_writers = r.get<std::uint32_t>();
-      m.remote_readers = r.get<std::uint32_t>();
       m.samples_not_forwarded = r.get<std::uint64_t>();
       return m;
     }

@@ -70,8 +70,6 @@ struct Ping {};
 struct DdsStats {
   std::uint32_t remote_participants = 0;
   std::uint64_t remote_participants_refused = 0;
-  std::uint32_t remote_writers = 0;
-  std::uint32_t remote_readers = 0;
   std::uint64_t samples_not_forwarded = 0;  // to the bus side: it did not take them in time
 };
 
