@@ -41,6 +41,14 @@ const msg::NodeDiagnostics* node(const msg::Diagnostics& d, const std::string& d
   }
   return nullptr;
 }
+// The bus's mandatory state while the saw is absent: waiting for it while its first boot tries,
+// and "missing" with the reason once a try failed (its SDO timeout). Which of the two a sample
+// shows depends on how fast the pullers' boot is against the saw's 1 s SDO timeout, not on the
+// bridge's correctness: both name the saw.
+bool names_the_absent_saw(const std::string& state) {
+  return state.find("waiting for mandatory device saw1") != std::string::npos ||
+         state.find("mandatory device missing (saw1: its boot failed") != std::string::npos;
+}
 const msg::BusDiagnostics* bus(const msg::Diagnostics& d) { return d.buses().empty() ? nullptr : &d.buses().front(); }
 
 class MandatoryDevicesLine : public ::testing::Test {
@@ -98,7 +106,7 @@ TEST_F(MandatoryDevicesLine, AStartWaitsUntilTheMandatoryDevicePassedItsBoot) {
     const auto* p1 = node(d, "puller1");
     const auto* p2 = node(d, "puller2");
     return b != nullptr && p1 != nullptr && p2 != nullptr && b->mandatory_missing().size() == 1 &&
-           b->mandatory_missing()[0] == "saw1" && b->mandatory_state().find("waiting for mandatory device saw1") != std::string::npos &&
+           b->mandatory_missing()[0] == "saw1" && names_the_absent_saw(b->mandatory_state()) &&
            p1->line_hold().find("waiting for mandatory device saw1") != std::string::npos &&
            p2->line_hold().find("waiting for mandatory device saw1") != std::string::npos &&
            p1->node_state() == "waiting for a mandatory device";
