@@ -103,6 +103,7 @@ class LineHarness {
   void set_bridge_launcher(std::vector<std::string> argv) { bridge_launcher_ = std::move(argv); }
 
   const std::string& bridge_config() const { return bridge_config_; }
+  bool started() const { return bridge_ != nullptr; }
   BusSpy& spy() { return *spy_; }
   ddsl::Participant& dds() { return *dds_; }
   ChildProcess& bridge() { return *bridge_; }
