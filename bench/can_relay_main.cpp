@@ -4,67 +4,36 @@
 // from the frame's bytes instead of through a profile. Unlike the two separate floor hops it runs
 // the same three processes at the same time as the bridge's path does, so the comparison also
 // holds for the latency tail on a machine where those processes compete for the cores.
-#include <CLI/CLI.hpp>
 #include <poll.h>
-#include <signal.h>
-
-#include <cstdio>
-#include <vector>
 
 #include "can/bus.hpp"
 #include "dds/participant.hpp"
-#include "dds/topic_names.hpp"
-#include "msgs/sawPubSubTypes.h"
-#include "names.hpp"
-#include "rendezvous.hpp"
+#include "program.hpp"
 #include "saw_stamps.hpp"
+#include "status_writers.hpp"
+#include "stop_signals.hpp"
 
 namespace bench = lb::bench;
-namespace msg = linebridge_msgs::msg;
 
 int main(int argc, char** argv) {
-  CLI::App cli{"bench-can-relay: saw TPDOs from a virtual bus to DDS status samples with nothing in between"};
-  std::string prefix = "bench";
-  int devices = 30;
-  int domain = 0;
-  std::string ready_file;
-  cli.add_option("--prefix", prefix)->capture_default_str();
-  cli.add_option("--devices", devices, "saws (of bus 0)")->check(CLI::Range(1, bench::kMaxDevicesPerBus))->capture_default_str();
-  cli.add_option("--domain", domain)->capture_default_str();
-  cli.add_option("--ready", ready_file, "created once the bus is open and the writers exist");
-  CLI11_PARSE(cli, argc, argv);
+  bench::Program program{"bench-can-relay", "saw TPDOs from a virtual bus to DDS status samples with nothing in between"};
+  program.add_prefix();
+  program.add_devices("saws on bus 0");
+  program.add_domain();
+  program.add_ready("the bus is open and the writers exist");
+  if (auto rc = program.parse(argc, argv)) return *rc;
+  const int devices = program.devices;
+  bench::StopSignals stop;  // before any thread starts
 
-  sigset_t stop_signals;
-  sigemptyset(&stop_signals);
-  sigaddset(&stop_signals, SIGINT);
-  sigaddset(&stop_signals, SIGTERM);
-  pthread_sigmask(SIG_BLOCK, &stop_signals, nullptr);  // before any thread starts: they inherit it
+  auto bus = lb::can::open_bus(bench::bus_uri(program.prefix, 0));
+  if (!bus) return program.fail(bus.error().message);
+  auto dds = lb::ddsl::Participant::create({static_cast<std::uint32_t>(program.domain), true, program.name()});
+  if (!dds) return program.fail(dds.error().message);
+  auto status = bench::status_writers(**dds, devices);
+  if (!status) return program.fail(status.error().message);
+  auto& [writers, samples] = *status;
+  program.ready();
 
-  auto bus = lb::can::open_bus(bench::bus_uri(prefix, 0));
-  if (!bus) {
-    std::fprintf(stderr, "bench-can-relay: %s\n", bus.error().message.c_str());
-    return 1;
-  }
-  auto dds = lb::ddsl::Participant::create({static_cast<std::uint32_t>(domain), true, "bench-can-relay"});
-  if (!dds) {
-    std::fprintf(stderr, "bench-can-relay: %s\n", dds.error().message.c_str());
-    return 1;
-  }
-  std::vector<lb::ddsl::Writer<msg::SawStatusPubSubType>> writers;
-  std::vector<msg::SawStatus> samples(static_cast<std::size_t>(devices));
-  for (int d = 0; d < devices; ++d) {
-    auto w = (*dds)->writer<msg::SawStatusPubSubType>(lb::ddsl::topic_name(bench::kLine, bench::device_name(0, d), "status"),
-                                                      lb::ddsl::QosKind::state);
-    if (!w) {
-      std::fprintf(stderr, "bench-can-relay: %s\n", w.error().message.c_str());
-      return 1;
-    }
-    writers.push_back(*w);
-    writers.back().write(samples[static_cast<std::size_t>(d)]);  // as the bridge: the device exists before its data
-  }
-  bench::signal_file(ready_file);
-
-  const timespec no_wait{};
   for (;;) {
     pollfd p{(*bus)->fd(), POLLIN, 0};
     if (::poll(&p, 1, 100) > 0) {
@@ -90,7 +59,7 @@ int main(int argc, char** argv) {
         writers[static_cast<std::size_t>(d)].write(s);
       }
     }
-    if (sigtimedwait(&stop_signals, nullptr, &no_wait) > 0) break;
+    if (stop.requested()) break;
   }
   dds->reset();
   return 0;

@@ -11,36 +11,32 @@
 #include "can/bus.hpp"
 #include "clock.hpp"
 #include "latencies.hpp"
-#include "names.hpp"
+#include "program.hpp"
 #include "proc_stats.hpp"
-#include "rendezvous.hpp"
 #include "saw_stamps.hpp"
 
 namespace bench = lb::bench;
 
 int main(int argc, char** argv) {
-  CLI::App cli{"bench-can-sink: latency of the bare virtual-bus hop"};
-  std::string prefix = "bench";
+  bench::Program program{"bench-can-sink", "latency of the bare virtual-bus hop"};
+  auto& cli = program.cli;
   int bus_index = 0;
   std::uint64_t expect = 10000;
   std::uint64_t warmup = 0;
   double idle_s = 3;
-  std::string out, ready_file;
-  cli.add_option("--prefix", prefix)->capture_default_str();
+  std::string out;
+  program.add_prefix();
   cli.add_option("--bus", bus_index)->capture_default_str();
   cli.add_option("--expect", expect, "stamped frames to receive, warm-up included")->capture_default_str();
   cli.add_option("--warmup", warmup, "first frames left out of the figures")->capture_default_str();
   cli.add_option("--idle", idle_s, "give up after this long without a frame, seconds")->capture_default_str();
   cli.add_option("--out", out, "write every latency (ns), one per line");
-  cli.add_option("--ready", ready_file, "created once the bus is open");
-  CLI11_PARSE(cli, argc, argv);
+  program.add_ready("the bus is open");
+  if (auto rc = program.parse(argc, argv)) return *rc;
 
-  auto bus = lb::can::open_bus(bench::bus_uri(prefix, bus_index));
-  if (!bus) {
-    std::fprintf(stderr, "bench-can-sink: %s\n", bus.error().message.c_str());
-    return 1;
-  }
-  bench::signal_file(ready_file);
+  auto bus = lb::can::open_bus(bench::bus_uri(program.prefix, bus_index));
+  if (!bus) return program.fail(bus.error().message);
+  program.ready();
 
   std::vector<std::int64_t> latencies;
   latencies.reserve(expect);

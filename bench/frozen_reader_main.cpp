@@ -14,26 +14,24 @@
 #include "dds/participant.hpp"
 #include "dds/topic_names.hpp"
 #include "msgs/commonPubSubTypes.h"
-#include "names.hpp"
+#include "program.hpp"
 
 namespace bench = lb::bench;
 namespace msg = linebridge_msgs::msg;
 
 int main(int argc, char** argv) {
-  CLI::App cli{"bench-frozen-reader: reads the bench line's emergencies, then freezes"};
-  int devices = 30;
-  int domain = 0;
+  bench::Program program{"bench-frozen-reader", "reads the bench line's emergencies, then freezes"};
+  auto& cli = program.cli;
   double freeze_after_s = 3;
-  cli.add_option("--devices", devices, "saws on bus 0")->check(CLI::Range(1, bench::kMaxDevicesPerBus))->capture_default_str();
-  cli.add_option("--domain", domain)->check(CLI::Range(0, 232))->capture_default_str();
+  program.add_devices("saws on bus 0");
+  program.add_domain();
   cli.add_option("--freeze-after", freeze_after_s, "seconds of normal reading first")->capture_default_str();
-  CLI11_PARSE(cli, argc, argv);
+  if (auto rc = program.parse(argc, argv)) return *rc;
+  const int devices = program.devices;
+  const int domain = program.domain;
 
   auto dds = lb::ddsl::Participant::create({static_cast<std::uint32_t>(domain), true, "bench-frozen-reader"});
-  if (!dds) {
-    std::fprintf(stderr, "bench-frozen-reader: %s\n", dds.error().message.c_str());
-    return 1;
-  }
+  if (!dds) return program.fail(dds.error().message);
   std::atomic<std::uint64_t> seen{0};
   for (int d = 0; d < devices; ++d) {
     const auto topic = lb::ddsl::topic_name(bench::kLine, bench::device_name(0, d), "emergency");

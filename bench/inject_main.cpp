@@ -13,47 +13,37 @@
 
 #include "can/bus.hpp"
 #include "clock.hpp"
-#include "names.hpp"
-#include "rendezvous.hpp"
+#include "program.hpp"
 #include "saw_stamps.hpp"
 
 namespace bench = lb::bench;
 using namespace std::chrono_literals;
 
 int main(int argc, char** argv) {
-  CLI::App cli{"bench-inject: saw TPDOs with send stamps on N virtual buses"};
-  int buses = 1;
-  int devices = 30;
+  bench::Program program{"bench-inject", "saw TPDOs with send stamps on N virtual buses"};
+  auto& cli = program.cli;
   double rate = 3000;
   std::uint64_t count = 10000;
-  std::string prefix = "bench";
-  std::string ready_file, go_file, stop_file;
-  double linger_s = 2;
-  cli.add_option("--buses", buses)->check(CLI::Range(1, 64))->capture_default_str();
-  cli.add_option("--devices", devices, "saws per bus")->check(CLI::Range(1, bench::kMaxDevicesPerBus))->capture_default_str();
+  program.add_buses();
+  program.add_devices("saws per bus");
   cli.add_option("--rate", rate, "frames per second on each bus")->check(CLI::PositiveNumber)->capture_default_str();
   cli.add_option("--count", count, "frames per bus")->capture_default_str();
-  cli.add_option("--prefix", prefix, "virtual bus names: <prefix>-<i>")->capture_default_str();
-  cli.add_option("--ready", ready_file, "created once the buses are open");
-  cli.add_option("--go", go_file, "start sending once this file exists");
-  cli.add_option("--stop", stop_file, "after sending, keep the hubs up until this file exists (or --linger)");
-  cli.add_option("--linger", linger_s, "at most this long after sending, seconds")->capture_default_str();
-  CLI11_PARSE(cli, argc, argv);
+  program.add_prefix();
+  program.add_ready("the buses are open");
+  program.add_go("start sending");
+  program.add_stop("sending");
+  if (auto rc = program.parse(argc, argv)) return *rc;
+  const int buses = program.buses;
+  const int devices = program.devices;
 
   std::vector<std::unique_ptr<lb::can::Bus>> bus;
   for (int b = 0; b < buses; ++b) {
-    auto opened = lb::can::open_bus(bench::bus_uri(prefix, b));
-    if (!opened) {
-      std::fprintf(stderr, "bench-inject: %s\n", opened.error().message.c_str());
-      return 1;
-    }
+    auto opened = lb::can::open_bus(bench::bus_uri(program.prefix, b));
+    if (!opened) return program.fail(opened.error().message);
     bus.push_back(std::move(*opened));
   }
-  bench::signal_file(ready_file);
-  if (!bench::await_file(go_file, 300s)) {
-    std::fprintf(stderr, "bench-inject: no go within 300 s\n");
-    return 1;
-  }
+  program.ready();
+  if (!program.go()) return 1;
 
   // Frames interleave across buses and, on each bus, cycle through its saws: every saw sends
   // TPDO1 and TPDO2 in turn, as at every SYNC.
@@ -86,10 +76,6 @@ int main(int argc, char** argv) {
              stdout);
   std::fflush(stdout);
 
-  // The hubs live in this process: leaving now would lose the frames they still forward.
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(linger_s);
-  while (!bench::file_exists(stop_file) && std::chrono::steady_clock::now() < deadline) {
-    std::this_thread::sleep_for(10ms);
-  }
+  program.linger();  // the hubs live in this process: leaving now would lose the frames they still forward
   return 0;
 }

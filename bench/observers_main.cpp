@@ -10,7 +10,6 @@
 #include <chrono>
 #include <csignal>
 #include <cstdio>
-#include <fstream>
 #include <memory>
 #include <thread>
 #include <vector>
@@ -19,44 +18,35 @@
 #include "dds/topic_names.hpp"
 #include "msgs/commonPubSubTypes.h"
 #include "msgs/sawPubSubTypes.h"
-#include "names.hpp"
+#include "program.hpp"
 #include "security_option.hpp"
+#include "stop_signals.hpp"
 
 namespace bench = lb::bench;
 namespace msg = linebridge_msgs::msg;
 using namespace std::chrono_literals;
 
-namespace {
-std::atomic<bool> stop_requested{false};
-void on_signal(int) { stop_requested = true; }
-}  // namespace
-
 int main(int argc, char** argv) {
-  CLI::App cli{"bench-observers: N observer participants reading every status topic of the bench line"};
+  bench::Program program{"bench-observers", "N observer participants reading every status topic of the bench line"};
+  auto& cli = program.cli;
   int count = 20;
-  int devices = 30;
-  int domain = 0;
-  std::string ready_file;
   lb::bench::SecurityOption security;
   cli.add_option("--participants", count, "observer participants")->check(CLI::Range(1, 200))->capture_default_str();
-  cli.add_option("--devices", devices, "saws on bus 0")->check(CLI::Range(1, bench::kMaxDevicesPerBus))->capture_default_str();
-  cli.add_option("--domain", domain)->check(CLI::Range(0, 232))->capture_default_str();
-  cli.add_option("--ready", ready_file, "created once every observer has a matched writer on every saw's status topic");
+  program.add_devices("saws on bus 0");
+  program.add_domain();
+  program.add_ready("every observer has a matched writer on every saw's status topic");
   security.add(cli);
-  CLI11_PARSE(cli, argc, argv);
-  std::signal(SIGTERM, on_signal);
-  std::signal(SIGINT, on_signal);
+  if (auto rc = program.parse(argc, argv)) return *rc;
+  const int devices = program.devices;
+  bench::StopSignals stop;  // before the participants' threads start
 
   std::atomic<std::uint64_t> samples{0};
   std::vector<std::unique_ptr<lb::ddsl::Participant>> observers;
   std::vector<std::string> status_topics;
   for (int d = 0; d < devices; ++d) status_topics.push_back(lb::ddsl::topic_name(bench::kLine, bench::device_name(0, d), "status"));
   for (int i = 0; i < count; ++i) {
-    auto dds = lb::ddsl::Participant::create(security.options(domain, fmt::format("bench-observer-{}", i)));
-    if (!dds) {
-      std::fprintf(stderr, "bench-observers: %s\n", dds.error().message.c_str());
-      return 1;
-    }
+    auto dds = lb::ddsl::Participant::create(security.options(program.domain, fmt::format("bench-observer-{}", i)));
+    if (!dds) return program.fail(dds.error().message);
     for (int d = 0; d < devices; ++d) {
       auto s = (*dds)->subscribe<msg::SawStatusPubSubType>(status_topics[static_cast<std::size_t>(d)], lb::ddsl::QosKind::state,
                                                            [&samples](const msg::SawStatus&, const auto&) { ++samples; });
@@ -64,22 +54,18 @@ int main(int argc, char** argv) {
                                                            lb::ddsl::QosKind::event,
                                                            [&samples](const msg::Emergency&, const auto&) { ++samples; });
       if (!s || !e) {
-        std::fprintf(stderr, "bench-observers: %s\n", (!s ? s.error() : e.error()).message.c_str());
-        return 1;
+        return program.fail((!s ? s.error() : e.error()).message);
       }
     }
     auto g = (*dds)->subscribe<msg::DiagnosticsPubSubType>(lb::ddsl::topic_name(bench::kLine, "bridge", "diagnostics"),
                                                            lb::ddsl::QosKind::state,
                                                            [&samples](const msg::Diagnostics&, const auto&) { ++samples; });
-    if (!g) {
-      std::fprintf(stderr, "bench-observers: %s\n", g.error().message.c_str());
-      return 1;
-    }
+    if (!g) return program.fail(g.error().message);
     observers.push_back(std::move(*dds));
   }
   bool ready = false;
   const auto started = std::chrono::steady_clock::now();
-  while (!stop_requested) {
+  while (!stop.requested()) {
     if (!ready) {
       bool matched = true;
       for (auto& o : observers) {
@@ -90,7 +76,7 @@ int main(int argc, char** argv) {
         std::printf("observers_matched_after_ms=%lld\n",
                     static_cast<long long>(std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now() - started).count()));
         std::fflush(stdout);
-        if (!ready_file.empty()) std::ofstream(ready_file) << "ready\n";
+        program.ready();
       }
     }
     std::this_thread::sleep_for(100ms);

@@ -29,6 +29,7 @@
 #include "can/unique_fd.hpp"
 #include "clock.hpp"
 #include "latencies.hpp"
+#include "program.hpp"
 
 namespace bench = lb::bench;
 
@@ -51,7 +52,8 @@ class NullBus final : public lb::can::Bus {
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App cli{"bench-record-handoff: the bus loop's cost of recording to a slow disk"};
+  bench::Program program{"bench-record-handoff", "the bus loop's cost of recording to a slow disk"};
+  auto& cli = program.cli;
   double duration_s = 30;
   int rate = 8000;
   int drain_bytes_per_s = 16384;
@@ -64,7 +66,7 @@ int main(int argc, char** argv) {
       ->check(CLI::Range(0, 99))
       ->capture_default_str();
   cli.add_option("--hogs", hogs, "busy threads at normal priority")->check(CLI::Range(0, 16))->capture_default_str();
-  CLI11_PARSE(cli, argc, argv);
+  if (auto rc = program.parse(argc, argv)) return *rc;
 
   char dir_template[] = "/tmp/record-handoff.XXXXXX";
   const char* dir = ::mkdtemp(dir_template);
@@ -104,7 +106,7 @@ int main(int argc, char** argv) {
     sched_param sp{};
     sp.sched_priority = priority;
     if (const int e = ::pthread_setschedparam(::pthread_self(), SCHED_FIFO, &sp); e != 0) {
-      std::fprintf(stderr, "bench-record-handoff: SCHED_FIFO %d refused (%d): run as root or with CAP_SYS_NICE\n", priority, e);
+      program.fail(fmt::format("SCHED_FIFO {} refused ({}): run as root or with CAP_SYS_NICE", priority, e));
       done = true;
       for (auto& t : others) t.join();
       return 1;

@@ -24,7 +24,7 @@
 #include "dds/topic_names.hpp"
 #include "msgs/commonPubSubTypes.h"
 #include "msgs/sawPubSubTypes.h"
-#include "names.hpp"
+#include "program.hpp"
 
 namespace bench = lb::bench;
 namespace msg = linebridge_msgs::msg;
@@ -164,26 +164,24 @@ void setpoint_writer(int id, std::uint32_t domain, int devices, Clock::time_poin
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App cli{"bench-request-flood: service calls and set values from several applications, as fast as they go"};
-  int devices = 30;
-  int domain = 0;
+  bench::Program program{"bench-request-flood", "service calls and set values from several applications, as fast as they go"};
+  auto& cli = program.cli;
   int clients = 3;
   int writers = 2;
   double duration_s = 60;
-  cli.add_option("--devices", devices, "saws on bus 0")->check(CLI::Range(1, bench::kMaxDevicesPerBus))->capture_default_str();
-  cli.add_option("--domain", domain)->check(CLI::Range(0, 232))->capture_default_str();
+  program.add_devices("saws on bus 0");
+  program.add_domain();
   cli.add_option("--clients", clients, "service-calling applications")->check(CLI::Range(0, 32))->capture_default_str();
   cli.add_option("--writers", writers, "set-value-writing applications")->check(CLI::Range(0, 32))->capture_default_str();
   cli.add_option("--duration", duration_s, "seconds")->check(CLI::Range(1.0, 86400.0))->capture_default_str();
-  CLI11_PARSE(cli, argc, argv);
+  if (auto rc = program.parse(argc, argv)) return *rc;
+  const int devices = program.devices;
+  const int domain = program.domain;
 
   const auto dom = static_cast<std::uint32_t>(domain);
   // The bridge's own count of what it refused and lost, from its diagnostics (state: the latest).
   auto observer = lb::ddsl::Participant::create({dom, true, "bench-request-flood-observer"});
-  if (!observer) {
-    std::fprintf(stderr, "bench-request-flood: %s\n", observer.error().message.c_str());
-    return 1;
-  }
+  if (!observer) return program.fail(observer.error().message);
   std::mutex diag_mutex;
   msg::Diagnostics last_diag;
   bool have_diag = false;

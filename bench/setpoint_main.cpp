@@ -19,8 +19,7 @@
 #include "dds/topic_names.hpp"
 #include "latencies.hpp"
 #include "msgs/sawPubSubTypes.h"
-#include "names.hpp"
-#include "rendezvous.hpp"
+#include "program.hpp"
 #include "saw_stamps.hpp"
 #include "security_option.hpp"
 
@@ -59,54 +58,43 @@ std::optional<std::int64_t> await_rpdo(lb::can::Bus& bus, std::uint8_t node, std
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App cli{"bench-setpoint: latency of a saw set value from a DDS write to its RPDO1 on the bus"};
-  std::string prefix = "bench";
-  int domain = 0;
+  bench::Program program{"bench-setpoint", "latency of a saw set value from a DDS write to its RPDO1 on the bus"};
+  auto& cli = program.cli;
   std::uint64_t count = 2000;
   std::uint64_t warmup = 100;
   double warmup_timeout_s = 60;
   int gap_min_us = 1000, gap_max_us = 3000;
-  std::string out, ready_file, go_file;
-  cli.add_option("--prefix", prefix)->capture_default_str();
-  cli.add_option("--domain", domain)->capture_default_str();
+  std::string out;
+  program.add_prefix();
+  program.add_domain();
   cli.add_option("--count", count, "timed set values")->capture_default_str();
   cli.add_option("--warmup", warmup, "set values that must arrive before timing starts")->capture_default_str();
   cli.add_option("--warmup-timeout", warmup_timeout_s, "seconds for the warm-up (device boot included)")->capture_default_str();
   cli.add_option("--gap-min-us", gap_min_us)->capture_default_str();
   cli.add_option("--gap-max-us", gap_max_us)->capture_default_str();
   cli.add_option("--out", out, "write every latency (ns), one per line");
-  cli.add_option("--ready", ready_file, "created once the bus is open");
-  cli.add_option("--go", go_file, "start once this file exists");
+  program.add_ready("the bus is open");
+  program.add_go("start");
   bench::SecurityOption security;
   security.add(cli);
-  CLI11_PARSE(cli, argc, argv);
+  if (auto rc = program.parse(argc, argv)) return *rc;
 
   // The bus first: this process hosts the hub, whoever starts next.
-  auto bus = lb::can::open_bus(bench::bus_uri(prefix, 0));
-  if (!bus) {
-    std::fprintf(stderr, "bench-setpoint: %s\n", bus.error().message.c_str());
-    return 1;
-  }
-  bench::signal_file(ready_file);
-  auto dds = lb::ddsl::Participant::create(security.options(domain, "bench-setpoint"));
-  if (!dds) {
-    std::fprintf(stderr, "bench-setpoint: %s\n", dds.error().message.c_str());
-    return 1;
-  }
+  auto bus = lb::can::open_bus(bench::bus_uri(program.prefix, 0));
+  if (!bus) return program.fail(bus.error().message);
+  program.ready();
+  auto dds = lb::ddsl::Participant::create(security.options(program.domain, program.name()));
+  if (!dds) return program.fail(dds.error().message);
   const std::string device = bench::device_name(0, 0);
   const std::uint8_t node = bench::node_id(0);
   auto writer = (*dds)->writer<msg::SawSetpointPubSubType>(lb::ddsl::topic_name(bench::kLine, device, "setpoint"),
                                                            lb::ddsl::QosKind::command);
-  if (!writer) {
-    std::fprintf(stderr, "bench-setpoint: %s\n", writer.error().message.c_str());
-    return 1;
-  }
-  if (!bench::await_file(go_file, 300s)) return 1;
+  if (!writer) return program.fail(writer.error().message);
+  if (!program.go()) return 1;
   const auto match_deadline = Clock::now() + 60s;
   while (writer->matched() == 0) {
     if (Clock::now() > match_deadline) {
-      std::fprintf(stderr, "bench-setpoint: nobody subscribes to %s's set values\n", device.c_str());
-      return 1;
+      return program.fail("nobody subscribes to " + device + "'s set values");
     }
     std::this_thread::sleep_for(10ms);
   }

@@ -23,7 +23,7 @@
 #include "dds/participant.hpp"
 #include "dds/topic_names.hpp"
 #include "msgs/sawPubSubTypes.h"
-#include "names.hpp"
+#include "program.hpp"
 #include "proc_stats.hpp"
 #include "security_option.hpp"
 
@@ -64,18 +64,17 @@ pid_t spawn(std::vector<std::string> argv, const std::string& log) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App cli{"bench-startup: from process start to the first status sample"};
-  int buses = 1;
-  int devices = 1;
-  int domain = 0;
+  bench::Program program{"bench-startup", "from process start to the first status sample"};
+  auto& cli = program.cli;
+  program.devices = 1;
   double timeout_s = 30;
   double settle_s = 2;
   int quiet_ms = 500;
   std::string log = "/dev/null";
   std::vector<std::string> command;
-  cli.add_option("--buses", buses)->capture_default_str();
-  cli.add_option("--devices", devices, "saws per bus")->capture_default_str();
-  cli.add_option("--domain", domain)->capture_default_str();
+  program.add_buses();
+  program.add_devices("saws per bus");
+  program.add_domain();
   cli.add_option("--timeout", timeout_s)->capture_default_str();
   cli.add_option("--settle", settle_s, "seconds after the last first sample before reading memory")->capture_default_str();
   cli.add_option("--quiet-ms", quiet_ms, "wait this long after subscribing before starting the bridge")->capture_default_str();
@@ -85,16 +84,15 @@ int main(int argc, char** argv) {
   cli.add_option("command", command, "the bridge command line (after --)")->required();
   bench::SecurityOption security;
   security.add(cli);
-  CLI11_PARSE(cli, argc, argv);
+  if (auto rc = program.parse(argc, argv)) return *rc;
+  const int buses = program.buses;
+  const int devices = program.devices;
 
   FirstSamples first;  // outlives the participant's listeners
   first.seen.assign(static_cast<std::size_t>(buses * devices), false);
   first.online.assign(first.seen.size(), false);
-  auto dds = lb::ddsl::Participant::create(security.options(domain, "bench-startup"));
-  if (!dds) {
-    std::fprintf(stderr, "bench-startup: %s\n", dds.error().message.c_str());
-    return 1;
-  }
+  auto dds = lb::ddsl::Participant::create(security.options(program.domain, program.name()));
+  if (!dds) return program.fail(dds.error().message);
   for (int b = 0; b < buses; ++b) {
     for (int d = 0; d < devices; ++d) {
       const auto index = static_cast<std::size_t>(b * devices + d);
@@ -115,10 +113,7 @@ int main(int argc, char** argv) {
             }
             first.cv.notify_all();
           });
-      if (!sub) {
-        std::fprintf(stderr, "bench-startup: %s\n", sub.error().message.c_str());
-        return 1;
-      }
+      if (!sub) return program.fail(sub.error().message);
     }
   }
   // By default our own initial announcements are over: the bridge finds a running application.
@@ -127,8 +122,7 @@ int main(int argc, char** argv) {
   const auto t0 = bench::realtime_ns();
   const pid_t pid = spawn(command, log);
   if (pid <= 0) {
-    std::fprintf(stderr, "bench-startup: cannot start %s\n", command.front().c_str());
-    return 1;
+    return program.fail("cannot start " + command.front());
   }
   bool all = false;
   {

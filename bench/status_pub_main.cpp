@@ -12,67 +12,48 @@
 
 #include "clock.hpp"
 #include "dds/participant.hpp"
-#include "dds/topic_names.hpp"
-#include "msgs/sawPubSubTypes.h"
-#include "names.hpp"
 #include "proc_stats.hpp"
-#include "rendezvous.hpp"
+#include "program.hpp"
 #include "saw_stamps.hpp"
+#include "status_writers.hpp"
 #include "security_option.hpp"
 
 namespace bench = lb::bench;
-namespace msg = linebridge_msgs::msg;
 using namespace std::chrono_literals;
 
 int main(int argc, char** argv) {
-  CLI::App cli{"bench-status-pub: saw status samples from a bare Fast DDS writer"};
-  int devices = 30;
-  int domain = 0;
+  bench::Program program{"bench-status-pub", "saw status samples from a bare Fast DDS writer"};
+  auto& cli = program.cli;
   double rate = 3000;
   std::uint64_t count = 10000;
-  std::string ready_file, go_file, stop_file;
-  double linger_s = 2;
-  cli.add_option("--devices", devices, "saws (of bus 0)")->capture_default_str();
-  cli.add_option("--domain", domain)->capture_default_str();
+  program.add_devices("saws on bus 0");
+  program.add_domain();
   cli.add_option("--rate", rate, "samples per second")->check(CLI::PositiveNumber)->capture_default_str();
   cli.add_option("--count", count, "samples")->capture_default_str();
-  cli.add_option("--ready", ready_file, "created once every writer has a matched reader");
-  cli.add_option("--go", go_file, "start writing once this file exists");
-  cli.add_option("--stop", stop_file, "after writing, stay until this file exists (or --linger)");
-  cli.add_option("--linger", linger_s, "at most this long after writing, seconds")->capture_default_str();
+  program.add_ready("every writer has a matched reader");
+  program.add_go("start writing");
+  program.add_stop("writing");
   bench::SecurityOption security;
   security.add(cli);
-  CLI11_PARSE(cli, argc, argv);
+  if (auto rc = program.parse(argc, argv)) return *rc;
+  const int devices = program.devices;
 
-  auto dds = lb::ddsl::Participant::create(security.options(domain, "bench-status-pub"));
-  if (!dds) {
-    std::fprintf(stderr, "bench-status-pub: %s\n", dds.error().message.c_str());
-    return 1;
-  }
-  std::vector<lb::ddsl::Writer<msg::SawStatusPubSubType>> writers;
-  std::vector<msg::SawStatus> samples(static_cast<std::size_t>(devices));
-  for (int d = 0; d < devices; ++d) {
-    auto w = (*dds)->writer<msg::SawStatusPubSubType>(lb::ddsl::topic_name(bench::kLine, bench::device_name(0, d), "status"),
-                                                      lb::ddsl::QosKind::state);
-    if (!w) {
-      std::fprintf(stderr, "bench-status-pub: %s\n", w.error().message.c_str());
-      return 1;
-    }
-    writers.push_back(*w);
-    writers.back().write(samples[static_cast<std::size_t>(d)]);  // as the bridge: the device exists before its data
-  }
+  auto dds = lb::ddsl::Participant::create(security.options(program.domain, program.name()));
+  if (!dds) return program.fail(dds.error().message);
+  auto status = bench::status_writers(**dds, devices);
+  if (!status) return program.fail(status.error().message);
+  auto& [writers, samples] = *status;
   const auto deadline = std::chrono::steady_clock::now() + 60s;
   for (const auto& w : writers) {
     while (w.matched() == 0) {
       if (std::chrono::steady_clock::now() > deadline) {
-        std::fprintf(stderr, "bench-status-pub: no reader matched\n");
-        return 1;
+        return program.fail("no reader matched");
       }
       std::this_thread::sleep_for(10ms);
     }
   }
-  bench::signal_file(ready_file);
-  if (!bench::await_file(go_file, 300s)) return 1;
+  program.ready();
+  if (!program.go()) return 1;
 
   std::vector<std::uint32_t> k(static_cast<std::size_t>(devices), 0);
   std::uint64_t refused = 0;
@@ -98,8 +79,6 @@ int main(int argc, char** argv) {
                  .c_str(),
              stdout);
   std::fflush(stdout);
-  // Reliable delivery of the last samples needs the writer alive.
-  const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(linger_s);
-  while (!bench::file_exists(stop_file) && std::chrono::steady_clock::now() < until) std::this_thread::sleep_for(10ms);
+  program.linger();  // reliable delivery of the last samples needs the writer alive
   return 0;
 }

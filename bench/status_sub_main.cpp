@@ -19,8 +19,7 @@
 #include "latencies.hpp"
 #include "msgs/commonPubSubTypes.h"
 #include "msgs/sawPubSubTypes.h"
-#include "names.hpp"
-#include "rendezvous.hpp"
+#include "program.hpp"
 #include "saw_stamps.hpp"
 #include "security_option.hpp"
 
@@ -48,40 +47,37 @@ struct Tally {
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App cli{"bench-status-sub: times and counts the saw status samples of the bench line"};
-  int buses = 1;
-  int devices = 30;
-  int domain = 0;
+  bench::Program program{"bench-status-sub", "times and counts the saw status samples of the bench line"};
+  auto& cli = program.cli;
   std::uint64_t expect = 10000;
   std::uint64_t warmup = 0;
   double idle_s = 3;
   double timeout_s = 600;
   bool diagnostics = false;
-  std::string out, ready_file, name = "bench-sub";
-  cli.add_option("--buses", buses)->capture_default_str();
-  cli.add_option("--devices", devices, "saws per bus")->capture_default_str();
-  cli.add_option("--domain", domain)->capture_default_str();
+  std::string out, name = "bench-sub";
+  program.add_buses();
+  program.add_devices("saws per bus");
+  program.add_domain();
   cli.add_option("--expect", expect, "stamped samples to receive, warm-up included")->capture_default_str();
   cli.add_option("--warmup", warmup, "first samples left out of the latency figures")->capture_default_str();
   cli.add_option("--idle", idle_s, "stop after this long without a sample, once samples flowed")->capture_default_str();
   cli.add_option("--timeout", timeout_s, "stop after this long in any case")->capture_default_str();
   cli.add_flag("--diagnostics", diagnostics, "also report the bridge's own counters (rt/bench/bridge/diagnostics)");
   cli.add_option("--out", out, "write every latency (ns), one per line");
-  cli.add_option("--ready", ready_file, "created once every status topic has a matched writer");
+  program.add_ready("every status topic has a matched writer");
   cli.add_option("--name", name, "participant name")->capture_default_str();
   bench::SecurityOption security;
   security.add(cli);
-  CLI11_PARSE(cli, argc, argv);
+  if (auto rc = program.parse(argc, argv)) return *rc;
+  const int buses = program.buses;
+  const int devices = program.devices;
 
   // Declared before the participant, so they outlive every listener call.
   Tally tally;
   tally.latencies.reserve(expect);
   std::vector<bench::StampDecoder> decoders(static_cast<std::size_t>(buses * devices));
-  auto dds = lb::ddsl::Participant::create(security.options(domain, name));
-  if (!dds) {
-    std::fprintf(stderr, "bench-status-sub: %s\n", dds.error().message.c_str());
-    return 1;
-  }
+  auto dds = lb::ddsl::Participant::create(security.options(program.domain, name));
+  if (!dds) return program.fail(dds.error().message);
   std::vector<std::string> topics;
   for (int b = 0; b < buses; ++b) {
     for (int d = 0; d < devices; ++d) {
@@ -110,10 +106,7 @@ int main(int argc, char** argv) {
             // this process as much as receiving the sample.
           },
           100);  // deeper than keep-last 1, so a burst is not thinned out on the reading side
-      if (!sub) {
-        std::fprintf(stderr, "bench-status-sub: %s\n", sub.error().message.c_str());
-        return 1;
-      }
+      if (!sub) return program.fail(sub.error().message);
     }
   }
   if (diagnostics) {
@@ -126,10 +119,7 @@ int main(int argc, char** argv) {
           tally.diag_at = Clock::now();
           tally.cv.notify_all();
         });
-    if (!sub) {
-      std::fprintf(stderr, "bench-status-sub: %s\n", sub.error().message.c_str());
-      return 1;
-    }
+    if (!sub) return program.fail(sub.error().message);
   }
 
   const auto deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(timeout_s));
@@ -137,12 +127,11 @@ int main(int argc, char** argv) {
     matched = true;
     for (const auto& t : topics) matched = matched && (*dds)->matched_writers(t) > 0;
     if (Clock::now() > deadline) {
-      std::fprintf(stderr, "bench-status-sub: not every status topic has a writer\n");
-      return 1;
+      return program.fail("not every status topic has a writer");
     }
     if (!matched) std::this_thread::sleep_for(10ms);
   }
-  bench::signal_file(ready_file);
+  program.ready();
 
   const auto idle = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(idle_s));
   Clock::time_point finished;

@@ -24,6 +24,9 @@
 #include "msgs/sawPubSubTypes.h"
 #include "support/bus_spy.hpp"
 #include "support/child_process.hpp"
+#include "support/line_harness.hpp"
+#include "support/simulated_saw.hpp"
+#include "support/saw_setpoints.hpp"
 
 using namespace std::chrono_literals;
 namespace msg = linebridge_msgs::msg;
@@ -81,7 +84,6 @@ struct Seen {
     std::array<std::uint8_t, 12> writer{};
   };
   std::vector<Status> status;
-  std::vector<msg::SetpointResult> results;
   msg::Diagnostics diagnostics;
   template <class Pred>
   bool wait(Clock::duration timeout, Pred pred) {
@@ -96,31 +98,9 @@ class BusIsolation : public ::testing::Test {
  protected:
   void SetUp() override {
     ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
-    const std::string tag = std::to_string(::getpid());
-    bus_uri_ = "virtual:iso-" + tag;
-    config_path_ = ::testing::TempDir() + "/iso_line_" + tag + ".yaml";
-    std::ofstream(config_path_) << "line: iso\n"
-                                   "dds: {domain: 11, localhost_only: true}\n"
-                                   "buses:\n"
-                                   "  - {name: ext, interface: '" + bus_uri_ + "', role: master, sync_period_ms: 20, realtime_priority: 20}\n"
-                                   "devices:\n"
-                                   "  - name: saw1\n"
-                                   "    bus: ext\n"
-                                   "    node_id: 5\n"
-                                   "    profile: cia420-4\n"
-                                   "    version: '3.1'\n"
-                                   "    heartbeat_timeout_ms: 400\n"
-                                   "    simulation: {max_speed_m_per_min: 60, acceleration_m_per_min_s: 6000, heartbeat_period_ms: 100}\n";
-    spy_ = std::make_unique<lb::test::BusSpy>(bus_uri_);
-    sim_ = std::make_unique<lb::test::ChildProcess>(std::vector<std::string>{LB_BIN_SIM, "--config", config_path_},
-                                                    ::testing::TempDir() + "/iso_sim_" + tag + ".log");
-    bridge_ = std::make_unique<lb::test::ChildProcess>(std::vector<std::string>{LB_BIN_BRIDGE, "--config", config_path_},
-                                                       ::testing::TempDir() + "/iso_bridge_" + tag + ".log");
-    auto dds = lb::ddsl::Participant::create({11, true, "iso-test"});
-    ASSERT_TRUE(dds) << dds.error().message;
-    dds_ = std::move(*dds);
+    line_.start(lb::test::simulated_saw("b"), "", ", role: master, sync_period_ms: 20, realtime_priority: 20");
     const auto topic = [](const char* t) { return lb::ddsl::topic_name("iso", "saw1", t); };
-    ASSERT_TRUE(dds_->subscribe<msg::SawStatusPubSubType>(
+    ASSERT_TRUE(line_.dds().subscribe<msg::SawStatusPubSubType>(
         topic("status"), lb::ddsl::QosKind::state,
         [this](const msg::SawStatus&, const eprosima::fastdds::dds::SampleInfo& info) {
           std::lock_guard lock(seen_.m);
@@ -131,56 +111,31 @@ class BusIsolation : public ::testing::Test {
           seen_.cv.notify_all();
         },
         1000));
-    ASSERT_TRUE(dds_->subscribe<msg::SetpointResultPubSubType>(topic("setpoint_result"), lb::ddsl::QosKind::reply,
-                                                               [this](const msg::SetpointResult& r, const auto&) {
-                                                                 std::lock_guard lock(seen_.m);
-                                                                 seen_.results.push_back(r);
-                                                                 seen_.cv.notify_all();
-                                                               }));
-    ASSERT_TRUE(dds_->subscribe<msg::DiagnosticsPubSubType>(lb::ddsl::topic_name("iso", lb::ddsl::kBridgeNamespace, "diagnostics"),
+    ASSERT_TRUE(line_.dds().subscribe<msg::DiagnosticsPubSubType>(lb::ddsl::topic_name("iso", lb::ddsl::kBridgeNamespace, "diagnostics"),
                                                             lb::ddsl::QosKind::state,
                                                             [this](const msg::Diagnostics& d, const auto&) {
                                                               std::lock_guard lock(seen_.m);
                                                               seen_.diagnostics = d;
                                                               seen_.cv.notify_all();
                                                             }));
-    auto w = dds_->writer<msg::SawSetpointPubSubType>(topic("setpoint"), lb::ddsl::QosKind::command);
-    ASSERT_TRUE(w);
-    setpoint_ = *w;
+    ASSERT_TRUE(setpoints_.open(line_.dds(), "iso", "saw1"));
   }
 
   void TearDown() override {
-    dds_.reset();
-    if (bridge_) {
-      EXPECT_EQ(bridge_->stop(), 0) << "the bridge did not exit cleanly on SIGTERM\n" << logs();
+    if (line_.started()) {
+      EXPECT_EQ(line_.bridge().stop(), 0) << "the bridge did not exit cleanly on SIGTERM\n" << logs();
     }
-    if (sim_) sim_->stop();
   }
 
-  std::string logs() const {
-    return "--- bridge log ---\n" + (bridge_ ? bridge_->log() : "") + "--- sim log ---\n" + (sim_ ? sim_->log() : "");
-  }
+  std::string logs() const { return line_.logs(); }
 
   void write(std::uint32_t request_id, double percent, double length_m) {
-    msg::SawSetpoint sp;
-    sp.request_id(request_id);
-    sp.saw_program_on(true);
-    sp.sync_speed_percent(percent);
-    sp.product_length_m(length_m);
-    sp.count_mode(msg::SMOOTH_PIPE);
-    ASSERT_TRUE(setpoint_.write(sp));
-  }
-  bool answered(std::uint32_t request_id) {
-    return std::any_of(seen_.results.begin(), seen_.results.end(),
-                       [&](const msg::SetpointResult& r) { return r.request_id() == request_id; });
+    ASSERT_TRUE(setpoints_.write(request_id, true, percent, length_m));
   }
 
-  std::string bus_uri_, config_path_;
-  std::unique_ptr<lb::test::BusSpy> spy_;
-  std::unique_ptr<lb::test::ChildProcess> sim_, bridge_;
-  std::unique_ptr<lb::ddsl::Participant> dds_;
-  lb::ddsl::Writer<msg::SawSetpointPubSubType> setpoint_;
-  Seen seen_;
+  Seen seen_;  // before line_: its participant (and every listener call) goes first
+  lb::test::SawSetpoints setpoints_;
+  lb::test::LineHarness line_{"iso", 11};
 };
 
 TEST_F(BusIsolation, KillingTheDdsProcessTwentyTimesChangesNothingOnTheBus) {
@@ -188,26 +143,25 @@ TEST_F(BusIsolation, KillingTheDdsProcessTwentyTimesChangesNothingOnTheBus) {
   // SawLine: control word 0005h, 50.00 % = 1388h, 0.5 m = 1388h in 0.1 mm).
   ASSERT_TRUE(seen_.wait(30s, [&] { return !seen_.status.empty(); })) << logs();
   const auto matched_deadline = Clock::now() + 20s;
-  while (setpoint_.matched() == 0 && Clock::now() < matched_deadline) std::this_thread::sleep_for(20ms);
+  while (setpoints_.writer().matched() == 0 && Clock::now() < matched_deadline) std::this_thread::sleep_for(20ms);
   std::uint32_t request = 1;
   const std::array<std::uint8_t, 8> in_force{0x05, 0x00, 0x88, 0x13, 0x88, 0x13, 0x00, 0x00};
   bool accepted = false;
   for (int attempt = 0; attempt < 20 && !accepted; ++attempt) {  // the saw may still be booting
     write(++request, 50.0, 0.5);
-    seen_.wait(2s, [&] { return answered(request); });
-    std::lock_guard lock(seen_.m);
-    accepted = answered(request) && seen_.results.back().accepted();
+    const auto answer = setpoints_.answer(request, 2s);
+    accepted = answer && answer->accepted();
   }
   ASSERT_TRUE(accepted) << logs();
   const auto on_bus_deadline = Clock::now() + 10s;
   bool on_bus = false;
   while (!on_bus && Clock::now() < on_bus_deadline) {
-    const auto f = spy_->frames(0x200 + kNode);
+    const auto f = line_.spy().frames(0x200 + kNode);
     on_bus = !f.empty() && f.back().data == in_force;
     std::this_thread::sleep_for(20ms);
   }
   ASSERT_TRUE(on_bus) << "RPDO1 with the set value never on the bus\n" << logs();
-  spy_->clear();  // from here on every frame is checked
+  line_.spy().clear();  // from here on every frame is checked
 
   std::mt19937 rng(std::random_device{}());
   std::uniform_int_distribution<int> pause_ms(50, 800);
@@ -216,7 +170,7 @@ TEST_F(BusIsolation, KillingTheDdsProcessTwentyTimesChangesNothingOnTheBus) {
   for (int kill = 0; kill < kKills; ++kill) {
     std::vector<pid_t> children;
     const auto child_deadline = Clock::now() + 20s;
-    while ((children = children_of(bridge_->pid())).size() != 1 && Clock::now() < child_deadline) {
+    while ((children = children_of(line_.bridge().pid())).size() != 1 && Clock::now() < child_deadline) {
       std::this_thread::sleep_for(10ms);
     }
     ASSERT_EQ(children.size(), 1u) << "the bridge has no DDS process (kill " << kill << ")\n" << logs();
@@ -245,22 +199,23 @@ TEST_F(BusIsolation, KillingTheDdsProcessTwentyTimesChangesNothingOnTheBus) {
   // On DDS: the bus process counted every DDS process that connected (diagnostics, republished by each).
   EXPECT_TRUE(seen_.wait(20s, [&] { return seen_.diagnostics.dds_side().connects() >= kKills + 1; }))
       << "connects " << seen_.diagnostics.dds_side().connects() << "\n" << logs();
-  {
-    std::lock_guard lock(seen_.m);
-    for (const auto r : written_while_down) EXPECT_FALSE(answered(r)) << "a set value written while the DDS side was down was answered";
+  const auto results = setpoints_.results().samples();
+  for (const auto r : written_while_down) {
+    EXPECT_FALSE(std::any_of(results.begin(), results.end(), [r](const msg::SetpointResult& a) { return a.request_id() == r; }))
+        << "a set value written while the DDS side was down was answered";
   }
 
   // On the bus, over the whole run.
-  const auto sync = spy_->frames(0x80);
+  const auto sync = line_.spy().frames(0x80);
   ASSERT_GT(sync.size(), 100u);
   std::int64_t widest = 0;
   for (std::size_t i = 1; i < sync.size(); ++i) widest = std::max(widest, sync[i].timestamp_ns - sync[i - 1].timestamp_ns);
-  const auto rpdos = spy_->frames(0x200 + kNode);
+  const auto rpdos = line_.spy().frames(0x200 + kNode);
   ASSERT_GT(rpdos.size(), 100u);
   std::size_t other_rpdos = 0;
   for (const auto& f : rpdos) other_rpdos += f.data != in_force ? 1 : 0;
   std::size_t not_operational = 0;
-  const auto heartbeats = spy_->frames(0x700 + kNode);
+  const auto heartbeats = line_.spy().frames(0x700 + kNode);
   for (const auto& f : heartbeats) not_operational += (f.len != 1 || f.data[0] != 0x05) ? 1 : 0;
 
   std::sort(back_ms.begin(), back_ms.end());
@@ -280,5 +235,5 @@ TEST_F(BusIsolation, KillingTheDdsProcessTwentyTimesChangesNothingOnTheBus) {
   if (!kSanitized) {
     EXPECT_LT(back_ms[back_ms.size() / 2], 1000.0) << summary.str();
   }
-  EXPECT_TRUE(bridge_->running()) << logs();
+  EXPECT_TRUE(line_.bridge().running()) << logs();
 }

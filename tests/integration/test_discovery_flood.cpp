@@ -26,6 +26,7 @@
 #include "dds/topic_names.hpp"
 #include "gateways/bridge_runs.hpp"
 #include "msgs/commonPubSubTypes.h"
+#include "support/eventually.hpp"
 #include "support/line_harness.hpp"
 #include "support/test_pki.hpp"
 
@@ -52,14 +53,7 @@ const std::string kDevices =
 
 using ReadClient = lb::ddsl::ServiceClient<srv::SdoRead_RequestPubSubType, srv::SdoRead_ResponsePubSubType>;
 
-bool eventually(Clock::duration timeout, const std::function<bool()>& cond) {
-  const auto end = Clock::now() + timeout;
-  while (!cond()) {
-    if (Clock::now() > end) return false;
-    std::this_thread::sleep_for(20ms);
-  }
-  return true;
-}
+using lb::test::eventually;
 
 // The widest gap between consecutive SYNCs the spy saw stamped at or after `from_ns`, and how
 // many it saw.

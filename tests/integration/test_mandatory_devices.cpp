@@ -157,8 +157,7 @@ TEST_F(MandatoryDevicesLine, ALostMandatoryDeviceStopsTheOthersUntilAnOperatorSt
   line.start(line_devices(), pullers());
   start_saw(line);
   ASSERT_TRUE(diag.subscribe(line.dds(), line.topic("bridge", "diagnostics"), QosKind::state));
-  lb::test::Collector<msg::SetpointResultPubSubType> results;
-  ASSERT_TRUE(results.subscribe(line.dds(), line.topic("puller1", "setpoint_result"), QosKind::reply));
+  auto results = line.collect<msg::SetpointResultPubSubType>("puller1", "setpoint_result", QosKind::reply);
   auto setpoint = line.dds().writer<msg::PullerSetpointPubSubType>(line.topic("puller1", "setpoint"), QosKind::command);
   ASSERT_TRUE(setpoint);
   ASSERT_TRUE(diag.wait_last(30s, [](const msg::Diagnostics& d) {

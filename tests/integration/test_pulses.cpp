@@ -129,12 +129,9 @@ TEST(Pulses, EveryMomentaryCommandIsOnTheBusForAtLeast100msUnderCpuLoad) {
              "  - {name: puller1, bus: b, node_id: 6, profile: cia420-2, version: '1.0', heartbeat_timeout_ms: 1000}\n"
              "  - {name: corr1, bus: b, node_id: 7, profile: cia420-3, version: '3.1', heartbeat_timeout_ms: 1000}\n",
              "", ", sync_period_ms: 20, record: '" + record + "'");
-  lb::test::Collector<msg::SawStatusPubSubType> saw;
-  lb::test::Collector<msg::PullerStatusPubSubType> puller;
-  lb::test::Collector<msg::CorrugatorStatusPubSubType> corrugator;
-  ASSERT_TRUE(saw.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
-  ASSERT_TRUE(puller.subscribe(line.dds(), line.topic("puller1", "status"), QosKind::state));
-  ASSERT_TRUE(corrugator.subscribe(line.dds(), line.topic("corr1", "status"), QosKind::state));
+  auto saw = line.collect<msg::SawStatusPubSubType>("saw1", "status", QosKind::state);
+  auto puller = line.collect<msg::PullerStatusPubSubType>("puller1", "status", QosKind::state);
+  auto corrugator = line.collect<msg::CorrugatorStatusPubSubType>("corr1", "status", QosKind::state);
   ASSERT_TRUE(saw.wait_last(30s, operational<msg::SawStatus>)) << line.logs();
   ASSERT_TRUE(puller.wait_last(30s, operational<msg::PullerStatus>)) << line.logs();
   ASSERT_TRUE(corrugator.wait_last(30s, operational<msg::CorrugatorStatus>)) << line.logs();
@@ -175,8 +172,7 @@ TEST(Pulses, ADeviceThatCannotTakeThePulseIsRefusedAndGetsNoFrame) {
   ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("pulses2", 22);
   line.start("  - {name: saw1, bus: b, node_id: 3, profile: cia420-4, version: '3.1', heartbeat_timeout_ms: 400}\n");
-  lb::test::Collector<msg::SawStatusPubSubType> saw;
-  ASSERT_TRUE(saw.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
+  auto saw = line.collect<msg::SawStatusPubSubType>("saw1", "status", QosKind::state);
   ASSERT_TRUE(saw.wait_last(30s, operational<msg::SawStatus>)) << line.logs();
 
   // Told to stop (NMT): not ready for RPDOs.

@@ -168,8 +168,7 @@ TEST(Robustness, StopWhileClientsCallServicesIsClean) {
   ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("stopload", 21);
   line.start(saw("saw1", 5));
-  lb::test::Collector<msg::SawStatusPubSubType> status;
-  ASSERT_TRUE(status.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
+  auto status = line.collect<msg::SawStatusPubSubType>("saw1", "status", QosKind::state);
   for (int round = 0; round < 6; ++round) {
     ASSERT_TRUE(status.wait_last(20s, operational)) << "round " << round << "\n" << line.logs();
     std::atomic<bool> stop{false};
@@ -214,8 +213,7 @@ TEST(Robustness, AFrozenSubscriberDuringAnEmcyBurstDoesNotStallTheBus) {
   ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("frozen", 22);
   line.start(saw("saw1", 5));
-  lb::test::Collector<msg::SawStatusPubSubType> status;
-  ASSERT_TRUE(status.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
+  auto status = line.collect<msg::SawStatusPubSubType>("saw1", "status", QosKind::state);
   ASSERT_TRUE(status.wait_last(20s, operational)) << line.logs();
   lb::test::ChildProcess reader({LB_BIN_CLI, "--config", line.bridge_config(), "echo", "saw1", "emergency"},
                                 ::testing::TempDir() + "/frozen_cli.log");
@@ -251,10 +249,8 @@ TEST(Robustness, SetValuesInForceSurviveARestart) {
   std::filesystem::create_directories(dir);
   lb::test::LineHarness line("restart", 23);
   line.start(saw("saw1", 5), "", "", "state_dir: " + dir + "\n");
-  lb::test::Collector<msg::SawStatusPubSubType> status;
-  lb::test::Collector<msg::SetpointResultPubSubType> results;
-  ASSERT_TRUE(status.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
-  ASSERT_TRUE(results.subscribe(line.dds(), line.topic("saw1", "setpoint_result"), QosKind::reply));
+  auto status = line.collect<msg::SawStatusPubSubType>("saw1", "status", QosKind::state);
+  auto results = line.collect<msg::SetpointResultPubSubType>("saw1", "setpoint_result", QosKind::reply);
   auto writer = line.dds().writer<msg::SawSetpointPubSubType>(line.topic("saw1", "setpoint"), QosKind::command);
   ASSERT_TRUE(writer);
   ASSERT_TRUE(status.wait_last(20s, operational)) << line.logs();
@@ -299,10 +295,8 @@ TEST(Robustness, AnotherMasterIsNoticedAndYieldedTo) {
   ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("twomasters", 24);
   line.start(saw("saw1", 5));
-  lb::test::Collector<msg::SawStatusPubSubType> status;
-  lb::test::Collector<msg::DiagnosticsPubSubType> diag;
-  ASSERT_TRUE(status.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
-  ASSERT_TRUE(diag.subscribe(line.dds(), line.topic("bridge", "diagnostics"), QosKind::state));
+  auto status = line.collect<msg::SawStatusPubSubType>("saw1", "status", QosKind::state);
+  auto diag = line.collect<msg::DiagnosticsPubSubType>("bridge", "diagnostics", QosKind::state);
   ASSERT_TRUE(status.wait_last(20s, operational)) << line.logs();
 
   // The other master: a SYNC every 20 ms for 2 s (the test's frames never reach the test's spy).
@@ -388,8 +382,7 @@ TEST(Robustness, AChatteringFeederErrorBitDoesNotStarveServiceRequests) {
   lb::test::LineHarness line("chatter", 30);
   line.start("  - name: feeders\n    bus: b\n    node_id: 10\n    profile: cia414-2\n    version: '1.1'\n"
              "    heartbeat_timeout_ms: 400\n    simulation: {heartbeat_period_ms: 100}\n");
-  lb::test::Collector<msg::DeviceInfoPubSubType> info;
-  ASSERT_TRUE(info.subscribe(line.dds(), line.topic("feeders", "info"), QosKind::state));
+  auto info = line.collect<msg::DeviceInfoPubSubType>("feeders", "info", QosKind::state);
   ASSERT_TRUE(info.wait_last(30s, [](const msg::DeviceInfo& i) { return i.started(); })) << line.logs();
   std::atomic<bool> stop{false};
   std::atomic<std::uint64_t> sent{0};
@@ -424,10 +417,8 @@ TEST(Robustness, MalformedFramesAreCountedAndFloodsLoggedAtABoundedRate) {
   ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("malformed", 25);
   line.start(saw("saw1", 5));
-  lb::test::Collector<msg::SawStatusPubSubType> status;
-  lb::test::Collector<msg::DiagnosticsPubSubType> diag;
-  ASSERT_TRUE(status.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
-  ASSERT_TRUE(diag.subscribe(line.dds(), line.topic("bridge", "diagnostics"), QosKind::state));
+  auto status = line.collect<msg::SawStatusPubSubType>("saw1", "status", QosKind::state);
+  auto diag = line.collect<msg::DiagnosticsPubSubType>("bridge", "diagnostics", QosKind::state);
   ASSERT_TRUE(status.wait_last(20s, operational)) << line.logs();
   for (int i = 0; i < 3; ++i) ASSERT_TRUE(line.spy().send(lb::can::make_frame(0x085, {0x10, 0x42})));  // 2-byte EMCY
   for (int i = 0; i < 2; ++i) ASSERT_TRUE(line.spy().send(lb::can::make_frame(0x705, {})));            // empty heartbeat
@@ -522,8 +513,7 @@ TEST(Robustness, HostileRequestsAreRefusedAndNothingReachesTheBus) {
   // Each writer's first set value is answered before its flood: the bridge counts what a writer
   // loses from the gaps between the samples it gets, so it cannot know of samples lost before the
   // first one of a new writer reaches it (README: "Requests written faster than read").
-  lb::test::Collector<msg::DiagnosticsPubSubType> diag;
-  ASSERT_TRUE(diag.subscribe(line.dds(), line.topic("bridge", "diagnostics"), QosKind::state));
+  auto diag = line.collect<msg::DiagnosticsPubSubType>("bridge", "diagnostics", QosKind::state);
   ASSERT_TRUE(diag.wait(5s, [](const std::vector<msg::Diagnostics>& v) { return !v.empty(); }));
   const auto lost_before = diag.samples().back().commands_lost();
   std::vector<std::thread> flooders;
@@ -649,10 +639,8 @@ TEST(Robustness, HostileFramesAtFullLoadDoNotDisturbTheMaster) {
   ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("hostile_can", 27);
   line.start(saw("saw1", 5));
-  lb::test::Collector<msg::SawStatusPubSubType> status;
-  lb::test::Collector<msg::DiagnosticsPubSubType> diag;
-  ASSERT_TRUE(status.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
-  ASSERT_TRUE(diag.subscribe(line.dds(), line.topic("bridge", "diagnostics"), QosKind::state));
+  auto status = line.collect<msg::SawStatusPubSubType>("saw1", "status", QosKind::state);
+  auto diag = line.collect<msg::DiagnosticsPubSubType>("bridge", "diagnostics", QosKind::state);
   ASSERT_TRUE(status.wait_last(20s, operational)) << line.logs();
   line.spy().clear();
   std::mt19937 rng(12);
@@ -705,8 +693,7 @@ TEST(Robustness, AFrozenThenKilledSimulatorIsSupervisedAndBootedAgain) {
   ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("simfault", 28);
   line.start(saw("saw1", 5));
-  lb::test::Collector<msg::SawStatusPubSubType> status;
-  ASSERT_TRUE(status.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
+  auto status = line.collect<msg::SawStatusPubSubType>("saw1", "status", QosKind::state);
   ASSERT_TRUE(status.wait_last(20s, operational)) << line.logs();
   const auto offline = [](const msg::SawStatus& s) { return !s.health().online(); };
   // The first SDO request to the saw (605h) and the first NMT start of it, from the frames.
@@ -783,8 +770,7 @@ TEST(Robustness, ABusLoopRunsAtItsRealtimePriority) {
   if (!allowed) GTEST_SKIP() << "this machine refuses SCHED_FIFO to the tests too (no CAP_SYS_NICE, RLIMIT_RTPRIO 0)";
   lb::test::LineHarness line("realtime", 34);
   line.start(saw("saw1", 5), "", ", realtime_priority: 20");
-  lb::test::Collector<msg::SawStatusPubSubType> status;
-  ASSERT_TRUE(status.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
+  auto status = line.collect<msg::SawStatusPubSubType>("saw1", "status", QosKind::state);
   ASSERT_TRUE(status.wait_last(20s, operational)) << line.logs();
   const auto loop = thread_named(line.bridge().pid(), "lb-bus-b");
   ASSERT_TRUE(loop.has_value()) << "no thread lb-bus-b in the bridge";
@@ -806,8 +792,7 @@ TEST(Robustness, ARefusedRealtimePriorityIsLoggedAndTheLineRuns) {
   line.set_bridge_launcher({"/usr/bin/prlimit", "--rtprio=0", "/usr/bin/setpriv", "--bounding-set=-sys_nice",
                             "--inh-caps=-sys_nice", "--"});
   line.start(saw("saw1", 5), "", ", realtime_priority: 20");
-  lb::test::Collector<msg::SawStatusPubSubType> status;
-  ASSERT_TRUE(status.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
+  auto status = line.collect<msg::SawStatusPubSubType>("saw1", "status", QosKind::state);
   ASSERT_TRUE(status.wait_last(20s, operational)) << line.logs();
   EXPECT_TRUE(line.bridge().wait_log("realtime priority 20 (SCHED_FIFO) refused: Operation not permitted", 1s)) << line.logs();
   const auto loop = thread_named(line.bridge().pid(), "lb-bus-b");

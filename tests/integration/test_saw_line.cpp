@@ -21,6 +21,9 @@
 #include "msgs/sawPubSubTypes.h"
 #include "support/bus_spy.hpp"
 #include "support/child_process.hpp"
+#include "support/line_harness.hpp"
+#include "support/simulated_saw.hpp"
+#include "support/saw_setpoints.hpp"
 
 namespace msg = linebridge_msgs::msg;
 using namespace std::chrono_literals;
@@ -38,7 +41,6 @@ struct Observed {
   std::condition_variable cv;
   std::vector<msg::SawStatus> status;
   std::vector<msg::SawCut> cuts;
-  std::vector<msg::SetpointResult> results;
 
   template <class Pred>
   bool wait(Clock::duration timeout, Pred pred) {
@@ -51,98 +53,46 @@ class SawLine : public ::testing::Test {
  protected:
   void SetUp() override {
     ASSERT_EQ(std::getenv("LINEBRIDGE_NETNS") != nullptr, true) << "run through launch_scripts/netns-run.sh (ctest does)";
-    const std::string tag = std::to_string(::getpid());
-    bus_uri_ = "virtual:it-saw-" + tag;
-    config_path_ = ::testing::TempDir() + "/saw_line_" + tag + ".yaml";
-    std::ofstream(config_path_) << "line: itest\n"
-                                   "dds: {domain: 3, localhost_only: true}\n"
-                                   "buses:\n"
-                                   "  - {name: ext, interface: '" + bus_uri_ + "', role: master, sync_period_ms: 20}\n"
-                                   "devices:\n"
-                                   "  - name: saw1\n"
-                                   "    bus: ext\n"
-                                   "    node_id: 5\n"
-                                   "    profile: cia420-4\n"
-                                   "    version: '3.1'\n"
-                                   "    heartbeat_timeout_ms: 400\n"
-                                   "    simulation: {max_speed_m_per_min: 60, acceleration_m_per_min_s: 6000, heartbeat_period_ms: 100}\n";
-    spy_ = std::make_unique<lb::test::BusSpy>(bus_uri_);
-    sim_ = std::make_unique<lb::test::ChildProcess>(std::vector<std::string>{LB_BIN_SIM, "--config", config_path_},
-                                                    ::testing::TempDir() + "/sim_" + tag + ".log");
-    bridge_ = std::make_unique<lb::test::ChildProcess>(
-        std::vector<std::string>{LB_BIN_BRIDGE, "--config", config_path_}, ::testing::TempDir() + "/bridge_" + tag + ".log");
-    ASSERT_TRUE(sim_->started());
-    ASSERT_TRUE(bridge_->started());
+    line_.start(lb::test::simulated_saw("b"), "", ", role: master, sync_period_ms: 20");
+    ASSERT_TRUE(line_.sim().started());
+    ASSERT_TRUE(line_.bridge().started());
 
-    auto dds = lb::ddsl::Participant::create({3, true, "itest"});
-    ASSERT_TRUE(dds) << dds.error().message;
-    dds_ = std::move(*dds);
     const auto topic = [](const char* t) { return lb::ddsl::topic_name("itest", "saw1", t); };
-    ASSERT_TRUE(dds_->subscribe<msg::SawStatusPubSubType>(topic("status"), lb::ddsl::QosKind::state,
+    ASSERT_TRUE(line_.dds().subscribe<msg::SawStatusPubSubType>(topic("status"), lb::ddsl::QosKind::state,
                                                           [this](const msg::SawStatus& s, const auto&) {
                                                             std::lock_guard lock(seen_.m);
                                                             seen_.status.push_back(s);
                                                             seen_.cv.notify_all();
                                                           },
                                                           1000));  // every sample, not just the latest
-    ASSERT_TRUE(dds_->subscribe<msg::SawCutPubSubType>(topic("cut"), lb::ddsl::QosKind::event,
+    ASSERT_TRUE(line_.dds().subscribe<msg::SawCutPubSubType>(topic("cut"), lb::ddsl::QosKind::event,
                                                        [this](const msg::SawCut& c, const auto&) {
                                                          std::lock_guard lock(seen_.m);
                                                          seen_.cuts.push_back(c);
                                                          seen_.cv.notify_all();
                                                        }));
-    ASSERT_TRUE(dds_->subscribe<msg::SetpointResultPubSubType>(topic("setpoint_result"), lb::ddsl::QosKind::reply,
-                                                               [this](const msg::SetpointResult& r, const auto&) {
-                                                                 std::lock_guard lock(seen_.m);
-                                                                 seen_.results.push_back(r);
-                                                                 seen_.cv.notify_all();
-                                                               }));
-    auto w = dds_->writer<msg::SawSetpointPubSubType>(topic("setpoint"), lb::ddsl::QosKind::command);
-    ASSERT_TRUE(w);
-    setpoint_ = *w;
+    ASSERT_TRUE(setpoints_.open(line_.dds(), "itest", "saw1"));
 
     // The device is up and both directions of the set-value exchange are matched.
     ASSERT_TRUE(seen_.wait(15s, [this] { return !seen_.status.empty() && seen_.status.back().health().online() &&
                                                 seen_.status.back().health().nmt_state() == msg::NMT_OPERATIONAL; }))
         << logs();
-    const auto deadline = Clock::now() + 10s;
-    while ((setpoint_.matched() == 0 || dds_->matched_writers(topic("setpoint_result")) == 0) && Clock::now() < deadline) {
-      std::this_thread::sleep_for(20ms);
-    }
-    ASSERT_GT(setpoint_.matched(), 0);
+    setpoints_.wait_matched(10s);
+    ASSERT_GT(setpoints_.writer().matched(), 0);
   }
 
   void TearDown() override {
-    dds_.reset();
-    if (bridge_) {
-      EXPECT_EQ(bridge_->stop(), 0) << "the bridge did not exit cleanly on SIGTERM\n" << logs();
-    }
-    if (sim_) {
-      sim_->stop();
+    if (line_.started()) {
+      EXPECT_EQ(line_.bridge().stop(), 0) << "the bridge did not exit cleanly on SIGTERM\n" << logs();
     }
   }
 
-  std::string logs() const {
-    return "--- bridge log ---\n" + (bridge_ ? bridge_->log() : "") + "--- sim log ---\n" + (sim_ ? sim_->log() : "");
-  }
+  std::string logs() const { return line_.logs(); }
 
   msg::SetpointResult send(bool on, double percent, double length_m) {
-    msg::SawSetpoint sp;
-    sp.request_id(++request_id_);
-    sp.saw_program_on(on);
-    sp.sync_speed_percent(percent);
-    sp.product_length_m(length_m);
-    sp.count_mode(msg::SMOOTH_PIPE);
-    EXPECT_TRUE(setpoint_.write(sp));
-    msg::SetpointResult answer;
-    const bool got = seen_.wait(5s, [&] {
-      for (const auto& r : seen_.results) {
-        if (r.request_id() == sp.request_id()) return answer = r, true;
-      }
-      return false;
-    });
-    EXPECT_TRUE(got) << "no answer to request " << sp.request_id() << "\n" << logs();
-    return answer;
+    const auto answer = setpoints_.send(on, percent, length_m, 5s);
+    EXPECT_TRUE(answer) << "no answer to request " << setpoints_.last_request_id() << "\n" << logs();
+    return answer.value_or(msg::SetpointResult{});
   }
 
   // The saw counter in the last status sample before each rising edge of "saw cutting", taken from
@@ -168,7 +118,7 @@ class SawLine : public ::testing::Test {
     std::string output;
   };
   CliRun cli(const std::vector<std::string>& args) {
-    std::vector<std::string> argv{LB_BIN_CLI, "--config", config_path_};
+    std::vector<std::string> argv{LB_BIN_CLI, "--config", line_.bridge_config()};
     argv.insert(argv.end(), args.begin(), args.end());
     lb::test::ChildProcess p(argv, ::testing::TempDir() + "/cli_" + std::to_string(::getpid()) + "_" +
                                        std::to_string(++cli_runs_) + ".log");
@@ -178,13 +128,9 @@ class SawLine : public ::testing::Test {
     return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, p.log()};
   }
 
-  std::string bus_uri_, config_path_;
-  std::unique_ptr<lb::test::BusSpy> spy_;
-  std::unique_ptr<lb::test::ChildProcess> sim_, bridge_;
-  std::unique_ptr<lb::ddsl::Participant> dds_;
-  lb::ddsl::Writer<msg::SawSetpointPubSubType> setpoint_;
-  Observed seen_;
-  std::uint64_t request_id_ = 100;
+  Observed seen_;  // before line_: its participant (and every listener call) goes first
+  lb::test::SawSetpoints setpoints_;
+  lb::test::LineHarness line_{"itest", 3};
   int cli_runs_ = 0;
 };
 
@@ -250,7 +196,7 @@ TEST_F(SawLine, ProductLengthSetOverDdsIsWhereTheSawCuts) {
 }
 
 TEST_F(SawLine, OutOfRangeSetValueIsRefusedAndNeverReachesCan) {
-  spy_->clear();
+  line_.spy().clear();
   const auto refused = send(true, 150.0, 1.0);
   EXPECT_FALSE(refused.accepted());
   EXPECT_NE(refused.reason().find("sync_speed_percent"), std::string::npos) << refused.reason();
@@ -259,7 +205,7 @@ TEST_F(SawLine, OutOfRangeSetValueIsRefusedAndNeverReachesCan) {
   EXPECT_NE(negative.reason().find("product_length_m"), std::string::npos) << negative.reason();
 
   std::this_thread::sleep_for(300ms);  // 15 SYNC cycles of RPDO1
-  const auto rpdos = spy_->frames(0x200 + kNode);
+  const auto rpdos = line_.spy().frames(0x200 + kNode);
   ASSERT_GE(rpdos.size(), 5u) << "the bridge sends RPDO1 at every SYNC";
   for (const auto& f : rpdos) {
     ASSERT_EQ(f.len, 8);
@@ -267,14 +213,14 @@ TEST_F(SawLine, OutOfRangeSetValueIsRefusedAndNeverReachesCan) {
   }
 
   // The bridge is still there and takes a good value: exactly these bytes reach the bus.
-  ASSERT_TRUE(bridge_->running()) << logs();
+  ASSERT_TRUE(line_.bridge().running()) << logs();
   const auto ok = send(true, 50.0, 0.5);
   ASSERT_TRUE(ok.accepted()) << ok.reason();
   const std::array<std::uint8_t, 8> expected{0x05, 0x00, 0x88, 0x13, 0x88, 0x13, 0x00, 0x00};
   const auto deadline = Clock::now() + 2s;
   bool seen = false;
   while (!seen && Clock::now() < deadline) {
-    for (const auto& f : spy_->frames(0x200 + kNode)) seen = seen || f.data == expected;
+    for (const auto& f : line_.spy().frames(0x200 + kNode)) seen = seen || f.data == expected;
     std::this_thread::sleep_for(20ms);
   }
   EXPECT_TRUE(seen) << "RPDO1 05 00 88 13 88 13 00 00 not seen";
@@ -282,14 +228,14 @@ TEST_F(SawLine, OutOfRangeSetValueIsRefusedAndNeverReachesCan) {
 
 TEST_F(SawLine, ShortPdoIsCountedNotDecoded) {
   // A 4-byte TPDO2 (the mapping needs 8) from a misbehaving node: counted, never published as values.
-  ASSERT_TRUE(spy_->send(lb::can::make_frame(0x280 + kNode, {0xFF, 0xFF, 0xFF, 0x7F})));
+  ASSERT_TRUE(line_.spy().send(lb::can::make_frame(0x280 + kNode, {0xFF, 0xFF, 0xFF, 0x7F})));
   ASSERT_TRUE(seen_.wait(5s, [&] { return seen_.status.back().pdo_length_errors() >= 1; })) << logs();
   {
     std::lock_guard lock(seen_.m);
     for (const auto& s : seen_.status) EXPECT_LT(std::abs(s.actual_saw_counter_m()), 1000.0) << "garbage was decoded";
   }
-  EXPECT_TRUE(bridge_->running());
-  EXPECT_NE(bridge_->log().find("not decoded"), std::string::npos) << logs();
+  EXPECT_TRUE(line_.bridge().running());
+  EXPECT_NE(line_.bridge().log().find("not decoded"), std::string::npos) << logs();
 }
 
 // The CLI's device commands go through the line-wide services (itest/bridge/<service>, the

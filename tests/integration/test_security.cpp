@@ -26,6 +26,7 @@
 #include "msgs/sawPubSubTypes.h"
 #include "support/bus_spy.hpp"
 #include "support/child_process.hpp"
+#include "support/eventually.hpp"
 #include "support/test_pki.hpp"
 
 namespace msg = linebridge_msgs::msg;
@@ -41,14 +42,7 @@ constexpr std::uint32_t kRpdo1Saw1 = 0x205;  // saw1 is node 5, saw2 node 6
 constexpr std::uint32_t kRpdo1Saw2 = 0x206;
 constexpr std::uint32_t kSdoRequestSaw1 = 0x605;
 
-bool eventually(Clock::duration timeout, const std::function<bool()>& cond) {
-  const auto end = Clock::now() + timeout;
-  while (!cond()) {
-    if (Clock::now() > end) return false;
-    std::this_thread::sleep_for(20ms);
-  }
-  return true;
-}
+using lb::test::eventually;
 
 std::string topic(const char* device, const char* t) { return lb::ddsl::topic_name("sec", device, t); }
 

@@ -44,8 +44,7 @@ TEST(ServiceRepeat, ACommandAskedAgainIsPressedOnceAndAnsweredWithTheFirstAnswer
   ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("repeat", 36);
   line.start("  - {name: saw1, bus: b, node_id: 3, profile: cia420-4, version: '3.1', heartbeat_timeout_ms: 1000}\n");
-  lb::test::Collector<msg::SawStatusPubSubType> saw;
-  ASSERT_TRUE(saw.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
+  auto saw = line.collect<msg::SawStatusPubSubType>("saw1", "status", QosKind::state);
   ASSERT_TRUE(saw.wait_last(30s, [](const msg::SawStatus& s) {
     return s.health().online() && s.health().nmt_state() == msg::NMT_OPERATIONAL;
   })) << line.logs();

@@ -19,6 +19,8 @@
 #include "dds/topic_names.hpp"
 #include "msgs/commonPubSubTypes.h"
 #include "msgs/sawPubSubTypes.h"
+#include "support/saw_setpoints.hpp"
+#include "support/simulated_saw.hpp"
 #include "vcan_tools.hpp"
 
 namespace msg = linebridge_msgs::msg;
@@ -38,7 +40,6 @@ struct Observed {
   std::mutex m;
   std::condition_variable cv;
   std::vector<msg::SawStatus> status;
-  std::vector<msg::SetpointResult> results;
 
   template <class Pred>
   bool wait(Clock::duration timeout, Pred pred) {
@@ -63,15 +64,7 @@ class BridgeOnVcan : public ::testing::Test {
                                                             seen_.cv.notify_all();
                                                           },
                                                           1000));
-    ASSERT_TRUE(dds_->subscribe<msg::SetpointResultPubSubType>(topic("setpoint_result"), lb::ddsl::QosKind::reply,
-                                                               [this](const msg::SetpointResult& r, const auto&) {
-                                                                 std::lock_guard lock(seen_.m);
-                                                                 seen_.results.push_back(r);
-                                                                 seen_.cv.notify_all();
-                                                               }));
-    auto w = dds_->writer<msg::SawSetpointPubSubType>(topic("setpoint"), lb::ddsl::QosKind::command);
-    ASSERT_TRUE(w);
-    setpoint_ = *w;
+    ASSERT_TRUE(setpoints_.open(*dds_, "vcan", "saw1"));
   }
 
   void TearDown() override {
@@ -92,14 +85,7 @@ class BridgeOnVcan : public ::testing::Test {
                            "dds: {domain: " + std::to_string(kDomain) + ", localhost_only: true}\n"
                            "buses:\n"
                            "  - " + bus_yaml + "\n"
-                           "devices:\n"
-                           "  - name: saw1\n"
-                           "    bus: ext\n"
-                           "    node_id: 5\n"
-                           "    profile: cia420-4\n"
-                           "    version: '3.1'\n"
-                           "    heartbeat_timeout_ms: 400\n"
-                           "    simulation: {max_speed_m_per_min: 60, acceleration_m_per_min_s: 6000, heartbeat_period_ms: 100}\n";
+                           "devices:\n" + lb::test::simulated_saw("ext");
     return path;
   }
 
@@ -126,35 +112,18 @@ class BridgeOnVcan : public ::testing::Test {
   }
 
   msg::SetpointResult send_setpoint(bool on, double percent, double length_m) {
-    const auto deadline = Clock::now() + 20s;
-    while ((setpoint_.matched() == 0 || dds_->matched_writers(topic("setpoint_result")) == 0) && Clock::now() < deadline) {
-      std::this_thread::sleep_for(20ms);
-    }
-    msg::SawSetpoint sp;
-    sp.request_id(++request_id_);
-    sp.saw_program_on(on);
-    sp.sync_speed_percent(percent);
-    sp.product_length_m(length_m);
-    sp.count_mode(msg::SMOOTH_PIPE);
-    EXPECT_TRUE(setpoint_.write(sp));
-    msg::SetpointResult answer;
-    const bool got = seen_.wait(10s, [&] {
-      for (const auto& r : seen_.results) {
-        if (r.request_id() == sp.request_id()) return answer = r, true;
-      }
-      return false;
-    });
-    EXPECT_TRUE(got) << "no answer to request " << sp.request_id() << "\n" << logs();
-    return answer;
+    setpoints_.wait_matched(20s);
+    const auto answer = setpoints_.send(on, percent, length_m, 10s);
+    EXPECT_TRUE(answer) << "no answer to request " << setpoints_.last_request_id() << "\n" << logs();
+    return answer.value_or(msg::SetpointResult{});
   }
 
   std::string tag_;
   int configs_ = 0;
   std::unique_ptr<lb::ddsl::Participant> dds_;
-  lb::ddsl::Writer<msg::SawSetpointPubSubType> setpoint_;
+  lb::test::SawSetpoints setpoints_;
   Observed seen_;
   std::unique_ptr<lb::test::ChildProcess> bridge_, sim_;
-  std::uint64_t request_id_ = 0;
 };
 
 std::size_t count_lines(const std::string& text, const std::string& needle) {

@@ -102,7 +102,17 @@ class LineHarness {
   // arguments, e.g. setpriv to take a capability away), which must exec it.
   void set_bridge_launcher(std::vector<std::string> argv) { bridge_launcher_ = std::move(argv); }
 
+  // Every sample of a device's topic from now on (throws when the subscription fails, so a test
+  // fails there as it does on a failed service call).
+  template <class PubSubType>
+  Collector<PubSubType> collect(const std::string& device, const std::string& t, ddsl::QosKind kind) {
+    Collector<PubSubType> c;
+    if (auto r = c.subscribe(*dds_, topic(device, t), kind); !r) throw std::runtime_error(topic(device, t) + ": " + r.error().message);
+    return c;
+  }
+
   const std::string& bridge_config() const { return bridge_config_; }
+  bool started() const { return bridge_ != nullptr; }
   BusSpy& spy() { return *spy_; }
   ddsl::Participant& dds() { return *dds_; }
   ChildProcess& bridge() { return *bridge_; }

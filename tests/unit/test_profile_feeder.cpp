@@ -4,25 +4,16 @@
 // typed in from the specification's tables.
 #include <gtest/gtest.h>
 
-#include <array>
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
-#include "canopen/pdo_mapping.hpp"
-#include "profiles/profile_registry.hpp"
-#include "support/profile_image.hpp"
+#include "support/profile_spec.hpp"
 
-using lb::canopen::DataType;
-using lb::canopen::PdoEntry;
-using lb::profiles::Access;
-using lb::profiles::PdoDirection;
-using lb::profiles::PdoValidity;
-using lb::profiles::Profile;
-using lb::test::entries;
-using lb::test::Image;
 using lb::profiles::ValueTable;
+using namespace lb::test::spec;
 
 namespace {
 
@@ -43,7 +34,41 @@ class FeederProfile : public ::testing::Test {
   const Profile& p_ = *registry_.find("cia414-2", "1.1");
 };
 
+const auto kFrames = frames_of(
+    "cia414-2", "1.1",
+    {
+        // Empty, single colour 5, single colour 16, double 3+1, triple 3/5/7; as loom controller the
+        // same bytes back.
+        {"Rpdo1FivePicks", "rpdo1", {0x00, 0x05, 0x10, 0x31, 0x33},
+         {{0x600C, 1, 0x00, std::nullopt, "empty_pick"},
+          {0x600C, 2, 0x05, std::nullopt, "single_pick"},
+          {0x600C, 3, 0x10, std::nullopt, "single_pick"},
+          {0x600C, 4, 0x31, std::nullopt, "double_pick"},
+          {0x600C, 5, 0x33, std::nullopt, "triple_pick"}}},
+        // A reserved code is carried raw and reported invalid, never guessed.
+        {"Rpdo1ReservedPickIsCarriedRaw", "rpdo1", {0xDD, 0x00, 0x00, 0x00, 0x00},
+         {{0x600C, 1, 0xDD, std::nullopt, kInvalidCode},
+          {0x600C, 2, 0x00},
+          {0x600C, 3, 0x00},
+          {0x600C, 4, 0x00},
+          {0x600C, 5, 0x00}}},
+        {"Rpdo1ShortFrameIsRefused", "rpdo1", {0x00, 0x05, 0x10, 0x31}, {}, {}, std::nullopt, true},
+        {"Rpdo3DigitalOutputs", "rpdo3", {0x01, 0x02, 0x04, 0x08, 0x10, 0x20, 0x40, 0x80},
+         {{0x600D, 1, 0x01},
+          {0x600D, 2, 0x02},
+          {0x600D, 3, 0x04},
+          {0x600D, 4, 0x08},
+          {0x600D, 5, 0x10},
+          {0x600D, 6, 0x20},
+          {0x600D, 7, 0x40},
+          {0x600D, 8, 0x80}}},
+        {"Rpdo4TriggerSignal", "rpdo4", {0x04}, {{0x600B, 0, 0x04, std::nullopt, "brush_do_release"}}},
+        {"Rpdo4FutureTriggerSignalIsInvalid", "rpdo4", {0x05}, {{0x600B, 0, 0x05, std::nullopt, kInvalidCode}}},
+    });
+
 }  // namespace
+
+INSTANTIATE_TEST_SUITE_P(Feeder, ProfileFrame, ::testing::ValuesIn(kFrames), frame_name);
 
 TEST_F(FeederProfile, Identity) {
   EXPECT_EQ(p_.device, "feeder");
@@ -221,60 +246,19 @@ TEST_F(FeederProfile, PickInsertionCodes) {
 }
 
 TEST_F(FeederProfile, DefaultPdos) {
-  struct Expect {
-    const char* name;
-    PdoDirection direction;
-    std::uint32_t cob_id;  // node 10
-    PdoValidity validity;
-    bool mandatory;
-    std::vector<PdoEntry> mapping;
-  };
-  // 4.2-4.6: every PDO event-driven, transmission type 255.
-  const std::vector<Expect> pdos{
-      {"rpdo1", PdoDirection::rx, 0x20A, PdoValidity::valid, true,
-       entries({0x600C0108, 0x600C0208, 0x600C0308, 0x600C0408, 0x600C0508})},
-      {"rpdo2", PdoDirection::rx, 0x30A, PdoValidity::valid, true, entries({0x600A0008, 0x60040020})},
-      {"rpdo3", PdoDirection::rx, 0x40A, PdoValidity::valid, false,
-       entries({0x600D0108, 0x600D0208, 0x600D0308, 0x600D0408, 0x600D0508, 0x600D0608, 0x600D0708, 0x600D0808})},
-      {"rpdo4", PdoDirection::rx, 0x50A, PdoValidity::valid, false, entries({0x600B0008})},
-      // {C000 0180h, 4000 0180h} + node-ID: may be disabled; a silent TPDO1 is no fault.
-      {"tpdo1", PdoDirection::tx, 0x18A, PdoValidity::either, true, entries({0x60100020})},
-  };
-  EXPECT_EQ(p_.pdos.size(), pdos.size());
-  for (const auto& e : pdos) {
-    const auto* pdo = p_.pdo(e.name);
-    ASSERT_NE(pdo, nullptr) << e.name;
-    EXPECT_EQ(pdo->direction, e.direction) << e.name;
-    EXPECT_EQ(pdo->cob_id(10), e.cob_id) << e.name;
-    EXPECT_EQ(pdo->transmission_type, 255) << e.name;
-    EXPECT_EQ(pdo->validity, e.validity) << e.name;
-    EXPECT_EQ(pdo->mandatory, e.mandatory) << e.name;
-    EXPECT_EQ(pdo->mapping, e.mapping) << e.name;
-    EXPECT_FALSE(pdo->manufacturer_data) << e.name;
-  }
-}
-
-TEST_F(FeederProfile, Rpdo1FivePicks) {
-  // Empty, single colour 5, single colour 16, double 3+1, triple 3/5/7.
-  Image img(p_, "rpdo1");
-  const std::array<std::uint8_t, 5> frame{0x00, 0x05, 0x10, 0x31, 0x33};
-  ASSERT_TRUE(img.unpack(frame));
-  const std::array<const char*, 5> kinds{"empty_pick", "single_pick", "single_pick", "double_pick", "triple_pick"};
-  const std::array<std::uint64_t, 5> raw{0x00, 0x05, 0x10, 0x31, 0x33};
-  for (std::uint8_t sub = 1; sub <= 5; ++sub) {
-    EXPECT_EQ(img.raw(0x600C, sub), raw[sub - 1u]);
-    EXPECT_EQ(p_.object(0x600C, sub)->values.name(img.raw(0x600C, sub)), kinds[sub - 1u]);
-  }
-  // A reserved code is carried raw and reported invalid, never guessed.
-  const std::array<std::uint8_t, 5> reserved{0xDD, 0x00, 0x00, 0x00, 0x00};
-  ASSERT_TRUE(img.unpack(reserved));
-  EXPECT_EQ(img.raw(0x600C, 1), 0xDDu);
-  EXPECT_FALSE(p_.object(0x600C, 1)->values.valid(img.raw(0x600C, 1)));
-  const std::array<std::uint8_t, 4> short_frame{0x00, 0x05, 0x10, 0x31};
-  EXPECT_FALSE(img.unpack(short_frame));
-  // As loom controller: the same bytes back.
-  ASSERT_TRUE(img.unpack(frame));
-  EXPECT_EQ(img.pack(), (std::vector<std::uint8_t>{0x00, 0x05, 0x10, 0x31, 0x33}));
+  // 4.2-4.6: every PDO event-driven, transmission type 255; cob_ids for node 10.
+  expect_pdos(p_, 10,
+              {
+                  {"rpdo1", PdoDirection::rx, 0x20A, 255, PdoValidity::valid, true,
+                   entries({0x600C0108, 0x600C0208, 0x600C0308, 0x600C0408, 0x600C0508})},
+                  {"rpdo2", PdoDirection::rx, 0x30A, 255, PdoValidity::valid, true, entries({0x600A0008, 0x60040020})},
+                  {"rpdo3", PdoDirection::rx, 0x40A, 255, PdoValidity::valid, false,
+                   entries({0x600D0108, 0x600D0208, 0x600D0308, 0x600D0408, 0x600D0508, 0x600D0608, 0x600D0708,
+                            0x600D0808})},
+                  {"rpdo4", PdoDirection::rx, 0x50A, 255, PdoValidity::valid, false, entries({0x600B0008})},
+                  // {C000 0180h, 4000 0180h} + node-ID: may be disabled; a silent TPDO1 is no fault.
+                  {"tpdo1", PdoDirection::tx, 0x18A, 255, PdoValidity::either, true, entries({0x60100020})},
+              });
 }
 
 TEST_F(FeederProfile, Rpdo2LoomStatusAndGlobalWeftFilling) {
@@ -315,22 +299,6 @@ TEST_F(FeederProfile, SingleWeftFillingHasTheGlobalLayoutPerFeeder) {
   }
   EXPECT_EQ(single->field("maximum_speed")->bit, 0u);
   EXPECT_EQ(single->field("loom_width")->bit, 16u);
-}
-
-TEST_F(FeederProfile, Rpdo3DigitalOutputsAndRpdo4TriggerSignal) {
-  Image outputs(p_, "rpdo3");
-  const std::array<std::uint8_t, 8> frame{0x01, 0x02, 0x04, 0x08, 0x10, 0x20, 0x40, 0x80};
-  ASSERT_TRUE(outputs.unpack(frame));
-  const std::array<std::uint64_t, 8> groups{0x01, 0x02, 0x04, 0x08, 0x10, 0x20, 0x40, 0x80};
-  for (std::uint8_t g = 1; g <= 8; ++g) EXPECT_EQ(outputs.raw(0x600D, g), groups[g - 1u]) << int{g};
-
-  Image trigger(p_, "rpdo4");
-  const std::array<std::uint8_t, 1> brush{0x04};
-  ASSERT_TRUE(trigger.unpack(brush));
-  EXPECT_EQ(p_.object(0x600B)->values.name(trigger.raw(0x600B)), "brush_do_release");
-  const std::array<std::uint8_t, 1> future{0x05};
-  ASSERT_TRUE(trigger.unpack(future));
-  EXPECT_FALSE(p_.object(0x600B)->values.valid(trigger.raw(0x600B)));
 }
 
 TEST_F(FeederProfile, Tpdo1UnwindingTime) {

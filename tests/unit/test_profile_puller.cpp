@@ -6,23 +6,11 @@
 #include <array>
 #include <cstdint>
 #include <optional>
-#include <string>
 #include <vector>
 
-#include "canopen/pdo_mapping.hpp"
-#include "profiles/profile_registry.hpp"
-#include "support/profile_image.hpp"
+#include "support/profile_spec.hpp"
 
-using lb::canopen::DataType;
-using lb::canopen::PdoEntry;
-using lb::profiles::Access;
-using lb::profiles::PdoDirection;
-using lb::profiles::PdoValidity;
-using lb::profiles::Profile;
-using lb::test::entries;
-using lb::test::Image;
-using lb::test::Bits;
-using lb::test::expect_bits;
+using namespace lb::test::spec;
 
 namespace {
 
@@ -37,7 +25,39 @@ class PullerProfile : public ::testing::Test {
   const Profile& p30_ = *registry_.find("cia420-2", "3.0-status");
 };
 
+// Status 0301h (motor running, f1 running, f1 ready); speed -2500 = F63Ch (-25.00 %);
+// load 12345 = 3039h (123.45 %: load has the full INTEGER16 range).
+const std::vector<Value> kTpdo1{{0x6030, 0, 0x0301}, {0x6000, 0, 0xF63C, -25.0}, {0x6006, 0, 0x3039, 123.45}};
+const std::vector<Flag> kTpdo1Flags{{"status_word", "motor_running", 1},
+                                    {"status_word", "f1_running", 1},
+                                    {"status_word", "f1_ready", 1},
+                                    {"status_word", "motor_ready_to_start", 0}};
+// Control 0042h (motor start, extruder running); speed set -12.34 % = -1234 = FB2Eh.
+const std::vector<Value> kRpdo1{{0x6020, 0, 0x0042}, {0x6002, 0, 0xFB2E, -12.34}};
+
+const auto kFrames = frames_of(
+    "cia420-2", "1.0",
+    {
+        {"Tpdo1StatusSpeedAndLoad", "tpdo1", {0x01, 0x03, 0x3C, 0xF6, 0x39, 0x30}, kTpdo1, kTpdo1Flags},
+        // No second status word in a 6-byte frame; 8 bytes carry one: ABCDh.
+        {"Tpdo1WithManufacturerStatusWord", "tpdo1", {0x01, 0x03, 0x3C, 0xF6, 0x39, 0x30, 0xCD, 0xAB}, kTpdo1,
+         kTpdo1Flags, 0xABCD},
+        {"Tpdo1ShortFrameIsRefused", "tpdo1", {0x01, 0x03, 0x3C, 0xF6, 0x39}, {}, {}, std::nullopt, true},
+        // Echo 10000 = 2710h (100.00 %); product speed 123456 = 0001 E240h in 0.1 mm/min = 12.3456 m/min.
+        {"Tpdo2EchoAndProductSpeed", "tpdo2", {0x10, 0x27, 0x40, 0xE2, 0x01, 0x00},
+         {{0x6004, 0, 0x2710, 100.0}, {0x6008, 0, 0x0001E240, 12.3456}}},
+        // Reverse: -5000 = FFFF EC78h = -0.5 m/min.
+        {"Tpdo2Reverse", "tpdo2", {0xF0, 0xD8, 0x78, 0xEC, 0xFF, 0xFF},
+         {{0x6004, 0, 0xD8F0, -100.0}, {0x6008, 0, 0xFFFFEC78, -0.5}}},
+        // Sent by the bridge, and read back in the monitor role from the controller's frame.
+        {"Rpdo1ControlAndSpeedSetValue", "rpdo1", {0x42, 0x00, 0x2E, 0xFB}, kRpdo1},
+        // A second control word may follow: 6 bytes carry 1234h.
+        {"Rpdo1WithManufacturerControlWord", "rpdo1", {0x42, 0x00, 0x2E, 0xFB, 0x34, 0x12}, kRpdo1, {}, 0x1234},
+    });
+
 }  // namespace
+
+INSTANTIATE_TEST_SUITE_P(Puller, ProfileFrame, ::testing::ValuesIn(kFrames), frame_name);
 
 TEST_F(PullerProfile, Identity) {
   EXPECT_EQ(p_.device, "puller");
@@ -47,19 +67,8 @@ TEST_F(PullerProfile, Identity) {
 }
 
 TEST_F(PullerProfile, EveryObjectMatchesTheSpec) {
-  struct Expect {
-    std::uint16_t index;
-    const char* name;
-    DataType type;
-    Access access;
-    const char* unit;
-    double scale;
-    const char* eng_unit;
-    std::optional<std::int64_t> min, max;
-  };
-  const std::optional<std::int64_t> none;
   // Section 3.1.1-3.1.14; every object is Mandatory.
-  const std::vector<Expect> objects{
+  const std::vector<Variable> objects{
       {0x6000, "puller_speed_actual_value", DataType::integer16, Access::ro, "0.01 %", 0.01, "%", -10000, 10000},
       {0x6001, "puller_speed_real_maximum", DataType::unsigned32, Access::ro, "mm/min", 0.001, "m/min", none, none},
       {0x6002, "puller_speed_set_value", DataType::integer16, Access::rw, "0.01 %", 0.01, "%", -10000, 10000},
@@ -76,20 +85,7 @@ TEST_F(PullerProfile, EveryObjectMatchesTheSpec) {
       {0x6030, "status_word", DataType::unsigned16, Access::ro, "", 1.0, "", none, none},
   };
   EXPECT_EQ(p_.objects.size(), objects.size());
-  for (const auto& e : objects) {
-    const auto* o = p_.object(e.index);
-    ASSERT_NE(o, nullptr) << std::hex << e.index;
-    EXPECT_EQ(o->name, e.name);
-    EXPECT_EQ(o->type, e.type) << e.name;
-    EXPECT_EQ(o->access, e.access) << e.name;
-    EXPECT_EQ(o->unit, e.unit) << e.name;
-    EXPECT_DOUBLE_EQ(o->scale, e.scale) << e.name;
-    EXPECT_EQ(o->eng_unit, e.eng_unit) << e.name;
-    EXPECT_EQ(o->min, e.min) << e.name;
-    EXPECT_EQ(o->max, e.max) << e.name;
-    EXPECT_TRUE(o->mandatory) << e.name;
-    EXPECT_EQ(p_.object(e.index, 1), nullptr) << e.name << ": VAR, not ARRAY";
-  }
+  expect_variables(p_, objects);
   // 3.1.8: FFFF FFFFh means "not configured"; any other value is a number of pulses per metre.
   const auto& scaling = p_.object(0x6007)->values;
   EXPECT_FALSE(scaling.exhaustive);
@@ -100,96 +96,28 @@ TEST_F(PullerProfile, EveryObjectMatchesTheSpec) {
 
 TEST_F(PullerProfile, DefaultPdos) {
   // 2.1-2.3: TPDO1 180h, TPDO2 280h, RPDO1 200h (+ node-ID), transmission type 1.
-  const auto* t1 = p_.pdo("tpdo1");
-  const auto* t2 = p_.pdo("tpdo2");
-  const auto* r1 = p_.pdo("rpdo1");
-  ASSERT_TRUE(t1 && t2 && r1);
-  EXPECT_EQ(p_.pdos.size(), 3u);
-  EXPECT_EQ(t1->cob_id(5), 0x185u);
-  EXPECT_EQ(t2->cob_id(5), 0x285u);
-  EXPECT_EQ(r1->cob_id(5), 0x205u);
-  for (const auto& pdo : p_.pdos) {
-    EXPECT_EQ(pdo.transmission_type, 1) << pdo.name;
-    EXPECT_EQ(pdo.validity, PdoValidity::valid) << pdo.name;
-    EXPECT_TRUE(pdo.mandatory) << pdo.name;
-  }
-  EXPECT_EQ(t1->direction, PdoDirection::tx);
-  EXPECT_EQ(t2->direction, PdoDirection::tx);
-  EXPECT_EQ(r1->direction, PdoDirection::rx);
-  EXPECT_EQ(t1->mapping, entries({0x60300010, 0x60000010, 0x60060010}));
-  EXPECT_EQ(t2->mapping, entries({0x60040010, 0x60080020}));  // "1 mapped object", two listed
-  EXPECT_EQ(r1->mapping, entries({0x60200010, 0x60020010}));  // lost table: as corrugator 3.1
-  ASSERT_TRUE(t1->manufacturer_data);
-  EXPECT_EQ(t1->manufacturer_data->name, "manufacturer_status_word");
-  EXPECT_EQ(t1->manufacturer_data->bits, 16u);
-  ASSERT_TRUE(r1->manufacturer_data);
-  EXPECT_EQ(r1->manufacturer_data->name, "manufacturer_control_word");
-  EXPECT_EQ(r1->manufacturer_data->bits, 16u);
-  EXPECT_FALSE(t2->manufacturer_data);
+  const Tail status{"manufacturer_status_word", 16};
+  const Tail control{"manufacturer_control_word", 16};
+  expect_pdos(p_, 5,
+              {
+                  {"tpdo1", PdoDirection::tx, 0x185, 1, PdoValidity::valid, true,
+                   entries({0x60300010, 0x60000010, 0x60060010}), status},
+                  // "1 mapped object", two listed
+                  {"tpdo2", PdoDirection::tx, 0x285, 1, PdoValidity::valid, true, entries({0x60040010, 0x60080020})},
+                  // lost table: as corrugator 3.1
+                  {"rpdo1", PdoDirection::rx, 0x205, 1, PdoValidity::valid, true, entries({0x60200010, 0x60020010}),
+                   control},
+              });
 }
 
-TEST_F(PullerProfile, Tpdo1StatusSpeedAndLoad) {
-  // Status 0301h (motor running, f1 running, f1 ready); speed -2500 = F63Ch (-25.00 %);
-  // load 12345 = 3039h (123.45 %: load has the full INTEGER16 range).
-  Image img(p_, "tpdo1");
-  const std::array<std::uint8_t, 6> frame{0x01, 0x03, 0x3C, 0xF6, 0x39, 0x30};
-  ASSERT_TRUE(img.unpack(frame));
-  EXPECT_EQ(img.raw(0x6030), 0x0301u);
-  EXPECT_EQ(img.raw(0x6000), 0xF63Cu);
-  EXPECT_DOUBLE_EQ(p_.object(0x6000)->to_engineering(img.raw(0x6000)), -25.0);
-  EXPECT_DOUBLE_EQ(p_.object(0x6006)->to_engineering(img.raw(0x6006)), 123.45);
-  const auto* sw = p_.bitset("status_word");
-  EXPECT_EQ(sw->field("motor_running")->extract(img.raw(0x6030)), 1u);
-  EXPECT_EQ(sw->field("f1_running")->extract(img.raw(0x6030)), 1u);
-  EXPECT_EQ(sw->field("f1_ready")->extract(img.raw(0x6030)), 1u);
-  EXPECT_EQ(sw->field("motor_ready_to_start")->extract(img.raw(0x6030)), 0u);
-  // No second status word in a 6-byte frame; 8 bytes carry one: ABCDh.
-  EXPECT_EQ(p_.pdo("tpdo1")->manufacturer_value(frame), std::nullopt);
-  const std::array<std::uint8_t, 8> longer{0x01, 0x03, 0x3C, 0xF6, 0x39, 0x30, 0xCD, 0xAB};
-  EXPECT_EQ(p_.pdo("tpdo1")->manufacturer_value(longer), 0xABCDu);
-  // Short frames are refused.
-  const std::array<std::uint8_t, 5> short_frame{0x01, 0x03, 0x3C, 0xF6, 0x39};
-  EXPECT_FALSE(img.unpack(short_frame));
-}
-
-TEST_F(PullerProfile, Tpdo2EchoAndProductSpeed) {
-  // Echo 10000 = 2710h (100.00 %); product speed 123456 = 0001 E240h in 0.1 mm/min = 12.3456 m/min.
-  Image img(p_, "tpdo2");
-  const std::array<std::uint8_t, 6> frame{0x10, 0x27, 0x40, 0xE2, 0x01, 0x00};
-  ASSERT_TRUE(img.unpack(frame));
-  EXPECT_DOUBLE_EQ(p_.object(0x6004)->to_engineering(img.raw(0x6004)), 100.0);
-  EXPECT_DOUBLE_EQ(p_.object(0x6008)->to_engineering(img.raw(0x6008)), 12.3456);
-  // Outside the printed 0..10000: decoded and published, flagged for diagnostics only.
+TEST_F(PullerProfile, PrintedRanges) {
+  // Product speed outside the printed 0..10000: decoded and published, flagged for diagnostics only.
   EXPECT_FALSE(p_.object(0x6008)->check_raw(123456));
-  // Reverse: -5000 = FFFF EC78h = -0.5 m/min.
-  const std::array<std::uint8_t, 6> reverse{0xF0, 0xD8, 0x78, 0xEC, 0xFF, 0xFF};
-  ASSERT_TRUE(img.unpack(reverse));
-  EXPECT_DOUBLE_EQ(p_.object(0x6004)->to_engineering(img.raw(0x6004)), -100.0);
-  EXPECT_DOUBLE_EQ(p_.object(0x6008)->to_engineering(img.raw(0x6008)), -0.5);
-}
-
-TEST_F(PullerProfile, Rpdo1ControlAndSpeedSetValue) {
-  // Control 0042h (motor start, extruder running); speed set -12.34 % = -1234 = FB2Eh.
-  Image img(p_, "rpdo1");
-  const auto* set = p_.object(0x6002);
-  auto raw = set->to_raw(-12.34);
-  ASSERT_TRUE(raw);
-  img.set(0x6020, 0x0042);
-  img.set(0x6002, *raw);
-  EXPECT_EQ(img.pack(), (std::vector<std::uint8_t>{0x42, 0x00, 0x2E, 0xFB}));
-  // Monitor role: the controller's frame decodes to the same values.
-  Image monitor(p_, "rpdo1");
-  const std::array<std::uint8_t, 4> frame{0x42, 0x00, 0x2E, 0xFB};
-  ASSERT_TRUE(monitor.unpack(frame));
-  EXPECT_EQ(monitor.raw(0x6020), 0x0042u);
-  EXPECT_DOUBLE_EQ(set->to_engineering(monitor.raw(0x6002)), -12.34);
   // The set value range is -10000..10000 (±100 %).
+  const auto* set = p_.object(0x6002);
   EXPECT_TRUE(set->to_raw(-100.0));
   EXPECT_FALSE(set->to_raw(100.01));
   EXPECT_FALSE(set->to_raw(-100.01));
-  // A second control word may follow: 6 bytes carry 1234h.
-  const std::array<std::uint8_t, 6> longer{0x42, 0x00, 0x2E, 0xFB, 0x34, 0x12};
-  EXPECT_EQ(p_.pdo("rpdo1")->manufacturer_value(longer), 0x1234u);
 }
 
 TEST_F(PullerProfile, ControlStatusAndConfigurationBits) {

@@ -3,26 +3,13 @@
 // the production PDO codec; expected values are typed in.
 #include <gtest/gtest.h>
 
-#include <array>
 #include <cstdint>
-#include <optional>
-#include <string>
+#include <utility>
 #include <vector>
 
-#include "canopen/pdo_mapping.hpp"
-#include "profiles/profile_registry.hpp"
-#include "support/profile_image.hpp"
+#include "support/profile_spec.hpp"
 
-using lb::canopen::DataType;
-using lb::canopen::PdoEntry;
-using lb::profiles::Access;
-using lb::profiles::PdoDirection;
-using lb::profiles::PdoValidity;
-using lb::profiles::Profile;
-using lb::test::entries;
-using lb::test::Image;
-using lb::test::Bits;
-using lb::test::expect_bits;
+using namespace lb::test::spec;
 
 namespace {
 
@@ -41,7 +28,26 @@ class Saw10Profile : public ::testing::Test {
   const Profile& p31_ = *registry_.find("cia420-4", "3.1");
 };
 
+// Status 0003h (saw ready, saw cutting); counter 1234 5678h pulses, up to FFFF FFFFh: unsigned.
+// Saw counter -25 = FFFF FFE7h in 0.1 mm = -0.0025 m (wrong direction); speed 12000 = 2EE0h mm/min.
+// Control 0005h (program on, change of length); 33.33 % = 3333 = 0D05h; 1.5 m = 15000 = 3A98h.
+const auto kFrames = frames_of(
+    "cia420-4", "1.0",
+    {
+        {"Tpdo1StatusAndCounter", "tpdo1", {0x03, 0x00, 0x78, 0x56, 0x34, 0x12},
+         {{0x6030, 0, 0x0003}, {0x6000, 0, 0x12345678}},
+         {{"status_word", "saw_ready", 1}, {"status_word", "saw_cutting", 1}, {"status_word", "sample_request", 0}}},
+        {"Tpdo1CounterAtItsTop", "tpdo1", {0x00, 0x00, 0xFF, 0xFF, 0xFF, 0xFF},
+         {{0x6030, 0, 0x0000}, {0x6000, 0, 0xFFFFFFFF, 4294967295.0}}},
+        {"Tpdo2SawCounterAndProductSpeed", "tpdo2", {0xE7, 0xFF, 0xFF, 0xFF, 0xE0, 0x2E, 0x00, 0x00},
+         {{0x6001, 0, 0xFFFFFFE7, -0.0025}, {0x6007, 0, 0x2EE0, 12.0}}},
+        {"Rpdo1ControlSyncSpeedAndLength", "rpdo1", {0x05, 0x00, 0x05, 0x0D, 0x98, 0x3A, 0x00, 0x00},
+         {{0x6020, 0, 0x0005}, {0x6005, 0, 0x0D05, 33.33}, {0x6002, 0, 0x3A98, 1.5}}},
+    });
+
 }  // namespace
+
+INSTANTIATE_TEST_SUITE_P(Saw10, ProfileFrame, ::testing::ValuesIn(kFrames), frame_name);
 
 TEST_F(Saw10Profile, Identity) {
   EXPECT_EQ(p_.device, "saw");
@@ -49,19 +55,8 @@ TEST_F(Saw10Profile, Identity) {
 }
 
 TEST_F(Saw10Profile, EveryObjectMatchesTheSpec) {
-  struct Expect {
-    std::uint16_t index;
-    const char* name;
-    DataType type;
-    Access access;
-    const char* unit;
-    double scale;
-    const char* eng_unit;
-    std::optional<std::int64_t> min, max;
-  };
-  const std::optional<std::int64_t> none;
   // Sections 3.1.1-3.1.13: every object is a Mandatory VAR.
-  const std::vector<Expect> objects{
+  const std::vector<Variable> objects{
       {0x6000, "counter_value", DataType::unsigned32, Access::ro, "pulse", 1.0, "pulse", none, none},
       {0x6001, "actual_saw_counter", DataType::integer32, Access::ro, "0.1 mm", 0.0001, "m", none, none},
       {0x6002, "product_length_set_value", DataType::integer32, Access::wo, "0.1 mm", 0.0001, "m", none, none},
@@ -77,20 +72,7 @@ TEST_F(Saw10Profile, EveryObjectMatchesTheSpec) {
       {0x6030, "status_word", DataType::unsigned16, Access::ro, "", 1.0, "", none, none},
   };
   EXPECT_EQ(p_.objects.size(), objects.size());
-  for (const auto& e : objects) {
-    const auto* o = p_.object(e.index);
-    ASSERT_NE(o, nullptr) << std::hex << e.index;
-    EXPECT_EQ(o->name, e.name);
-    EXPECT_EQ(o->type, e.type) << e.name;
-    EXPECT_EQ(o->access, e.access) << e.name;
-    EXPECT_EQ(o->unit, e.unit) << e.name;
-    EXPECT_DOUBLE_EQ(o->scale, e.scale) << e.name;
-    EXPECT_EQ(o->eng_unit, e.eng_unit) << e.name;
-    EXPECT_EQ(o->min, e.min) << e.name;
-    EXPECT_EQ(o->max, e.max) << e.name;
-    EXPECT_TRUE(o->mandatory) << e.name;
-    EXPECT_EQ(p_.object(e.index, 1), nullptr) << e.name << ": VAR, not ARRAY";
-  }
+  expect_variables(p_, objects);
   // 3.1.4: FFFF FFFFh = scaling factor not configured.
   EXPECT_FALSE(p_.object(0x6003)->values.exhaustive);
   EXPECT_EQ(p_.object(0x6003)->values.name(0xFFFFFFFFu), "not_configured");
@@ -183,70 +165,15 @@ TEST_F(Saw10Profile, BitsSideBySideWith31) {
 }
 
 TEST_F(Saw10Profile, DefaultPdos) {
-  // 2.1-2.3: TPDO1 180h, TPDO2 280h, RPDO1 200h (+ node-ID), transmission type 1.
-  const auto* t1 = p_.pdo("tpdo1");
-  const auto* t2 = p_.pdo("tpdo2");
-  const auto* r1 = p_.pdo("rpdo1");
-  ASSERT_TRUE(t1 && t2 && r1);
-  EXPECT_EQ(p_.pdos.size(), 3u);
-  EXPECT_EQ(t1->cob_id(3), 0x183u);
-  EXPECT_EQ(t2->cob_id(3), 0x283u);
-  EXPECT_EQ(r1->cob_id(3), 0x203u);
-  for (const auto& pdo : p_.pdos) {
-    EXPECT_EQ(pdo.transmission_type, 1) << pdo.name;
-    EXPECT_EQ(pdo.validity, PdoValidity::valid) << pdo.name;
-    EXPECT_TRUE(pdo.mandatory) << pdo.name;
-    EXPECT_FALSE(pdo.manufacturer_data) << pdo.name;  // the 1.0 text has no such note
-  }
-  EXPECT_EQ(t1->direction, PdoDirection::tx);
-  EXPECT_EQ(t2->direction, PdoDirection::tx);
-  EXPECT_EQ(r1->direction, PdoDirection::rx);
-  EXPECT_EQ(t1->mapping, entries({0x60300010, 0x60000020}));
-  EXPECT_EQ(t2->mapping, entries({0x60010020, 0x60070020}));
-  EXPECT_EQ(r1->mapping, entries({0x60200010, 0x60050010, 0x60020020}));
-}
-
-TEST_F(Saw10Profile, Tpdo1StatusAndCounter) {
-  // Status 0003h (saw ready, saw cutting); counter 1234 5678h pulses.
-  Image img(p_, "tpdo1");
-  const std::array<std::uint8_t, 6> frame{0x03, 0x00, 0x78, 0x56, 0x34, 0x12};
-  ASSERT_TRUE(img.unpack(frame));
-  const auto* sw = p_.bitset("status_word");
-  EXPECT_EQ(sw->field("saw_ready")->extract(img.raw(0x6030)), 1u);
-  EXPECT_EQ(sw->field("saw_cutting")->extract(img.raw(0x6030)), 1u);
-  EXPECT_EQ(sw->field("sample_request")->extract(img.raw(0x6030)), 0u);
-  EXPECT_EQ(img.raw(0x6000), 0x12345678u);
-  // Counts up to FFFF FFFFh: unsigned.
-  const std::array<std::uint8_t, 6> top{0x00, 0x00, 0xFF, 0xFF, 0xFF, 0xFF};
-  ASSERT_TRUE(img.unpack(top));
-  EXPECT_DOUBLE_EQ(p_.object(0x6000)->to_engineering(img.raw(0x6000)), 4294967295.0);
-}
-
-TEST_F(Saw10Profile, Tpdo2SawCounterAndProductSpeed) {
-  // Saw counter -25 = FFFF FFE7h in 0.1 mm = -0.0025 m (wrong direction); speed 12000 = 2EE0h mm/min.
-  Image img(p_, "tpdo2");
-  const std::array<std::uint8_t, 8> frame{0xE7, 0xFF, 0xFF, 0xFF, 0xE0, 0x2E, 0x00, 0x00};
-  ASSERT_TRUE(img.unpack(frame));
-  EXPECT_DOUBLE_EQ(p_.object(0x6001)->to_engineering(img.raw(0x6001)), -0.0025);
-  EXPECT_DOUBLE_EQ(p_.object(0x6007)->to_engineering(img.raw(0x6007)), 12.0);
-}
-
-TEST_F(Saw10Profile, Rpdo1ControlSyncSpeedAndLength) {
-  // Control 0005h (program on, change of length); 33.33 % = 3333 = 0D05h; 1.5 m = 15000 = 3A98h.
-  Image img(p_, "rpdo1");
-  const auto speed = p_.object(0x6005)->to_raw(33.33);
-  const auto length = p_.object(0x6002)->to_raw(1.5);
-  ASSERT_TRUE(speed && length);
-  img.set(0x6020, 0x0005);
-  img.set(0x6005, *speed);
-  img.set(0x6002, *length);
-  EXPECT_EQ(img.pack(), (std::vector<std::uint8_t>{0x05, 0x00, 0x05, 0x0D, 0x98, 0x3A, 0x00, 0x00}));
-  Image monitor(p_, "rpdo1");
-  const std::array<std::uint8_t, 8> frame{0x05, 0x00, 0x05, 0x0D, 0x98, 0x3A, 0x00, 0x00};
-  ASSERT_TRUE(monitor.unpack(frame));
-  EXPECT_EQ(monitor.raw(0x6020), 0x0005u);
-  EXPECT_DOUBLE_EQ(p_.object(0x6005)->to_engineering(monitor.raw(0x6005)), 33.33);
-  EXPECT_DOUBLE_EQ(p_.object(0x6002)->to_engineering(monitor.raw(0x6002)), 1.5);
+  // 2.1-2.3: TPDO1 180h, TPDO2 280h, RPDO1 200h (+ node-ID), transmission type 1; the 1.0 text has
+  // no note of a manufacturer-specific object.
+  expect_pdos(p_, 3,
+              {
+                  {"tpdo1", PdoDirection::tx, 0x183, 1, PdoValidity::valid, true, entries({0x60300010, 0x60000020})},
+                  {"tpdo2", PdoDirection::tx, 0x283, 1, PdoValidity::valid, true, entries({0x60010020, 0x60070020})},
+                  {"rpdo1", PdoDirection::rx, 0x203, 1, PdoValidity::valid, true,
+                   entries({0x60200010, 0x60050010, 0x60020020})},
+              });
 }
 
 TEST_F(Saw10Profile, ProductLengthIsSignedIn10AndUnsignedIn31) {
