@@ -11,13 +11,13 @@
 #include <vector>
 
 #include "gateways/command_service.hpp"
-#include "gateways/corrugator_codec.hpp"
+#include "gateways/drive_codec.hpp"
 #include "profiles/line_config.hpp"
 #include "profiles/profile_registry.hpp"
 #include "support/codec_pdo.hpp"
 
 namespace msg = linebridge_msgs::msg;
-using lb::gateways::CorrugatorCodec;
+using CorrugatorCodec = lb::gateways::DriveCodec<linebridge_msgs::bindings::Corrugator>;
 
 namespace {
 
@@ -169,7 +169,7 @@ TEST_F(CorrugatorCodecTest, EveryControlBitHasItsNameAndTheMomentaryOnesAreComma
     codec_.set_control_bit(bit, false);
   }
   const auto commands = lb::gateways::resolve_commands(codec_.bitset("control_word"),
-                                                       lb::gateways::CorrugatorTraits::momentary_commands());
+                                                       lb::gateways::momentary_commands<linebridge_msgs::bindings::Corrugator>());
   const std::vector<std::pair<std::string, unsigned>> expected{
       {"drive_stop", 0}, {"drive_start", 1}, {"move_in", 2}, {"move_out", 3}, {"f1_stop", 7},
       {"f1_start", 8},   {"f2_stop", 9},     {"f2_start", 10}, {"f3_stop", 11}, {"f3_start", 12}};

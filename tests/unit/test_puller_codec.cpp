@@ -12,13 +12,13 @@
 #include <vector>
 
 #include "gateways/command_service.hpp"
-#include "gateways/puller_codec.hpp"
+#include "gateways/drive_codec.hpp"
 #include "profiles/line_config.hpp"
 #include "profiles/profile_registry.hpp"
 #include "support/codec_pdo.hpp"
 
 namespace msg = linebridge_msgs::msg;
-using lb::gateways::PullerCodec;
+using PullerCodec = lb::gateways::DriveCodec<linebridge_msgs::bindings::Puller>;
 
 namespace {
 
@@ -221,7 +221,7 @@ TEST_P(PullerCodecTest, EveryControlBitHasItsNameAndTheMomentaryOnesAreCommands)
     codec_.set_control_bit(bit, false);
   }
   const auto commands =
-      lb::gateways::resolve_commands(codec_.bitset("control_word"), lb::gateways::PullerTraits::momentary_commands());
+      lb::gateways::resolve_commands(codec_.bitset("control_word"), lb::gateways::momentary_commands<linebridge_msgs::bindings::Puller>());
   const std::vector<std::pair<std::string, unsigned>> expected{
       {"motor_stop", 0}, {"motor_start", 1}, {"clamp_close", 2}, {"clamp_open", 3}, {"f1_stop", 7},
       {"f1_start", 8},   {"f2_stop", 9},     {"f2_start", 10},   {"f3_stop", 11},   {"f3_start", 12}};
