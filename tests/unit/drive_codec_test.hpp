@@ -224,8 +224,8 @@ TYPED_TEST_P(DriveCodecTest, EveryControlBitHasItsNameAndTheMomentaryOnesAreComm
     for (const auto& [other, other_name] : bits) EXPECT_EQ(this->control_flag(s, other_name), other == bit) << bit << "/" << other;
     this->codec_.set_control_bit(bit, false);
   }
-  using Binding = typename TestFixture::Binding;
-  const auto commands = gateways::resolve_commands(this->codec_.bitset("control_word"), gateways::momentary_commands<Binding>());
+  const auto commands = gateways::resolve_commands(this->codec_.bitset("control_word"),
+                                                   gateways::momentary_commands<typename TestFixture::Binding>());
   const auto& expected = this->v_.momentary;
   ASSERT_EQ(commands.size(), expected.size());
   for (std::size_t i = 0; i < expected.size(); ++i) {
