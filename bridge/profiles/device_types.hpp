@@ -51,6 +51,8 @@ inline constexpr DeviceType device_types[] = {
      "CiA 420-4 saw: program, lengths, wall thickening, cuts", 0x0420'0004},
     {"feeder", "cia414-2", "1.1", "feeder", Behaviour::feeder,
      "CiA 414-2 weft feeder box: loom set values, feeder services", 0x0414'0002},
+    {"winder", "lb-example-winder", "1.0", "winder", Behaviour::drive,
+     "example winder (test-only, docs/adding-a-device-type.md): speed set value, winder/reel/f1 commands", 0x4C57'0001},
 };
 
 // The entry of the type a profile names (`device:`); null for a type the bridge does not serve.
