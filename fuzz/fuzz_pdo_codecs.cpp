@@ -11,10 +11,11 @@
 #include <string>
 #include <vector>
 
-#include "gateways/corrugator_codec.hpp"
+#include "gateways/drive_binding.hpp"
+#include "gateways/drive_codec.hpp"
 #include "gateways/feeder_codec.hpp"
-#include "gateways/puller_codec.hpp"
 #include "gateways/saw_codec.hpp"
+#include "profiles/device_types.hpp"
 #include "profiles/line_config.hpp"
 #include "profiles/profile_registry.hpp"
 
@@ -185,10 +186,17 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   FuzzedDataProvider in(data, size);
   const Profile& profile = *profiles[in.ConsumeIntegralInRange<std::size_t>(0, profiles.size() - 1)];
   const auto pdos = profiles::default_pdos(profile, in.ConsumeIntegralInRange<std::uint8_t>(1, 127));
-  if (profile.device == "saw") saw(in, profile, pdos);
-  else if (profile.device == "puller") drive<gateways::PullerCodec>(in, profile, pdos);
-  else if (profile.device == "corrugator") drive<gateways::CorrugatorCodec>(in, profile, pdos);
-  else if (profile.device == "feeder") feeder(in, profile, pdos);
-  else __builtin_trap();  // a profile of a device no codec serves: add it here
+  // A profile of a device no codec serves traps: the registry (profiles/device_types.hpp) lacks it.
+  const auto* type = profiles::find_device_type(profile.device);
+  if (type == nullptr) __builtin_trap();
+  switch (type->behaviour) {
+    case profiles::Behaviour::saw: saw(in, profile, pdos); break;
+    case profiles::Behaviour::feeder: feeder(in, profile, pdos); break;
+    case profiles::Behaviour::drive:
+      if (!gateways::visit_drive(type->idl, [&]<class Binding>() { drive<gateways::DriveCodec<Binding>>(in, profile, pdos); })) {
+        __builtin_trap();
+      }
+      break;
+  }
   return 0;
 }

@@ -8,6 +8,7 @@
 #include <functional>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <thread>
 
 #include "app/cli_exit.hpp"
@@ -18,11 +19,11 @@
 #include "app/saw_text.hpp"
 #include "app/stdout_gone.hpp"
 #include "dds/topic_names.hpp"
+#include "gateways/drive_binding.hpp"
 #include "msgs/commonPubSubTypes.h"
-#include "msgs/corrugatorPubSubTypes.h"
 #include "msgs/feederPubSubTypes.h"
-#include "msgs/pullerPubSubTypes.h"
 #include "msgs/sawPubSubTypes.h"
+#include "profiles/device_types.hpp"
 
 namespace lb::app {
 
@@ -84,6 +85,26 @@ std::uint64_t status_key(const msg::DeviceHealth& h, std::uint16_t word) {
   return std::uint64_t{word} << 1 | (h.online() ? 1U : 0U);
 }
 
+// A drive's status: its own rendering (drive_text.hpp) when it has one, else its status word's
+// flags by their IDL names, so a new drive type prints without code of its own.
+template <class Binding>
+std::string drive_status_text(const typename Binding::Status& s) {
+  if constexpr (requires { to_text(s); }) {
+    return to_text(s);
+  } else {
+    std::string flags;
+    for (const auto& f : Binding::status_flags) {
+      if ((s.status_word().*f.get)()) flags += (flags.empty() ? "" : " ") + std::string(f.name);
+    }
+    return fmt::format("{} {} | speed {:7.2f} % (echo {:7.2f} %) load {:6.2f} % product {:8.3f} m/min | status {:04X}h [{}] | "
+                       "set: extruder {}, speed {:.2f} %{}",
+                       clock_text(s.stamp()), state_text(s.health()), s.speed_actual_percent(), s.speed_set_echo_percent(),
+                       s.load_actual_percent(), s.product_speed_m_per_min(), s.status_word().raw(), flags,
+                       s.control_word().extruder_running() ? "running" : "stopped", s.speed_set_percent(),
+                       s.set_echo_mismatch() ? " | SET ECHO MISMATCH" : "");
+  }
+}
+
 Result<Subscription> subscribe_topic(ddsl::Participant& dds, const std::string& topic_name, const std::string& type,
                              const std::string& topic, Printer& out) {
   using ddsl::QosKind;
@@ -99,38 +120,49 @@ Result<Subscription> subscribe_topic(ddsl::Participant& dds, const std::string& 
       out.print(fmt::format("request {}: {}{}", r.request_id(), r.accepted() ? "accepted" : "refused: ", r.reason()));
     });
   }
-  if (type == "saw" && topic == "status") {
+  const auto* entry = profiles::find_device_type(type);
+  const auto behaviour = entry != nullptr ? std::optional(entry->behaviour) : std::nullopt;
+  if (behaviour == profiles::Behaviour::saw && topic == "status") {
     return subscribe<msg::SawStatusPubSubType>(dds, topic_name, QosKind::state, [&out](const msg::SawStatus& s) {
       out.throttled(status_key(s.health(), s.status_word().raw()), to_text(s));
     });
   }
-  if (type == "saw" && topic == "cut") return subscribe<msg::SawCutPubSubType>(dds, topic_name, QosKind::event, text);
-  if (type == "puller" && topic == "status") {
-    return subscribe<msg::PullerStatusPubSubType>(dds, topic_name, QosKind::state, [&out](const msg::PullerStatus& s) {
-      out.throttled(status_key(s.health(), s.status_word().raw()), to_text(s));
-    });
+  if (behaviour == profiles::Behaviour::saw && topic == "cut") {
+    return subscribe<msg::SawCutPubSubType>(dds, topic_name, QosKind::event, text);
   }
-  if (type == "corrugator" && topic == "status") {
-    return subscribe<msg::CorrugatorStatusPubSubType>(dds, topic_name, QosKind::state, [&out](const msg::CorrugatorStatus& s) {
-      out.throttled(status_key(s.health(), s.status_word().raw()), to_text(s));
+  if (behaviour == profiles::Behaviour::drive && topic == "status") {
+    std::optional<Result<Subscription>> sub;
+    gateways::visit_drive(entry->idl, [&]<class Binding>() {
+      using Status = typename Binding::Status;
+      sub = subscribe<typename Binding::StatusTopic>(dds, topic_name, QosKind::state, [&out](const Status& s) {
+        out.throttled(status_key(s.health(), s.status_word().raw()), drive_status_text<Binding>(s));
+      });
     });
+    if (sub) return std::move(*sub);
   }
-  if (type == "feeder" && topic == "status") {
+  if (behaviour == profiles::Behaviour::feeder && topic == "status") {
     return subscribe<msg::FeederStatusPubSubType>(dds, topic_name, QosKind::state, [&out](const msg::FeederStatus& s) {
       out.throttled(status_key(s.health(), static_cast<std::uint16_t>(s.error_bitmap())), to_text(s));
     });
   }
-  if (type == "feeder" && topic == "unwinding") return subscribe<msg::FeederUnwindingPubSubType>(dds, topic_name, QosKind::event, text);
-  if (type == "feeder" && topic == "feeder_error") return subscribe<msg::FeederErrorPubSubType>(dds, topic_name, QosKind::event, text);
+  if (behaviour == profiles::Behaviour::feeder && topic == "unwinding") {
+    return subscribe<msg::FeederUnwindingPubSubType>(dds, topic_name, QosKind::event, text);
+  }
+  if (behaviour == profiles::Behaviour::feeder && topic == "feeder_error") {
+    return subscribe<msg::FeederErrorPubSubType>(dds, topic_name, QosKind::event, text);
+  }
   return make_error("a " + type + " has no topic '" + topic + "' (" + echo_topics(type) + ")");
 }
 
 }  // namespace
 
 std::string echo_topics(const std::string& device_type) {
-  if (device_type == "bridge") return "diagnostics";
-  if (device_type == "saw") return "status, cut, setpoint_result, info, emergency";
-  if (device_type == "feeder") return "status, unwinding, feeder_error, loom_result, info, emergency";
+  if (device_type == ddsl::kBridgeNamespace) return "diagnostics";
+  const auto* type = profiles::find_device_type(device_type);
+  if (type != nullptr && type->behaviour == profiles::Behaviour::saw) return "status, cut, setpoint_result, info, emergency";
+  if (type != nullptr && type->behaviour == profiles::Behaviour::feeder) {
+    return "status, unwinding, feeder_error, loom_result, info, emergency";
+  }
   return "status, setpoint_result, info, emergency";
 }
 

@@ -15,7 +15,7 @@ struct EchoOptions {
   double duration_s = 0;  // 0: until Ctrl-C
 };
 
-// The topics `echo` knows for a device type ("saw", "puller", "corrugator", "feeder", or "bridge").
+// The topics `echo` knows for a device type (a registry name, profiles/device_types.hpp, or "bridge").
 std::string echo_topics(const std::string& device_type);
 
 // Returns the exit code (cli_exit.hpp).

@@ -14,11 +14,11 @@
 #include "app/cli_exit.hpp"
 #include "dds/service.hpp"
 #include "dds/topic_names.hpp"
+#include "gateways/drive_binding.hpp"
 #include "msgs/commonPubSubTypes.h"
-#include "msgs/corrugatorPubSubTypes.h"
 #include "msgs/feederPubSubTypes.h"
-#include "msgs/pullerPubSubTypes.h"
 #include "msgs/sawPubSubTypes.h"
+#include "profiles/device_types.hpp"
 
 namespace lb::app {
 
@@ -191,19 +191,34 @@ int set_feeder(ddsl::Participant& dds, const std::string& line, const std::strin
 }  // namespace
 
 std::string set_options_of(const std::string& device_type) {
-  if (device_type == "saw") return "--program, --wall-thickening, --sync-speed-percent, --product-length-m, --count-mode";
-  if (device_type == "feeder") return "--loom-status, --maximum-speed, --loom-width-m, --trigger-signal, --picks, --outputs";
+  const auto* type = profiles::find_device_type(device_type);
+  if (type == nullptr) return "none";
+  switch (type->behaviour) {
+    case profiles::Behaviour::saw: return "--program, --wall-thickening, --sync-speed-percent, --product-length-m, --count-mode";
+    case profiles::Behaviour::feeder: return "--loom-status, --maximum-speed, --loom-width-m, --trigger-signal, --picks, --outputs";
+    case profiles::Behaviour::drive: break;
+  }
   return "--extruder, --speed-percent";
 }
 
 int run_set(ddsl::Participant& dds, const std::string& line, const std::string& device, const std::string& device_type,
             const SetOptions& o) {
-  if (device_type == "saw") return set_saw(dds, line, device, o);
-  if (device_type == "puller") return set_drive<msg::PullerStatusPubSubType, msg::PullerSetpointPubSubType>(dds, line, device, o);
-  if (device_type == "corrugator") {
-    return set_drive<msg::CorrugatorStatusPubSubType, msg::CorrugatorSetpointPubSubType>(dds, line, device, o);
+  const auto* type = profiles::find_device_type(device_type);
+  if (type != nullptr) {
+    switch (type->behaviour) {
+      case profiles::Behaviour::saw: return set_saw(dds, line, device, o);
+      case profiles::Behaviour::feeder: return set_feeder(dds, line, device, o);
+      case profiles::Behaviour::drive: {
+        int rc = kExitUsage;
+        if (gateways::visit_drive(type->idl, [&]<class Binding>() {
+              rc = set_drive<typename Binding::StatusTopic, typename Binding::SetpointTopic>(dds, line, device, o);
+            })) {
+          return rc;
+        }
+        break;
+      }
+    }
   }
-  if (device_type == "feeder") return set_feeder(dds, line, device, o);
   fmt::print(stderr, "{}: no set values for a {}\n", device, device_type);
   return kExitUsage;
 }

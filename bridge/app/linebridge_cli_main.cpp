@@ -24,6 +24,7 @@
 #include "app/run_until_signal.hpp"
 #include "dds/participant.hpp"
 #include "dds/topic_names.hpp"
+#include "profiles/device_types.hpp"
 
 namespace {
 
@@ -40,15 +41,16 @@ struct FeederArgs {
 // The set options given that a device type does not take.
 bool set_options_fit(const std::string& type, CLI::App& set_cmd) {
   const auto given = [&](const char* name) { return set_cmd.get_option(name)->count() > 0; };
-  const std::vector<std::pair<const char*, const char*>> owners = {
-      {"--program", "saw"},          {"--wall-thickening", "saw"},  {"--sync-speed-percent", "saw"},
-      {"--product-length-m", "saw"}, {"--count-mode", "saw"},       {"--extruder", "drive"},
-      {"--speed-percent", "drive"},  {"--loom-status", "feeder"},   {"--maximum-speed", "feeder"},
-      {"--loom-width-m", "feeder"},  {"--trigger-signal", "feeder"}, {"--picks", "feeder"},
-      {"--outputs", "feeder"}};
-  const std::string kind = (type == "puller" || type == "corrugator") ? "drive" : type;
+  using lb::profiles::Behaviour;
+  const std::vector<std::pair<const char*, Behaviour>> owners = {
+      {"--program", Behaviour::saw},          {"--wall-thickening", Behaviour::saw},   {"--sync-speed-percent", Behaviour::saw},
+      {"--product-length-m", Behaviour::saw}, {"--count-mode", Behaviour::saw},        {"--extruder", Behaviour::drive},
+      {"--speed-percent", Behaviour::drive},  {"--loom-status", Behaviour::feeder},    {"--maximum-speed", Behaviour::feeder},
+      {"--loom-width-m", Behaviour::feeder},  {"--trigger-signal", Behaviour::feeder}, {"--picks", Behaviour::feeder},
+      {"--outputs", Behaviour::feeder}};
+  const auto* entry = lb::profiles::find_device_type(type);
   for (const auto& [option, owner] : owners) {
-    if (given(option) && kind != owner) {
+    if (given(option) && (entry == nullptr || entry->behaviour != owner)) {
       fmt::print(stderr, "{} is not a set value of a {} ({})\n", option, type, lb::app::set_options_of(type));
       return false;
     }
@@ -243,8 +245,10 @@ int main(int argc, char** argv) {
   const std::string device_type = bridge_topic ? std::string(lb::ddsl::kBridgeNamespace) : dev->resolved_profile->device;
   if (echo_cmd->parsed() && bridge_topic && echo.topic == "status") echo.topic = "diagnostics";
   if (set_cmd->parsed() && !set_options_fit(device_type, *set_cmd)) return kExitUsage;
+  const auto* type_entry = lb::profiles::find_device_type(device_type);
+  const bool is_feeder_box = type_entry != nullptr && type_entry->behaviour == lb::profiles::Behaviour::feeder;
   for (auto* c : feeder_cmds) {
-    if (c->parsed() && device_type != "feeder") {
+    if (c->parsed() && !is_feeder_box) {
       return fmt::print(stderr, "{}: {} is for a feeder box; {} is a {}\n", c->get_name(), device, device, device_type), kExitUsage;
     }
   }

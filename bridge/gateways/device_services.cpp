@@ -42,6 +42,16 @@ Result<canopen::ObjectValue> from_msg(DataType type, const srv::ObjectValue& v) 
   return canopen::ObjectValue{v.unsigned_value()};
 }
 
+// How every service refuses: its reply with the reason, success false.
+template <class Response>
+auto refuser(ddsl::Respond<Response> respond) {
+  return [respond = std::move(respond)](const std::string& why) {
+    Response r;
+    r.message(why);
+    respond(r);
+  };
+}
+
 srv::ObjectValue to_msg(DataType type, const canopen::ObjectValue& value) {
   srv::ObjectValue v;
   v.data_type(std::string(canopen::to_string(type)));
@@ -210,11 +220,7 @@ void DeviceServices::start() {
 }
 
 void DeviceServices::sdo_read(const srv::SdoRead_Request& req, ddsl::Respond<srv::SdoRead_Response> respond) {
-  const auto refuse = [respond](const std::string& why) {
-    srv::SdoRead_Response r;
-    r.message(why);
-    respond(r);
-  };
+  const auto refuse = refuser(respond);
   const auto type = canopen::parse_data_type(req.data_type());
   if (!type) {
     return refuse("unknown data type '" + req.data_type() +
@@ -243,11 +249,7 @@ void DeviceServices::sdo_read(const srv::SdoRead_Request& req, ddsl::Respond<srv
 }
 
 void DeviceServices::sdo_write(const srv::SdoWrite_Request& req, ddsl::Respond<srv::SdoWrite_Response> respond) {
-  const auto refuse = [respond](const std::string& why) {
-    srv::SdoWrite_Response r;
-    r.message(why);
-    respond(r);
-  };
+  const auto refuse = refuser(respond);
   const auto type = canopen::parse_data_type(req.value().data_type());
   if (!type) return refuse("unknown data type '" + req.value().data_type() + "'");
   if (auto why = refusal(); !why.empty()) return refuse(why);
@@ -263,11 +265,7 @@ void DeviceServices::sdo_write(const srv::SdoWrite_Request& req, ddsl::Respond<s
 }
 
 void DeviceServices::get_parameter(const srv::GetParameter_Request& req, ddsl::Respond<srv::GetParameter_Response> respond) {
-  const auto refuse = [respond](const std::string& why) {
-    srv::GetParameter_Response r;
-    r.message(why);
-    respond(r);
-  };
+  const auto refuse = refuser(respond);
   const auto* obj = ctx_.profile.object(req.parameter());
   if (obj == nullptr) return refuse("profile " + ctx_.profile.key() + " has no object '" + req.parameter() + "'");
   if (!obj->readable()) return refuse(req.parameter() + " is write-only");
@@ -303,11 +301,7 @@ void DeviceServices::get_parameter(const srv::GetParameter_Request& req, ddsl::R
 }
 
 void DeviceServices::set_parameter(const srv::SetParameter_Request& req, ddsl::Respond<srv::SetParameter_Response> respond) {
-  const auto refuse = [respond](const std::string& why) {
-    srv::SetParameter_Response r;
-    r.message(why);
-    respond(r);
-  };
+  const auto refuse = refuser(respond);
   const auto* obj = ctx_.profile.object(req.parameter());
   if (obj == nullptr) return refuse("profile " + ctx_.profile.key() + " has no object '" + req.parameter() + "'");
   if (!obj->writable()) return refuse(req.parameter() + " is " + std::string(profiles::to_string(obj->access)) + ", not writable");

@@ -1,20 +1,19 @@
 #pragma once
-// A CiA 420 drive (puller, corrugator) rendered as its DDS types: DriveImage holds the PDOs and
-// values; Traits names the device (object prefix), its message types and how its status and
-// control words map onto them. Traits:
-//   using Status, StatusWord, ControlWord, Setpoint;          // generated DDS types
-//   static constexpr std::string_view device;                // "puller", "corrugator"
-//   static WordDecoder<StatusWord> status_word(const profiles::BitSet&);
-//   static WordDecoder<ControlWord> control_word(const profiles::BitSet&);
-//   static std::vector<std::string> momentary_commands();    // control bits pressed like buttons
+// A CiA 420 drive-like device (puller, corrugator, any type whose registry entry says drive)
+// rendered as its DDS types: DriveImage holds the PDOs and values; Binding is the type's word
+// binding, generated from its IDL (idl/word_bindings.cmake): its message types and the fields of
+// its status and control words, which meet the profile's bits by name.
 
 #include <cstdint>
 #include <functional>
+#include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "gateways/drive_image.hpp"
 #include "gateways/named_bits.hpp"
+#include "msgs/word_bindings.hpp"
 
 namespace lb::gateways {
 
@@ -28,18 +27,45 @@ WordDecoder<Word> decoder(NamedBits<Word> bits) {
   return [bits = std::move(bits)](std::uint64_t raw, Word& word) { bits.decode(raw, word); };
 }
 
-template <class Traits>
+// The flags of `flags` by the profile's bit positions, and each field of `codes` by the name the
+// profile gives its code (a profile without the field: the IDL's first enumerator, "not reported").
+template <class Word, class Flags, class Codes>
+WordDecoder<Word> word_decoder(const profiles::BitSet& set, const Flags& flags, const Codes& codes) {
+  struct Code {
+    std::optional<profiles::BitField> field;
+    void (*set)(Word&, std::string_view);
+  };
+  std::vector<Code> bound;
+  for (const auto& c : codes) {
+    const auto* f = set.field(c.name);
+    bound.push_back({f != nullptr ? std::optional(*f) : std::nullopt, c.set});
+  }
+  return [bits = NamedBits<Word>(set, flags), bound = std::move(bound)](std::uint64_t raw, Word& w) {
+    bits.decode(raw, w);
+    for (const auto& c : bound) c.set(w, c.field ? c.field->values.name(c.field->extract(raw)).value_or("") : "");
+  };
+}
+
+// The control bits of a binding pressed like buttons (its control word's flags its setpoint does
+// not carry as a state).
+template <class Binding>
+std::vector<std::string> momentary_commands() {
+  return {Binding::momentary.begin(), Binding::momentary.end()};
+}
+
+template <class Binding>
 class DriveCodec : public DriveImage {
  public:
-  using Status = typename Traits::Status;
-  using Setpoint = typename Traits::Setpoint;
-  using DeviceTraits = Traits;
+  using Status = typename Binding::Status;
+  using Setpoint = typename Binding::Setpoint;
 
   DriveCodec(const profiles::Profile& profile, std::span<const profiles::DevicePdo> pdos,
              SetEchoMonitor::Settings echo = {}, bool rpdos_received = false)
-      : DriveImage(profile, pdos, Traits::device, echo, rpdos_received),
-        status_word_(Traits::status_word(bitset("status_word"))),
-        control_word_(Traits::control_word(bitset("control_word"))) {}
+      : DriveImage(profile, pdos, profile.device, echo, rpdos_received),
+        status_word_(word_decoder<typename Binding::StatusWord>(bitset("status_word"), Binding::status_flags,
+                                                                Binding::status_codes)),
+        control_word_(word_decoder<typename Binding::ControlWord>(bitset("control_word"), Binding::control_flags,
+                                                                  Binding::control_codes)) {}
 
   // Everything the image holds, in engineering units (stamp, health, length errors are the caller's).
   void fill(Status& s) const {
@@ -66,8 +92,8 @@ class DriveCodec : public DriveImage {
   }
 
  private:
-  WordDecoder<typename Traits::StatusWord> status_word_;
-  WordDecoder<typename Traits::ControlWord> control_word_;
+  WordDecoder<typename Binding::StatusWord> status_word_;
+  WordDecoder<typename Binding::ControlWord> control_word_;
 };
 
 }  // namespace lb::gateways

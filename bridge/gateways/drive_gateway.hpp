@@ -3,8 +3,8 @@
 // rt/<line>/<device>/status, set values from rt/<line>/<device>/setpoint validated and sent in
 // RPDO1 at every SYNC (master role) or the line controller's RPDO1 decoded (monitor role), and the
 // momentary control bits for the line-wide command service.
-// Dds: using Codec, StatusTopic, SetpointTopic.
-// Instantiated once per device type (puller_gateway.cpp, corrugator_gateway.cpp).
+// Binding: the type's generated word binding (msgs/word_bindings.hpp); instantiated once per
+// drive-shaped binding, by make_gateway.cpp.
 
 #include <spdlog/spdlog.h>
 
@@ -18,6 +18,7 @@
 #include "canopen/pdo_transmitter.hpp"
 #include "dds/topic_names.hpp"
 #include "gateways/command_service.hpp"
+#include "gateways/drive_codec.hpp"
 #include "gateways/device_health.hpp"
 #include "gateways/gateway.hpp"
 #include "gateways/momentary_commands.hpp"
@@ -29,10 +30,10 @@
 
 namespace lb::gateways {
 
-template <class Dds>
+template <class Binding>
 class DriveGateway : public Gateway {
  public:
-  using Codec = typename Dds::Codec;
+  using Codec = DriveCodec<Binding>;
   using Status = typename Codec::Status;
   using Setpoint = typename Codec::Setpoint;
 
@@ -63,14 +64,14 @@ class DriveGateway : public Gateway {
   MomentaryCommands commands_;
   PdoBurst burst_;
   CommandService command_service_;  // presses commands_
-  ddsl::Writer<typename Dds::StatusTopic> status_writer_;
+  ddsl::Writer<typename Binding::StatusTopic> status_writer_;
   ddsl::Writer<linebridge_msgs::msg::SetpointResultPubSubType> result_writer_;
   Status status_;  // loop thread
   bool echo_mismatch_logged_ = false;
 };
 
-template <class Dds>
-DriveGateway<Dds>::DriveGateway(DeviceContext context)
+template <class Binding>
+DriveGateway<Binding>::DriveGateway(DeviceContext context)
     : ctx_(context),
       codec_(context.profile, context.device.pdos, {}, !context.is_master()),
       pdos_(ctx_, codec_, [this](std::size_t pdo, const can::CanFrame& f) { on_pdo(pdo, f); }),
@@ -81,7 +82,7 @@ DriveGateway<Dds>::DriveGateway(DeviceContext context)
             publish_status(ddsl::now_ns());
           }),
       burst_(context.loop, [this](std::int64_t stamp_ns) { publish_status(stamp_ns); }),
-      command_service_(context, resolve_commands(codec_.bitset("control_word"), Codec::DeviceTraits::momentary_commands()),
+      command_service_(context, resolve_commands(codec_.bitset("control_word"), momentary_commands<Binding>()),
                        commands_,
                        [this] {
                          const bool go = pdos_.ready_for_a_stop();
@@ -91,7 +92,7 @@ DriveGateway<Dds>::DriveGateway(DeviceContext context)
   namespace msg = linebridge_msgs::msg;
   const std::string& dev = ctx_.device.name;
   const auto fail = [&dev](const Error& e) { throw std::runtime_error(dev + ": " + e.message); };
-  auto status = ctx_.dds.writer<typename Dds::StatusTopic>(ddsl::topic_name(ctx_.line, dev, "status"),
+  auto status = ctx_.dds.writer<typename Binding::StatusTopic>(ddsl::topic_name(ctx_.line, dev, "status"),
                                                                      ddsl::QosKind::state);
   if (!status) fail(status.error());
   status_writer_ = *status;
@@ -99,7 +100,7 @@ DriveGateway<Dds>::DriveGateway(DeviceContext context)
       ddsl::topic_name(ctx_.line, dev, "setpoint_result"), ddsl::QosKind::reply);
   if (!result) fail(result.error());
   result_writer_ = *result;
-  auto sub = ctx_.dds.subscribe<typename Dds::SetpointTopic>(
+  auto sub = ctx_.dds.subscribe<typename Binding::SetpointTopic>(
       ddsl::topic_name(ctx_.line, dev, "setpoint"), ddsl::QosKind::command,
       [this](const Setpoint& sp, const ddsl::fdds::SampleInfo&) { on_setpoint(sp); });
   if (!sub) fail(sub.error());
@@ -115,7 +116,7 @@ DriveGateway<Dds>::DriveGateway(DeviceContext context)
   pdos_.restore([this] {
     for (const auto& c : command_service_.commands()) codec_.set_control_bit(c.bit, false);
   });
-  spdlog::info("{}: {} ({}) node {} on bus {} as {}{}", dev, Codec::DeviceTraits::device, ctx_.profile.key(),
+  spdlog::info("{}: {} ({}) node {} on bus {} as {}{}", dev, ctx_.profile.device, ctx_.profile.key(),
                ctx_.device.node_id, ctx_.bus.name, profiles::to_string(ctx_.bus.role),
                ctx_.is_master() ? (ctx_.set_values != nullptr ? "; RPDO1 image as kept at the last stop (zero when none)"
                                                               : "; RPDO1 image starts all zero (extruder stopped, speed set value 0)")
@@ -123,8 +124,8 @@ DriveGateway<Dds>::DriveGateway(DeviceContext context)
   publish_status(ddsl::now_ns());  // the device exists (offline) before its first heartbeat
 }
 
-template <class Dds>
-void DriveGateway<Dds>::on_pdo(std::size_t pdo, const can::CanFrame& frame) {
+template <class Binding>
+void DriveGateway<Binding>::on_pdo(std::size_t pdo, const can::CanFrame& frame) {
   if (!receive_pdo(ctx_, codec_, burst_, pdo, frame)) return;
   if (codec_.set_echo_mismatch() != echo_mismatch_logged_) {
     echo_mismatch_logged_ = codec_.set_echo_mismatch();
@@ -138,8 +139,8 @@ void DriveGateway<Dds>::on_pdo(std::size_t pdo, const can::CanFrame& frame) {
   burst_.add(pdo, frame.timestamp_ns);
 }
 
-template <class Dds>
-void DriveGateway<Dds>::on_setpoint(const Setpoint& sp) {
+template <class Binding>
+void DriveGateway<Binding>::on_setpoint(const Setpoint& sp) {
   take_set_value(
       ctx_, pdos_, set_value_log_, sp.request_id(), [&] { return codec_.validate(sp); },
       [this](const auto& r) { codec_.apply(r); },
@@ -155,8 +156,8 @@ void DriveGateway<Dds>::on_setpoint(const Setpoint& sp) {
       [this](std::uint64_t id, bool accepted, const std::string& reason) { reply(id, accepted, reason); });
 }
 
-template <class Dds>
-void DriveGateway<Dds>::reply(std::uint64_t request_id, bool accepted, const std::string& reason) {
+template <class Binding>
+void DriveGateway<Binding>::reply(std::uint64_t request_id, bool accepted, const std::string& reason) {
   linebridge_msgs::msg::SetpointResult r;
   r.request_id(request_id);
   r.accepted(accepted);
@@ -164,8 +165,8 @@ void DriveGateway<Dds>::reply(std::uint64_t request_id, bool accepted, const std
   result_writer_.write(r);
 }
 
-template <class Dds>
-void DriveGateway<Dds>::publish_status(std::int64_t stamp_ns) {
+template <class Binding>
+void DriveGateway<Binding>::publish_status(std::int64_t stamp_ns) {
   burst_.published();
   const auto stamp = ddsl::to_stamp(stamp_ns);
   status_.stamp().sec(stamp.sec);

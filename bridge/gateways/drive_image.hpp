@@ -33,7 +33,7 @@ class DriveImage {
     std::uint64_t speed_set = 0;  // 6002h, 0.01 %, two's complement in the low 16 bits
   };
 
-  // device: "puller" or "corrugator", the prefix of the profile's speed and load object names.
+  // device: the type's name (puller, corrugator, ...), the prefix of its speed and load object names.
   // Throws std::runtime_error (start-up) when the profile lacks an object or bit this needs.
   // pdos: the device's PDOs (profile defaults with overrides); they must outlive the image.
   // rpdos_received: a monitor bus, where the line controller's RPDOs are decoded too.

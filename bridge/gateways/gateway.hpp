@@ -24,8 +24,8 @@ class Gateway : public canopen::NodeDriver {
   virtual const CommandService* commands() const { return nullptr; }
 };
 
-// The gateway for the device type its profile names ("saw", ...); throws at start-up for a device
-// type no gateway serves yet.
+// The gateway for the device type its profile names, by its registry entry's behaviour
+// (make_gateway.cpp); throws at start-up for a device type the registry lacks.
 std::unique_ptr<Gateway> make_gateway(DeviceContext context);
 
 }  // namespace lb::gateways

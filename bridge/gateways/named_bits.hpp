@@ -23,10 +23,11 @@ class NamedBits {
 
   NamedBits() = default;
   // A field the profile does not name stays false (older profile versions lack newer bits).
-  NamedBits(const profiles::BitSet& set, std::initializer_list<Field> fields) {
-    for (const auto& f : fields) {
-      if (auto bit = set.bit(f.name)) bound_.push_back({*bit, f.set});
-    }
+  NamedBits(const profiles::BitSet& set, std::initializer_list<Field> fields) { bind(set, fields); }
+  // Any range of {name, set} fields (a generated word binding's flags: msgs/word_bindings.hpp).
+  template <class Fields>
+  NamedBits(const profiles::BitSet& set, const Fields& fields) {
+    bind(set, fields);
   }
 
   void decode(std::uint64_t word, Msg& msg) const {
@@ -34,6 +35,13 @@ class NamedBits {
   }
 
  private:
+  template <class Fields>
+  void bind(const profiles::BitSet& set, const Fields& fields) {
+    for (const auto& f : fields) {
+      if (auto bit = set.bit(f.name)) bound_.push_back({*bit, f.set});
+    }
+  }
+
   struct Bound {
     unsigned bit;
     Setter set;

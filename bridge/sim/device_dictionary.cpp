@@ -4,6 +4,7 @@
 #include <stdexcept>
 
 #include "canopen/object_value.hpp"
+#include "profiles/device_types.hpp"
 #include "sim/pdo_parameters.hpp"
 
 namespace lb::sim {
@@ -45,11 +46,8 @@ bool has_manufacturer_entries(const profiles::Profile& profile, profiles::PdoDir
 }  // namespace
 
 std::uint32_t product_code(std::string_view device_type) {
-  if (device_type == "puller") return 0x0420'0002;
-  if (device_type == "corrugator") return 0x0420'0003;
-  if (device_type == "saw") return 0x0420'0004;
-  if (device_type == "feeder") return 0x0414'0002;
-  return 0;
+  const auto* type = profiles::find_device_type(device_type);
+  return type != nullptr ? type->simulated_product_code : 0;
 }
 
 std::string simulated_device_name(const profiles::DeviceConfig& device, const profiles::Profile& profile) {

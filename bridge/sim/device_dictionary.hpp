@@ -36,8 +36,8 @@ inline constexpr std::uint16_t kErrorSimulation = 0x2003;
 inline constexpr std::uint16_t kErrorField = 0x1003;
 inline constexpr std::uint8_t kErrorFieldEntries = 8;
 
-// The simulator's product codes (1018h sub 2): 0420 0002h puller, 0420 0003h corrugator,
-// 0420 0004h saw (CiA 420 part number in the high word), 0414 0002h feeder; 0 for other types.
+// The simulator's product code (1018h sub 2) of a device type: its registry entry's
+// (profiles/device_types.hpp: CiA part number in the high word); 0 for a type it lacks.
 std::uint32_t product_code(std::string_view device_type);
 
 // Throws std::runtime_error (start-up) on a profile the dictionary cannot represent.

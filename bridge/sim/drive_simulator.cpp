@@ -20,13 +20,23 @@ constexpr double kLoadPerSpeed = 0.6;       // load % per speed %
 bool has(std::uint64_t word, std::optional<unsigned> bit) { return bit && ((word >> *bit) & 1U) != 0; }
 std::uint64_t flag(bool on, std::optional<unsigned> bit) { return on && bit ? std::uint64_t{1} << *bit : 0; }
 std::uint64_t raw16(double value) { return static_cast<std::uint64_t>(static_cast<std::int64_t>(std::lround(value))) & 0xFFFF; }
+
+std::string drive_name(const profiles::Profile& profile) {
+  const auto* cw = profile.bitset("control_word");
+  if (cw != nullptr) {
+    for (const auto& b : cw->bits) {
+      if (b.bit == 0 && b.width == 1 && b.name.ends_with("_stop")) return b.name.substr(0, b.name.size() - 5);
+    }
+  }
+  return "drive";
+}
 }  // namespace
 
 DriveSimulator::DriveSimulator(canopen::BusLoop& loop, const profiles::DeviceConfig& device, const profiles::Profile& profile)
     : device_(device),
       profile_(profile),
       node_(loop, device, profile, {[this] { reset(); }, [this](double dt) { step(dt); }, {}, {}}) {
-  const std::string d = profile_.device;  // "puller" or "corrugator": the object name prefix
+  const std::string d = profile_.device;  // the type's name: the prefix of its speed and load objects
   status_word_ = node_.slot("status_word");
   control_word_ = node_.slot("control_word");
   speed_actual_ = node_.slot(d + "_speed_actual_value");
@@ -39,8 +49,9 @@ DriveSimulator::DriveSimulator(canopen::BusLoop& loop, const profiles::DeviceCon
   scaling_factor_ = node_.slot("scaling_factor");
   configuration_word_ = node_.slot("configuration_word");
 
-  // The puller's drive is its motor; the corrugator's is its drive.
-  const std::string drive = d == "puller" ? "motor" : "drive";
+  // What the type calls its drive ("motor" on a puller, "drive" on a corrugator): the name of
+  // control word bit 0, "<drive>_stop" on every CiA 420 drive.
+  const std::string drive = drive_name(profile_);
   drive_ = make_switch(drive + "_start", drive + "_stop", drive + "_running", drive + "_ready_to_start");
   clamp_ = make_switch("clamp_close", "clamp_open", "clamp_closed", "");
   for (int i = 0; i < 3; ++i) {

@@ -1,7 +1,0 @@
-#include "gateways/puller_gateway.hpp"
-
-namespace lb::gateways {
-
-template class DriveGateway<PullerDds>;
-
-}  // namespace lb::gateways
