@@ -61,7 +61,7 @@ bool set_options_fit(const std::string& type, CLI::App& set_cmd) {
 int main(int argc, char** argv) {
   namespace app = lb::app;
   CLI::App cli{"linebridge-cli: watch and command the devices of a line over DDS"};
-  app::add_conventions(cli, "linebridge-cli");
+  app::add_conventions(cli, "linebridge-cli", app::kCliExitCodes);
   cli.require_subcommand(1);
   // --config, --identity (and each subcommand's --timeout) anywhere on the command line.
   cli.fallthrough();

@@ -59,7 +59,7 @@ std::string own_executable() {
 int main(int argc, char** argv) {
   namespace app = lb::app;
   CLI::App cli{"linebridge: CANopen extrusion-line devices on DDS"};
-  app::add_conventions(cli, "linebridge");
+  app::add_conventions(cli, "linebridge", app::kBridgeExitCodes);
   std::string config_path;
   std::string check_path;
   double duration_s = 0;

@@ -7,6 +7,7 @@
 #include <string>
 #include <vector>
 
+#include "app/cli_exit.hpp"
 #include "support/run_command.hpp"
 
 using lb::test::run_command;
@@ -52,6 +53,29 @@ TEST(Arguments, VersionAndHelpEverywhere) {
     const auto h = run_command({kExecutables[i], "--help"});
     EXPECT_EQ(h.exit_code, 0) << h.output;
     EXPECT_NE(h.output.find("Exit codes"), std::string::npos) << h.output;
+  }
+}
+
+// Every code an executable leaves with is in its --help, each with what it means: the table the
+// footer is made from is the one the code returns from (cli_exit.hpp, arguments.hpp).
+TEST(Arguments, HelpListsEveryExitCode) {
+  const auto listed = [](const std::string& help, int code) {
+    const auto from = help.find("Exit codes:");
+    return from != std::string::npos &&
+           (help.find(" " + std::to_string(code) + " ", from) != std::string::npos);
+  };
+  const auto cli = run_command({LB_BIN_CLI, "--help"});
+  ASSERT_EQ(cli.exit_code, 0) << cli.output;
+  for (const int code : {lb::app::kExitOk, lb::app::kExitRefused, lb::app::kExitUsage, lb::app::kExitNoAnswer,
+                         lb::app::kExitBridgeRestarted}) {
+    EXPECT_TRUE(listed(cli.output, code)) << "linebridge-cli --help lacks exit code " << code << ":\n" << cli.output;
+  }
+  for (const auto& c : lb::app::kCliExitCodes) {
+    EXPECT_NE(cli.output.find(std::string(c.meaning.substr(0, 20))), std::string::npos) << c.code << ": " << cli.output;
+  }
+  const auto bridge = run_command({LB_BIN_BRIDGE, "--help"});
+  for (const int code : {lb::app::kExitOk, lb::app::kExitFailure, lb::app::kExitUsage, lb::app::kExitLoopFailed}) {
+    EXPECT_TRUE(listed(bridge.output, code)) << "linebridge --help lacks exit code " << code << ":\n" << bridge.output;
   }
 }
 
