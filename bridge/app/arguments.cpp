@@ -39,6 +39,13 @@ int parse(CLI::App& cli, int argc, char** argv) {
   return -1;
 }
 
+CLI::Option* add_config_option(CLI::App& cli, std::string& path) {
+  return cli.add_option("-c,--config", path, std::string("line configuration (YAML); default: the file ") + kConfigEnv +
+                                                 " names, else the built-in demo line")
+      ->envname(kConfigEnv)
+      ->check(non_empty_path());
+}
+
 const CLI::Validator& duration_seconds() {
   static const CLI::Validator v(
       [](std::string& text) -> std::string {

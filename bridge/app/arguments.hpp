@@ -50,6 +50,11 @@ void add_conventions(CLI::App& cli, std::string_view program, std::span<const Ex
 // argument error, which CLI11 prints) or -1 to go on.
 int parse(CLI::App& cli, int argc, char** argv);
 
+// -c,--config FILE, or the file LINEBRIDGE_CONFIG names (the option wins); neither: the built-in
+// demo line. The same for linebridge, linebridge-sim and linebridge-cli.
+inline constexpr const char* kConfigEnv = "LINEBRIDGE_CONFIG";
+CLI::Option* add_config_option(CLI::App& cli, std::string& path);
+
 // Validators.
 // A duration in seconds: finite, 0 (no limit) up to a year. Refuses -5, nan, inf, 1e30.
 const CLI::Validator& duration_seconds();

@@ -67,8 +67,7 @@ int main(int argc, char** argv) {
   std::string part = "both";
   std::string channel_path;
   bool lock_memory = false;
-  cli.add_option("-c,--config", config_path, "line configuration (YAML); default: the built-in demo line")
-      ->check(app::non_empty_path());
+  lb::app::add_config_option(cli, config_path);
   cli.add_option("--check", check_path,
                  "check a line configuration (and its profile, DDS profile and security files) as start-up would, "
                  "print its buses, devices and DDS topics, and exit (0 valid, 2 not); touches neither CAN nor DDS")
@@ -114,6 +113,7 @@ int main(int argc, char** argv) {
     spdlog::error("{}", config.error().message);
     return app::kExitUsage;
   }
+  if (part != "dds") spdlog::info("serving {}", app::config_source_text(config_path));
   for (const auto& w : config->warnings) spdlog::warn("{}", w);
   // Fast DDS's warnings (a reader refusing samples among them) and errors in this log, rate-limited.
   const lb::ddsl::FastDdsLogRoute fastdds_log;
