@@ -6,13 +6,17 @@
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdlib>
 #include <fstream>
 #include <map>
 #include <mutex>
+#include <regex>
+#include <sstream>
 #include <thread>
 
+#include "app/common_text.hpp"
 #include "msgs/commonPubSubTypes.h"
 #include "msgs/corrugatorPubSubTypes.h"
 #include "msgs/feederPubSubTypes.h"
@@ -324,4 +328,62 @@ TEST(CliWithoutBridge, ServiceCallAsksAgainNamingTheFirstRequest) {
   EXPECT_EQ(seen[1].command, "manual_cut");
   EXPECT_EQ(seen[0].run, p.incarnation()) << "the first request names the run the CLI heard of";
   EXPECT_EQ(seen[1].run, seen[0].run) << "the repeat names the same run";
+}
+
+// The field names of one struct of an IDL text, in order ("uint64 frames_in;" gives frames_in).
+std::vector<std::string> idl_fields(const std::string& idl, const std::string& structure) {
+  const auto begin = idl.find("struct " + structure + " {");
+  if (begin == std::string::npos) return {};
+  const auto end = idl.find("};", begin);
+  std::vector<std::string> fields;
+  std::istringstream body(idl.substr(begin, end - begin));
+  const std::regex field(R"(^\s*[A-Za-z_][\w:]*(<[^>]*>)?\s+(\w+)\s*;)");
+  for (std::string line; std::getline(body, line);) {
+    if (std::smatch m; std::regex_search(line, m, field)) fields.push_back(m[2]);
+  }
+  return fields;
+}
+
+// `linebridge-cli echo bridge diagnostics` prints every field of the Diagnostics type: the field
+// list is read from idl/common.idl, so a field added there and not printed fails here. Each is
+// printed under its name (underscores as hyphens), or, for the few shown as their value alone,
+// as the value this test puts in.
+TEST(CliText, DiagnosticsTextShowsEveryIdlField) {
+  std::ifstream in(std::string(LB_SOURCE_DIR) + "/idl/common.idl");
+  const std::string idl((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  msg::Diagnostics d;
+  d.line("lineX");
+  msg::BusDiagnostics b;
+  b.name("busX");
+  b.interface_uri("socketcan:vcanX");
+  b.role("master");
+  b.state("error-passive");
+  d.buses().push_back(b);
+  msg::NodeDiagnostics n;
+  n.device("deviceX");
+  n.bus("busX");
+  n.node_id(42);
+  d.nodes().push_back(n);
+  const auto text = lb::app::to_text(d);
+  // Shown as their value (or a unit), not under their own name; the containers are their parts.
+  const std::map<std::string, std::string> shown_as = {
+      {"stamp", ":"}, {"line", "lineX"}, {"buses", "busX"}, {"nodes", "deviceX"}, {"dds_side", "dds-side"},
+      {"name", "busX"}, {"interface_uri", "socketcan:vcanX"}, {"role", "master"}, {"state", "error-passive"},
+      {"frames_in_per_s", "/s)"}, {"frames_out_per_s", "/s)"}, {"load_percent", "load"}, {"tx_error_counter", "TEC"},
+      {"rx_error_counter", "REC"}, {"device", "deviceX"}, {"bus", "busX"}, {"node_id", "node  42"},
+      {"online", "OFFLINE"}, {"nmt_state", "unknown"}, {"last_heartbeat_age_s", "last-heartbeat-age"}};
+  std::size_t checked = 0;
+  for (const char* structure : {"Diagnostics", "BusDiagnostics", "NodeDiagnostics", "DdsSideDiagnostics"}) {
+    const auto fields = idl_fields(idl, structure);
+    EXPECT_GT(fields.size(), 4u) << structure << " not found in idl/common.idl";
+    for (const auto& f : fields) {
+      ++checked;
+      std::string label = f;
+      std::replace(label.begin(), label.end(), '_', '-');
+      if (const auto it = shown_as.find(f); it != shown_as.end()) label = it->second;
+      EXPECT_NE(text.find(label), std::string::npos) << structure << "." << f << " is not printed (looked for '" << label
+                                                      << "'):\n" << text;
+    }
+  }
+  EXPECT_GT(checked, 60u);
 }
