@@ -22,6 +22,7 @@
 #include "msgs/feederPubSubTypes.h"
 #include "msgs/pullerPubSubTypes.h"
 #include "msgs/sawPubSubTypes.h"
+#include "support/collector.hpp"
 #include "support/line_harness.hpp"
 #include "support/run_command.hpp"
 
@@ -50,6 +51,11 @@ CliRun run_cli(std::vector<std::string> args, std::chrono::seconds limit = 20s) 
 }
 
 bool has(const CliRun& r, const std::string& text) { return r.output.find(text) != std::string::npos; }
+
+std::string last_text(lb::test::Collector<msg::DiagnosticsPubSubType>& diag) {
+  const auto all = diag.samples();
+  return all.empty() ? std::string("no diagnostics\n") : lb::app::to_text(all.back());
+}
 
 template <class Status>
 bool operational(const Status& s) {
@@ -195,6 +201,34 @@ TEST_F(Cli, LineFileFromTheEnvironmentOrAnywhereOnTheCommandLine) {
   r = run_cli({"get", "puller1", "configuration_word", "--config", config_});
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_TRUE(has(r, "configuration_word = 1")) << r.output;
+}
+
+// An operator's `nmt ... pre-operational` takes the device out of operational: the bridge's
+// diagnostics then say what holds it, not the boot's last step ("started"); `nmt start` gives
+// "started" back.
+TEST_F(Cli, DiagnosticsFollowAnOperatorsNmtPreOperationalAndStart) {
+  lb::test::Collector<msg::DiagnosticsPubSubType> diag;
+  ASSERT_TRUE(diag.subscribe(line_->dds(), line_->topic("bridge", "diagnostics"), QosKind::state));
+  const auto puller_node = [](const msg::Diagnostics& d) -> const msg::NodeDiagnostics* {
+    for (const auto& n : d.nodes()) {
+      if (n.device() == "puller1") return &n;
+    }
+    return nullptr;
+  };
+  auto r = cli({"nmt", "puller1", "pre-operational"});
+  ASSERT_EQ(r.exit_code, 0) << r.output << line_->logs();
+  EXPECT_TRUE(diag.wait_last(30s, [&](const msg::Diagnostics& d) {
+    const auto* n = puller_node(d);
+    return n != nullptr && n->node_state() == "stopped by operator" && n->boot_state() != "started" &&
+           n->boot_state().find("pre-operational") != std::string::npos;
+  })) << last_text(diag) << line_->logs();
+  EXPECT_TRUE(puller_.wait_last(10s, [](const msg::PullerStatus& s) { return s.health().nmt_state() == msg::NMT_PRE_OPERATIONAL; }));
+  r = cli({"nmt", "puller1", "start"});
+  ASSERT_EQ(r.exit_code, 0) << r.output << line_->logs();
+  EXPECT_TRUE(diag.wait_last(30s, [&](const msg::Diagnostics& d) {
+    const auto* n = puller_node(d);
+    return n != nullptr && n->node_state() == "operational" && n->boot_state() == "started";
+  })) << last_text(diag) << line_->logs();
 }
 
 // Nobody answers: exit 3, not the exit code of a refusal; echo says it waits for a bridge.
