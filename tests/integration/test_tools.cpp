@@ -66,6 +66,15 @@ TEST(Check, DemoLineSummaryWithEveryTopicAndNoDdsNoCan) {
   }
 }
 
+// The example line file the package ships (/etc/linebridge/line.yaml) passes --check as it is in
+// the source tree: its profiles_dir (profiles, beside it) is there too.
+TEST(Check, TheShippedLineFilePasses) {
+  const auto shipped = std::string(LB_SOURCE_DIR) + "/packaging/etc/line.yaml";
+  const auto r = run_command({LB_BIN_BRIDGE, "--check", shipped});
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find(shipped + ": ok"), std::string::npos) << r.output;
+}
+
 TEST(Check, ErrorsExitTwoWithTheirPlaceAndWarningsAreListed) {
   const auto bad = write("bad.yaml", "line: x\nbuses:\n  - {name: b, interface: 'virtual:x'}\ndevices:\n"
                                      "  - {name: saw1, bus: b, node_id: 300, profile: cia420-4, version: '3.1'}\n");
