@@ -3,6 +3,7 @@
 // frames of a virtual bus). Runs inside launch_scripts/netns-run.sh (private /dev/shm: --check
 // must leave no Fast DDS shared-memory segment behind, which a participant would).
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <filesystem>
@@ -139,6 +140,54 @@ TEST(Check, ErrorsExitTwoWithTheirPlaceAndWarningsAreListed) {
   r = run_command({LB_BIN_BRIDGE, "--check", replay});
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_NE(r.output.find("cannot read the recording /nonexistent/rec.log"), std::string::npos) << r.output;
+}
+
+// Every file the bridge, the CLI and the tools read goes through one bounded reader
+// (base/bounded_file.hpp): a device that never ends (/dev/zero), a FIFO nobody writes (it would
+// block) and a file far larger than any real one are refused with a clear error, exit 2, at once
+// (each command is bounded at 30 s here; a hang or an abort fails the test).
+TEST(BoundedFiles, DevZeroAFifoAndAnOversizeFileAreRefusedEverywhere) {
+  const auto fifo = ::testing::TempDir() + "/tools_" + tag() + "_fifo";
+  ::unlink(fifo.c_str());
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  const auto oversize = write("oversize", std::string(5 * 1024 * 1024, ';'));
+  const auto refused = [](const lb::test::CommandResult& r) {
+    return r.exit_code == 2 &&
+           (r.output.find("not a regular file") != std::string::npos || r.output.find("larger than") != std::string::npos);
+  };
+  for (const auto& bad : {std::string("/dev/zero"), fifo, oversize}) {
+    // An EDS file (linebridge-cli eds aborted with std::bad_alloc on /dev/zero).
+    auto r = run_command({LB_BIN_CLI, "eds", bad}, std::chrono::seconds(30));
+    EXPECT_TRUE(refused(r)) << "eds " << bad << ": exit " << r.exit_code << "\n" << r.output;
+    // The line file, given or from LINEBRIDGE_CONFIG, to each executable.
+    r = run_command({LB_BIN_BRIDGE, "--check", bad}, std::chrono::seconds(30));
+    EXPECT_TRUE(refused(r)) << "--check " << bad << ": exit " << r.exit_code << "\n" << r.output;
+    r = run_command({"/usr/bin/env", "LINEBRIDGE_CONFIG=" + bad, LB_BIN_SIM, "--duration", "1"}, std::chrono::seconds(30));
+    EXPECT_TRUE(refused(r)) << "linebridge-sim, LINEBRIDGE_CONFIG=" << bad << ": exit " << r.exit_code << "\n" << r.output;
+    r = run_command({LB_BIN_CLI, "--config", bad, "list"}, std::chrono::seconds(30));
+    EXPECT_TRUE(refused(r)) << "linebridge-cli --config " << bad << ": exit " << r.exit_code << "\n" << r.output;
+    // A site's DDS profiles file.
+    const auto with_profiles = write("profiles-line.yaml", "line: x\ndds: {profiles_file: '" + bad +
+                                                           "'}\nbuses:\n  - {name: b, interface: 'virtual:x'}\ndevices: []\n");
+    r = run_command({LB_BIN_BRIDGE, "--check", with_profiles}, std::chrono::seconds(30));
+    EXPECT_TRUE(refused(r)) << "profiles_file " << bad << ": exit " << r.exit_code << "\n" << r.output;
+    // The security files of a secured line.
+    std::string security = "line: x\ndds:\n  security:\n";
+    for (const char* key : {"identity_ca", "certificate", "private_key", "permissions_ca", "governance", "permissions"}) {
+      security += std::string("    ") + key + ": '" + bad + "'\n";
+    }
+    const auto secured = write("secured-line.yaml", security + "buses:\n  - {name: b, interface: 'virtual:x'}\ndevices: []\n");
+    r = run_command({LB_BIN_SECURITY, "--config", secured, "check"}, std::chrono::seconds(30));
+    EXPECT_TRUE(refused(r)) << "security files " << bad << ": exit " << r.exit_code << "\n" << r.output;
+  }
+  // A profile file in the line's profiles_dir.
+  const auto dir = ::testing::TempDir() + "/tools_" + tag() + "_profiles";
+  std::filesystem::create_directories(dir);
+  std::filesystem::copy_file(oversize, dir + "/big.yaml", std::filesystem::copy_options::overwrite_existing);
+  const auto with_dir = write("dir-line.yaml", "line: x\nprofiles_dir: '" + dir + "'\nbuses:\n  - {name: b, interface: 'virtual:x'}\ndevices: []\n");
+  const auto r = run_command({LB_BIN_BRIDGE, "--check", with_dir}, std::chrono::seconds(30));
+  EXPECT_TRUE(refused(r)) << "a profile file: exit " << r.exit_code << "\n" << r.output;
+  ::unlink(fifo.c_str());
 }
 
 class Eds : public ::testing::Test {
