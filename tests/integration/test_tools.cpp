@@ -8,6 +8,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <regex>
 #include <sstream>
 #include <thread>
 
@@ -188,6 +189,30 @@ TEST(BoundedFiles, DevZeroAFifoAndAnOversizeFileAreRefusedEverywhere) {
   const auto r = run_command({LB_BIN_BRIDGE, "--check", with_dir}, std::chrono::seconds(30));
   EXPECT_TRUE(refused(r)) << "a profile file: exit " << r.exit_code << "\n" << r.output;
   ::unlink(fifo.c_str());
+}
+
+// What a launch script says setup.sh installs ("mmdebstrap missing (launch_scripts/setup.sh
+// --install-test installs it)"), setup.sh installs: its --list with the same options names it.
+TEST(Scripts, WhatTheScriptsSaySetupInstallsItInstalls) {
+  const std::regex claim(R"(([\w.+-]+) (?:is )?missing \(launch_scripts/setup\.sh((?: --[\w-]+)*) installs it\))");
+  std::size_t claims = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(std::string(LB_SOURCE_DIR) + "/launch_scripts")) {
+    if (entry.path().extension() != ".sh") continue;
+    std::ifstream in(entry.path());
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    for (std::sregex_iterator it(text.begin(), text.end(), claim), end; it != end; ++it) {
+      ++claims;
+      const std::string package = (*it)[1];
+      std::vector<std::string> argv = {std::string(LB_SOURCE_DIR) + "/launch_scripts/setup.sh", "--list"};
+      std::istringstream flags((*it)[2]);
+      for (std::string f; flags >> f;) argv.push_back(f);
+      const auto r = run_command(argv);
+      ASSERT_EQ(r.exit_code, 0) << r.output;
+      EXPECT_NE(("\n" + r.output).find("\n" + package + "\n"), std::string::npos)
+          << entry.path().filename() << " says setup.sh" << (*it)[2] << " installs " << package << "; it installs:\n" << r.output;
+    }
+  }
+  EXPECT_GE(claims, 2u) << "install-test.sh (mmdebstrap) and pki.sh (openssl) say so";
 }
 
 class Eds : public ::testing::Test {
