@@ -215,6 +215,39 @@ TEST(Scripts, WhatTheScriptsSaySetupInstallsItInstalls) {
   EXPECT_GE(claims, 2u) << "install-test.sh (mmdebstrap) and pki.sh (openssl) say so";
 }
 
+// `netns-run.sh --join PID COMMAND` runs COMMAND in the network (and mount) namespace of a line
+// already running in its own, as a second terminal beside the demo does: there candump sees the
+// line's virtual bus; from any other namespace (here the test's) it sees nothing of it.
+TEST(NetnsJoin, ACommandJoinsARunningLinesNamespaceAndSeesItsBus) {
+  const auto line = write("joined.yaml", "line: joined\nbuses:\n  - {name: weaving, interface: 'virtual:joined-" + tag() +
+                                         "'}\ndevices:\n  - {name: saw1, bus: weaving, node_id: 3, profile: cia420-4, version: "
+                                         "'3.1', simulation: {heartbeat_period_ms: 50}}\n");
+  // The simulator in a namespace of its own (no DDS: it has no participant), as demo.sh runs the line.
+  lb::test::ChildProcess sim({"/usr/bin/unshare", "--net", "--mount", "--propagation", "private", "--", LB_BIN_SIM, "--config",
+                              line, "--duration", "60"},
+                             ::testing::TempDir() + "/joined_sim_" + tag() + ".log");
+  ASSERT_TRUE(sim.started());
+  const auto ns_of = [](const std::string& pid) {
+    std::error_code ec;
+    return std::filesystem::read_symlink("/proc/" + pid + "/ns/net", ec).string();
+  };
+  const auto pid = std::to_string(sim.pid());
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  while (ns_of(pid) == ns_of("self") && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  ASSERT_NE(ns_of(pid), ns_of("self")) << sim.log();
+  const std::string netns_run = std::string(LB_SOURCE_DIR) + "/launch_scripts/netns-run.sh";
+  auto r = run_command({netns_run, "--join", pid, LB_BIN_CLI, "--config", line, "candump", "weaving", "--count", "3", "--duration", "30"});
+  EXPECT_EQ(r.exit_code, 0) << r.output << sim.log();
+  EXPECT_NE(r.output.find(" weaving 703#"), std::string::npos) << "joined: the line's heartbeats\n" << r.output << sim.log();
+  r = run_command({LB_BIN_CLI, "--config", line, "candump", "weaving", "--count", "1", "--duration", "2"});
+  EXPECT_EQ(r.output.find(" weaving 703#"), std::string::npos) << "not joined: nothing of that bus\n" << r.output;
+  r = run_command({netns_run, "--join", "no-such-process-" + tag(), "true"});
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("no process named"), std::string::npos) << r.output;
+}
+
 class Eds : public ::testing::Test {
  protected:
   void SetUp() override {
