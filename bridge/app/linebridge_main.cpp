@@ -192,6 +192,7 @@ int main(int argc, char** argv) {
   }
   const int sig = app::run_until_signal(app::duration_ms(duration_s));
   notifier.stopping();
+  if (channel) channel->stopping();  // the DDS process is ended just below: a clean stop, not a loss
   const bool dds_refused = supervisor && supervisor->refused_configuration();
   supervisor.reset();
   if (dds_refused) {
