@@ -16,6 +16,7 @@
 #include <sstream>
 #include <thread>
 
+#include "app/boot_wait.hpp"
 #include "app/common_text.hpp"
 #include "msgs/commonPubSubTypes.h"
 #include "msgs/corrugatorPubSubTypes.h"
@@ -231,6 +232,27 @@ TEST_F(Cli, DiagnosticsFollowAnOperatorsNmtPreOperationalAndStart) {
   })) << last_text(diag) << line_->logs();
 }
 
+// When `set` may send: once the bridge's diagnostics say the device's boot passed, or settled
+// where the bridge's answer says why; never while it is still booting.
+TEST(CliText, SetWaitsForTheBootToPassOrSettle) {
+  const auto node = [](const char* node_state, const char* boot_state) {
+    msg::NodeDiagnostics n;
+    n.node_state(node_state);
+    n.boot_state(boot_state);
+    return n;
+  };
+  EXPECT_FALSE(lb::app::boot_settled(node("booting", "writing the configuration (3 writes)")));
+  EXPECT_FALSE(lb::app::boot_settled(node("unknown", "reading device type and identity")));
+  EXPECT_FALSE(lb::app::boot_settled(node("resetting", "reset: waiting for its boot-up")));
+  EXPECT_FALSE(lb::app::boot_settled(node("lost", "waiting for its heartbeat")));
+  EXPECT_FALSE(lb::app::boot_settled(node("", "")));
+  EXPECT_TRUE(lb::app::boot_settled(node("booting", "started")));  // passed; operational at its next heartbeat
+  EXPECT_TRUE(lb::app::boot_settled(node("operational", "started")));
+  EXPECT_TRUE(lb::app::boot_settled(node("stopped by operator", "configured; kept pre-operational by the operator (nmt start releases it)")));
+  EXPECT_TRUE(lb::app::boot_settled(node("boot failed", "failed (D): identity; next try in 1000 ms")));
+  EXPECT_TRUE(lb::app::boot_settled(node("monitored", "monitored")));
+}
+
 // Nobody answers: exit 3, not the exit code of a refusal; echo says it waits for a bridge.
 TEST(CliWithoutBridge, NoAnswerIsExitThreeAndEchoSaysItWaits) {
   ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
@@ -289,6 +311,18 @@ TEST(CliWithoutBridge, SetAsksAgainUntilAnswered) {
   online.health().online(true);
   online.health().nmt_state(msg::NMT_OPERATIONAL);
   ASSERT_TRUE(status->write(online));
+  // Like a bridge, it says in its diagnostics that the saw's boot passed (set waits for that).
+  auto diagnostics = p.writer<msg::DiagnosticsPubSubType>(lb::ddsl::topic_name("askagain", "bridge", "diagnostics"), QosKind::state);
+  ASSERT_TRUE(diagnostics);
+  msg::Diagnostics d;
+  d.line("askagain");
+  msg::NodeDiagnostics n;
+  n.device("saw1");
+  n.online(true);
+  n.node_state("operational");
+  n.boot_state("started");
+  d.nodes().push_back(n);
+  ASSERT_TRUE(diagnostics->write(d));
 
   const auto r = run_cli({"set", "saw1", "--sync-speed-percent", "40", "--timeout", "8", "--config", config});
   EXPECT_EQ(r.exit_code, 0) << r.output;
