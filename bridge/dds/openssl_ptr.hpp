@@ -75,6 +75,7 @@ inline std::optional<std::string> read_whole_file(const std::string& path, std::
     const auto& message = text.error().message;
     const auto prefix = path + ": security file: ";
     why = message.rfind(prefix, 0) == 0 ? message.substr(prefix.size()) : message;
+    if (why.rfind("cannot open: ", 0) == 0) why = "cannot read it: " + why.substr(13);  // the wording operators know
     return std::nullopt;
   }
   return std::move(*text);

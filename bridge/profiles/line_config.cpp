@@ -151,7 +151,7 @@ DdsConfig parse_dds(const YamlSource& src, const YAML::Node& n) {
   if (const auto f = n["profiles_file"]) {
     dds.profiles_file = file_path(src, f, "profiles_file");
     // Read as every file is (base/bounded_file.hpp): a FIFO or a device is refused, not waited on.
-    if (auto text = read_bounded_file(dds.profiles_file, "DDS profiles file"); !text) src.fail(f, "profiles_file: " + text.error().message);
+    if (auto text = read_bounded_file(dds.profiles_file, "DDS profiles file"); !text) src.fail(f, "profiles_file: cannot open " + text.error().message);
   }
   dds.participant_profile = src.optional<std::string>(n, "participant_profile").value_or("");
   if (n["participant_profile"] && dds.participant_profile.empty()) src.fail(n["participant_profile"], "participant_profile is empty");
