@@ -36,11 +36,26 @@ fi
 bin=${LINEBRIDGE_BIN:?}
 logdir=$(mktemp -d /tmp/linebridge-demo.XXXXXX)
 pids=()
+# Stopped in the reverse order of their start: the watching clients first (a client that saw its
+# bridge go would say it waits for it), then the bridge, then the simulator. Each is waited for;
+# any that did not end cleanly (exit 0 after SIGTERM) is named.
 cleanup() {
+  local status=$? failed=() i p code
   trap - EXIT INT TERM
-  for p in "${pids[@]}"; do kill -TERM "$p" 2>/dev/null || true; done
-  wait 2>/dev/null || true
-  echo "demo: stopped (simulator log: $logdir/sim.log)"
+  for ((i = ${#pids[@]} - 1; i >= 0; i--)); do
+    p=${pids[i]}
+    kill -TERM "$p" 2>/dev/null || true
+    code=0
+    wait "$p" 2>/dev/null || code=$?
+    [ "$code" -eq 0 ] || failed+=("${names[i]} (exit $code)")
+  done
+  if ((${#failed[@]})); then
+    echo "demo: stopped; not cleanly: ${failed[*]} (simulator log: $logdir/sim.log)"
+  elif [ "$status" -ne 0 ]; then
+    echo "demo: stopped after a failed step (exit $status; simulator log: $logdir/sim.log)"
+  else
+    echo "demo: stopped cleanly (simulator log: $logdir/sim.log)"
+  fi
 }
 trap cleanup EXIT
 trap 'exit 0' INT TERM
@@ -67,8 +82,10 @@ if ((secure)); then
 fi
 
 say "starting the simulators and the bridge (demo line: puller, saw, corrugator on bus 'extrusion' with SYNC 20 ms; a feeder box on bus 'weaving')"
-"$bin/linebridge-sim" "${line[@]}" >"$logdir/sim.log" 2>&1 & pids+=($!)
-"$bin/linebridge" "${line[@]}" 2>&1 & pids+=($!)
+"$bin/linebridge-sim" "${line[@]}" >"$logdir/sim.log" 2>&1 & pids+=($!) names+=(linebridge-sim)
+"$bin/linebridge" "${line[@]}" 2>&1 & pids+=($!) names+=(linebridge)
+echo "demo: to watch from another terminal, join this namespace (PID $$), e.g. the raw frames of bus extrusion:"
+echo "      launch_scripts/netns-run.sh --join $$ $bin/linebridge-cli ${line[*]} candump extrusion"
 
 say "saw program on, sync speed 100 % (30 m/min), product length 1.0 m"
 "$bin/linebridge-cli" "${line[@]}" "${operator[@]}" set saw1 --program on --sync-speed-percent 100 --product-length-m 1.0 --timeout 10
@@ -77,8 +94,8 @@ say "the bridge's diagnostics: every device online and started"
 "$bin/linebridge-cli" "${line[@]}" "${observer[@]}" echo bridge diagnostics --duration 1.5
 
 say "live saw status (1 line/s, and every status change) and cut events"
-"$bin/linebridge-cli" "${line[@]}" "${observer[@]}" echo saw1 status --rate 1 & pids+=($!)
-"$bin/linebridge-cli" "${line[@]}" "${observer[@]}" echo saw1 cut & pids+=($!)
+"$bin/linebridge-cli" "${line[@]}" "${observer[@]}" echo saw1 status --rate 1 & pids+=($!) names+=("echo saw1 status")
+"$bin/linebridge-cli" "${line[@]}" "${observer[@]}" echo saw1 cut & pids+=($!) names+=("echo saw1 cut")
 sleep 7
 
 say "new product length 0.4 m: the saw takes it after its next cut"

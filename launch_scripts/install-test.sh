@@ -7,6 +7,7 @@
 # line as the service user with no capabilities, the CLI reading a status sample, watching a bus,
 # listing topics; the unit is checked with systemd-analyze; finally the package is purged.
 #   launch_scripts/install-test.sh [BUILD_DIR]      (root; ~3-6 min the first time, then ~1-2 min)
+# Needs mmdebstrap: launch_scripts/setup.sh --install-test installs it.
 # Not part of test.sh (time budget): its output is quoted in the closing notes.
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -15,7 +16,7 @@ build=${1:-${LINEBRIDGE_BUILD_DIR:-build}}
 cache=${LINEBRIDGE_ROOT_CACHE:-${XDG_CACHE_HOME:-$HOME/.cache}/linebridge-root}
 mirror=${LINEBRIDGE_MIRROR:-http://deb.debian.org/debian}
 [ "$(id -u)" -eq 0 ] || { echo "install-test: run as root (chroot, mounts)" >&2; exit 2; }
-command -v mmdebstrap >/dev/null || { echo "install-test: mmdebstrap missing (launch_scripts/setup.sh installs it)" >&2; exit 2; }
+command -v mmdebstrap >/dev/null || { echo "install-test: mmdebstrap missing (launch_scripts/setup.sh --install-test installs it)" >&2; exit 2; }
 
 step() { printf '\n== %s (%ss)\n' "$*" "$SECONDS"; }
 

@@ -1,8 +1,12 @@
 #!/usr/bin/env bash
 # Installs every build and run dependency of linebridge from Debian's packages.
 # Idempotent: installs only what is missing, so repeated runs cost a dpkg query.
-#   launch_scripts/setup.sh [--clang]   (--clang: also clang and its sanitizer/libFuzzer runtime, for
-#                                         the AddressSanitizer + UBSan and fuzz stages, fuzz/)
+#   launch_scripts/setup.sh [--clang] [--install-test]
+#     --clang: also clang and its sanitizer/libFuzzer runtime, for the AddressSanitizer + UBSan and
+#              fuzz stages (fuzz/)
+#     --install-test: also mmdebstrap, which launch_scripts/install-test.sh makes its clean Debian 12
+#              root with
+#     --list: print the packages these options stand for, one a line, and install nothing
 set -euo pipefail
 
 packages=(
@@ -14,8 +18,18 @@ packages=(
   openssl libssl-dev libtinyxml2-dev
   libsystemd-dev dpkg-dev fakeroot lintian
 )
-if [ "${1:-}" = --clang ]; then
-  packages+=(clang libclang-rt-14-dev)
+list=0
+for arg in "$@"; do
+  case "$arg" in
+    --list) list=1 ;;
+    --clang) packages+=(clang libclang-rt-14-dev) ;;
+    --install-test) packages+=(mmdebstrap) ;;
+    *) echo "setup: unknown argument $arg (--clang, --install-test, --list)" >&2; exit 2 ;;
+  esac
+done
+if ((list)); then
+  printf '%s\n' "${packages[@]}"
+  exit 0
 fi
 
 missing=()

@@ -17,10 +17,15 @@ std::string version_text(std::string_view program) {
   return std::string(program) + " " + std::string(kVersion) + " (Fast DDS " + FASTRTPS_VERSION_STR + ")";
 }
 
-void add_conventions(CLI::App& cli, std::string_view program) {
+std::string exit_codes_text(std::span<const ExitCode> codes) {
+  std::string out = "Exit codes:";
+  for (const auto& c : codes) out += (out.back() == ':' ? " " : "; ") + std::to_string(c.code) + " " + std::string(c.meaning);
+  return out + ".";
+}
+
+void add_conventions(CLI::App& cli, std::string_view program, std::span<const ExitCode> codes) {
   cli.set_version_flag("--version", version_text(program));
-  cli.footer("Exit codes: 0 done, 1 failure (start-up, run time, or a request the bridge refused), 2 bad arguments or "
-             "configuration.");
+  cli.footer(exit_codes_text(codes));
 }
 
 int parse(CLI::App& cli, int argc, char** argv) {
@@ -32,6 +37,13 @@ int parse(CLI::App& cli, int argc, char** argv) {
     return cli.exit(e) == 0 ? kExitOk : kExitUsage;
   }
   return -1;
+}
+
+CLI::Option* add_config_option(CLI::App& cli, std::string& path) {
+  return cli.add_option("-c,--config", path, std::string("line configuration (YAML); default: the file ") + kConfigEnv +
+                                                 " names, else the built-in demo line")
+      ->envname(kConfigEnv)
+      ->check(non_empty_path());
 }
 
 const CLI::Validator& duration_seconds() {

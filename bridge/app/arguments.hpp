@@ -5,7 +5,9 @@
 
 #include <CLI/CLI.hpp>
 
+#include <array>
 #include <chrono>
+#include <span>
 #include <string>
 #include <string_view>
 
@@ -17,15 +19,41 @@ inline constexpr int kExitFailure = 1;  // start-up or run-time failure; a refus
 inline constexpr int kExitUsage = 2;    // bad arguments or configuration: retrying cannot help
 inline constexpr int kExitLoopFailed = 3;  // linebridge: a bus loop failed while running (restart it)
 
+// An exit code and what it means, as --help lists it.
+struct ExitCode {
+  int code;
+  std::string_view meaning;
+};
+
+// The codes linebridge-sim and linebridge-security use; linebridge adds kExitLoopFailed.
+inline constexpr std::array kCommonExitCodes{
+    ExitCode{kExitOk, "done"},
+    ExitCode{kExitFailure, "failure (start-up, run time, or a request the bridge refused)"},
+    ExitCode{kExitUsage, "bad arguments or configuration"},
+};
+inline constexpr std::array kBridgeExitCodes{
+    kCommonExitCodes[0], kCommonExitCodes[1], kCommonExitCodes[2],
+    ExitCode{kExitLoopFailed, "a bus loop failed while running (restart it)"},
+};
+
+// "Exit codes: 0 done; 1 ...; 2 ...": the --help footer.
+std::string exit_codes_text(std::span<const ExitCode> codes);
+
 // "linebridge 0.1.0 (Fast DDS 2.9.1)".
 std::string version_text(std::string_view program);
 
-// Adds --version and makes CLI11's own failures follow the conventions above.
-void add_conventions(CLI::App& cli, std::string_view program);
+// Adds --version, lists `codes` under --help and makes CLI11's own failures follow the
+// conventions above.
+void add_conventions(CLI::App& cli, std::string_view program, std::span<const ExitCode> codes = kCommonExitCodes);
 
 // Parses; returns the exit code to leave with (0 after --help/--version, kExitUsage for any
 // argument error, which CLI11 prints) or -1 to go on.
 int parse(CLI::App& cli, int argc, char** argv);
+
+// -c,--config FILE, or the file LINEBRIDGE_CONFIG names (the option wins); neither: the built-in
+// demo line. The same for linebridge, linebridge-sim and linebridge-cli.
+inline constexpr const char* kConfigEnv = "LINEBRIDGE_CONFIG";
+CLI::Option* add_config_option(CLI::App& cli, std::string& path);
 
 // Validators.
 // A duration in seconds: finite, 0 (no limit) up to a year. Refuses -5, nan, inf, 1e30.

@@ -11,6 +11,7 @@
 #include <optional>
 #include <thread>
 
+#include "app/boot_wait.hpp"
 #include "app/cli_exit.hpp"
 #include "dds/service.hpp"
 #include "dds/topic_names.hpp"
@@ -94,6 +95,12 @@ int send_set_value(ddsl::Participant& dds, const std::string& line, const std::s
   if (!current) {
     fmt::print(stderr, "{}: no online status on {} within {} s (is the bridge running and the device up?)\n", device,
                status_topic, o.timeout_s);
+    return kExitNoAnswer;
+  }
+  // Online comes before the boot's end, and a set value that enables a device not yet configured
+  // is refused: wait until the bridge's diagnostics say the boot passed (or settled).
+  if (auto booted = wait_for_boot(dds, line, device, timeout); !booted) {
+    fmt::print(stderr, "{} within {} s\n", booted.error().message, o.timeout_s);
     return kExitNoAnswer;
   }
   if (!wait_until(timeout, [&] { return writer->matched() > 0 && dds.matched_writers(result_topic) > 0; })) {

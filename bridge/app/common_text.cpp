@@ -109,52 +109,63 @@ std::string to_text(const msg::BootError& e) {
                      e.abort_code() != 0 ? fmt::format(" [abort {:08X}h]", e.abort_code()) : "");
 }
 
+namespace {
+
+std::string yes_no(bool b) { return b ? "yes" : "no"; }
+std::string or_dash(const std::string& s) { return s.empty() ? "-" : s; }
+
+}  // namespace
+
+// Every field of the message, each under its IDL name (underscores as hyphens), so that nothing
+// the bridge reports is hidden from an operator: Cli.DiagnosticsTextShowsEveryIdlField reads
+// idl/common.idl and fails for a field this does not print.
 std::string to_text(const msg::Diagnostics& d) {
-  std::string out = fmt::format("{} line {}\n", clock_text(d.stamp()), d.line());
+  std::string out = fmt::format("{} line {} bridge-incarnation {:016x} commands-lost {} log-lines-dropped {}\n",
+                                clock_text(d.stamp()), d.line(), d.bridge_incarnation(), d.commands_lost(), d.log_lines_dropped());
+  out += fmt::format("  set-value-store: {}\n", or_dash(d.set_value_store()));
+  const auto& side = d.dds_side();
+  out += fmt::format("  dds-side: connected {} connects {} samples-dropped {} samples-not-forwarded {} remote-participants {} "
+                     "remote-participants-refused {}{}\n",
+                     yes_no(side.connected()), side.connects(), side.samples_dropped(), side.samples_not_forwarded(),
+                     side.remote_participants(), side.remote_participants_refused(),
+                     side.connects() != 0 && !side.connected() ? "  (the DDS process is NOT CONNECTED)" : "");
   for (const auto& b : d.buses()) {
-    out += fmt::format("  bus {:<12} {:<28} {:<7} {:<13} in {:>9} ({:7.1f}/s) out {:>9} ({:7.1f}/s) load {} "
-                       "error frames {} dropped {} | TEC {} REC {} bus-offs {} overflows {} rx-dropped {} tx-queue-full {} "
-                       "reopens {}{}{}{}\n",
+    out += fmt::format("  bus {:<12} {:<28} {:<7} {:<13} frames-in {:>9} ({:7.1f}/s) frames-out {:>9} ({:7.1f}/s) "
+                       "load {} error-frames {} tx-dropped {}\n",
                        b.name(), b.interface_uri(), b.role(), b.state(), b.frames_in(), b.frames_in_per_s(), b.frames_out(),
                        b.frames_out_per_s(),
                        b.load_percent() < 0 ? std::string("n/a (fast replay)") : fmt::format("{:5.1f} %", b.load_percent()),
-                       b.error_frames(), b.tx_dropped(), b.tx_error_counter(), b.rx_error_counter(), b.bus_offs(),
-                       b.rx_overflows(), b.rx_dropped(), b.tx_queue_full(), b.reopens(),
-                       b.record_errors() != 0 ? fmt::format(" record-errors {}", b.record_errors()) : "",
-                       b.requests_refused() != 0 ? fmt::format(" requests-refused {} (loop overloaded)", b.requests_refused()) : "",
-                       b.replay() ? " (replay: heartbeat ages on the recording's clock)" : "");
-    if (b.yielding_to_other_master()) {
-      out += fmt::format("  bus {:<12} YIELDING to another master: transmits nothing, refuses set values and commands "
-                         "({} frames held; last: {})\n", b.name(), b.frames_held(), b.other_master_last());
-    } else if (b.other_master_frames() != 0) {
-      out += fmt::format("  bus {:<12} other master's or stray frames: {} (last: {})\n", b.name(), b.other_master_frames(),
-                         b.other_master_last());
-    }
-    if (!b.mandatory_state().empty()) out += fmt::format("  bus {:<12} MANDATORY DEVICES: {}\n", b.name(), b.mandatory_state());
+                       b.error_frames(), b.tx_dropped());
+    out += fmt::format("  bus {:<12} TEC {} REC {} bus-offs {} rx-overflows {} rx-dropped {} tx-queue-full {} reopens {} "
+                       "record-errors {} replay {}{}\n",
+                       b.name(), b.tx_error_counter(), b.rx_error_counter(), b.bus_offs(), b.rx_overflows(), b.rx_dropped(),
+                       b.tx_queue_full(), b.reopens(), b.record_errors(), yes_no(b.replay()),
+                       b.replay() ? " (heartbeat ages on the recording's clock)" : "");
+    out += fmt::format("  bus {:<12} handler-failures {} handlers-disabled {} frames-unclaimed {} requests-refused {}{}\n",
+                       b.name(), b.handler_failures(), b.handlers_disabled(), b.frames_unclaimed(), b.requests_refused(),
+                       b.requests_refused() != 0 ? " (loop overloaded)" : "");
+    out += fmt::format("  bus {:<12} other-master-frames {} yielding-to-other-master {} frames-held {} other-master-last {}{}\n",
+                       b.name(), b.other_master_frames(), b.yielding_to_other_master() ? "YES" : "no", b.frames_held(),
+                       or_dash(b.other_master_last()),
+                       b.yielding_to_other_master() ? " (YIELDING: transmits nothing, refuses set values and commands)" : "");
+    out += fmt::format("  bus {:<12} mandatory-missing {} mandatory-state {}\n", b.name(),
+                       b.mandatory_missing().empty() ? std::string("none") : fmt::format("{}", fmt::join(b.mandatory_missing(), ", ")),
+                       or_dash(b.mandatory_state()));
   }
   for (const auto& n : d.nodes()) {
-    out += fmt::format("  {:<12} {:<10} node {:>3}{} {:<7} {:<15} heartbeat {:>6} boots {} PDOs in {} out {} short {} "
-                       "EMCY {} | {}\n",
-                       n.device(), n.bus(), n.node_id(), n.mandatory() ? " (mandatory)" : "", n.online() ? "online" : "OFFLINE", to_text(n.nmt_state()),
-                       n.last_heartbeat_age_s() < 0 ? std::string("never") : fmt::format("{:.2f} s", n.last_heartbeat_age_s()),
-                       n.boot_ups(), n.pdos_received(), n.pdos_sent(), n.pdo_length_errors(), n.emergencies(),
-                       n.node_state().empty() || n.node_state() == "monitored" ? n.boot_state() : n.node_state() + ": " + n.boot_state());
-    if (!n.boot_error().code().empty() && n.boot_state().rfind("failed", 0) != 0) {
-      out += fmt::format("  {:<12} last boot failure: {}\n", "", to_text(n.boot_error()));
-    }
-    if (!n.line_hold().empty()) out += fmt::format("  {:<12} held by the line: {}\n", "", n.line_hold());
-    if (!n.set_values_at_start().empty()) out += fmt::format("  {:<12} last start: {}\n", "", n.set_values_at_start());
-    if (n.boot_ups_not_believed() != 0) {
-      out += fmt::format("  {:<12} boot-ups not believed (its next heartbeat said operational): {}\n", "", n.boot_ups_not_believed());
-    }
-  }
-  if (!d.set_value_store().empty()) out += fmt::format("  set values in force: {}\n", d.set_value_store());
-  if (d.log_lines_dropped() != 0) out += fmt::format("  log lines dropped (queue full): {}\n", d.log_lines_dropped());
-  if (const auto& side = d.dds_side(); side.connects() != 0) {
-    out += fmt::format("  DDS process: {}, {} connection(s) since the bus process started; {} sample(s) dropped, {} not "
-                       "forwarded; {} remote participant(s)\n",
-                       side.connected() ? "connected" : "NOT CONNECTED", side.connects(), side.samples_dropped(),
-                       side.samples_not_forwarded(), side.remote_participants());
+    out += fmt::format("  {:<12} {:<10} node {:>3}{} {:<7} {:<15} node-state {} boot-state {}\n", n.device(), n.bus(), n.node_id(),
+                       n.mandatory() ? " (mandatory)" : "", n.online() ? "online" : "OFFLINE", to_text(n.nmt_state()),
+                       or_dash(n.node_state()), or_dash(n.boot_state()));
+    out += fmt::format("  {:<12} last-heartbeat-age {} boot-ups {} boots {} boot-failures {} state-unknown {} "
+                       "boot-ups-not-believed {} pdos-received {} pdos-sent {} pdo-length-errors {} emergencies {} "
+                       "range-warnings {} malformed-emergencies {} malformed-heartbeats {}\n",
+                       "", n.last_heartbeat_age_s() < 0 ? std::string("never") : fmt::format("{:.2f} s", n.last_heartbeat_age_s()),
+                       n.boot_ups(), n.boots(), n.boot_failures(), n.state_unknown(), n.boot_ups_not_believed(), n.pdos_received(),
+                       n.pdos_sent(), n.pdo_length_errors(), n.emergencies(), n.range_warnings(), n.malformed_emergencies(),
+                       n.malformed_heartbeats());
+    out += fmt::format("  {:<12} mandatory {} line-hold {} boot-error {}\n", "", yes_no(n.mandatory()), or_dash(n.line_hold()),
+                       or_dash(to_text(n.boot_error())));
+    out += fmt::format("  {:<12} set-values-at-start {}\n", "", or_dash(n.set_values_at_start()));
   }
   return out;
 }

@@ -62,6 +62,12 @@ pid_t DdsSupervisor::spawn() {
   if (pid == 0) {
     ::prctl(PR_SET_PDEATHSIG, SIGKILL);
     if (::getppid() != parent) ::_exit(1);  // the parent died between fork and prctl
+    // A terminal's Ctrl-C reaches the whole foreground group: this process stops its DDS process
+    // itself (SIGTERM) after telling its channel, so the child ignores SIGINT instead of ending
+    // first and reading as lost.
+    struct sigaction ignore {};
+    ignore.sa_handler = SIG_IGN;
+    ::sigaction(SIGINT, &ignore, nullptr);
     ::execve(args[0], args.data(), envp.data());
     ::_exit(127);
   }

@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cstdlib>
+#include <filesystem>
 #include <stdexcept>
 
 #include "app/async_log.hpp"
@@ -64,6 +65,8 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
     state_dir = std::string(systemd).substr(0, std::string(systemd).find(':'));
   }
   if (!state_dir.empty()) {
+    // A state_dir the line file names and nobody made yet is made (what --check calls creatable).
+    if (std::error_code ec; std::filesystem::create_directories(state_dir, ec)) spdlog::info("state_dir {} created", state_dir);
     auto store = gateways::SetValueStore::open(state_dir, config.line, config.restore_set_values);
     if (store) {
       bridge->set_values_ = std::move(*store);

@@ -5,7 +5,11 @@
 #include <sys/eventfd.h>
 #include <unistd.h>
 
+#include <sys/stat.h>
+
 #include <algorithm>
+#include <cerrno>
+#include <cstring>
 #include <filesystem>
 #include <map>
 
@@ -59,6 +63,32 @@ void check_machine(const profiles::LineConfig& line, std::vector<std::string>& e
                            ", the only directory the packaged service may write");
       }
     }
+  }
+}
+
+// The directory the set values in force are kept in: a directory (or one start-up can create:
+// its nearest existing parent is a writable directory) that this user may write. Every problem
+// is reported, not only the first.
+void check_state_dir(const std::string& dir, std::vector<std::string>& errors) {
+  if (dir.empty()) return;  // the packaged service's $STATE_DIRECTORY serves
+  const auto where = "state_dir " + dir + ": ";
+  struct stat st {};
+  if (::stat(dir.c_str(), &st) == 0) {
+    if (!S_ISDIR(st.st_mode)) errors.push_back(where + "not a directory (set values in force are kept there)");
+    else if (::access(dir.c_str(), W_OK | X_OK) != 0) errors.push_back(where + "not writable by this user (" + std::strerror(errno) + ")");
+    return;
+  }
+  if (errno != ENOENT && errno != ENOTDIR) return errors.push_back(where + std::strerror(errno));
+  // Missing: start-up creates it if its nearest existing parent lets it.
+  auto parent = std::filesystem::path(dir).lexically_normal();
+  if (parent.is_relative()) parent = std::filesystem::current_path() / parent;
+  do {
+    parent = parent.parent_path();
+  } while (::stat(parent.c_str(), &st) != 0 && parent != parent.root_path());
+  if (!S_ISDIR(st.st_mode)) {
+    errors.push_back(where + "does not exist, and " + parent.string() + " is no directory to create it in");
+  } else if (::access(parent.c_str(), W_OK | X_OK) != 0) {
+    errors.push_back(where + "does not exist, and this user may not create it in " + parent.string());
   }
 }
 
@@ -142,18 +172,22 @@ int check_line(const std::string& path, const profiles::ProfileRegistry& registr
   auto dds = ddsl::Participant::plan(dds_options);
   if (!dds) return fmt::print(err, "{}\n", dds.error().message), kExitUsage;
   auto* planning = dds->get();
-  auto bridge = LineBridge::create(*config, std::move(*dds), [](const profiles::BusConfig& b) -> Result<std::unique_ptr<can::Bus>> {
-    return std::unique_ptr<can::Bus>(std::make_unique<StandInBus>(b.interface));
-  });
-  if (!bridge) return fmt::print(err, "{}: {}\n", path, bridge.error().message), kExitUsage;
 
+  // Every problem found is reported, each on its own line, not only the first.
   std::vector<std::string> errors;
   std::vector<std::string> warnings = config->warnings;
   check_machine(*config, errors, warnings);
   // A state directory named but unusable would start every device from zero after a restart.
-  // (Without one the packaged service's $STATE_DIRECTORY serves: nothing to say here.)
-  if (const auto& problem = (*bridge)->set_value_store_problem(); !problem.empty() && !config->state_dir.empty()) {
-    errors.push_back("state_dir: set values in force " + problem);
+  check_state_dir(config->state_dir, errors);
+  // The stand-in bridge neither creates nor writes the state directory: --check changes nothing.
+  auto planned_config = *config;
+  planned_config.state_dir.clear();
+  auto bridge = LineBridge::create(planned_config, std::move(*dds), [](const profiles::BusConfig& b) -> Result<std::unique_ptr<can::Bus>> {
+    return std::unique_ptr<can::Bus>(std::make_unique<StandInBus>(b.interface));
+  });
+  if (!bridge) {
+    for (const auto& e : errors) fmt::print(err, "error: {}\n", e);
+    return fmt::print(err, "{}: {}\n", path, bridge.error().message), kExitUsage;
   }
   check_profile_names(*config, planning->planned(), warnings);
   for (const auto& n : planning->site_notes()) warnings.push_back(n);

@@ -20,4 +20,12 @@ inline Result<profiles::LineConfig> load_config(const std::string& path, const p
   return profiles::parse_line_config(std::string(demo.second), "built-in " + std::string(demo.first), registry);
 }
 
+// What serves: "line file /etc/linebridge/line.yaml" or "the built-in demo line (...)", for the
+// start-up log of the bridge and the simulator (a forgotten --config must not go unnoticed).
+inline std::string config_source_text(const std::string& path) {
+  if (!path.empty()) return "line file " + path;
+  return "the built-in demo line (" + std::string(builtin_line_texts().front().first) +
+         "; --config or LINEBRIDGE_CONFIG names another)";
+}
+
 }  // namespace lb::app

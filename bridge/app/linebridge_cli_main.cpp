@@ -63,14 +63,12 @@ bool set_options_fit(const std::string& type, CLI::App& set_cmd) {
 int main(int argc, char** argv) {
   namespace app = lb::app;
   CLI::App cli{"linebridge-cli: watch and command the devices of a line over DDS"};
-  app::add_conventions(cli, "linebridge-cli");
+  app::add_conventions(cli, "linebridge-cli", app::kCliExitCodes);
   cli.require_subcommand(1);
   // --config, --identity (and each subcommand's --timeout) anywhere on the command line.
   cli.fallthrough();
   std::string config_path;
-  cli.add_option("-c,--config", config_path, "line configuration (YAML); default: the built-in demo line")
-      ->envname("LINEBRIDGE_CONFIG")
-      ->check(app::non_empty_path());
+  lb::app::add_config_option(cli, config_path);
   std::string identity_dir;
   cli.add_option("--identity", identity_dir,
                  "secured line: this client's identity folder (cert.pem, key.pem, permissions.p7s; launch_scripts/pki.sh)")

@@ -59,7 +59,7 @@ std::string own_executable() {
 int main(int argc, char** argv) {
   namespace app = lb::app;
   CLI::App cli{"linebridge: CANopen extrusion-line devices on DDS"};
-  app::add_conventions(cli, "linebridge");
+  app::add_conventions(cli, "linebridge", app::kBridgeExitCodes);
   std::string config_path;
   std::string check_path;
   double duration_s = 0;
@@ -67,8 +67,7 @@ int main(int argc, char** argv) {
   std::string part = "both";
   std::string channel_path;
   bool lock_memory = false;
-  cli.add_option("-c,--config", config_path, "line configuration (YAML); default: the built-in demo line")
-      ->check(app::non_empty_path());
+  lb::app::add_config_option(cli, config_path);
   cli.add_option("--check", check_path,
                  "check a line configuration (and its profile, DDS profile and security files) as start-up would, "
                  "print its buses, devices and DDS topics, and exit (0 valid, 2 not); touches neither CAN nor DDS")
@@ -114,6 +113,7 @@ int main(int argc, char** argv) {
     spdlog::error("{}", config.error().message);
     return app::kExitUsage;
   }
+  if (part != "dds") spdlog::info("serving {}", app::config_source_text(config_path));
   for (const auto& w : config->warnings) spdlog::warn("{}", w);
   // Fast DDS's warnings (a reader refusing samples among them) and errors in this log, rate-limited.
   const lb::ddsl::FastDdsLogRoute fastdds_log;
@@ -192,6 +192,7 @@ int main(int argc, char** argv) {
   }
   const int sig = app::run_until_signal(app::duration_ms(duration_s));
   notifier.stopping();
+  if (channel) channel->stopping();  // the DDS process is ended just below: a clean stop, not a loss
   const bool dds_refused = supervisor && supervisor->refused_configuration();
   supervisor.reset();
   if (dds_refused) {

@@ -21,8 +21,7 @@ int main(int argc, char** argv) {
   double duration_s = 0;
   std::string log_level = "info";
   std::string role = "devices";
-  cli.add_option("-c,--config", config_path, "line configuration (YAML); default: the built-in demo line")
-      ->check(lb::app::non_empty_path());
+  lb::app::add_config_option(cli, config_path);
   cli.add_option("--role", role,
                  "devices: play the devices; controller: play the line controller (SYNC, NMT, RPDOs from "
                  "simulation.controller_values) for a bridge in the monitor role; both")
@@ -45,6 +44,7 @@ int main(int argc, char** argv) {
     spdlog::error("{}", config.error().message);
     return 2;
   }
+  spdlog::info("playing {}", lb::app::config_source_text(config_path));
   for (const auto& name : only) {
     if (config->device(name) == nullptr) {
       spdlog::error("--device {}: no such device in line {}", name, config->line);

@@ -101,6 +101,12 @@ void NodeStateMachine::reset_sent(bool by_operator) {
 
 std::string NodeStateMachine::detail() const {
   if (!waiting_.empty()) return waiting_;
+  // The boot's last step ("started") is history once an operator's stop or pre-operational took
+  // the node out of operational: what holds it now is said instead.
+  if (const auto& hold = node_.operator_hold(); hold && state_ == NodeState::stopped_by_operator) {
+    return fmt::format("configured; kept {} by the operator (nmt start releases it)",
+                       *hold == NmtCommand::stop ? "stopped" : "pre-operational");
+  }
   return boot_.step();
 }
 

@@ -8,12 +8,12 @@
 #include <tinyxml2.h>
 
 #include <algorithm>
-#include <fstream>
 #include <memory>
 #include <optional>
 #include <set>
-#include <sstream>
 
+#include "base/bounded_file.hpp"
+#include "dds/openssl_ptr.hpp"
 #include "dds/participant.hpp"  // reply_topic
 #include "dds/security_files.hpp"
 #include "dds/security_policy.hpp"
@@ -212,11 +212,9 @@ struct OpenSslFree {
 
 // The signed text of an S/MIME document, signature not checked (check_security_files does).
 std::optional<std::string> smime_text(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return std::nullopt;
-  std::stringstream s;
-  s << in.rdbuf();
-  const std::string bytes = s.str();
+  const auto read = read_bounded_file(path, "security file", ossl::kMaxSecurityFileBytes);
+  if (!read) return std::nullopt;
+  const std::string& bytes = *read;
   std::unique_ptr<BIO, OpenSslFree<BIO_free_all>> bio(BIO_new_mem_buf(bytes.data(), static_cast<int>(bytes.size())));
   BIO* content_raw = nullptr;
   std::unique_ptr<PKCS7, OpenSslFree<PKCS7_free>> p7(SMIME_read_PKCS7(bio.get(), &content_raw));

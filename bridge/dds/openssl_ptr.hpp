@@ -9,11 +9,11 @@
 #include <openssl/pem.h>
 #include <openssl/x509.h>
 
+#include "base/bounded_file.hpp"
+
 #include <cerrno>
-#include <fstream>
 #include <memory>
 #include <optional>
-#include <sstream>
 #include <string>
 #include <system_error>
 #include <vector>
@@ -65,16 +65,20 @@ inline std::vector<Cert> read_certificates(const std::string& pem) {
   return certs;
 }
 
-// The whole file, or nullopt with the reason in `why`.
+// The whole file, or nullopt with the reason in `why`: a regular file of at most 1 MiB (no
+// certificate, key or signed document comes near; a FIFO would block, /dev/zero never end).
+inline constexpr std::size_t kMaxSecurityFileBytes = 1024 * 1024;
 inline std::optional<std::string> read_whole_file(const std::string& path, std::string& why) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) {
-    why = "cannot read it: " + std::generic_category().message(errno);
+  auto text = read_bounded_file(path, "security file", kMaxSecurityFileBytes);
+  if (!text) {
+    // The callers name the file: only the reason after "PATH: security file: ".
+    const auto& message = text.error().message;
+    const auto prefix = path + ": security file: ";
+    why = message.rfind(prefix, 0) == 0 ? message.substr(prefix.size()) : message;
+    if (why.rfind("cannot open: ", 0) == 0) why = "cannot read it: " + why.substr(13);  // the wording operators know
     return std::nullopt;
   }
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
+  return std::move(*text);
 }
 
 }  // namespace lb::ddsl::ossl

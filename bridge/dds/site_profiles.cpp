@@ -7,6 +7,8 @@
 #include <cstdlib>
 #include <cstring>
 
+#include "base/bounded_file.hpp"
+
 namespace lb::ddsl {
 namespace {
 
@@ -21,11 +23,11 @@ const tinyxml2::XMLElement* profiles_of(const tinyxml2::XMLDocument& doc) {
 }
 
 Result<void> read_names(const std::string& path, SiteProfiles& out) {
+  // Bounded, and a regular file only, before Fast DDS is given the path (a FIFO would block it).
+  const auto text = read_bounded_file(path, "DDS profiles file");
+  if (!text) return make_error(text.error().message);
   tinyxml2::XMLDocument doc;
-  if (doc.LoadFile(path.c_str()) != tinyxml2::XML_SUCCESS) {
-    if (doc.ErrorID() == tinyxml2::XML_ERROR_FILE_NOT_FOUND || doc.ErrorID() == tinyxml2::XML_ERROR_FILE_COULD_NOT_BE_OPENED) {
-      return make_error(path + ": cannot open the DDS profiles file");
-    }
+  if (doc.Parse(text->data(), text->size()) != tinyxml2::XML_SUCCESS) {
     return make_error(path + ":" + std::to_string(doc.ErrorLineNum()) + ": XML error: " + doc.ErrorStr());
   }
   const auto* profiles = profiles_of(doc);

@@ -199,6 +199,10 @@ void BusChannel::drop_peer(const std::string& why) {
   backlog_.clear();
   queue_.clear();
   dirty_.clear();
+  if (stopping_) {
+    spdlog::info("channel {}: DDS side stopped ({})", options_.path, why);
+    return;
+  }
   spdlog::warn("channel {}: DDS side gone ({}); the bus runs on, events and answers are dropped until it is back", options_.path,
                why);
 }

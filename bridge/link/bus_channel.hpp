@@ -65,6 +65,9 @@ class BusChannel {
 
   void start();
   void stop();  // idempotent; the destructor stops
+  // The bus process is stopping and ends its DDS side itself: that side's going is then said as
+  // the clean stop it is (info), not as a loss (warning).
+  void stopping() { stopping_ = true; }
 
   // Any thread; never blocks on the DDS side.
   void publish(std::uint32_t id, std::vector<std::uint8_t> payload, const Identity& related = {});
@@ -105,6 +108,7 @@ class BusChannel {
   std::vector<std::uint8_t> buffer_ = std::vector<std::uint8_t>(kMaxMessage);  // channel thread: receiving
 
   std::atomic<bool> stop_{false};
+  std::atomic<bool> stopping_{false};
   std::thread thread_;
 };
 

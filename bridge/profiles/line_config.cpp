@@ -15,6 +15,7 @@
 #include "profiles/object_fields.hpp"
 #include "can/bus.hpp"
 #include "canopen/cob_id.hpp"
+#include "base/bounded_file.hpp"
 #include "profiles/config_file.hpp"
 #include "profiles/yaml_source.hpp"
 
@@ -149,7 +150,8 @@ DdsConfig parse_dds(const YamlSource& src, const YAML::Node& n) {
   if (n["security"]) dds.security = parse_dds_security(src, n["security"]);
   if (const auto f = n["profiles_file"]) {
     dds.profiles_file = file_path(src, f, "profiles_file");
-    if (!std::ifstream(dds.profiles_file)) src.fail(f, "profiles_file: cannot open " + dds.profiles_file);
+    // Read as every file is (base/bounded_file.hpp): a FIFO or a device is refused, not waited on.
+    if (auto text = read_bounded_file(dds.profiles_file, "DDS profiles file"); !text) src.fail(f, "profiles_file: cannot open " + text.error().message);
   }
   dds.participant_profile = src.optional<std::string>(n, "participant_profile").value_or("");
   if (n["participant_profile"] && dds.participant_profile.empty()) src.fail(n["participant_profile"], "participant_profile is empty");

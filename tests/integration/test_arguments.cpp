@@ -2,11 +2,13 @@
 // run to their end. Every case here must be refused before anything starts; the test still runs
 // inside launch_scripts/netns-run.sh so that a regression could not reach a network.
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <fstream>
 #include <string>
 #include <vector>
 
+#include "app/cli_exit.hpp"
 #include "support/run_command.hpp"
 
 using lb::test::run_command;
@@ -52,6 +54,58 @@ TEST(Arguments, VersionAndHelpEverywhere) {
     const auto h = run_command({kExecutables[i], "--help"});
     EXPECT_EQ(h.exit_code, 0) << h.output;
     EXPECT_NE(h.output.find("Exit codes"), std::string::npos) << h.output;
+  }
+}
+
+// LINEBRIDGE_CONFIG names the line file for the bridge, the simulator and the CLI alike (the
+// bridge and the simulator served the demo line without a word); --config wins over it; the
+// bridge and the simulator log which line they serve.
+TEST(Arguments, LineFileFromTheEnvironmentForEveryExecutable) {
+  const auto line = write_file("envline.yaml", "line: envline\nbuses:\n  - {name: b, interface: 'virtual:envline-" +
+                                                   std::to_string(::getpid()) + "'}\ndevices:\n"
+                                                   "  - {name: saw1, bus: b, node_id: 3, profile: cia420-4, version: '3.1'}\n");
+  const std::string env = "LINEBRIDGE_CONFIG=" + line;
+  auto r = run_command({"/usr/bin/env", env, LB_BIN_SIM, "--duration", "0.5"});
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("playing line file " + line), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("of line envline"), std::string::npos) << r.output;
+  r = run_command({"/usr/bin/env", env, LB_BIN_BRIDGE, "--duration", "1"});
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("serving line file " + line), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("line envline: 1 bus(es), 1 device(s)"), std::string::npos) << r.output;
+  r = run_command({"/usr/bin/env", env, LB_BIN_CLI, "list"});
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("device saw1 on b node 3"), std::string::npos) << r.output;
+  // --config wins over the environment.
+  r = run_command({"/usr/bin/env", "LINEBRIDGE_CONFIG=/nonexistent/line.yaml", LB_BIN_SIM, "--config", line, "--duration", "0.5"});
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("playing line file " + line), std::string::npos) << r.output;
+  // Neither: the built-in demo line, and the log says so.
+  r = run_command({"/usr/bin/env", "-u", "LINEBRIDGE_CONFIG", LB_BIN_SIM, "--duration", "0.5"});
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("playing the built-in demo line (demo.yaml"), std::string::npos) << r.output;
+}
+
+// Every code an executable leaves with is in its --help, each with what it means: the table the
+// footer is made from is the one the code returns from (cli_exit.hpp, arguments.hpp).
+TEST(Arguments, HelpListsEveryExitCode) {
+  const auto listed = [](const std::string& help, int code) {
+    const auto from = help.find("Exit codes:");
+    return from != std::string::npos &&
+           (help.find(" " + std::to_string(code) + " ", from) != std::string::npos);
+  };
+  const auto cli = run_command({LB_BIN_CLI, "--help"});
+  ASSERT_EQ(cli.exit_code, 0) << cli.output;
+  for (const int code : {lb::app::kExitOk, lb::app::kExitRefused, lb::app::kExitUsage, lb::app::kExitNoAnswer,
+                         lb::app::kExitBridgeRestarted}) {
+    EXPECT_TRUE(listed(cli.output, code)) << "linebridge-cli --help lacks exit code " << code << ":\n" << cli.output;
+  }
+  for (const auto& c : lb::app::kCliExitCodes) {
+    EXPECT_NE(cli.output.find(std::string(c.meaning.substr(0, 20))), std::string::npos) << c.code << ": " << cli.output;
+  }
+  const auto bridge = run_command({LB_BIN_BRIDGE, "--help"});
+  for (const int code : {lb::app::kExitOk, lb::app::kExitFailure, lb::app::kExitUsage, lb::app::kExitLoopFailed}) {
+    EXPECT_TRUE(listed(bridge.output, code)) << "linebridge --help lacks exit code " << code << ":\n" << bridge.output;
   }
 }
 

@@ -6,18 +6,24 @@
 #include <gtest/gtest.h>
 #include <sys/wait.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cstdlib>
 #include <fstream>
 #include <map>
 #include <mutex>
+#include <regex>
+#include <sstream>
 #include <thread>
 
+#include "app/boot_wait.hpp"
+#include "app/common_text.hpp"
 #include "msgs/commonPubSubTypes.h"
 #include "msgs/corrugatorPubSubTypes.h"
 #include "msgs/feederPubSubTypes.h"
 #include "msgs/pullerPubSubTypes.h"
 #include "msgs/sawPubSubTypes.h"
+#include "support/collector.hpp"
 #include "support/line_harness.hpp"
 #include "support/run_command.hpp"
 
@@ -46,6 +52,11 @@ CliRun run_cli(std::vector<std::string> args, std::chrono::seconds limit = 20s) 
 }
 
 bool has(const CliRun& r, const std::string& text) { return r.output.find(text) != std::string::npos; }
+
+std::string last_text(lb::test::Collector<msg::DiagnosticsPubSubType>& diag) {
+  const auto all = diag.samples();
+  return all.empty() ? std::string("no diagnostics\n") : lb::app::to_text(all.back());
+}
 
 template <class Status>
 bool operational(const Status& s) {
@@ -193,6 +204,55 @@ TEST_F(Cli, LineFileFromTheEnvironmentOrAnywhereOnTheCommandLine) {
   EXPECT_TRUE(has(r, "configuration_word = 1")) << r.output;
 }
 
+// An operator's `nmt ... pre-operational` takes the device out of operational: the bridge's
+// diagnostics then say what holds it, not the boot's last step ("started"); `nmt start` gives
+// "started" back.
+TEST_F(Cli, DiagnosticsFollowAnOperatorsNmtPreOperationalAndStart) {
+  lb::test::Collector<msg::DiagnosticsPubSubType> diag;
+  ASSERT_TRUE(diag.subscribe(line_->dds(), line_->topic("bridge", "diagnostics"), QosKind::state));
+  const auto puller_node = [](const msg::Diagnostics& d) -> const msg::NodeDiagnostics* {
+    for (const auto& n : d.nodes()) {
+      if (n.device() == "puller1") return &n;
+    }
+    return nullptr;
+  };
+  auto r = cli({"nmt", "puller1", "pre-operational"});
+  ASSERT_EQ(r.exit_code, 0) << r.output << line_->logs();
+  EXPECT_TRUE(diag.wait_last(30s, [&](const msg::Diagnostics& d) {
+    const auto* n = puller_node(d);
+    return n != nullptr && n->node_state() == "stopped by operator" && n->boot_state() != "started" &&
+           n->boot_state().find("pre-operational") != std::string::npos;
+  })) << last_text(diag) << line_->logs();
+  EXPECT_TRUE(puller_.wait_last(10s, [](const msg::PullerStatus& s) { return s.health().nmt_state() == msg::NMT_PRE_OPERATIONAL; }));
+  r = cli({"nmt", "puller1", "start"});
+  ASSERT_EQ(r.exit_code, 0) << r.output << line_->logs();
+  EXPECT_TRUE(diag.wait_last(30s, [&](const msg::Diagnostics& d) {
+    const auto* n = puller_node(d);
+    return n != nullptr && n->node_state() == "operational" && n->boot_state() == "started";
+  })) << last_text(diag) << line_->logs();
+}
+
+// When `set` may send: once the bridge's diagnostics say the device's boot passed, or settled
+// where the bridge's answer says why; never while it is still booting.
+TEST(CliText, SetWaitsForTheBootToPassOrSettle) {
+  const auto node = [](const char* node_state, const char* boot_state) {
+    msg::NodeDiagnostics n;
+    n.node_state(node_state);
+    n.boot_state(boot_state);
+    return n;
+  };
+  EXPECT_FALSE(lb::app::boot_settled(node("booting", "writing the configuration (3 writes)")));
+  EXPECT_FALSE(lb::app::boot_settled(node("unknown", "reading device type and identity")));
+  EXPECT_FALSE(lb::app::boot_settled(node("resetting", "reset: waiting for its boot-up")));
+  EXPECT_FALSE(lb::app::boot_settled(node("lost", "waiting for its heartbeat")));
+  EXPECT_FALSE(lb::app::boot_settled(node("", "")));
+  EXPECT_TRUE(lb::app::boot_settled(node("booting", "started")));  // passed; operational at its next heartbeat
+  EXPECT_TRUE(lb::app::boot_settled(node("operational", "started")));
+  EXPECT_TRUE(lb::app::boot_settled(node("stopped by operator", "configured; kept pre-operational by the operator (nmt start releases it)")));
+  EXPECT_TRUE(lb::app::boot_settled(node("boot failed", "failed (D): identity; next try in 1000 ms")));
+  EXPECT_TRUE(lb::app::boot_settled(node("monitored", "monitored")));
+}
+
 // Nobody answers: exit 3, not the exit code of a refusal; echo says it waits for a bridge.
 TEST(CliWithoutBridge, NoAnswerIsExitThreeAndEchoSaysItWaits) {
   ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
@@ -251,6 +311,18 @@ TEST(CliWithoutBridge, SetAsksAgainUntilAnswered) {
   online.health().online(true);
   online.health().nmt_state(msg::NMT_OPERATIONAL);
   ASSERT_TRUE(status->write(online));
+  // Like a bridge, it says in its diagnostics that the saw's boot passed (set waits for that).
+  auto diagnostics = p.writer<msg::DiagnosticsPubSubType>(lb::ddsl::topic_name("askagain", "bridge", "diagnostics"), QosKind::state);
+  ASSERT_TRUE(diagnostics);
+  msg::Diagnostics d;
+  d.line("askagain");
+  msg::NodeDiagnostics n;
+  n.device("saw1");
+  n.online(true);
+  n.node_state("operational");
+  n.boot_state("started");
+  d.nodes().push_back(n);
+  ASSERT_TRUE(diagnostics->write(d));
 
   const auto r = run_cli({"set", "saw1", "--sync-speed-percent", "40", "--timeout", "8", "--config", config});
   EXPECT_EQ(r.exit_code, 0) << r.output;
@@ -324,4 +396,62 @@ TEST(CliWithoutBridge, ServiceCallAsksAgainNamingTheFirstRequest) {
   EXPECT_EQ(seen[1].command, "manual_cut");
   EXPECT_EQ(seen[0].run, p.incarnation()) << "the first request names the run the CLI heard of";
   EXPECT_EQ(seen[1].run, seen[0].run) << "the repeat names the same run";
+}
+
+// The field names of one struct of an IDL text, in order ("uint64 frames_in;" gives frames_in).
+std::vector<std::string> idl_fields(const std::string& idl, const std::string& structure) {
+  const auto begin = idl.find("struct " + structure + " {");
+  if (begin == std::string::npos) return {};
+  const auto end = idl.find("};", begin);
+  std::vector<std::string> fields;
+  std::istringstream body(idl.substr(begin, end - begin));
+  const std::regex field(R"(^\s*[A-Za-z_][\w:]*(<[^>]*>)?\s+(\w+)\s*;)");
+  for (std::string line; std::getline(body, line);) {
+    if (std::smatch m; std::regex_search(line, m, field)) fields.push_back(m[2]);
+  }
+  return fields;
+}
+
+// `linebridge-cli echo bridge diagnostics` prints every field of the Diagnostics type: the field
+// list is read from idl/common.idl, so a field added there and not printed fails here. Each is
+// printed under its name (underscores as hyphens), or, for the few shown as their value alone,
+// as the value this test puts in.
+TEST(CliText, DiagnosticsTextShowsEveryIdlField) {
+  std::ifstream in(std::string(LB_SOURCE_DIR) + "/idl/common.idl");
+  const std::string idl((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  msg::Diagnostics d;
+  d.line("lineX");
+  msg::BusDiagnostics b;
+  b.name("busX");
+  b.interface_uri("socketcan:vcanX");
+  b.role("master");
+  b.state("error-passive");
+  d.buses().push_back(b);
+  msg::NodeDiagnostics n;
+  n.device("deviceX");
+  n.bus("busX");
+  n.node_id(42);
+  d.nodes().push_back(n);
+  const auto text = lb::app::to_text(d);
+  // Shown as their value (or a unit), not under their own name; the containers are their parts.
+  const std::map<std::string, std::string> shown_as = {
+      {"stamp", ":"}, {"line", "lineX"}, {"buses", "busX"}, {"nodes", "deviceX"}, {"dds_side", "dds-side"},
+      {"name", "busX"}, {"interface_uri", "socketcan:vcanX"}, {"role", "master"}, {"state", "error-passive"},
+      {"frames_in_per_s", "/s)"}, {"frames_out_per_s", "/s)"}, {"load_percent", "load"}, {"tx_error_counter", "TEC"},
+      {"rx_error_counter", "REC"}, {"device", "deviceX"}, {"bus", "busX"}, {"node_id", "node  42"},
+      {"online", "OFFLINE"}, {"nmt_state", "unknown"}, {"last_heartbeat_age_s", "last-heartbeat-age"}};
+  std::size_t checked = 0;
+  for (const char* structure : {"Diagnostics", "BusDiagnostics", "NodeDiagnostics", "DdsSideDiagnostics"}) {
+    const auto fields = idl_fields(idl, structure);
+    EXPECT_GT(fields.size(), 4u) << structure << " not found in idl/common.idl";
+    for (const auto& f : fields) {
+      ++checked;
+      std::string label = f;
+      std::replace(label.begin(), label.end(), '_', '-');
+      if (const auto it = shown_as.find(f); it != shown_as.end()) label = it->second;
+      EXPECT_NE(text.find(label), std::string::npos) << structure << "." << f << " is not printed (looked for '" << label
+                                                      << "'):\n" << text;
+    }
+  }
+  EXPECT_GT(checked, 60u);
 }

@@ -3,10 +3,12 @@
 // frames of a virtual bus). Runs inside launch_scripts/netns-run.sh (private /dev/shm: --check
 // must leave no Fast DDS shared-memory segment behind, which a participant would).
 #include <gtest/gtest.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
+#include <regex>
 #include <sstream>
 #include <thread>
 
@@ -66,6 +68,15 @@ TEST(Check, DemoLineSummaryWithEveryTopicAndNoDdsNoCan) {
   }
 }
 
+// The example line file the package ships (/etc/linebridge/line.yaml) passes --check as it is in
+// the source tree: its profiles_dir (profiles, beside it) is there too.
+TEST(Check, TheShippedLineFilePasses) {
+  const auto shipped = std::string(LB_SOURCE_DIR) + "/packaging/etc/line.yaml";
+  const auto r = run_command({LB_BIN_BRIDGE, "--check", shipped});
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find(shipped + ": ok"), std::string::npos) << r.output;
+}
+
 TEST(Check, ErrorsExitTwoWithTheirPlaceAndWarningsAreListed) {
   const auto bad = write("bad.yaml", "line: x\nbuses:\n  - {name: b, interface: 'virtual:x'}\ndevices:\n"
                                      "  - {name: saw1, bus: b, node_id: 300, profile: cia420-4, version: '3.1'}\n");
@@ -98,13 +109,143 @@ TEST(Check, ErrorsExitTwoWithTheirPlaceAndWarningsAreListed) {
   const auto stateless = write("state.yaml", "line: x\nstate_dir: '" + not_a_dir + "'\nbuses:\n  - {name: b, interface: 'virtual:x'}\ndevices: []\n");
   r = run_command({LB_BIN_BRIDGE, "--check", stateless});
   EXPECT_EQ(r.exit_code, 2) << r.output;
-  EXPECT_NE(r.output.find("error: state_dir: set values in force not kept: state_dir " + not_a_dir + ": not a directory"),
+  EXPECT_NE(r.output.find("error: state_dir " + not_a_dir + ": not a directory"),
             std::string::npos) << r.output;
+  // Every state_dir problem is an error, each reported, with the machine's others: here a file in
+  // the way, a directory this user may not create, and a missing recording, all three at once.
+  const auto blocked = write("blocked.yaml", "line: x\nstate_dir: '" + not_a_dir + "/sub'\nbuses:\n"
+                                             "  - {name: b, interface: 'log:/nonexistent/rec.log'}\ndevices: []\n");
+  r = run_command({LB_BIN_BRIDGE, "--check", blocked});
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("error: state_dir " + not_a_dir + "/sub: does not exist, and "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("_not_a_dir is no directory to create it in"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("error: bus b: cannot read the recording /nonexistent/rec.log"), std::string::npos)
+      << "every error, not only the first\n" << r.output;
+  // Missing but creatable: fine, start-up makes it; --check itself creates nothing.
+  const auto creatable = ::testing::TempDir() + "/tools_" + tag() + "_state/a/b";
+  const auto later = write("later.yaml", "line: x\nstate_dir: '" + creatable + "'\nbuses:\n  - {name: b, interface: 'virtual:x'}\ndevices: []\n");
+  r = run_command({LB_BIN_BRIDGE, "--check", later});
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_FALSE(std::filesystem::exists(creatable)) << "--check created the state_dir";
+  if (::geteuid() != 0) {  // root may write anywhere: the permission check says nothing then
+    const auto locked = ::testing::TempDir() + "/tools_" + tag() + "_locked";
+    std::filesystem::create_directory(locked);
+    std::filesystem::permissions(locked, std::filesystem::perms::owner_read | std::filesystem::perms::owner_exec);
+    const auto ro = write("ro.yaml", "line: x\nstate_dir: '" + locked + "'\nbuses:\n  - {name: b, interface: 'virtual:x'}\ndevices: []\n");
+    r = run_command({LB_BIN_BRIDGE, "--check", ro});
+    EXPECT_EQ(r.exit_code, 2) << r.output;
+    EXPECT_NE(r.output.find("error: state_dir " + locked + ": not writable"), std::string::npos) << r.output;
+  }
   // A replay whose file is missing would stop start-up: an error.
   const auto replay = write("replay.yaml", "line: x\nbuses:\n  - {name: b, interface: 'log:/nonexistent/rec.log'}\ndevices: []\n");
   r = run_command({LB_BIN_BRIDGE, "--check", replay});
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_NE(r.output.find("cannot read the recording /nonexistent/rec.log"), std::string::npos) << r.output;
+}
+
+// Every file the bridge, the CLI and the tools read goes through one bounded reader
+// (base/bounded_file.hpp): a device that never ends (/dev/zero), a FIFO nobody writes (it would
+// block) and a file far larger than any real one are refused with a clear error, exit 2, at once
+// (each command is bounded at 30 s here; a hang or an abort fails the test).
+TEST(BoundedFiles, DevZeroAFifoAndAnOversizeFileAreRefusedEverywhere) {
+  const auto fifo = ::testing::TempDir() + "/tools_" + tag() + "_fifo";
+  ::unlink(fifo.c_str());
+  ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
+  const auto oversize = write("oversize", std::string(5 * 1024 * 1024, ';'));
+  const auto refused = [](const lb::test::CommandResult& r) {
+    return r.exit_code == 2 &&
+           (r.output.find("not a regular file") != std::string::npos || r.output.find("larger than") != std::string::npos);
+  };
+  for (const auto& bad : {std::string("/dev/zero"), fifo, oversize}) {
+    // An EDS file (linebridge-cli eds aborted with std::bad_alloc on /dev/zero).
+    auto r = run_command({LB_BIN_CLI, "eds", bad}, std::chrono::seconds(30));
+    EXPECT_TRUE(refused(r)) << "eds " << bad << ": exit " << r.exit_code << "\n" << r.output;
+    // The line file, given or from LINEBRIDGE_CONFIG, to each executable.
+    r = run_command({LB_BIN_BRIDGE, "--check", bad}, std::chrono::seconds(30));
+    EXPECT_TRUE(refused(r)) << "--check " << bad << ": exit " << r.exit_code << "\n" << r.output;
+    r = run_command({"/usr/bin/env", "LINEBRIDGE_CONFIG=" + bad, LB_BIN_SIM, "--duration", "1"}, std::chrono::seconds(30));
+    EXPECT_TRUE(refused(r)) << "linebridge-sim, LINEBRIDGE_CONFIG=" << bad << ": exit " << r.exit_code << "\n" << r.output;
+    r = run_command({LB_BIN_CLI, "--config", bad, "list"}, std::chrono::seconds(30));
+    EXPECT_TRUE(refused(r)) << "linebridge-cli --config " << bad << ": exit " << r.exit_code << "\n" << r.output;
+    // A site's DDS profiles file.
+    const auto with_profiles = write("profiles-line.yaml", "line: x\ndds: {profiles_file: '" + bad +
+                                                           "'}\nbuses:\n  - {name: b, interface: 'virtual:x'}\ndevices: []\n");
+    r = run_command({LB_BIN_BRIDGE, "--check", with_profiles}, std::chrono::seconds(30));
+    EXPECT_TRUE(refused(r)) << "profiles_file " << bad << ": exit " << r.exit_code << "\n" << r.output;
+    // The security files of a secured line.
+    std::string security = "line: x\ndds:\n  security:\n";
+    for (const char* key : {"identity_ca", "certificate", "private_key", "permissions_ca", "governance", "permissions"}) {
+      security += std::string("    ") + key + ": '" + bad + "'\n";
+    }
+    const auto secured = write("secured-line.yaml", security + "buses:\n  - {name: b, interface: 'virtual:x'}\ndevices: []\n");
+    r = run_command({LB_BIN_SECURITY, "--config", secured, "check"}, std::chrono::seconds(30));
+    EXPECT_TRUE(refused(r)) << "security files " << bad << ": exit " << r.exit_code << "\n" << r.output;
+  }
+  // A profile file in the line's profiles_dir.
+  const auto dir = ::testing::TempDir() + "/tools_" + tag() + "_profiles";
+  std::filesystem::create_directories(dir);
+  std::filesystem::copy_file(oversize, dir + "/big.yaml", std::filesystem::copy_options::overwrite_existing);
+  const auto with_dir = write("dir-line.yaml", "line: x\nprofiles_dir: '" + dir + "'\nbuses:\n  - {name: b, interface: 'virtual:x'}\ndevices: []\n");
+  const auto r = run_command({LB_BIN_BRIDGE, "--check", with_dir}, std::chrono::seconds(30));
+  EXPECT_TRUE(refused(r)) << "a profile file: exit " << r.exit_code << "\n" << r.output;
+  ::unlink(fifo.c_str());
+}
+
+// What a launch script says setup.sh installs ("mmdebstrap missing (launch_scripts/setup.sh
+// --install-test installs it)"), setup.sh installs: its --list with the same options names it.
+TEST(Scripts, WhatTheScriptsSaySetupInstallsItInstalls) {
+  const std::regex claim(R"(([\w.+-]+) (?:is )?missing \(launch_scripts/setup\.sh((?: --[\w-]+)*) installs it\))");
+  std::size_t claims = 0;
+  for (const auto& entry : std::filesystem::directory_iterator(std::string(LB_SOURCE_DIR) + "/launch_scripts")) {
+    if (entry.path().extension() != ".sh") continue;
+    std::ifstream in(entry.path());
+    const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+    for (std::sregex_iterator it(text.begin(), text.end(), claim), end; it != end; ++it) {
+      ++claims;
+      const std::string package = (*it)[1];
+      std::vector<std::string> argv = {std::string(LB_SOURCE_DIR) + "/launch_scripts/setup.sh", "--list"};
+      std::istringstream flags((*it)[2]);
+      for (std::string f; flags >> f;) argv.push_back(f);
+      const auto r = run_command(argv);
+      ASSERT_EQ(r.exit_code, 0) << r.output;
+      EXPECT_NE(("\n" + r.output).find("\n" + package + "\n"), std::string::npos)
+          << entry.path().filename() << " says setup.sh" << (*it)[2] << " installs " << package << "; it installs:\n" << r.output;
+    }
+  }
+  EXPECT_GE(claims, 2u) << "install-test.sh (mmdebstrap) and pki.sh (openssl) say so";
+}
+
+// `netns-run.sh --join PID COMMAND` runs COMMAND in the network (and mount) namespace of a line
+// already running in its own, as a second terminal beside the demo does: there candump sees the
+// line's virtual bus; from any other namespace (here the test's) it sees nothing of it.
+TEST(NetnsJoin, ACommandJoinsARunningLinesNamespaceAndSeesItsBus) {
+  const auto line = write("joined.yaml", "line: joined\nbuses:\n  - {name: weaving, interface: 'virtual:joined-" + tag() +
+                                         "'}\ndevices:\n  - {name: saw1, bus: weaving, node_id: 3, profile: cia420-4, version: "
+                                         "'3.1', simulation: {heartbeat_period_ms: 50}}\n");
+  // The simulator in a namespace of its own (no DDS: it has no participant), as demo.sh runs the line.
+  lb::test::ChildProcess sim({"/usr/bin/unshare", "--net", "--mount", "--propagation", "private", "--", LB_BIN_SIM, "--config",
+                              line, "--duration", "60"},
+                             ::testing::TempDir() + "/joined_sim_" + tag() + ".log");
+  ASSERT_TRUE(sim.started());
+  const auto ns_of = [](const std::string& pid) {
+    std::error_code ec;
+    return std::filesystem::read_symlink("/proc/" + pid + "/ns/net", ec).string();
+  };
+  const auto pid = std::to_string(sim.pid());
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
+  while (ns_of(pid) == ns_of("self") && std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  ASSERT_NE(ns_of(pid), ns_of("self")) << sim.log();
+  const std::string netns_run = std::string(LB_SOURCE_DIR) + "/launch_scripts/netns-run.sh";
+  auto r = run_command({netns_run, "--join", pid, LB_BIN_CLI, "--config", line, "candump", "weaving", "--count", "3", "--duration", "30"});
+  EXPECT_EQ(r.exit_code, 0) << r.output << sim.log();
+  EXPECT_NE(r.output.find(" weaving 703#"), std::string::npos) << "joined: the line's heartbeats\n" << r.output << sim.log();
+  r = run_command({LB_BIN_CLI, "--config", line, "candump", "weaving", "--count", "1", "--duration", "2"});
+  EXPECT_EQ(r.output.find(" weaving 703#"), std::string::npos) << "not joined: nothing of that bus\n" << r.output;
+  r = run_command({netns_run, "--join", "no-such-process-" + tag(), "true"});
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("no process named"), std::string::npos) << r.output;
 }
 
 class Eds : public ::testing::Test {
