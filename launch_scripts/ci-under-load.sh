@@ -14,7 +14,7 @@
 #   Environment: every LINEBRIDGE_* variable is passed through to the runs, so a quick check is
 #     LINEBRIDGE_TSAN=0 LINEBRIDGE_ASAN=0 LINEBRIDGE_PACKAGE=0 launch_scripts/ci-under-load.sh --once -- -R SimConformance
 #   A full run (3 x .ci/run on 2 loaded cores) takes about 2 hours.
-#   Exit status: 0 when every run passed, 1 otherwise. Logs: $CI_LOAD_LOGS (default
+#   CI_LOAD_WORK (/tmp): where the clone goes. Exit status: 0 when every run passed, 1 otherwise. Logs: $CI_LOAD_LOGS (default
 #   /tmp/ci-under-load.<date>/run-<i>.log), one per run, and summary.txt.
 #
 # .ci/run is exactly the README's test command; when extra arguments are given this script calls
@@ -51,7 +51,8 @@ fi
 
 logs=${CI_LOAD_LOGS:-/tmp/ci-under-load.$(date -u +%Y%m%dT%H%M%SZ)}
 mkdir -p "$logs"
-work=$(mktemp -d /tmp/ci-under-load-clone.XXXXXX)
+mkdir -p "${CI_LOAD_WORK:-/tmp}"
+work=$(mktemp -d "${CI_LOAD_WORK:-/tmp}/ci-under-load-clone.XXXXXX")
 head=$(git rev-parse HEAD)
 git clone -q --no-hardlinks "$repo" "$work/linebridge"
 git -C "$work/linebridge" checkout -q "$head"
