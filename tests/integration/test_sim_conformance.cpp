@@ -497,13 +497,13 @@ TEST_F(SimConformance, EventDrivenTpdoObeysInhibitTimeAndEventTimer) {
   for (const auto& s : busy) tails.insert({s.frame.data.begin() + 6, s.frame.data.begin() + 8});
   EXPECT_GT(tails.size(), busy.size() / 2) << "the manufacturer word changes";
 
-  // No more SYNC, nothing changes: only the event timer sends.
+  // No more SYNC, nothing changes: only the event timer sends. Six frames waited for (a loaded
+  // machine delays them); the median of their gaps is the event timer's period (a frame sent on
+  // every change or SYNC would shorten it, a stopped timer would leave fewer than six).
   std::this_thread::sleep_for(100ms);
   master_->clear();
-  std::this_thread::sleep_for(1600ms);
+  ASSERT_TRUE(master_->wait_for([&] { return master_->from(0x187).size() >= 6; }, 15s)) << log();
   const auto quiet = master_->from(0x187);
-  ASSERT_GE(quiet.size(), 4u) << log();
-  ASSERT_LE(quiet.size(), 7u) << log();
   EXPECT_GE(median(gaps_ms(quiet)), 270.0) << "event timer 300 ms";
   EXPECT_LE(median(gaps_ms(quiet)), 360.0) << "event timer 300 ms";
 }
@@ -528,21 +528,28 @@ TEST_F(SimConformance, ValidBitAndExtendedIdentifiers) {
   write(kCorrugator, 0x1600, 0, 3, 1);
   write(kCorrugator, 0x1600, 0, 2, 1);
   master_->nmt(kStart, kCorrugator);
+  // One TPDO1 and one TPDO2 per SYNC (transmission type 1), each waited for: the SYNCs'
+  // answers arrive late on a loaded machine, they do not go missing.
+  const auto answered = [this](std::uint32_t id, std::size_t n) {
+    return master_->wait_for([&] { return master_->from(id).size() >= n; }, 10s);
+  };
   master_->clear();
   master_->syncs(10, 20ms);
-  std::this_thread::sleep_for(100ms);
+  EXPECT_TRUE(answered(0x187, 10)) << log();
+  EXPECT_TRUE(answered(0x287, 10)) << log();
   EXPECT_EQ(master_->from(0x187).size(), 10u);
   EXPECT_EQ(master_->from(0x287).size(), 10u);
   write(kCorrugator, 0x1800, 1, 0xC0000187, 4);  // while operational: only the valid bit
   master_->clear();
   master_->syncs(10, 20ms);
-  std::this_thread::sleep_for(100ms);
+  EXPECT_TRUE(answered(0x287, 10)) << log();  // every SYNC answered by TPDO2: TPDO1 would have been by now
   EXPECT_TRUE(master_->from(0x187).empty()) << "TPDO1 not valid";
   EXPECT_EQ(master_->from(0x287).size(), 10u);
   write(kCorrugator, 0x1800, 1, 0x40000187, 4);
   master_->clear();
   master_->syncs(5, 20ms);
-  std::this_thread::sleep_for(100ms);
+  EXPECT_TRUE(answered(0x187, 5)) << log();
+  EXPECT_TRUE(answered(0x287, 5)) << log();
   EXPECT_EQ(master_->from(0x187).size(), 5u);
 
   // Feeder TPDO1 to a 29-bit identifier, the CiA 301 way: not valid first, then valid with bit 29.
@@ -812,38 +819,43 @@ TEST_F(SimConformance, CommunicationObjectsIdentityAndFaults) {
   master_->nmt(kStart, kSaw2);
   master_->clear();
   master_->syncs(9, 20ms);
-  std::this_thread::sleep_for(100ms);
+  EXPECT_TRUE(master_->wait_for([&] { return master_->from(0x289).size() >= 3; }, 10s)) << log();
   EXPECT_EQ(master_->from(0x289).size(), 3u) << "every 3rd SYNC";
 
-  // heartbeat_period_ms 0: the boot-up, then nothing until a master writes 1017h.
+  // heartbeat_period_ms 0: the boot-up, then nothing until a master writes 1017h. Measured
+  // against the other saw's heartbeat (100 ms) on the same bus: five of them, and none of saw2.
   master_->clear();
-  std::this_thread::sleep_for(600ms);
+  ASSERT_TRUE(master_->wait_for([&] { return master_->from(0x705).size() >= 5; }, 10s)) << "saw: heartbeat 100 ms" << log();
   EXPECT_TRUE(master_->from(0x709).empty());
-  EXPECT_FALSE(master_->from(0x705).empty()) << "saw: heartbeat 100 ms";
   write(kSaw2, 0x1017, 0, 50, 2);
   master_->clear();
-  std::this_thread::sleep_for(500ms);
+  // Eight heartbeats waited for, spaced by 50 ms by their send stamps (median of the gaps).
+  ASSERT_TRUE(master_->wait_for([&] { return master_->from(0x709).size() >= 8; }, 10s)) << log();
   const auto beats = master_->from(0x709);
-  EXPECT_GE(beats.size(), 7u);
-  EXPECT_LE(beats.size(), 12u);
+  std::vector<double> spacing;
+  for (std::size_t i = 1; i < beats.size(); ++i) {
+    spacing.push_back(static_cast<double>(beats[i].frame.timestamp_ns - beats[i - 1].frame.timestamp_ns) / 1e6);
+  }
+  EXPECT_GE(median(spacing), 50.0 - 20.0) << "1017h = 50 ms";
+  EXPECT_LE(median(spacing), 50.0 + 75.0) << "1017h = 50 ms";
   for (const auto& s : beats) EXPECT_EQ(s.frame.data[0], 0x05) << "operational";
 }
 
 // 2002h: the simulator's silent reset. No boot-up message; heartbeats (pre-operational) go on.
 TEST_F(SimConformance, SilentResetSendsNoBootUp) {
   start_sim({{"saw", kSaw}});
-  // The states the saw's heartbeats (100 ms) report after it confirmed the write of 2002h (the
-  // reset follows the confirmation; the heartbeat period restarts with it).
+  // The saw's heartbeats (100 ms) after it confirmed the write of 2002h (the reset follows the
+  // confirmation; the heartbeat period restarts with it): their states, and their send stamps.
   const auto heartbeats_after_confirmation = [this] {
-    std::vector<std::uint8_t> states;
+    std::vector<CanFrame> beats;
     bool confirmed = false;
     for (const auto& s : master_->frames()) {
       const auto& f = s.frame;
       if (f.id == 0x585 && f.data[0] == 0x60 && f.data[1] == 0x02 && f.data[2] == 0x20) confirmed = true;
       if (f.id == 0x705 && is_boot_up(f)) ADD_FAILURE() << "a boot-up message";
-      if (f.id == 0x705 && confirmed) states.push_back(f.data[0]);
+      if (f.id == 0x705 && confirmed) beats.push_back(f);
     }
-    return states;
+    return beats;
   };
   const auto power_on_max = read(kSaw, 0x6006, 0);
   master_->nmt(kStart, kSaw);
@@ -854,8 +866,8 @@ TEST_F(SimConformance, SilentResetSendsNoBootUp) {
   // Three heartbeats after the reset (waited for: a loaded machine delays them, it does not make
   // them more or fewer), each pre-operational, and no boot-up among them.
   ASSERT_TRUE(master_->wait_for([&] { return heartbeats_after_confirmation().size() >= 3; }, 10s)) << log();
-  auto states = heartbeats_after_confirmation();
-  for (const auto state : states) EXPECT_EQ(state, 0x7F) << "pre-operational";
+  auto beats = heartbeats_after_confirmation();
+  for (const auto& f : beats) EXPECT_EQ(f.data[0], 0x7F) << "pre-operational";
   EXPECT_EQ(read(kSaw, 0x1801, 2), 1u);
   EXPECT_EQ(read(kSaw, 0x6006, 0), 12345u);
   master_->clear();
@@ -865,11 +877,17 @@ TEST_F(SimConformance, SilentResetSendsNoBootUp) {
   master_->nmt(kStart, kSaw);
   master_->clear();
   write(kSaw, 0x2002, 0, 1, 1);  // reset node, silently
-  std::this_thread::sleep_for(500ms);
-  states = heartbeats_after_confirmation();
-  EXPECT_GE(states.size(), 3u) << log();
-  EXPECT_LE(states.size(), 6u) << log();
-  for (const auto state : states) EXPECT_EQ(state, 0x7F) << "pre-operational";
+  // Five heartbeats after the reset, waited for (a loaded machine delays them). The reset node put
+  // 1017h back to its power-on 100 ms: spaced by that period, by the frames' send stamps (the
+  // median of the four gaps: one late frame lengthens one gap and shortens the next). A second
+  // producer would halve the spacing, a lost period setting would stretch or stop it.
+  ASSERT_TRUE(master_->wait_for([&] { return heartbeats_after_confirmation().size() >= 5; }, 10s)) << log();
+  beats = heartbeats_after_confirmation();
+  for (const auto& f : beats) EXPECT_EQ(f.data[0], 0x7F) << "pre-operational";
+  std::vector<double> spacing;
+  for (std::size_t i = 1; i < 5; ++i) spacing.push_back(static_cast<double>(beats[i].timestamp_ns - beats[i - 1].timestamp_ns) / 1e6);
+  EXPECT_GE(median(spacing), 100.0 - 40.0) << "heartbeat period 100 ms" << log();
+  EXPECT_LE(median(spacing), 100.0 + 150.0) << "heartbeat period 100 ms" << log();
   EXPECT_EQ(read(kSaw, 0x6006, 0), power_on_max);
   EXPECT_EQ(master_->write_abort(kSaw, 0x2002, 0, 3, 1), kRange);
   EXPECT_NE(sim_->log().find("without boot-up"), std::string::npos) << log();
