@@ -30,14 +30,17 @@ void next(const std::shared_ptr<Batch>& b) {
   if (r.kind == SdoRequest::Kind::read) {
     b->sdo.read(b->node, r.index, r.sub, r.type, [b, optional = r.may_be_absent](SdoClient::ReadResult result) {
       SdoReply reply;
-      if (result) reply.value = *result;
-      else if (optional && absent_code(result.error().abort_code)) reply.absent = true;
-      else reply.error = result.error();
+      if (result)
+        reply.value = *result;
+      else if (optional && absent_code(result.error().abort_code))
+        reply.absent = true;
+      else
+        reply.error = result.error();
       b->replies.push_back(std::move(reply));
       next(b);
     });
   } else {
-    b->sdo.write(b->node, r.index, r.sub, r.type, r.value, [b](SdoClient::DownloadResult result) {
+    b->sdo.write(b->node, r.index, r.sub, r.type, r.value, [b](const SdoClient::DownloadResult& result) {
       SdoReply reply;
       if (!result) reply.error = result.error();
       b->replies.push_back(std::move(reply));
