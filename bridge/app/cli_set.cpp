@@ -64,14 +64,19 @@ bool wait_until(Clock::duration timeout, const std::function<bool()>& cond) {
 // The common path: the device's current status (online), then the set value, then its answer.
 // make(status) builds the set value from what is in force; describe() says what was accepted.
 template <class StatusPS, class SetpointPS>
-int send_set_value(ddsl::Participant& dds, const std::string& line, const std::string& device, const char* setpoint_name,
-                   const char* result_name, const SetOptions& o, const std::function<typename SetpointPS::type(const typename StatusPS::type&)>& make,
+int send_set_value(ddsl::Participant& dds, const std::string& line, const std::string& device,
+                   const char* setpoint_name, const char* result_name, const SetOptions& o,
+                   const std::function<typename SetpointPS::type(const typename StatusPS::type&)>& make,
                    const std::function<std::string(const typename SetpointPS::type&)>& describe) {
   using Status = typename StatusPS::type;
   const auto status_topic = ddsl::topic_name(line, device, "status");
   const auto result_topic = ddsl::topic_name(line, device, result_name);
   const auto setpoint_topic = ddsl::topic_name(line, device, setpoint_name);
-  const auto timeout = std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(o.timeout_s));
+  // One deadline for the whole command (online, boot, match, answer): --timeout bounds what the
+  // user waits, not each step.
+  const auto give_up = Clock::now() +
+                       std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(o.timeout_s));
+  const auto left = [&] { return std::max(Clock::duration::zero(), give_up - Clock::now()); };
 
   Mailbox<Status> status;
   Mailbox<msg::SetpointResult> result;
@@ -82,16 +87,18 @@ int send_set_value(ddsl::Participant& dds, const std::string& line, const std::s
   // Only the answer to this set value is kept: the mailbox holds one value, and other clients'
   // answers arriving right after it would otherwise replace it before it is looked at.
   const auto request_id = static_cast<std::uint64_t>(ddsl::now_ns());
-  auto result_sub = dds.subscribe_scoped<msg::SetpointResultPubSubType>(
-      result_topic, ddsl::QosKind::reply, [&](const msg::SetpointResult& r, const auto&) {
-        if (r.request_id() == request_id) result.put(r);
-      });
+  auto result_sub = dds.subscribe_scoped<msg::SetpointResultPubSubType>(result_topic, ddsl::QosKind::reply,
+                                                                        [&](const msg::SetpointResult& r, const auto&) {
+                                                                          if (r.request_id() == request_id)
+                                                                            result.put(r);
+                                                                        });
   if (!status_sub || !result_sub) {
-    return fmt::print(stderr, "{}\n", !status_sub ? status_sub.error().message : result_sub.error().message), kExitNoAnswer;
+    return fmt::print(stderr, "{}\n", !status_sub ? status_sub.error().message : result_sub.error().message),
+           kExitNoAnswer;
   }
   // Fields not given keep the value in force, which the status topic reports; wait for the
   // device to be online so the bridge will not refuse the set value as offline.
-  auto current = status.wait(timeout, [](const Status& s) { return s.health().online(); });
+  auto current = status.wait(left(), [](const Status& s) { return s.health().online(); });
   if (!current) {
     fmt::print(stderr, "{}: no online status on {} within {} s (is the bridge running and the device up?)\n", device,
                status_topic, o.timeout_s);
@@ -99,11 +106,11 @@ int send_set_value(ddsl::Participant& dds, const std::string& line, const std::s
   }
   // Online comes before the boot's end, and a set value that enables a device not yet configured
   // is refused: wait until the bridge's diagnostics say the boot passed (or settled).
-  if (auto booted = wait_for_boot(dds, line, device, timeout); !booted) {
+  if (auto booted = wait_for_boot(dds, line, device, left()); !booted) {
     fmt::print(stderr, "{} within {} s\n", booted.error().message, o.timeout_s);
     return kExitNoAnswer;
   }
-  if (!wait_until(timeout, [&] { return writer->matched() > 0 && dds.matched_writers(result_topic) > 0; })) {
+  if (!wait_until(left(), [&] { return writer->matched() > 0 && dds.matched_writers(result_topic) > 0; })) {
     fmt::print(stderr, "{}: the bridge does not subscribe {}\n", device, setpoint_topic);
     return kExitNoAnswer;
   }
@@ -114,15 +121,16 @@ int send_set_value(ddsl::Participant& dds, const std::string& line, const std::s
   // set value is the bridge's reply writer's last sample when other clients' answers came just
   // before it (seen: applied and answered by the bridge, never delivered here). A set value is
   // absolute, so applying it twice changes nothing.
-  const auto give_up = Clock::now() + timeout;
   std::optional<msg::SetpointResult> reply;
   while (!reply && Clock::now() < give_up) {
     writer->write(sp);
     const auto wait = std::min<Clock::duration>(ddsl::kAskAgainAfter, give_up - Clock::now());
     reply = result.wait(wait, [](const msg::SetpointResult&) { return true; });  // only ours are put there
   }
-  if (!reply) return fmt::print(stderr, "{}: no answer from the bridge within {} s\n", device, o.timeout_s), kExitNoAnswer;
-  if (!reply->accepted()) return fmt::print(stderr, "{}: set value refused: {}\n", device, reply->reason()), kExitRefused;
+  if (!reply)
+    return fmt::print(stderr, "{}: no answer from the bridge within {} s\n", device, o.timeout_s), kExitNoAnswer;
+  if (!reply->accepted())
+    return fmt::print(stderr, "{}: set value refused: {}\n", device, reply->reason()), kExitRefused;
   fmt::print("{}: accepted: {}\n", device, describe(sp));
   return kExitOk;
 }
@@ -163,7 +171,8 @@ int set_drive(ddsl::Participant& dds, const std::string& line, const std::string
         return sp;
       },
       [](const typename SetpointPS::type& sp) {
-        return fmt::format("extruder {}, speed {} %", sp.extruder_running() ? "running" : "stopped", sp.speed_set_percent());
+        return fmt::format("extruder {}, speed {} %", sp.extruder_running() ? "running" : "stopped",
+                           sp.speed_set_percent());
       });
 }
 
@@ -175,7 +184,8 @@ int set_feeder(ddsl::Participant& dds, const std::string& line, const std::strin
         if (o.loom_status) {
           // RPDO2 carries the loom status with the weft filling: what is not given stays in force.
           sp.loom_status(*o.loom_status);
-          sp.maximum_speed_per_min(static_cast<std::uint16_t>(o.maximum_speed_per_min.value_or(s.loom().maximum_speed_per_min())));
+          sp.maximum_speed_per_min(
+              static_cast<std::uint16_t>(o.maximum_speed_per_min.value_or(s.loom().maximum_speed_per_min())));
           sp.loom_width_m(o.loom_width_m.value_or(s.loom().loom_width_m()));
         }
         if (o.trigger_signal) sp.trigger_signal(*o.trigger_signal);
@@ -186,11 +196,13 @@ int set_feeder(ddsl::Participant& dds, const std::string& line, const std::strin
       [](const msg::LoomSetpoint& sp) {
         std::string out;
         if (!sp.loom_status().empty()) {
-          out += fmt::format("loom {} at {} 1/min, width {} m; ", sp.loom_status(), sp.maximum_speed_per_min(), sp.loom_width_m());
+          out += fmt::format("loom {} at {} 1/min, width {} m; ", sp.loom_status(), sp.maximum_speed_per_min(),
+                             sp.loom_width_m());
         }
         if (!sp.trigger_signal().empty()) out += "trigger " + sp.trigger_signal() + "; ";
         if (!sp.pick_insertion().empty()) out += fmt::format("picks [{:02X}]; ", fmt::join(sp.pick_insertion(), " "));
-        if (!sp.digital_outputs().empty()) out += fmt::format("outputs [{:02X}]; ", fmt::join(sp.digital_outputs(), " "));
+        if (!sp.digital_outputs().empty())
+          out += fmt::format("outputs [{:02X}]; ", fmt::join(sp.digital_outputs(), " "));
         return out.substr(0, out.size() - 2);
       });
 }
@@ -201,8 +213,10 @@ std::string set_options_of(const std::string& device_type) {
   const auto* type = profiles::find_device_type(device_type);
   if (type == nullptr) return "none";
   switch (type->behaviour) {
-    case profiles::Behaviour::saw: return "--program, --wall-thickening, --sync-speed-percent, --product-length-m, --count-mode";
-    case profiles::Behaviour::feeder: return "--loom-status, --maximum-speed, --loom-width-m, --trigger-signal, --picks, --outputs";
+    case profiles::Behaviour::saw:
+      return "--program, --wall-thickening, --sync-speed-percent, --product-length-m, --count-mode";
+    case profiles::Behaviour::feeder:
+      return "--loom-status, --maximum-speed, --loom-width-m, --trigger-signal, --picks, --outputs";
     case profiles::Behaviour::drive: break;
   }
   return "--extruder, --speed-percent";
