@@ -16,7 +16,8 @@
 namespace bench = lb::bench;
 
 int main(int argc, char** argv) {
-  bench::Program program{"bench-can-relay", "saw TPDOs from a virtual bus to DDS status samples with nothing in between"};
+  bench::Program program{"bench-can-relay",
+                         "saw TPDOs from a virtual bus to DDS status samples with nothing in between"};
   program.add_prefix();
   program.add_devices("saws on bus 0");
   program.add_domain();

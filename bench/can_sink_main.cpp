@@ -1,8 +1,8 @@
 // bench-can-sink: the bare bus hop. A member of one virtual bus that times every stamped saw
 // TPDO from its send time to the moment receive() hands it over: the part of the bridge's
 // CAN -> DDS latency that the bus costs by itself.
-#include <CLI/CLI.hpp>
 #include <poll.h>
+#include <CLI/CLI.hpp>
 
 #include <chrono>
 #include <cstdio>
@@ -11,8 +11,8 @@
 #include "can/bus.hpp"
 #include "clock.hpp"
 #include "latencies.hpp"
-#include "program.hpp"
 #include "proc_stats.hpp"
+#include "program.hpp"
 #include "saw_stamps.hpp"
 
 namespace bench = lb::bench;
@@ -72,8 +72,9 @@ int main(int argc, char** argv) {
   }
   if (!out.empty()) bench::write_latencies(out, latencies);
   const double busy_s = static_cast<double>(last_ns - first_ns) / 1e9;
-  std::printf("sink_frames=%llu\nsink_error_frames=%llu\nsink_cpu_pct=%.1f\n", static_cast<unsigned long long>(received),
-              static_cast<unsigned long long>(errors), busy_s > 0 ? 100 * (bench::process_cpu_s() - cpu0) / busy_s : 0.0);
+  std::printf("sink_frames=%llu\nsink_error_frames=%llu\nsink_cpu_pct=%.1f\n",
+              static_cast<unsigned long long>(received), static_cast<unsigned long long>(errors),
+              busy_s > 0 ? 100 * (bench::process_cpu_s() - cpu0) / busy_s : 0.0);
   std::fputs(bench::format_summary("bus_hop", bench::summarize(latencies)).c_str(), stdout);
   return received == expect && errors == 0 ? 0 : 3;
 }

@@ -12,10 +12,10 @@
 //
 // Prints key=value lines: hop_{bus2dds,dds2bus,rtt}_{p50,p99,p999,max}_us, hop_samples, hop_lost.
 // No DDS participant: it may run anywhere (bench.sh runs it in its namespace like everything).
-#include <CLI/CLI.hpp>
 #include <fmt/format.h>
 #include <sys/wait.h>
 #include <unistd.h>
+#include <CLI/CLI.hpp>
 
 #include <algorithm>
 #include <atomic>
@@ -63,14 +63,17 @@ struct Summary {
 Summary summarize(std::vector<std::int64_t> v) {
   if (v.empty()) return {0, 0, 0, 0};
   std::sort(v.begin(), v.end());
-  auto at = [&](double q) { return static_cast<double>(v[std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size())))]) / 1000.0; };
+  auto at = [&](double q) {
+    return static_cast<double>(v[std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size())))]) /
+           1000.0;
+  };
   return {at(0.50), at(0.99), at(0.999), static_cast<double>(v.back()) / 1000.0};
 }
 
 void print(const char* key, const std::vector<std::int64_t>& v) {
   const auto s = summarize(v);
-  std::printf("hop_%s_p50_us=%.1f\nhop_%s_p99_us=%.1f\nhop_%s_p999_us=%.1f\nhop_%s_max_us=%.1f\n", key, s.p50, key, s.p99, key,
-              s.p999, key, s.max);
+  std::printf("hop_%s_p50_us=%.1f\nhop_%s_p99_us=%.1f\nhop_%s_p999_us=%.1f\nhop_%s_max_us=%.1f\n", key, s.p50, key,
+              s.p99, key, s.p999, key, s.max);
 }
 
 // The DDS side: connect, wait for Ready, echo every status sample as a set-value sample. Writes
@@ -78,8 +81,10 @@ void print(const char* key, const std::vector<std::int64_t>& v) {
 int dds_side(const std::string& path, const std::string& out, std::uint64_t expect) {
   std::unique_ptr<lk::DdsChannel> channel;
   for (int i = 0; i < 500 && !channel; ++i) {
-    if (auto c = lk::DdsChannel::connect(path, 100)) channel = std::move(*c);
-    else std::this_thread::sleep_for(10ms);
+    if (auto c = lk::DdsChannel::connect(path, 100))
+      channel = std::move(*c);
+    else
+      std::this_thread::sleep_for(10ms);
   }
   if (!channel) {
     std::fprintf(stderr, "bench-channel-hop (dds side): cannot connect to %s\n", path.c_str());
@@ -127,7 +132,8 @@ int main(int argc, char** argv) {
   cli.add_option("--interval-us", interval_us, "pause between one echo and the next sample")->capture_default_str();
   cli.add_option("--size", size, "payload bytes (>= 24)")->check(CLI::Range(24, 60000))->capture_default_str();
   cli.add_option("--dir", dir, "where the socket goes (a private directory is made in it)")->capture_default_str();
-  cli.add_option("--latest", latest, "the bus -> DDS endpoint keeps only its latest sample (as status does); false: queued, as events")
+  cli.add_option("--latest", latest,
+                 "the bus -> DDS endpoint keeps only its latest sample (as status does); false: queued, as events")
       ->capture_default_str();
   CLI11_PARSE(cli, argc, argv);
 
@@ -166,7 +172,8 @@ int main(int argc, char** argv) {
   std::vector<std::int64_t> rtt, dds2bus;
   rtt.reserve(total);
   dds2bus.reserve(total);
-  lk::Declare status{kStatusId, true, false, 0, 0, static_cast<std::uint32_t>(size), "rt/bench/hop/status", "bench::Status", ""};
+  lk::Declare status{kStatusId,       true, false, 0, 0, static_cast<std::uint32_t>(size), "rt/bench/hop/status",
+                     "bench::Status", ""};
   lk::Declare set{kSetId, false, false, 0, 0, static_cast<std::uint32_t>(size), "rt/bench/hop/set", "bench::Set", ""};
   const auto status_id = bus.declare(status, latest);
   bus.declare_reader(set, [&](const lk::Sample& s) {

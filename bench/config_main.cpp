@@ -1,7 +1,7 @@
 // bench-config: writes the line configuration a bench step runs the bridge with, named the way
 // the other bench programs expect (names.hpp): N buses of D saws each.
-#include <CLI/CLI.hpp>
 #include <fmt/format.h>
+#include <CLI/CLI.hpp>
 
 #include <iostream>
 
@@ -28,11 +28,13 @@ int main(int argc, char** argv) {
                  "what the master does on frames of another master (other_master:; default: the bridge's own, yield)")
       ->check(CLI::IsMember({"yield", "warn"}));
   int realtime_priority = 0;
-  cli.add_option("--realtime-priority", realtime_priority, "every bus loop's SCHED_FIFO priority (realtime_priority:; 0: normal)")
+  cli.add_option("--realtime-priority", realtime_priority,
+                 "every bus loop's SCHED_FIFO priority (realtime_priority:; 0: normal)")
       ->check(CLI::Range(0, 99))
       ->capture_default_str();
   std::string pki;
-  cli.add_option("--pki", pki, "DDS Security: the bridge's identity from this launch_scripts/pki.sh folder (default: unsecured)");
+  cli.add_option("--pki", pki,
+                 "DDS Security: the bridge's identity from this launch_scripts/pki.sh folder (default: unsecured)");
   if (auto rc = program.parse(argc, argv)) return *rc;
   const int buses = program.buses;
   const int devices = program.devices;
@@ -44,7 +46,8 @@ int main(int argc, char** argv) {
   if (!pki.empty()) {
     y += fmt::format(
         "  security:\n    identity_ca: {0}/ca/identity_ca.pem\n    permissions_ca: {0}/ca/permissions_ca.pem\n"
-        "    governance: {0}/governance.p7s\n    certificate: {0}/bridge/cert.pem\n    private_key: {0}/bridge/key.pem\n"
+        "    governance: {0}/governance.p7s\n    certificate: {0}/bridge/cert.pem\n    private_key: "
+        "{0}/bridge/key.pem\n"
         "    permissions: {0}/bridge/permissions.p7s\n",
         pki);
   }
@@ -61,8 +64,8 @@ int main(int argc, char** argv) {
   y += "devices:\n";
   for (int b = 0; b < buses; ++b) {
     for (int d = 0; d < devices; ++d) {
-      y += fmt::format("  - {{name: {}, bus: {}, node_id: {}, profile: cia420-4, version: '3.1'", lb::bench::device_name(b, d),
-                       lb::bench::bus_name(b), lb::bench::node_id(d));
+      y += fmt::format("  - {{name: {}, bus: {}, node_id: {}, profile: cia420-4, version: '3.1'",
+                       lb::bench::device_name(b, d), lb::bench::bus_name(b), lb::bench::node_id(d));
       if (rpdo_event) y += ", pdos: {rpdo1: {transmission_type: 255}}";
       y += "}\n";
     }

@@ -12,16 +12,16 @@
 //
 // Real UDP sockets: run it only inside a private network namespace (launch_scripts/netns-run.sh).
 // Prints one key=value line per fact (what it sent, to where, how fast).
-#include <CLI/CLI.hpp>
 #include <arpa/inet.h>
 #include <fmt/format.h>
 #include <netinet/in.h>
 #include <poll.h>
 #include <sys/socket.h>
 #include <unistd.h>
+#include <CLI/CLI.hpp>
 
-#include <fastdds/dds/domain/DomainParticipantFactory.hpp>
 #include <fastrtps/utils/IPLocator.h>
+#include <fastdds/dds/domain/DomainParticipantFactory.hpp>
 
 #include <algorithm>
 #include <array>
@@ -183,8 +183,10 @@ int main(int argc, char** argv) {
   bool verbose = false;
   lb::bench::SecurityOption security;
   cli.add_option("--domain", domain, "DDS domain of the captured participant")->check(CLI::Range(0, 232));
-  cli.add_option("--count,-n", count, "announcements to send (each a new GUID prefix)")->check(CLI::Range(1, 10'000'000));
-  cli.add_option("--rate", rate, "announcements per second (0: as fast as the socket takes them)")->check(CLI::Range(0.0, 1e7));
+  cli.add_option("--count,-n", count, "announcements to send (each a new GUID prefix)")
+      ->check(CLI::Range(1, 10'000'000));
+  cli.add_option("--rate", rate, "announcements per second (0: as fast as the socket takes them)")
+      ->check(CLI::Range(0.0, 1e7));
   cli.add_option("--target", target_texts,
                  "HOST:PORT to send each announcement to (repeatable; default: the domain's SPDP multicast "
                  "239.255.0.1:7400+250*domain, which every participant of the domain hears)");
@@ -193,7 +195,8 @@ int main(int argc, char** argv) {
   cli.add_flag("--verbose,-v", verbose, "print every GUID prefix sent");
   security.add(cli);
   CLI11_PARSE(cli, argc, argv);
-  if (security.pki.empty()) fail("--pki and --identity are required: the flood replays a secured participant's announcement");
+  if (security.pki.empty())
+    fail("--pki and --identity are required: the flood replays a secured participant's announcement");
   if (security.identity.empty()) fail("--identity is required with --pki");
   if (std::getenv("LINEBRIDGE_NETNS") == nullptr) {
     fail("run through launch_scripts/netns-run.sh: this program sends forged DDS discovery traffic");
@@ -208,7 +211,8 @@ int main(int argc, char** argv) {
   sockaddr_in local{};
   local.sin_family = AF_INET;
   local.sin_addr.s_addr = htonl(INADDR_LOOPBACK);
-  if (::bind(capture.fd(), reinterpret_cast<sockaddr*>(&local), sizeof local) != 0) fail(std::string("bind: ") + std::strerror(errno));
+  if (::bind(capture.fd(), reinterpret_cast<sockaddr*>(&local), sizeof local) != 0)
+    fail(std::string("bind: ") + std::strerror(errno));
   socklen_t length = sizeof local;
   ::getsockname(capture.fd(), reinterpret_cast<sockaddr*>(&local), &length);
   const auto options = security.options(domain, "forged-announcement-source");
@@ -217,7 +221,8 @@ int main(int argc, char** argv) {
   std::copy_n(original.begin() + kPrefixOffset, captured.size(), captured.begin());
   std::printf("captured_bytes=%zu\ncaptured_prefix=%s\n", original.size(), prefix_text(captured).c_str());
   if (!save.empty()) {
-    std::ofstream(save, std::ios::binary).write(reinterpret_cast<const char*>(original.data()), static_cast<std::streamsize>(original.size()));
+    std::ofstream(save, std::ios::binary)
+        .write(reinterpret_cast<const char*>(original.data()), static_cast<std::streamsize>(original.size()));
   }
 
   UdpSocket out;
@@ -232,7 +237,9 @@ int main(int argc, char** argv) {
   int replaced = 0;
   const auto start = Clock::now();
   for (int i = 0; i < count; ++i) {
-    if (rate > 0) std::this_thread::sleep_until(start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(i / rate)));
+    if (rate > 0)
+      std::this_thread::sleep_until(
+          start + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(i / rate)));
     Prefix prefix{};
     for (auto& b : prefix) b = static_cast<std::uint8_t>(random());
     prefix[0] |= 0x80;  // as a secured participant's prefix (derived from its certificate) has it

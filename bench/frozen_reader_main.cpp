@@ -2,8 +2,8 @@
 // bench line (reliable, as the contract has them) and then freezes: after --freeze-after seconds
 // it stops itself (SIGSTOP), so it neither reads nor acknowledges any more, as a hung HMI does.
 // The bench script kills it at the end of the step.
-#include <CLI/CLI.hpp>
 #include <fmt/format.h>
+#include <CLI/CLI.hpp>
 
 #include <atomic>
 #include <chrono>

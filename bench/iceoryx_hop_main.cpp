@@ -6,17 +6,17 @@
 // is here to decide the channel's mechanism by measurement (issue 25).
 //
 // Prints the same key=value lines as bench-channel-hop (hop_mechanism=iceoryx).
-#include <CLI/CLI.hpp>
 #include <sys/wait.h>
 #include <unistd.h>
+#include <CLI/CLI.hpp>
 
 #include <algorithm>
 #include <atomic>
-#include <condition_variable>
-#include <mutex>
 #include <chrono>
+#include <condition_variable>
 #include <cstdio>
 #include <ctime>
+#include <mutex>
 #include <thread>
 #include <vector>
 
@@ -43,10 +43,13 @@ struct Hop {
 void print(const char* key, std::vector<std::int64_t> v) {
   std::sort(v.begin(), v.end());
   auto at = [&](double q) {
-    return v.empty() ? 0.0 : static_cast<double>(v[std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size())))]) / 1000.0;
+    return v.empty() ? 0.0
+                     : static_cast<double>(
+                           v[std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size())))]) /
+                           1000.0;
   };
-  std::printf("hop_%s_p50_us=%.1f\nhop_%s_p99_us=%.1f\nhop_%s_p999_us=%.1f\nhop_%s_max_us=%.1f\n", key, at(0.5), key, at(0.99), key,
-              at(0.999), key, v.empty() ? 0.0 : static_cast<double>(v.back()) / 1000.0);
+  std::printf("hop_%s_p50_us=%.1f\nhop_%s_p99_us=%.1f\nhop_%s_p999_us=%.1f\nhop_%s_max_us=%.1f\n", key, at(0.5), key,
+              at(0.99), key, at(0.999), key, v.empty() ? 0.0 : static_cast<double>(v.back()) / 1000.0);
 }
 
 // The echoing side: every Status sample back as a Set sample; its bus -> DDS times to `out`.
@@ -171,7 +174,9 @@ int main(int argc, char** argv) {
     std::this_thread::sleep_for(std::chrono::microseconds(interval_us));
     send(static_cast<std::int64_t>(seq));
     std::unique_lock lock(m);
-    if (!cv.wait_for(lock, std::chrono::seconds(1), [&] { return echoed_seq.load() == static_cast<std::int64_t>(seq); })) ++lost;
+    if (!cv.wait_for(lock, std::chrono::seconds(1),
+                     [&] { return echoed_seq.load() == static_cast<std::int64_t>(seq); }))
+      ++lost;
   }
   done = true;
   reader.join();

@@ -2,8 +2,8 @@
 // per bus, each frame carrying its send time (saw_stamps.hpp). It opens the buses before anyone
 // else, so the virtual-bus hubs run in this process, as the controller and wire do on a real bus:
 // their cost is the harness's, not the bridge's.
-#include <CLI/CLI.hpp>
 #include <fmt/format.h>
+#include <CLI/CLI.hpp>
 
 #include <chrono>
 #include <cstdio>

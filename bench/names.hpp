@@ -12,7 +12,9 @@ constexpr int kFirstNodeId = 10;  // devices get 10, 11, ...: distinct node-IDs 
 constexpr int kMaxDevicesPerBus = 127 - kFirstNodeId + 1;
 
 // prefix keeps the buses of one bench step apart from those of a step still shutting down.
-inline std::string bus_uri(const std::string& prefix, int bus) { return "virtual:" + prefix + "-" + std::to_string(bus); }
+inline std::string bus_uri(const std::string& prefix, int bus) {
+  return "virtual:" + prefix + "-" + std::to_string(bus);
+}
 inline std::string bus_name(int bus) { return "bus" + std::to_string(bus); }
 inline std::string device_name(int bus, int device) {
   return "b" + std::to_string(bus) + "saw" + std::to_string(device);

@@ -3,8 +3,8 @@
 // --pki/--identity when given) subscribed to every status topic of the bench line: each saw's
 // status and emergency, and the bridge's diagnostics. They read and count, nothing else; they run
 // until SIGTERM/SIGINT, then print what they saw.
-#include <CLI/CLI.hpp>
 #include <fmt/format.h>
+#include <CLI/CLI.hpp>
 
 #include <atomic>
 #include <chrono>
@@ -43,23 +43,29 @@ int main(int argc, char** argv) {
   std::atomic<std::uint64_t> samples{0};
   std::vector<std::unique_ptr<lb::ddsl::Participant>> observers;
   std::vector<std::string> status_topics;
-  for (int d = 0; d < devices; ++d) status_topics.push_back(lb::ddsl::topic_name(bench::kLine, bench::device_name(0, d), "status"));
+  for (int d = 0; d < devices; ++d)
+    status_topics.push_back(lb::ddsl::topic_name(bench::kLine, bench::device_name(0, d), "status"));
   for (int i = 0; i < count; ++i) {
     auto dds = lb::ddsl::Participant::create(security.options(program.domain, fmt::format("bench-observer-{}", i)));
     if (!dds) return program.fail(dds.error().message);
     for (int d = 0; d < devices; ++d) {
-      auto s = (*dds)->subscribe<msg::SawStatusPubSubType>(status_topics[static_cast<std::size_t>(d)], lb::ddsl::QosKind::state,
-                                                           [&samples](const msg::SawStatus&, const auto&) { ++samples; });
-      auto e = (*dds)->subscribe<msg::EmergencyPubSubType>(lb::ddsl::topic_name(bench::kLine, bench::device_name(0, d), "emergency"),
-                                                           lb::ddsl::QosKind::event,
-                                                           [&samples](const msg::Emergency&, const auto&) { ++samples; });
+      auto s = (*dds)->subscribe<msg::SawStatusPubSubType>(status_topics[static_cast<std::size_t>(d)],
+                                                           lb::ddsl::QosKind::state,
+                                                           [&samples](const msg::SawStatus&, const auto&) {
+                                                             ++samples;
+                                                           });
+      auto e = (*dds)->subscribe<msg::EmergencyPubSubType>(
+          lb::ddsl::topic_name(bench::kLine, bench::device_name(0, d), "emergency"), lb::ddsl::QosKind::event,
+          [&samples](const msg::Emergency&, const auto&) { ++samples; });
       if (!s || !e) {
         return program.fail((!s ? s.error() : e.error()).message);
       }
     }
     auto g = (*dds)->subscribe<msg::DiagnosticsPubSubType>(lb::ddsl::topic_name(bench::kLine, "bridge", "diagnostics"),
                                                            lb::ddsl::QosKind::state,
-                                                           [&samples](const msg::Diagnostics&, const auto&) { ++samples; });
+                                                           [&samples](const msg::Diagnostics&, const auto&) {
+                                                             ++samples;
+                                                           });
     if (!g) return program.fail(g.error().message);
     observers.push_back(std::move(*dds));
   }
@@ -74,7 +80,9 @@ int main(int argc, char** argv) {
       if (matched) {
         ready = true;
         std::printf("observers_matched_after_ms=%lld\n",
-                    static_cast<long long>(std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now() - started).count()));
+                    static_cast<long long>(std::chrono::duration_cast<std::chrono::milliseconds>(
+                                               std::chrono::steady_clock::now() - started)
+                                               .count()));
         std::fflush(stdout);
         program.ready();
       }

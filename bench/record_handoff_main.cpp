@@ -6,7 +6,6 @@
 // send() through the recording takes on the realtime thread (the frame's hand-off and its line),
 // and, as the floor beside it, how late that thread woke. Run it pinned to one core:
 //   taskset -c 1 bench-record-handoff --duration 30
-#include <CLI/CLI.hpp>
 #include <fcntl.h>
 #include <fmt/format.h>
 #include <pthread.h>
@@ -15,6 +14,7 @@
 #include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
+#include <CLI/CLI.hpp>
 
 #include <algorithm>
 #include <atomic>
@@ -60,8 +60,12 @@ int main(int argc, char** argv) {
   int priority = 40;
   int hogs = 2;
   cli.add_option("--duration", duration_s, "seconds to measure")->check(CLI::Range(1.0, 3600.0))->capture_default_str();
-  cli.add_option("--rate", rate, "frames/s handed to the recording")->check(CLI::Range(100, 20000))->capture_default_str();
-  cli.add_option("--drain", drain_bytes_per_s, "bytes/s the slow disk takes")->check(CLI::Range(1024, 1 << 30))->capture_default_str();
+  cli.add_option("--rate", rate, "frames/s handed to the recording")
+      ->check(CLI::Range(100, 20000))
+      ->capture_default_str();
+  cli.add_option("--drain", drain_bytes_per_s, "bytes/s the slow disk takes")
+      ->check(CLI::Range(1024, 1 << 30))
+      ->capture_default_str();
   cli.add_option("--realtime-priority", priority, "SCHED_FIFO priority of the sending thread (0: normal)")
       ->check(CLI::Range(0, 99))
       ->capture_default_str();
@@ -139,7 +143,9 @@ int main(int argc, char** argv) {
   ::unlink(fifo.c_str());
   ::rmdir(dir);
 
-  const auto over = [&](std::int64_t ns) { return std::count_if(send_ns.begin(), send_ns.end(), [ns](std::int64_t v) { return v > ns; }); };
+  const auto over = [&](std::int64_t ns) {
+    return std::count_if(send_ns.begin(), send_ns.end(), [ns](std::int64_t v) { return v > ns; });
+  };
   std::string command;  // how it was run, to reproduce it (with taskset -c <cores>)
   for (int i = 0; i < argc; ++i) command += (i ? " " : "") + std::string(argv[i]);
   std::string cores;

@@ -5,8 +5,8 @@
 // saw set values as fast as its writer takes them (NaN, ±inf and huge values among them) and never
 // waits for a result. At the end it prints what was sent and answered, and what the bridge's
 // diagnostics counted (requests refused at a full loop queue, commands lost), as key=value lines.
-#include <CLI/CLI.hpp>
 #include <fmt/format.h>
+#include <CLI/CLI.hpp>
 
 #include <atomic>
 #include <chrono>
@@ -134,8 +134,9 @@ void setpoint_writer(int id, std::uint32_t domain, int devices, Clock::time_poin
   }
   std::vector<lb::ddsl::Writer<msg::SawSetpointPubSubType>> writers;
   for (int d = 0; d < devices; ++d) {
-    auto w = (*dds)->writer<msg::SawSetpointPubSubType>(
-        lb::ddsl::topic_name(bench::kLine, bench::device_name(0, d), "setpoint"), lb::ddsl::QosKind::command);
+    auto w = (*dds)->writer<msg::SawSetpointPubSubType>(lb::ddsl::topic_name(bench::kLine, bench::device_name(0, d),
+                                                                             "setpoint"),
+                                                        lb::ddsl::QosKind::command);
     if (!w) {
       std::fprintf(stderr, "bench-request-flood: %s\n", w.error().message.c_str());
       return;
@@ -143,8 +144,13 @@ void setpoint_writer(int id, std::uint32_t domain, int devices, Clock::time_poin
     writers.push_back(*w);
   }
   std::this_thread::sleep_for(2s);  // discovery
-  const double hostile[] = {std::numeric_limits<double>::quiet_NaN(), std::numeric_limits<double>::infinity(),
-                            -std::numeric_limits<double>::infinity(), 1e308, -1.0, 55.0, 12.5};
+  const double hostile[] = {std::numeric_limits<double>::quiet_NaN(),
+                            std::numeric_limits<double>::infinity(),
+                            -std::numeric_limits<double>::infinity(),
+                            1e308,
+                            -1.0,
+                            55.0,
+                            12.5};
   std::mt19937 rng(static_cast<unsigned>(id) * 104729u + 3u);
   for (std::uint64_t n = 0; Clock::now() < deadline; ++n) {
     msg::SawSetpoint s;
@@ -164,7 +170,8 @@ void setpoint_writer(int id, std::uint32_t domain, int devices, Clock::time_poin
 }  // namespace
 
 int main(int argc, char** argv) {
-  bench::Program program{"bench-request-flood", "service calls and set values from several applications, as fast as they go"};
+  bench::Program program{"bench-request-flood",
+                         "service calls and set values from several applications, as fast as they go"};
   auto& cli = program.cli;
   int clients = 3;
   int writers = 2;
@@ -172,7 +179,9 @@ int main(int argc, char** argv) {
   program.add_devices("saws on bus 0");
   program.add_domain();
   cli.add_option("--clients", clients, "service-calling applications")->check(CLI::Range(0, 32))->capture_default_str();
-  cli.add_option("--writers", writers, "set-value-writing applications")->check(CLI::Range(0, 32))->capture_default_str();
+  cli.add_option("--writers", writers, "set-value-writing applications")
+      ->check(CLI::Range(0, 32))
+      ->capture_default_str();
   cli.add_option("--duration", duration_s, "seconds")->check(CLI::Range(1.0, 86400.0))->capture_default_str();
   if (auto rc = program.parse(argc, argv)) return *rc;
   const int devices = program.devices;
@@ -209,11 +218,12 @@ int main(int argc, char** argv) {
 
   std::string out = fmt::format(
       "flood_clients={}\nflood_writers={}\nflood_seconds={:.1f}\nflood_requests_sent={}\nflood_requests_answered={}\n"
-      "flood_requests_refused={}\nflood_requests_unanswered={}\nflood_requests_per_s={:.1f}\nflood_setpoints_written={}\n"
+      "flood_requests_refused={}\nflood_requests_unanswered={}\nflood_requests_per_s={:.1f}\nflood_setpoints_written={}"
+      "\n"
       "flood_setpoints_write_failed={}\nflood_setpoints_per_s={:.1f}\n",
-      clients, writers, elapsed, counts.sent.load(), counts.answered.load(), counts.refused.load(), counts.no_answer.load(),
-      static_cast<double>(counts.sent.load()) / elapsed, counts.written.load(), counts.write_failed.load(),
-      static_cast<double>(counts.written.load()) / elapsed);
+      clients, writers, elapsed, counts.sent.load(), counts.answered.load(), counts.refused.load(),
+      counts.no_answer.load(), static_cast<double>(counts.sent.load()) / elapsed, counts.written.load(),
+      counts.write_failed.load(), static_cast<double>(counts.written.load()) / elapsed);
   {
     std::lock_guard lock(diag_mutex);
     out += fmt::format("flood_diagnostics_seen={}\n", have_diag ? 1 : 0);

@@ -16,7 +16,8 @@ struct SecurityOption {
   std::string identity;
 
   void add(CLI::App& cli) {
-    auto* p = cli.add_option("--pki", pki, "DDS Security: the PKI folder launch_scripts/pki.sh made (default: unsecured)");
+    auto* p = cli.add_option("--pki", pki,
+                             "DDS Security: the PKI folder launch_scripts/pki.sh made (default: unsecured)");
     cli.add_option("--identity", identity, "DDS Security: the identity's folder in the PKI")->needs(p);
   }
 
@@ -24,8 +25,12 @@ struct SecurityOption {
     lb::ddsl::ParticipantOptions o{static_cast<std::uint32_t>(domain), true, std::move(name), std::nullopt};
     if (!pki.empty()) {
       const std::string id = pki + "/" + identity;
-      o.security = lb::ddsl::SecurityFiles{pki + "/ca/identity_ca.pem", id + "/cert.pem", id + "/key.pem",
-                                           pki + "/ca/permissions_ca.pem", pki + "/governance.p7s", id + "/permissions.p7s",
+      o.security = lb::ddsl::SecurityFiles{pki + "/ca/identity_ca.pem",
+                                           id + "/cert.pem",
+                                           id + "/key.pem",
+                                           pki + "/ca/permissions_ca.pem",
+                                           pki + "/governance.p7s",
+                                           id + "/permissions.p7s",
                                            {}};
     }
     return o;

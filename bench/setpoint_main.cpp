@@ -3,9 +3,9 @@
 // carries that length is received on the bus (this process is a member of the bus too, and opens
 // it first, so it also runs the bus's hub). One set value at a time, with a short random pause in
 // between, so no value waits behind another.
-#include <CLI/CLI.hpp>
 #include <fmt/format.h>
 #include <poll.h>
+#include <CLI/CLI.hpp>
 
 #include <chrono>
 #include <cstdio>
@@ -69,7 +69,8 @@ int main(int argc, char** argv) {
   program.add_domain();
   cli.add_option("--count", count, "timed set values")->capture_default_str();
   cli.add_option("--warmup", warmup, "set values that must arrive before timing starts")->capture_default_str();
-  cli.add_option("--warmup-timeout", warmup_timeout_s, "seconds for the warm-up (device boot included)")->capture_default_str();
+  cli.add_option("--warmup-timeout", warmup_timeout_s, "seconds for the warm-up (device boot included)")
+      ->capture_default_str();
   cli.add_option("--gap-min-us", gap_min_us)->capture_default_str();
   cli.add_option("--gap-max-us", gap_max_us)->capture_default_str();
   cli.add_option("--out", out, "write every latency (ns), one per line");
@@ -119,7 +120,8 @@ int main(int argc, char** argv) {
 
   // Warm-up: the device may still be booting (set values to an offline saw are refused).
   std::uint64_t warm = 0;
-  const auto warm_deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(warmup_timeout_s));
+  const auto warm_deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(
+                                                std::chrono::duration<double>(warmup_timeout_s));
   while (warm < warmup) {
     if (Clock::now() > warm_deadline) {
       std::fprintf(stderr, "bench-setpoint: only %llu of %llu warm-up set values reached the bus\n",

@@ -11,10 +11,10 @@
 // a shorter one only when a tick falls early in it. The figures report every period, and beside
 // them the periods no host stall touched.
 
-#include <CLI/CLI.hpp>
 #include <pthread.h>
 #include <sched.h>
 #include <time.h>
+#include <CLI/CLI.hpp>
 
 #include <algorithm>
 #include <atomic>
@@ -46,7 +46,10 @@ class StallSentinel {
   // stall. Throws at start-up if the thread cannot be placed or given its priority: without them it
   // would measure nothing.
   StallSentinel(int cpu, int priority, std::int64_t threshold_ns)
-      : cpu_(cpu), priority_(priority), threshold_ns_(threshold_ns), thread_([this](std::stop_token stop) { run(stop); }) {
+      : cpu_(cpu),
+        priority_(priority),
+        threshold_ns_(threshold_ns),
+        thread_([this](std::stop_token stop) { run(stop); }) {
     placed_.wait(Placement::pending);
     if (placed_.load() == Placement::failed) {
       thread_.join();

@@ -3,13 +3,13 @@
 // a simulator playing the devices, also to the first samples with live data), with the
 // application's participant and readers already up, as on a running line. Also reports the
 // bridge's resident memory once it has settled, then stops it with SIGTERM.
-#include <CLI/CLI.hpp>
 #include <fcntl.h>
 #include <fmt/format.h>
 #include <signal.h>
 #include <spawn.h>
 #include <sys/wait.h>
 #include <unistd.h>
+#include <CLI/CLI.hpp>
 
 #include <chrono>
 #include <condition_variable>
@@ -23,8 +23,8 @@
 #include "dds/participant.hpp"
 #include "dds/topic_names.hpp"
 #include "msgs/sawPubSubTypes.h"
-#include "program.hpp"
 #include "proc_stats.hpp"
+#include "program.hpp"
 #include "security_option.hpp"
 
 namespace bench = lb::bench;
@@ -76,8 +76,10 @@ int main(int argc, char** argv) {
   program.add_devices("saws per bus");
   program.add_domain();
   cli.add_option("--timeout", timeout_s)->capture_default_str();
-  cli.add_option("--settle", settle_s, "seconds after the last first sample before reading memory")->capture_default_str();
-  cli.add_option("--quiet-ms", quiet_ms, "wait this long after subscribing before starting the bridge")->capture_default_str();
+  cli.add_option("--settle", settle_s, "seconds after the last first sample before reading memory")
+      ->capture_default_str();
+  cli.add_option("--quiet-ms", quiet_ms, "wait this long after subscribing before starting the bridge")
+      ->capture_default_str();
   cli.add_option("--log", log, "the bridge's output")->capture_default_str();
   bool online = false;
   cli.add_flag("--online", online, "also wait for every device's first sample with live data (a simulator plays them)");
@@ -127,11 +129,9 @@ int main(int argc, char** argv) {
   bool all = false;
   {
     std::unique_lock lock(first.m);
-    all = first.cv.wait_for(lock, std::chrono::duration<double>(timeout_s),
-                            [&] {
-                              return first.devices_seen == first.seen.size() &&
-                                     (!online || first.devices_online == first.online.size());
-                            });
+    all = first.cv.wait_for(lock, std::chrono::duration<double>(timeout_s), [&] {
+      return first.devices_seen == first.seen.size() && (!online || first.devices_online == first.online.size());
+    });
   }
   std::this_thread::sleep_for(std::chrono::duration<double>(settle_s));
   const auto mem = bench::read_memory(pid);
@@ -140,8 +140,10 @@ int main(int argc, char** argv) {
   ::waitpid(pid, &status, 0);
 
   std::lock_guard lock(first.m);
-  std::string report = fmt::format("startup_devices={}\nstartup_devices_seen={}\n", first.seen.size(), first.devices_seen);
-  if (first.devices_seen > 0) report += fmt::format("startup_first_ms={:.1f}\n", static_cast<double>(first.first_ns - t0) / 1e6);
+  std::string report = fmt::format("startup_devices={}\nstartup_devices_seen={}\n", first.seen.size(),
+                                   first.devices_seen);
+  if (first.devices_seen > 0)
+    report += fmt::format("startup_first_ms={:.1f}\n", static_cast<double>(first.first_ns - t0) / 1e6);
   if (first.devices_seen == first.seen.size()) {
     report += fmt::format("startup_all_ms={:.1f}\n", static_cast<double>(first.all_ns - t0) / 1e6);
   }

@@ -28,7 +28,8 @@ std::vector<std::int64_t> sum_of_hops(const std::vector<std::int64_t>& a, const 
 }
 
 int usage() {
-  std::fputs("usage: bench-stats summary FILE\n       bench-stats overhead BRIDGE_FILE FLOOR_FILE [SECOND_HOP_FILE]\n", stderr);
+  std::fputs("usage: bench-stats summary FILE\n       bench-stats overhead BRIDGE_FILE FLOOR_FILE [SECOND_HOP_FILE]\n",
+             stderr);
   return 2;
 }
 

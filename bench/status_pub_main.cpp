@@ -2,8 +2,8 @@
 // alone, with the bridge's QoS, type and sample contents, at the rate and in the order the
 // injector sends frames, each sample stamped as the bridge's would be after decoding that frame:
 // the part of the bridge's CAN -> DDS latency that DDS costs by itself.
-#include <CLI/CLI.hpp>
 #include <fmt/format.h>
+#include <CLI/CLI.hpp>
 
 #include <chrono>
 #include <cstdio>
@@ -15,8 +15,8 @@
 #include "proc_stats.hpp"
 #include "program.hpp"
 #include "saw_stamps.hpp"
-#include "status_writers.hpp"
 #include "security_option.hpp"
+#include "status_writers.hpp"
 
 namespace bench = lb::bench;
 using namespace std::chrono_literals;
@@ -73,11 +73,11 @@ int main(int argc, char** argv) {
   }
   const double elapsed = pacer.elapsed_s();
   const double cpu = bench::process_cpu_s() - cpu0;
-  std::fputs(fmt::format("pub_written={}\npub_refused={}\npub_elapsed_s={:.3f}\npub_max_lag_ms={:.2f}\npub_cpu_pct={:.1f}\n",
-                         count - refused, refused, elapsed, static_cast<double>(pacer.max_lag_ns()) / 1e6,
-                         100 * cpu / elapsed)
-                 .c_str(),
-             stdout);
+  std::fputs(
+      fmt::format("pub_written={}\npub_refused={}\npub_elapsed_s={:.3f}\npub_max_lag_ms={:.2f}\npub_cpu_pct={:.1f}\n",
+                  count - refused, refused, elapsed, static_cast<double>(pacer.max_lag_ns()) / 1e6, 100 * cpu / elapsed)
+          .c_str(),
+      stdout);
   std::fflush(stdout);
   program.linger();  // reliable delivery of the last samples needs the writer alive
   return 0;

@@ -3,8 +3,8 @@
 // frame carried (saw_stamps.hpp) to the moment the listener takes it, and counts what arrived:
 // frames the bridge did not get show in its diagnostics, samples lost between bridge and
 // application show as a shortfall here.
-#include <CLI/CLI.hpp>
 #include <fmt/format.h>
+#include <CLI/CLI.hpp>
 
 #include <chrono>
 #include <condition_variable>
@@ -34,9 +34,9 @@ namespace {
 struct Tally {
   std::mutex m;
   std::condition_variable cv;
-  std::uint64_t stamped = 0;   // stamped frames reflected by the samples
-  std::uint64_t samples = 0;   // samples that reflect at least one stamped frame
-  std::uint64_t other = 0;     // initial samples, NMT changes
+  std::uint64_t stamped = 0;  // stamped frames reflected by the samples
+  std::uint64_t samples = 0;  // samples that reflect at least one stamped frame
+  std::uint64_t other = 0;    // initial samples, NMT changes
   std::vector<std::int64_t> latencies;
   Clock::time_point last_sample{};
   bool have_diag = false;
@@ -122,7 +122,8 @@ int main(int argc, char** argv) {
     if (!sub) return program.fail(sub.error().message);
   }
 
-  const auto deadline = Clock::now() + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(timeout_s));
+  const auto deadline = Clock::now() +
+                        std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(timeout_s));
   for (bool matched = false; !matched;) {
     matched = true;
     for (const auto& t : topics) matched = matched && (*dds)->matched_writers(t) > 0;
@@ -149,8 +150,9 @@ int main(int argc, char** argv) {
   }
 
   std::lock_guard lock(tally.m);
-  std::string report = fmt::format("sub_expected={}\nsub_stamped={}\nsub_samples={}\nsub_other={}\nsub_missing={}\n", expect,
-                                   tally.stamped, tally.samples, tally.other, expect > tally.stamped ? expect - tally.stamped : 0);
+  std::string report = fmt::format("sub_expected={}\nsub_stamped={}\nsub_samples={}\nsub_other={}\nsub_missing={}\n",
+                                   expect, tally.stamped, tally.samples, tally.other,
+                                   expect > tally.stamped ? expect - tally.stamped : 0);
   if (diagnostics && tally.have_diag) {
     std::uint64_t frames_in = 0, error_frames = 0, pdos = 0, length_errors = 0;
     for (const auto& b : tally.diag.buses()) {
@@ -161,8 +163,9 @@ int main(int argc, char** argv) {
       pdos += n.pdos_received();
       length_errors += n.pdo_length_errors();
     }
-    report += fmt::format("bridge_frames_in={}\nbridge_error_frames={}\nbridge_pdos_received={}\nbridge_pdo_length_errors={}\n",
-                          frames_in, error_frames, pdos, length_errors);
+    report += fmt::format(
+        "bridge_frames_in={}\nbridge_error_frames={}\nbridge_pdos_received={}\nbridge_pdo_length_errors={}\n",
+        frames_in, error_frames, pdos, length_errors);
   }
   report += bench::format_summary("sub", bench::summarize(tally.latencies));
   std::fputs(report.c_str(), stdout);

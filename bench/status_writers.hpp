@@ -23,8 +23,9 @@ inline lb::Result<StatusWriters> status_writers(lb::ddsl::Participant& dds, int 
   StatusWriters out;
   out.samples.resize(static_cast<std::size_t>(devices));
   for (int d = 0; d < devices; ++d) {
-    auto w = dds.writer<linebridge_msgs::msg::SawStatusPubSubType>(
-        lb::ddsl::topic_name(kLine, device_name(0, d), "status"), lb::ddsl::QosKind::state);
+    auto w = dds.writer<linebridge_msgs::msg::SawStatusPubSubType>(lb::ddsl::topic_name(kLine, device_name(0, d),
+                                                                                        "status"),
+                                                                   lb::ddsl::QosKind::state);
     if (!w) return w.error();
     out.writers.push_back(*w);
     out.writers.back().write(out.samples[static_cast<std::size_t>(d)]);

@@ -1,14 +1,14 @@
 // bench-sync-jitter: a member of one virtual bus that measures the SYNC a master produces there:
 // every SYNC frame's bus time (its frame stamp: when the master sent it), the periods between them,
-// and how far each period is from the nominal one; the same from the times this meter read them. Optionally it is also a device that floods the bus with EMCYs (an EMCY burst, as a
-// device with a loose contact sends them), so that the bridge has events to publish while a reader
-// of them is frozen, and a source of hostile frames (any identifier, 11 or 29 bits, any length,
-// remote requests, random data). With --sentinel-cpu, a host-stall sentinel (stall_sentinel.hpp)
+// and how far each period is from the nominal one; the same from the times this meter read them. Optionally it is also
+// a device that floods the bus with EMCYs (an EMCY burst, as a device with a loose contact sends them), so that the
+// bridge has events to publish while a reader of them is frozen, and a source of hostile frames (any identifier, 11 or
+// 29 bits, any length, remote requests, random data). With --sentinel-cpu, a host-stall sentinel (stall_sentinel.hpp)
 // runs on the bridge's core meanwhile, and the figures come twice: over every period, and over the
 // periods whose SYNCs no host stall touched. Prints key=value lines; the periods go to --out.
-#include <CLI/CLI.hpp>
 #include <fmt/format.h>
 #include <poll.h>
+#include <CLI/CLI.hpp>
 
 #include <algorithm>
 #include <chrono>
@@ -39,12 +39,17 @@ int main(int argc, char** argv) {
   cli.add_option("--bus", uri, "virtual:<name>")->required();
   cli.add_option("--hostile-rate", hostile_rate, "random frames per second (0: none)")->capture_default_str();
   cli.add_option("--duration", duration_s, "seconds to measure")->check(CLI::Range(1.0, 7200.0))->capture_default_str();
-  cli.add_option("--period-us", period_us, "the nominal SYNC period")->check(CLI::PositiveNumber)->capture_default_str();
-  cli.add_option("--emcy-rate", emcy_rate, "EMCY frames per second, spread over the devices (0: none)")->capture_default_str();
+  cli.add_option("--period-us", period_us, "the nominal SYNC period")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  cli.add_option("--emcy-rate", emcy_rate, "EMCY frames per second, spread over the devices (0: none)")
+      ->capture_default_str();
   cli.add_option("--emcy-devices", emcy_devices, "devices (bench node-IDs) the EMCYs come from")
       ->check(CLI::Range(1, bench::kMaxDevicesPerBus))
       ->capture_default_str();
-  cli.add_option("--out", out, "file for the periods: one per line, its length (us), 1 if a host stall touched it (else 0), its closing SYNC's stamp (ns, CLOCK_REALTIME)");
+  cli.add_option("--out", out,
+                 "file for the periods: one per line, its length (us), 1 if a host stall touched it (else 0), its "
+                 "closing SYNC's stamp (ns, CLOCK_REALTIME)");
   sentinel_options.add_to(cli, "the bridge");
   CLI11_PARSE(cli, argc, argv);
 
@@ -81,11 +86,14 @@ int main(int argc, char** argv) {
         const auto k = emcy_sent + emcy_dropped;
         const auto node = bench::node_id(static_cast<int>(k % static_cast<std::uint64_t>(emcy_devices)));
         const bool error = (k / static_cast<std::uint64_t>(emcy_devices)) % 2 == 0;
-        const auto f = lb::can::make_frame(0x080 + node, {static_cast<std::uint8_t>(error ? 0x10 : 0x00),
-                                                          static_cast<std::uint8_t>(error ? 0x42 : 0x00),
-                                                          static_cast<std::uint8_t>(error ? 0x09 : 0x00), 0, 0, 0, 0, 0});
-        if ((*bus)->send(f)) ++emcy_sent;
-        else ++emcy_dropped;
+        const auto f = lb::can::make_frame(0x080 + node,
+                                           {static_cast<std::uint8_t>(error ? 0x10 : 0x00),
+                                            static_cast<std::uint8_t>(error ? 0x42 : 0x00),
+                                            static_cast<std::uint8_t>(error ? 0x09 : 0x00), 0, 0, 0, 0, 0});
+        if ((*bus)->send(f))
+          ++emcy_sent;
+        else
+          ++emcy_dropped;
       }
     }
     if (hostile_rate > 0) {
@@ -99,8 +107,10 @@ int main(int argc, char** argv) {
         f.len = static_cast<std::uint8_t>((r >> 8) % 9);
         const auto data = next();
         for (std::size_t i = 0; i < 8; ++i) f.data[i] = static_cast<std::uint8_t>(data >> (8 * i));
-        if ((*bus)->send(f)) ++hostile_sent;
-        else ++hostile_dropped;
+        if ((*bus)->send(f))
+          ++hostile_sent;
+        else
+          ++hostile_dropped;
       }
     }
     pollfd p{(*bus)->fd(), POLLIN, 0};
@@ -132,7 +142,8 @@ int main(int argc, char** argv) {
     // A period is as late as its end and as early as its start is late: a stall at either SYNC counts.
     const bool touched = bench::stalled(stalls, syncs[i - 1], window_ns) || bench::stalled(stalls, syncs[i], window_ns);
     if (!touched) clean_deviation_ns.push_back(deviation_ns.back());
-    if (periods_file) periods_file << fmt::format("{:.1f} {} {}\n", static_cast<double>(period_ns) / 1e3, touched ? 1 : 0, syncs[i]);
+    if (periods_file)
+      periods_file << fmt::format("{:.1f} {} {}\n", static_cast<double>(period_ns) / 1e3, touched ? 1 : 0, syncs[i]);
   }
   if (sentinel) {
     std::int64_t stalled_ns = 0, longest_stall_ns = 0;
@@ -140,11 +151,12 @@ int main(int argc, char** argv) {
       stalled_ns += st.end_ns - st.begin_ns;
       longest_stall_ns = std::max(longest_stall_ns, st.end_ns - st.begin_ns);
     }
-    std::fputs(fmt::format("jitter_host_stalls={}\njitter_host_stalled_ms={:.1f}\njitter_host_longest_stall_us={:.1f}\n{}",
-                           stalls.size(), static_cast<double>(stalled_ns) / 1e6, static_cast<double>(longest_stall_ns) / 1e3,
-                           bench::format_summary("jitter_clean", bench::summarize(clean_deviation_ns)))
-                   .c_str(),
-               stdout);
+    std::fputs(
+        fmt::format("jitter_host_stalls={}\njitter_host_stalled_ms={:.1f}\njitter_host_longest_stall_us={:.1f}\n{}",
+                    stalls.size(), static_cast<double>(stalled_ns) / 1e6, static_cast<double>(longest_stall_ns) / 1e3,
+                    bench::format_summary("jitter_clean", bench::summarize(clean_deviation_ns)))
+            .c_str(),
+        stdout);
   }
   const double expected = duration_s * 1e6 / period_us;
   std::fputs(fmt::format("jitter_syncs={}\njitter_expected_syncs={:.0f}\njitter_longest_period_us={:.1f}\n"

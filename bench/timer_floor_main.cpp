@@ -3,9 +3,9 @@
 // thread that does nothing else. No program's SYNC can be steadier than this on the same core.
 // With --sentinel-cpu, also over the wake-ups no host stall touched (stall_sentinel.hpp): how
 // steady the core is between the host's stalls.
-#include <CLI/CLI.hpp>
 #include <fmt/format.h>
 #include <time.h>
+#include <CLI/CLI.hpp>
 
 #include <cstdint>
 #include <cstdio>
@@ -45,17 +45,21 @@ int main(int argc, char** argv) {
     woke_at.push_back(bench::realtime_ns());
   }
   const auto all = bench::summarize(late_ns);
-  std::fputs(fmt::format("floor_wakeups={}\nfloor_p50_us={:.1f}\nfloor_p99_us={:.1f}\nfloor_p999_us={:.1f}\nfloor_max_us={:.1f}\n",
-                         all.n, all.p50_us, all.p99_us, all.p999_us, all.max_us)
-                 .c_str(),
-             stdout);
+  std::fputs(
+      fmt::format(
+          "floor_wakeups={}\nfloor_p50_us={:.1f}\nfloor_p99_us={:.1f}\nfloor_p999_us={:.1f}\nfloor_max_us={:.1f}\n",
+          all.n, all.p50_us, all.p99_us, all.p999_us, all.max_us)
+          .c_str(),
+      stdout);
   if (sentinel) {
     const auto& stalls = sentinel->stop();
     std::vector<std::int64_t> clean_ns;
     for (std::size_t i = 0; i < late_ns.size(); ++i) {
       if (!bench::stalled(stalls, woke_at[i], sentinel_options.window_ns())) clean_ns.push_back(late_ns[i]);
     }
-    std::fputs(fmt::format("floor_host_stalls={}\n{}", stalls.size(), bench::format_summary("floor_clean", bench::summarize(clean_ns))).c_str(),
+    std::fputs(fmt::format("floor_host_stalls={}\n{}", stalls.size(),
+                           bench::format_summary("floor_clean", bench::summarize(clean_ns)))
+                   .c_str(),
                stdout);
   }
   return late_ns.empty() ? 1 : 0;

@@ -69,9 +69,10 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
         steps.push_back({f, {}});
         break;
       }
-      case 4: case 5: case 6: case 7:
-        steps.push_back({fuzz::fuzzed_frame(in, canopen::cob::emcy_base + kNode), {}});
-        break;
+      case 4:
+      case 5:
+      case 6:
+      case 7: steps.push_back({fuzz::fuzzed_frame(in, canopen::cob::emcy_base + kNode), {}}); break;
       default: steps.push_back({fuzz::fuzzed_frame(in, canopen::cob::heartbeat_base + kNode), {}}); break;
     }
   }

@@ -51,7 +51,9 @@ DevicePdo found(FuzzedDataProvider& in, const Profile& profile, const DevicePdo&
   for (auto& e : p.mapping) {
     if (!profile.objects.empty() && in.ConsumeBool()) {
       const auto& o = profile.objects[in.ConsumeIntegralInRange<std::size_t>(0, profile.objects.size() - 1)];
-      e = {o.index, o.sub, static_cast<std::uint8_t>(in.ConsumeBool() ? canopen::bit_size(o.type) : in.ConsumeIntegral<std::uint8_t>())};
+      e = {o.index, o.sub,
+           static_cast<std::uint8_t>(in.ConsumeBool() ? canopen::bit_size(o.type)
+                                                      : in.ConsumeIntegral<std::uint8_t>())};
     } else {
       e = canopen::PdoEntry::from_u32(in.ConsumeIntegral<std::uint32_t>());
     }
@@ -153,8 +155,9 @@ void feeder(FuzzedDataProvider& in, const Profile& profile, const std::vector<De
       if (auto raw = codec.validate(sp)) codec.apply(*raw);
     } else {
       const unsigned which = in.ConsumeIntegralInRange<unsigned>(0, 300);
-      const std::optional<unsigned> count =
-          in.ConsumeBool() ? std::nullopt : std::optional<unsigned>(in.ConsumeIntegralInRange<unsigned>(0, 300));
+      const std::optional<unsigned> count = in.ConsumeBool()
+                                                ? std::nullopt
+                                                : std::optional<unsigned>(in.ConsumeIntegralInRange<unsigned>(0, 300));
       (void)codec.number_assignment(which, in.ConsumeIntegral<std::uint8_t>(), count);
       (void)codec.color_assignment(which, in.ConsumeIntegral<std::uint8_t>(), count);
       (void)codec.command(which, in.ConsumeRandomLengthString(24), in.ConsumeIntegral<std::uint8_t>(), count);
@@ -193,7 +196,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     case profiles::Behaviour::saw: saw(in, profile, pdos); break;
     case profiles::Behaviour::feeder: feeder(in, profile, pdos); break;
     case profiles::Behaviour::drive:
-      if (!gateways::visit_drive(type->idl, [&]<class Binding>() { drive<gateways::DriveCodec<Binding>>(in, profile, pdos); })) {
+      if (!gateways::visit_drive(type->idl,
+                                 [&]<class Binding>() { drive<gateways::DriveCodec<Binding>>(in, profile, pdos); })) {
         __builtin_trap();
       }
       break;

@@ -27,8 +27,9 @@ std::vector<PdoEntry> fuzzed_entries(FuzzedDataProvider& in, std::size_t max) {
 
 PdoParameters fuzzed_parameters(FuzzedDataProvider& in, std::size_t max_entries) {
   PdoParameters p;
-  p.cob_id = in.ConsumeBool() ? in.ConsumeIntegral<std::uint32_t>()
-                              : (in.ConsumeBool() ? kCobIdNotValid : 0U) | (in.ConsumeBool() ? kCobIdNoRtr : 0U) | 0x185U;
+  p.cob_id = in.ConsumeBool()
+                 ? in.ConsumeIntegral<std::uint32_t>()
+                 : (in.ConsumeBool() ? kCobIdNotValid : 0U) | (in.ConsumeBool() ? kCobIdNoRtr : 0U) | 0x185U;
   p.transmission_type = in.ConsumeBool() ? 1 : in.ConsumeIntegral<std::uint8_t>();
   p.inhibit_time = in.ConsumeBool() ? 0 : in.ConsumeIntegral<std::uint16_t>();
   p.event_timer = in.ConsumeBool() ? 0 : in.ConsumeIntegral<std::uint16_t>();
@@ -112,7 +113,8 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
     if (!plan->writes.empty() || plan->result.valid()) __builtin_trap();
     return 0;
   }
-  Model model{device.parameters, device.parameters.mapping, writable(used.rules.cob_id) || used.rules.cob_id == PdoAccess::valid_bit};
+  Model model{device.parameters, device.parameters.mapping,
+              writable(used.rules.cob_id) || used.rules.cob_id == PdoAccess::valid_bit};
   model.entries.insert(model.entries.end(), device.unmapped.begin(), device.unmapped.end());
   for (const auto& w : plan->writes) model.write(used, w, plan->needs_not_operational);
   if (!(model.p == plan->result)) __builtin_trap();

@@ -62,8 +62,9 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
       continue;
     }
     // Node 0 and 128 are refused before anything is sent.
-    const auto node = in.ConsumeIntegralInRange<std::uint8_t>(0, 4) == 4 ? std::uint8_t{128}
-                                                                          : in.ConsumeIntegralInRange<std::uint8_t>(0, 3);
+    const auto node = in.ConsumeIntegralInRange<std::uint8_t>(0, 4) == 4
+                          ? std::uint8_t{128}
+                          : in.ConsumeIntegralInRange<std::uint8_t>(0, 3);
     const auto index = in.ConsumeIntegral<std::uint16_t>();
     const auto sub = in.ConsumeIntegral<std::uint8_t>();
     const std::size_t id = requests++;

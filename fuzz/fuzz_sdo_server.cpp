@@ -84,7 +84,7 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   }
   const auto& d = sdo.dictionary();
   constexpr std::pair<std::uint16_t, std::uint8_t> kFixedSize[] = {{0x1017, 0}, {0x2001, 1}, {0x2001, 2},
-                                                                    {0x2004, 0}, {0x2005, 0}, {0x2007, 0}};
+                                                                   {0x2004, 0}, {0x2005, 0}, {0x2007, 0}};
   for (const auto& [index, sub] : kFixedSize) {
     const auto* e = d.find(index, sub);
     if (e == nullptr || e->value.size() != canopen::sdo_size(e->type)) __builtin_trap();

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Lint: formatting and clang-tidy, the lint stage of launch_scripts/test.sh (issue 26, deliverable 6).
+# Lint: formatting and clang-tidy, the lint stage of launch_scripts/test.sh.
 #   1. clang-format --dry-run -Werror over every C++ file of bridge/ tests/ bench/ fuzz/ that git
 #      knows: a file that .clang-format would change fails the check.
 #   2. clang-tidy (.clang-tidy) over the normal build's compile_commands.json, with run-clang-tidy

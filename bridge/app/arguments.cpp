@@ -19,7 +19,8 @@ std::string version_text(std::string_view program) {
 
 std::string exit_codes_text(std::span<const ExitCode> codes) {
   std::string out = "Exit codes:";
-  for (const auto& c : codes) out += (out.back() == ':' ? " " : "; ") + std::to_string(c.code) + " " + std::string(c.meaning);
+  for (const auto& c : codes)
+    out += (out.back() == ':' ? " " : "; ") + std::to_string(c.code) + " " + std::string(c.meaning);
   return out + ".";
 }
 
@@ -40,8 +41,10 @@ int parse(CLI::App& cli, int argc, char** argv) {
 }
 
 CLI::Option* add_config_option(CLI::App& cli, std::string& path) {
-  return cli.add_option("-c,--config", path, std::string("line configuration (YAML); default: the file ") + kConfigEnv +
-                                                 " names, else the built-in demo line")
+  return cli
+      .add_option("-c,--config", path,
+                  std::string("line configuration (YAML); default: the file ") + kConfigEnv +
+                      " names, else the built-in demo line")
       ->envname(kConfigEnv)
       ->check(non_empty_path());
 }

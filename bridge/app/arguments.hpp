@@ -15,8 +15,8 @@ namespace lb::app {
 
 // Exit codes of every executable (README "Exit codes").
 inline constexpr int kExitOk = 0;
-inline constexpr int kExitFailure = 1;  // start-up or run-time failure; a refusal by the bridge (CLI)
-inline constexpr int kExitUsage = 2;    // bad arguments or configuration: retrying cannot help
+inline constexpr int kExitFailure = 1;     // start-up or run-time failure; a refusal by the bridge (CLI)
+inline constexpr int kExitUsage = 2;       // bad arguments or configuration: retrying cannot help
 inline constexpr int kExitLoopFailed = 3;  // linebridge: a bus loop failed while running (restart it)
 
 // An exit code and what it means, as --help lists it.
@@ -32,7 +32,9 @@ inline constexpr std::array kCommonExitCodes{
     ExitCode{kExitUsage, "bad arguments or configuration"},
 };
 inline constexpr std::array kBridgeExitCodes{
-    kCommonExitCodes[0], kCommonExitCodes[1], kCommonExitCodes[2],
+    kCommonExitCodes[0],
+    kCommonExitCodes[1],
+    kCommonExitCodes[2],
     ExitCode{kExitLoopFailed, "a bus loop failed while running (restart it)"},
 };
 

@@ -27,7 +27,8 @@ AsyncLog::~AsyncLog() {
   // held here until its queue's thread has written what waits and ended (the pool's destructor
   // joins it): so the logger is released on this thread, after the join, never by the worker.
   auto async = spdlog::default_logger();
-  auto sync = std::make_shared<spdlog::logger>(std::string(kName) + "-exit", std::make_shared<spdlog::sinks::stdout_color_sink_mt>());
+  auto sync = std::make_shared<spdlog::logger>(std::string(kName) + "-exit",
+                                               std::make_shared<spdlog::sinks::stdout_color_sink_mt>());
   sync->set_level(spdlog::get_level());
   sync->set_pattern(pattern_);
   spdlog::set_default_logger(std::move(sync));

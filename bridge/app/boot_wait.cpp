@@ -32,21 +32,25 @@ Result<void> wait_for_boot(ddsl::Participant& dds, const std::string& line, cons
   std::condition_variable cv;
   std::optional<msg::NodeDiagnostics> last;
   const auto topic = ddsl::topic_name(line, ddsl::kBridgeNamespace, "diagnostics");
-  auto sub = dds.subscribe_scoped<msg::DiagnosticsPubSubType>(topic, ddsl::QosKind::state, [&](const msg::Diagnostics& d, const auto&) {
-    for (const auto& n : d.nodes()) {
-      if (n.device() != device) continue;
-      {
-        std::lock_guard lock(m);
-        last = n;
-      }
-      cv.notify_all();
-    }
-  });
+  auto sub = dds.subscribe_scoped<msg::DiagnosticsPubSubType>(topic, ddsl::QosKind::state,
+                                                              [&](const msg::Diagnostics& d, const auto&) {
+                                                                for (const auto& n : d.nodes()) {
+                                                                  if (n.device() != device) continue;
+                                                                  {
+                                                                    std::lock_guard lock(m);
+                                                                    last = n;
+                                                                  }
+                                                                  cv.notify_all();
+                                                                }
+                                                              });
   if (!sub) return make_error(sub.error().message);
   std::unique_lock lock(m);
   if (cv.wait_for(lock, timeout, [&] { return last && boot_settled(*last); })) return {};
-  if (!last) return make_error(fmt::format("{}: no diagnostics naming it on {} (is the bridge running for line {}?)", device, topic, line));
-  return make_error(fmt::format("{}: its boot has not passed ({}: {})", device, last->node_state(), last->boot_state()));
+  if (!last)
+    return make_error(
+        fmt::format("{}: no diagnostics naming it on {} (is the bridge running for line {}?)", device, topic, line));
+  return make_error(
+      fmt::format("{}: its boot has not passed ({}: {})", device, last->node_state(), last->boot_state()));
 }
 
 }  // namespace lb::app

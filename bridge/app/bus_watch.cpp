@@ -56,7 +56,9 @@ std::string describe_frame(const can::CanFrame& f) {
   if (f.id == 0x100) return "TIME";
   if (node == 0) return fmt::format("COB-ID {:03X}h", f.id) + rtr;
   switch (function) {
-    case 0x080: return fmt::format("EMCY node {}", node) + (f.len >= 2 ? fmt::format(" code {:02X}{:02X}h", f.data[1], f.data[0]) : "");
+    case 0x080:
+      return fmt::format("EMCY node {}", node) +
+             (f.len >= 2 ? fmt::format(" code {:02X}{:02X}h", f.data[1], f.data[0]) : "");
     case 0x180: return fmt::format("TPDO1 node {}", node) + rtr;
     case 0x200: return fmt::format("RPDO1 node {}", node);
     case 0x280: return fmt::format("TPDO2 node {}", node) + rtr;

@@ -12,9 +12,9 @@
 namespace lb::app {
 
 struct WatchOptions {
-  double duration_s = 0;       // 0: until SIGINT/SIGTERM
-  std::uint64_t count = 0;     // stop after this many frames; 0: no limit
-  bool log_only = false;       // the bare log line, for a file canplayer replays
+  double duration_s = 0;    // 0: until SIGINT/SIGTERM
+  std::uint64_t count = 0;  // stop after this many frames; 0: no limit
+  bool log_only = false;    // the bare log line, for a file canplayer replays
 };
 
 // "TPDO1 node 3", "SYNC", "heartbeat node 5: operational", "SDO request to node 3", ...

@@ -96,29 +96,33 @@ std::string drive_status_text(const typename Binding::Status& s) {
     for (const auto& f : Binding::status_flags) {
       if ((s.status_word().*f.get)()) flags += (flags.empty() ? "" : " ") + std::string(f.name);
     }
-    return fmt::format("{} {} | speed {:7.2f} % (echo {:7.2f} %) load {:6.2f} % product {:8.3f} m/min | status {:04X}h [{}] | "
-                       "set: extruder {}, speed {:.2f} %{}",
-                       clock_text(s.stamp()), state_text(s.health()), s.speed_actual_percent(), s.speed_set_echo_percent(),
-                       s.load_actual_percent(), s.product_speed_m_per_min(), s.status_word().raw(), flags,
-                       s.control_word().extruder_running() ? "running" : "stopped", s.speed_set_percent(),
-                       s.set_echo_mismatch() ? " | SET ECHO MISMATCH" : "");
+    return fmt::format(
+        "{} {} | speed {:7.2f} % (echo {:7.2f} %) load {:6.2f} % product {:8.3f} m/min | status {:04X}h [{}] | "
+        "set: extruder {}, speed {:.2f} %{}",
+        clock_text(s.stamp()), state_text(s.health()), s.speed_actual_percent(), s.speed_set_echo_percent(),
+        s.load_actual_percent(), s.product_speed_m_per_min(), s.status_word().raw(), flags,
+        s.control_word().extruder_running() ? "running" : "stopped", s.speed_set_percent(),
+        s.set_echo_mismatch() ? " | SET ECHO MISMATCH" : "");
   }
 }
 
 Result<Subscription> subscribe_topic(ddsl::Participant& dds, const std::string& topic_name, const std::string& type,
-                             const std::string& topic, Printer& out) {
+                                     const std::string& topic, Printer& out) {
   using ddsl::QosKind;
   const auto text = [&out](const auto& s) { out.print(to_text(s)); };
   if (topic == "info") return subscribe<msg::DeviceInfoPubSubType>(dds, topic_name, QosKind::state, text);
   if (topic == "emergency") return subscribe<msg::EmergencyPubSubType>(dds, topic_name, QosKind::event, text);
   if (topic == "diagnostics") {
-    return subscribe<msg::DiagnosticsPubSubType>(dds, topic_name, QosKind::state,
-                                                 [](const msg::Diagnostics& d) { std::fputs(to_text(d).c_str(), stdout), flush_or_stop(); });
+    return subscribe<msg::DiagnosticsPubSubType>(dds, topic_name, QosKind::state, [](const msg::Diagnostics& d) {
+      std::fputs(to_text(d).c_str(), stdout), flush_or_stop();
+    });
   }
   if (topic == "setpoint_result" || topic == "loom_result") {
-    return subscribe<msg::SetpointResultPubSubType>(dds, topic_name, QosKind::reply, [&out](const msg::SetpointResult& r) {
-      out.print(fmt::format("request {}: {}{}", r.request_id(), r.accepted() ? "accepted" : "refused: ", r.reason()));
-    });
+    return subscribe<msg::SetpointResultPubSubType>(
+        dds, topic_name, QosKind::reply, [&out](const msg::SetpointResult& r) {
+          out.print(
+              fmt::format("request {}: {}{}", r.request_id(), r.accepted() ? "accepted" : "refused: ", r.reason()));
+        });
   }
   const auto* entry = profiles::find_device_type(type);
   const auto behaviour = entry != nullptr ? std::optional(entry->behaviour) : std::nullopt;
@@ -159,7 +163,8 @@ Result<Subscription> subscribe_topic(ddsl::Participant& dds, const std::string& 
 std::string echo_topics(const std::string& device_type) {
   if (device_type == ddsl::kBridgeNamespace) return "diagnostics";
   const auto* type = profiles::find_device_type(device_type);
-  if (type != nullptr && type->behaviour == profiles::Behaviour::saw) return "status, cut, setpoint_result, info, emergency";
+  if (type != nullptr && type->behaviour == profiles::Behaviour::saw)
+    return "status, cut, setpoint_result, info, emergency";
   if (type != nullptr && type->behaviour == profiles::Behaviour::feeder) {
     return "status, unwinding, feeder_error, loom_result, info, emergency";
   }
@@ -186,7 +191,8 @@ int run_echo(ddsl::Participant& dds, const std::string& line, const std::string&
       if (stdout_gone()) request_stop();
       const bool matched = dds.matched_writers(topic) > 0;
       if (!matched && !warned && Clock::now() - start > kPatience) {
-        fmt::print(stderr, "waiting for the bridge: nothing publishes {} (is linebridge running for line {}?)\n", topic, line);
+        fmt::print(stderr, "waiting for the bridge: nothing publishes {} (is linebridge running for line {}?)\n", topic,
+                   line);
         warned = true;
       } else if (matched && warned) {
         fmt::print(stderr, "the bridge publishes {} now\n", topic);

@@ -6,10 +6,10 @@
 #include <map>
 #include <optional>
 
+#include "app/cli_exit.hpp"
 #include "canopen/data_type.hpp"
 #include "dds/service.hpp"
 #include "dds/topic_names.hpp"
-#include "app/cli_exit.hpp"
 #include "gateways/bridge_runs.hpp"
 #include "msgs/commonPubSubTypes.h"
 #include "msgs/feederPubSubTypes.h"
@@ -24,7 +24,7 @@ namespace {
 // sent is told apart from every other answer (restarted()): the request may have run before.
 template <class Rep>
 struct Answered {
-  std::optional<Error> error;       // no answer at all
+  std::optional<Error> error;  // no answer at all
   typename Rep::type reply{};
   bool bridge_restarted = false;
 
@@ -59,7 +59,8 @@ int report(bool ok, const std::string& what, const std::string& message, std::ui
     fmt::print("{}\n", what);
     return kExitOk;
   }
-  fmt::print(stderr, "refused: {}{}\n", message, abort_code != 0 ? fmt::format(" (abort code {:08X}h)", abort_code) : "");
+  fmt::print(stderr, "refused: {}{}\n", message,
+             abort_code != 0 ? fmt::format(" (abort code {:08X}h)", abort_code) : "");
   return kExitRefused;
 }
 
@@ -86,7 +87,8 @@ std::string value_text(const srv::ObjectValue& v) {
   if (!type) return "?";
   if (*type == canopen::DataType::visible_string) return "\"" + v.string_value() + "\"";
   if (*type == canopen::DataType::octet_string) return fmt::format("[{:02X}]", fmt::join(v.octets(), " "));
-  if (*type == canopen::DataType::real32 || *type == canopen::DataType::real64) return fmt::format("{}", v.real_value());
+  if (*type == canopen::DataType::real32 || *type == canopen::DataType::real64)
+    return fmt::format("{}", v.real_value());
   if (canopen::is_signed_integer(*type)) return fmt::format("{}", v.integer_value());
   return fmt::format("{} ({:X}h)", v.unsigned_value(), v.unsigned_value());
 }
@@ -94,12 +96,11 @@ std::string value_text(const srv::ObjectValue& v) {
 }  // namespace
 
 int call_nmt(const ServiceTarget& t, const std::string& command) {
-  static const std::map<std::string, srv::NmtCommand> kCommands{
-      {"start", srv::NMT_START},
-      {"stop", srv::NMT_STOP},
-      {"pre-operational", srv::NMT_ENTER_PRE_OPERATIONAL},
-      {"reset-node", srv::NMT_RESET_NODE},
-      {"reset-communication", srv::NMT_RESET_COMMUNICATION}};
+  static const std::map<std::string, srv::NmtCommand> kCommands{{"start", srv::NMT_START},
+                                                                {"stop", srv::NMT_STOP},
+                                                                {"pre-operational", srv::NMT_ENTER_PRE_OPERATIONAL},
+                                                                {"reset-node", srv::NMT_RESET_NODE},
+                                                                {"reset-communication", srv::NMT_RESET_COMMUNICATION}};
   srv::Nmt_Request req;
   req.command(kCommands.at(command));
   auto r = call<srv::Nmt_RequestPubSubType, srv::Nmt_ResponsePubSubType>(t, "nmt", req);
@@ -127,11 +128,16 @@ int call_sdo_write(const ServiceTarget& t, std::uint16_t index, std::uint8_t sub
   req.sub_index(sub);
   req.value().data_type(type);
   try {
-    if (*dt == canopen::DataType::visible_string) req.value().string_value(value);
-    else if (*dt == canopen::DataType::real32 || *dt == canopen::DataType::real64) req.value().real_value(std::stod(value));
-    else if (canopen::is_signed_integer(*dt)) req.value().integer_value(std::stoll(value, nullptr, 0));
-    else if (*dt == canopen::DataType::octet_string) return usage("OCTET_STRING writes are not supported by the CLI");
-    else req.value().unsigned_value(std::stoull(value, nullptr, 0));
+    if (*dt == canopen::DataType::visible_string)
+      req.value().string_value(value);
+    else if (*dt == canopen::DataType::real32 || *dt == canopen::DataType::real64)
+      req.value().real_value(std::stod(value));
+    else if (canopen::is_signed_integer(*dt))
+      req.value().integer_value(std::stoll(value, nullptr, 0));
+    else if (*dt == canopen::DataType::octet_string)
+      return usage("OCTET_STRING writes are not supported by the CLI");
+    else
+      req.value().unsigned_value(std::stoull(value, nullptr, 0));
   } catch (const std::exception&) {
     return usage("'" + value + "' is not a " + type + " value");
   }
@@ -164,8 +170,8 @@ int call_command(const ServiceTarget& t, const std::string& name) {
   auto r = call<srv::Command_RequestPubSubType, srv::Command_ResponsePubSubType>(t, "command", req);
   if (!r || r.bridge_restarted) return not_answered(r);
   return report(r->success(),
-                fmt::format("{}: on the bus in {} RPDO(s) over {:.1f} ms, then released{}{}", name, r->frames(), r->held_ms(),
-                            r->message().empty() ? "" : "; ", r->message()),
+                fmt::format("{}: on the bus in {} RPDO(s) over {:.1f} ms, then released{}{}", name, r->frames(),
+                            r->held_ms(), r->message().empty() ? "" : "; ", r->message()),
                 r->message());
 }
 
@@ -221,7 +227,8 @@ int call_feeder_command(const ServiceTarget& t, unsigned feeder, const std::stri
   req.feeder(static_cast<std::uint8_t>(feeder));
   req.command(command);
   req.manufacturer_code(static_cast<std::uint8_t>(code));
-  return feeder_call<srv::FeederCommand_RequestPubSubType>(t, "feeder_command", req, fmt::format("feeder {} {}", feeder, command));
+  return feeder_call<srv::FeederCommand_RequestPubSubType>(t, "feeder_command", req,
+                                                           fmt::format("feeder {} {}", feeder, command));
 }
 
 int call_feeder_test(const ServiceTarget& t, unsigned feeder, const std::string& test, unsigned parameter) {
@@ -229,7 +236,8 @@ int call_feeder_test(const ServiceTarget& t, unsigned feeder, const std::string&
   req.feeder(static_cast<std::uint8_t>(feeder));
   req.test(test);
   req.parameter(static_cast<std::uint8_t>(parameter));
-  return feeder_call<srv::FeederTest_RequestPubSubType>(t, "feeder_test", req, fmt::format("feeder {} test {} {}", feeder, test, parameter));
+  return feeder_call<srv::FeederTest_RequestPubSubType>(t, "feeder_test", req,
+                                                        fmt::format("feeder {} test {} {}", feeder, test, parameter));
 }
 
 int call_feeder_functions(const ServiceTarget& t, unsigned feeder, const std::vector<std::string>& settings) {
@@ -247,30 +255,35 @@ int call_feeder_functions(const ServiceTarget& t, unsigned feeder, const std::ve
     req.settings().push_back(setting);
   }
   return feeder_call<srv::FeederFunctions_RequestPubSubType>(t, "feeder_functions", req,
-                                                            fmt::format("feeder {} functions {}", feeder, fmt::join(settings, " ")));
+                                                             fmt::format("feeder {} functions {}", feeder,
+                                                                         fmt::join(settings, " ")));
 }
 
-int call_feeder_assignment(const ServiceTarget& t, unsigned feeder, std::optional<unsigned> number, std::optional<unsigned> color) {
+int call_feeder_assignment(const ServiceTarget& t, unsigned feeder, std::optional<unsigned> number,
+                           std::optional<unsigned> color) {
   srv::FeederAssignment_Request req;
   req.feeder(static_cast<std::uint8_t>(feeder));
   req.set_number(number.has_value());
   req.system_number(static_cast<std::uint8_t>(number.value_or(0)));
   req.set_color(color.has_value());
   req.color(static_cast<std::uint8_t>(color.value_or(0)));
-  return feeder_call<srv::FeederAssignment_RequestPubSubType>(t, "feeder_assignment", req, fmt::format("feeder {} assignment", feeder));
+  return feeder_call<srv::FeederAssignment_RequestPubSubType>(t, "feeder_assignment", req,
+                                                              fmt::format("feeder {} assignment", feeder));
 }
 
 int call_weft_insertion_type(const ServiceTarget& t, const std::string& type) {
   srv::WeftInsertionType_Request req;
   req.type(type);
-  return feeder_call<srv::WeftInsertionType_RequestPubSubType>(t, "weft_insertion_type", req, "weft insertion type " + type);
+  return feeder_call<srv::WeftInsertionType_RequestPubSubType>(t, "weft_insertion_type", req,
+                                                               "weft insertion type " + type);
 }
 
 int call_trigger_source(const ServiceTarget& t, const std::vector<std::string>& selected) {
   srv::TriggerSource_Request req;
   for (const auto& s : selected) req.selected().push_back(s);
   return feeder_call<srv::TriggerSource_RequestPubSubType>(t, "trigger_source", req,
-                                                          fmt::format("trigger sources [{}]", fmt::join(selected, " ")));
+                                                           fmt::format("trigger sources [{}]",
+                                                                       fmt::join(selected, " ")));
 }
 
 }  // namespace lb::app

@@ -32,11 +32,13 @@ int call_command(const ServiceTarget& t, const std::string& name);
 // a line file, so an integrator pins the device at hand.
 int call_identity(const ServiceTarget& t);
 
-int call_feeder_command(const ServiceTarget& t, unsigned feeder, const std::string& command, unsigned manufacturer_code);
+int call_feeder_command(const ServiceTarget& t, unsigned feeder, const std::string& command,
+                        unsigned manufacturer_code);
 int call_feeder_test(const ServiceTarget& t, unsigned feeder, const std::string& test, unsigned parameter);
 // settings: FUNCTION=STATE, e.g. yarn_break_sensor=active.
 int call_feeder_functions(const ServiceTarget& t, unsigned feeder, const std::vector<std::string>& settings);
-int call_feeder_assignment(const ServiceTarget& t, unsigned feeder, std::optional<unsigned> number, std::optional<unsigned> color);
+int call_feeder_assignment(const ServiceTarget& t, unsigned feeder, std::optional<unsigned> number,
+                           std::optional<unsigned> color);
 int call_weft_insertion_type(const ServiceTarget& t, const std::string& type);
 int call_trigger_source(const ServiceTarget& t, const std::vector<std::string>& selected);
 

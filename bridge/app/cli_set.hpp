@@ -12,13 +12,13 @@ namespace lb::app {
 
 struct SetOptions {
   // saw
-  std::optional<std::string> program;             // on, off
-  std::optional<std::string> wall_thickening;     // on, off
+  std::optional<std::string> program;          // on, off
+  std::optional<std::string> wall_thickening;  // on, off
   std::optional<double> sync_speed_percent;
   std::optional<double> product_length_m;
-  std::optional<std::string> count_mode;          // smooth, corrugated
+  std::optional<std::string> count_mode;  // smooth, corrugated
   // puller, corrugator
-  std::optional<std::string> extruder;            // running, stopped
+  std::optional<std::string> extruder;  // running, stopped
   std::optional<double> speed_percent;
   // feeder (the bridge plays the loom controller)
   std::optional<std::string> loom_status;

@@ -7,7 +7,6 @@
 #include <string>
 #include <vector>
 
-
 namespace lb::app {
 
 namespace msg = linebridge_msgs::msg;
@@ -45,8 +44,8 @@ std::string other_values_text(const std::vector<msg::ProcessValue>& values) {
   if (values.empty()) return "";
   std::vector<std::string> parts;
   for (const auto& v : values) {
-    parts.push_back(fmt::format("{} {}{}{} ({}, raw {})", v.name(), v.value(), v.unit().empty() ? "" : " ", v.unit(), v.pdo(),
-                                v.raw()));
+    parts.push_back(fmt::format("{} {}{}{} ({}, raw {})", v.name(), v.value(), v.unit().empty() ? "" : " ", v.unit(),
+                                v.pdo(), v.raw()));
   }
   return fmt::format(" | other: {}", fmt::join(parts, ", "));
 }
@@ -70,10 +69,10 @@ std::string to_text(const msg::DeviceInfo& i) {
   std::string out = fmt::format(
       "{} node {}: {}\n  \"{}\" device type {:08X}h (profile {}{}), vendor {:08X}h, product {:08X}h, revision {:08X}h, "
       "serial {:08X}h, hardware \"{}\", software \"{}\", heartbeat {}\n",
-      clock_text(i.stamp()), i.node_id(),
-      i.started() ? "STARTED" : "NOT STARTED: " + to_text(i.boot_error()), i.device_name(), i.device_type(),
-      i.profile_number(), i.profile_matches() ? "" : ", NOT the configured one", i.vendor_id(), i.product_code(),
-      i.revision_number(), i.serial_number(), i.hardware_version(), i.software_version(),
+      clock_text(i.stamp()), i.node_id(), i.started() ? "STARTED" : "NOT STARTED: " + to_text(i.boot_error()),
+      i.device_name(), i.device_type(), i.profile_number(), i.profile_matches() ? "" : ", NOT the configured one",
+      i.vendor_id(), i.product_code(), i.revision_number(), i.serial_number(), i.hardware_version(),
+      i.software_version(),
       i.heartbeat_producer_ms() < 0 ? std::string("unknown") : fmt::format("{} ms", i.heartbeat_producer_ms()));
   for (const auto& p : i.pdos()) {
     std::vector<std::string> entries;
@@ -93,7 +92,8 @@ std::string to_text(const msg::DeviceInfo& i) {
   if (i.error_history_read()) {
     // The code alone unless the device put additional information in bits 16..31.
     std::vector<std::string> entries;
-    for (const auto e : i.error_history()) entries.push_back(e > 0xFFFF ? fmt::format("{:08X}h", e) : fmt::format("{:04X}h", e));
+    for (const auto e : i.error_history())
+      entries.push_back(e > 0xFFFF ? fmt::format("{:08X}h", e) : fmt::format("{:04X}h", e));
     out += fmt::format("  error history 1003h (not the active errors; {} recorded, newest first): [{}]\n",
                        i.error_history_count(), fmt::join(entries, " "));
   } else if (!i.error_history_remark().empty()) {
@@ -121,50 +121,59 @@ std::string or_dash(const std::string& s) { return s.empty() ? "-" : s; }
 // idl/common.idl and fails for a field this does not print.
 std::string to_text(const msg::Diagnostics& d) {
   std::string out = fmt::format("{} line {} bridge-incarnation {:016x} commands-lost {} log-lines-dropped {}\n",
-                                clock_text(d.stamp()), d.line(), d.bridge_incarnation(), d.commands_lost(), d.log_lines_dropped());
+                                clock_text(d.stamp()), d.line(), d.bridge_incarnation(), d.commands_lost(),
+                                d.log_lines_dropped());
   out += fmt::format("  set-value-store: {}\n", or_dash(d.set_value_store()));
   const auto& side = d.dds_side();
-  out += fmt::format("  dds-side: connected {} connects {} samples-dropped {} samples-not-forwarded {} remote-participants {} "
-                     "remote-participants-refused {}{}\n",
-                     yes_no(side.connected()), side.connects(), side.samples_dropped(), side.samples_not_forwarded(),
-                     side.remote_participants(), side.remote_participants_refused(),
-                     side.connects() != 0 && !side.connected() ? "  (the DDS process is NOT CONNECTED)" : "");
+  out += fmt::format(
+      "  dds-side: connected {} connects {} samples-dropped {} samples-not-forwarded {} remote-participants {} "
+      "remote-participants-refused {}{}\n",
+      yes_no(side.connected()), side.connects(), side.samples_dropped(), side.samples_not_forwarded(),
+      side.remote_participants(), side.remote_participants_refused(),
+      side.connects() != 0 && !side.connected() ? "  (the DDS process is NOT CONNECTED)" : "");
   for (const auto& b : d.buses()) {
     out += fmt::format("  bus {:<12} {:<28} {:<7} {:<13} frames-in {:>9} ({:7.1f}/s) frames-out {:>9} ({:7.1f}/s) "
                        "load {} error-frames {} tx-dropped {}\n",
-                       b.name(), b.interface_uri(), b.role(), b.state(), b.frames_in(), b.frames_in_per_s(), b.frames_out(),
-                       b.frames_out_per_s(),
-                       b.load_percent() < 0 ? std::string("n/a (fast replay)") : fmt::format("{:5.1f} %", b.load_percent()),
+                       b.name(), b.interface_uri(), b.role(), b.state(), b.frames_in(), b.frames_in_per_s(),
+                       b.frames_out(), b.frames_out_per_s(),
+                       b.load_percent() < 0 ? std::string("n/a (fast replay)")
+                                            : fmt::format("{:5.1f} %", b.load_percent()),
                        b.error_frames(), b.tx_dropped());
-    out += fmt::format("  bus {:<12} TEC {} REC {} bus-offs {} rx-overflows {} rx-dropped {} tx-queue-full {} reopens {} "
-                       "record-errors {} replay {}{}\n",
-                       b.name(), b.tx_error_counter(), b.rx_error_counter(), b.bus_offs(), b.rx_overflows(), b.rx_dropped(),
-                       b.tx_queue_full(), b.reopens(), b.record_errors(), yes_no(b.replay()),
-                       b.replay() ? " (heartbeat ages on the recording's clock)" : "");
-    out += fmt::format("  bus {:<12} handler-failures {} handlers-disabled {} frames-unclaimed {} requests-refused {}{}\n",
-                       b.name(), b.handler_failures(), b.handlers_disabled(), b.frames_unclaimed(), b.requests_refused(),
-                       b.requests_refused() != 0 ? " (loop overloaded)" : "");
-    out += fmt::format("  bus {:<12} other-master-frames {} yielding-to-other-master {} frames-held {} other-master-last {}{}\n",
-                       b.name(), b.other_master_frames(), b.yielding_to_other_master() ? "YES" : "no", b.frames_held(),
-                       or_dash(b.other_master_last()),
-                       b.yielding_to_other_master() ? " (YIELDING: transmits nothing, refuses set values and commands)" : "");
+    out +=
+        fmt::format("  bus {:<12} TEC {} REC {} bus-offs {} rx-overflows {} rx-dropped {} tx-queue-full {} reopens {} "
+                    "record-errors {} replay {}{}\n",
+                    b.name(), b.tx_error_counter(), b.rx_error_counter(), b.bus_offs(), b.rx_overflows(),
+                    b.rx_dropped(), b.tx_queue_full(), b.reopens(), b.record_errors(), yes_no(b.replay()),
+                    b.replay() ? " (heartbeat ages on the recording's clock)" : "");
+    out +=
+        fmt::format("  bus {:<12} handler-failures {} handlers-disabled {} frames-unclaimed {} requests-refused {}{}\n",
+                    b.name(), b.handler_failures(), b.handlers_disabled(), b.frames_unclaimed(), b.requests_refused(),
+                    b.requests_refused() != 0 ? " (loop overloaded)" : "");
+    out += fmt::format(
+        "  bus {:<12} other-master-frames {} yielding-to-other-master {} frames-held {} other-master-last {}{}\n",
+        b.name(), b.other_master_frames(), b.yielding_to_other_master() ? "YES" : "no", b.frames_held(),
+        or_dash(b.other_master_last()),
+        b.yielding_to_other_master() ? " (YIELDING: transmits nothing, refuses set values and commands)" : "");
     out += fmt::format("  bus {:<12} mandatory-missing {} mandatory-state {}\n", b.name(),
-                       b.mandatory_missing().empty() ? std::string("none") : fmt::format("{}", fmt::join(b.mandatory_missing(), ", ")),
+                       b.mandatory_missing().empty() ? std::string("none")
+                                                     : fmt::format("{}", fmt::join(b.mandatory_missing(), ", ")),
                        or_dash(b.mandatory_state()));
   }
   for (const auto& n : d.nodes()) {
-    out += fmt::format("  {:<12} {:<10} node {:>3}{} {:<7} {:<15} node-state {} boot-state {}\n", n.device(), n.bus(), n.node_id(),
-                       n.mandatory() ? " (mandatory)" : "", n.online() ? "online" : "OFFLINE", to_text(n.nmt_state()),
-                       or_dash(n.node_state()), or_dash(n.boot_state()));
+    out += fmt::format("  {:<12} {:<10} node {:>3}{} {:<7} {:<15} node-state {} boot-state {}\n", n.device(), n.bus(),
+                       n.node_id(), n.mandatory() ? " (mandatory)" : "", n.online() ? "online" : "OFFLINE",
+                       to_text(n.nmt_state()), or_dash(n.node_state()), or_dash(n.boot_state()));
     out += fmt::format("  {:<12} last-heartbeat-age {} boot-ups {} boots {} boot-failures {} state-unknown {} "
                        "boot-ups-not-believed {} pdos-received {} pdos-sent {} pdo-length-errors {} emergencies {} "
                        "range-warnings {} malformed-emergencies {} malformed-heartbeats {}\n",
-                       "", n.last_heartbeat_age_s() < 0 ? std::string("never") : fmt::format("{:.2f} s", n.last_heartbeat_age_s()),
-                       n.boot_ups(), n.boots(), n.boot_failures(), n.state_unknown(), n.boot_ups_not_believed(), n.pdos_received(),
-                       n.pdos_sent(), n.pdo_length_errors(), n.emergencies(), n.range_warnings(), n.malformed_emergencies(),
-                       n.malformed_heartbeats());
-    out += fmt::format("  {:<12} mandatory {} line-hold {} boot-error {}\n", "", yes_no(n.mandatory()), or_dash(n.line_hold()),
-                       or_dash(to_text(n.boot_error())));
+                       "",
+                       n.last_heartbeat_age_s() < 0 ? std::string("never")
+                                                    : fmt::format("{:.2f} s", n.last_heartbeat_age_s()),
+                       n.boot_ups(), n.boots(), n.boot_failures(), n.state_unknown(), n.boot_ups_not_believed(),
+                       n.pdos_received(), n.pdos_sent(), n.pdo_length_errors(), n.emergencies(), n.range_warnings(),
+                       n.malformed_emergencies(), n.malformed_heartbeats());
+    out += fmt::format("  {:<12} mandatory {} line-hold {} boot-error {}\n", "", yes_no(n.mandatory()),
+                       or_dash(n.line_hold()), or_dash(to_text(n.boot_error())));
     out += fmt::format("  {:<12} set-values-at-start {}\n", "", or_dash(n.set_values_at_start()));
   }
   return out;

@@ -6,7 +6,8 @@ namespace lb::app {
 namespace {
 
 ddsl::SecurityFiles files_of(const profiles::DdsSecurityConfig& s) {
-  ddsl::SecurityFiles files{s.identity_ca, s.certificate, s.private_key, s.permissions_ca, s.governance, s.permissions, s.properties};
+  ddsl::SecurityFiles files{s.identity_ca, s.certificate, s.private_key, s.permissions_ca,
+                            s.governance,  s.permissions, s.properties};
   files.identity_crl = s.identity_crl;
   return files;
 }
@@ -51,15 +52,16 @@ Result<ddsl::ParticipantOptions> client_participant_options(const profiles::Line
   auto o = line_options(line, std::move(name));
   if (!line.dds.security) {
     if (!identity_dir.empty()) {
-      return make_error("line " + line.line + " is not secured (no dds.security in its file): --identity " + identity_dir +
-                        " has no use there");
+      return make_error("line " + line.line + " is not secured (no dds.security in its file): --identity " +
+                        identity_dir + " has no use there");
     }
     return o;
   }
   if (identity_dir.empty()) {
-    return make_error("line " + line.line +
-                      " is secured (dds.security): give this client an identity with --identity DIR or LINEBRIDGE_IDENTITY "
-                      "(a folder with cert.pem, key.pem and permissions.p7s, as launch_scripts/pki.sh issue makes it)");
+    return make_error(
+        "line " + line.line +
+        " is secured (dds.security): give this client an identity with --identity DIR or LINEBRIDGE_IDENTITY "
+        "(a folder with cert.pem, key.pem and permissions.p7s, as launch_scripts/pki.sh issue makes it)");
   }
   const auto dir = std::filesystem::absolute(identity_dir);
   ddsl::SecurityFiles f = files_of(*line.dds.security);

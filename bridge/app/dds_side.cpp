@@ -151,14 +151,16 @@ int run_dds_side(const ddsl::ParticipantOptions& options, const std::string& lin
     }
     auto message = channel->receive(100);
     if (!message) {
-      spdlog::error("channel {}: {}; this DDS side ends (its supervisor starts another)", channel_path, message.error().message);
+      spdlog::error("channel {}: {}; this DDS side ends (its supervisor starts another)", channel_path,
+                    message.error().message);
       return kExitFailure;
     }
     if (!*message) continue;
     auto& m = **message;
     if (auto* hello = std::get_if<link::Hello>(&m)) {
       if (hello->line != line) {
-        spdlog::error("channel {} serves line '{}', this DDS side is configured for '{}'", channel_path, hello->line, line);
+        spdlog::error("channel {} serves line '{}', this DDS side is configured for '{}'", channel_path, hello->line,
+                      line);
         return kExitUsage;
       }
       spdlog::info("channel {}: bus process pid {} of line {}", channel_path, hello->pid, hello->line);

@@ -21,7 +21,9 @@ std::string drive_text(const Status& s, const std::string& status_bits, const st
       s.load_actual_percent(), s.product_speed_m_per_min(), s.status_word().raw(), status_bits, extra_status,
       s.control_word().extruder_running() ? "running" : "stopped", s.speed_set_percent(),
       pressed.empty() ? "" : ", pressed [" + pressed + "]", s.set_echo_mismatch() ? " | SET ECHO MISMATCH" : "",
-      s.manufacturer_status_word_present() ? fmt::format(" | manufacturer status word {:04X}h", s.manufacturer_status_word()) : "",
+      s.manufacturer_status_word_present()
+          ? fmt::format(" | manufacturer status word {:04X}h", s.manufacturer_status_word())
+          : "",
       s.pdo_length_errors() ? fmt::format(" | {} short PDOs", s.pdo_length_errors()) : "", errors_text(s.health()),
       other_values_text(s.other_values()));
 }
@@ -71,7 +73,9 @@ std::string to_text(const msg::PullerStatus& s) {
                                     {w.motor_ready_to_start(), "ready"},
                                     {w.clamp_closed(), "clamp-closed"},
                                     {w.reverse_direction(), "reverse"}}),
-                    w.speed_set_mode() == msg::PULLER_SPEED_SET_NOT_REPORTED ? "" : " speed set mode " + to_text(w.speed_set_mode()),
+                    w.speed_set_mode() == msg::PULLER_SPEED_SET_NOT_REPORTED
+                        ? ""
+                        : " speed set mode " + to_text(w.speed_set_mode()),
                     pressed_text(c, {{c.motor_stop(), "motor_stop"},
                                      {c.motor_start(), "motor_start"},
                                      {c.clamp_close(), "clamp_close"},

@@ -29,21 +29,25 @@ void check_objects(const EdsFile& eds, const profiles::Profile& profile, Finding
     const EdsEntry* e = eds.find(obj.index, obj.sub);
     const auto what = fmt::format("{:04X}h sub {} {}", obj.index, obj.sub, obj.name);
     if (e == nullptr) {
-      (obj.mandatory ? f.problems : f.notes).push_back(what + ": not in the file" + (obj.mandatory ? "" : " (optional in the profile)"));
+      (obj.mandatory ? f.problems : f.notes)
+          .push_back(what + ": not in the file" + (obj.mandatory ? "" : " (optional in the profile)"));
       continue;
     }
     if (e->type && *e->type != obj.type) {
       f.problems.push_back(fmt::format("{}: data type {} ({:04X}h) in the file, {} in the profile ({})", what,
-                                       canopen::to_string(*e->type), e->type_code, canopen::to_string(obj.type), e->where));
+                                       canopen::to_string(*e->type), e->type_code, canopen::to_string(obj.type),
+                                       e->where));
     } else if (!e->type) {
       f.problems.push_back(fmt::format("{}: data type {:04X}h in the file, {} in the profile ({})", what, e->type_code,
                                        canopen::to_string(obj.type), e->where));
     }
     if (obj.readable() && !eds_readable(e->access)) {
-      f.problems.push_back(what + ": the profile reads it, the file says access '" + e->access + "' (" + e->where + ")");
+      f.problems.push_back(what + ": the profile reads it, the file says access '" + e->access + "' (" + e->where +
+                           ")");
     }
     if (obj.writable() && !eds_writable(e->access)) {
-      f.problems.push_back(what + ": the profile writes it, the file says access '" + e->access + "' (" + e->where + ")");
+      f.problems.push_back(what + ": the profile writes it, the file says access '" + e->access + "' (" + e->where +
+                           ")");
     }
   }
   for (const auto& pdo : profile.pdos) {
@@ -51,8 +55,9 @@ void check_objects(const EdsFile& eds, const profiles::Profile& profile, Finding
       if (entry.is_dummy()) continue;
       const EdsEntry* e = eds.find(entry.index, entry.sub);
       if (e != nullptr && !e->pdo_mapping) {
-        f.problems.push_back(fmt::format("{:04X}h sub {} ({}): the profile maps it in {}, the file says PDOMapping=0 ({})",
-                                         entry.index, entry.sub, e->name, pdo.name, e->where));
+        f.problems.push_back(
+            fmt::format("{:04X}h sub {} ({}): the profile maps it in {}, the file says PDOMapping=0 ({})", entry.index,
+                        entry.sub, e->name, pdo.name, e->where));
       }
     }
   }
@@ -63,8 +68,8 @@ std::string hex32(std::uint64_t v) { return fmt::format("0x{:08X}", v); }
 // The device's own PDO defaults against what the line will use: the override that makes the line
 // use the device's, entry by entry.
 std::vector<std::string> pdo_overrides(const EdsFile& eds, const profiles::Profile& profile,
-                                       const std::vector<profiles::DevicePdo>& line_pdos, std::optional<std::uint8_t> node,
-                                       Findings& f) {
+                                       const std::vector<profiles::DevicePdo>& line_pdos,
+                                       std::optional<std::uint8_t> node, Findings& f) {
   std::vector<std::string> out;
   for (const auto& pdo : line_pdos) {
     const auto* def = profile.pdo(pdo.name);
@@ -88,23 +93,27 @@ std::vector<std::string> pdo_overrides(const EdsFile& eds, const profiles::Profi
       continue;
     }
     std::vector<std::string> keys;
-    const auto differ = [&](const char* key, std::uint64_t device, std::uint64_t line, std::uint16_t index, std::uint8_t sub,
-                            const std::string& text) {
+    const auto differ = [&](const char* key, std::uint64_t device, std::uint64_t line, std::uint16_t index,
+                            std::uint8_t sub, const std::string& text) {
       if (device == line) return;
       keys.push_back(fmt::format("{}: {}", key, text));
       if (fixed(index, sub)) {
-        f.notes.push_back(fmt::format("{} {}: the device fixes it ({}) and the line would use another value: keep this override",
-                                      pdo.name, key, eds.find(index, sub)->access));
+        f.notes.push_back(
+            fmt::format("{} {}: the device fixes it ({}) and the line would use another value: keep this override",
+                        pdo.name, key, eds.find(index, sub)->access));
       }
     };
     if (auto cob = get(comm, 1)) differ("cob_id", *cob, pdo.cob_id_entry(), comm, 1, hex32(*cob));
     if (auto tt = get(comm, 2)) differ("transmission_type", *tt, pdo.transmission_type, comm, 2, std::to_string(*tt));
     if (pdo.direction == profiles::PdoDirection::tx) {
       if (auto inhibit = get(comm, 3)) {
-        differ("inhibit_time_100us", *inhibit, static_cast<std::uint64_t>(pdo.inhibit.count() / 100), comm, 3, std::to_string(*inhibit));
+        differ("inhibit_time_100us", *inhibit, static_cast<std::uint64_t>(pdo.inhibit.count() / 100), comm, 3,
+               std::to_string(*inhibit));
       }
     }
-    if (auto timer = get(comm, 5)) differ("event_timer_ms", *timer, static_cast<std::uint64_t>(pdo.event_timer.count()), comm, 5, std::to_string(*timer));
+    if (auto timer = get(comm, 5))
+      differ("event_timer_ms", *timer, static_cast<std::uint64_t>(pdo.event_timer.count()), comm, 5,
+             std::to_string(*timer));
     if (auto count = get(map, 0); count && *count > canopen::PdoMapping::kMaxEntries) {
       f.problems.push_back(fmt::format("{} mapping ({:04X}h): {} entries", pdo.name, map, *count));
     } else if (count) {
@@ -118,9 +127,10 @@ std::vector<std::string> pdo_overrides(const EdsFile& eds, const profiles::Profi
         }
         const auto entry = canopen::PdoEntry::from_u32(static_cast<std::uint32_t>(*v));
         if (!entry.is_dummy() && profile.object(entry.index, entry.sub) == nullptr) {
-          f.notes.push_back(fmt::format("{}: the device maps {:04X}h sub {} by default, which profile {} does not define: "
-                                        "keep the profile's mapping (the bridge writes it at boot)",
-                                        pdo.name, entry.index, entry.sub, profile.key()));
+          f.notes.push_back(
+              fmt::format("{}: the device maps {:04X}h sub {} by default, which profile {} does not define: "
+                          "keep the profile's mapping (the bridge writes it at boot)",
+                          pdo.name, entry.index, entry.sub, profile.key()));
           known = false;
           break;
         }
@@ -156,7 +166,8 @@ int run_eds(const profiles::LineConfig& line, const profiles::ProfileRegistry& b
     profile = device->resolved_profile;
   } else if (!o.profile.empty() && !o.profile_version.empty()) {
     profile = registry.find(o.profile, o.profile_version);
-    if (profile == nullptr) return fmt::print(stderr, "unknown profile {} version {}\n", o.profile, o.profile_version), kExitUsage;
+    if (profile == nullptr)
+      return fmt::print(stderr, "unknown profile {} version {}\n", o.profile, o.profile_version), kExitUsage;
   } else {
     std::string candidates;
     auto type = eds->value(0x1000, 0, std::nullopt);
@@ -170,50 +181,67 @@ int run_eds(const profiles::LineConfig& line, const profiles::ProfileRegistry& b
            kExitUsage;
   }
   std::optional<std::uint8_t> node;
-  if (o.node_id != 0) node = static_cast<std::uint8_t>(o.node_id);
-  else if (eds->node_id) node = eds->node_id;
-  else if (device != nullptr) node = device->node_id;
+  if (o.node_id != 0)
+    node = static_cast<std::uint8_t>(o.node_id);
+  else if (eds->node_id)
+    node = eds->node_id;
+  else if (device != nullptr)
+    node = device->node_id;
 
   fmt::print("{}: {} {} (vendor {}, product {}, revision {})\n", o.file, eds->vendor_name, eds->product_name,
-             eds->vendor_number ? hex32(*eds->vendor_number) : "?", eds->product_number ? hex32(*eds->product_number) : "?",
+             eds->vendor_number ? hex32(*eds->vendor_number) : "?",
+             eds->product_number ? hex32(*eds->product_number) : "?",
              eds->revision_number ? hex32(*eds->revision_number) : "?");
   fmt::print("against profile {} ({}, {}){}{}\n", profile->key(), profile->device, profile->title,
              device != nullptr ? ", device " + device->name : "", node ? fmt::format(", node-ID {}", *node) : "");
 
   Findings f;
   std::optional<std::uint64_t> device_type;
-  if (auto t = eds->value(0x1000, 0, node); !t) f.problems.push_back(t.error().message);
-  else device_type = *t;
+  if (auto t = eds->value(0x1000, 0, node); !t)
+    f.problems.push_back(t.error().message);
+  else
+    device_type = *t;
   if (!device_type) {
     f.problems.push_back("1000h (device type): no default value in the file");
   } else if ((*device_type & 0xFFFF) != (profile->device_type & 0xFFFF)) {
-    f.problems.push_back(fmt::format("1000h device type {:08X}h: profile number {} in the file, {} in {} (boot error C)",
-                                     *device_type, *device_type & 0xFFFF, profile->device_type & 0xFFFF, profile->key()));
+    f.problems.push_back(
+        fmt::format("1000h device type {:08X}h: profile number {} in the file, {} in {} (boot error C)", *device_type,
+                    *device_type & 0xFFFF, profile->device_type & 0xFFFF, profile->key()));
   }
   check_objects(*eds, *profile, f);
   const auto line_pdos = device != nullptr ? device->pdos : profiles::default_pdos(*profile, node.value_or(0));
   std::vector<std::string> overrides;
-  if (node) overrides = pdo_overrides(*eds, *profile, line_pdos, node, f);
-  else f.notes.push_back("no node-ID (--node-id, a DCF's NodeID or --device): PDO COB-IDs with $NODEID not compared");
+  if (node)
+    overrides = pdo_overrides(*eds, *profile, line_pdos, node, f);
+  else
+    f.notes.push_back("no node-ID (--node-id, a DCF's NodeID or --device): PDO COB-IDs with $NODEID not compared");
 
   for (const auto& p : f.problems) fmt::print("  does not fit: {}\n", p);
   for (const auto& n : f.notes) fmt::print("  note: {}\n", n);
   fmt::print("line-file entries{}:\n", device != nullptr ? " for " + device->name : "");
   fmt::print("    identity:\n");
   if (device_type) fmt::print("      device_type: {}\n", hex32(*device_type));
-  if (auto v = eds->value(0x1018, 1, node); v && *v) fmt::print("      vendor_id: {}\n", hex32(**v));
-  else if (eds->vendor_number) fmt::print("      vendor_id: {}\n", hex32(*eds->vendor_number));
-  if (auto v = eds->value(0x1018, 2, node); v && *v) fmt::print("      product_code: {}\n", hex32(**v));
-  else if (eds->product_number) fmt::print("      product_code: {}\n", hex32(*eds->product_number));
-  if (auto v = eds->value(0x1018, 3, node); v && *v) fmt::print("      revision: {}\n", hex32(**v));
-  else if (eds->revision_number) fmt::print("      revision: {}\n", hex32(*eds->revision_number));
+  if (auto v = eds->value(0x1018, 1, node); v && *v)
+    fmt::print("      vendor_id: {}\n", hex32(**v));
+  else if (eds->vendor_number)
+    fmt::print("      vendor_id: {}\n", hex32(*eds->vendor_number));
+  if (auto v = eds->value(0x1018, 2, node); v && *v)
+    fmt::print("      product_code: {}\n", hex32(**v));
+  else if (eds->product_number)
+    fmt::print("      product_code: {}\n", hex32(*eds->product_number));
+  if (auto v = eds->value(0x1018, 3, node); v && *v)
+    fmt::print("      revision: {}\n", hex32(**v));
+  else if (eds->revision_number)
+    fmt::print("      revision: {}\n", hex32(*eds->revision_number));
   // A serial number identifies one device: only a DCF (one configured device) states it.
   if (const auto* serial = eds->find(0x1018, 4); serial != nullptr && !serial->parameter_value.empty()) {
-    if (auto v = profiles::eds_number(serial->parameter_value, node)) fmt::print("      serial_number: {}\n", hex32(*v));
+    if (auto v = profiles::eds_number(serial->parameter_value, node))
+      fmt::print("      serial_number: {}\n", hex32(*v));
   }
   if (!overrides.empty()) {
-    fmt::print("    pdos:   # the device's own defaults where the line would use others: with them the bridge decodes\n"
-               "            # and sends as the device does and writes nothing at boot; without them it writes the line's\n");
+    fmt::print(
+        "    pdos:   # the device's own defaults where the line would use others: with them the bridge decodes\n"
+        "            # and sends as the device does and writes nothing at boot; without them it writes the line's\n");
     for (const auto& l : overrides) fmt::print("{}\n", l);
   }
   return f.problems.empty() ? kExitOk : kExitFailure;

@@ -22,11 +22,14 @@ std::string loom_text(const msg::LoomSide& l) {
   if (!l.seen()) return "loom: nothing seen yet";
   std::vector<std::string> picks;
   for (const auto& p : l.pick_insertion()) {
-    picks.push_back(p.valid() ? fmt::format("{}({})", p.kind(), fmt::join(p.colours(), ",")) : fmt::format("invalid {:02X}h", p.raw()));
+    picks.push_back(p.valid() ? fmt::format("{}({})", p.kind(), fmt::join(p.colours(), ","))
+                              : fmt::format("invalid {:02X}h", p.raw()));
   }
   return fmt::format("loom: {}, max speed {} 1/min, width {:.2f} m, trigger {}, picks [{}]{}", to_text(l.loom_status()),
                      l.maximum_speed_per_min(), l.loom_width_m(), to_text(l.trigger_signal()), fmt::join(picks, " "),
-                     l.digital_outputs().empty() ? "" : fmt::format(", outputs [{:02X}]", fmt::join(l.digital_outputs(), " ")));
+                     l.digital_outputs().empty()
+                         ? ""
+                         : fmt::format(", outputs [{:02X}]", fmt::join(l.digital_outputs(), " ")));
 }
 
 }  // namespace
@@ -40,13 +43,15 @@ std::string to_text(const msg::FeederStatus& s) {
   std::string out = fmt::format("{} {} | {} feeder(s) | control box: {} | FF10h bitmap {:08X}h{}{}{}\n  {}\n",
                                 clock_text(s.stamp()), state_text(s.health()),
                                 s.feeder_count_read() ? std::to_string(s.feeder_count()) : "?",
-                                s.control_box_error_read() ? to_text(s.control_box_error()) : "not read", s.error_bitmap(),
+                                s.control_box_error_read() ? to_text(s.control_box_error()) : "not read",
+                                s.error_bitmap(),
                                 s.pdo_length_errors() ? fmt::format(" | {} short PDOs", s.pdo_length_errors()) : "",
                                 errors_text(s.health()), other_values_text(s.other_values()), loom_text(s.loom()));
   for (const auto& f : s.feeders()) {
     const auto& fn = f.functions();
-    out += fmt::format("  feeder {:>3}: {}{} | condition {} | {}\n", f.number(), f.status_read() ? to_text(f.status()) : "not read",
-                       f.in_error() ? " IN ERROR" : "", f.error_condition_read() ? to_text(f.error_condition()) : "not read",
+    out += fmt::format("  feeder {:>3}: {}{} | condition {} | {}\n", f.number(),
+                       f.status_read() ? to_text(f.status()) : "not read", f.in_error() ? " IN ERROR" : "",
+                       f.error_condition_read() ? to_text(f.error_condition()) : "not read",
                        f.functions_read()
                            ? fmt::format("{}, {}, {}, {}, {}, {}, {}, {}", function_text("brush", fn.brush_release()),
                                          function_text("winding", fn.winding_direction()),
@@ -63,7 +68,8 @@ std::string to_text(const msg::FeederStatus& s) {
 
 std::string to_text(const msg::FeederUnwinding& u) {
   return fmt::format("{} UNWINDING feeder {} winding {} time {:.1f} ms{}", clock_text(u.stamp()), u.feeder_selected(),
-                     u.winding_number(), u.coil_unwinding_time_ms(), u.in_range() ? "" : " (outside the printed range)");
+                     u.winding_number(), u.coil_unwinding_time_ms(),
+                     u.in_range() ? "" : " (outside the printed range)");
 }
 
 std::string to_text(const msg::FeederError& e) {

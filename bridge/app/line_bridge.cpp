@@ -25,7 +25,8 @@ Result<std::unique_ptr<can::Bus>> open_configured_bus(const profiles::BusConfig&
 }
 
 Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfig& config,
-                                                        std::unique_ptr<ddsl::Participant> dds, const BusOpener& open_bus) {
+                                                       std::unique_ptr<ddsl::Participant> dds,
+                                                       const BusOpener& open_bus) {
   auto bridge = std::make_unique<LineBridge>();
   bridge->dds_ = std::move(dds);
 
@@ -66,7 +67,8 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
   }
   if (!state_dir.empty()) {
     // A state_dir the line file names and nobody made yet is made (what --check calls creatable).
-    if (std::error_code ec; std::filesystem::create_directories(state_dir, ec)) spdlog::info("state_dir {} created", state_dir);
+    if (std::error_code ec; std::filesystem::create_directories(state_dir, ec))
+      spdlog::info("state_dir {} created", state_dir);
     auto store = gateways::SetValueStore::open(state_dir, config.line, config.restore_set_values);
     if (store) {
       bridge->set_values_ = std::move(*store);
@@ -84,9 +86,11 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
   // Master buses: another master there is noticed and, by default, yielded to.
   for (auto& rt : bridge->buses_) {
     if (rt.config->role != profiles::BusRole::master) continue;
-    rt.other_master = std::make_unique<canopen::OtherMasterWatch>(
-        *rt.loop, rt.config->yield_to_other_master ? canopen::OtherMasterWatch::Policy::yield : canopen::OtherMasterWatch::Policy::warn,
-        rt.config->master_node_id);
+    rt.other_master = std::make_unique<canopen::OtherMasterWatch>(*rt.loop,
+                                                                  rt.config->yield_to_other_master
+                                                                      ? canopen::OtherMasterWatch::Policy::yield
+                                                                      : canopen::OtherMasterWatch::Policy::warn,
+                                                                  rt.config->master_node_id);
     for (const auto& dev : config.devices) {
       if (dev.bus != rt.config->name) continue;
       for (const auto& p : dev.pdos) {
@@ -105,17 +109,18 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
     if (rt.sync) {  // the bus's SYNC reaches the node's drivers (NodeDriver::on_sync)
       rt.sync->on_sync([node = rt.nodes.back().get()] { node->tell([](canopen::NodeDriver& d) { d.on_sync(); }); });
     }
-    const gateways::DeviceContext ctx{*rt.loop,     *rt.nodes.back(), rt.sync.get(), rt.sdo.get(),          *bridge->dds_,
-                                      config.line,  *rt.config,       dev,           dev.bridge_profile(), bridge->set_values_.get(),
-                                      config.startup};
+    const gateways::DeviceContext ctx{
+        *rt.loop,      *rt.nodes.back(), rt.sync.get(), rt.sdo.get(),         *bridge->dds_,
+        config.line,   *rt.config,       dev,           dev.bridge_profile(), bridge->set_values_.get(),
+        config.startup};
     try {
       rt.services.push_back(std::make_unique<gateways::DeviceServices>(ctx));
       rt.gateways.push_back(gateways::make_gateway(ctx));
     } catch (const std::runtime_error& e) {
       return make_error(e.what());
     }
-    managed.push_back({dev.name, dev.resolved_profile->device + ", " + dev.resolved_profile->key(), rt.services.back().get(),
-                       rt.gateways.back()->commands()});
+    managed.push_back({dev.name, dev.resolved_profile->device + ", " + dev.resolved_profile->key(),
+                       rt.services.back().get(), rt.gateways.back()->commands()});
   }
   // Mandatory devices (CiA 302-2 1F81h bit 3): one coordinator per master bus that has any, told
   // the boots and operator commands of every device of the bus (in the bus's device order).
@@ -126,12 +131,14 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
     for (const auto& dev : config.devices) {
       if (dev.bus != rt.config->name) continue;
       const auto i = members.size();
-      members.push_back({dev.name, rt.nodes[i].get(), dev.mandatory, [s = rt.services[i].get()] { return s->booting(); }});
+      members.push_back(
+          {dev.name, rt.nodes[i].get(), dev.mandatory, [s = rt.services[i].get()] { return s->booting(); }});
       any = any || dev.mandatory;
     }
     if (!any) continue;
     rt.mandatory = std::make_unique<gateways::MandatoryDevices>(*rt.loop, "bus " + rt.config->name,
-                                                                config.startup.when_mandatory_fails, std::move(members));
+                                                                config.startup.when_mandatory_fails,
+                                                                std::move(members));
     for (std::size_t i = 0; i < rt.services.size(); ++i) {
       auto* m = rt.mandatory.get();
       rt.services[i]->on_operator_nmt([m, i](canopen::NmtCommand c) { m->operator_command(i, c); });
@@ -205,7 +212,8 @@ void LineBridge::start() {
       for (auto& services : rt.services) services->start();
       if (rt.sync) rt.sync->start();
     });
-    spdlog::info("bus {} on {} started as {}", rt.config->name, rt.config->interface, profiles::to_string(rt.config->role));
+    spdlog::info("bus {} on {} started as {}", rt.config->name, rt.config->interface,
+                 profiles::to_string(rt.config->role));
   }
 }
 

@@ -42,12 +42,15 @@ class StandInBus final : public can::Bus {
 };
 
 // What start-up would find on this machine that the file alone does not say.
-void check_machine(const profiles::LineConfig& line, std::vector<std::string>& errors, std::vector<std::string>& warnings) {
+void check_machine(const profiles::LineConfig& line, std::vector<std::string>& errors,
+                   std::vector<std::string>& warnings) {
   for (const auto& bus : line.buses) {
     const std::string_view uri = bus.interface;
     if (uri.rfind("log:", 0) == 0) {
-      const auto path = std::string(uri.substr(4, uri.find('?') == std::string_view::npos ? std::string_view::npos : uri.find('?') - 4));
-      if (::access(path.c_str(), R_OK) != 0) errors.push_back("bus " + bus.name + ": cannot read the recording " + path);
+      const auto path = std::string(
+          uri.substr(4, uri.find('?') == std::string_view::npos ? std::string_view::npos : uri.find('?') - 4));
+      if (::access(path.c_str(), R_OK) != 0)
+        errors.push_back("bus " + bus.name + ": cannot read the recording " + path);
     } else if (uri.rfind("socketcan:", 0) == 0) {
       const std::string ifname(uri.substr(10));
       if (::if_nametoindex(ifname.c_str()) == 0) {
@@ -57,10 +60,11 @@ void check_machine(const profiles::LineConfig& line, std::vector<std::string>& e
     }
     if (!bus.record.empty()) {
       const auto dir = std::filesystem::path(bus.record).parent_path();
-      if (::access(dir.c_str(), W_OK) != 0) warnings.push_back("bus " + bus.name + ": cannot write to " + dir.string() + " (record:)");
+      if (::access(dir.c_str(), W_OK) != 0)
+        warnings.push_back("bus " + bus.name + ": cannot write to " + dir.string() + " (record:)");
       if (bus.record.rfind(kServiceStateDir, 0) != 0) {
-        warnings.push_back("bus " + bus.name + ": record: " + bus.record + " is outside " + std::string(kServiceStateDir) +
-                           ", the only directory the packaged service may write");
+        warnings.push_back("bus " + bus.name + ": record: " + bus.record + " is outside " +
+                           std::string(kServiceStateDir) + ", the only directory the packaged service may write");
       }
     }
   }
@@ -74,8 +78,10 @@ void check_state_dir(const std::string& dir, std::vector<std::string>& errors) {
   const auto where = "state_dir " + dir + ": ";
   struct stat st {};
   if (::stat(dir.c_str(), &st) == 0) {
-    if (!S_ISDIR(st.st_mode)) errors.push_back(where + "not a directory (set values in force are kept there)");
-    else if (::access(dir.c_str(), W_OK | X_OK) != 0) errors.push_back(where + "not writable by this user (" + std::strerror(errno) + ")");
+    if (!S_ISDIR(st.st_mode))
+      errors.push_back(where + "not a directory (set values in force are kept there)");
+    else if (::access(dir.c_str(), W_OK | X_OK) != 0)
+      errors.push_back(where + "not writable by this user (" + std::strerror(errno) + ")");
     return;
   }
   if (errno != ENOENT && errno != ENOTDIR) return errors.push_back(where + std::strerror(errno));
@@ -99,18 +105,22 @@ void check_profile_names(const profiles::LineConfig& line, const std::vector<dds
   if (!site) return;
   const auto unused = [&](const std::vector<std::string>& names, bool writer, const char* what) {
     for (const auto& name : names) {
-      if (name.rfind("rt/", 0) != 0 && name.rfind("rq/", 0) != 0 && name.rfind("rr/", 0) != 0) continue;  // not a topic name
-      const bool used = std::any_of(planned.begin(), planned.end(),
-                                    [&](const ddsl::PlannedEndpoint& e) { return e.topic == name && e.writer == writer; });
-      if (!used) warnings.push_back(std::string(what) + " profile '" + name + "' names no topic the bridge " +
-                                    (writer ? "writes" : "reads") + " on line " + line.line);
+      if (name.rfind("rt/", 0) != 0 && name.rfind("rq/", 0) != 0 && name.rfind("rr/", 0) != 0)
+        continue;  // not a topic name
+      const bool used = std::any_of(planned.begin(), planned.end(), [&](const ddsl::PlannedEndpoint& e) {
+        return e.topic == name && e.writer == writer;
+      });
+      if (!used)
+        warnings.push_back(std::string(what) + " profile '" + name + "' names no topic the bridge " +
+                           (writer ? "writes" : "reads") + " on line " + line.line);
     }
   };
   unused(site->writers, true, "data_writer");
   unused(site->readers, false, "data_reader");
 }
 
-void print_summary(const profiles::LineConfig& line, const std::vector<ddsl::PlannedEndpoint>& planned, std::FILE* out) {
+void print_summary(const profiles::LineConfig& line, const std::vector<ddsl::PlannedEndpoint>& planned,
+                   std::FILE* out) {
   const auto& dds = line.dds;
   std::string discovery = "simple discovery";
   if (!dds.discovery_servers.empty()) {
@@ -119,13 +129,15 @@ void print_summary(const profiles::LineConfig& line, const std::vector<ddsl::Pla
   }
   fmt::print(out, "line {}: {} bus(es), {} device(s); DDS domain {}{}, {}{}{}\n", line.line, line.buses.size(),
              line.devices.size(), dds.domain, dds.localhost_only ? " (localhost only)" : "", discovery,
-             dds.security ? ", secured (DDS Security)" : "", dds.profiles_file.empty() ? "" : ", profiles " + dds.profiles_file);
+             dds.security ? ", secured (DDS Security)" : "",
+             dds.profiles_file.empty() ? "" : ", profiles " + dds.profiles_file);
   if (!line.profiles_dir.empty()) fmt::print(out, "profiles_dir {}\n", line.profiles_dir);
   for (const auto& b : line.buses) {
     fmt::print(out, "bus {} on {}: {}", b.name, b.interface, profiles::to_string(b.role));
     if (b.role == profiles::BusRole::master) {
       fmt::print(out, ", SYNC every {} ms, SDO timeout {} ms", b.sync_period.count() / 1000, b.sdo_timeout.count());
-      if (b.master_node_id != 0) fmt::print(out, ", own heartbeat node {} every {} ms", b.master_node_id, b.master_heartbeat_period.count());
+      if (b.master_node_id != 0)
+        fmt::print(out, ", own heartbeat node {} every {} ms", b.master_node_id, b.master_heartbeat_period.count());
     }
     if (!b.record.empty()) fmt::print(out, ", recording to {}", b.record);
     if (b.realtime_priority != 0) fmt::print(out, ", loop at realtime priority {} (SCHED_FIFO)", b.realtime_priority);
@@ -134,18 +146,23 @@ void print_summary(const profiles::LineConfig& line, const std::vector<ddsl::Pla
     for (const auto& d : line.devices) {
       if (d.bus != b.name) continue;
       fmt::print(out, "  {} node {}: {} {} {} ({}), heartbeat timeout {} ms{}, pdo_config {}{}\n", d.name, d.node_id,
-                 d.resolved_profile->device, d.profile, d.version, d.resolved_profile->title, d.heartbeat_timeout.count(),
-                 d.heartbeat_producer ? fmt::format(" (producer {} ms written to 1017h)", d.heartbeat_producer->count()) : "",
+                 d.resolved_profile->device, d.profile, d.version, d.resolved_profile->title,
+                 d.heartbeat_timeout.count(),
+                 d.heartbeat_producer ? fmt::format(" (producer {} ms written to 1017h)", d.heartbeat_producer->count())
+                                      : "",
                  profiles::to_string(d.pdo_config), d.mandatory ? ", mandatory" : "");
       if (d.mandatory) mandatory += (mandatory.empty() ? "" : ", ") + d.name;
     }
     if (!mandatory.empty()) {
-      fmt::print(out, "  mandatory devices: {}: no device of the bus is started before they passed their boot; if one is "
-                      "lost or fails its boot: {}\n",
-                 mandatory, fmt::format("{} ({})", profiles::to_string(line.startup.when_mandatory_fails),
-                                        line.startup.when_mandatory_fails == profiles::StartupPolicy::WhenMandatoryFails::stop_others
-                                            ? "every other device the bridge started gets NMT stop, kept until an operator starts it"
-                                            : "log and diagnostics; the line runs on"));
+      fmt::print(
+          out,
+          "  mandatory devices: {}: no device of the bus is started before they passed their boot; if one is "
+          "lost or fails its boot: {}\n",
+          mandatory,
+          fmt::format("{} ({})", profiles::to_string(line.startup.when_mandatory_fails),
+                      line.startup.when_mandatory_fails == profiles::StartupPolicy::WhenMandatoryFails::stop_others
+                          ? "every other device the bridge started gets NMT stop, kept until an operator starts it"
+                          : "log and diagnostics; the line runs on"));
     }
   }
   // One line per topic: which way the bridge uses it and with what QoS.
@@ -156,7 +173,8 @@ void print_summary(const profiles::LineConfig& line, const std::vector<ddsl::Pla
     const auto* first = endpoints.front();
     std::string how;
     for (const auto* e : endpoints) {
-      const std::string h = std::string(e->writer ? "bridge writes" : "bridge reads") + (e->partition.empty() ? "" : " in partition " + e->partition);
+      const std::string h = std::string(e->writer ? "bridge writes" : "bridge reads") +
+                            (e->partition.empty() ? "" : " in partition " + e->partition);
       if (how.find(h) == std::string::npos) how += (how.empty() ? "" : ", ") + h;
     }
     fmt::print(out, "  {:<44} {:<52} {} [{}]\n", topic, first->type, how, ddsl::to_string(first->kind));
@@ -182,9 +200,10 @@ int check_line(const std::string& path, const profiles::ProfileRegistry& registr
   // The stand-in bridge neither creates nor writes the state directory: --check changes nothing.
   auto planned_config = *config;
   planned_config.state_dir.clear();
-  auto bridge = LineBridge::create(planned_config, std::move(*dds), [](const profiles::BusConfig& b) -> Result<std::unique_ptr<can::Bus>> {
-    return std::unique_ptr<can::Bus>(std::make_unique<StandInBus>(b.interface));
-  });
+  auto bridge = LineBridge::create(planned_config, std::move(*dds),
+                                   [](const profiles::BusConfig& b) -> Result<std::unique_ptr<can::Bus>> {
+                                     return std::unique_ptr<can::Bus>(std::make_unique<StandInBus>(b.interface));
+                                   });
   if (!bridge) {
     for (const auto& e : errors) fmt::print(err, "error: {}\n", e);
     return fmt::print(err, "{}: {}\n", path, bridge.error().message), kExitUsage;

@@ -26,8 +26,10 @@ class Discovered {
   void add(const ddsl::DiscoveryEvent& e) {
     std::lock_guard lock(mutex_);
     if (e.kind == ddsl::DiscoveryEvent::Kind::participant) {
-      if (e.removed) participants_.erase(e.guid);
-      else participants_[e.guid] = e.name;
+      if (e.removed)
+        participants_.erase(e.guid);
+      else
+        participants_[e.guid] = e.name;
       return;
     }
     auto& t = topics_[e.name];
@@ -38,7 +40,8 @@ class Discovered {
     }
     set.insert(e.guid);
     t.type = e.type;
-    if (e.kind == ddsl::DiscoveryEvent::Kind::writer || t.qos.empty()) t.qos = e.qos;  // a writer's QoS is what it offers
+    if (e.kind == ddsl::DiscoveryEvent::Kind::writer || t.qos.empty())
+      t.qos = e.qos;  // a writer's QoS is what it offers
     t.participants.insert(e.guid.substr(0, e.guid.find('|')));
   }
   std::map<std::string, Topic> topics() const {
@@ -69,7 +72,8 @@ int list_topics(const profiles::LineConfig& line, ddsl::ParticipantOptions optio
   options.see_all_endpoints = true;
   options.on_discovery = [&discovered](const ddsl::DiscoveryEvent& e) { discovered.add(e); };
   auto dds = ddsl::Participant::create_checked(options);
-  if (!dds) return fmt::print(stderr, "{}\n", dds.error().message), dds.error().configuration ? kExitUsage : kExitFailure;
+  if (!dds)
+    return fmt::print(stderr, "{}\n", dds.error().message), dds.error().configuration ? kExitUsage : kExitFailure;
   std::this_thread::sleep_for(duration_ms(o.wait_s));
   const auto topics = discovered.topics();
   std::size_t shown = 0;
@@ -81,7 +85,8 @@ int list_topics(const profiles::LineConfig& line, ddsl::ParticipantOptions optio
       const auto n = discovered.participant(p);
       if (who.find(n) == std::string::npos) who += (who.empty() ? "" : ", ") + n;
     }
-    fmt::print("{:<44} {:<52} writers {} readers {} [{}] ({})\n", name, t.type, t.writers.size(), t.readers.size(), t.qos, who);
+    fmt::print("{:<44} {:<52} writers {} readers {} [{}] ({})\n", name, t.type, t.writers.size(), t.readers.size(),
+               t.qos, who);
     ++shown;
   }
   if (shown == 0) {

@@ -1,6 +1,6 @@
 // linebridge: the gateway process. Serves the buses and devices of one line configuration on DDS.
-#include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
+#include <CLI/CLI.hpp>
 
 #include "app/arguments.hpp"
 #include "app/async_log.hpp"
@@ -178,8 +178,10 @@ int main(int argc, char** argv) {
   if (channel) channel->start();
   std::optional<app::DdsSupervisor> supervisor;
   if (part == "both") {
-    std::vector<std::string> dds_argv{own_executable(), "--part", "dds", "--channel", channel_path, "--log-level", log_level};
-    if (!config_path.empty()) dds_argv.insert(dds_argv.end(), {"--config", std::filesystem::absolute(config_path).string()});
+    std::vector<std::string> dds_argv{own_executable(), "--part",      "dds",    "--channel",
+                                      channel_path,     "--log-level", log_level};
+    if (!config_path.empty())
+      dds_argv.insert(dds_argv.end(), {"--config", std::filesystem::absolute(config_path).string()});
     supervisor.emplace(std::move(dds_argv), [c = channel.get()] { return c->counters().connects; });
   }
   spdlog::info("line {}: {} bus(es), {} device(s), DDS domain {}{}{}{}", config->line, config->buses.size(),
@@ -188,7 +190,8 @@ int main(int argc, char** argv) {
                config->dds.security ? ", secured" : "");
   app::ServiceNotifier notifier((*bridge)->watched_loops());
   if (notifier.watchdog().count() > 0) {
-    spdlog::info("systemd watchdog: every bus loop must show progress within {} ms", notifier.watchdog().count() / 1000);
+    spdlog::info("systemd watchdog: every bus loop must show progress within {} ms",
+                 notifier.watchdog().count() / 1000);
   }
   const int sig = app::run_until_signal(app::duration_ms(duration_s));
   notifier.stopping();

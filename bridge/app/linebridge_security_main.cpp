@@ -1,8 +1,8 @@
 // linebridge-security: what launch_scripts/pki.sh needs from a line file (the governance and each
 // role's permissions, before openssl signs them), and the bridge's own checks of a line's security
 // files, for an integrator to run before starting anything.
-#include <CLI/CLI.hpp>
 #include <fmt/format.h>
+#include <CLI/CLI.hpp>
 
 #include <chrono>
 #include <ctime>
@@ -52,12 +52,16 @@ int main(int argc, char** argv) {
   perm_cmd->add_option("--role", role_name, "observer, operator, engineer or bridge")
       ->required()
       ->check(CLI::IsMember({"observer", "operator", "engineer", "bridge"}));
-  auto* subject_opt = perm_cmd->add_option("--subject", subject, "the identity's subject in RFC 2253 order, e.g. CN=hmi1,O=Plant");
-  perm_cmd->add_option("--certificate", certificate, "take the subject from this certificate (PEM)")->excludes(subject_opt);
+  auto* subject_opt = perm_cmd->add_option("--subject", subject,
+                                           "the identity's subject in RFC 2253 order, e.g. CN=hmi1,O=Plant");
+  perm_cmd->add_option("--certificate", certificate, "take the subject from this certificate (PEM)")
+      ->excludes(subject_opt);
   perm_cmd->add_option("--devices", devices,
                        "operator/engineer: the devices it may command, comma-separated (required for an operator; an "
                        "engineer without it may command every device)");
-  perm_cmd->add_option("--days", days, "the grant is valid from a day ago for this many days")->check(CLI::Range(1, 36500))->capture_default_str();
+  perm_cmd->add_option("--days", days, "the grant is valid from a day ago for this many days")
+      ->check(CLI::Range(1, 36500))
+      ->capture_default_str();
 
   std::string identity_dir;
   auto* check_cmd = cli.add_subcommand(
@@ -108,8 +112,9 @@ int main(int argc, char** argv) {
     return 0;
   }
   // check
-  auto options = identity_dir.empty() ? lb::Result<lb::ddsl::ParticipantOptions>(lb::app::bridge_participant_options(*config))
-                                      : lb::app::client_participant_options(*config, "check", identity_dir);
+  auto options = identity_dir.empty()
+                     ? lb::Result<lb::ddsl::ParticipantOptions>(lb::app::bridge_participant_options(*config))
+                     : lb::app::client_participant_options(*config, "check", identity_dir);
   if (!options) return fmt::print(stderr, "{}\n", options.error().message), 2;
   if (!options->security) return fmt::print(stderr, "line {} is not secured (no dds.security)\n", config->line), 2;
   options->security->grant_policy = lb::app::grant_policy(*config);  // a client's grants too, not only the bridge's
@@ -119,7 +124,8 @@ int main(int argc, char** argv) {
   for (const auto& w : lb::ddsl::grant_warnings(*options->security, config->dds.domain)) fmt::print("warning: {}\n", w);
   for (const auto& w : lb::ddsl::security_warnings(*options->security)) fmt::print("warning: {}\n", w);
   auto s = lb::ddsl::certificate_subject(options->security->certificate);
-  fmt::print("ok: {} on domain {}: identity '{}' ({}), permissions {}, governance {}\n", config->line, config->dds.domain,
-             s ? *s : "?", options->security->certificate, options->security->permissions, options->security->governance);
+  fmt::print("ok: {} on domain {}: identity '{}' ({}), permissions {}, governance {}\n", config->line,
+             config->dds.domain, s ? *s : "?", options->security->certificate, options->security->permissions,
+             options->security->governance);
   return 0;
 }

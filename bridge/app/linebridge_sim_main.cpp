@@ -1,6 +1,6 @@
 // linebridge-sim: plays the devices of a line configuration on their buses, for demos and tests.
-#include <CLI/CLI.hpp>
 #include <spdlog/spdlog.h>
+#include <CLI/CLI.hpp>
 
 #include <algorithm>
 #include <memory>
@@ -10,8 +10,8 @@
 #include "app/line_config_source.hpp"
 #include "app/run_until_signal.hpp"
 #include "canopen/bus_loop.hpp"
-#include "sim/line_controller.hpp"
 #include "sim/device_simulator.hpp"
+#include "sim/line_controller.hpp"
 
 int main(int argc, char** argv) {
   CLI::App cli{"linebridge-sim: simulated CANopen devices of a line"};
@@ -65,7 +65,8 @@ int main(int argc, char** argv) {
     auto loop = std::make_unique<lb::canopen::BusLoop>(std::move(*bus));
     std::vector<const lb::profiles::DeviceConfig*> on_bus;
     for (const auto& dev : config->devices) {
-      if (dev.bus != bus_cfg.name || (!only.empty() && std::find(only.begin(), only.end(), dev.name) == only.end())) continue;
+      if (dev.bus != bus_cfg.name || (!only.empty() && std::find(only.begin(), only.end(), dev.name) == only.end()))
+        continue;
       on_bus.push_back(&dev);
       if (!play_devices) continue;
       // A device the line file describes but no device could be (a factory mapping of objects it
@@ -85,8 +86,8 @@ int main(int argc, char** argv) {
     loops.push_back(std::move(loop));
   }
   for (auto& loop : loops) loop->start();
-  spdlog::info("simulating {} device(s){} of line {}", devices.size(), controllers.empty() ? "" : " and the line controller",
-               config->line);
+  spdlog::info("simulating {} device(s){} of line {}", devices.size(),
+               controllers.empty() ? "" : " and the line controller", config->line);
   lb::app::run_until_signal(lb::app::duration_ms(duration_s));
   for (auto& loop : loops) loop->stop();
   return 0;

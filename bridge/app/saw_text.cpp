@@ -3,7 +3,6 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
-
 namespace lb::app {
 
 namespace msg = linebridge_msgs::msg;
@@ -34,15 +33,14 @@ std::string to_text(const msg::SawStatus& s) {
                                           {c.f2_start(), "f2_start"},
                                           {c.f3_stop(), "f3_stop"},
                                           {c.f3_start(), "f3_start"}});
-  return fmt::format(
-      "{} {} | saw counter {:8.4f} m  speed {:7.3f} m/min  pulses {:>10} | status {:04X}h [{}] | "
-      "set: program {}, {}, wall-thickening {}, length {:.4f} m, sync {:.2f} %{}{}{}{}",
-      clock_text(s.stamp()), state_text(s.health()), s.actual_saw_counter_m(), s.product_speed_m_per_min(),
-      s.counter_value(), w.raw(), bits, c.saw_program_on() ? "on" : "off", to_text(c.count_mode()),
-      c.wall_thickening() ? "on" : "off", s.product_length_set_m(), s.sync_speed_set_percent(),
-      pressed.empty() ? "" : ", pressed [" + pressed + "]",
-      s.pdo_length_errors() ? fmt::format(" | {} short PDOs", s.pdo_length_errors()) : "", errors_text(s.health()),
-      other_values_text(s.other_values()));
+  return fmt::format("{} {} | saw counter {:8.4f} m  speed {:7.3f} m/min  pulses {:>10} | status {:04X}h [{}] | "
+                     "set: program {}, {}, wall-thickening {}, length {:.4f} m, sync {:.2f} %{}{}{}{}",
+                     clock_text(s.stamp()), state_text(s.health()), s.actual_saw_counter_m(),
+                     s.product_speed_m_per_min(), s.counter_value(), w.raw(), bits, c.saw_program_on() ? "on" : "off",
+                     to_text(c.count_mode()), c.wall_thickening() ? "on" : "off", s.product_length_set_m(),
+                     s.sync_speed_set_percent(), pressed.empty() ? "" : ", pressed [" + pressed + "]",
+                     s.pdo_length_errors() ? fmt::format(" | {} short PDOs", s.pdo_length_errors()) : "",
+                     errors_text(s.health()), other_values_text(s.other_values()));
 }
 
 std::string to_text(const msg::SawCut& c) {

@@ -55,8 +55,8 @@ void ServiceNotifier::run() {
       const bool moved = now[i] != last[i];
       all = all && moved;
       if (!moved && !reported[i]) {
-        spdlog::error("bus {}: its loop made no progress for {} ms: the systemd watchdog is no longer fed", loops_[i].name,
-                      std::chrono::duration_cast<std::chrono::milliseconds>(period).count());
+        spdlog::error("bus {}: its loop made no progress for {} ms: the systemd watchdog is no longer fed",
+                      loops_[i].name, std::chrono::duration_cast<std::chrono::milliseconds>(period).count());
       } else if (moved && reported[i]) {
         spdlog::warn("bus {}: its loop runs again", loops_[i].name);
       }

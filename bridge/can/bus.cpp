@@ -9,16 +9,13 @@ namespace lb::can {
 
 Result<void> check_bus_uri(std::string_view uri) {
   const auto colon = uri.find(':');
-  const std::string_view scheme =
-      colon == std::string_view::npos ? std::string_view{} : uri.substr(0, colon);
-  const std::string_view name =
-      colon == std::string_view::npos ? std::string_view{} : uri.substr(colon + 1);
+  const std::string_view scheme = colon == std::string_view::npos ? std::string_view{} : uri.substr(0, colon);
+  const std::string_view name = colon == std::string_view::npos ? std::string_view{} : uri.substr(colon + 1);
   if (scheme != "socketcan" && scheme != "virtual" && scheme != "log") {
     return make_error("unknown scheme in '" + std::string(uri.substr(0, 100)) +
                       "': interface must be socketcan:<ifname>, virtual:<name> or log:<file>");
   }
-  if (name.empty())
-    return make_error("interface '" + std::string(uri) + "': the name after ':' is empty");
+  if (name.empty()) return make_error("interface '" + std::string(uri) + "': the name after ':' is empty");
   if (scheme == "socketcan") return SocketCanBus::check_name(name);
   if (scheme == "virtual") return VirtualBus::check_name(name);
   if (auto spec = LogBus::parse_spec(name); !spec) return spec.error();

@@ -16,7 +16,8 @@ struct CanFrame {
   bool error = false;  // error frame reported by the controller (data as SocketCAN's <linux/can/error.h>)
   std::uint8_t len = 0;
   std::array<std::uint8_t, kMaxLen> data{};
-  std::int64_t timestamp_ns = 0;  // CLOCK_REALTIME when on the bus: SocketCAN the kernel's receive stamp, virtual: the send (0 for frames to send)
+  std::int64_t timestamp_ns = 0;  // CLOCK_REALTIME when on the bus: SocketCAN the kernel's receive stamp, virtual: the
+                                  // send (0 for frames to send)
 
   std::span<const std::uint8_t> payload() const { return {data.data(), len}; }
 };

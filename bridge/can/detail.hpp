@@ -46,8 +46,7 @@ inline Result<void> check_sendable(const CanFrame& frame, const std::string& uri
   // Error frames carry SocketCAN error class bits (29 bits wide) instead of an identifier.
   const bool wide = frame.extended || frame.error;
   if (frame.id > (wide ? 0x1FFF'FFFFu : 0x7FFu)) {
-    return make_error(uri + ": identifier " + hex(frame.id) + " does not fit " +
-                      (wide ? "29" : "11") + " bits");
+    return make_error(uri + ": identifier " + hex(frame.id) + " does not fit " + (wide ? "29" : "11") + " bits");
   }
   return {};
 }

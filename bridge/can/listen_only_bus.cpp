@@ -10,8 +10,7 @@ ListenOnlyBus::ListenOnlyBus(std::unique_ptr<Bus> inner) : inner_(std::move(inne
 
 Result<void> ListenOnlyBus::send(const CanFrame& /*frame*/) {
   ++refused_;
-  return make_error("bus " + inner_->uri() +
-                    " is listen-only (monitor role): transmission refused");
+  return make_error("bus " + inner_->uri() + " is listen-only (monitor role): transmission refused");
 }
 
 BusStats ListenOnlyBus::stats() const {

@@ -52,7 +52,8 @@ Result<LogBus::Spec> LogBus::parse_spec(std::string_view spec) {
     } else if (key == "pace" && value == "fast") {
       out.pace = Pace::fast;
     } else if (key == "pace") {
-      return make_error("log:" + std::string(spec) + ": pace must be realtime or fast, not '" + std::string(value) + "'");
+      return make_error("log:" + std::string(spec) + ": pace must be realtime or fast, not '" + std::string(value) +
+                        "'");
     } else if (key == "interface" && !value.empty()) {
       out.interface = std::string(value);
     } else {
@@ -80,8 +81,9 @@ Result<std::unique_ptr<LogBus>> LogBus::open(std::string_view spec_text) {
   bus->read_next();
   // Anything but a frame before the first frame: most likely not a log file at all.
   if (bus->bad_line_) return *bus->bad_line_;
-  if (!bus->pending_) return make_error(bus->uri_ + ": the file holds no frame" +
-                                        (bus->spec_.interface.empty() ? "" : " of interface " + bus->spec_.interface));
+  if (!bus->pending_)
+    return make_error(bus->uri_ + ": the file holds no frame" +
+                      (bus->spec_.interface.empty() ? "" : " of interface " + bus->spec_.interface));
   bus->first_ns_ = bus->pending_->timestamp_ns;
   bus->stats_.state = BusState::error_active;
   bus->fast_budget_ = kFastBatch;

@@ -4,10 +4,10 @@
 #include <cctype>
 
 #include <linux/can.h>
-#include <net/if_arp.h>
 #include <linux/can/error.h>
 #include <linux/can/raw.h>
 #include <net/if.h>
+#include <net/if_arp.h>
 #include <sys/epoll.h>
 #include <sys/ioctl.h>
 #include <sys/socket.h>
@@ -37,8 +37,8 @@ Result<void> SocketCanBus::check_name(std::string_view ifname) {
   const auto bad = [](char c) { return c == '/' || c == ':' || std::isspace(static_cast<unsigned char>(c)) != 0; };
   if (ifname.empty() || ifname.size() >= IFNAMSIZ || ifname == "." || ifname == ".." ||
       std::any_of(ifname.begin(), ifname.end(), bad)) {
-    return make_error("socketcan:" + std::string(ifname.substr(0, 100)) + ": an interface name is 1 to " + std::to_string(IFNAMSIZ - 1) +
-                      " characters, without '/', ':' or white space");
+    return make_error("socketcan:" + std::string(ifname.substr(0, 100)) + ": an interface name is 1 to " +
+                      std::to_string(IFNAMSIZ - 1) + " characters, without '/', ':' or white space");
   }
   return {};
 }
@@ -55,14 +55,12 @@ Result<std::unique_ptr<SocketCanBus>> SocketCanBus::open(std::string_view ifname
                                             std::move(timer));
   std::string why;
   switch (bus->attach(&why)) {
-    case Attach::attached:
-      break;
+    case Attach::attached: break;
     case Attach::not_yet:  // exists, but down: wait for it
       bus->stats_.state = BusState::down;
       bus->set_retry_timer(true);
       break;
-    case Attach::failed:
-      return make_error(why);
+    case Attach::failed: return make_error(why);
   }
   return bus;
 }

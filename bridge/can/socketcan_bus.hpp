@@ -64,7 +64,7 @@ class SocketCanBus final : public Bus {
   UniqueFd retry_timer_;
   struct RxBatch;
 
-  UniqueFd sock_;  // empty while the link is down
+  UniqueFd sock_;                // empty while the link is down
   std::unique_ptr<RxBatch> rx_;  // frames read by one recvmmsg, handed out one per receive()
   bool opened_once_ = false;
   std::uint32_t socket_dropped_ = 0;  // the current socket's SO_RXQ_OVFL count

@@ -58,8 +58,8 @@ WireMsg overflow_notice() {
 bool valid_name(std::string_view name) {
   if (name.empty() || name.size() > kMaxNameLen) return false;
   return std::all_of(name.begin(), name.end(), [](char c) {
-    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '.' ||
-           c == '_' || c == '-';
+    return (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '.' || c == '_' ||
+           c == '-';
   });
 }
 
@@ -126,10 +126,7 @@ class VirtualBus::Hub {
   }
 
   Hub(UniqueFd listener, UniqueFd epoll, UniqueFd wake)
-      : listener_(std::move(listener)),
-        epoll_(std::move(epoll)),
-        wake_(std::move(wake)),
-        thread_([this] { run(); }) {
+      : listener_(std::move(listener)), epoll_(std::move(epoll)), wake_(std::move(wake)), thread_([this] { run(); }) {
     ::pthread_setname_np(thread_.native_handle(), "lb-vbus-hub");
   }
 
@@ -188,8 +185,7 @@ class VirtualBus::Hub {
       ::setsockopt(fd.get(), SOL_SOCKET, SO_SNDBUF, &kSocketBuffer, sizeof kSocketBuffer);
       // The welcome goes out before the member is in the forwarding set, so it is always first.
       const WireMsg welcome = wire::welcome();
-      if (::send(fd.get(), &welcome, sizeof welcome, MSG_DONTWAIT | MSG_NOSIGNAL) != kMsgSize)
-        continue;
+      if (::send(fd.get(), &welcome, sizeof welcome, MSG_DONTWAIT | MSG_NOSIGNAL) != kMsgSize) continue;
       if (!detail::epoll_add(epoll_.get(), fd.get())) continue;
       members_.push_back(Member{std::move(fd)});
     }
@@ -198,8 +194,7 @@ class VirtualBus::Hub {
   // Reads what a member sent in batches (one recvmmsg each) and forwards each batch to every other
   // member with one sendmmsg: at full load the hub otherwise makes two system calls per frame.
   void pump(int fd) {
-    const auto it = std::find_if(members_.begin(), members_.end(),
-                                 [fd](const Member& m) { return m.fd.get() == fd; });
+    const auto it = std::find_if(members_.begin(), members_.end(), [fd](const Member& m) { return m.fd.get() == fd; });
     if (it == members_.end()) return;
     for (int read = 0; read < kPumpBatch && !it->gone;) {
       const int n = ::recvmmsg(fd, in_.hdr.data(), WireBatch::kSize, MSG_DONTWAIT, nullptr);
@@ -275,8 +270,8 @@ class VirtualBus::Hub {
   UniqueFd epoll_;
   UniqueFd wake_;
   std::vector<Member> members_;  // touched by the hub thread only
-  WireBatch in_;   // hub thread only
-  WireBatch out_;  // hub thread only
+  WireBatch in_;                 // hub thread only
+  WireBatch out_;                // hub thread only
   std::atomic<bool> running_{true};
   std::thread thread_;  // last: starts once everything above exists
 };
@@ -299,8 +294,8 @@ Result<std::unique_ptr<VirtualBus>> VirtualBus::open(std::string_view name) {
   }
   std::string address(1, '\0');
   address.append(kAddressPrefix).append(name);
-  auto bus = std::make_unique<VirtualBus>(PrivateTag{}, std::move(uri), std::move(address),
-                                          std::move(epoll), std::move(timer));
+  auto bus = std::make_unique<VirtualBus>(PrivateTag{}, std::move(uri), std::move(address), std::move(epoll),
+                                          std::move(timer));
 
   // Only races with another member's election or a hub going away end up here more than once.
   const auto deadline = std::chrono::steady_clock::now() + kOpenTimeout;
@@ -327,8 +322,7 @@ struct VirtualBus::RxBatch {
   unsigned next = 0;   // the next one to hand out
 };
 
-VirtualBus::VirtualBus(PrivateTag, std::string uri, std::string address, UniqueFd epoll,
-                       UniqueFd retry_timer)
+VirtualBus::VirtualBus(PrivateTag, std::string uri, std::string address, UniqueFd epoll, UniqueFd retry_timer)
     : uri_(std::move(uri)),
       address_(std::move(address)),
       epoll_(std::move(epoll)),
@@ -350,8 +344,7 @@ Result<bool> VirtualBus::join() {
   UniqueFd listener = seqpacket_socket();
   if (!listener) return make_error(uri_ + ": cannot create a socket: " + errno_text(errno));
   if (::bind(listener.get(), addr.get(), addr.len) == 0) {
-    if (::listen(listener.get(), SOMAXCONN) != 0)
-      return make_error(uri_ + ": listen failed: " + errno_text(errno));
+    if (::listen(listener.get(), SOMAXCONN) != 0) return make_error(uri_ + ": listen failed: " + errno_text(errno));
     auto hub = Hub::start(std::move(listener), uri_);
     if (!hub) return hub.error();
     hub_ = std::move(*hub);  // replaces a hub of ours that stopped on its own, if any
@@ -376,8 +369,8 @@ Result<bool> VirtualBus::join() {
 
 Result<bool> VirtualBus::await_welcome(std::chrono::steady_clock::time_point deadline) {
   for (;;) {
-    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(
-        deadline - std::chrono::steady_clock::now());
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline -
+                                                                            std::chrono::steady_clock::now());
     if (left.count() <= 0) {
       return make_error(uri_ + ": the hub does not answer (is the process that hosts it stopped?)");
     }
@@ -388,12 +381,10 @@ Result<bool> VirtualBus::await_welcome(std::chrono::steady_clock::time_point dea
     WireMsg msg;
     const ssize_t n = ::recv(sock_.get(), &msg, sizeof msg, MSG_DONTWAIT);
     if (n == kMsgSize && msg.kind == Kind::welcome) {
-      if (msg.id != wire::kMagic)
-        return make_error(uri_ + ": the hub speaks another wire format version");
+      if (msg.id != wire::kMagic) return make_error(uri_ + ": the hub speaks another wire format version");
       return true;
     }
-    if (n == 0 || (n < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR))
-      return false;
+    if (n == 0 || (n < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR)) return false;
   }
 }
 

@@ -50,8 +50,7 @@ class VirtualBus final : public Bus {
   // The name rule above, checked before anything is opened (the line configuration checks it too).
   static Result<void> check_name(std::string_view name);
 
-  VirtualBus(PrivateTag, std::string uri, std::string address, UniqueFd epoll,
-             UniqueFd retry_timer);
+  VirtualBus(PrivateTag, std::string uri, std::string address, UniqueFd epoll, UniqueFd retry_timer);
   ~VirtualBus() override;
 
   const std::string& uri() const override { return uri_; }
@@ -83,7 +82,7 @@ class VirtualBus final : public Bus {
   struct RxBatch;
 
   std::unique_ptr<Hub> hub_;
-  UniqueFd sock_;  // connection to the hub; empty while none is reachable
+  UniqueFd sock_;                // connection to the hub; empty while none is reachable
   std::unique_ptr<RxBatch> rx_;  // messages read by one recvmmsg, handed out one per receive()
   BusStats stats_;
 };

@@ -21,7 +21,8 @@ Msg encode(const CanFrame& f, std::int64_t now_ns) {
   Msg m{};
   m.id = f.id;
   m.kind = Kind::frame;
-  m.flags = static_cast<std::uint8_t>((f.extended ? kFlagExtended : 0) | (f.rtr ? kFlagRtr : 0) | (f.error ? kFlagError : 0));
+  m.flags = static_cast<std::uint8_t>((f.extended ? kFlagExtended : 0) | (f.rtr ? kFlagRtr : 0) |
+                                      (f.error ? kFlagError : 0));
   m.len = f.len > CanFrame::kMaxLen ? CanFrame::kMaxLen : f.len;
   std::memcpy(m.data, f.data.data(), m.len);
   m.timestamp_ns = now_ns;

@@ -16,15 +16,23 @@ DataType unsigned_type(unsigned bits) {
 }
 
 std::int64_t now_ns() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch())
+      .count();
 }
 
 // One identity value against its expectation (CiA 302-2: D vendor-ID, M product code, N revision,
 // O serial number); nullopt when it matches or is not checked.
 std::optional<BootError> compare_identity(char code, const char* what, const char* key, std::uint8_t sub,
-                                          std::optional<std::uint32_t> expected, std::uint32_t actual, std::uint8_t node) {
+                                          std::optional<std::uint32_t> expected, std::uint32_t actual,
+                                          std::uint8_t node) {
   if (!expected || *expected == actual) return std::nullopt;
-  return BootError{code, "identity", 0x1018, sub, hex32(*expected), hex32(actual), 0,
+  return BootError{code,
+                   "identity",
+                   0x1018,
+                   sub,
+                   hex32(*expected),
+                   hex32(actual),
+                   0,
                    fmt::format("node {}: {} (1018h sub {}) is {}, the line expects {} (identity.{}): this is not the "
                                "device the line configures at this node-ID",
                                node, what, sub, hex32(actual), hex32(*expected), key)};
@@ -61,12 +69,14 @@ void BootSequence::run(Done done) {
   // A stopped device answers no SDO (CiA 301): pre-operational first. An operational one is left
   // running while it is checked (CiA 302-2 L): a restarted bridge must not stop a running line.
   if (node_.online() && node_.state() == NmtState::stopped) {
-    spdlog::info("{}: node {} is stopped: NMT enter pre-operational before its boot", loop_.bus().uri(), node_.node_id());
+    spdlog::info("{}: node {} is stopped: NMT enter pre-operational before its boot", loop_.bus().uri(),
+                 node_.node_id());
     (void)node_.command(NmtCommand::enter_pre_operational);
   }
   set_step("reading device type and identity");
   batch({SdoRequest::read(0x1000, 0, DataType::unsigned32), SdoRequest::read(0x1018, 1, DataType::unsigned32),
-         SdoRequest::read(0x1018, 2, DataType::unsigned32, true), SdoRequest::read(0x1018, 3, DataType::unsigned32, true),
+         SdoRequest::read(0x1018, 2, DataType::unsigned32, true),
+         SdoRequest::read(0x1018, 3, DataType::unsigned32, true),
          SdoRequest::read(0x1018, 4, DataType::unsigned32, true)},
         [this](Replies r) { check_identity(r); });
 }
@@ -81,8 +91,8 @@ void BootSequence::cancel() {
 
 void BootSequence::batch(std::vector<SdoRequest> requests, std::function<void(Replies)> then) {
   const auto gen = generation_;
-  run_sdo_batch(sdo_, node_.node_id(), std::move(requests), [this, gen] { return gen != generation_; },
-                std::move(then));
+  run_sdo_batch(
+      sdo_, node_.node_id(), std::move(requests), [this, gen] { return gen != generation_; }, std::move(then));
 }
 
 void BootSequence::check_identity(const Replies& r) {
@@ -116,8 +126,9 @@ void BootSequence::check_identity(const Replies& r) {
   id.product_code = static_cast<std::uint32_t>(unsigned_value(r[2]));
   id.revision_number = static_cast<std::uint32_t>(unsigned_value(r[3]));
   id.serial_number = static_cast<std::uint32_t>(unsigned_value(r[4]));
-  const std::pair<std::optional<std::uint32_t>, const char*> absent[] = {
-      {want.product_code, "product code"}, {want.revision, "revision number"}, {want.serial_number, "serial number"}};
+  const std::pair<std::optional<std::uint32_t>, const char*> absent[] = {{want.product_code, "product code"},
+                                                                         {want.revision, "revision number"},
+                                                                         {want.serial_number, "serial number"}};
   for (std::size_t i = 0; i < 3; ++i) {
     if (!r[i + 2].absent) continue;
     id.remarks += std::string(absent[i].second) + ": not implemented; ";
@@ -129,10 +140,11 @@ void BootSequence::check_identity(const Replies& r) {
                                absent[i].second, hex32(*absent[i].first), sub)});
     }
   }
-  for (auto e : {compare_identity('D', "vendor-ID", "vendor_id", 1, want.vendor_id, id.vendor_id, node),
-                 compare_identity('M', "product code", "product_code", 2, want.product_code, id.product_code, node),
-                 compare_identity('N', "revision number", "revision", 3, want.revision, id.revision_number, node),
-                 compare_identity('O', "serial number", "serial_number", 4, want.serial_number, id.serial_number, node)}) {
+  for (auto e :
+       {compare_identity('D', "vendor-ID", "vendor_id", 1, want.vendor_id, id.vendor_id, node),
+        compare_identity('M', "product code", "product_code", 2, want.product_code, id.product_code, node),
+        compare_identity('N', "revision number", "revision", 3, want.revision, id.revision_number, node),
+        compare_identity('O', "serial number", "serial_number", 4, want.serial_number, id.serial_number, node)}) {
     if (e) return fail(std::move(*e));
   }
   set_step("reading PDO parameters");
@@ -195,8 +207,10 @@ void BootSequence::read_pdos(std::vector<PdoSpec> specs, std::function<void(std:
       for (std::size_t k = 0; k < entries.size(); ++k) {
         auto& d = devices[owner[k].first];
         const auto entry = PdoEntry::from_u32(static_cast<std::uint32_t>(unsigned_value(entries[k])));
-        if (d.parameters.mapping.size() < owner[k].second) d.parameters.mapping.push_back(entry);
-        else if (!entries[k].absent) d.unmapped.push_back(entry);
+        if (d.parameters.mapping.size() < owner[k].second)
+          d.parameters.mapping.push_back(entry);
+        else if (!entries[k].absent)
+          d.unmapped.push_back(entry);
       }
       then(std::move(devices));
     });
@@ -274,12 +288,14 @@ void BootSequence::write_pdos() {
     // that what the device sends and takes never follows half a configuration (and a device may
     // refuse them while a PDO is valid). NMT start follows the boot's heartbeat step as usual.
     paused_running_ = running;
-    spdlog::info("{}: node {} {}: NMT enter pre-operational to write its PDO parameters (startup.pdo_change_when_running: "
-                 "pre_operational)",
-                 loop_.bus().uri(), node_.node_id(), running ? "is operational" : "sends no heartbeat");
+    spdlog::info(
+        "{}: node {} {}: NMT enter pre-operational to write its PDO parameters (startup.pdo_change_when_running: "
+        "pre_operational)",
+        loop_.bus().uri(), node_.node_id(), running ? "is operational" : "sends no heartbeat");
     if (auto r = node_.command(NmtCommand::enter_pre_operational); !r) {
       return fail({'J', "PDO configuration", 0, 0, "", "", 0,
-                   fmt::format("node {}: NMT enter pre-operational could not be sent: {}", node_.node_id(), r.error().message)});
+                   fmt::format("node {}: NMT enter pre-operational could not be sent: {}", node_.node_id(),
+                               r.error().message)});
     }
   }
   set_step(fmt::format("writing PDO parameters ({} writes)", pending.writes.size()));
@@ -289,8 +305,8 @@ void BootSequence::write_pdos() {
     if (r.back().error) {
       const auto& q = writes[r.size() - 1];
       return fail({'J', "PDO configuration", q.index, q.sub, to_string(q.value), "refused", r.back().error->abort_code,
-                   fmt::format("node {}: PDO parameter {:04X}h sub {} = {} refused: {}", node_.node_id(), q.index, q.sub,
-                               to_string(q.value), r.back().error->message)});
+                   fmt::format("node {}: PDO parameter {:04X}h sub {} = {} refused: {}", node_.node_id(), q.index,
+                               q.sub, to_string(q.value), r.back().error->message)});
     }
     verify_pdos(std::move(written), std::move(planned));
   });
@@ -313,7 +329,8 @@ void BootSequence::write_configuration() {
   std::vector<SdoRequest> writes;
   for (const auto& w : settings_.writes) writes.push_back(SdoRequest::write(w.index, w.sub, w.type, w.value));
   if (settings_.heartbeat_producer_ms) {
-    writes.push_back(SdoRequest::write(0x1017, 0, DataType::unsigned16, std::uint64_t{*settings_.heartbeat_producer_ms}));
+    writes.push_back(
+        SdoRequest::write(0x1017, 0, DataType::unsigned16, std::uint64_t{*settings_.heartbeat_producer_ms}));
   }
   if (writes.empty()) return verify_configuration();
   set_step(fmt::format("writing the configuration ({} writes)", writes.size()));
@@ -321,8 +338,8 @@ void BootSequence::write_configuration() {
     if (r.back().error) {
       const auto& q = writes[r.size() - 1];
       return fail({'J', "configuration", q.index, q.sub, to_string(q.value), "refused", r.back().error->abort_code,
-                   fmt::format("node {}: configuration write {:04X}h:{:02X}h = {} refused: {}", node_.node_id(), q.index,
-                               q.sub, to_string(q.value), r.back().error->message)});
+                   fmt::format("node {}: configuration write {:04X}h:{:02X}h = {} refused: {}", node_.node_id(),
+                               q.index, q.sub, to_string(q.value), r.back().error->message)});
     }
     verify_configuration();
   });
@@ -351,19 +368,22 @@ void BootSequence::verify_configuration() {
     for (std::size_t i = 0; i < checked.size(); ++i) {
       if (r[i].value && *r[i].value == checked[i].value) continue;
       const auto actual = r[i].value ? to_string(*r[i].value) : std::string("nothing");
-      return fail({'J', "configuration", checked[i].index, checked[i].sub, to_string(checked[i].value), actual, 0,
-                   fmt::format("node {}: {:04X}h:{:02X}h was written as {} and the device confirmed it, but it reads "
-                               "back {} (the device ignored the write)",
-                               node_.node_id(), checked[i].index, checked[i].sub, to_string(checked[i].value), actual)});
+      return fail(
+          {'J', "configuration", checked[i].index, checked[i].sub, to_string(checked[i].value), actual, 0,
+           fmt::format("node {}: {:04X}h:{:02X}h was written as {} and the device confirmed it, but it reads "
+                       "back {} (the device ignored the write)",
+                       node_.node_id(), checked[i].index, checked[i].sub, to_string(checked[i].value), actual)});
     }
     const auto& hb = r.back();
     if (!hb.absent) {
       const auto producer = static_cast<std::uint16_t>(unsigned_value(hb));
       report_.heartbeat_producer_ms = producer;
       if (settings_.heartbeat_producer_ms && producer != *settings_.heartbeat_producer_ms) {
-        return fail({'J', "configuration", 0x1017, 0, std::to_string(*settings_.heartbeat_producer_ms), std::to_string(producer), 0,
-                     fmt::format("node {}: 1017h was written as {} ms and the device confirmed it, but it reads back {} ms",
-                                 node_.node_id(), *settings_.heartbeat_producer_ms, producer)});
+        return fail(
+            {'J', "configuration", 0x1017, 0, std::to_string(*settings_.heartbeat_producer_ms),
+             std::to_string(producer), 0,
+             fmt::format("node {}: 1017h was written as {} ms and the device confirmed it, but it reads back {} ms",
+                         node_.node_id(), *settings_.heartbeat_producer_ms, producer)});
       }
     }
     await_heartbeat();
@@ -424,27 +444,31 @@ void BootSequence::start() {
   node_.starting({report_.was_operational, {id.vendor_id, id.product_code, id.revision_number, id.serial_number}});
   if (const auto hold = node_.operator_hold()) {
     if (auto r = node_.command(*hold); !r) {
-      return fail({0, "start", 0, 0, "", "", 0, fmt::format("node {}: the operator's NMT command could not be sent: {}", node_.node_id(), r.error().message)});
+      return fail({0, "start", 0, 0, "", "", 0,
+                   fmt::format("node {}: the operator's NMT command could not be sent: {}", node_.node_id(),
+                               r.error().message)});
     }
     node_.set_configured(true);
     running_ = false;
     report_.held_by_operator = true;
     set_step(fmt::format("configured; kept {} by the operator (nmt start releases it)",
                          *hold == NmtCommand::stop ? "stopped" : "pre-operational"));
-    spdlog::info("{}: node {} checked and configured, and kept {} as an operator left it (not started)", loop_.bus().uri(),
-                 node_.node_id(), *hold == NmtCommand::stop ? "stopped" : "pre-operational");
+    spdlog::info("{}: node {} checked and configured, and kept {} as an operator left it (not started)",
+                 loop_.bus().uri(), node_.node_id(), *hold == NmtCommand::stop ? "stopped" : "pre-operational");
     if (done_) done_(report_);
     return;
   }
   if (auto r = node_.command(NmtCommand::start); !r) {
-    return fail({0, "start", 0, 0, "", "", 0, fmt::format("node {}: NMT start could not be sent: {}", node_.node_id(), r.error().message)});
+    return fail({0, "start", 0, 0, "", "", 0,
+                 fmt::format("node {}: NMT start could not be sent: {}", node_.node_id(), r.error().message)});
   }
   node_.set_configured(true);
   report_.started = true;
   set_step("started");
   std::size_t writes = settings_.writes.size() + (settings_.heartbeat_producer_ms ? 1 : 0);
-  spdlog::info("{}: node {} checked, configured ({} PDOs verified, {} configuration writes) and started{}", loop_.bus().uri(),
-               node_.node_id(), planned_pdos_.size(), writes, report_.was_operational ? " (it was already operational)" : "");
+  spdlog::info("{}: node {} checked, configured ({} PDOs verified, {} configuration writes) and started{}",
+               loop_.bus().uri(), node_.node_id(), planned_pdos_.size(), writes,
+               report_.was_operational ? " (it was already operational)" : "");
   read_names();
 }
 
@@ -460,7 +484,8 @@ void BootSequence::read_names() {
             if (i < r.size() && r[i].value) {
               if (const auto* s = std::get_if<std::string>(&*r[i].value)) *fields[i] = *s;
             } else {
-              id.remarks += std::string(names[i]) + ": " + (i < r.size() && r[i].error ? r[i].error->message : "not implemented") + "; ";
+              id.remarks += std::string(names[i]) + ": " +
+                            (i < r.size() && r[i].error ? r[i].error->message : "not implemented") + "; ";
             }
           }
           id.read_at_ns = now_ns();
@@ -479,7 +504,8 @@ void BootSequence::fail(BootError error) {
   set_step(error.code != 0 ? fmt::format("failed ({}): {}", error.code, error.message) : "failed: " + error.message);
   if (fail_log_.allow(error.message)) {
     spdlog::warn("{}: boot of node {} failed{}: {}{}", loop_.bus().uri(), node_.node_id(),
-                 error.code != 0 ? fmt::format(" (CiA 302-2 error {})", error.code) : std::string(), error.message, fail_log_.note());
+                 error.code != 0 ? fmt::format(" (CiA 302-2 error {})", error.code) : std::string(), error.message,
+                 fail_log_.note());
   }
   report_.error = std::move(error);
   if (done_) done_(report_);

@@ -2,7 +2,8 @@
 // Brings one device into service the CiA 302-2 way ("boot slave"), master role:
 //   1. device type 1000h (is anyone there, and of the right profile?);
 //   2. identity 1018h sub 1..4 against the expected values;
-//   3. PDO configuration (then handed to the gateways): every PDO's communication and mapping parameters read and compared with
+//   3. PDO configuration (then handed to the gateways): every PDO's communication and mapping parameters read and
+//   compared with
 //      what the master will decode and send; what differs is written in the CiA 301 order where
 //      the profile lets a master write it, and read back; what differs where the profile fixes it
 //      fails the boot (or, in adopt mode, the device's parameters are taken). A device found
@@ -153,9 +154,9 @@ class BootSequence {
   bool waiting_for_state_ = false;  // a heartbeat before the PDO writes
   struct PdoWrites {
     std::vector<SdoRequest> writes;
-    std::vector<PdoSpec> specs;            // the PDOs written, to read back
-    std::vector<PdoParameters> planned;    // what they read back once written
-    std::optional<PdoMismatch> disrupts;   // the first change a running device cannot take
+    std::vector<PdoSpec> specs;           // the PDOs written, to read back
+    std::vector<PdoParameters> planned;   // what they read back once written
+    std::optional<PdoMismatch> disrupts;  // the first change a running device cannot take
   };
   PdoWrites pdo_writes_;
   std::string step_ = "waiting";

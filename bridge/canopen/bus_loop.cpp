@@ -1,9 +1,9 @@
 #include "canopen/bus_loop.hpp"
 
 #include <fmt/ranges.h>
-#include <spdlog/spdlog.h>
 #include <pthread.h>
 #include <sched.h>
+#include <spdlog/spdlog.h>
 #include <sys/epoll.h>
 #include <sys/eventfd.h>
 #include <sys/timerfd.h>
@@ -309,11 +309,13 @@ void BusLoop::watch_link() {
   if (s.state == last_state_) return;
   const auto level = s.state == can::BusState::down || s.state == can::BusState::bus_off ? spdlog::level::err
                      : s.state == can::BusState::error_active                            ? spdlog::level::info
-                                                                                          : spdlog::level::warn;
+                                                                                         : spdlog::level::warn;
   if (s.state == can::BusState::down) {
-    spdlog::log(level, "{}: link down (interface down or gone): nothing is sent or received until it is back", bus_->uri());
+    spdlog::log(level, "{}: link down (interface down or gone): nothing is sent or received until it is back",
+                bus_->uri());
   } else if (last_state_ != can::BusState::unknown || s.state != can::BusState::error_active) {
-    spdlog::log(level, "{}: controller state {} (was {})", bus_->uri(), can::to_string(s.state), can::to_string(last_state_));
+    spdlog::log(level, "{}: controller state {} (was {})", bus_->uri(), can::to_string(s.state),
+                can::to_string(last_state_));
   }
   last_state_ = s.state;
 }

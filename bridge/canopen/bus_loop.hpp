@@ -19,9 +19,9 @@
 #include <chrono>
 #include <cstdint>
 #include <functional>
-#include <string>
 #include <memory>
 #include <mutex>
+#include <string>
 #include <thread>
 #include <vector>
 
@@ -45,9 +45,9 @@ class BusLoop {
   BusLoop& operator=(const BusLoop&) = delete;
 
   // Registration: before start() or on the loop thread.
-  void on_frame(std::uint32_t cob_id, FrameHandler handler);  // 11-bit identifiers
+  void on_frame(std::uint32_t cob_id, FrameHandler handler);       // 11-bit identifiers
   void on_extended_frame(std::uint32_t id, FrameHandler handler);  // 29-bit identifiers (PDOs so configured)
-  void on_other_frame(FrameHandler handler);                  // RTR, error and unclaimed 29-bit frames
+  void on_other_frame(FrameHandler handler);                       // RTR, error and unclaimed 29-bit frames
   TimerId create_timer(Task callback);
   // period zero = one-shot. Re-arming replaces the previous schedule. Loop thread (or before start).
   void arm_timer(TimerId id, std::chrono::nanoseconds first, std::chrono::nanoseconds period = {});
@@ -150,7 +150,7 @@ class BusLoop {
   std::unique_ptr<can::Bus> bus_;
   int epoll_fd_ = -1;
   int timers_fd_ = -1;  // epoll over the timers only: polled between frames
-  int wake_fd_ = -1;  // eventfd: posted tasks and stop
+  int wake_fd_ = -1;    // eventfd: posted tasks and stop
   std::vector<std::unique_ptr<Timer>> timers_;
   std::array<std::vector<Handler>, cob::kStandardIdCount> handlers_;
   std::vector<std::pair<std::uint32_t, Handler>> extended_handlers_;  // few: a linear scan
@@ -180,7 +180,7 @@ class BusLoop {
   std::mutex posted_mutex_;
   std::vector<Task> posted_;
   bool stopping_ = false;  // guarded by posted_mutex_
-  LogRate refused_log_;     // guarded by posted_mutex_
+  LogRate refused_log_;    // guarded by posted_mutex_
   std::atomic<std::uint64_t> posts_refused_{0};
   std::atomic<std::uint64_t> iterations_{0};
   std::thread thread_;

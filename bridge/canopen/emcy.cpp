@@ -67,7 +67,7 @@ void ActiveErrors::reconcile(std::uint8_t error_register) {
   if (error_register == 0) return clear();
   error_register_ = error_register;
   if (known_ && !codes_.empty()) return;  // the EMCYs since the boot-up name them; the register agrees
-  if (reset_left_errors_) return;          // uncertain already, and the note says why
+  if (reset_left_errors_) return;         // uncertain already, and the note says why
   // 1003h cannot help: it is the history, it does not say which of its entries are still active.
   known_ = false;
   note_ = fmt::format("error register 1001h = {:02X}h: errors are active that no EMCY since the device's boot-up "

@@ -41,7 +41,8 @@ void read_error_field(SdoClient& sdo, std::uint8_t node, std::function<bool()> c
                   const auto n = std::min<std::size_t>(reading.history.count, ErrorHistory::kMaxEntries);
                   std::vector<SdoRequest> entries;
                   for (std::size_t sub = 1; sub <= n; ++sub) {
-                    entries.push_back(SdoRequest::read(kErrorField, static_cast<std::uint8_t>(sub), DataType::unsigned32, true));
+                    entries.push_back(
+                        SdoRequest::read(kErrorField, static_cast<std::uint8_t>(sub), DataType::unsigned32, true));
                   }
                   if (entries.empty()) {
                     reading.history.read = true;
@@ -50,7 +51,8 @@ void read_error_field(SdoClient& sdo, std::uint8_t node, std::function<bool()> c
                   run_sdo_batch(sdo, node, std::move(entries), cancelled,
                                 [reading = std::move(reading), done](std::vector<SdoReply> entries_read) mutable {
                                   if (entries_read.back().error) {
-                                    reading.history.remark = "1003h could not be read: " + entries_read.back().error->message;
+                                    reading.history.remark = "1003h could not be read: " +
+                                                             entries_read.back().error->message;
                                     return done(std::move(reading));
                                   }
                                   // In sub-index order, which is newest first.

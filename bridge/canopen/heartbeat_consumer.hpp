@@ -14,9 +14,9 @@ namespace lb::canopen {
 class HeartbeatConsumer {
  public:
   struct Listener {
-    std::function<void()> on_boot_up;                        // the node (re)booted
-    std::function<void(NmtState state, bool online)> on_change;  // state or online flag changed
-    std::function<void(NmtState state)> on_heartbeat;            // every heartbeat, after on_change
+    std::function<void()> on_boot_up;                              // the node (re)booted
+    std::function<void(NmtState state, bool online)> on_change;    // state or online flag changed
+    std::function<void(NmtState state)> on_heartbeat;              // every heartbeat, after on_change
     std::function<void(const can::CanFrame& frame)> on_malformed;  // a frame on 700h + n without data
   };
 

@@ -33,13 +33,15 @@ NodeStateMachine::NodeStateMachine(BusLoop& loop, RemoteNode& node, SdoClient& s
   });
   reset_timer_ = loop_.create_timer([this] {
     if (boot_.running()) return;  // its boot-up came and started one
-    boot_now(fmt::format("no boot-up within {} ms after an NMT reset (lost?): its state is unknown", settings_.reset_bound.count()));
+    boot_now(fmt::format("no boot-up within {} ms after an NMT reset (lost?): its state is unknown",
+                         settings_.reset_bound.count()));
   });
 }
 
 void NodeStateMachine::enter(NodeState next, std::string_view why) {
   if (next == state_) return;
-  spdlog::info("{}: node {}: {} -> {} ({})", loop_.bus().uri(), node_.node_id(), to_string(state_), to_string(next), why);
+  spdlog::info("{}: node {}: {} -> {} ({})", loop_.bus().uri(), node_.node_id(), to_string(state_), to_string(next),
+               why);
   state_ = next;
   ++counters_.transitions;
   node_.tell([next](NodeDriver& d) { d.on_state(next); });
@@ -65,19 +67,25 @@ Result<void> NodeStateMachine::operator_command(NmtCommand command) {
   // configuration: starting it would hand it RPDOs it may misread. Its boot starts it.
   if (command == NmtCommand::start && !node_.configured()) {
     const auto& e = boot_.report().error;
-    const std::string why = e ? (e->code != 0 ? fmt::format("CiA 302-2 error {}: {}", e->code, e->message) : e->message) : detail();
-    return make_error(fmt::format("{}: has not passed its boot ({}): NMT start refused; the bridge starts it when its boot "
-                                  "passes (reset-node boots it again)",
-                                  to_string(state_), why));
+    const std::string why = e ? (e->code != 0 ? fmt::format("CiA 302-2 error {}: {}", e->code, e->message) : e->message)
+                              : detail();
+    return make_error(
+        fmt::format("{}: has not passed its boot ({}): NMT start refused; the bridge starts it when its boot "
+                    "passes (reset-node boots it again)",
+                    to_string(state_), why));
   }
   // Kept before it is sent, so that the command is seen as held (on_command); put back as it was
   // when it cannot be sent.
   const auto before = node_.operator_hold();
-  if (command == NmtCommand::stop || command == NmtCommand::enter_pre_operational) node_.hold(command);
-  else node_.release_hold();  // a start (operational once its heartbeat says so), a reset (a boot follows)
+  if (command == NmtCommand::stop || command == NmtCommand::enter_pre_operational)
+    node_.hold(command);
+  else
+    node_.release_hold();  // a start (operational once its heartbeat says so), a reset (a boot follows)
   if (auto r = node_.command(command); !r) {
-    if (before) node_.hold(*before);
-    else node_.release_hold();
+    if (before)
+      node_.hold(*before);
+    else
+      node_.release_hold();
     return r;
   }
   if (command == NmtCommand::reset_node || command == NmtCommand::reset_communication) reset_sent(true);
@@ -123,7 +131,8 @@ void NodeStateMachine::on_heartbeat(NmtState state) noexcept {
 // boot comes before the boot ends (not configured yet): its end decides (finished()).
 void NodeStateMachine::on_command(NmtCommand command) noexcept {
   const auto& hold = node_.operator_hold();
-  if (hold && *hold == command && node_.configured()) enter(NodeState::stopped_by_operator, "a kept NMT stop or pre-operational");
+  if (hold && *hold == command && node_.configured())
+    enter(NodeState::stopped_by_operator, "a kept NMT stop or pre-operational");
 }
 
 void NodeStateMachine::on_event(NodeEvent event) noexcept {
@@ -156,13 +165,15 @@ void NodeStateMachine::on_event(NodeEvent event) noexcept {
     case NodeEvent::unexpected_state:
       ++counters_.state_unknown;
       if (storm()) return;
-      return recover(node_.state() == NmtState::stopped ? "it reports stopped unasked" : "it reports pre-operational unasked");
+      return recover(node_.state() == NmtState::stopped ? "it reports stopped unasked"
+                                                        : "it reports pre-operational unasked");
   }
 }
 
 void NodeStateMachine::recover(const char* why) {
   if (settings_.on_state_unknown == RecoveryAction::reset_node) {
-    spdlog::warn("{}: node {}: {}: its configuration may be gone, NMT reset node", loop_.bus().uri(), node_.node_id(), why);
+    spdlog::warn("{}: node {}: {}: its configuration may be gone, NMT reset node", loop_.bus().uri(), node_.node_id(),
+                 why);
     boot_.cancel();
     if (auto r = node_.command(NmtCommand::reset_node); r) return reset_sent(false);  // its boot-up starts the boot
   }
@@ -174,7 +185,8 @@ void NodeStateMachine::boot_now(const std::string& why) {
   loop_.disarm_timer(reset_timer_);
   waiting_.clear();
   ++counters_.boots;
-  if (boot_log_.allow(why)) spdlog::info("{}: node {}: boot ({}){}", loop_.bus().uri(), node_.node_id(), why, boot_log_.note());
+  if (boot_log_.allow(why))
+    spdlog::info("{}: node {}: boot ({}){}", loop_.bus().uri(), node_.node_id(), why, boot_log_.note());
   // A node not heard now is probed (the boot's first step): it stays unknown or lost until it answers.
   enter(node_.online() ? NodeState::booting : silent_state(), why);
   boot_.run([this](const BootReport& r) { finished(r); });
@@ -196,9 +208,10 @@ bool NodeStateMachine::storm() {
     return false;
   }
   if (backoff_.count() == 0) ++counters_.storms;
-  backoff_ = std::min<std::chrono::milliseconds>(backoff_.count() == 0 ? settings_.retry : backoff_ * 2, settings_.max_backoff);
-  const auto why = fmt::format("boot-up storm: {} boot-ups or lost states within {} ms; next boot in {} ms", recent_.size(),
-                               settings_.storm_window.count(), backoff_.count());
+  backoff_ = std::min<std::chrono::milliseconds>(backoff_.count() == 0 ? settings_.retry : backoff_ * 2,
+                                                 settings_.max_backoff);
+  const auto why = fmt::format("boot-up storm: {} boot-ups or lost states within {} ms; next boot in {} ms",
+                               recent_.size(), settings_.storm_window.count(), backoff_.count());
   spdlog::warn("{}: node {}: {}", loop_.bus().uri(), node_.node_id(), why);
   boot_after(backoff_, why);
   return true;
@@ -209,17 +222,17 @@ void NodeStateMachine::finished(const BootReport& report) {
     ++counters_.boots_started;  // operational once heard so (on_heartbeat), which may be before this
   } else if (report.held_by_operator) {
     enter(NodeState::stopped_by_operator, "configured and kept as an operator left it");
-  } else if (const auto& e = report.error;
-             e && std::string_view("CDMNOJ").find(e->code) != std::string_view::npos && node_.online() &&
-             node_.state() == NmtState::operational) {
+  } else if (const auto& e = report.error; e && std::string_view("CDMNOJ").find(e->code) != std::string_view::npos &&
+                                           node_.online() && node_.state() == NmtState::operational) {
     // It runs, and what failed does not change by asking again (its identity, a configuration it
     // refuses): kept running as it is and reported, not booted every retry interval for ever.
     // A boot-up, a heartbeat loss or an operator's reset boots it again.
     ++counters_.boot_failures;
     waiting_ = boot_.step() + "; it runs on unmanaged (not started by this bridge); a boot-up, a heartbeat loss or an "
                               "operator's reset boots it again";
-    spdlog::warn("{}: node {}: boot failed while it runs: left running, not retried until it boots, is lost or is reset",
-                 loop_.bus().uri(), node_.node_id());
+    spdlog::warn(
+        "{}: node {}: boot failed while it runs: left running, not retried until it boots, is lost or is reset",
+        loop_.bus().uri(), node_.node_id());
     enter(NodeState::running_unmanaged, fmt::format("boot error {} while it runs", e->code));
   } else {
     ++counters_.boot_failures;

@@ -53,12 +53,12 @@ class NodeStateMachine final : public NodeDriver {
     std::chrono::milliseconds reset_bound{2000};
   };
   struct Counters {
-    std::uint32_t boots = 0;           // attempts begun
-    std::uint32_t boots_started = 0;   // attempts that ended with NMT start
+    std::uint32_t boots = 0;          // attempts begun
+    std::uint32_t boots_started = 0;  // attempts that ended with NMT start
     std::uint32_t boot_failures = 0;
-    std::uint32_t state_unknown = 0;   // lost-and-back and unexpected states
-    std::uint32_t storms = 0;          // times a storm began
-    std::uint32_t transitions = 0;     // changes of state()
+    std::uint32_t state_unknown = 0;  // lost-and-back and unexpected states
+    std::uint32_t storms = 0;         // times a storm began
+    std::uint32_t transitions = 0;    // changes of state()
   };
 
   // Before the loop starts: attaches itself to the node (as its first driver, so that it acts on
@@ -109,7 +109,7 @@ class NodeStateMachine final : public NodeDriver {
   std::deque<std::chrono::steady_clock::time_point> recent_;
   std::chrono::milliseconds backoff_{0};
   std::string waiting_;  // why the next boot is pending, or empty
-  RepeatLog boot_log_;  // an absent device is tried every retry interval: the same line once a minute
+  RepeatLog boot_log_;   // an absent device is tried every retry interval: the same line once a minute
   Counters counters_;
 };
 

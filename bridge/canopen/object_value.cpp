@@ -11,8 +11,8 @@ namespace lb::canopen {
 namespace {
 
 std::string_view kind(const ObjectValue& value) {
-  constexpr std::string_view kKinds[] = {"a signed integer", "an unsigned integer", "a real number",
-                                         "a string", "a byte string"};
+  constexpr std::string_view kKinds[] = {"a signed integer", "an unsigned integer", "a real number", "a string",
+                                         "a byte string"};
   return kKinds[value.index()];
 }
 
@@ -78,10 +78,8 @@ Result<std::vector<std::uint8_t>> encode(DataType type, const ObjectValue& value
       if (const auto* s = std::get_if<std::string>(&value)) return std::vector<std::uint8_t>(s->begin(), s->end());
       return mismatch(type, value);
     case DataType::real32:
-    case DataType::real64:
-      return encode_real(type, value);
-    default:
-      return encode_integer(type, value);
+    case DataType::real64: return encode_real(type, value);
+    default: return encode_integer(type, value);
   }
 }
 

@@ -3,12 +3,12 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
-
 #include "canopen/cob_id.hpp"
 
 namespace lb::canopen {
 
-OtherMasterWatch::OtherMasterWatch(BusLoop& loop, Policy policy, std::uint8_t own_node_id) : loop_(loop), policy_(policy) {
+OtherMasterWatch::OtherMasterWatch(BusLoop& loop, Policy policy, std::uint8_t own_node_id)
+    : loop_(loop), policy_(policy) {
   quiet_timer_ = loop_.create_timer([this] { quiet(); });
   loop_.on_frame(cob::sync, [this](const can::CanFrame& f) { sync_seen(f); });
   loop_.on_frame(cob::nmt, [this](const can::CanFrame& f) { seen(f, "an NMT command from another master"); });
@@ -20,8 +20,10 @@ OtherMasterWatch::OtherMasterWatch(BusLoop& loop, Policy policy, std::uint8_t ow
 
 void OtherMasterWatch::watch_rpdo(std::uint32_t can_id, bool extended) {
   const auto handler = [this](const can::CanFrame& f) { seen(f, "an RPDO the bridge sends, from someone else"); };
-  if (extended) loop_.on_extended_frame(can_id, handler);
-  else loop_.on_frame(can_id, handler);
+  if (extended)
+    loop_.on_extended_frame(can_id, handler);
+  else
+    loop_.on_frame(can_id, handler);
 }
 
 void OtherMasterWatch::seen(const can::CanFrame& frame, const char* what) {
@@ -30,7 +32,8 @@ void OtherMasterWatch::seen(const can::CanFrame& frame, const char* what) {
   if (log_.allow()) {
     spdlog::error("{}: {}: another master or a misconfigured device is on this bus ({} such frames so far){}{}",
                   loop_.bus().uri(), last_, frames_,
-                  yielding_ ? "; the bridge transmits nothing here until the other SYNC producer is silent for 5 s" : "",
+                  yielding_ ? "; the bridge transmits nothing here until the other SYNC producer is silent for 5 s"
+                            : "",
                   held_back_note(log_));
   }
 }
@@ -61,7 +64,8 @@ void OtherMasterWatch::quiet() {
   yielding_ = false;
   run_syncs_ = 0;
   loop_.hold_transmission(false);
-  spdlog::warn("{}: the other master has been silent for {} s: the bridge transmits again", loop_.bus().uri(), kQuiet.count());
+  spdlog::warn("{}: the other master has been silent for {} s: the bridge transmits again", loop_.bus().uri(),
+               kQuiet.count());
 }
 
 }  // namespace lb::canopen

@@ -12,9 +12,7 @@ std::uint64_t load_le64(std::span<const std::uint8_t> bytes) {
   return v;
 }
 
-std::uint64_t low_bits_mask(unsigned bits) {
-  return bits >= 64 ? ~std::uint64_t{0} : (std::uint64_t{1} << bits) - 1;
-}
+std::uint64_t low_bits_mask(unsigned bits) { return bits >= 64 ? ~std::uint64_t{0} : (std::uint64_t{1} << bits) - 1; }
 
 }  // namespace
 

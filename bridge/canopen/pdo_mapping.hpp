@@ -18,12 +18,9 @@ struct PdoEntry {
 
   // The 32-bit form of a mapping entry: index(16) | sub-index(8) | length(8).
   static constexpr PdoEntry from_u32(std::uint32_t v) {
-    return {static_cast<std::uint16_t>(v >> 16), static_cast<std::uint8_t>(v >> 8),
-            static_cast<std::uint8_t>(v)};
+    return {static_cast<std::uint16_t>(v >> 16), static_cast<std::uint8_t>(v >> 8), static_cast<std::uint8_t>(v)};
   }
-  constexpr std::uint32_t to_u32() const {
-    return std::uint32_t{index} << 16 | std::uint32_t{sub} << 8 | bits;
-  }
+  constexpr std::uint32_t to_u32() const { return std::uint32_t{index} << 16 | std::uint32_t{sub} << 8 | bits; }
   // Indices 0001h..0007h only skip bits (CiA 301 dummy mapping).
   constexpr bool is_dummy() const { return index >= 1 && index <= 7; }
   friend bool operator==(const PdoEntry&, const PdoEntry&) = default;

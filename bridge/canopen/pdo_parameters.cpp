@@ -19,7 +19,10 @@ std::string values_of(const std::vector<std::uint8_t>& counts) {
 class Planner {
  public:
   Planner(const PdoSpec& spec, const DevicePdo& device)
-      : spec_(spec), want_(spec.wanted), have_(device.parameters), device_(device),
+      : spec_(spec),
+        want_(spec.wanted),
+        have_(device.parameters),
+        device_(device),
         pdo_(fmt::format("{} ({}/{})", spec.name, hex(spec.communication_index), hex(spec.mapping_index))) {}
 
   Result<PdoPlan, PdoMismatch> run() {
@@ -27,8 +30,8 @@ class Planner {
     if (cob != have_.cob_id) {
       const bool only_valid_bit = ((cob ^ have_.cob_id) & ~kCobIdNotValid) == 0;
       if (!writable(spec_.rules.cob_id) && !(spec_.rules.cob_id == PdoAccess::valid_bit && only_valid_bit)) {
-        return refuse(spec_.communication_index, 1, describe_cob_id(cob), describe_cob_id(have_.cob_id),
-                      "COB-ID", spec_.rules.cob_id);
+        return refuse(spec_.communication_index, 1, describe_cob_id(cob), describe_cob_id(have_.cob_id), "COB-ID",
+                      spec_.rules.cob_id);
       }
     }
     if (want_.transmission_type != have_.transmission_type && !writable(spec_.rules.transmission_type)) {
@@ -54,7 +57,8 @@ class Planner {
   // Bit 30 (no RTR) stays the device's: CiA 420 fixes it, and it is reserved for RPDOs.
   std::uint32_t target_cob_id() const {
     const bool valid = spec_.validity_given ? want_.valid() : have_.valid();
-    return (want_.cob_id & ~(kCobIdNotValid | kCobIdNoRtr)) | (valid ? 0 : kCobIdNotValid) | (have_.cob_id & kCobIdNoRtr);
+    return (want_.cob_id & ~(kCobIdNotValid | kCobIdNoRtr)) | (valid ? 0 : kCobIdNotValid) |
+           (have_.cob_id & kCobIdNoRtr);
   }
 
   std::optional<PdoEntry> device_entry(std::size_t i) const {
@@ -64,8 +68,8 @@ class Planner {
     return std::nullopt;
   }
 
-  std::optional<PdoMismatch> timing(std::uint8_t sub, const char* what, std::uint16_t want, std::uint16_t have, bool present,
-                                    PdoAccess access) const {
+  std::optional<PdoMismatch> timing(std::uint8_t sub, const char* what, std::uint16_t want, std::uint16_t have,
+                                    bool present, PdoAccess access) const {
     if (want == have) return std::nullopt;
     if (!present || access == PdoAccess::none) {
       return mismatch(spec_.communication_index, sub, std::to_string(want), "absent",
@@ -124,7 +128,8 @@ class Planner {
     const bool inhibit_change = spec_.transmit && want_.inhibit_time != have_.inhibit_time;
     // CiA 301: a PDO's identifier, inhibit time and mapping change only while it is not valid
     // (bit 31 set first, cleared last); the transmission type and event timer at any time.
-    const bool invalidate = (mapping_change || identifier_change || inhibit_change) && have_.valid() && can_invalidate();
+    const bool invalidate = (mapping_change || identifier_change || inhibit_change) && have_.valid() &&
+                            can_invalidate();
     if (invalidate) p.writes.push_back({comm, 1, 32, have_.cob_id | kCobIdNotValid});
     if (entries_change_) {
       p.writes.push_back({map, 0, 8, 0});
@@ -144,11 +149,13 @@ class Planner {
     if (have_.valid() && identifier_change) {
       p.disrupts = changing(comm, 1, "COB-ID", describe_cob_id(cob), describe_cob_id(have_.cob_id));
     } else if (have_.valid() && inhibit_change) {
-      p.disrupts = changing(comm, 3, "inhibit time", std::to_string(want_.inhibit_time), std::to_string(have_.inhibit_time));
+      p.disrupts = changing(comm, 3, "inhibit time", std::to_string(want_.inhibit_time),
+                            std::to_string(have_.inhibit_time));
     } else if (mapping_change) {
       p.disrupts = changing(map, 0, "number of mapped objects", std::to_string(want_.mapping.size()),
                             std::to_string(have_.mapping.size()));
-      if (entries_change_) p.disrupts->message = fmt::format("{}: its mapping ({}) differs from the line's", pdo_, hex(map));
+      if (entries_change_)
+        p.disrupts->message = fmt::format("{}: its mapping ({}) differs from the line's", pdo_, hex(map));
     }
     p.result = have_;
     p.result.cob_id = cob;
@@ -163,8 +170,10 @@ class Planner {
 
   bool can_invalidate() const { return writable(spec_.rules.cob_id) || spec_.rules.cob_id == PdoAccess::valid_bit; }
 
-  PdoMismatch changing(std::uint16_t index, std::uint8_t sub, const char* what, std::string expected, std::string actual) const {
-    auto message = fmt::format("{}: {} {} sub {} is {} on the device, the line wants {}", pdo_, what, hex(index), sub, actual, expected);
+  PdoMismatch changing(std::uint16_t index, std::uint8_t sub, const char* what, std::string expected,
+                       std::string actual) const {
+    auto message = fmt::format("{}: {} {} sub {} is {} on the device, the line wants {}", pdo_, what, hex(index), sub,
+                               actual, expected);
     return mismatch(index, sub, std::move(expected), std::move(actual), std::move(message));
   }
 
@@ -234,7 +243,8 @@ std::optional<PdoMismatch> verify_pdo(const PdoSpec& spec, const PdoParameters& 
     return differs(spec.communication_index, 1, describe_cob_id(planned.cob_id), describe_cob_id(got.cob_id));
   }
   if (got.transmission_type != planned.transmission_type) {
-    return differs(spec.communication_index, 2, std::to_string(planned.transmission_type), std::to_string(got.transmission_type));
+    return differs(spec.communication_index, 2, std::to_string(planned.transmission_type),
+                   std::to_string(got.transmission_type));
   }
   if (spec.transmit && read_back.has_inhibit_time && got.inhibit_time != planned.inhibit_time) {
     return differs(spec.communication_index, 3, std::to_string(planned.inhibit_time), std::to_string(got.inhibit_time));

@@ -34,8 +34,8 @@ struct PdoParameters {
 
 // One PDO as the master will decode and send it, with what the device profile lets it write.
 struct PdoSpec {
-  std::string name;  // tpdo1, rpdo1, ...
-  bool transmit = true;  // a TPDO: the device sends it
+  std::string name;                       // tpdo1, rpdo1, ...
+  bool transmit = true;                   // a TPDO: the device sends it
   std::uint16_t communication_index = 0;  // 1400h../1800h..
   std::uint16_t mapping_index = 0;        // 1600h../1A00h..
   PdoParameters wanted;
@@ -82,8 +82,8 @@ struct PdoWrite {
 };
 
 struct PdoPlan {
-  std::vector<PdoWrite> writes;  // in CiA 301 order; empty when the device already matches
-  PdoParameters result;          // what the device holds once they are done (to read back)
+  std::vector<PdoWrite> writes;        // in CiA 301 order; empty when the device already matches
+  PdoParameters result;                // what the device holds once they are done (to read back)
   bool needs_not_operational = false;  // a mapping change: the device must not be operational
   // The first change that takes the PDO out of service while it is written (CiA 301 lets it
   // change only while the PDO is not valid: another identifier, the inhibit time, the mapping),

@@ -17,7 +17,8 @@ std::size_t ProcessImage::find(std::uint16_t index, std::uint8_t sub) const {
 }
 
 PdoBinding::PdoBinding(PdoMapping mapping, const ProcessImage& image) : mapping_(std::move(mapping)) {
-  for (const auto& e : mapping_.entries()) slots_.push_back(e.is_dummy() ? ProcessImage::npos : image.find(e.index, e.sub));
+  for (const auto& e : mapping_.entries())
+    slots_.push_back(e.is_dummy() ? ProcessImage::npos : image.find(e.index, e.sub));
 }
 
 Result<void> PdoBinding::unpack_into(std::span<const std::uint8_t> payload, ProcessImage& image) const {

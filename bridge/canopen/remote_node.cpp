@@ -44,8 +44,8 @@ RemoteNode::RemoteNode(BusLoop& loop, std::uint8_t node_id, std::chrono::millise
                          [this](const can::CanFrame& f) {
                            ++stats_.malformed_heartbeats;
                            if (malformed_log_.allow()) {
-                             spdlog::warn("{}: node {}: heartbeat with {} bytes ignored (CiA 301: 1){}", loop_.bus().uri(),
-                                          this->node_id(), f.len, held_back_note(malformed_log_));
+                             spdlog::warn("{}: node {}: heartbeat with {} bytes ignored (CiA 301: 1){}",
+                                          loop_.bus().uri(), this->node_id(), f.len, held_back_note(malformed_log_));
                            }
                          },
                  }) {
@@ -161,9 +161,9 @@ void RemoteNode::on_emcy_frame(const can::CanFrame& frame) {
   ++stats_.emergencies;
   errors_.apply(*e);
   if (emcy_log_.allow()) {
-    spdlog::log(e->is_reset() ? spdlog::level::info : spdlog::level::warn, "{}: node {} EMCY {:04X}h ({}), register {:02X}h{}",
-                loop_.bus().uri(), node_id(), e->error_code, emcy_family(e->error_code), e->error_register,
-                held_back_note(emcy_log_));
+    spdlog::log(e->is_reset() ? spdlog::level::info : spdlog::level::warn,
+                "{}: node {} EMCY {:04X}h ({}), register {:02X}h{}", loop_.bus().uri(), node_id(), e->error_code,
+                emcy_family(e->error_code), e->error_register, held_back_note(emcy_log_));
   }
   for (auto* d : drivers_) d->on_emcy(*e);
 }

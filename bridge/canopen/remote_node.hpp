@@ -125,7 +125,7 @@ class RemoteNode {
   bool was_online_ = false;
   bool believe_every_boot_up_ = false;
   std::optional<NmtCommand> hold_;  // an operator's stop or pre-operational, kept
-  bool boot_up_pending_ = false;  // a boot-up frame, not yet confirmed by the state that follows
+  bool boot_up_pending_ = false;    // a boot-up frame, not yet confirmed by the state that follows
   Stats stats_;
   ActiveErrors errors_;
   std::vector<PdoInUse> pdos_;

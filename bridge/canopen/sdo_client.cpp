@@ -28,7 +28,7 @@ struct Request {
   std::uint16_t index = 0;
   std::uint8_t sub = 0;
   bool upload = true;
-  SdoClient::Bytes data;  // download: the value to send
+  SdoClient::Bytes data;              // download: the value to send
   std::optional<std::size_t> expect;  // upload: the size of the type read, when the caller knows it
   std::size_t max_waiting = 0;        // limited (a service call): refused when this many wait; 0 = not limited
   SdoClient::UploadDone on_upload;
@@ -119,9 +119,10 @@ class SdoClient::Core {
       const auto waiting = static_cast<std::size_t>(
           std::count_if(queue.begin(), queue.end(), [](const Request& q) { return q.max_waiting > 0; }));
       if (waiting >= r.max_waiting) {
-        refusal = SdoError{0, fmt::format("SDO node {} {:04X}h:{:02X}: refused, not sent: {} requests already wait for this "
-                                          "device (limit {}); try again when they are answered",
-                                          node, r.index, r.sub, waiting, r.max_waiting)};
+        refusal =
+            SdoError{0, fmt::format("SDO node {} {:04X}h:{:02X}: refused, not sent: {} requests already wait for this "
+                                    "device (limit {}); try again when they are answered",
+                                    node, r.index, r.sub, waiting, r.max_waiting)};
       }
     }
     if (refusal) {
@@ -198,15 +199,14 @@ class SdoClient::Core {
       if (ns.active) {
         Request& r = ns.active->request;
         aborts.push_back(frame(node, abort_payload(r, sdo_abort::general_error)));
-        pending.push_back(failure(r,
-                                  make_sdo_error(node, r.index, r.sub, sdo_abort::general_error, SdoErrorOrigin::local,
-                                                 "client destroyed during the transfer")));
+        pending.push_back(failure(r, make_sdo_error(node, r.index, r.sub, sdo_abort::general_error,
+                                                    SdoErrorOrigin::local, "client destroyed during the transfer")));
         ns.active.reset();
       }
       for (Request& r : ns.queue) {
-        pending.push_back(failure(r,
-                                  make_sdo_error(node, r.index, r.sub, sdo_abort::general_error, SdoErrorOrigin::local,
-                                                 "client destroyed before the request was sent")));
+        pending.push_back(
+            failure(r, make_sdo_error(node, r.index, r.sub, sdo_abort::general_error, SdoErrorOrigin::local,
+                                      "client destroyed before the request was sent")));
       }
       ns.queue.clear();
     }
@@ -342,20 +342,20 @@ class SdoClient::Core {
     if (f.len != can::CanFrame::kMaxLen) {
       // Not an SDO frame (CiA 301: always 8 bytes), so not the server's answer: a faulty or foreign
       // frame on 580h + n must not break the transfer, which goes on waiting for the real one.
-      spdlog::debug("{}: {}-byte frame on the SDO response identifier of node {} ignored", loop_.bus().uri(), f.len, node);
+      spdlog::debug("{}: {}-byte frame on the SDO response identifier of node {} ignored", loop_.bus().uri(), f.len,
+                    node);
       return;
     }
-    const auto other_object = [&] {
-      return (d[1] | d[2] << 8) != t.request.index || d[3] != t.request.sub;
-    };
+    const auto other_object = [&] { return (d[1] | d[2] << 8) != t.request.index || d[3] != t.request.sub; };
     // An initiate answer or an abort that names another object is a slow device's late answer to
     // an earlier transfer that timed out: ignored, the transfer in flight goes on waiting for its own
     // (it aborted the next, unrelated transfer before). Segment answers carry no object to tell.
     const bool initiating = t.step == Step::upload_initiate || t.step == Step::download_initiate;
     if (initiating && other_object()) {
-      spdlog::debug("{}: SDO answer of node {} for {:04X}h:{:02X}h ignored: the transfer in flight is {:04X}h:{:02X}h (a late "
-                    "answer to an earlier one)",
-                    loop_.bus().uri(), node, d[1] | d[2] << 8, d[3], t.request.index, t.request.sub);
+      spdlog::debug(
+          "{}: SDO answer of node {} for {:04X}h:{:02X}h ignored: the transfer in flight is {:04X}h:{:02X}h (a late "
+          "answer to an earlier one)",
+          loop_.bus().uri(), node, d[1] | d[2] << 8, d[3], t.request.index, t.request.sub);
       return;
     }
     if (cmd == 0x80) return fail(node, get_u32(d), SdoErrorOrigin::server);
@@ -535,17 +535,17 @@ void SdoClient::read(std::uint8_t node, std::uint16_t index, std::uint8_t sub, D
         if (!r) return done(ReadResult(r.error()));
         auto value = decode(type, *r);
         if (!value) {
-          return done(ReadResult(make_sdo_error(node, index, sub, sdo_abort::length_mismatch, SdoErrorOrigin::local,
-                                                "reply not a " + std::string(to_string(type)) + ": " +
-                                                    value.error().message)));
+          return done(
+              ReadResult(make_sdo_error(node, index, sub, sdo_abort::length_mismatch, SdoErrorOrigin::local,
+                                        "reply not a " + std::string(to_string(type)) + ": " + value.error().message)));
         }
         done(ReadResult(std::move(*value)));
       },
       limit);
 }
 
-void SdoClient::write(std::uint8_t node, std::uint16_t index, std::uint8_t sub, DataType type,
-                      const ObjectValue& value, DownloadDone done, std::optional<Limit> limit) {
+void SdoClient::write(std::uint8_t node, std::uint16_t index, std::uint8_t sub, DataType type, const ObjectValue& value,
+                      DownloadDone done, std::optional<Limit> limit) {
   auto bytes = encode(type, value);
   if (!bytes) {
     Request r;
@@ -574,8 +574,7 @@ void SdoClient::require_service_thread(const char* what) const {
   }
 }
 
-std::future<SdoClient::UploadResult> SdoClient::upload_async(std::uint8_t node, std::uint16_t index,
-                                                             std::uint8_t sub) {
+std::future<SdoClient::UploadResult> SdoClient::upload_async(std::uint8_t node, std::uint16_t index, std::uint8_t sub) {
   require_service_thread("upload_async");
   return via_future<UploadResult>([&](UploadDone done) { upload(node, index, sub, std::move(done)); });
 }
@@ -593,12 +592,10 @@ std::future<SdoClient::ReadResult> SdoClient::read_async(std::uint8_t node, std:
   return via_future<ReadResult>([&](ReadDone done) { read(node, index, sub, type, std::move(done)); });
 }
 
-std::future<SdoClient::DownloadResult> SdoClient::write_async(std::uint8_t node, std::uint16_t index,
-                                                              std::uint8_t sub, DataType type,
-                                                              const ObjectValue& value) {
+std::future<SdoClient::DownloadResult> SdoClient::write_async(std::uint8_t node, std::uint16_t index, std::uint8_t sub,
+                                                              DataType type, const ObjectValue& value) {
   require_service_thread("write_async");
-  return via_future<DownloadResult>(
-      [&](DownloadDone done) { write(node, index, sub, type, value, std::move(done)); });
+  return via_future<DownloadResult>([&](DownloadDone done) { write(node, index, sub, type, value, std::move(done)); });
 }
 
 }  // namespace lb::canopen

@@ -96,15 +96,15 @@ Result<void> ObjectDictionary::set(std::uint16_t index, std::uint8_t sub, Bytes 
   if (it == entries_.end()) return make_error(fmt::format("{:04X}h:{:02X}: no such object", index, sub));
   const std::size_t size = sdo_size(it->second.type);
   if (size != 0 && value.size() != size) {
-    return make_error(fmt::format("{:04X}h:{:02X}: {} takes {} bytes, got {}", index, sub,
-                                  to_string(it->second.type), size, value.size()));
+    return make_error(fmt::format("{:04X}h:{:02X}: {} takes {} bytes, got {}", index, sub, to_string(it->second.type),
+                                  size, value.size()));
   }
   it->second.value = std::move(value);
   return {};
 }
 
 Result<const ObjectDictionary::Entry*, std::uint32_t> ObjectDictionary::lookup(std::uint16_t index,
-                                                                                std::uint8_t sub) const {
+                                                                               std::uint8_t sub) const {
   if (const Entry* e = find(index, sub)) return e;
   // CiA 301 tells "no such object" from "no such sub-index of an object that exists".
   auto it = entries_.lower_bound(key(index, 0));
@@ -180,8 +180,8 @@ struct SdoServer::Core {
   }
 
   void abort(std::uint32_t code) {
-    spdlog::debug("{}: SDO server {}: abort {:04X}h:{:02X} with {:08X}h ({})", loop.bus().uri(), node, index, sub,
-                  code, sdo_abort_meaning(code));
+    spdlog::debug("{}: SDO server {}: abort {:04X}h:{:02X} with {:08X}h ({})", loop.bus().uri(), node, index, sub, code,
+                  sdo_abort_meaning(code));
     Payload p = initiate_response(0x80);
     for (int i = 0; i < 4; ++i) p[4 + i] = static_cast<std::uint8_t>(code >> (8 * i));
     respond(p);

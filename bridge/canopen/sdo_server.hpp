@@ -58,8 +58,7 @@ class ObjectDictionary {
   // A remote client's access, as the SDO server grants it. The error is the abort code.
   Result<Bytes, std::uint32_t> read(std::uint16_t index, std::uint8_t sub) const;
   // What can be refused before a segmented download's data arrives (size: when indicated).
-  Result<void, std::uint32_t> check_write(std::uint16_t index, std::uint8_t sub,
-                                          std::optional<std::size_t> size) const;
+  Result<void, std::uint32_t> check_write(std::uint16_t index, std::uint8_t sub, std::optional<std::size_t> size) const;
   Result<void, std::uint32_t> write(std::uint16_t index, std::uint8_t sub, std::span<const std::uint8_t> value);
 
  private:

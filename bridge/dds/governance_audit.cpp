@@ -38,7 +38,8 @@ std::vector<std::string> governance_protection_problems(const std::string& xml, 
   const XMLElement* dds = doc.FirstChildElement("dds");
   const XMLElement* rules = dds ? dds->FirstChildElement("domain_access_rules") : nullptr;
   const XMLElement* rule = rules ? rules->FirstChildElement("domain_rule") : nullptr;
-  while (rule != nullptr && !covers(rule->FirstChildElement("domains"), domain)) rule = rule->NextSiblingElement("domain_rule");
+  while (rule != nullptr && !covers(rule->FirstChildElement("domains"), domain))
+    rule = rule->NextSiblingElement("domain_rule");
   if (rule == nullptr) return problems;
 
   const std::string where = "the domain_rule of domain " + std::to_string(domain);
@@ -51,7 +52,8 @@ std::vector<std::string> governance_protection_problems(const std::string& xml, 
        t = t->NextSiblingElement("topic_rule")) {
     const std::string topic = "topic_rule '" + trimmed_text(t->FirstChildElement("topic_expression")) + "'";
     require_true(t, "enable_discovery_protection", topic,
-                 "its endpoints are announced on the unprotected discovery endpoints, topic and type names in clear", problems);
+                 "its endpoints are announced on the unprotected discovery endpoints, topic and type names in clear",
+                 problems);
     require_true(t, "enable_liveliness_protection", topic,
                  "its writers' liveliness goes on the unprotected liveliness endpoint", problems);
     require_encrypt(t, "metadata_protection_kind", topic,

@@ -45,7 +45,8 @@ using xml::trimmed_text;
 
 std::vector<std::string> texts(const XMLElement* list, const char* item) {
   std::vector<std::string> out;
-  for (const XMLElement* e = list ? list->FirstChildElement(item) : nullptr; e != nullptr; e = e->NextSiblingElement(item)) {
+  for (const XMLElement* e = list ? list->FirstChildElement(item) : nullptr; e != nullptr;
+       e = e->NextSiblingElement(item)) {
     out.push_back(trimmed_text(e));
   }
   return out;
@@ -73,12 +74,14 @@ std::optional<std::vector<ParsedGrant>> parse_grants(const std::string& xml, std
     grant.name = g->Attribute("name") ? g->Attribute("name") : "";
     grant.subject = trimmed_text(g->FirstChildElement("subject_name"));
     grant.default_allow = trimmed_text(g->FirstChildElement("default")) == "ALLOW";
-    for (const XMLElement* r = g->FirstChildElement("allow_rule"); r != nullptr; r = r->NextSiblingElement("allow_rule")) {
+    for (const XMLElement* r = g->FirstChildElement("allow_rule"); r != nullptr;
+         r = r->NextSiblingElement("allow_rule")) {
       if (!covers(r->FirstChildElement("domains"), domain)) continue;
       for (const XMLElement* b = r->FirstChildElement("publish"); b != nullptr; b = b->NextSiblingElement("publish")) {
         add_rights(b, grant.publish);
       }
-      for (const XMLElement* b = r->FirstChildElement("subscribe"); b != nullptr; b = b->NextSiblingElement("subscribe")) {
+      for (const XMLElement* b = r->FirstChildElement("subscribe"); b != nullptr;
+           b = b->NextSiblingElement("subscribe")) {
         add_rights(b, grant.subscribe);
       }
     }
@@ -93,7 +96,8 @@ struct Reference {
   std::set<Right> subscribe;
 };
 
-void add_generated(Reference& ref, const GrantPolicy& policy, std::uint32_t domain, Role role, std::vector<std::string> devices) {
+void add_generated(Reference& ref, const GrantPolicy& policy, std::uint32_t domain, Role role,
+                   std::vector<std::string> devices) {
   Grant g;
   g.line = policy.line;
   g.domain = domain;
@@ -165,11 +169,11 @@ void audit_grant(const ParsedGrant& g, const GrantPolicy& policy, std::uint32_t 
   if (!is_bridge) {
     const auto named = role_by_name(g, policy.line);
     if (auto topic = bridge_topic_published(g, policy); topic || named == Role::bridge) {
-      out.errors.push_back(who + " is a bridge grant (it may publish '" + (topic ? *topic : "what the bridge writes") +
-                           "', which only the bridge writes): only the bridge's own identity " +
-                           (policy.bridge_subject.empty() ? std::string("(not known here)")
-                                                          : "'" + policy.bridge_subject + "'") +
-                           " may hold one");
+      out.errors.push_back(
+          who + " is a bridge grant (it may publish '" + (topic ? *topic : "what the bridge writes") +
+          "', which only the bridge writes): only the bridge's own identity " +
+          (policy.bridge_subject.empty() ? std::string("(not known here)") : "'" + policy.bridge_subject + "'") +
+          " may hold one");
       return;
     }
   }
@@ -245,7 +249,8 @@ std::vector<std::string> grant_warnings(const SecurityFiles& files, std::uint32_
   auto text = smime_text(files.permissions);
   if (!text) return {};
   std::vector<std::string> out;
-  for (auto& w : audit_grants(*text, *files.grant_policy, domain).warnings) out.push_back("permissions " + files.permissions + ": " + w);
+  for (auto& w : audit_grants(*text, *files.grant_policy, domain).warnings)
+    out.push_back("permissions " + files.permissions + ": " + w);
   return out;
 }
 

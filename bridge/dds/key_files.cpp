@@ -34,7 +34,8 @@ std::vector<CaKey> ca_public_keys(const std::vector<std::string>& ca_certificate
     const auto pem = ossl::read_whole_file(path, why);
     if (!pem) continue;
     for (const auto& c : ossl::read_certificates(*pem)) {
-      if (EVP_PKEY* k = X509_get_pubkey(c.get())) out.push_back({ossl::name_text(X509_get_subject_name(c.get())), ossl::Key(k)});
+      if (EVP_PKEY* k = X509_get_pubkey(c.get()))
+        out.push_back({ossl::name_text(X509_get_subject_name(c.get())), ossl::Key(k)});
     }
   }
   return out;
@@ -44,7 +45,8 @@ std::vector<CaKey> ca_public_keys(const std::vector<std::string>& ca_certificate
 ossl::Key private_key_in(const std::string& pem) {
   ossl::Bio in = ossl::memory_bio(pem);
   // A password callback that gives none: an encrypted key fails instead of prompting.
-  ossl::Key key(PEM_read_bio_PrivateKey(in.get(), nullptr, [](char*, int, int, void*) { return 0; }, nullptr));
+  ossl::Key key(PEM_read_bio_PrivateKey(
+      in.get(), nullptr, [](char*, int, int, void*) { return 0; }, nullptr));
   ERR_clear_error();
   return key;
 }

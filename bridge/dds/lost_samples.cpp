@@ -21,7 +21,8 @@ void LostSamples::seen(const eprosima::fastrtps::rtps::SampleIdentity& id, const
   lock.unlock();
   spdlog::warn("{}: {} sample(s) of one writer lost before the bridge read them (written faster than read; "
                "{} lost in all){}",
-               topic, gap, lost(), held_back == 0 ? std::string() : " (" + std::to_string(held_back) + " more reports not logged)");
+               topic, gap, lost(),
+               held_back == 0 ? std::string() : " (" + std::to_string(held_back) + " more reports not logged)");
 }
 
 }  // namespace lb::ddsl

@@ -3,12 +3,12 @@
 
 #include <spdlog/spdlog.h>
 
-#include <fastdds/dds/domain/DomainParticipantFactory.hpp>
-#include <fastdds/dds/domain/DomainParticipantListener.hpp>
 #include <fastdds/rtps/attributes/ServerAttributes.h>
 #include <fastdds/rtps/transport/UDPv4TransportDescriptor.h>
 #include <fastdds/rtps/transport/shared_mem/SharedMemTransportDescriptor.h>
 #include <fastrtps/utils/IPLocator.h>
+#include <fastdds/dds/domain/DomainParticipantFactory.hpp>
+#include <fastdds/dds/domain/DomainParticipantListener.hpp>
 
 #include <algorithm>
 #include <atomic>
@@ -43,10 +43,11 @@ Result<fdds::DomainParticipantQos> base_qos(const ParticipantOptions& options, s
   auto site = load_site_profiles(options.profiles_file);
   if (!site) return site.error();
   const std::string profile = !options.participant_profile.empty() ? options.participant_profile
-                              : site->default_participant ? *site->default_participant
-                                                          : std::string();
+                              : site->default_participant          ? *site->default_participant
+                                                                   : std::string();
   if (!profile.empty()) {
-    if (factory->get_participant_qos_from_profile(profile, qos) != eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK) {
+    if (factory->get_participant_qos_from_profile(profile, qos) !=
+        eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK) {
       return make_error("no participant profile '" + profile + "' in the DDS profiles files");
     }
   } else {
@@ -70,7 +71,8 @@ Result<fdds::DomainParticipantQos> base_qos(const ParticipantOptions& options, s
   // Remote participants, bounded (ParticipantOptions::max_remote_participants says why). The
   // limit counts this participant's own entry too. A site profile's own limit wins.
   if (options.max_remote_participants > 0 && qos.allocation().participants == pristine.allocation().participants) {
-    const auto remote = static_cast<std::size_t>(std::min(options.max_remote_participants, ParticipantOptions::kMaxRemoteParticipantsLimit));
+    const auto remote = static_cast<std::size_t>(
+        std::min(options.max_remote_participants, ParticipantOptions::kMaxRemoteParticipantsLimit));
     qos.allocation().participants = eprosima::fastrtps::ResourceLimitedContainerConfig{2, remote + 1, 4};
   }
   // Transports. UDP only unless the line asks for shared memory: Fast DDS 2.9's shared-memory
@@ -85,7 +87,8 @@ Result<fdds::DomainParticipantQos> base_qos(const ParticipantOptions& options, s
     if (address != nullptr) udp->interfaceWhiteList.emplace_back(address);
     qos.transport().user_transports.push_back(udp);
     if (options.shared_memory) {
-      qos.transport().user_transports.push_back(std::make_shared<eprosima::fastdds::rtps::SharedMemTransportDescriptor>());
+      qos.transport().user_transports.push_back(
+          std::make_shared<eprosima::fastdds::rtps::SharedMemTransportDescriptor>());
     }
   };
   const bool site_transports = !(qos.transport() == pristine.transport());
@@ -111,8 +114,9 @@ Result<fdds::DomainParticipantQos> base_qos(const ParticipantOptions& options, s
     if (discovery.discoveryProtocol != eprosima::fastrtps::rtps::DiscoveryProtocol_t::SIMPLE) {
       notes.push_back("dds.discovery_servers replaces the site profile's discovery protocol");
     }
-    discovery.discoveryProtocol = options.see_all_endpoints ? eprosima::fastrtps::rtps::DiscoveryProtocol_t::SUPER_CLIENT
-                                                            : eprosima::fastrtps::rtps::DiscoveryProtocol_t::CLIENT;
+    discovery.discoveryProtocol = options.see_all_endpoints
+                                      ? eprosima::fastrtps::rtps::DiscoveryProtocol_t::SUPER_CLIENT
+                                      : eprosima::fastrtps::rtps::DiscoveryProtocol_t::CLIENT;
     discovery.m_DiscoveryServers.clear();
     for (const auto& server : options.discovery_servers) {
       eprosima::fastdds::rtps::RemoteServerAttributes remote;
@@ -214,8 +218,8 @@ fdds::DataReaderQos reader_qos(const std::string& topic, QosKind kind, std::vect
 // "reliable, transient-local[, deadline 2 s]": what a discovered endpoint announced.
 template <class Qos>
 std::string qos_text(const Qos& q) {
-  std::string out = std::string(q.m_reliability.kind == fdds::RELIABLE_RELIABILITY_QOS ? "reliable" : "best-effort") + ", " +
-                    (q.m_durability.kind == fdds::VOLATILE_DURABILITY_QOS ? "volatile" : "transient-local");
+  std::string out = std::string(q.m_reliability.kind == fdds::RELIABLE_RELIABILITY_QOS ? "reliable" : "best-effort") +
+                    ", " + (q.m_durability.kind == fdds::VOLATILE_DURABILITY_QOS ? "volatile" : "transient-local");
   if (q.m_deadline.period != eprosima::fastrtps::c_TimeInfinite) {
     std::ostringstream s;
     s << ", deadline " << q.m_deadline.period.to_ns() / 1e9 << " s";
@@ -251,7 +255,8 @@ class Listener : public fdds::DomainParticipantListener {
   Listener(RemoteTally& tally, WriterPartitions* partitions, DiscoveryObserver observer)
       : tally_(tally), partitions_(partitions), observer_(std::move(observer)) {}
 
-  void on_participant_discovery(fdds::DomainParticipant*, eprosima::fastrtps::rtps::ParticipantDiscoveryInfo&& info) override {
+  void on_participant_discovery(fdds::DomainParticipant*,
+                                eprosima::fastrtps::rtps::ParticipantDiscoveryInfo&& info) override {
     using S = eprosima::fastrtps::rtps::ParticipantDiscoveryInfo;
     const bool removed = info.status == S::REMOVED_PARTICIPANT || info.status == S::DROPPED_PARTICIPANT;
     if (info.status == S::DISCOVERED_PARTICIPANT) ++tally_.known;
@@ -260,21 +265,31 @@ class Listener : public fdds::DomainParticipantListener {
       ++tally_.departed;
     }
     if (!observer_) return;
-    observer_({DiscoveryEvent::Kind::participant, removed, guid_text(info.info.m_guid.guidPrefix),
-               info.info.m_participantName.to_string(), {}, {}, {}});
+    observer_({DiscoveryEvent::Kind::participant,
+               removed,
+               guid_text(info.info.m_guid.guidPrefix),
+               info.info.m_participantName.to_string(),
+               {},
+               {},
+               {}});
   }
-  void onParticipantAuthentication(fdds::DomainParticipant*, eprosima::fastrtps::rtps::ParticipantAuthenticationInfo&& info) override {
-    if (info.status == eprosima::fastrtps::rtps::ParticipantAuthenticationInfo::UNAUTHORIZED_PARTICIPANT) ++tally_.refused;
+  void onParticipantAuthentication(fdds::DomainParticipant*,
+                                   eprosima::fastrtps::rtps::ParticipantAuthenticationInfo&& info) override {
+    if (info.status == eprosima::fastrtps::rtps::ParticipantAuthenticationInfo::UNAUTHORIZED_PARTICIPANT)
+      ++tally_.refused;
   }
-  void on_publisher_discovery(fdds::DomainParticipant* participant, eprosima::fastrtps::rtps::WriterDiscoveryInfo&& info) override {
-    if (partitions_ != nullptr) partitions_->on_publisher_discovery(participant, eprosima::fastrtps::rtps::WriterDiscoveryInfo(info));
+  void on_publisher_discovery(fdds::DomainParticipant* participant,
+                              eprosima::fastrtps::rtps::WriterDiscoveryInfo&& info) override {
+    if (partitions_ != nullptr)
+      partitions_->on_publisher_discovery(participant, eprosima::fastrtps::rtps::WriterDiscoveryInfo(info));
     if (!observer_) return;
     using S = eprosima::fastrtps::rtps::WriterDiscoveryInfo;
     observer_({DiscoveryEvent::Kind::writer, info.status == S::REMOVED_WRITER, guid_text(info.info.guid()),
                info.info.topicName().to_string(), info.info.typeName().to_string(), qos_text(info.info.m_qos),
                partitions_text(info.info.m_qos.m_partition)});
   }
-  void on_subscriber_discovery(fdds::DomainParticipant*, eprosima::fastrtps::rtps::ReaderDiscoveryInfo&& info) override {
+  void on_subscriber_discovery(fdds::DomainParticipant*,
+                               eprosima::fastrtps::rtps::ReaderDiscoveryInfo&& info) override {
     if (!observer_) return;
     using S = eprosima::fastrtps::rtps::ReaderDiscoveryInfo;
     observer_({DiscoveryEvent::Kind::reader, info.status == S::REMOVED_READER, guid_text(info.info.guid()),
@@ -298,8 +313,9 @@ Result<fdds::DomainParticipantQos> participant_qos(const ParticipantOptions& opt
   // Fast DDS 2.9 announces the host name, the user and the process id in every participant's
   // discovery data (propagated properties), unencrypted before authentication: nothing a peer
   // needs, and a map of the plant for anyone who listens.
-  std::erase_if(qos->properties().properties(),
-                [](const eprosima::fastrtps::rtps::Property& p) { return p.name().rfind("fastdds.physical_data.", 0) == 0; });
+  std::erase_if(qos->properties().properties(), [](const eprosima::fastrtps::rtps::Property& p) {
+    return p.name().rfind("fastdds.physical_data.", 0) == 0;
+  });
   return qos;
 }
 
@@ -340,7 +356,8 @@ Result<std::unique_ptr<Participant>, CreateError> Participant::create_checked(co
   auto* factory = fdds::DomainParticipantFactory::get_instance();
   p->participant_ = factory->create_participant(options.domain, *qos, p->listener_.get(), fdds::StatusMask::none());
   if (p->participant_ == nullptr) {
-    if (!options.security) return CreateError{"cannot create DDS participant on domain " + std::to_string(options.domain)};
+    if (!options.security)
+      return CreateError{"cannot create DDS participant on domain " + std::to_string(options.domain)};
     return CreateError{"Fast DDS refused the secured participant on domain " + std::to_string(options.domain) +
                            " although its files passed linebridge's checks (see Fast DDS's messages above; a property "
                            "given in dds.security.properties?)",
@@ -352,7 +369,8 @@ Result<std::unique_ptr<Participant>, CreateError> Participant::create_checked(co
   }
   p->publisher_ = p->participant_->create_publisher(fdds::PUBLISHER_QOS_DEFAULT);
   p->subscriber_ = p->participant_->create_subscriber(fdds::SUBSCRIBER_QOS_DEFAULT);
-  if (p->publisher_ == nullptr || p->subscriber_ == nullptr) return CreateError{"cannot create DDS publisher/subscriber"};
+  if (p->publisher_ == nullptr || p->subscriber_ == nullptr)
+    return CreateError{"cannot create DDS publisher/subscriber"};
   return p;
 }
 
@@ -381,7 +399,8 @@ std::unique_ptr<Participant> Participant::over_channel(const ParticipantOptions&
   return p;
 }
 
-void Participant::heard_partitions(const eprosima::fastrtps::rtps::GUID_t& writer, const std::vector<std::string>& partitions) {
+void Participant::heard_partitions(const eprosima::fastrtps::rtps::GUID_t& writer,
+                                   const std::vector<std::string>& partitions) {
   std::lock_guard lock(mutex_);
   // Bounded: writers come and go with clients; a writer forgotten here is told again with its next sample.
   if (channel_partitions_.size() >= 1024) channel_partitions_.clear();
@@ -423,11 +442,13 @@ RemoteCounts Participant::remote_counts() const {
   return {remote_tally_->known.load(), remote_tally_->refused.load(), remote_tally_->departed.load()};
 }
 
-bool Participant::writer_in_partition(const eprosima::fastrtps::rtps::GUID_t& writer, std::string_view partition) const {
+bool Participant::writer_in_partition(const eprosima::fastrtps::rtps::GUID_t& writer,
+                                      std::string_view partition) const {
   if (channel_ != nullptr) {
     std::lock_guard lock(mutex_);
     const auto it = channel_partitions_.find(writer);
-    return it != channel_partitions_.end() && std::find(it->second.begin(), it->second.end(), partition) != it->second.end();
+    return it != channel_partitions_.end() &&
+           std::find(it->second.begin(), it->second.end(), partition) != it->second.end();
   }
   return writer_partitions_ != nullptr && writer_partitions_->contains(writer, partition);
 }
@@ -551,7 +572,8 @@ fdds::DataReader* Participant::create_reader(fdds::Topic* topic, QosKind kind, i
     std::lock_guard lock(mutex_);
     qos = reader_qos(topic->get_name(), kind, site_notes_);
   }
-  if (keep_last > 0 && qos.history().kind == fdds::KEEP_LAST_HISTORY_QOS) set_history(qos, fdds::KEEP_LAST_HISTORY_QOS, keep_last);
+  if (keep_last > 0 && qos.history().kind == fdds::KEEP_LAST_HISTORY_QOS)
+    set_history(qos, fdds::KEEP_LAST_HISTORY_QOS, keep_last);
   fdds::Subscriber* sub = any_partition ? any_partition_subscriber() : subscriber_;
   if (sub == nullptr) return nullptr;
   auto* r = sub->create_datareader(topic, qos, listener);

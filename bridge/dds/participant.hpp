@@ -18,8 +18,8 @@
 #include <map>
 #include <memory>
 #include <mutex>
-#include <shared_mutex>
 #include <optional>
+#include <shared_mutex>
 #include <string>
 #include <string_view>
 #include <type_traits>
@@ -62,11 +62,11 @@ struct DiscoveryEvent {
   enum class Kind { participant, writer, reader };
   Kind kind = Kind::participant;
   bool removed = false;
-  std::string guid;       // the participant's GUID prefix or the endpoint's GUID
-  std::string name;       // the participant's name or the endpoint's topic
-  std::string type;       // the endpoint's type name
-  std::string qos;        // "reliable, transient-local" ...
-  std::string partitions; // comma-separated
+  std::string guid;        // the participant's GUID prefix or the endpoint's GUID
+  std::string name;        // the participant's name or the endpoint's topic
+  std::string type;        // the endpoint's type name
+  std::string qos;         // "reliable, transient-local" ...
+  std::string partitions;  // comma-separated
 };
 using DiscoveryObserver = std::function<void(const DiscoveryEvent&)>;
 
@@ -299,7 +299,8 @@ class Participant {
       record_plan(PlannedEndpoint{topic, PubSubType().getName(), kind, false, {}});
       return std::make_unique<Subscription>(*this, nullptr, nullptr);
     }
-    if (channel_ != nullptr) return make_error("a scoped subscription needs a DDS participant, not a channel: " + topic);
+    if (channel_ != nullptr)
+      return make_error("a scoped subscription needs a DDS participant, not a channel: " + topic);
     auto t = topic_for<PubSubType>(topic);
     if (!t) return t.error();
     auto listener = std::make_unique<TypedListener<PubSubType>>(std::move(callback), gate_, lost_for(kind), topic);
@@ -423,28 +424,30 @@ class Participant {
   }
   template <class PubSubType>
   Result<Writer<PubSubType>> channel_writer(const std::string& topic, QosKind kind, const std::string& partition) {
-    const auto id = channel_->declare(declaration<PubSubType>(topic, kind, true, partition, 0, false), kind == QosKind::state);
+    const auto id = channel_->declare(declaration<PubSubType>(topic, kind, true, partition, 0, false),
+                                      kind == QosKind::state);
     return Writer<PubSubType>(*channel_, id);
   }
   // The channel's thread runs the callback, as a Fast DDS listener thread would, behind the same gate.
   template <class PubSubType>
-  Result<void> channel_reader(const std::string& topic, QosKind kind, SampleCallback<PubSubType> callback, int keep_last,
-                              bool any_partition) {
-    channel_->declare_reader(
-        declaration<PubSubType>(topic, kind, false, any_partition ? "*" : "", keep_last, any_partition),
-        [this, cb = std::move(callback), gate = gate_, lost = lost_for(kind), topic, any_partition](const link::Sample& s) {
-          std::shared_lock lock(gate->mutex);
-          if (gate->closed) return;
-          typename PubSubType::type sample;
-          if (!from_cdr(s.payload, sample)) return undecodable(topic);
-          fdds::SampleInfo info;
-          info.valid_data = true;
-          info.sample_identity = from_link(s.identity);
-          info.related_sample_identity = from_link(s.related);
-          if (any_partition) heard_partitions(info.sample_identity.writer_guid(), s.partitions);
-          if (lost) lost->seen(info.sample_identity, topic);
-          cb(sample, info);
-        });
+  Result<void> channel_reader(const std::string& topic, QosKind kind, SampleCallback<PubSubType> callback,
+                              int keep_last, bool any_partition) {
+    channel_->declare_reader(declaration<PubSubType>(topic, kind, false, any_partition ? "*" : "", keep_last,
+                                                     any_partition),
+                             [this, cb = std::move(callback), gate = gate_, lost = lost_for(kind), topic,
+                              any_partition](const link::Sample& s) {
+                               std::shared_lock lock(gate->mutex);
+                               if (gate->closed) return;
+                               typename PubSubType::type sample;
+                               if (!from_cdr(s.payload, sample)) return undecodable(topic);
+                               fdds::SampleInfo info;
+                               info.valid_data = true;
+                               info.sample_identity = from_link(s.identity);
+                               info.related_sample_identity = from_link(s.related);
+                               if (any_partition) heard_partitions(info.sample_identity.writer_guid(), s.partitions);
+                               if (lost) lost->seen(info.sample_identity, topic);
+                               cb(sample, info);
+                             });
     return {};
   }
   void heard_partitions(const eprosima::fastrtps::rtps::GUID_t& writer, const std::vector<std::string>& partitions);
@@ -463,7 +466,9 @@ class Participant {
   fdds::Publisher* publisher_in(const std::string& partition);
   fdds::Subscriber* any_partition_subscriber();
 
-  std::shared_ptr<LostSamples> lost_for(QosKind kind) const { return kind == QosKind::command ? lost_commands_ : nullptr; }
+  std::shared_ptr<LostSamples> lost_for(QosKind kind) const {
+    return kind == QosKind::command ? lost_commands_ : nullptr;
+  }
 
   std::shared_ptr<CallbackGate> gate_ = std::make_shared<CallbackGate>();
   std::shared_ptr<LostSamples> lost_commands_ = std::make_shared<LostSamples>();

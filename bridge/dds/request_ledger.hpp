@@ -21,8 +21,8 @@
 #include <mutex>
 #include <optional>
 
-#include <fastdds/dds/subscriber/SampleInfo.hpp>
 #include <fastdds/rtps/common/SampleIdentity.h>
+#include <fastdds/dds/subscriber/SampleInfo.hpp>
 
 namespace lb::ddsl {
 

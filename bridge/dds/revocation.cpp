@@ -7,7 +7,8 @@
 namespace lb::ddsl {
 namespace {
 
-const char* const kRenewHint = "renew it with `launch_scripts/pki.sh revoke --dir DIR` (without --name it only re-issues the list)";
+const char* const kRenewHint =
+    "renew it with `launch_scripts/pki.sh revoke --dir DIR` (without --name it only re-issues the list)";
 
 // Fast DDS reads the first PEM CRL of the file (FileProvider::load_crl), nothing else.
 ossl::Crl first_crl(const std::string& pem) {
@@ -72,7 +73,8 @@ FileFindings check_identity_crl(const std::string& crl_path, const std::string& 
                               "its next update is " + ossl::time_text(next) + ", within " +
                                   std::to_string(kCrlRenewWarning.count() / 24) +
                                   " days: after that moment a running bridge authenticates nobody new and a "
-                                  "restart is refused; " + kRenewHint});
+                                  "restart is refused; " +
+                                  kRenewHint});
     }
   }
 

@@ -143,7 +143,8 @@ std::vector<Cert> check_ca(const std::string& key, const std::string& path, Prob
   auto cas = read_certificates(*pem);
   if (cas.empty()) return problems.add(key, path, "no PEM certificate in it"), std::vector<Cert>{};
   for (const auto& ca : cas) {
-    if (auto v = validity_problem(ca.get())) problems.add(key, path, "CA certificate '" + subject_of(ca.get()) + "' " + *v);
+    if (auto v = validity_problem(ca.get()))
+      problems.add(key, path, "CA certificate '" + subject_of(ca.get()) + "' " + *v);
   }
   return cas;
 }
@@ -164,9 +165,10 @@ Cert check_certificate(const SecurityFiles& f, const std::vector<Cert>& cas, Pro
       Bio out(BIO_new(BIO_s_mem()));
       X509_NAME_print_ex(out.get(), X509_get_issuer_name(cert.get()), 0, XN_FLAG_RFC2253 & ~ASN1_STRFLGS_ESC_MSB);
       problems.add("certificate", f.certificate,
-                   subject + " is not accepted by the identity CA " + f.identity_ca + " ('" + subject_of(cas.front().get()) +
-                       "', " + fingerprint(cas.front().get()) + "): " + X509_verify_cert_error_string(err) +
-                       " (it was issued by a CA named '" + bio_text(out.get()) + "')");
+                   subject + " is not accepted by the identity CA " + f.identity_ca + " ('" +
+                       subject_of(cas.front().get()) + "', " + fingerprint(cas.front().get()) +
+                       "): " + X509_verify_cert_error_string(err) + " (it was issued by a CA named '" +
+                       bio_text(out.get()) + "')");
     }
   }
   return cert;
@@ -254,14 +256,17 @@ std::optional<std::string> signed_content(const std::string& key, const std::str
                        });
   if (!from_ca) {
     problems.add(key, path,
-                 "signed by '" + (signer ? subject_of(signer) + "' (" + fingerprint(signer) + ")" : std::string("an unknown signer'")) +
+                 "signed by '" +
+                     (signer ? subject_of(signer) + "' (" + fingerprint(signer) + ")"
+                             : std::string("an unknown signer'")) +
                      ", not by the permissions CA " + ca_path + " ('" + subject_of(cas.front().get()) + "', " +
                      fingerprint(cas.front().get()) + ")");
     return std::nullopt;
   }
   if (verifies(*bytes, cas, PKCS7_TEXT | PKCS7_NOVERIFY, nullptr)) {
     const int err = verify_chain(signer, cas);
-    std::string reason = err == X509_V_OK ? std::string("the signer cannot sign documents") : X509_verify_cert_error_string(err);
+    std::string reason = err == X509_V_OK ? std::string("the signer cannot sign documents")
+                                          : X509_verify_cert_error_string(err);
     if ((X509_get_extension_flags(signer) & EXFLAG_KUSAGE) != 0 &&
         (X509_get_key_usage(signer) & (KU_DIGITAL_SIGNATURE | KU_NON_REPUDIATION)) == 0) {
       reason = "the signing certificate '" + subject_of(signer) + "' has a keyUsage without digitalSignature";
@@ -272,7 +277,8 @@ std::optional<std::string> signed_content(const std::string& key, const std::str
   if (verifies(*bytes, cas, PKCS7_NOVERIFY, nullptr)) {
     problems.add(key, path,
                  "signed without -text: Fast DDS 2.9 verifies the text/plain header that `openssl smime -sign -text` "
-                 "adds (" + std::string(kSignHint) + ")");
+                 "adds (" +
+                     std::string(kSignHint) + ")");
     return std::nullopt;
   }
   problems.add(key, path, "its signature does not match its content: the document was changed after it was signed");
@@ -323,15 +329,19 @@ void check_governance(const std::string& path, const std::string& xml, std::uint
   if (doc.Parse(xml.c_str(), xml.size()) != tinyxml2::XML_SUCCESS) {
     return problems.add("governance", path, std::string("malformed XML: ") + doc.ErrorStr());
   }
-  const XMLElement* rules = doc.FirstChildElement("dds") ? doc.FirstChildElement("dds")->FirstChildElement("domain_access_rules")
-                                                         : nullptr;
+  const XMLElement* rules = doc.FirstChildElement("dds")
+                                ? doc.FirstChildElement("dds")->FirstChildElement("domain_access_rules")
+                                : nullptr;
   if (rules == nullptr) return problems.add("governance", path, "no <dds><domain_access_rules> in it");
   const XMLElement* rule = rules->FirstChildElement("domain_rule");
-  while (rule != nullptr && !domain_in(rule->FirstChildElement("domains"), domain)) rule = rule->NextSiblingElement("domain_rule");
-  if (rule == nullptr) return problems.add("governance", path, "no domain_rule covers domain " + std::to_string(domain));
+  while (rule != nullptr && !domain_in(rule->FirstChildElement("domains"), domain))
+    rule = rule->NextSiblingElement("domain_rule");
+  if (rule == nullptr)
+    return problems.add("governance", path, "no domain_rule covers domain " + std::to_string(domain));
   const std::string where = "the domain_rule of domain " + std::to_string(domain);
   if (bool_text(rule->FirstChildElement("allow_unauthenticated_participants"), true)) {
-    problems.add("governance", path, where + " allows unauthenticated participants (allow_unauthenticated_participants must be false)");
+    problems.add("governance", path,
+                 where + " allows unauthenticated participants (allow_unauthenticated_participants must be false)");
   }
   if (!bool_text(rule->FirstChildElement("enable_join_access_control"), false)) {
     problems.add("governance", path, where + " does not control who joins (enable_join_access_control must be true)");
@@ -344,17 +354,20 @@ void check_governance(const std::string& path, const std::string& xml, std::uint
     const std::string topic = "topic_rule '" + trimmed(text_of(t->FirstChildElement("topic_expression"))) + "'";
     if (!bool_text(t->FirstChildElement("enable_read_access_control"), false) ||
         !bool_text(t->FirstChildElement("enable_write_access_control"), false)) {
-      problems.add("governance", path, topic + " lets anyone read or write (enable_read_access_control and "
-                                               "enable_write_access_control must be true)");
+      problems.add("governance", path,
+                   topic + " lets anyone read or write (enable_read_access_control and "
+                           "enable_write_access_control must be true)");
     }
     const std::string data = trimmed(text_of(t->FirstChildElement("data_protection_kind")));
     if (data.rfind("SIGN", 0) == 0) {
-      problems.add("governance", path, topic + ": data_protection_kind " + data +
-                                           " is broken in Fast DDS 2.9.1 (payloads whose size is not a multiple of 4 "
-                                           "never arrive): use ENCRYPT");
+      problems.add("governance", path,
+                   topic + ": data_protection_kind " + data +
+                       " is broken in Fast DDS 2.9.1 (payloads whose size is not a multiple of 4 "
+                       "never arrive): use ENCRYPT");
     } else if (data.rfind("ENCRYPT", 0) != 0) {
-      problems.add("governance", path, topic + ": data_protection_kind " + (data.empty() ? "(none)" : data) +
-                                           " leaves payloads readable on the wire: use ENCRYPT");
+      problems.add("governance", path,
+                   topic + ": data_protection_kind " + (data.empty() ? "(none)" : data) +
+                       " leaves payloads readable on the wire: use ENCRYPT");
     }
   }
   if (n == 0) problems.add("governance", path, where + " has no topic_rule");
@@ -388,7 +401,9 @@ void check_permissions(const SecurityFiles& f, const std::string& xml, const std
   if (doc.Parse(xml.c_str(), xml.size()) != tinyxml2::XML_SUCCESS) {
     return problems.add("permissions", path, std::string("malformed XML: ") + doc.ErrorStr());
   }
-  const XMLElement* perms = doc.FirstChildElement("dds") ? doc.FirstChildElement("dds")->FirstChildElement("permissions") : nullptr;
+  const XMLElement* perms = doc.FirstChildElement("dds")
+                                ? doc.FirstChildElement("dds")->FirstChildElement("permissions")
+                                : nullptr;
   if (perms == nullptr) return problems.add("permissions", path, "no <dds><permissions> in it");
   if (subject.empty()) return;  // the certificate's own problem is reported already
 
@@ -409,7 +424,8 @@ void check_permissions(const SecurityFiles& f, const std::string& xml, const std
       if (parts == sorted_wanted) {
         reasons.push_back(grant + " names the certificate's subject as '" + grant_subject +
                           "', which is not in RFC 2253 order (as `openssl x509 -noout -subject -nameopt RFC2253` "
-                          "prints it; Fast DDS compares in that order): write '" + subject + "'");
+                          "prints it; Fast DDS compares in that order): write '" +
+                          subject + "'");
       } else {
         others.push_back("'" + grant_subject + "'");
       }
@@ -470,7 +486,8 @@ Result<void> check_security_files(const SecurityFiles& f, std::uint32_t domain) 
   check_private_key(f, cert.get(), problems);
   if (auto mode = private_key_mode_problem(f.private_key)) problems.add("private_key", f.private_key, *mode);
   if (!f.identity_crl.empty()) {
-    for (const auto& p : check_identity_crl(f.identity_crl, f.identity_ca, f.certificate, std::time(nullptr)).problems) {
+    for (const auto& p :
+         check_identity_crl(f.identity_crl, f.identity_ca, f.certificate, std::time(nullptr)).problems) {
       problems.add(p.key, p.path, p.why);
     }
   }
@@ -482,23 +499,27 @@ Result<void> check_security_files(const SecurityFiles& f, std::uint32_t domain) 
   if (auto xml = signed_content("permissions", f.permissions, permission_cas, f.permissions_ca, problems)) {
     check_permissions(f, *xml, cert ? subject_of(cert.get()) : std::string(), domain, problems);
     if (f.grant_policy) {
-      for (const auto& e : audit_grants(*xml, *f.grant_policy, domain).errors) problems.add("permissions", f.permissions, e);
+      for (const auto& e : audit_grants(*xml, *f.grant_policy, domain).errors)
+        problems.add("permissions", f.permissions, e);
     }
   }
-  for (const auto& [key, why] : security_property_problems(f.properties)) problems.add("dds.security.properties", key, why);
+  for (const auto& [key, why] : security_property_problems(f.properties))
+    problems.add("dds.security.properties", key, why);
   return problems.result();
 }
 
 std::vector<std::string> security_warnings(const SecurityFiles& f) {
   std::vector<std::string> out;
   if (!f.identity_crl.empty()) {
-    for (const auto& w : check_identity_crl(f.identity_crl, f.identity_ca, f.certificate, std::time(nullptr)).warnings) {
+    for (const auto& w :
+         check_identity_crl(f.identity_crl, f.identity_ca, f.certificate, std::time(nullptr)).warnings) {
       out.push_back(w.text());
     }
   }
   const std::vector<std::string> in_use{f.identity_ca, f.certificate, f.private_key, f.permissions_ca,
                                         f.governance,  f.permissions, f.identity_crl};
-  for (const auto& w : ca_keys_beside(in_use, {f.identity_ca, f.permissions_ca}, f.private_key)) out.push_back(w.text());
+  for (const auto& w : ca_keys_beside(in_use, {f.identity_ca, f.permissions_ca}, f.private_key))
+    out.push_back(w.text());
   return out;
 }
 

@@ -11,13 +11,13 @@ namespace {
 // What the bridge publishes per device and what reaches which role. Topic expressions are
 // fnmatch patterns (Fast DDS), so "*" also stands for a device not configured yet.
 constexpr std::array kObservedTopics{"status", "cut", "emergency", "info", "unwinding", "feeder_error"};
-constexpr std::array kSetValueTopics{"setpoint", "loom"};            // apps -> bridge, per device
+constexpr std::array kSetValueTopics{"setpoint", "loom"};  // apps -> bridge, per device
 constexpr std::array kSetValueResults{"setpoint_result", "loom_result"};
-constexpr std::array kOperatorLineServices{"command"};               // line-wide, partitioned by device
+constexpr std::array kOperatorLineServices{"command"};  // line-wide, partitioned by device
 constexpr std::array kEngineerLineServices{"nmt", "sdo_read", "sdo_write", "get_parameter", "set_parameter"};
-constexpr std::array kOperatorDeviceServices{"feeder_command"};      // a feeder box's own services
-constexpr std::array kEngineerDeviceServices{"feeder_test", "feeder_functions", "feeder_assignment", "weft_insertion_type",
-                                             "trigger_source"};
+constexpr std::array kOperatorDeviceServices{"feeder_command"};  // a feeder box's own services
+constexpr std::array kEngineerDeviceServices{"feeder_test", "feeder_functions", "feeder_assignment",
+                                             "weft_insertion_type", "trigger_source"};
 
 std::string escaped(std::string_view s) {
   std::string out;
@@ -96,12 +96,16 @@ std::string_view to_string(Role role) {
 
 std::string governance_xml(std::uint32_t domain) {
   return "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
-         "<!-- linebridge governance of DDS domain " + std::to_string(domain) + " (launch_scripts/pki.sh). Every participant of the\n"
+         "<!-- linebridge governance of DDS domain " +
+         std::to_string(domain) +
+         " (launch_scripts/pki.sh). Every participant of the\n"
          "     domain must use this same document, signed by the permissions CA. -->\n"
          "<dds xmlns:xsi=\"http://www.w3.org/2001/XMLSchema-instance\">\n"
          "  <domain_access_rules>\n"
          "    <domain_rule>\n"
-         "      <domains><id>" + std::to_string(domain) + "</id></domains>\n"
+         "      <domains><id>" +
+         std::to_string(domain) +
+         "</id></domains>\n"
          "      <allow_unauthenticated_participants>false</allow_unauthenticated_participants>\n"
          "      <enable_join_access_control>true</enable_join_access_control>\n"
          "      <discovery_protection_kind>ENCRYPT</discovery_protection_kind>\n"
@@ -164,15 +168,24 @@ std::string permissions_xml(const Grant& g) {
   }
 
   std::string x = "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n"
-                  "<!-- linebridge permissions: role " + std::string(to_string(g.role)) + " on line " + line +
+                  "<!-- linebridge permissions: role " +
+                  std::string(to_string(g.role)) + " on line " + line +
                   " (launch_scripts/pki.sh) -->\n"
                   "<dds xmlns:xsi=\"http://www.w3.org/2001/XMLSchema-instance\">\n"
                   "  <permissions>\n"
-                  "    <grant name=\"" + escaped(line + "_" + std::string(to_string(g.role))) + "\">\n"
-                  "      <subject_name>" + escaped(g.subject) + "</subject_name>\n"
+                  "    <grant name=\"" +
+                  escaped(line + "_" + std::string(to_string(g.role))) +
+                  "\">\n"
+                  "      <subject_name>" +
+                  escaped(g.subject) +
+                  "</subject_name>\n"
                   "      <validity>\n"
-                  "        <not_before>" + escaped(g.not_before) + "</not_before>\n"
-                  "        <not_after>" + escaped(g.not_after) + "</not_after>\n"
+                  "        <not_before>" +
+                  escaped(g.not_before) +
+                  "</not_before>\n"
+                  "        <not_after>" +
+                  escaped(g.not_after) +
+                  "</not_after>\n"
                   "      </validity>\n";
   for (const auto& r : rules) x += r.xml(g.domain);
   x += "      <default>DENY</default>\n"

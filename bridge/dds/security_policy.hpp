@@ -19,10 +19,10 @@
 namespace lb::ddsl {
 
 enum class Role {
-  observer,  // reads status, events (cuts, emergencies, feeder events), device info, diagnostics
-  operator_, // also set values, momentary commands and feeder commands of its devices
-  engineer,  // also NMT, SDO, parameters and the feeder configuration services of its devices
-  bridge,    // the gateway itself: writes every rt/ and rr/ topic of its line, reads requests and set values
+  observer,   // reads status, events (cuts, emergencies, feeder events), device info, diagnostics
+  operator_,  // also set values, momentary commands and feeder commands of its devices
+  engineer,   // also NMT, SDO, parameters and the feeder configuration services of its devices
+  bridge,     // the gateway itself: writes every rt/ and rr/ topic of its line, reads requests and set values
 };
 std::optional<Role> role_from_string(std::string_view name);
 std::string_view to_string(Role role);
@@ -34,7 +34,7 @@ inline constexpr std::string_view kAccessProbeTopic = "linebridge/access_control
 struct Grant {
   std::string line;
   std::uint32_t domain = 0;
-  std::string subject;               // the certificate's subject in RFC 2253 order
+  std::string subject;  // the certificate's subject in RFC 2253 order
   Role role = Role::observer;
   std::vector<std::string> devices;  // operator/engineer: devices they may command; empty = all
   std::string not_before;            // YYYY-MM-DDThh:mm:ss, the host's local time (as Fast DDS reads it)

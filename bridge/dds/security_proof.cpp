@@ -1,12 +1,12 @@
 #include "dds/security_proof.hpp"
 
+#include <fastdds/rtps/common/SerializedPayload.h>
 #include <fastdds/dds/log/Log.hpp>
 #include <fastdds/dds/publisher/DataWriter.hpp>
 #include <fastdds/dds/publisher/Publisher.hpp>
 #include <fastdds/dds/topic/Topic.hpp>
 #include <fastdds/dds/topic/TopicDataType.hpp>
 #include <fastdds/dds/topic/TypeSupport.hpp>
-#include <fastdds/rtps/common/SerializedPayload.h>
 #include <fastrtps/utils/fixed_size_string.hpp>
 
 #include <cstdio>
@@ -61,7 +61,8 @@ std::string guid_prefix_text(const fdds::DomainParticipant& p) {
 class QuietProbeLog {
  public:
   QuietProbeLog() {
-    fdds::Log::SetErrorStringFilter(std::regex("^(?![\\s\\S]*access_control_probe)(?!Problem creating associated Writer)"));
+    fdds::Log::SetErrorStringFilter(
+        std::regex("^(?![\\s\\S]*access_control_probe)(?!Problem creating associated Writer)"));
   }
   ~QuietProbeLog() {
     fdds::Log::Flush();
@@ -106,16 +107,17 @@ bool probe_writer_created(fdds::DomainParticipant& p, std::string& why_not_teste
 Result<void> prove_security_active(fdds::DomainParticipant& p) {
   std::vector<std::string> missing;
   if ((p.guid().guidPrefix.value[0] & 0x80) == 0) {
-    missing.push_back("authentication is not in force: the participant's GUID prefix " + guid_prefix_text(p) +
-                      " was not derived from a certificate (dds.sec.auth.plugin = " + property(p, "dds.sec.auth.plugin") +
-                      "; Fast DDS knows only builtin.PKI-DH and ignores anything else without a word)");
+    missing.push_back(
+        "authentication is not in force: the participant's GUID prefix " + guid_prefix_text(p) +
+        " was not derived from a certificate (dds.sec.auth.plugin = " + property(p, "dds.sec.auth.plugin") +
+        "; Fast DDS knows only builtin.PKI-DH and ignores anything else without a word)");
   }
   std::string why_not_tested;
   if (probe_writer_created(p, why_not_tested)) {
-    missing.push_back("access control is not in force: a writer on '" + std::string(kAccessProbeTopic) +
-                      "', a topic no grant may allow, was created (dds.sec.access.plugin = " +
-                      property(p, "dds.sec.access.plugin") +
-                      "; Fast DDS knows only builtin.Access-Permissions; or the permissions allow every topic)");
+    missing.push_back(
+        "access control is not in force: a writer on '" + std::string(kAccessProbeTopic) +
+        "', a topic no grant may allow, was created (dds.sec.access.plugin = " + property(p, "dds.sec.access.plugin") +
+        "; Fast DDS knows only builtin.Access-Permissions; or the permissions allow every topic)");
   } else if (!why_not_tested.empty()) {
     missing.push_back("access control could not be tested: " + why_not_tested);
   }

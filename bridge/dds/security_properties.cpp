@@ -62,8 +62,9 @@ std::vector<std::pair<std::string, std::string>> security_property_problems(
     const auto plugin = std::find_if(kPlugins.begin(), kPlugins.end(), [&](const Plugin& p) { return p.key == key; });
     if (plugin != kPlugins.end()) {
       if (value != plugin->builtin) {
-        problems.emplace_back(key, "'" + value + "' is not a plugin Fast DDS 2.9.1 has (its only one is '" + std::string(plugin->builtin) +
-                           "'); the participant would not start, or start without that protection");
+        problems.emplace_back(key, "'" + value + "' is not a plugin Fast DDS 2.9.1 has (its only one is '" +
+                                       std::string(plugin->builtin) +
+                                       "'); the participant would not start, or start without that protection");
       }
       continue;
     }
@@ -71,7 +72,7 @@ std::vector<std::pair<std::string, std::string>> security_property_problems(
     if (key.rfind("dds.sec.", 0) != 0) continue;  // the line file refuses those already
     const auto near = closest(key);
     problems.emplace_back(key, "not a property Fast DDS 2.9.1 reads: it would be ignored without a word" +
-                       (near.empty() ? std::string() : " (did you mean " + std::string(near) + "?)"));
+                                   (near.empty() ? std::string() : " (did you mean " + std::string(near) + "?)"));
   }
   return problems;
 }

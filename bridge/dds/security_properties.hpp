@@ -21,6 +21,7 @@
 namespace lb::ddsl {
 
 // The refused properties: (key, reason), one per property.
-std::vector<std::pair<std::string, std::string>> security_property_problems(const std::vector<std::pair<std::string, std::string>>& properties);
+std::vector<std::pair<std::string, std::string>> security_property_problems(
+    const std::vector<std::pair<std::string, std::string>>& properties);
 
 }  // namespace lb::ddsl

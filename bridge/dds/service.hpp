@@ -10,8 +10,8 @@
 #include <atomic>
 #include <chrono>
 #include <concepts>
-#include <cstdint>
 #include <condition_variable>
+#include <cstdint>
 #include <functional>
 #include <map>
 #include <memory>
@@ -72,7 +72,8 @@ class ServiceServer {
    public:
     // ledger: where the answer is kept for a repeat of the request (none for an answer that is
     // itself a repeat or needs no keeping). incarnation: the server's, which every answer names.
-    Responder(Writer<ReplyPS> writer, SampleIdentity request, Incarnation incarnation, std::shared_ptr<Ledger> ledger = nullptr)
+    Responder(Writer<ReplyPS> writer, SampleIdentity request, Incarnation incarnation,
+              std::shared_ptr<Ledger> ledger = nullptr)
         : writer_(writer), request_(request), incarnation_(incarnation), ledger_(std::move(ledger)) {}
     void operator()(const Reply& answer) const {
       Reply reply = answer;
@@ -100,11 +101,11 @@ class ServiceServer {
     if constexpr (NamesDevice<Request> && Refusable<Reply>) {
       if (dds.secured()) return serve_by_partition(dds, path, *writer, std::move(ledger), std::move(handler));
     }
-    return dds.subscribe<RequestPS>(
-        request_topic(path), QosKind::command,
-        [w = *writer, own = dds.incarnation(), ledger, h = std::move(handler)](const Request& req, const fdds::SampleInfo& info) {
-          dispatch(req, info, w, own, ledger, h);
-        });
+    return dds.subscribe<RequestPS>(request_topic(path), QosKind::command,
+                                    [w = *writer, own = dds.incarnation(), ledger,
+                                     h = std::move(handler)](const Request& req, const fdds::SampleInfo& info) {
+                                      dispatch(req, info, w, own, ledger, h);
+                                    });
   }
 
  private:
@@ -168,13 +169,14 @@ class ServiceServer {
     return dds.subscribe_any_partition<RequestPS>(
         request_topic(path), QosKind::command,
         [&dds, w, own = dds.incarnation(), ledger = std::move(ledger), h = std::move(h)](const Request& req,
-                                                                                          const fdds::SampleInfo& info) {
+                                                                                         const fdds::SampleInfo& info) {
           const std::string device = req.device();
           if (!dds.writer_in_partition(info.sample_identity.writer_guid(), device)) {
             Reply refusal;
             refusal.success(false);
-            refusal.message("refused: a request for device '" + device + "' is taken only from a writer in the DDS partition '" +
-                            device + "' (secured line; the partition must be granted by the requester's permissions)");
+            refusal.message("refused: a request for device '" + device +
+                            "' is taken only from a writer in the DDS partition '" + device +
+                            "' (secured line; the partition must be granted by the requester's permissions)");
             return Responder(w, Ledger::asked_as(info), own)(refusal);
           }
           dispatch(req, info, w, own, ledger, h);
@@ -185,8 +187,8 @@ class ServiceServer {
 // Where a client hears which run of the bridge serves it before its first request: a subscription
 // that tells `heard` each incarnation announced (the layer that knows the bridge's announcement,
 // its diagnostics, provides it: gateways/bridge_runs.hpp; this layer knows no message type).
-using RunAnnouncements =
-    std::function<Result<std::unique_ptr<Participant::Subscription>>(Participant& dds, std::function<void(Incarnation)> heard)>;
+using RunAnnouncements = std::function<
+    Result<std::unique_ptr<Participant::Subscription>>(Participant& dds, std::function<void(Incarnation)> heard)>;
 
 // Client side, for the CLI and tests: call() blocks the calling thread (never a Fast DDS thread).
 template <class RequestPS, class ReplyPS>
@@ -222,7 +224,9 @@ class ServiceClient {
     }
     auto* raw = client.get();  // the subscriptions end before the client does (member order)
     auto sub = dds.subscribe_scoped<ReplyPS>(reply_topic(path), QosKind::reply,
-                                             [raw](const Reply& rep, const fdds::SampleInfo& info) { raw->received(rep, info); });
+                                             [raw](const Reply& rep, const fdds::SampleInfo& info) {
+                                               raw->received(rep, info);
+                                             });
     if (!sub) return sub.error();
     client->subscription_ = std::move(*sub);
     if constexpr (NamesIncarnation<Request>) {
@@ -275,7 +279,8 @@ class ServiceClient {
         if (writer->matched() == 0 || dds_.matched_writers(reply_topic(path_)) == 0) {
           return make_error("no server for " + path_ + " (is the bridge running?)");
         }
-        return make_error("the bridge serving " + path_ + " announced no run (its diagnostics): the request must "
+        return make_error("the bridge serving " + path_ +
+                          " announced no run (its diagnostics): the request must "
                           "name the run of the bridge it is for");
       }
       std::this_thread::sleep_for(std::chrono::milliseconds(10));

@@ -1,7 +1,7 @@
 #include "dds/site_profiles.hpp"
 
-#include <fastdds/dds/domain/DomainParticipantFactory.hpp>
 #include <tinyxml2.h>
+#include <fastdds/dds/domain/DomainParticipantFactory.hpp>
 
 #include <algorithm>
 #include <cstdlib>

@@ -29,8 +29,10 @@ void take(const T& site, const T& pristine, T& ours) {
 
 // A contract policy the profile set: reported, never applied.
 template <class T>
-void refuse(const T& site, const T& pristine, const std::string& topic, const char* what, std::vector<std::string>& notes) {
-  if (!same(site, pristine)) notes.push_back(topic + ": " + what + " is the DDS contract's: the site profile's is not applied");
+void refuse(const T& site, const T& pristine, const std::string& topic, const char* what,
+            std::vector<std::string>& notes) {
+  if (!same(site, pristine))
+    notes.push_back(topic + ": " + what + " is the DDS contract's: the site profile's is not applied");
 }
 
 template <class Attributes>
@@ -56,7 +58,8 @@ void take_timing(const Attributes& site, Qos& qos) {
   take(site.historyMemoryPolicy, pristine.historyMemoryPolicy, qos.endpoint().history_memory_policy);
 }
 
-void merge(const PublisherAttributes& site, const std::string& topic, fdds::DataWriterQos& qos, std::vector<std::string>& notes) {
+void merge(const PublisherAttributes& site, const std::string& topic, fdds::DataWriterQos& qos,
+           std::vector<std::string>& notes) {
   const PublisherAttributes pristine;
   take_timing(site, qos);
   take(site.qos.m_lifespan, pristine.qos.m_lifespan, qos.lifespan());
@@ -66,7 +69,8 @@ void merge(const PublisherAttributes& site, const std::string& topic, fdds::Data
   refuse(site.qos.m_disablePositiveACKs, pristine.qos.m_disablePositiveACKs, topic, "disable_positive_acks", notes);
 }
 
-void merge(const SubscriberAttributes& site, const std::string& topic, fdds::DataReaderQos& qos, std::vector<std::string>& notes) {
+void merge(const SubscriberAttributes& site, const std::string& topic, fdds::DataReaderQos& qos,
+           std::vector<std::string>& notes) {
   const SubscriberAttributes pristine;
   take_timing(site, qos);
   take(site.times, pristine.times, qos.reliable_reader_qos().times);
@@ -81,14 +85,16 @@ void apply_site_qos(const std::string& topic, fdds::DataWriterQos& qos, std::vec
   PublisherAttributes site;
   XMLProfileManager::getDefaultPublisherAttributes(site);
   merge(site, "default data_writer profile", qos, notes);
-  if (XMLProfileManager::fillPublisherAttributes(topic, site, false) == XMLP_ret::XML_OK) merge(site, topic, qos, notes);
+  if (XMLProfileManager::fillPublisherAttributes(topic, site, false) == XMLP_ret::XML_OK)
+    merge(site, topic, qos, notes);
 }
 
 void apply_site_qos(const std::string& topic, fdds::DataReaderQos& qos, std::vector<std::string>& notes) {
   SubscriberAttributes site;
   XMLProfileManager::getDefaultSubscriberAttributes(site);
   merge(site, "default data_reader profile", qos, notes);
-  if (XMLProfileManager::fillSubscriberAttributes(topic, site, false) == XMLP_ret::XML_OK) merge(site, topic, qos, notes);
+  if (XMLProfileManager::fillSubscriberAttributes(topic, site, false) == XMLP_ret::XML_OK)
+    merge(site, topic, qos, notes);
 }
 
 }  // namespace lb::ddsl

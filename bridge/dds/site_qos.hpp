@@ -23,7 +23,9 @@
 namespace lb::ddsl {
 
 // Notes say what was not applied and why ("rt/demo/saw1/status: reliability is the contract's: not applied").
-void apply_site_qos(const std::string& topic, eprosima::fastdds::dds::DataWriterQos& qos, std::vector<std::string>& notes);
-void apply_site_qos(const std::string& topic, eprosima::fastdds::dds::DataReaderQos& qos, std::vector<std::string>& notes);
+void apply_site_qos(const std::string& topic, eprosima::fastdds::dds::DataWriterQos& qos,
+                    std::vector<std::string>& notes);
+void apply_site_qos(const std::string& topic, eprosima::fastdds::dds::DataReaderQos& qos,
+                    std::vector<std::string>& notes);
 
 }  // namespace lb::ddsl

@@ -20,12 +20,11 @@ void WriterPartitions::on_publisher_discovery(eprosima::fastdds::dds::DomainPart
       break;
     case WriterDiscoveryInfo::CHANGED_QOS_WRITER:
       if (auto it = partitions_.find(guid); it != partitions_.end()) {
-        std::erase_if(it->second, [&](const std::string& p) { return std::find(now.begin(), now.end(), p) == now.end(); });
+        std::erase_if(it->second,
+                      [&](const std::string& p) { return std::find(now.begin(), now.end(), p) == now.end(); });
       }
       break;
-    case WriterDiscoveryInfo::REMOVED_WRITER:
-      partitions_.erase(guid);
-      break;
+    case WriterDiscoveryInfo::REMOVED_WRITER: partitions_.erase(guid); break;
   }
 }
 

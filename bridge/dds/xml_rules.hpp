@@ -24,7 +24,8 @@ inline bool covers(const tinyxml2::XMLElement* domains, std::uint32_t domain) {
     if (name == "id_range") {
       const auto* lo = e->FirstChildElement("min");
       const auto* hi = e->FirstChildElement("max");
-      if (domain >= (lo ? lo->UnsignedText(0) : 0U) && domain <= (hi ? hi->UnsignedText(0xffffffffU) : 0xffffffffU)) return true;
+      if (domain >= (lo ? lo->UnsignedText(0) : 0U) && domain <= (hi ? hi->UnsignedText(0xffffffffU) : 0xffffffffU))
+        return true;
     }
   }
   return false;

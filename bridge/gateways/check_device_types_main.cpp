@@ -85,7 +85,8 @@ int main() {
   for (const auto* p : builtin) {
     const auto* type = lb::profiles::find_device_type(p->device);
     if (type == nullptr) {
-      findings.push_back(fmt::format("profile {} is for device type '{}', which profiles/device_types.hpp lacks", p->key(), p->device));
+      findings.push_back(fmt::format("profile {} is for device type '{}', which profiles/device_types.hpp lacks",
+                                     p->key(), p->device));
       continue;
     }
     const auto versions = split_versions(type->versions);
@@ -110,8 +111,9 @@ int main() {
       check_word(type, "control_word", field_names(Binding::control_flags, Binding::control_codes), of_type, findings);
     });
     if (!bound) {
-      findings.push_back(fmt::format("{}: idl/{}.idl declares no drive-shaped {{Name}}Status, StatusWord, ControlWord, Setpoint",
-                                     type.name, type.idl));
+      findings.push_back(
+          fmt::format("{}: idl/{}.idl declares no drive-shaped {{Name}}Status, StatusWord, ControlWord, Setpoint",
+                      type.name, type.idl));
     }
   }
   for (const auto& f : findings) std::fprintf(stderr, "device types: %s\n", f.c_str());

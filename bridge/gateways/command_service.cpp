@@ -33,14 +33,17 @@ void CommandService::handle(const srv::Command_Request& req, ddsl::Respond<srv::
   if (!ctx_.is_master()) {
     return refuse("bus " + ctx_.bus.name + " is in the monitor role: the bridge never transmits there");
   }
-  const bool posted = ctx_.loop.try_post([this, bit = cmd->bit, name = cmd->name, stopping = cmd->stopping, refuse, respond] {
+  const bool posted = ctx_.loop.try_post([this, bit = cmd->bit, name = cmd->name, stopping = cmd->stopping, refuse,
+                                          respond] {
     // Refused at once when no frame could carry it; otherwise answered when the pulse is over.
     if (ctx_.loop.transmission_held()) return refuse(another_master(ctx_, name + " not sent"));
     if (!ctx_.node.online()) return refuse(ctx_.device.name + " is offline (no heartbeat): " + name + " not sent");
     // A stop goes out to a device that is heard running, whatever the bridge knows of its boot.
     if (!ctx_.node.ready_for_pdos() && !(stopping && stop_anyway_ && stop_anyway_())) {
-      return refuse(ctx_.device.name + " is not started by this bridge (its boot has not passed, or it was told to "
-                                       "stop): " + name + " not sent");
+      return refuse(ctx_.device.name +
+                    " is not started by this bridge (its boot has not passed, or it was told to "
+                    "stop): " +
+                    name + " not sent");
     }
     pulses_.press(bit, [device = ctx_.device.name, name, bit, respond](const MomentaryCommands::Outcome& o) {
       srv::Command_Response r;
@@ -49,8 +52,8 @@ void CommandService::handle(const srv::Command_Request& req, ddsl::Respond<srv::
       r.held_ms(std::chrono::duration<double, std::milli>(o.held).count());
       r.message(o.message);
       if (o.on_bus) {
-        spdlog::info("{}: command {} (control word bit {}) on the bus in {} RPDO(s) over {:.1f} ms, then released{}{}", device,
-                     name, bit, o.frames, r.held_ms(), o.message.empty() ? "" : "; ", o.message);
+        spdlog::info("{}: command {} (control word bit {}) on the bus in {} RPDO(s) over {:.1f} ms, then released{}{}",
+                     device, name, bit, o.frames, r.held_ms(), o.message.empty() ? "" : "; ", o.message);
       } else {
         spdlog::warn("{}: command {} (control word bit {}) not held on the bus: {}", device, name, bit, o.message);
       }

@@ -36,7 +36,8 @@ std::optional<canopen::NmtCommand> to_command(srv::NmtCommand c) {
 // The field of srv::ObjectValue that matches the type carries the value.
 Result<canopen::ObjectValue> from_msg(DataType type, const srv::ObjectValue& v) {
   if (type == DataType::visible_string) return canopen::ObjectValue{v.string_value()};
-  if (type == DataType::octet_string) return canopen::ObjectValue{std::vector<std::uint8_t>(v.octets().begin(), v.octets().end())};
+  if (type == DataType::octet_string)
+    return canopen::ObjectValue{std::vector<std::uint8_t>(v.octets().begin(), v.octets().end())};
   if (type == DataType::real32 || type == DataType::real64) return canopen::ObjectValue{v.real_value()};
   if (canopen::is_signed_integer(type)) return canopen::ObjectValue{v.integer_value()};
   return canopen::ObjectValue{v.unsigned_value()};
@@ -58,11 +59,16 @@ srv::ObjectValue to_msg(DataType type, const canopen::ObjectValue& value) {
   std::visit(
       [&v](const auto& x) {
         using T = std::decay_t<decltype(x)>;
-        if constexpr (std::is_same_v<T, std::int64_t>) v.integer_value(x);
-        else if constexpr (std::is_same_v<T, std::uint64_t>) v.unsigned_value(x);
-        else if constexpr (std::is_same_v<T, double>) v.real_value(x);
-        else if constexpr (std::is_same_v<T, std::string>) v.string_value(x);
-        else v.octets(x);
+        if constexpr (std::is_same_v<T, std::int64_t>)
+          v.integer_value(x);
+        else if constexpr (std::is_same_v<T, std::uint64_t>)
+          v.unsigned_value(x);
+        else if constexpr (std::is_same_v<T, double>)
+          v.real_value(x);
+        else if constexpr (std::is_same_v<T, std::string>)
+          v.string_value(x);
+        else
+          v.octets(x);
       },
       value);
   return v;
@@ -93,7 +99,8 @@ DeviceServices::DeviceServices(DeviceContext context) : ctx_(context) {
   const std::string& dev = ctx_.device.name;
   const auto fail = [&dev](const Error& e) { throw std::runtime_error(dev + ": " + e.message); };
 
-  auto ew = ctx_.dds.writer<msg::EmergencyPubSubType>(ddsl::topic_name(ctx_.line, dev, "emergency"), ddsl::QosKind::event);
+  auto ew = ctx_.dds.writer<msg::EmergencyPubSubType>(ddsl::topic_name(ctx_.line, dev, "emergency"),
+                                                      ddsl::QosKind::event);
   if (!ew) fail(ew.error());
   emergency_writer_ = *ew;
   auto iw = ctx_.dds.writer<msg::DeviceInfoPubSubType>(ddsl::topic_name(ctx_.line, dev, "info"), ddsl::QosKind::state);
@@ -102,13 +109,18 @@ DeviceServices::DeviceServices(DeviceContext context) : ctx_(context) {
 
   ctx_.node.attach(*this);
   configuration_bits_ = ctx_.profile.bitset("configuration_word");
-  set_configuration_word(std::nullopt, configuration_bits_ == nullptr ? "profile " + ctx_.profile.key() + " has no configuration word"
-                                                                      : "not read yet (read after the device's boot passed)");
+  set_configuration_word(std::nullopt, configuration_bits_ == nullptr
+                                           ? "profile " + ctx_.profile.key() + " has no configuration word"
+                                           : "not read yet (read after the device's boot passed)");
   if (ctx_.is_master() && ctx_.sdo != nullptr) {
     const auto& d = ctx_.device;
     canopen::BootSequence::Settings boot;
-    boot.identity = {static_cast<std::uint16_t>(ctx_.profile.device_type & 0xFFFF), d.identity.device_type,
-                     d.identity.vendor_id, d.identity.product_code, d.identity.revision, d.identity.serial_number};
+    boot.identity = {static_cast<std::uint16_t>(ctx_.profile.device_type & 0xFFFF),
+                     d.identity.device_type,
+                     d.identity.vendor_id,
+                     d.identity.product_code,
+                     d.identity.revision,
+                     d.identity.serial_number};
     boot.pdos = pdo_specs(ctx_.profile, d);
     boot.adopt_device_pdos = d.pdo_config == profiles::PdoConfigMode::adopt;
     boot.pdo_change_when_running = ctx_.startup.pdo_change_when_running;
@@ -163,10 +175,11 @@ void DeviceServices::read_errors() {
     std::vector<std::string> history;
     for (const auto entry : error_history_.entries) history.push_back(fmt::format("{:04X}", entry & 0xFFFF));
     spdlog::info("{}: active errors from the device: [{:04X}]{}{}; error register 1001h {:02X}h; error history 1003h{}",
-                 ctx_.device.name, fmt::join(errors.codes(), " "), errors.known() ? "" : ", uncertain: ",
-                 errors.known() ? "" : errors.note(), errors.error_register(),
-                 error_history_.read ? fmt::format(" ({} recorded, newest first): [{}]", error_history_.count, fmt::join(history, " "))
-                                     : ": " + error_history_.remark);
+                 ctx_.device.name, fmt::join(errors.codes(), " "),
+                 errors.known() ? "" : ", uncertain: ", errors.known() ? "" : errors.note(), errors.error_register(),
+                 error_history_.read
+                     ? fmt::format(" ({} recorded, newest first): [{}]", error_history_.count, fmt::join(history, " "))
+                     : ": " + error_history_.remark);
     read_configuration_word_and_publish();
   });
 }
@@ -189,8 +202,10 @@ void DeviceServices::read_configuration_word_and_publish() {
                  ctx_.profile.object(configuration_bits_->index, configuration_bits_->sub)->type,
                  [this, seq](canopen::SdoClient::ReadResult r) {
                    if (seq != boots_reported_) return;  // a newer boot began meanwhile
-                   if (r) set_configuration_word(canopen::integer_bits(*r), "");
-                   else set_configuration_word(std::nullopt, "6010h not read: " + r.error().message);
+                   if (r)
+                     set_configuration_word(canopen::integer_bits(*r), "");
+                   else
+                     set_configuration_word(std::nullopt, "6010h not read: " + r.error().message);
                    publish_info();
                  });
 }
@@ -264,7 +279,8 @@ void DeviceServices::sdo_write(const srv::SdoWrite_Request& req, ddsl::Respond<s
       refuse, [this] { return answered_boot(); });
 }
 
-void DeviceServices::get_parameter(const srv::GetParameter_Request& req, ddsl::Respond<srv::GetParameter_Response> respond) {
+void DeviceServices::get_parameter(const srv::GetParameter_Request& req,
+                                   ddsl::Respond<srv::GetParameter_Response> respond) {
   const auto refuse = refuser(respond);
   const auto* obj = ctx_.profile.object(req.parameter());
   if (obj == nullptr) return refuse("profile " + ctx_.profile.key() + " has no object '" + req.parameter() + "'");
@@ -300,11 +316,13 @@ void DeviceServices::get_parameter(const srv::GetParameter_Request& req, ddsl::R
       refuse, [this] { return answered_boot(); });
 }
 
-void DeviceServices::set_parameter(const srv::SetParameter_Request& req, ddsl::Respond<srv::SetParameter_Response> respond) {
+void DeviceServices::set_parameter(const srv::SetParameter_Request& req,
+                                   ddsl::Respond<srv::SetParameter_Response> respond) {
   const auto refuse = refuser(respond);
   const auto* obj = ctx_.profile.object(req.parameter());
   if (obj == nullptr) return refuse("profile " + ctx_.profile.key() + " has no object '" + req.parameter() + "'");
-  if (!obj->writable()) return refuse(req.parameter() + " is " + std::string(profiles::to_string(obj->access)) + ", not writable");
+  if (!obj->writable())
+    return refuse(req.parameter() + " is " + std::string(profiles::to_string(obj->access)) + ", not writable");
   if (auto why = refusal(); !why.empty()) return refuse(why);
   auto raw = obj->to_raw(req.value());  // range of the profile, rounded to the raw unit
   if (!raw) return refuse(raw.error().message);
@@ -385,10 +403,11 @@ void DeviceServices::publish_info() {
   m.error_history(error_history_.entries);
   m.error_history_remark(error_history_.remark);
   if (report.started) {
-    spdlog::info("{}: identity: vendor {:08X}h product {:08X}h rev {:08X}h serial {:08X}h, \"{}\" hw \"{}\" sw \"{}\"{}",
-                 ctx_.device.name, id.vendor_id, id.product_code, id.revision_number, id.serial_number, id.device_name,
-                 id.hardware_version, id.software_version,
-                 configuration_word_.read() ? fmt::format(", configuration word {:08X}h", configuration_word_.raw()) : "");
+    spdlog::info(
+        "{}: identity: vendor {:08X}h product {:08X}h rev {:08X}h serial {:08X}h, \"{}\" hw \"{}\" sw \"{}\"{}",
+        ctx_.device.name, id.vendor_id, id.product_code, id.revision_number, id.serial_number, id.device_name,
+        id.hardware_version, id.software_version,
+        configuration_word_.read() ? fmt::format(", configuration word {:08X}h", configuration_word_.raw()) : "");
   } else if (report.error) {
     spdlog::warn("{}: not started: {}", ctx_.device.name, report.error->message);
   }

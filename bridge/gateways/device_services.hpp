@@ -16,9 +16,9 @@
 #include <vector>
 
 #include "canopen/boot_sequence.hpp"
+#include "canopen/error_field.hpp"
 #include "canopen/node_driver.hpp"
 #include "canopen/node_state_machine.hpp"
-#include "canopen/error_field.hpp"
 #include "dds/service.hpp"
 #include "gateways/device_context.hpp"
 #include "msgs/commonPubSubTypes.h"
@@ -36,7 +36,9 @@ class DeviceServices final : public canopen::NodeDriver {
   void start();
   // Before the loop starts: told (loop thread) every NMT command an operator's request sent (the
   // line-level mandatory-device policy listens).
-  void on_operator_nmt(std::function<void(canopen::NmtCommand)> listener) { nmt_listeners_.push_back(std::move(listener)); }
+  void on_operator_nmt(std::function<void(canopen::NmtCommand)> listener) {
+    nmt_listeners_.push_back(std::move(listener));
+  }
   // Loop thread: a boot is checking and configuring the device right now (master role).
   bool booting() const { return state() == canopen::NodeState::booting; }
   // Loop thread: the node state machine's state (master role; nullopt: monitored).
@@ -91,7 +93,7 @@ class DeviceServices final : public canopen::NodeDriver {
   DeviceContext ctx_;
   ddsl::Writer<linebridge_msgs::msg::EmergencyPubSubType> emergency_writer_;
   ddsl::Writer<linebridge_msgs::msg::DeviceInfoPubSubType> info_writer_;
-  std::unique_ptr<canopen::NodeStateMachine> machine_;  // master role
+  std::unique_ptr<canopen::NodeStateMachine> machine_;    // master role
   const profiles::BitSet* configuration_bits_ = nullptr;  // 6010h's named bits; null: the profile has none
   // Loop thread.
   canopen::BootReport report_;

@@ -28,8 +28,14 @@ Replay replay_of(const profiles::BusConfig& bus) {
 
 DiagnosticsGateway::DiagnosticsGateway(ddsl::Participant& dds, const std::string& line, std::vector<Bus> buses,
                                        BridgeFields bridge_fields, std::chrono::milliseconds period)
-    : dds_(dds), line_(line), buses_(std::move(buses)), bridge_fields_(std::move(bridge_fields)), period_(period), previous_(buses_.size()),
-      bus_snapshots_(buses_.size()), node_snapshots_(buses_.size()) {
+    : dds_(dds),
+      line_(line),
+      buses_(std::move(buses)),
+      bridge_fields_(std::move(bridge_fields)),
+      period_(period),
+      previous_(buses_.size()),
+      bus_snapshots_(buses_.size()),
+      node_snapshots_(buses_.size()) {
   auto w = dds.writer<msg::DiagnosticsPubSubType>(ddsl::topic_name(line, ddsl::kBridgeNamespace, "diagnostics"),
                                                   ddsl::QosKind::state);
   if (!w) throw std::runtime_error("diagnostics: " + w.error().message);
@@ -64,8 +70,9 @@ void DiagnosticsGateway::snapshot(std::size_t i) {
   const auto stats = bus.loop->stats();
   const auto now = std::chrono::steady_clock::now();
   auto& prev = previous_[i];
-  const double dt = prev.at == std::chrono::steady_clock::time_point{} ? 0.0
-                                                                       : std::chrono::duration<double>(now - prev.at).count();
+  const double dt = prev.at == std::chrono::steady_clock::time_point{}
+                        ? 0.0
+                        : std::chrono::duration<double>(now - prev.at).count();
   const std::uint64_t bits = bus.loop->bits_in() + bus.loop->bits_out();
 
   msg::BusDiagnostics b;

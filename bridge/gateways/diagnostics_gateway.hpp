@@ -40,8 +40,8 @@ class DiagnosticsGateway {
 
   // The process's own fields (the set-value store, the log), filled on the publishing thread.
   using BridgeFields = std::function<void(linebridge_msgs::msg::Diagnostics&)>;
-  DiagnosticsGateway(ddsl::Participant& dds, const std::string& line, std::vector<Bus> buses, BridgeFields bridge_fields = {},
-                     std::chrono::milliseconds period = std::chrono::seconds(1));
+  DiagnosticsGateway(ddsl::Participant& dds, const std::string& line, std::vector<Bus> buses,
+                     BridgeFields bridge_fields = {}, std::chrono::milliseconds period = std::chrono::seconds(1));
   ~DiagnosticsGateway();
   DiagnosticsGateway(const DiagnosticsGateway&) = delete;
   DiagnosticsGateway& operator=(const DiagnosticsGateway&) = delete;

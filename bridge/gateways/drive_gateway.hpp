@@ -18,8 +18,8 @@
 #include "canopen/pdo_transmitter.hpp"
 #include "dds/topic_names.hpp"
 #include "gateways/command_service.hpp"
-#include "gateways/drive_codec.hpp"
 #include "gateways/device_health.hpp"
+#include "gateways/drive_codec.hpp"
 #include "gateways/gateway.hpp"
 #include "gateways/momentary_commands.hpp"
 #include "gateways/pdo_burst.hpp"
@@ -59,7 +59,7 @@ class DriveGateway : public Gateway {
   DeviceContext ctx_;
   SharedLogRate set_value_log_;  // refusals, from DDS threads and the loop
   LogRate applied_log_;          // set values taken, on the loop
-  Codec codec_;  // loop thread, except validate() (const, any thread)
+  Codec codec_;                  // loop thread, except validate() (const, any thread)
   PdoWiring<Codec> pdos_;
   MomentaryCommands commands_;
   PdoBurst burst_;
@@ -83,8 +83,7 @@ DriveGateway<Binding>::DriveGateway(DeviceContext context)
           }),
       burst_(context.loop, [this](std::int64_t stamp_ns) { publish_status(stamp_ns); }),
       command_service_(context, resolve_commands(codec_.bitset("control_word"), momentary_commands<Binding>()),
-                       commands_,
-                       [this] {
+                       commands_, [this] {
                          const bool go = pdos_.ready_for_a_stop();
                          if (go) publish_status(ddsl::now_ns());
                          return go;
@@ -93,11 +92,11 @@ DriveGateway<Binding>::DriveGateway(DeviceContext context)
   const std::string& dev = ctx_.device.name;
   const auto fail = [&dev](const Error& e) { throw std::runtime_error(dev + ": " + e.message); };
   auto status = ctx_.dds.writer<typename Binding::StatusTopic>(ddsl::topic_name(ctx_.line, dev, "status"),
-                                                                     ddsl::QosKind::state);
+                                                               ddsl::QosKind::state);
   if (!status) fail(status.error());
   status_writer_ = *status;
-  auto result = ctx_.dds.writer<msg::SetpointResultPubSubType>(
-      ddsl::topic_name(ctx_.line, dev, "setpoint_result"), ddsl::QosKind::reply);
+  auto result = ctx_.dds.writer<msg::SetpointResultPubSubType>(ddsl::topic_name(ctx_.line, dev, "setpoint_result"),
+                                                               ddsl::QosKind::reply);
   if (!result) fail(result.error());
   result_writer_ = *result;
   auto sub = ctx_.dds.subscribe<typename Binding::SetpointTopic>(
@@ -118,8 +117,9 @@ DriveGateway<Binding>::DriveGateway(DeviceContext context)
   });
   spdlog::info("{}: {} ({}) node {} on bus {} as {}{}", dev, ctx_.profile.device, ctx_.profile.key(),
                ctx_.device.node_id, ctx_.bus.name, profiles::to_string(ctx_.bus.role),
-               ctx_.is_master() ? (ctx_.set_values != nullptr ? "; RPDO1 image as kept at the last stop (zero when none)"
-                                                              : "; RPDO1 image starts all zero (extruder stopped, speed set value 0)")
+               ctx_.is_master() ? (ctx_.set_values != nullptr
+                                       ? "; RPDO1 image as kept at the last stop (zero when none)"
+                                       : "; RPDO1 image starts all zero (extruder stopped, speed set value 0)")
                                 : "");
   publish_status(ddsl::now_ns());  // the device exists (offline) before its first heartbeat
 }
@@ -149,8 +149,8 @@ void DriveGateway<Binding>::on_setpoint(const Setpoint& sp) {
         publish_status(ddsl::now_ns());
         if (applied_log_.allow()) {
           spdlog::info("{}: set values: extruder {}, speed {} % (control word {:04X}h){}", ctx_.device.name,
-                       codec_.extruder_running() ? "running" : "stopped", codec_.speed_set_percent(), codec_.control_word(),
-                       held_back_note(applied_log_));
+                       codec_.extruder_running() ? "running" : "stopped", codec_.speed_set_percent(),
+                       codec_.control_word(), held_back_note(applied_log_));
         }
       },
       [this](std::uint64_t id, bool accepted, const std::string& reason) { reply(id, accepted, reason); });

@@ -58,7 +58,8 @@ DriveImage::DriveImage(const profiles::Profile& profile, std::span<const profile
   for (const auto& pdo : defs_) {
     others_->bind(pdos_.size(), pdo, image_);
     auto mapping = canopen::PdoMapping::create(pdo.mapping);
-    if (!mapping) throw std::runtime_error("profile " + profile_.key() + " " + pdo.name + ": " + mapping.error().message);
+    if (!mapping)
+      throw std::runtime_error("profile " + profile_.key() + " " + pdo.name + ": " + mapping.error().message);
     Pdo p{&pdo, canopen::PdoBinding(std::move(*mapping), image_), std::nullopt, false};
     p.carries_echo = pdo.direction == profiles::PdoDirection::tx && maps(p.binding.mapping(), *speed_echo_.def);
     const auto* def = profile_pdo(profile_, pdo.name);
@@ -82,7 +83,8 @@ DriveImage::Object DriveImage::bind(const std::string& name) {
 
 const profiles::BitSet& DriveImage::bitset(std::string_view name) const {
   const auto* set = profile_.bitset(name);
-  if (set == nullptr) throw std::runtime_error("profile " + profile_.key() + " has no bit set '" + std::string(name) + "'");
+  if (set == nullptr)
+    throw std::runtime_error("profile " + profile_.key() + " has no bit set '" + std::string(name) + "'");
   return *set;
 }
 

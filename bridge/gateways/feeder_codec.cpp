@@ -46,7 +46,8 @@ Result<std::uint64_t> test_parameter(const std::string& test, std::uint8_t param
 
 }  // namespace
 
-FeederCodec::FeederCodec(const profiles::Profile& profile, std::span<const profiles::DevicePdo> pdos, bool rpdos_received)
+FeederCodec::FeederCodec(const profiles::Profile& profile, std::span<const profiles::DevicePdo> pdos,
+                         bool rpdos_received)
     : profile_(profile) {
   status_ = &object("feeder_status_1").values;
   error_condition_ = &object("feeder_error_condition_1").values;
@@ -74,7 +75,8 @@ FeederCodec::FeederCodec(const profiles::Profile& profile, std::span<const profi
   for (const auto& pdo : defs_) {
     others_->bind(pdos_.size(), pdo, image_);
     auto mapping = canopen::PdoMapping::create(pdo.mapping);
-    if (!mapping) throw std::runtime_error("profile " + profile_.key() + " " + pdo.name + ": " + mapping.error().message);
+    if (!mapping)
+      throw std::runtime_error("profile " + profile_.key() + " " + pdo.name + ": " + mapping.error().message);
     pdos_.push_back({&pdo, canopen::PdoBinding(std::move(*mapping), image_)});
   }
 }
@@ -85,19 +87,23 @@ Result<void> FeederCodec::use_pdo(std::size_t pdo, const profiles::DevicePdo& ac
 
 const ObjectDef& FeederCodec::object(std::string_view name) const {
   const auto* def = profile_.object(name);
-  if (def == nullptr) throw std::runtime_error("profile " + profile_.key() + " has no object '" + std::string(name) + "'");
+  if (def == nullptr)
+    throw std::runtime_error("profile " + profile_.key() + " has no object '" + std::string(name) + "'");
   return *def;
 }
 
 const profiles::BitSet& FeederCodec::bitset(std::string_view name) const {
   const auto* set = profile_.bitset(name);
-  if (set == nullptr) throw std::runtime_error("profile " + profile_.key() + " has no bit set '" + std::string(name) + "'");
+  if (set == nullptr)
+    throw std::runtime_error("profile " + profile_.key() + " has no bit set '" + std::string(name) + "'");
   return *set;
 }
 
 const BitField& FeederCodec::field(const profiles::BitSet& set, std::string_view name) const {
   const auto* f = set.field(name);
-  if (f == nullptr) throw std::runtime_error("profile " + profile_.key() + ": bit set " + set.name + " has no field '" + std::string(name) + "'");
+  if (f == nullptr)
+    throw std::runtime_error("profile " + profile_.key() + ": bit set " + set.name + " has no field '" +
+                             std::string(name) + "'");
   return *f;
 }
 
@@ -162,9 +168,12 @@ msg::PickInsertion FeederCodec::pick(std::uint8_t raw) const {
   if (!kind) return p;  // reserved or outside the table's rows: no colours guessed
   p.kind(std::string(*kind));
   const std::uint8_t high = raw >> 4, low = raw & 0x0F;
-  if (*kind == "single_pick") p.colours({static_cast<std::uint8_t>(raw == 0x10 ? 16 : low)});
-  else if (*kind == "double_pick") p.colours({high, low});
-  else if (*kind == "triple_pick") p.colours({high, static_cast<std::uint8_t>(high + 2), static_cast<std::uint8_t>(high + 4)});
+  if (*kind == "single_pick")
+    p.colours({static_cast<std::uint8_t>(raw == 0x10 ? 16 : low)});
+  else if (*kind == "double_pick")
+    p.colours({high, low});
+  else if (*kind == "triple_pick")
+    p.colours({high, static_cast<std::uint8_t>(high + 2), static_cast<std::uint8_t>(high + 4)});
   return p;
 }
 
@@ -177,7 +186,8 @@ msg::FeederUnwinding FeederCodec::unwinding(std::uint32_t raw) const {
   u.feeder_selected(static_cast<std::uint8_t>(feeder.extract(raw)));
   u.winding_number(static_cast<std::uint8_t>(winding.extract(raw)));
   u.coil_unwinding_time_ms(time.to_engineering(time.extract(raw)));
-  u.in_range(feeder.in_range(feeder.extract(raw)) && winding.in_range(winding.extract(raw)) && time.in_range(time.extract(raw)));
+  u.in_range(feeder.in_range(feeder.extract(raw)) && winding.in_range(winding.extract(raw)) &&
+             time.in_range(time.extract(raw)));
   return u;
 }
 
@@ -216,27 +226,33 @@ Result<FeederCodec::Write> FeederCodec::checked(const ObjectDef& object, std::ui
   }
   if (auto r = object.check_raw(static_cast<std::int64_t>(raw)); !r) return r.error();
   if (!object.values.valid(raw)) {
-    return make_error(fmt::format("{} code {:02X}h is reserved or undefined ({})", object.name, raw, names_of(object.values)));
+    return make_error(
+        fmt::format("{} code {:02X}h is reserved or undefined ({})", object.name, raw, names_of(object.values)));
   }
   return Write{&object, raw};
 }
 
-Result<const ObjectDef*> FeederCodec::per_feeder(std::string_view array, unsigned feeder, std::optional<unsigned> count) const {
-  if (feeder < 1 || feeder > kMaxFeeders) return make_error(fmt::format("feeder {} is outside 1..{}", feeder, kMaxFeeders));
-  if (count && feeder > *count) return make_error(fmt::format("feeder {}: the control box reports {} feeder(s)", feeder, *count));
+Result<const ObjectDef*> FeederCodec::per_feeder(std::string_view array, unsigned feeder,
+                                                 std::optional<unsigned> count) const {
+  if (feeder < 1 || feeder > kMaxFeeders)
+    return make_error(fmt::format("feeder {} is outside 1..{}", feeder, kMaxFeeders));
+  if (count && feeder > *count)
+    return make_error(fmt::format("feeder {}: the control box reports {} feeder(s)", feeder, *count));
   const auto* def = profile_.object(std::string(array) + "_" + std::to_string(feeder));
-  if (def == nullptr) return make_error(fmt::format("profile {} has no {} for feeder {}", profile_.key(), array, feeder));
+  if (def == nullptr)
+    return make_error(fmt::format("profile {} has no {} for feeder {}", profile_.key(), array, feeder));
   return def;
 }
 
-Result<FeederCodec::Write> FeederCodec::command(unsigned feeder, const std::string& name, std::uint8_t manufacturer_code,
-                                                std::optional<unsigned> count) const {
+Result<FeederCodec::Write> FeederCodec::command(unsigned feeder, const std::string& name,
+                                                std::uint8_t manufacturer_code, std::optional<unsigned> count) const {
   auto obj = per_feeder("feeder_command", feeder, count);
   if (!obj) return obj.error();
   const auto& table = (*obj)->values;
   if (name == "manufacturer_specific") {
     if (table.name(manufacturer_code) != "manufacturer_specific") {
-      return make_error(fmt::format("manufacturer_code {:02X}h is not a manufacturer-specific command code", manufacturer_code));
+      return make_error(
+          fmt::format("manufacturer_code {:02X}h is not a manufacturer-specific command code", manufacturer_code));
     }
     return checked(**obj, manufacturer_code);
   }
@@ -264,7 +280,8 @@ Result<const ObjectDef*> FeederCodec::functions_object(unsigned feeder, std::opt
   return obj;
 }
 
-Result<std::uint64_t> FeederCodec::merge_functions(std::uint64_t current, const std::vector<FunctionSetting>& settings) const {
+Result<std::uint64_t> FeederCodec::merge_functions(std::uint64_t current,
+                                                   const std::vector<FunctionSetting>& settings) const {
   if (settings.empty()) return make_error("no function to set");
   std::uint64_t word = current;
   for (const auto& s : settings) {
@@ -293,13 +310,15 @@ Result<std::uint64_t> FeederCodec::merge_functions(std::uint64_t current, const 
   return word;
 }
 
-Result<FeederCodec::Write> FeederCodec::number_assignment(unsigned feeder, std::uint8_t number, std::optional<unsigned> count) const {
+Result<FeederCodec::Write> FeederCodec::number_assignment(unsigned feeder, std::uint8_t number,
+                                                          std::optional<unsigned> count) const {
   auto obj = per_feeder("system_feeder_number_assignment", feeder, count);
   if (!obj) return obj.error();
   return checked(**obj, number);
 }
 
-Result<FeederCodec::Write> FeederCodec::color_assignment(unsigned feeder, std::uint8_t color, std::optional<unsigned> count) const {
+Result<FeederCodec::Write> FeederCodec::color_assignment(unsigned feeder, std::uint8_t color,
+                                                         std::optional<unsigned> count) const {
   auto obj = per_feeder("feeder_color_assignment", feeder, count);
   if (!obj) return obj.error();
   return checked(**obj, color);
@@ -312,7 +331,8 @@ Result<FeederCodec::Write> FeederCodec::weft_insertion_type(const std::string& n
   return checked(obj, *code);
 }
 
-Result<FeederCodec::Write> FeederCodec::trigger_sources(const std::vector<std::string>& selected, std::uint64_t supported) const {
+Result<FeederCodec::Write> FeederCodec::trigger_sources(const std::vector<std::string>& selected,
+                                                        std::uint64_t supported) const {
   std::uint64_t raw = 0;
   for (const auto& name : selected) {
     const auto bit = trigger_bits_->bit(name);
@@ -322,7 +342,8 @@ Result<FeederCodec::Write> FeederCodec::trigger_sources(const std::vector<std::s
       return make_error("unknown trigger source '" + name + "' (" + known + ")");
     }
     if (((supported >> *bit) & 1U) == 0) {
-      return make_error(fmt::format("trigger source {} is not supported by the device (6005h sub 1 = {:04X}h)", name, supported));
+      return make_error(
+          fmt::format("trigger source {} is not supported by the device (6005h sub 1 = {:04X}h)", name, supported));
     }
     raw |= std::uint64_t{1} << *bit;
   }
@@ -333,36 +354,42 @@ Result<FeederCodec::RawLoom> FeederCodec::validate(const msg::LoomSetpoint& sp) 
   RawLoom raw;
   if (!sp.loom_status().empty()) {
     const auto code = loom_status_.def->values.code(sp.loom_status());
-    if (!code) return make_error("unknown loom_status '" + sp.loom_status() + "' (" + names_of(loom_status_.def->values) + ")");
+    if (!code)
+      return make_error("unknown loom_status '" + sp.loom_status() + "' (" + names_of(loom_status_.def->values) + ")");
     const auto& speed = *weft_filling_->field("maximum_speed");
     const auto& width = *weft_filling_->field("loom_width");
     if (!speed.in_range(sp.maximum_speed_per_min())) {
-      return make_error(fmt::format("maximum_speed_per_min {} is outside the field's range", sp.maximum_speed_per_min()));
+      return make_error(
+          fmt::format("maximum_speed_per_min {} is outside the field's range", sp.maximum_speed_per_min()));
     }
     // Metres to the field's raw unit (cm): the exact inverse of the scale keeps 1.905 m at 190.5.
     const double cm = std::round(sp.loom_width_m() * std::round(1.0 / width.scale));
-    if (!std::isfinite(cm) || cm < 0 || cm > static_cast<double>(width.mask() >> width.bit) || !width.in_range(static_cast<std::uint64_t>(cm))) {
+    if (!std::isfinite(cm) || cm < 0 || cm > static_cast<double>(width.mask() >> width.bit) ||
+        !width.in_range(static_cast<std::uint64_t>(cm))) {
       return make_error(fmt::format("loom_width_m {} is outside 0..{} m", sp.loom_width_m(),
                                     width.to_engineering(width.mask() >> width.bit)));
     }
     auto status = checked(*loom_status_.def, *code);
     if (!status) return status.error();
-    auto weft = checked(*weft_filling_word_.def, width.insert(speed.insert(0, sp.maximum_speed_per_min()), static_cast<std::uint64_t>(cm)));
+    auto weft = checked(*weft_filling_word_.def,
+                        width.insert(speed.insert(0, sp.maximum_speed_per_min()), static_cast<std::uint64_t>(cm)));
     if (!weft) return weft.error();
     raw.loom_status = status->raw;
     raw.weft_filling = weft->raw;
   }
   if (!sp.trigger_signal().empty()) {
     const auto code = trigger_signal_.def->values.code(sp.trigger_signal());
-    if (!code) return make_error("unknown trigger_signal '" + sp.trigger_signal() + "' (" + names_of(trigger_signal_.def->values) + ")");
+    if (!code)
+      return make_error("unknown trigger_signal '" + sp.trigger_signal() + "' (" +
+                        names_of(trigger_signal_.def->values) + ")");
     auto t = checked(*trigger_signal_.def, *code);
     if (!t) return t.error();
     raw.trigger = t->raw;
   }
   if (!sp.pick_insertion().empty()) {
     if (sp.pick_insertion().size() != picks_.size()) {
-      return make_error(fmt::format("pick_insertion needs exactly {} codes (the next five picks), got {}", picks_.size(),
-                                    sp.pick_insertion().size()));
+      return make_error(fmt::format("pick_insertion needs exactly {} codes (the next five picks), got {}",
+                                    picks_.size(), sp.pick_insertion().size()));
     }
     std::array<std::uint64_t, 5> codes{};
     for (std::size_t i = 0; i < picks_.size(); ++i) {
@@ -373,8 +400,8 @@ Result<FeederCodec::RawLoom> FeederCodec::validate(const msg::LoomSetpoint& sp) 
     raw.picks = codes;
   }
   if (sp.digital_outputs().size() > outputs_.size()) {
-    return make_error(fmt::format("digital_outputs has {} groups; 600Dh has {} (sub 1..{})", sp.digital_outputs().size(),
-                                  outputs_.size(), outputs_.size()));
+    return make_error(fmt::format("digital_outputs has {} groups; 600Dh has {} (sub 1..{})",
+                                  sp.digital_outputs().size(), outputs_.size(), outputs_.size()));
   }
   for (std::size_t i = 0; i < sp.digital_outputs().size(); ++i) {
     auto o = checked(*outputs_[i].def, sp.digital_outputs()[i]);

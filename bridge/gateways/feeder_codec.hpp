@@ -21,7 +21,7 @@ namespace lb::gateways {
 
 class FeederCodec {
  public:
-  static constexpr unsigned kMaxFeeders = 254;  // sub-indices 01h..FEh
+  static constexpr unsigned kMaxFeeders = 254;    // sub-indices 01h..FEh
   static constexpr unsigned kBitmapFeeders = 32;  // EMCY FF10h carries feeders 1..32
 
   struct Pdo {
@@ -72,7 +72,7 @@ class FeederCodec {
   linebridge_msgs::msg::FeederFunctions functions(std::uint32_t raw) const;
   linebridge_msgs::msg::PickInsertion pick(std::uint8_t raw) const;
   linebridge_msgs::msg::FeederUnwinding unwinding(std::uint32_t raw) const;  // stamp is the caller's
-  linebridge_msgs::msg::FeederUnwinding last_unwinding() const;             // from the image (TPDO1)
+  linebridge_msgs::msg::FeederUnwinding last_unwinding() const;              // from the image (TPDO1)
   // The loom side as the image holds it (received RPDOs, or the bridge's own image).
   // outputs_in_use: the box's RPDO3 (600Dh) exists and is valid, so its outputs mean something.
   void fill_loom(linebridge_msgs::msg::LoomSide& loom, bool outputs_in_use) const;
@@ -88,7 +88,8 @@ class FeederCodec {
   // (6009h sub 0), when known.
   Result<Write> command(unsigned feeder, const std::string& name, std::uint8_t manufacturer_code,
                         std::optional<unsigned> count) const;
-  Result<Write> test(unsigned feeder, const std::string& name, std::uint8_t parameter, std::optional<unsigned> count) const;
+  Result<Write> test(unsigned feeder, const std::string& name, std::uint8_t parameter,
+                     std::optional<unsigned> count) const;
   // 6001h sub feeder: the object to read before merge_functions().
   Result<const profiles::ObjectDef*> functions_object(unsigned feeder, std::optional<unsigned> count) const;
   // `current` with the requested states; refuses unknown functions or states and any change of a
@@ -122,7 +123,8 @@ class FeederCodec {
   const profiles::BitSet& bitset(std::string_view name) const;
   const profiles::BitField& field(const profiles::BitSet& set, std::string_view name) const;
   Object bind(std::string_view name);
-  Result<const profiles::ObjectDef*> per_feeder(std::string_view array, unsigned feeder, std::optional<unsigned> count) const;
+  Result<const profiles::ObjectDef*> per_feeder(std::string_view array, unsigned feeder,
+                                                std::optional<unsigned> count) const;
 
   const profiles::Profile& profile_;
   canopen::ProcessImage image_;
@@ -139,7 +141,7 @@ class FeederCodec {
   Object unwinding_time_, loom_status_, weft_filling_word_, trigger_signal_;
   std::array<Object, 5> picks_;
   std::array<Object, kOutputGroups> outputs_;
-  std::optional<OtherValues> others_;  // after the typed objects are bound
+  std::optional<OtherValues> others_;      // after the typed objects are bound
   std::vector<profiles::DevicePdo> defs_;  // what each PDO is decoded and sent by; never resized
   std::vector<Pdo> pdos_;
   bool loom_seen_ = false;  // an RPDO was received or the image was set

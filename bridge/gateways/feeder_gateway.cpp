@@ -25,7 +25,8 @@ namespace {
 // (and the feeders beyond 32, which FF10h cannot report, are only seen this way).
 constexpr auto kPollPeriod = std::chrono::seconds(1);
 constexpr std::uint16_t kStatus = 0x6009, kErrorCondition = 0x6007, kControlBoxError = 0x6008, kFunctions = 0x6001;
-constexpr std::uint16_t kUnwinding = 0x6010, kLoomStatus = 0x600A, kTrigger = 0x600B, kPicks = 0x600C, kOutputs = 0x600D;
+constexpr std::uint16_t kUnwinding = 0x6010, kLoomStatus = 0x600A, kTrigger = 0x600B, kPicks = 0x600C,
+                        kOutputs = 0x600D;
 constexpr std::uint16_t kFf10 = 0xFF10;
 
 srv::FeederWrite_Response refused(std::string message) {
@@ -42,20 +43,27 @@ FeederGateway::FeederGateway(DeviceContext context)
       burst_(context.loop, [this](std::int64_t stamp_ns) { publish_status(stamp_ns); }),
       // The loom controller's RPDOs are event-driven (255): they go out when a loom set value
       // changes them, and never before the first one (loom_active_).
-      pdos_(ctx_, codec_, [this](std::size_t pdo, const can::CanFrame& f) { on_pdo(pdo, f); },
-            [this] { return loom_active_; }) {
+      pdos_(
+          ctx_, codec_, [this](std::size_t pdo, const can::CanFrame& f) { on_pdo(pdo, f); },
+          [this] { return loom_active_; }) {
   const std::string& dev = ctx_.device.name;
 
   const std::string& line = ctx_.line;
   using ddsl::QosKind;
-  status_writer_ = checked(ctx_.dds.writer<msg::FeederStatusPubSubType>(ddsl::topic_name(line, dev, "status"), QosKind::state), dev);
-  unwinding_writer_ = checked(ctx_.dds.writer<msg::FeederUnwindingPubSubType>(ddsl::topic_name(line, dev, "unwinding"), QosKind::event), dev);
-  error_writer_ = checked(ctx_.dds.writer<msg::FeederErrorPubSubType>(ddsl::topic_name(line, dev, "feeder_error"), QosKind::event), dev);
-  loom_result_writer_ =
-      checked(ctx_.dds.writer<msg::SetpointResultPubSubType>(ddsl::topic_name(line, dev, "loom_result"), QosKind::reply), dev);
-  auto sub = ctx_.dds.subscribe<msg::LoomSetpointPubSubType>(
-      ddsl::topic_name(line, dev, "loom"), QosKind::command,
-      [this](const msg::LoomSetpoint& sp, const ddsl::fdds::SampleInfo&) { on_loom(sp); });
+  status_writer_ = checked(ctx_.dds.writer<msg::FeederStatusPubSubType>(ddsl::topic_name(line, dev, "status"),
+                                                                        QosKind::state),
+                           dev);
+  unwinding_writer_ = checked(ctx_.dds.writer<msg::FeederUnwindingPubSubType>(ddsl::topic_name(line, dev, "unwinding"),
+                                                                              QosKind::event),
+                              dev);
+  error_writer_ = checked(ctx_.dds.writer<msg::FeederErrorPubSubType>(ddsl::topic_name(line, dev, "feeder_error"),
+                                                                      QosKind::event),
+                          dev);
+  loom_result_writer_ = checked(
+      ctx_.dds.writer<msg::SetpointResultPubSubType>(ddsl::topic_name(line, dev, "loom_result"), QosKind::reply), dev);
+  auto sub = ctx_.dds.subscribe<msg::LoomSetpointPubSubType>(ddsl::topic_name(line, dev, "loom"), QosKind::command,
+                                                             [this](const msg::LoomSetpoint& sp,
+                                                                    const ddsl::fdds::SampleInfo&) { on_loom(sp); });
   if (!sub) throw std::runtime_error(dev + ": " + sub.error().message);
   serve_services();
 
@@ -118,7 +126,8 @@ void FeederGateway::publish_error_event(unsigned feeder, bool in_error, std::uin
   ev.in_error(in_error);
   ev.bitmap(bitmap);
   if (!ctx_.is_master() || ctx_.sdo == nullptr) {
-    ev.remark("bus " + ctx_.bus.name + " is in the monitor role: the bridge never transmits, so 6007h could not be read");
+    ev.remark("bus " + ctx_.bus.name +
+              " is in the monitor role: the bridge never transmits, so 6007h could not be read");
     error_writer_.write(ev);
     return;
   }
@@ -134,23 +143,25 @@ void FeederGateway::publish_error_event(unsigned feeder, bool in_error, std::uin
   }
   detail_pending_ |= bit;
   read(kErrorCondition, static_cast<std::uint8_t>(feeder),
-                   [this, ev, feeder, bit](canopen::SdoClient::ReadResult r) mutable {
-                     detail_pending_ &= ~bit;
-                     if (r) {
-                       const auto raw = canopen::integer_bits(*r);
-                       ev.detail_read(true);
-                       ev.condition(codec_.error_condition(raw));
-                       entry(feeder).error_condition_read(true);
-                       entry(feeder).error_condition(ev.condition());
-                       spdlog::info("{}: feeder {} {} (6007h: {})", ctx_.device.name, feeder, ev.in_error() ? "in error" : "error cleared",
-                                    ev.condition().valid() ? ev.condition().name() : fmt::format("undefined code {:02X}h", raw));
-                     } else {
-                       ev.remark("6007h sub " + std::to_string(feeder) + " not read: " + r.error().message);
-                       spdlog::warn("{}: feeder {} {}; {}", ctx_.device.name, feeder, ev.in_error() ? "in error" : "error cleared", ev.remark());
-                     }
-                     error_writer_.write(ev);
-                     publish_status(ddsl::now_ns());
-                   });
+       [this, ev, feeder, bit](canopen::SdoClient::ReadResult r) mutable {
+         detail_pending_ &= ~bit;
+         if (r) {
+           const auto raw = canopen::integer_bits(*r);
+           ev.detail_read(true);
+           ev.condition(codec_.error_condition(raw));
+           entry(feeder).error_condition_read(true);
+           entry(feeder).error_condition(ev.condition());
+           spdlog::info("{}: feeder {} {} (6007h: {})", ctx_.device.name, feeder,
+                        ev.in_error() ? "in error" : "error cleared",
+                        ev.condition().valid() ? ev.condition().name() : fmt::format("undefined code {:02X}h", raw));
+         } else {
+           ev.remark("6007h sub " + std::to_string(feeder) + " not read: " + r.error().message);
+           spdlog::warn("{}: feeder {} {}; {}", ctx_.device.name, feeder, ev.in_error() ? "in error" : "error cleared",
+                        ev.remark());
+         }
+         error_writer_.write(ev);
+         publish_status(ddsl::now_ns());
+       });
 }
 
 void FeederGateway::poll() {
@@ -161,34 +172,35 @@ void FeederGateway::poll() {
                       status_.control_box_error_read(v.has_value());
                       if (v) status_.control_box_error(codec_.control_box_error(*v));
                     }});
-  reads->push_back({kStatus, 0, [this](std::optional<std::uint64_t> v, std::vector<Read>& more) {
-                      status_.feeder_count_read(v.has_value());
-                      if (!v) return;
-                      const unsigned count = std::min<unsigned>(static_cast<unsigned>(*v), FeederCodec::kMaxFeeders);
-                      status_.feeder_count(static_cast<std::uint8_t>(count));
-                      feeder_count_ = static_cast<int>(count);
-                      auto& feeders = status_.feeders();
-                      // Entries beyond the count stay only while FF10h reports them in error.
-                      feeders.erase(std::remove_if(feeders.begin(), feeders.end(),
-                                                   [&](const msg::FeederEntry& f) { return f.number() > count && !f.in_error(); }),
-                                    feeders.end());
-                      for (unsigned n = 1; n <= count; ++n) {
-                        const auto sub = static_cast<std::uint8_t>(n);
-                        (void)entry(n);
-                        more.push_back({kStatus, sub, [this, n](std::optional<std::uint64_t> s, std::vector<Read>&) {
-                                            entry(n).status_read(s.has_value());
-                                            if (s) entry(n).status(codec_.feeder_status(*s));
-                                          }});
-                        more.push_back({kErrorCondition, sub, [this, n](std::optional<std::uint64_t> s, std::vector<Read>&) {
-                                            entry(n).error_condition_read(s.has_value());
-                                            if (s) entry(n).error_condition(codec_.error_condition(*s));
-                                          }});
-                        more.push_back({kFunctions, sub, [this, n](std::optional<std::uint64_t> s, std::vector<Read>&) {
-                                            entry(n).functions_read(s.has_value());
-                                            if (s) entry(n).functions(codec_.functions(static_cast<std::uint32_t>(*s)));
-                                          }});
-                      }
-                    }});
+  reads->push_back(
+      {kStatus, 0, [this](std::optional<std::uint64_t> v, std::vector<Read>& more) {
+         status_.feeder_count_read(v.has_value());
+         if (!v) return;
+         const unsigned count = std::min<unsigned>(static_cast<unsigned>(*v), FeederCodec::kMaxFeeders);
+         status_.feeder_count(static_cast<std::uint8_t>(count));
+         feeder_count_ = static_cast<int>(count);
+         auto& feeders = status_.feeders();
+         // Entries beyond the count stay only while FF10h reports them in error.
+         feeders.erase(std::remove_if(feeders.begin(), feeders.end(),
+                                      [&](const msg::FeederEntry& f) { return f.number() > count && !f.in_error(); }),
+                       feeders.end());
+         for (unsigned n = 1; n <= count; ++n) {
+           const auto sub = static_cast<std::uint8_t>(n);
+           (void)entry(n);
+           more.push_back({kStatus, sub, [this, n](std::optional<std::uint64_t> s, std::vector<Read>&) {
+                             entry(n).status_read(s.has_value());
+                             if (s) entry(n).status(codec_.feeder_status(*s));
+                           }});
+           more.push_back({kErrorCondition, sub, [this, n](std::optional<std::uint64_t> s, std::vector<Read>&) {
+                             entry(n).error_condition_read(s.has_value());
+                             if (s) entry(n).error_condition(codec_.error_condition(*s));
+                           }});
+           more.push_back({kFunctions, sub, [this, n](std::optional<std::uint64_t> s, std::vector<Read>&) {
+                             entry(n).functions_read(s.has_value());
+                             if (s) entry(n).functions(codec_.functions(static_cast<std::uint32_t>(*s)));
+                           }});
+         }
+       }});
   read_chain(std::move(reads), 0);
 }
 
@@ -270,31 +282,34 @@ void FeederGateway::write(const FeederCodec::Write& w, WriteReply reply, std::fu
 
 void FeederGateway::write_now(const FeederCodec::Write& w, WriteReply reply, std::function<void()> then) {
   const auto* obj = w.object;
-  ctx_.sdo->write(ctx_.device.node_id, obj->index, obj->sub, obj->type, canopen::ObjectValue{w.raw},
-                  [this, obj, raw = w.raw, reply = std::move(reply), then = std::move(then)](canopen::SdoClient::DownloadResult r) {
-                    if (r && then) return then();
-                    srv::FeederWrite_Response resp;
-                    resp.success(r.has_value());
-                    resp.raw(raw);
-                    if (!r) {
-                      resp.abort_code(r.error().abort_code);
-                      resp.message(obj->name + ": " + r.error().message);
-                      spdlog::warn("{}: {} = {:X}h refused by the device: {}", ctx_.device.name, obj->name, raw, r.error().message);
-                    } else {
-                      spdlog::info("{}: {} = {:X}h written", ctx_.device.name, obj->name, raw);
-                    }
-                    reply(resp);
-                  },
-                  kServiceSdoLimit);
+  ctx_.sdo->write(
+      ctx_.device.node_id, obj->index, obj->sub, obj->type, canopen::ObjectValue{w.raw},
+      [this, obj, raw = w.raw, reply = std::move(reply), then = std::move(then)](canopen::SdoClient::DownloadResult r) {
+        if (r && then) return then();
+        srv::FeederWrite_Response resp;
+        resp.success(r.has_value());
+        resp.raw(raw);
+        if (!r) {
+          resp.abort_code(r.error().abort_code);
+          resp.message(obj->name + ": " + r.error().message);
+          spdlog::warn("{}: {} = {:X}h refused by the device: {}", ctx_.device.name, obj->name, raw, r.error().message);
+        } else {
+          spdlog::info("{}: {} = {:X}h written", ctx_.device.name, obj->name, raw);
+        }
+        reply(resp);
+      },
+      kServiceSdoLimit);
 }
 
 template <class RequestPS>
-void FeederGateway::serve(const std::string& name, std::function<void(const typename RequestPS::type&, WriteReply)> handler) {
+void FeederGateway::serve(const std::string& name,
+                          std::function<void(const typename RequestPS::type&, WriteReply)> handler) {
   // Every service: refused in the monitor role, validated against the profile on the DDS thread,
   // and only then an SDO request.
   using Service = ddsl::ServiceServer<RequestPS, srv::FeederWrite_ResponsePubSubType>;
   auto served = Service::serve(ctx_.dds, ctx_.line + "/" + ctx_.device.name + "/" + name,
-                               [this, handler = std::move(handler)](const typename RequestPS::type& req, typename Service::Responder respond) {
+                               [this, handler = std::move(handler)](const typename RequestPS::type& req,
+                                                                    typename Service::Responder respond) {
                                  const WriteReply reply = [respond](srv::FeederWrite_Response r) { respond(r); };
                                  if (auto why = refusal(); !why.empty()) return reply(refused(why));
                                  handler(req, reply);
@@ -305,24 +320,27 @@ void FeederGateway::serve(const std::string& name, std::function<void(const type
 void FeederGateway::serve_services() {
   const auto write_or_refuse = [this](Result<FeederCodec::Write> w, const WriteReply& reply) {
     if (!w) {
-      if (auto more = refusal_log_.allow()) spdlog::warn("{}: refused: {}{}", ctx_.device.name, w.error().message, *more);
+      if (auto more = refusal_log_.allow())
+        spdlog::warn("{}: refused: {}{}", ctx_.device.name, w.error().message, *more);
       return reply(refused(w.error().message));
     }
     write(*w, reply);
   };
 
-  serve<srv::FeederCommand_RequestPubSubType>(
-      "feeder_command", [this, write_or_refuse](const srv::FeederCommand_Request& req, WriteReply reply) {
-        write_or_refuse(codec_.command(req.feeder(), req.command(), req.manufacturer_code(), feeder_count()), reply);
-      });
-  serve<srv::FeederTest_RequestPubSubType>(
-      "feeder_test", [this, write_or_refuse](const srv::FeederTest_Request& req, WriteReply reply) {
-        write_or_refuse(codec_.test(req.feeder(), req.test(), req.parameter(), feeder_count()), reply);
-      });
-  serve<srv::WeftInsertionType_RequestPubSubType>(
-      "weft_insertion_type", [this, write_or_refuse](const srv::WeftInsertionType_Request& req, WriteReply reply) {
-        write_or_refuse(codec_.weft_insertion_type(req.type()), reply);
-      });
+  serve<srv::FeederCommand_RequestPubSubType>("feeder_command", [this,
+                                                                 write_or_refuse](const srv::FeederCommand_Request& req,
+                                                                                  WriteReply reply) {
+    write_or_refuse(codec_.command(req.feeder(), req.command(), req.manufacturer_code(), feeder_count()), reply);
+  });
+  serve<srv::FeederTest_RequestPubSubType>("feeder_test", [this, write_or_refuse](const srv::FeederTest_Request& req,
+                                                                                  WriteReply reply) {
+    write_or_refuse(codec_.test(req.feeder(), req.test(), req.parameter(), feeder_count()), reply);
+  });
+  serve<srv::WeftInsertionType_RequestPubSubType>("weft_insertion_type",
+                                                  [this, write_or_refuse](const srv::WeftInsertionType_Request& req,
+                                                                          WriteReply reply) {
+                                                    write_or_refuse(codec_.weft_insertion_type(req.type()), reply);
+                                                  });
   serve<srv::FeederAssignment_RequestPubSubType>(
       "feeder_assignment", [this, write_or_refuse](const srv::FeederAssignment_Request& req, WriteReply reply) {
         if (!req.set_number() && !req.set_color()) return reply(refused("nothing to assign: set_number or set_color"));
@@ -341,49 +359,51 @@ void FeederGateway::serve_services() {
         if (number && color) return write(*number, reply, [this, c = *color, reply] { write_now(c, reply); });
         write(number ? *number : *color, reply);
       });
-  serve<srv::FeederFunctions_RequestPubSubType>(
-      "feeder_functions", [this](const srv::FeederFunctions_Request& req, WriteReply reply) {
-        auto obj = codec_.functions_object(req.feeder(), feeder_count());
-        if (!obj) return reply(refused(obj.error().message));
-        std::vector<FeederCodec::FunctionSetting> settings;
-        for (const auto& s : req.settings()) settings.push_back({s.function(), s.state()});
-        // Read-modify-write: only functions the feeder reports as available may change.
-        when_sdo_possible(reply, [this, o = *obj, settings = std::move(settings), reply] {
-          read(o->index, o->sub,
-               [this, o, settings, reply](canopen::SdoClient::ReadResult r) {
-                 if (!r) {
-                   auto resp = refused(o->name + " not read: " + r.error().message);
-                   resp.abort_code(r.error().abort_code);
-                   return reply(resp);
-                 }
-                 auto merged = codec_.merge_functions(canopen::integer_bits(*r), settings);
-                 if (!merged) return reply(refused(merged.error().message));
-                 auto w = FeederCodec::checked(*o, *merged);
-                 if (!w) return reply(refused(w.error().message));
-                 write_now(*w, reply);
-               },
-               kServiceSdoLimit);
-        });
-      });
-  serve<srv::TriggerSource_RequestPubSubType>(
-      "trigger_source", [this](const srv::TriggerSource_Request& req, WriteReply reply) {
-        std::vector<std::string> selected(req.selected().begin(), req.selected().end());
-        const auto& supported = codec_.trigger_sources_supported();
-        when_sdo_possible(reply, [this, &supported, selected = std::move(selected), reply] {
-          read(supported.index, supported.sub,
-               [this, selected, reply](canopen::SdoClient::ReadResult r) {
-                 if (!r) {
-                   auto resp = refused("trigger_sources_supported not read: " + r.error().message);
-                   resp.abort_code(r.error().abort_code);
-                   return reply(resp);
-                 }
-                 auto w = codec_.trigger_sources(selected, canopen::integer_bits(*r));
-                 if (!w) return reply(refused(w.error().message));
-                 write_now(*w, reply);
-               },
-               kServiceSdoLimit);
-        });
-      });
+  serve<srv::FeederFunctions_RequestPubSubType>("feeder_functions", [this](const srv::FeederFunctions_Request& req,
+                                                                           WriteReply reply) {
+    auto obj = codec_.functions_object(req.feeder(), feeder_count());
+    if (!obj) return reply(refused(obj.error().message));
+    std::vector<FeederCodec::FunctionSetting> settings;
+    for (const auto& s : req.settings()) settings.push_back({s.function(), s.state()});
+    // Read-modify-write: only functions the feeder reports as available may change.
+    when_sdo_possible(reply, [this, o = *obj, settings = std::move(settings), reply] {
+      read(
+          o->index, o->sub,
+          [this, o, settings, reply](canopen::SdoClient::ReadResult r) {
+            if (!r) {
+              auto resp = refused(o->name + " not read: " + r.error().message);
+              resp.abort_code(r.error().abort_code);
+              return reply(resp);
+            }
+            auto merged = codec_.merge_functions(canopen::integer_bits(*r), settings);
+            if (!merged) return reply(refused(merged.error().message));
+            auto w = FeederCodec::checked(*o, *merged);
+            if (!w) return reply(refused(w.error().message));
+            write_now(*w, reply);
+          },
+          kServiceSdoLimit);
+    });
+  });
+  serve<srv::TriggerSource_RequestPubSubType>("trigger_source", [this](const srv::TriggerSource_Request& req,
+                                                                       WriteReply reply) {
+    std::vector<std::string> selected(req.selected().begin(), req.selected().end());
+    const auto& supported = codec_.trigger_sources_supported();
+    when_sdo_possible(reply, [this, &supported, selected = std::move(selected), reply] {
+      read(
+          supported.index, supported.sub,
+          [this, selected, reply](canopen::SdoClient::ReadResult r) {
+            if (!r) {
+              auto resp = refused("trigger_sources_supported not read: " + r.error().message);
+              resp.abort_code(r.error().abort_code);
+              return reply(resp);
+            }
+            auto w = codec_.trigger_sources(selected, canopen::integer_bits(*r));
+            if (!w) return reply(refused(w.error().message));
+            write_now(*w, reply);
+          },
+          kServiceSdoLimit);
+    });
+  });
 }
 
 void FeederGateway::on_loom(const msg::LoomSetpoint& sp) {
@@ -391,25 +411,31 @@ void FeederGateway::on_loom(const msg::LoomSetpoint& sp) {
   auto raw = codec_.validate(sp);
   if (!raw) {
     if (auto more = refusal_log_.allow()) {
-      spdlog::warn("{}: loom set value {} refused: {}{}", ctx_.device.name, sp.request_id(), raw.error().message, *more);
+      spdlog::warn("{}: loom set value {} refused: {}{}", ctx_.device.name, sp.request_id(), raw.error().message,
+                   *more);
     }
     return loom_reply(sp.request_id(), false, raw.error().message);
   }
   const bool posted = ctx_.loop.try_post([this, r = *raw, id = sp.request_id()] {
     if (!ctx_.node.ready_for_pdos()) {
-      return loom_reply(id, false, ctx_.device.name + " is not started by this bridge or offline: loom set value not sent");
+      return loom_reply(id, false,
+                        ctx_.device.name + " is not started by this bridge or offline: loom set value not sent");
     }
     if (!r.outputs.empty() && !outputs_in_use()) {
-      return loom_reply(id, false, ctx_.device.name + ": RPDO3 (600Dh digital outputs) is not in use: the box does not have "
-                                                       "it, or it is disabled (COB-ID bit 31); loom set value not sent");
+      return loom_reply(id, false,
+                        ctx_.device.name + ": RPDO3 (600Dh digital outputs) is not in use: the box does not have "
+                                           "it, or it is disabled (COB-ID bit 31); loom set value not sent");
     }
-    if (!loom_active_) spdlog::info("{}: the bridge now plays the loom controller (RPDOs from here on)", ctx_.device.name);
+    if (!loom_active_)
+      spdlog::info("{}: the bridge now plays the loom controller (RPDOs from here on)", ctx_.device.name);
     loom_active_ = true;
     codec_.apply(r);
     // Each part given is an event on its own PDO, sent even when unchanged (a trigger repeats).
     for (auto& t : pdos_.rpdos()) {
-      const bool touched = (r.loom_status && codec_.carries(t.pdo, kLoomStatus)) || (r.trigger && codec_.carries(t.pdo, kTrigger)) ||
-                           (r.picks && codec_.carries(t.pdo, kPicks)) || (!r.outputs.empty() && codec_.carries(t.pdo, kOutputs));
+      const bool touched = (r.loom_status && codec_.carries(t.pdo, kLoomStatus)) ||
+                           (r.trigger && codec_.carries(t.pdo, kTrigger)) ||
+                           (r.picks && codec_.carries(t.pdo, kPicks)) ||
+                           (!r.outputs.empty() && codec_.carries(t.pdo, kOutputs));
       if (!touched) continue;
       t.transmitter->resend();
       t.transmitter->on_data();

@@ -75,7 +75,7 @@ class FeederGateway : public Gateway {
 
   DeviceContext ctx_;
   SharedLogRate refusal_log_;  // refused writes and loom set values, from DDS threads and the loop
-  FeederCodec codec_;  // loop thread, except the const validation (any thread)
+  FeederCodec codec_;          // loop thread, except the const validation (any thread)
   PdoBurst burst_;
   PdoWiring<FeederCodec> pdos_;  // the loom controller's RPDOs: sent only once loom play began
 

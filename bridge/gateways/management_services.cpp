@@ -20,10 +20,12 @@ ManagementServices::ManagementServices(std::string line, std::vector<Device> dev
 template <class RequestPS, class ReplyPS>
 Result<void> ManagementServices::serve_one(ddsl::Participant& dds, const std::string& service,
                                            void (ManagementServices::*handler)(const typename RequestPS::type&,
-                                                                               ddsl::Respond<typename ReplyPS::type>) const) {
+                                                                               ddsl::Respond<typename ReplyPS::type>)
+                                               const) {
   using Server = ddsl::ServiceServer<RequestPS, ReplyPS>;
   auto served = Server::serve(dds, ddsl::line_service_path(line_, service),
-                              [this, handler](const typename RequestPS::type& request, typename Server::Responder respond) {
+                              [this, handler](const typename RequestPS::type& request,
+                                              typename Server::Responder respond) {
                                 (this->*handler)(request, respond);
                               });
   if (!served) return make_error("line-wide service " + service + ": " + served.error().message);
@@ -34,14 +36,18 @@ Result<std::unique_ptr<ManagementServices>> ManagementServices::serve(ddsl::Part
                                                                       std::vector<Device> devices) {
   auto router = std::make_unique<ManagementServices>(line, std::move(devices));
   using M = ManagementServices;
-  for (auto r : {router->serve_one<srv::Nmt_RequestPubSubType, srv::Nmt_ResponsePubSubType>(dds, "nmt", &M::nmt),
-                 router->serve_one<srv::SdoRead_RequestPubSubType, srv::SdoRead_ResponsePubSubType>(dds, "sdo_read", &M::sdo_read),
-                 router->serve_one<srv::SdoWrite_RequestPubSubType, srv::SdoWrite_ResponsePubSubType>(dds, "sdo_write", &M::sdo_write),
-                 router->serve_one<srv::Command_RequestPubSubType, srv::Command_ResponsePubSubType>(dds, "command", &M::command),
-                 router->serve_one<srv::GetParameter_RequestPubSubType, srv::GetParameter_ResponsePubSubType>(
-                     dds, "get_parameter", &M::get_parameter),
-                 router->serve_one<srv::SetParameter_RequestPubSubType, srv::SetParameter_ResponsePubSubType>(
-                     dds, "set_parameter", &M::set_parameter)}) {
+  for (auto r :
+       {router->serve_one<srv::Nmt_RequestPubSubType, srv::Nmt_ResponsePubSubType>(dds, "nmt", &M::nmt),
+        router->serve_one<srv::SdoRead_RequestPubSubType, srv::SdoRead_ResponsePubSubType>(dds, "sdo_read",
+                                                                                           &M::sdo_read),
+        router->serve_one<srv::SdoWrite_RequestPubSubType, srv::SdoWrite_ResponsePubSubType>(dds, "sdo_write",
+                                                                                             &M::sdo_write),
+        router->serve_one<srv::Command_RequestPubSubType, srv::Command_ResponsePubSubType>(dds, "command", &M::command),
+        router->serve_one<srv::GetParameter_RequestPubSubType, srv::GetParameter_ResponsePubSubType>(dds,
+                                                                                                     "get_parameter",
+                                                                                                     &M::get_parameter),
+        router->serve_one<srv::SetParameter_RequestPubSubType, srv::SetParameter_ResponsePubSubType>(
+            dds, "set_parameter", &M::set_parameter)}) {
     if (!r) return r.error();
   }
   return router;
@@ -50,7 +56,8 @@ Result<std::unique_ptr<ManagementServices>> ManagementServices::serve(ddsl::Part
 Result<const ManagementServices::Device*> ManagementServices::find(const std::string& name) const {
   if (auto it = devices_.find(name); it != devices_.end()) return &it->second;
   const std::string known = device_list_.empty() ? "it has none" : "devices: " + device_list_;
-  if (name.empty()) return make_error("the request names no device (field 'device'; line " + line_ + ": " + known + ")");
+  if (name.empty())
+    return make_error("the request names no device (field 'device'; line " + line_ + ": " + known + ")");
   return make_error("no device '" + name + "' on line " + line_ + " (" + known + ")");
 }
 
@@ -69,15 +76,18 @@ void ManagementServices::nmt(const srv::Nmt_Request& request, ddsl::Respond<srv:
   route(request, respond, [&](const Device& d) { d.services->nmt(request, respond); });
 }
 
-void ManagementServices::sdo_read(const srv::SdoRead_Request& request, ddsl::Respond<srv::SdoRead_Response> respond) const {
+void ManagementServices::sdo_read(const srv::SdoRead_Request& request,
+                                  ddsl::Respond<srv::SdoRead_Response> respond) const {
   route(request, respond, [&](const Device& d) { d.services->sdo_read(request, respond); });
 }
 
-void ManagementServices::sdo_write(const srv::SdoWrite_Request& request, ddsl::Respond<srv::SdoWrite_Response> respond) const {
+void ManagementServices::sdo_write(const srv::SdoWrite_Request& request,
+                                   ddsl::Respond<srv::SdoWrite_Response> respond) const {
   route(request, respond, [&](const Device& d) { d.services->sdo_write(request, respond); });
 }
 
-void ManagementServices::command(const srv::Command_Request& request, ddsl::Respond<srv::Command_Response> respond) const {
+void ManagementServices::command(const srv::Command_Request& request,
+                                 ddsl::Respond<srv::Command_Response> respond) const {
   route(request, respond, [&](const Device& d) {
     if (d.commands != nullptr) return d.commands->handle(request, respond);
     srv::Command_Response refused;

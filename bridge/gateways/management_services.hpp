@@ -29,10 +29,10 @@ class DeviceServices;
 class ManagementServices {
  public:
   struct Device {
-    std::string name;                 // as in the configuration and the requests
-    std::string kind;                 // for refusals, e.g. "feeder, cia414-2 1.1"
-    DeviceServices* services;         // nmt, sdo_read, sdo_write, get_parameter, set_parameter
-    const CommandService* commands;   // null: the device type has no momentary commands
+    std::string name;                // as in the configuration and the requests
+    std::string kind;                // for refusals, e.g. "feeder, cia414-2 1.1"
+    DeviceServices* services;        // nmt, sdo_read, sdo_write, get_parameter, set_parameter
+    const CommandService* commands;  // null: the device type has no momentary commands
   };
 
   // Routes to devices (in configuration order; names unique) without serving anything: tests use
@@ -48,7 +48,8 @@ class ManagementServices {
 
   // One request each, on the thread that received it (a Fast DDS thread); refused at once when
   // the request names no device of this line, else as its device's handler answers.
-  void nmt(const linebridge_msgs::srv::Nmt_Request& request, ddsl::Respond<linebridge_msgs::srv::Nmt_Response> respond) const;
+  void nmt(const linebridge_msgs::srv::Nmt_Request& request,
+           ddsl::Respond<linebridge_msgs::srv::Nmt_Response> respond) const;
   void sdo_read(const linebridge_msgs::srv::SdoRead_Request& request,
                 ddsl::Respond<linebridge_msgs::srv::SdoRead_Response> respond) const;
   void sdo_write(const linebridge_msgs::srv::SdoWrite_Request& request,

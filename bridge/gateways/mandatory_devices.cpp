@@ -26,7 +26,8 @@ bool MandatoryDevices::waits(std::size_t i) const {
 std::string MandatoryDevices::names_missing(std::size_t except) const {
   std::string names;
   for (std::size_t j = 0; j < members_.size(); ++j) {
-    if (j != except && members_[j].mandatory && status_[j].presence != Presence::passed) add_name(names, members_[j].name);
+    if (j != except && members_[j].mandatory && status_[j].presence != Presence::passed)
+      add_name(names, members_[j].name);
   }
   return names;
 }
@@ -35,7 +36,8 @@ std::string MandatoryDevices::names_failed(std::size_t except) const {
   std::string names;
   for (std::size_t j = 0; j < members_.size(); ++j) {
     const auto p = status_[j].presence;
-    if (j != except && members_[j].mandatory && (p == Presence::failed || p == Presence::lost)) add_name(names, members_[j].name);
+    if (j != except && members_[j].mandatory && (p == Presence::failed || p == Presence::lost))
+      add_name(names, members_[j].name);
   }
   return names;
 }
@@ -58,16 +60,17 @@ void MandatoryDevices::starting(std::size_t i, const canopen::StartFacts& facts)
       });
     }
   }
-  if (st.hold == Hold::stopped) return;                        // kept stopped until an operator starts it
-  if (st.hold == Hold::none && node.operator_hold()) return;   // the operator's own stop or pre-operational
+  if (st.hold == Hold::stopped) return;                       // kept stopped until an operator starts it
+  if (st.hold == Hold::none && node.operator_hold()) return;  // the operator's own stop or pre-operational
   const std::string failed = policy_ == Policy::stop_others ? names_failed(i) : std::string();
   if (!failed.empty() && (st.started || facts.found_operational)) {
     // It ran (or runs) while a mandatory device is gone: the line does not run without it.
     node.hold(canopen::NmtCommand::stop);
     st.hold = Hold::stopped;
     st.hold_why = "mandatory device " + failed + " lost or failed its boot";
-    spdlog::warn("{}: {} (node {}) is kept stopped: {} (when_mandatory_fails: stop_others); an operator's nmt start releases it",
-                 bus_, m.name, node.node_id(), st.hold_why);
+    spdlog::warn(
+        "{}: {} (node {}) is kept stopped: {} (when_mandatory_fails: stop_others); an operator's nmt start releases it",
+        bus_, m.name, node.node_id(), st.hold_why);
     return;
   }
   if (waits(i)) {
@@ -153,13 +156,14 @@ void MandatoryDevices::stop_others(std::size_t failed) {
     add_name(stopped, members_[j].name);
   }
   if (stopped.empty()) {
-    spdlog::warn("{}: mandatory device {} (node {}): {}: nothing the bridge started runs; the others wait for it", bus_, f.name,
-                 f.node->node_id(), status_[failed].why);
+    spdlog::warn("{}: mandatory device {} (node {}): {}: nothing the bridge started runs; the others wait for it", bus_,
+                 f.name, f.node->node_id(), status_[failed].why);
     return;
   }
-  spdlog::warn("{}: mandatory device {} (node {}): {}: NMT stop to {} (when_mandatory_fails: stop_others); kept stopped "
-               "until an operator starts them (nmt start), also when {} comes back",
-               bus_, f.name, f.node->node_id(), status_[failed].why, stopped, f.name);
+  spdlog::warn(
+      "{}: mandatory device {} (node {}): {}: NMT stop to {} (when_mandatory_fails: stop_others); kept stopped "
+      "until an operator starts them (nmt start), also when {} comes back",
+      bus_, f.name, f.node->node_id(), status_[failed].why, stopped, f.name);
 }
 
 void MandatoryDevices::open_gate() {
@@ -187,7 +191,8 @@ void MandatoryDevices::open_gate() {
     }
   }
   if (!started.empty() || !later.empty()) {
-    spdlog::info("{}: every mandatory device passed its boot: NMT start to {}{}", bus_, started.empty() ? "none yet" : started,
+    spdlog::info("{}: every mandatory device passed its boot: NMT start to {}{}", bus_,
+                 started.empty() ? "none yet" : started,
                  later.empty() ? "" : "; started when their boot passes: " + later);
   }
 }
@@ -233,7 +238,8 @@ std::string MandatoryDevices::state() const {
   }
   if (const auto missing = names_missing(members_.size()); !missing.empty()) {
     if (policy_ == Policy::report_only && passed_once_) return "mandatory device " + missing + " is being booted again";
-    return "waiting for mandatory device " + missing + ": no device of the bus is started before it passed its boot" + kept;
+    return "waiting for mandatory device " + missing + ": no device of the bus is started before it passed its boot" +
+           kept;
   }
   return held.empty() ? std::string() : "every mandatory device passed its boot" + kept;
 }

@@ -19,8 +19,8 @@
 //
 // It hears each member as one of its node's drivers (NodeDriver: on_start, right before the boot
 // decides between NMT start and the hold, the last moment to hold it; on_event; on_boot), acts
-// through RemoteNode's hold and command, and is told operator commands by the device services. Everything runs on the bus's
-// loop thread (the diagnostics snapshot included): no locks.
+// through RemoteNode's hold and command, and is told operator commands by the device services. Everything runs on the
+// bus's loop thread (the diagnostics snapshot included): no locks.
 
 #include <cstddef>
 #include <functional>

@@ -96,9 +96,10 @@ void MomentaryCommands::frame_not_sent(std::string_view why) {
     if (p.state == State::releasing) {
       // It was on the bus long enough; only its end is late.
       finish(bit, p,
-             ended(true, fmt::format("the frame that releases it was not sent ({}): the device gets it with the next RPDO "
-                                     "it may take",
-                                     why)),
+             ended(true,
+                   fmt::format("the frame that releases it was not sent ({}): the device gets it with the next RPDO "
+                               "it may take",
+                               why)),
              std::nullopt);
       continue;
     }
@@ -132,7 +133,8 @@ void MomentaryCommands::on_timer(unsigned bit) {
       return;
     }
     case State::releasing:
-      finish(bit, p, ended(true, patience + " to release it: the device gets the release with the next RPDO"), std::nullopt);
+      finish(bit, p, ended(true, patience + " to release it: the device gets the release with the next RPDO"),
+             std::nullopt);
       return;
   }
 }
@@ -155,10 +157,11 @@ void MomentaryCommands::finish(unsigned bit, Pulse& p, Outcome base, std::option
     const auto end = released_at ? released_at : last_frame;
     if (press.first && end) o.held = *end - *press.first;
     if (!o.on_bus) {
-      o.message = press.frames == 0
-                      ? fmt::format("{}: the command never reached the bus", base.message)
-                      : fmt::format("interrupted after {} frame(s) over {:.1f} ms (less than the {} ms it must be held): {}",
-                                    press.frames, ms(o.held), hold_.count(), base.message);
+      o.message =
+          press.frames == 0
+              ? fmt::format("{}: the command never reached the bus", base.message)
+              : fmt::format("interrupted after {} frame(s) over {:.1f} ms (less than the {} ms it must be held): {}",
+                            press.frames, ms(o.held), hold_.count(), base.message);
     }
     if (press.done) press.done(o);
   }

@@ -34,9 +34,9 @@ class MomentaryCommands {
   // say how long and in how many frames); otherwise message says why it was not, or not fully.
   struct Outcome {
     bool on_bus = false;
-    unsigned frames = 0;                // RPDOs that carried the bit for this press
-    std::chrono::nanoseconds held{0};   // from its first frame to the frame that cleared it
-    std::string message;                // empty when nothing needs saying
+    unsigned frames = 0;               // RPDOs that carried the bit for this press
+    std::chrono::nanoseconds held{0};  // from its first frame to the frame that cleared it
+    std::string message;               // empty when nothing needs saying
   };
   using Done = std::function<void(const Outcome&)>;
 

@@ -58,7 +58,8 @@ class OtherValues {
         m.pdo(v.pdo);
         m.value(v.def->to_engineering(raw));
         m.unit(v.def->eng_unit);
-        m.raw(canopen::is_signed_integer(v.def->type) ? canopen::sign_extend(raw, bits) : static_cast<std::int64_t>(raw));
+        m.raw(canopen::is_signed_integer(v.def->type) ? canopen::sign_extend(raw, bits)
+                                                      : static_cast<std::int64_t>(raw));
         out.push_back(std::move(m));
       }
     }

@@ -21,7 +21,8 @@ inline Result<canopen::PdoBinding> bind_device_pdo(const profiles::Profile& prof
   for (const auto& e : pdo.mapping) {
     const auto entry = canopen::describe_entry(e);
     if (e.is_dummy()) {
-      if (!rx) return make_error(fmt::format("{} maps the dummy entry {}: only an RPDO can skip bits", pdo.name, entry));
+      if (!rx)
+        return make_error(fmt::format("{} maps the dummy entry {}: only an RPDO can skip bits", pdo.name, entry));
       continue;
     }
     const profiles::ObjectDef* obj = profile.object(e.index, e.sub);

@@ -21,8 +21,8 @@ bool receive_pdo(const DeviceContext& ctx, Codec& codec, PdoBurst& burst, std::s
   burst.admit(pdo);
   if (auto r = codec.receive(pdo, frame.payload()); !r) {
     if (stats.pdo_length_errors++ % 1000 == 0) {
-      spdlog::warn("{}: {} ({:03X}h) not decoded: {} ({} so far)", ctx.device.name, codec.pdos()[pdo].def->name, frame.id,
-                   r.error().message, stats.pdo_length_errors);
+      spdlog::warn("{}: {} ({:03X}h) not decoded: {} ({} so far)", ctx.device.name, codec.pdos()[pdo].def->name,
+                   frame.id, r.error().message, stats.pdo_length_errors);
     }
     return false;
   }

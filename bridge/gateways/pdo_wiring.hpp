@@ -50,33 +50,36 @@ class PdoWiring final : public canopen::NodeDriver {
       if (!pdo.enabled) continue;  // COB-ID bit 31: this PDO does not exist on the bus
       if (pdo.direction == profiles::PdoDirection::tx || !ctx_.is_master()) {
         const auto handler = [receive, i](const can::CanFrame& f) { receive(i, f); };
-        if (pdo.extended) ctx_.loop.on_extended_frame(pdo.can_id, handler);
-        else ctx_.loop.on_frame(pdo.can_id, handler);
+        if (pdo.extended)
+          ctx_.loop.on_extended_frame(pdo.can_id, handler);
+        else
+          ctx_.loop.on_frame(pdo.can_id, handler);
         continue;
       }
       const std::size_t k = rpdos_.size();
       using Transmitter = canopen::PdoTransmitter;
       rpdos_.push_back(
-          {i, std::make_unique<Transmitter>(
-                  ctx_.loop, settings(pdo),
-                  Transmitter::Hooks{
-                      .pack = [this, i](can::CanFrame& f) { f.len = codec_.pack(i, std::span<std::uint8_t, 8>(f.data)); },
-                      .may_send = [this, k] { return may_send(k); },
-                      .before_send = [this, i] { notify(i, [](const RpdoObserver& o) { o.before_send(); }); },
-                      .sent =
-                          [this, i](const can::CanFrame&, std::chrono::steady_clock::time_point at) {
-                            ++ctx_.node.stats().pdos_sent;
-                            notify(i, [at](const RpdoObserver& o) { o.sent(at); });
-                          },
-                      .not_sent =
-                          [this, i, k](Transmitter::Refusal why) {
-                            if (observed(i)) {
-                              const auto text = why == Transmitter::Refusal::bus
-                                                    ? std::string("the bus refused the frame (diagnostics: tx_dropped)")
-                                                    : why_not(k);
-                              notify(i, [&text](const RpdoObserver& o) { o.not_sent(text); });
-                            }
-                          }})});
+          {i,
+           std::make_unique<Transmitter>(
+               ctx_.loop, settings(pdo),
+               Transmitter::Hooks{
+                   .pack = [this, i](can::CanFrame& f) { f.len = codec_.pack(i, std::span<std::uint8_t, 8>(f.data)); },
+                   .may_send = [this, k] { return may_send(k); },
+                   .before_send = [this, i] { notify(i, [](const RpdoObserver& o) { o.before_send(); }); },
+                   .sent =
+                       [this, i](const can::CanFrame&, std::chrono::steady_clock::time_point at) {
+                         ++ctx_.node.stats().pdos_sent;
+                         notify(i, [at](const RpdoObserver& o) { o.sent(at); });
+                       },
+                   .not_sent =
+                       [this, i, k](Transmitter::Refusal why) {
+                         if (observed(i)) {
+                           const auto text = why == Transmitter::Refusal::bus
+                                                 ? std::string("the bus refused the frame (diagnostics: tx_dropped)")
+                                                 : why_not(k);
+                           notify(i, [&text](const RpdoObserver& o) { o.not_sent(text); });
+                         }
+                       }})});
     }
     if (ctx_.is_master()) ctx_.node.attach(*this);
   }
@@ -166,7 +169,8 @@ class PdoWiring final : public canopen::NodeDriver {
     if (!takes_a_safe_image()) return false;
     safe_image_asked_ = true;
     if (const auto off = switch_off_enabling(); !off.empty()) {
-      spdlog::warn("{}: a stop for a device the bridge has not started: switched off first: {}", ctx_.device.name, fmt::join(off, ", "));
+      spdlog::warn("{}: a stop for a device the bridge has not started: switched off first: {}", ctx_.device.name,
+                   fmt::join(off, ", "));
     }
     return true;
   }
@@ -178,7 +182,8 @@ class PdoWiring final : public canopen::NodeDriver {
     return out;
   }
   void restore_image(const Image& image) {
-    for (std::size_t k = 0; k < rpdos_.size() && k < image.size(); ++k) static_cast<void>(codec_.receive(rpdos_[k].pdo, image[k]));
+    for (std::size_t k = 0; k < rpdos_.size() && k < image.size(); ++k)
+      static_cast<void>(codec_.receive(rpdos_[k].pdo, image[k]));
   }
   // Loop thread: a device the bridge has not started (its boot under way, failed, or its state
   // unknown) that is heard operational and whose PDOs a boot of this run verified: it may take an
@@ -229,18 +234,22 @@ class PdoWiring final : public canopen::NodeDriver {
     const auto& def = *codec_.pdos()[r.pdo].def;
     if (kept.mapping != mapping_of(def)) return "its mapping changed since";
     if (kept.identity != identity_) {
-      return fmt::format("they were kept for another device (identity {:08X}:{:08X}:{:08X}:{:08X}, now {:08X}:{:08X}:{:08X}:{:08X})",
-                         kept.identity[0], kept.identity[1], kept.identity[2], kept.identity[3], identity_[0], identity_[1],
-                         identity_[2], identity_[3]);
+      return fmt::format(
+          "they were kept for another device (identity {:08X}:{:08X}:{:08X}:{:08X}, now {:08X}:{:08X}:{:08X}:{:08X})",
+          kept.identity[0], kept.identity[1], kept.identity[2], kept.identity[3], identity_[0], identity_[1],
+          identity_[2], identity_[3]);
     }
-    const auto now = std::chrono::duration_cast<std::chrono::seconds>(std::chrono::system_clock::now().time_since_epoch()).count();
+    const auto now =
+        std::chrono::duration_cast<std::chrono::seconds>(std::chrono::system_clock::now().time_since_epoch()).count();
     const auto age = now - kept.held_at_s;
     // A stamp from the future: the clock went back, so the age is unknown.
     if (age < -60) return fmt::format("they are stamped {} s in the future (the clock went back?)", -age);
     if (age > ctx_.startup.set_values_max_age.count()) {
-      return fmt::format("they were last in force {} s ago, over set_values_max_age_s {}", age, ctx_.startup.set_values_max_age.count());
+      return fmt::format("they were last in force {} s ago, over set_values_max_age_s {}", age,
+                         ctx_.startup.set_values_max_age.count());
     }
-    if (auto ok = check_set_values(ctx_.profile, mapping_in_use(r), kept.payload); !ok) return "out of range: " + ok.error().message;
+    if (auto ok = check_set_values(ctx_.profile, mapping_in_use(r), kept.payload); !ok)
+      return "out of range: " + ok.error().message;
     return std::nullopt;
   }
 
@@ -273,17 +282,21 @@ class PdoWiring final : public canopen::NodeDriver {
       if (scope == RestoreScope::non_enabling) {
         for (auto& name : clear_enabling(ctx_.profile, mapping_in_use(r), data)) cleared.push_back(std::move(name));
       }
-      if (auto ok = codec_.receive(r.pdo, data); !ok) notes.push_back(fmt::format("{}: {}", def.name, ok.error().message));
+      if (auto ok = codec_.receive(r.pdo, data); !ok)
+        notes.push_back(fmt::format("{}: {}", def.name, ok.error().message));
     }
     if (clear_momentary_) clear_momentary_();
     const char* found = facts.found_operational ? (ctx_.device.starts_itself ? "found operational, but it starts itself"
-                                                                              : "found operational")
+                                                                             : "found operational")
                                                 : "found not operational (power loss or reset)";
     std::string note = fmt::format("{}: {} set values", found, to_string(scope));
-    if (!cleared.empty()) note += fmt::format("; enabling levels switched off until an operator sets them: {}", fmt::join(cleared, ", "));
+    if (!cleared.empty())
+      note += fmt::format("; enabling levels switched off until an operator sets them: {}", fmt::join(cleared, ", "));
     if (!notes.empty()) note += fmt::format("; {}", fmt::join(notes, "; "));
-    if (!cleared.empty()) spdlog::warn("{}: {}", ctx_.device.name, note);
-    else if (first || scope == RestoreScope::nothing) spdlog::info("{}: {}", ctx_.device.name, note);
+    if (!cleared.empty())
+      spdlog::warn("{}: {}", ctx_.device.name, note);
+    else if (first || scope == RestoreScope::nothing)
+      spdlog::info("{}: {}", ctx_.device.name, note);
     ctx_.node.note_set_values_at_start(std::move(note));
     keep();
   }
@@ -303,8 +316,9 @@ class PdoWiring final : public canopen::NodeDriver {
     if (!node.online()) return name + " is offline (no heartbeat)";
     if (!node.configured()) {
       if (takes_a_safe_image()) {
-        return name + " has not passed its boot (its state became unknown, or the boot failed): while it runs it takes only "
-                      "set values that enable nothing (program off, extruder stopped)";
+        return name +
+               " has not passed its boot (its state became unknown, or the boot failed): while it runs it takes only "
+               "set values that enable nothing (program off, extruder stopped)";
       }
       return name + " has not passed its boot (its state became unknown, or the boot failed)";
     }
@@ -366,10 +380,10 @@ class PdoWiring final : public canopen::NodeDriver {
   Gate gate_;
   std::vector<Rpdo> rpdos_;
   bool persist_ = false;
-  bool restored_ = false;               // restore() was called: each start decides the image
-  bool started_once_ = false;           // loop thread: a start has decided the image
-  bool pdos_verified_ = false;          // loop thread: a boot checked the device's PDOs since its last boot-up
-  bool safe_image_asked_ = false;       // loop thread: an operator stopped a device the bridge has not started
+  bool restored_ = false;                    // restore() was called: each start decides the image
+  bool started_once_ = false;                // loop thread: a start has decided the image
+  bool pdos_verified_ = false;               // loop thread: a boot checked the device's PDOs since its last boot-up
+  bool safe_image_asked_ = false;            // loop thread: an operator stopped a device the bridge has not started
   std::array<std::uint32_t, 4> identity_{};  // loop thread: 1018h of the device as its last boot read it
   std::function<void()> clear_momentary_;
   struct Observer {

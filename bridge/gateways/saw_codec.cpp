@@ -12,7 +12,9 @@ namespace {
 
 unsigned required_bit(const profiles::BitSet& set, std::string_view name, const std::string& profile) {
   auto bit = set.bit(name);
-  if (!bit) throw std::runtime_error("profile " + profile + ": bit set " + set.name + " has no bit '" + std::string(name) + "'");
+  if (!bit)
+    throw std::runtime_error("profile " + profile + ": bit set " + set.name + " has no bit '" + std::string(name) +
+                             "'");
   return *bit;
 }
 
@@ -30,35 +32,35 @@ SawCodec::SawCodec(const profiles::Profile& profile, std::span<const profiles::D
 
   const auto& sw = bitset("status_word");
   const auto& cw = bitset("control_word");
-  status_bits_ = NamedBits<msg::SawStatusWord>(
-      sw, {{"saw_ready", &msg::SawStatusWord::saw_ready},
-           {"saw_cutting", &msg::SawStatusWord::saw_cutting},
-           {"sample_request", &msg::SawStatusWord::sample_request},
-           {"manual_cut_by_saw", &msg::SawStatusWord::manual_cut_by_saw},
-           {"fault", &msg::SawStatusWord::fault},
-           {"alarm", &msg::SawStatusWord::alarm},
-           {"f1_running", &msg::SawStatusWord::f1_running},
-           {"f1_ready", &msg::SawStatusWord::f1_ready},
-           {"f2_running", &msg::SawStatusWord::f2_running},
-           {"f2_ready", &msg::SawStatusWord::f2_ready},
-           {"f3_running", &msg::SawStatusWord::f3_running},
-           {"f3_ready", &msg::SawStatusWord::f3_ready},
-           {"saw_program_enabled", &msg::SawStatusWord::saw_program_enabled},
-           {"cut_from_limit_switch", &msg::SawStatusWord::cut_from_limit_switch},
-           {"start_saw_program_requested", &msg::SawStatusWord::start_saw_program_requested}});
-  control_bits_ = NamedBits<msg::SawControlWord>(
-      cw, {{"saw_program_on", &msg::SawControlWord::saw_program_on},
-           {"wall_thickening", &msg::SawControlWord::wall_thickening},
-           {"change_of_length", &msg::SawControlWord::change_of_length},
-           {"manual_cut", &msg::SawControlWord::manual_cut},
-           {"tip_pulse", &msg::SawControlWord::tip_pulse},
-           {"stop_immediately", &msg::SawControlWord::stop_immediately},
-           {"f1_stop", &msg::SawControlWord::f1_stop},
-           {"f1_start", &msg::SawControlWord::f1_start},
-           {"f2_stop", &msg::SawControlWord::f2_stop},
-           {"f2_start", &msg::SawControlWord::f2_start},
-           {"f3_stop", &msg::SawControlWord::f3_stop},
-           {"f3_start", &msg::SawControlWord::f3_start}});
+  status_bits_ = NamedBits<msg::SawStatusWord>(sw,
+                                               {{"saw_ready", &msg::SawStatusWord::saw_ready},
+                                                {"saw_cutting", &msg::SawStatusWord::saw_cutting},
+                                                {"sample_request", &msg::SawStatusWord::sample_request},
+                                                {"manual_cut_by_saw", &msg::SawStatusWord::manual_cut_by_saw},
+                                                {"fault", &msg::SawStatusWord::fault},
+                                                {"alarm", &msg::SawStatusWord::alarm},
+                                                {"f1_running", &msg::SawStatusWord::f1_running},
+                                                {"f1_ready", &msg::SawStatusWord::f1_ready},
+                                                {"f2_running", &msg::SawStatusWord::f2_running},
+                                                {"f2_ready", &msg::SawStatusWord::f2_ready},
+                                                {"f3_running", &msg::SawStatusWord::f3_running},
+                                                {"f3_ready", &msg::SawStatusWord::f3_ready},
+                                                {"saw_program_enabled", &msg::SawStatusWord::saw_program_enabled},
+                                                {"cut_from_limit_switch", &msg::SawStatusWord::cut_from_limit_switch},
+                                                {"start_saw_program_requested",
+                                                 &msg::SawStatusWord::start_saw_program_requested}});
+  control_bits_ = NamedBits<msg::SawControlWord>(cw, {{"saw_program_on", &msg::SawControlWord::saw_program_on},
+                                                      {"wall_thickening", &msg::SawControlWord::wall_thickening},
+                                                      {"change_of_length", &msg::SawControlWord::change_of_length},
+                                                      {"manual_cut", &msg::SawControlWord::manual_cut},
+                                                      {"tip_pulse", &msg::SawControlWord::tip_pulse},
+                                                      {"stop_immediately", &msg::SawControlWord::stop_immediately},
+                                                      {"f1_stop", &msg::SawControlWord::f1_stop},
+                                                      {"f1_start", &msg::SawControlWord::f1_start},
+                                                      {"f2_stop", &msg::SawControlWord::f2_stop},
+                                                      {"f2_start", &msg::SawControlWord::f2_start},
+                                                      {"f3_stop", &msg::SawControlWord::f3_stop},
+                                                      {"f3_start", &msg::SawControlWord::f3_start}});
   bit_program_on_ = required_bit(cw, "saw_program_on", profile_.key());
   bit_change_of_length_ = required_bit(cw, "change_of_length", profile_.key());
   bit_saw_cutting_ = required_bit(sw, "saw_cutting", profile_.key());
@@ -70,7 +72,8 @@ SawCodec::SawCodec(const profiles::Profile& profile, std::span<const profiles::D
   for (const auto& pdo : defs_) {
     others_->bind(pdos_.size(), pdo, image_);
     auto mapping = canopen::PdoMapping::create(pdo.mapping);
-    if (!mapping) throw std::runtime_error("profile " + profile_.key() + " " + pdo.name + ": " + mapping.error().message);
+    if (!mapping)
+      throw std::runtime_error("profile " + profile_.key() + " " + pdo.name + ": " + mapping.error().message);
     pdos_.push_back({&pdo, canopen::PdoBinding(std::move(*mapping), image_)});
   }
 }
@@ -81,13 +84,15 @@ Result<void> SawCodec::use_pdo(std::size_t pdo, const profiles::DevicePdo& actua
 
 SawCodec::Object SawCodec::bind(std::string_view name) {
   const auto* def = profile_.object(name);
-  if (def == nullptr) throw std::runtime_error("profile " + profile_.key() + " has no object '" + std::string(name) + "'");
+  if (def == nullptr)
+    throw std::runtime_error("profile " + profile_.key() + " has no object '" + std::string(name) + "'");
   return {def, image_.slot(def->index, def->sub)};
 }
 
 const profiles::BitSet& SawCodec::bitset(std::string_view name) const {
   const auto* set = profile_.bitset(name);
-  if (set == nullptr) throw std::runtime_error("profile " + profile_.key() + " has no bit set '" + std::string(name) + "'");
+  if (set == nullptr)
+    throw std::runtime_error("profile " + profile_.key() + " has no bit set '" + std::string(name) + "'");
   return *set;
 }
 

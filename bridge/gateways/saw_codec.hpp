@@ -78,7 +78,7 @@ class SawCodec {
   unsigned bit_program_on_ = 0, bit_change_of_length_ = 0, bit_saw_cutting_ = 0;
   std::optional<unsigned> bit_count_mode_;  // from saw 3.1 on
   std::optional<unsigned> bit_wall_thickening_;
-  std::optional<OtherValues> others_;  // after the typed objects are bound
+  std::optional<OtherValues> others_;      // after the typed objects are bound
   std::vector<profiles::DevicePdo> defs_;  // what each PDO is decoded and sent by; never resized
   std::vector<Pdo> pdos_;
 };

@@ -27,23 +27,30 @@ SawGateway::SawGateway(DeviceContext context)
           }),
       burst_(context.loop, [this](std::int64_t stamp_ns) { publish_status(stamp_ns); }),
       command_service_(context,
-                       resolve_commands(codec_.control_word(), {"manual_cut", "tip_pulse", "stop_immediately", "f1_stop",
-                                                                "f1_start", "f2_stop", "f2_start", "f3_stop", "f3_start"}),
-                       commands_,
-                       [this] {
+                       resolve_commands(codec_.control_word(),
+                                        {"manual_cut", "tip_pulse", "stop_immediately", "f1_stop", "f1_start",
+                                         "f2_stop", "f2_start", "f3_stop", "f3_start"}),
+                       commands_, [this] {
                          const bool go = pdos_.ready_for_a_stop();
                          if (go) publish_status(ddsl::now_ns());
                          return go;
                        }) {
   const std::string& dev = ctx_.device.name;
   const std::string& line = ctx_.line;
-  status_writer_ = checked(ctx_.dds.writer<msg::SawStatusPubSubType>(ddsl::topic_name(line, dev, "status"), ddsl::QosKind::state), dev);
-  cut_writer_ = checked(ctx_.dds.writer<msg::SawCutPubSubType>(ddsl::topic_name(line, dev, "cut"), ddsl::QosKind::event), dev);
-  result_writer_ = checked(ctx_.dds.writer<msg::SetpointResultPubSubType>(ddsl::topic_name(line, dev, "setpoint_result"),
-                                                                          ddsl::QosKind::reply), dev);
-  auto sub = ctx_.dds.subscribe<msg::SawSetpointPubSubType>(
-      ddsl::topic_name(line, dev, "setpoint"), ddsl::QosKind::command,
-      [this](const msg::SawSetpoint& sp, const ddsl::fdds::SampleInfo&) { on_setpoint(sp); });
+  status_writer_ = checked(ctx_.dds.writer<msg::SawStatusPubSubType>(ddsl::topic_name(line, dev, "status"),
+                                                                     ddsl::QosKind::state),
+                           dev);
+  cut_writer_ = checked(ctx_.dds.writer<msg::SawCutPubSubType>(ddsl::topic_name(line, dev, "cut"),
+                                                               ddsl::QosKind::event),
+                        dev);
+  result_writer_ = checked(ctx_.dds.writer<msg::SetpointResultPubSubType>(ddsl::topic_name(line, dev,
+                                                                                           "setpoint_result"),
+                                                                          ddsl::QosKind::reply),
+                           dev);
+  auto sub = ctx_.dds.subscribe<msg::SawSetpointPubSubType>(ddsl::topic_name(line, dev, "setpoint"),
+                                                            ddsl::QosKind::command,
+                                                            [this](const msg::SawSetpoint& sp,
+                                                                   const ddsl::fdds::SampleInfo&) { on_setpoint(sp); });
   if (!sub) throw std::runtime_error(dev + ": " + sub.error().message);
 
   // Momentary commands count the RPDO frames that carry the control word (momentary_commands.hpp).
@@ -59,9 +66,10 @@ SawGateway::SawGateway(DeviceContext context)
   });
   spdlog::info("{}: saw ({}) node {} on bus {} as {}{}", dev, ctx_.profile.key(), ctx_.device.node_id, ctx_.bus.name,
                profiles::to_string(ctx_.bus.role),
-               ctx_.is_master() ? (ctx_.set_values != nullptr ? "; RPDO1 image as kept at the last stop (zero when none)"
-                                                              : "; RPDO1 image starts all zero (saw program off)")
-                                : "");
+               ctx_.is_master()
+                   ? (ctx_.set_values != nullptr ? "; RPDO1 image as kept at the last stop (zero when none)"
+                                                 : "; RPDO1 image starts all zero (saw program off)")
+                   : "");
   publish_status(ddsl::now_ns());  // the device exists (offline) before its first heartbeat
 }
 

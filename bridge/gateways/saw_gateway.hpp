@@ -43,7 +43,7 @@ class SawGateway : public Gateway {
   DeviceContext ctx_;
   SharedLogRate set_value_log_;  // refusals, from DDS threads and the loop
   LogRate applied_log_;          // set values taken, on the loop
-  SawCodec codec_;  // loop thread, except validate() (const, any thread)
+  SawCodec codec_;               // loop thread, except validate() (const, any thread)
   PdoWiring<SawCodec> pdos_;
   MomentaryCommands commands_;
   PdoBurst burst_;

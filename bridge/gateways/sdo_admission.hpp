@@ -33,10 +33,11 @@ template <class Send, class Refuse>
 void when_sdo_possible(const DeviceContext& ctx, Send send, Refuse refuse, std::function<bool()> answered_boot = {}) {
   // refuse is needed on both paths: the copy answers when the loop has no room for the request.
   auto busy = refuse;
-  const bool posted = ctx.loop.try_post([&ctx, send = std::move(send), refuse = std::move(refuse), answered_boot = std::move(answered_boot)]() mutable {
-    if (auto why = sdo_refusal(ctx, answered_boot && answered_boot()); !why.empty()) return refuse(why);
-    send();
-  });
+  const bool posted = ctx.loop.try_post(
+      [&ctx, send = std::move(send), refuse = std::move(refuse), answered_boot = std::move(answered_boot)]() mutable {
+        if (auto why = sdo_refusal(ctx, answered_boot && answered_boot()); !why.empty()) return refuse(why);
+        send();
+      });
   if (!posted) busy(ctx.loop_busy("SDO request"));
 }
 

@@ -18,8 +18,10 @@ namespace lb::gateways {
 
 // The answer to a request while the bridge yields to another master on the device's bus.
 inline std::string another_master(const DeviceContext& ctx, std::string_view what) {
-  return "another master's SYNC runs on bus " + ctx.bus.name + ": the bridge transmits nothing there until it is silent (diagnostics: "
-         "yielding_to_other_master): " + std::string(what);
+  return "another master's SYNC runs on bus " + ctx.bus.name +
+         ": the bridge transmits nothing there until it is silent (diagnostics: "
+         "yielding_to_other_master): " +
+         std::string(what);
 }
 
 // validate: () -> Result<Raw>; apply: (const Raw&) on the loop thread, the codec's image only;
@@ -36,16 +38,20 @@ void take_set_value(const DeviceContext& ctx, Pdos& pdos, SharedLogRate& log, st
   }
   auto raw = validate();
   if (!raw) {
-    if (auto more = log.allow()) spdlog::warn("{}: set value {} refused: {}{}", ctx.device.name, id, raw.error().message, *more);
+    if (auto more = log.allow())
+      spdlog::warn("{}: set value {} refused: {}{}", ctx.device.name, id, raw.error().message, *more);
     return reply(id, false, raw.error().message);
   }
   const bool posted = ctx.loop.try_post([&ctx, &pdos, &log, id, r = *raw, apply, applied, reply] {
     if (ctx.loop.transmission_held()) {
-      if (auto more = log.allow()) spdlog::warn("{}: set value {} refused: another master runs bus {}{}", ctx.device.name, id, ctx.bus.name, *more);
+      if (auto more = log.allow())
+        spdlog::warn("{}: set value {} refused: another master runs bus {}{}", ctx.device.name, id, ctx.bus.name,
+                     *more);
       return reply(id, false, another_master(ctx, "set value not applied"));
     }
     if (!ctx.node.online()) {
-      if (auto more = log.allow()) spdlog::warn("{}: set value {} refused: device offline{}", ctx.device.name, id, *more);
+      if (auto more = log.allow())
+        spdlog::warn("{}: set value {} refused: device offline{}", ctx.device.name, id, *more);
       return reply(id, false, ctx.device.name + " is offline (no heartbeat): set value not applied");
     }
     if (ctx.node.configured()) {
@@ -58,14 +64,18 @@ void take_set_value(const DeviceContext& ctx, Pdos& pdos, SharedLogRate& log, st
     if (pdos.carries_enabling()) {
       pdos.restore_image(before);
       if (auto more = log.allow()) {
-        spdlog::warn("{}: set value {} refused: the device has not passed its boot and it would enable it{}", ctx.device.name, id, *more);
+        spdlog::warn("{}: set value {} refused: the device has not passed its boot and it would enable it{}",
+                     ctx.device.name, id, *more);
       }
-      return reply(id, false, ctx.device.name + " has not passed its boot (see its info topic): a set value that switches it on "
-                                                "is refused (one that enables nothing is taken)");
+      return reply(id, false,
+                   ctx.device.name + " has not passed its boot (see its info topic): a set value that switches it on "
+                                     "is refused (one that enables nothing is taken)");
     }
     if (pdos.takes_a_safe_image()) pdos.safe_image_asked();
     applied();
-    reply(id, true, pdos.takes_a_safe_image() ? "" : ctx.device.name + " has not passed its boot: taken, sent once it is started");
+    reply(id, true,
+          pdos.takes_a_safe_image() ? ""
+                                    : ctx.device.name + " has not passed its boot: taken, sent once it is started");
   });
   if (!posted) reply(id, false, ctx.loop_busy("set value"));
 }

@@ -45,10 +45,12 @@ Result<void> check_set_values(const profiles::Profile& profile, const canopen::P
     const auto* obj = e.is_dummy() ? nullptr : profile.object(e.index, e.sub);
     if (obj == nullptr) continue;  // a dummy entry, or an object the profile does not know
     if (canopen::is_signed_integer(obj->type) || canopen::is_unsigned_integer(obj->type)) {
-      const auto value = canopen::is_signed_integer(obj->type) ? as_signed(raw[i], e.bits) : static_cast<std::int64_t>(raw[i]);
+      const auto value = canopen::is_signed_integer(obj->type) ? as_signed(raw[i], e.bits)
+                                                               : static_cast<std::int64_t>(raw[i]);
       if (auto r = obj->check_raw(value); !r) return r.error();
     }
-    if (!obj->values.valid(raw[i])) return make_error(fmt::format("{}: code {} is not one the profile defines", obj->name, raw[i]));
+    if (!obj->values.valid(raw[i]))
+      return make_error(fmt::format("{}: code {} is not one the profile defines", obj->name, raw[i]));
     for (const auto& set : profile.bitsets) {
       if (!set.applies_to(e.index, e.sub)) continue;
       for (const auto& f : set.bits) {

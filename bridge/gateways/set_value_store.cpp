@@ -76,7 +76,8 @@ std::optional<std::pair<SetValueStore::Key, SetValueStore::Entry>> parse_line(co
   if (payload.empty() || (fields >> extra)) return std::nullopt;
   SetValueStore::Key key{bus, 0, profile, pdo};
   const auto [nend, nec] = std::from_chars(node.data(), node.data() + node.size(), key.node_id);
-  if (nec != std::errc() || nend != node.data() + node.size() || key.node_id < 1 || key.node_id > 127) return std::nullopt;
+  if (nec != std::errc() || nend != node.data() + node.size() || key.node_id < 1 || key.node_id > 127)
+    return std::nullopt;
   SetValueStore::Entry e;
   const auto [hend, hec] = std::from_chars(held.data(), held.data() + held.size(), e.held_at_s);
   if (hec != std::errc() || hend != held.data() + held.size()) return std::nullopt;
@@ -98,7 +99,8 @@ Result<std::map<SetValueStore::Key, SetValueStore::Entry>> read_file(const std::
     if (errno == ENOENT) return std::map<SetValueStore::Key, SetValueStore::Entry>{};
     return make_error(path + ": " + errno_text(errno));
   }
-  if (S_ISLNK(st.st_mode)) return make_error(path + ": a symbolic link; the set values are kept only in a regular file");
+  if (S_ISLNK(st.st_mode))
+    return make_error(path + ": a symbolic link; the set values are kept only in a regular file");
   auto text = profiles::read_config_file(path, "set-value file", SetValueStore::kMaxFileBytes);
   if (!text) return text.error();
 
@@ -145,7 +147,8 @@ Result<std::unique_ptr<SetValueStore>> SetValueStore::open(const std::string& st
   if (::stat(state_dir.c_str(), &st) != 0) {
     return make_error("state_dir " + state_dir + ": " + errno_text(errno) + " (set values in force are kept there)");
   }
-  if (!S_ISDIR(st.st_mode)) return make_error("state_dir " + state_dir + ": not a directory (set values in force are kept there)");
+  if (!S_ISDIR(st.st_mode))
+    return make_error("state_dir " + state_dir + ": not a directory (set values in force are kept there)");
   if (::access(state_dir.c_str(), W_OK | X_OK) != 0) {
     return make_error("state_dir " + state_dir + ": " + errno_text(errno) + " (set values in force are kept there)");
   }
@@ -186,7 +189,8 @@ void SetValueStore::save(const Key& key, Entry entry) {
     std::lock_guard lock(mutex_);
     const bool was_live = !live_.insert(key).second;
     auto& slot = current_[key];
-    if (was_live && slot.mapping == entry.mapping && slot.payload == entry.payload && slot.identity == entry.identity) return;
+    if (was_live && slot.mapping == entry.mapping && slot.payload == entry.payload && slot.identity == entry.identity)
+      return;
     slot = std::move(entry);
     dirty_ = true;
   }
@@ -239,25 +243,28 @@ void SetValueStore::run() {
 }
 
 bool SetValueStore::write_file(const std::map<Key, Entry>& values, std::string& why) {
-  std::string text = fmt::format(
-      "# linebridge: the set values in force, one RPDO a line:\n"
-      "# bus node-ID profile identity(1018h sub 1:2:3:4) held-in-force(Unix s) pdo mapping payload(hex)\n"
-      "format {}\n",
-      kFormat);
+  std::string text =
+      fmt::format("# linebridge: the set values in force, one RPDO a line:\n"
+                  "# bus node-ID profile identity(1018h sub 1:2:3:4) held-in-force(Unix s) pdo mapping payload(hex)\n"
+                  "format {}\n",
+                  kFormat);
   for (const auto& [k, e] : values) {
     std::string mapping;
     for (auto m : e.mapping) mapping += fmt::format("{}{:08X}", mapping.empty() ? "" : ",", m);
-    text += fmt::format("{} {} {} {:08X}:{:08X}:{:08X}:{:08X} {} {} {} {}\n", k.bus, k.node_id, k.profile, e.identity[0],
-                        e.identity[1], e.identity[2], e.identity[3], e.held_at_s, k.pdo, mapping, hex_bytes(e.payload));
+    text += fmt::format("{} {} {} {:08X}:{:08X}:{:08X}:{:08X} {} {} {} {}\n", k.bus, k.node_id, k.profile,
+                        e.identity[0], e.identity[1], e.identity[2], e.identity[3], e.held_at_s, k.pdo, mapping,
+                        hex_bytes(e.payload));
   }
   const std::string tmp = path_ + ".tmp";
   const auto fail = [&](const char* what, const std::string& file) {
     why = fmt::format("{} {}: {}", what, file, errno_text(errno));
     static_cast<void>(::unlink(tmp.c_str()));
     const auto now = std::chrono::steady_clock::now();
-    if (failure_logged_ == std::chrono::steady_clock::time_point{} || now - failure_logged_ >= std::chrono::minutes(1)) {
+    if (failure_logged_ == std::chrono::steady_clock::time_point{} ||
+        now - failure_logged_ >= std::chrono::minutes(1)) {
       failure_logged_ = now;
-      spdlog::error("{}: the set values in force could not be kept: {} (tried again; logged once a minute)", path_, why);
+      spdlog::error("{}: the set values in force could not be kept: {} (tried again; logged once a minute)", path_,
+                    why);
     }
     return false;
   };

@@ -56,7 +56,8 @@ class SetValueStore {
   // `restore` (a missing file is an empty store). Refused: a directory that cannot be used, a
   // file that is a link, not a regular file, over kMaxFileBytes or unreadable. Lines it cannot
   // parse are skipped and counted (a few logged, then one summary).
-  static Result<std::unique_ptr<SetValueStore>> open(const std::string& state_dir, const std::string& line, bool restore);
+  static Result<std::unique_ptr<SetValueStore>> open(const std::string& state_dir, const std::string& line,
+                                                     bool restore);
   SetValueStore(std::string path, std::map<Key, Entry> restored);
   ~SetValueStore();  // writes what is pending, then stops
   SetValueStore(const SetValueStore&) = delete;
@@ -80,13 +81,14 @@ class SetValueStore {
   const std::map<Key, Entry> restored_;
   mutable std::mutex mutex_;
   std::condition_variable cv_;
-  std::map<Key, Entry> current_;  // guarded by mutex_
-  std::set<Key> live_;            // guarded by mutex_: saved in this run, stamped at every write
-  bool dirty_ = false;            // guarded by mutex_
-  bool stopping_ = false;         // guarded by mutex_
+  std::map<Key, Entry> current_;      // guarded by mutex_
+  std::set<Key> live_;                // guarded by mutex_: saved in this run, stamped at every write
+  bool dirty_ = false;                // guarded by mutex_
+  bool stopping_ = false;             // guarded by mutex_
   std::uint64_t write_failures_ = 0;  // guarded by mutex_
   std::string problem_;               // guarded by mutex_
-  std::chrono::steady_clock::time_point failure_logged_{};  // the writer thread's: a failing disk is logged once a minute
+  std::chrono::steady_clock::time_point
+      failure_logged_{};  // the writer thread's: a failing disk is logged once a minute
   std::thread thread_;
 };
 

@@ -24,7 +24,9 @@ Result<std::unique_ptr<BusChannel>> BusChannel::open(Options options) {
 }
 
 BusChannel::BusChannel(Options options, UniqueFd listener)
-    : options_(std::move(options)), listener_(std::move(listener)), wake_fd_(::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC)) {}
+    : options_(std::move(options)),
+      listener_(std::move(listener)),
+      wake_fd_(::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC)) {}
 
 BusChannel::~BusChannel() {
   stop();
@@ -79,7 +81,8 @@ void BusChannel::publish(std::uint32_t id, std::vector<std::uint8_t> payload, co
     auto datagram = encode(sample);
     // Nothing waits before it: sent from here (never blocking: MSG_DONTWAIT), which spares the
     // channel thread's wake-up; a full socket leaves it to the channel thread.
-    const bool direct = counters_.connected && peer_ && !unsent_ && backlog_.empty() && queue_.empty() && dirty_.empty() &&
+    const bool direct = counters_.connected && peer_ && !unsent_ && backlog_.empty() && queue_.empty() &&
+                        dirty_.empty() &&
                         ::send(peer_.get(), datagram.data(), datagram.size(), MSG_DONTWAIT | MSG_NOSIGNAL) ==
                             static_cast<ssize_t>(datagram.size());
     if (direct) ++counters_.samples_sent;
@@ -135,11 +138,13 @@ void BusChannel::run() {
     bool pending = false;
     {
       std::lock_guard lock(mutex_);
-      pending = unsent_.has_value() || (counters_.connected && (!backlog_.empty() || !queue_.empty() || !dirty_.empty()));
+      pending = unsent_.has_value() ||
+                (counters_.connected && (!backlog_.empty() || !queue_.empty() || !dirty_.empty()));
     }
     pollfd fds[3] = {{listener_.get(), POLLIN, 0}, {wake_fd_.get(), POLLIN, 0}, {peer_.get(), POLLIN, 0}};
     if (peer_ && pending) fds[2].events |= POLLOUT;
-    const auto wait = std::chrono::duration_cast<std::chrono::milliseconds>(next_ping - std::chrono::steady_clock::now());
+    const auto wait = std::chrono::duration_cast<std::chrono::milliseconds>(next_ping -
+                                                                            std::chrono::steady_clock::now());
     const int n = ::poll(fds, peer_ ? 3 : 2, static_cast<int>(std::max<long>(0, wait.count())));
     if (n < 0 && errno != EINTR) {
       spdlog::error("channel {}: poll: {}", options_.path, std::strerror(errno));
@@ -180,15 +185,16 @@ void BusChannel::accept_peer() {
   backlog_.clear();
   queue_.clear();
   dirty_.clear();
-  backlog_.push_back(encode(Hello{kChannelVersion, options_.line, options_.incarnation, static_cast<std::int32_t>(::getpid())}));
+  backlog_.push_back(
+      encode(Hello{kChannelVersion, options_.line, options_.incarnation, static_cast<std::int32_t>(::getpid())}));
   for (const auto& e : endpoints_) backlog_.push_back(encode(e.declaration));
   for (const auto& [id, datagram] : latest_) {
     backlog_.push_back(datagram);
     ++counters_.samples_sent;
   }
   backlog_.push_back(encode(Ready{static_cast<std::uint32_t>(endpoints_.size())}));
-  spdlog::info("channel {}: DDS side connected (pid {}); {} endpoints and {} state samples sent", options_.path, peer->pid,
-               endpoints_.size(), latest_.size());
+  spdlog::info("channel {}: DDS side connected (pid {}); {} endpoints and {} state samples sent", options_.path,
+               peer->pid, endpoints_.size(), latest_.size());
 }
 
 void BusChannel::drop_peer(const std::string& why) {
@@ -203,8 +209,8 @@ void BusChannel::drop_peer(const std::string& why) {
     spdlog::info("channel {}: DDS side stopped ({})", options_.path, why);
     return;
   }
-  spdlog::warn("channel {}: DDS side gone ({}); the bus runs on, events and answers are dropped until it is back", options_.path,
-               why);
+  spdlog::warn("channel {}: DDS side gone ({}); the bus runs on, events and answers are dropped until it is back",
+               options_.path, why);
 }
 
 void BusChannel::read_peer() {

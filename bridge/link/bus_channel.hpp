@@ -40,14 +40,14 @@ class BusChannel {
   };
   struct Counters {
     bool connected = false;
-    std::uint64_t connects = 0;          // DDS sides accepted since start
-    std::uint64_t peers_refused = 0;     // connections refused (credentials)
+    std::uint64_t connects = 0;       // DDS sides accepted since start
+    std::uint64_t peers_refused = 0;  // connections refused (credentials)
     std::uint64_t samples_sent = 0;
     std::uint64_t samples_received = 0;
-    std::uint64_t dropped_no_peer = 0;   // events and answers while no DDS side was connected
+    std::uint64_t dropped_no_peer = 0;  // events and answers while no DDS side was connected
     std::uint64_t dropped_queue_full = 0;
-    std::uint64_t bad_messages = 0;      // from the DDS side, not decodable
-    DdsStats dds;                        // the DDS side's last report
+    std::uint64_t bad_messages = 0;  // from the DDS side, not decodable
+    DdsStats dds;                    // the DDS side's last report
   };
   using SampleHandler = std::function<void(const Sample&)>;
 
@@ -97,14 +97,14 @@ class BusChannel {
   UniqueFd wake_fd_;
   UniqueFd peer_;  // changed by the channel thread under mutex_; publishers send on it under mutex_
 
-  mutable PiMutex mutex_;  // shared with realtime bus loops (publish): priority inheritance
-  std::vector<Endpoint> endpoints_;               // by id
-  std::map<std::uint32_t, Datagram> latest_;      // state endpoints: the newest sample, encoded
-  std::set<std::uint32_t> dirty_;                 // latest_ entries not sent to this peer yet
-  std::deque<Datagram> queue_;                    // other samples, in order
-  std::deque<Datagram> backlog_;                  // a new peer's declarations and snapshot, first
+  mutable PiMutex mutex_;                     // shared with realtime bus loops (publish): priority inheritance
+  std::vector<Endpoint> endpoints_;           // by id
+  std::map<std::uint32_t, Datagram> latest_;  // state endpoints: the newest sample, encoded
+  std::set<std::uint32_t> dirty_;             // latest_ entries not sent to this peer yet
+  std::deque<Datagram> queue_;                // other samples, in order
+  std::deque<Datagram> backlog_;              // a new peer's declarations and snapshot, first
   Counters counters_;
-  std::optional<Datagram> unsent_;                // a datagram the socket refused (full): sent first
+  std::optional<Datagram> unsent_;  // a datagram the socket refused (full): sent first
   std::vector<std::uint8_t> buffer_ = std::vector<std::uint8_t>(kMaxMessage);  // channel thread: receiving
 
   std::atomic<bool> stop_{false};

@@ -15,7 +15,7 @@ class Writer {
  public:
   explicit Writer(std::vector<std::uint8_t>& out) : out_(out) {}
   template <class T>
-    requires std::is_integral_v<T>
+  requires std::is_integral_v<T>
   void put(T v) {
     using U = std::make_unsigned_t<T>;
     auto u = static_cast<U>(v);
@@ -26,9 +26,7 @@ class Writer {
     put(static_cast<std::uint32_t>(bytes.size()));
     out_.insert(out_.end(), bytes.begin(), bytes.end());
   }
-  void put(const std::string& s) {
-    put(std::span(reinterpret_cast<const std::uint8_t*>(s.data()), s.size()));
-  }
+  void put(const std::string& s) { put(std::span(reinterpret_cast<const std::uint8_t*>(s.data()), s.size())); }
   void put(const Identity& id) {
     out_.insert(out_.end(), id.guid.begin(), id.guid.end());
     put(id.seq_high);
@@ -45,8 +43,7 @@ class Reader {
   bool ok() const { return ok_; }
   bool at_end() const { return pos_ == in_.size(); }
   template <class T>
-    requires std::is_integral_v<T>
-  T get() {
+  requires std::is_integral_v<T> T get() {
     if (!need(sizeof(T))) return T{};
     std::make_unsigned_t<T> u = 0;
     for (std::size_t i = 0; i < sizeof(T); ++i) u |= static_cast<std::make_unsigned_t<T>>(in_[pos_ + i]) << (8 * i);
@@ -61,7 +58,8 @@ class Reader {
   std::vector<std::uint8_t> bytes() {
     const auto n = get<std::uint32_t>();
     if (!need(n)) return {};
-    std::vector<std::uint8_t> v(in_.begin() + static_cast<std::ptrdiff_t>(pos_), in_.begin() + static_cast<std::ptrdiff_t>(pos_ + n));
+    std::vector<std::uint8_t> v(in_.begin() + static_cast<std::ptrdiff_t>(pos_),
+                                in_.begin() + static_cast<std::ptrdiff_t>(pos_ + n));
     pos_ += n;
     return v;
   }
@@ -151,8 +149,7 @@ Message get_body(Reader& r, std::uint8_t type) {
       m.partition = r.text();
       return m;
     }
-    case 2:
-      return Ready{r.get<std::uint32_t>()};
+    case 2: return Ready{r.get<std::uint32_t>()};
     case 3: {
       Sample m;
       m.id = r.get<std::uint32_t>();
@@ -163,8 +160,7 @@ Message get_body(Reader& r, std::uint8_t type) {
       m.payload = r.bytes();
       return m;
     }
-    case 4:
-      return Ping{};
+    case 4: return Ping{};
     default: {
       DdsStats m;
       m.remote_participants = r.get<std::uint32_t>();

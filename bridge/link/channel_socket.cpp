@@ -17,7 +17,8 @@ Result<sockaddr_un> address_of(const std::string& path) {
   sockaddr_un addr{};
   addr.sun_family = AF_UNIX;
   if (path.empty() || path.size() >= sizeof(addr.sun_path)) {
-    return make_error("channel path '" + path + "' must be 1 to " + std::to_string(sizeof(addr.sun_path) - 1) + " bytes");
+    return make_error("channel path '" + path + "' must be 1 to " + std::to_string(sizeof(addr.sun_path) - 1) +
+                      " bytes");
   }
   std::memcpy(addr.sun_path, path.data(), path.size());
   return addr;
@@ -52,7 +53,8 @@ Result<Peer> accept_channel(int listener) {
   if (!peer.fd) return make_error(sys_error("channel accept"));
   ucred cred{};
   socklen_t len = sizeof(cred);
-  if (::getsockopt(peer.fd.get(), SOL_SOCKET, SO_PEERCRED, &cred, &len) != 0) return make_error(sys_error("SO_PEERCRED"));
+  if (::getsockopt(peer.fd.get(), SOL_SOCKET, SO_PEERCRED, &cred, &len) != 0)
+    return make_error(sys_error("SO_PEERCRED"));
   peer.pid = cred.pid;
   peer.uid = cred.uid;
   peer.gid = cred.gid;

@@ -32,12 +32,12 @@ constexpr std::string_view to_string(Behaviour b) {
 }
 
 struct DeviceType {
-  std::string_view name;          // a profile's `device:`, the line file's word for the type
-  std::string_view profile_id;    // the CiA profile its profiles implement, e.g. "cia420-2"
-  std::string_view versions;      // the built-in profile versions, comma-separated
-  std::string_view idl;           // idl/<idl>.idl: its DDS types (and, for a drive, word binding)
+  std::string_view name;        // a profile's `device:`, the line file's word for the type
+  std::string_view profile_id;  // the CiA profile its profiles implement, e.g. "cia420-2"
+  std::string_view versions;    // the built-in profile versions, comma-separated
+  std::string_view idl;         // idl/<idl>.idl: its DDS types (and, for a drive, word binding)
   Behaviour behaviour;
-  std::string_view description;   // linebridge-cli's one line about the type
+  std::string_view description;  // linebridge-cli's one line about the type
   // 1018h sub 2 of a simulated device of this type when the line file gives no identity.
   std::uint32_t simulated_product_code;
 };
@@ -47,8 +47,8 @@ inline constexpr DeviceType device_types[] = {
      "CiA 420-2 puller: speed set value, extruder running, motor/clamp/f1..f3 commands", 0x0420'0002},
     {"corrugator", "cia420-3", "3.1", "corrugator", Behaviour::drive,
      "CiA 420-3 corrugator: speed set value, extruder running, drive/move/f1..f3 commands", 0x0420'0003},
-    {"saw", "cia420-4", "1.0, 3.1", "saw", Behaviour::saw,
-     "CiA 420-4 saw: program, lengths, wall thickening, cuts", 0x0420'0004},
+    {"saw", "cia420-4", "1.0, 3.1", "saw", Behaviour::saw, "CiA 420-4 saw: program, lengths, wall thickening, cuts",
+     0x0420'0004},
     {"feeder", "cia414-2", "1.1", "feeder", Behaviour::feeder,
      "CiA 414-2 weft feeder box: loom set values, feeder services", 0x0414'0002},
     {"winder", "lb-example-winder", "1.0", "winder", Behaviour::drive,

@@ -13,7 +13,8 @@ namespace {
 
 std::string lower(std::string_view s) {
   std::string out(s);
-  std::transform(out.begin(), out.end(), out.begin(), [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  std::transform(out.begin(), out.end(), out.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
   return out;
 }
 
@@ -72,7 +73,8 @@ std::optional<ObjectSection> object_section(std::string_view name) {
   const std::string index_text = l.substr(0, sub_at);
   if (index_text.size() != 4) return std::nullopt;
   unsigned index = 0;
-  if (std::from_chars(index_text.data(), index_text.data() + 4, index, 16).ptr != index_text.data() + 4) return std::nullopt;
+  if (std::from_chars(index_text.data(), index_text.data() + 4, index, 16).ptr != index_text.data() + 4)
+    return std::nullopt;
   ObjectSection out;
   out.index = static_cast<std::uint16_t>(index);
   if (sub_at == std::string::npos) return out;
@@ -161,7 +163,9 @@ Result<EdsFile> parse_eds(const std::string& text, const std::string& source) {
     const auto t = key(s, k);
     if (t.empty()) return std::optional<std::uint32_t>{};
     auto v = eds_number(t, std::nullopt);
-    if (!v || *v > 0xFFFF'FFFFULL) return make_error(source + ":" + std::to_string(s.line) + ": [" + s.name + "] " + k + " '" + t + "' is not a 32-bit number");
+    if (!v || *v > 0xFFFF'FFFFULL)
+      return make_error(source + ":" + std::to_string(s.line) + ": [" + s.name + "] " + k + " '" + t +
+                        "' is not a 32-bit number");
     return std::optional<std::uint32_t>(static_cast<std::uint32_t>(*v));
   };
   bool device_info = false;
@@ -185,7 +189,8 @@ Result<EdsFile> parse_eds(const std::string& text, const std::string& source) {
     if (name == "devicecomissioning" || name == "devicecommissioning") {
       auto n = number(s, "nodeid");
       if (!n) return n.error();
-      if (*n && (**n < 1 || **n > 127)) return make_error(source + ":" + std::to_string(s.line) + ": NodeID must be 1..127");
+      if (*n && (**n < 1 || **n > 127))
+        return make_error(source + ":" + std::to_string(s.line) + ": NodeID must be 1..127");
       if (*n) eds.node_id = static_cast<std::uint8_t>(**n);
       continue;
     }
@@ -202,7 +207,9 @@ Result<EdsFile> parse_eds(const std::string& text, const std::string& source) {
     const auto type_text = key(s, "datatype");
     if (!type_text.empty()) {
       auto code = eds_number(type_text, std::nullopt);
-      if (!code || *code > 0xFFFF) return make_error(source + ":" + std::to_string(s.line) + ": [" + s.name + "] DataType '" + type_text + "' is not a type code");
+      if (!code || *code > 0xFFFF)
+        return make_error(source + ":" + std::to_string(s.line) + ": [" + s.name + "] DataType '" + type_text +
+                          "' is not a type code");
       e.type_code = static_cast<std::uint16_t>(*code);
       e.type = data_type(e.type_code);
     }

@@ -19,14 +19,14 @@ namespace lb::profiles {
 struct EdsEntry {
   std::uint16_t index = 0;
   std::uint8_t sub = 0;
-  std::string name;                          // ParameterName
-  std::optional<canopen::DataType> type;     // nullopt: a type linebridge has no use for (DOMAIN, ...)
-  std::uint16_t type_code = 0;               // DataType as written (0x0007 = UNSIGNED32)
-  std::string access;                        // ro, wo, rw, rwr, rww, const (lower case)
-  std::string default_value;                 // DefaultValue as written
-  std::string parameter_value;               // ParameterValue (DCF) as written
+  std::string name;                       // ParameterName
+  std::optional<canopen::DataType> type;  // nullopt: a type linebridge has no use for (DOMAIN, ...)
+  std::uint16_t type_code = 0;            // DataType as written (0x0007 = UNSIGNED32)
+  std::string access;                     // ro, wo, rw, rwr, rww, const (lower case)
+  std::string default_value;              // DefaultValue as written
+  std::string parameter_value;            // ParameterValue (DCF) as written
   bool pdo_mapping = false;
-  std::string where;                         // "file:line" of its section
+  std::string where;  // "file:line" of its section
 };
 
 struct EdsFile {
@@ -39,7 +39,8 @@ struct EdsFile {
   const EdsEntry* find(std::uint16_t index, std::uint8_t sub) const;
   // The value a device starts with (a DCF's ParameterValue, else DefaultValue), $NODEID resolved;
   // nullopt for an absent entry or an empty value; an error for text that is not a number.
-  Result<std::optional<std::uint64_t>> value(std::uint16_t index, std::uint8_t sub, std::optional<std::uint8_t> node_id) const;
+  Result<std::optional<std::uint64_t>> value(std::uint16_t index, std::uint8_t sub,
+                                             std::optional<std::uint8_t> node_id) const;
 };
 
 // "0x1A4", "420", "0644" (octal), "$NODEID+0x180", "0x180+$NODEID" (node_id needed then).

@@ -1,8 +1,8 @@
 #include "profiles/line_config.hpp"
 
+#include <arpa/inet.h>
 #include <algorithm>
 #include <array>
-#include <arpa/inet.h>
 
 #include <filesystem>
 #include <map>
@@ -11,12 +11,12 @@
 
 #include <fmt/format.h>
 
-#include "can/log_bus.hpp"
-#include "profiles/object_fields.hpp"
-#include "can/bus.hpp"
-#include "canopen/cob_id.hpp"
 #include "base/bounded_file.hpp"
+#include "can/bus.hpp"
+#include "can/log_bus.hpp"
+#include "canopen/cob_id.hpp"
 #include "profiles/config_file.hpp"
+#include "profiles/object_fields.hpp"
 #include "profiles/yaml_source.hpp"
 
 namespace lb::profiles {
@@ -37,7 +37,8 @@ std::string shown(std::string_view text) {
 void check_name(const YamlSource& src, const YAML::Node& node, const std::string& name) {
   const auto letter = [](char c) { return (c >= 'A' && c <= 'Z') || (c >= 'a' && c <= 'z'); };
   const bool valid = !name.empty() && name.size() <= kMaxNameLength && letter(name.front()) &&
-                     std::all_of(name.begin(), name.end(), [&](char c) { return letter(c) || (c >= '0' && c <= '9') || c == '_'; });
+                     std::all_of(name.begin(), name.end(),
+                                 [&](char c) { return letter(c) || (c >= '0' && c <= '9') || c == '_'; });
   if (!valid) {
     src.fail(node, shown(name) + " is not a valid name (a letter, then letters, digits or '_'; at most " +
                        std::to_string(kMaxNameLength) + " characters)");
@@ -67,22 +68,25 @@ double positive(const YamlSource& src, const YAML::Node& map, std::string_view k
 
 // The Fast DDS properties the file keys set: they are checked before start-up, so they cannot be
 // replaced by a property that is not.
-constexpr std::array kFileProperties{
-    "dds.sec.auth.builtin.PKI-DH.identity_ca",          "dds.sec.auth.builtin.PKI-DH.identity_certificate",
-    "dds.sec.auth.builtin.PKI-DH.private_key",          "dds.sec.access.builtin.Access-Permissions.permissions_ca",
-    "dds.sec.access.builtin.Access-Permissions.governance", "dds.sec.access.builtin.Access-Permissions.permissions",
-    "dds.sec.auth.builtin.PKI-DH.identity_crl"};
+constexpr std::array kFileProperties{"dds.sec.auth.builtin.PKI-DH.identity_ca",
+                                     "dds.sec.auth.builtin.PKI-DH.identity_certificate",
+                                     "dds.sec.auth.builtin.PKI-DH.private_key",
+                                     "dds.sec.access.builtin.Access-Permissions.permissions_ca",
+                                     "dds.sec.access.builtin.Access-Permissions.governance",
+                                     "dds.sec.access.builtin.Access-Permissions.permissions",
+                                     "dds.sec.auth.builtin.PKI-DH.identity_crl"};
 
 DdsSecurityConfig parse_dds_security(const YamlSource& src, const YAML::Node& n) {
   src.check_keys(n, "dds.security",
-                 {"identity_ca", "certificate", "private_key", "permissions_ca", "governance", "permissions", "identity_crl",
-                  "properties"});
+                 {"identity_ca", "certificate", "private_key", "permissions_ca", "governance", "permissions",
+                  "identity_crl", "properties"});
   // Relative paths are taken from the line file's folder, wherever the bridge is started.
   const std::filesystem::path base = std::filesystem::path(src.name()).parent_path();
   const auto file = [&](const char* key) {
     const auto text = src.required<std::string>(n, key, "dds.security");
     if (text.empty()) src.fail(n[key], std::string("dds.security: ") + key + " is empty");
-    if (text.rfind("file:", 0) == 0) src.fail(n[key], std::string("dds.security: ") + key + " is a path, not a URI: '" + text + "'");
+    if (text.rfind("file:", 0) == 0)
+      src.fail(n[key], std::string("dds.security: ") + key + " is a path, not a URI: '" + text + "'");
     return std::filesystem::absolute(base / text).lexically_normal().string();
   };
   DdsSecurityConfig s;
@@ -97,9 +101,11 @@ DdsSecurityConfig parse_dds_security(const YamlSource& src, const YAML::Node& n)
     src.expect_map(props, "dds.security.properties");
     for (const auto& kv : props) {
       const auto key = kv.first.as<std::string>();
-      if (key.rfind("dds.sec.", 0) != 0) src.fail(kv.first, "dds.security.properties: '" + key + "' is not a dds.sec.* property");
+      if (key.rfind("dds.sec.", 0) != 0)
+        src.fail(kv.first, "dds.security.properties: '" + key + "' is not a dds.sec.* property");
       if (std::find(kFileProperties.begin(), kFileProperties.end(), key) != kFileProperties.end()) {
-        src.fail(kv.first, "dds.security.properties: '" + key + "' names a file: give it with its own dds.security key");
+        src.fail(kv.first,
+                 "dds.security.properties: '" + key + "' names a file: give it with its own dds.security key");
       }
       s.properties.emplace_back(key, src.as<std::string>(kv.second, key));
     }
@@ -114,7 +120,8 @@ std::string file_path(const YamlSource& src, const YAML::Node& node, std::string
   return std::filesystem::absolute(std::filesystem::path(src.name()).parent_path() / text).lexically_normal().string();
 }
 
-std::vector<DdsDiscoveryServer> parse_discovery_servers(const YamlSource& src, const YAML::Node& list, bool localhost_only) {
+std::vector<DdsDiscoveryServer> parse_discovery_servers(const YamlSource& src, const YAML::Node& list,
+                                                        bool localhost_only) {
   src.expect_sequence(list, "dds.discovery_servers");
   std::vector<DdsDiscoveryServer> servers;
   for (const auto& n : list) {
@@ -128,8 +135,9 @@ std::vector<DdsDiscoveryServer> parse_discovery_servers(const YamlSource& src, c
       src.fail(n["address"], "discovery server: address '" + s.address + "' is not an IPv4 address");
     }
     if (localhost_only && (ntohl(addr.s_addr) >> 24) != 127) {
-      src.fail(n["address"], "discovery server " + s.address +
-                                 " cannot be reached with dds.localhost_only: true (DDS stays on 127.0.0.1): set it false");
+      src.fail(n["address"],
+               "discovery server " + s.address +
+                   " cannot be reached with dds.localhost_only: true (DDS stays on 127.0.0.1): set it false");
     }
     s.port = bounded<std::uint16_t>(src, n, "port", 11811, 1, 65535, "discovery server");
     for (const auto& other : servers) {
@@ -137,13 +145,15 @@ std::vector<DdsDiscoveryServer> parse_discovery_servers(const YamlSource& src, c
     }
     servers.push_back(std::move(s));
   }
-  if (servers.empty()) src.fail(list, "dds.discovery_servers: the list is empty (leave the key out for simple discovery)");
+  if (servers.empty())
+    src.fail(list, "dds.discovery_servers: the list is empty (leave the key out for simple discovery)");
   return servers;
 }
 
 DdsConfig parse_dds(const YamlSource& src, const YAML::Node& n) {
-  src.check_keys(n, "dds", {"domain", "localhost_only", "security", "profiles_file", "participant_profile",
-                            "discovery_servers", "shared_memory", "max_remote_participants"});
+  src.check_keys(n, "dds",
+                 {"domain", "localhost_only", "security", "profiles_file", "participant_profile", "discovery_servers",
+                  "shared_memory", "max_remote_participants"});
   DdsConfig dds;
   dds.domain = bounded<std::uint32_t>(src, n, "domain", 0, 0, 232, "dds");  // DDS/RTPS port mapping limit
   dds.localhost_only = src.optional<bool>(n, "localhost_only").value_or(true);
@@ -151,15 +161,18 @@ DdsConfig parse_dds(const YamlSource& src, const YAML::Node& n) {
   if (const auto f = n["profiles_file"]) {
     dds.profiles_file = file_path(src, f, "profiles_file");
     // Read as every file is (base/bounded_file.hpp): a FIFO or a device is refused, not waited on.
-    if (auto text = read_bounded_file(dds.profiles_file, "DDS profiles file"); !text) src.fail(f, "profiles_file: cannot open " + text.error().message);
+    if (auto text = read_bounded_file(dds.profiles_file, "DDS profiles file"); !text)
+      src.fail(f, "profiles_file: cannot open " + text.error().message);
   }
   dds.participant_profile = src.optional<std::string>(n, "participant_profile").value_or("");
-  if (n["participant_profile"] && dds.participant_profile.empty()) src.fail(n["participant_profile"], "participant_profile is empty");
+  if (n["participant_profile"] && dds.participant_profile.empty())
+    src.fail(n["participant_profile"], "participant_profile is empty");
   dds.shared_memory = src.optional<bool>(n, "shared_memory").value_or(false);
   // At most 90: Fast DDS 2.9.1 keeps each pending handshake's message in a history of 100, and a
   // full one aborts the process at the next handshake (BENCHMARKS.md "Forged discovery flood").
   dds.max_remote_participants = bounded<int>(src, n, "max_remote_participants", 32, 1, 90, "dds");
-  if (n["discovery_servers"]) dds.discovery_servers = parse_discovery_servers(src, n["discovery_servers"], dds.localhost_only);
+  if (n["discovery_servers"])
+    dds.discovery_servers = parse_discovery_servers(src, n["discovery_servers"], dds.localhost_only);
   return dds;
 }
 
@@ -180,7 +193,8 @@ std::shared_ptr<const ProfileRegistry> load_profiles_dir(const YamlSource& src, 
     auto p = load_profile_file(f.string());
     if (!p) throw ConfigError(p.error().message);
     if (registry->find(p->id, p->version) != nullptr) {
-      warnings.push_back(f.string() + ": profile " + p->key() + " replaces the one already known (built-in or an earlier file)");
+      warnings.push_back(f.string() + ": profile " + p->key() +
+                         " replaces the one already known (built-in or an earlier file)");
     }
     registry->add(std::move(*p));
   }
@@ -188,8 +202,9 @@ std::shared_ptr<const ProfileRegistry> load_profiles_dir(const YamlSource& src, 
 }
 
 BusConfig parse_bus(const YamlSource& src, const YAML::Node& n) {
-  src.check_keys(n, "bus", {"name", "interface", "role", "sync_period_ms", "bitrate", "master_node_id",
-                            "master_heartbeat_ms", "sdo_timeout_ms", "record", "other_master", "realtime_priority"});
+  src.check_keys(n, "bus",
+                 {"name", "interface", "role", "sync_period_ms", "bitrate", "master_node_id", "master_heartbeat_ms",
+                  "sdo_timeout_ms", "record", "other_master", "realtime_priority"});
   BusConfig bus;
   bus.name = src.required<std::string>(n, "name", "bus");
   check_name(src, n["name"], bus.name);
@@ -200,7 +215,8 @@ BusConfig parse_bus(const YamlSource& src, const YAML::Node& n) {
   const auto role = src.optional<std::string>(n, "role").value_or(replay ? "monitor" : "master");
   if (role != "master" && role != "monitor") src.fail(n["role"], "role must be master or monitor, not '" + role + "'");
   if (replay && role != "monitor") {
-    src.fail(n["role"], "bus " + bus.name + ": a log: bus replays a recording and cannot transmit, so its role is monitor");
+    src.fail(n["role"],
+             "bus " + bus.name + ": a log: bus replays a recording and cannot transmit, so its role is monitor");
   }
   bus.record = src.optional<std::string>(n, "record").value_or("");
   if (n["record"] && bus.record.empty()) src.fail(n["record"], "record: the file path is empty");
@@ -208,16 +224,19 @@ BusConfig parse_bus(const YamlSource& src, const YAML::Node& n) {
   bus.sync_period = std::chrono::milliseconds(bounded<int>(src, n, "sync_period_ms", 20, 1, 10'000, "bus " + bus.name));
   bus.bitrate = bounded<std::uint32_t>(src, n, "bitrate", bus.bitrate, 10'000, 1'000'000, "bus " + bus.name);
   bus.master_node_id = bounded<std::uint8_t>(src, n, "master_node_id", 0, 0, 127, "bus " + bus.name);
-  bus.master_heartbeat_period =
-      std::chrono::milliseconds(bounded<int>(src, n, "master_heartbeat_ms", 1000, 1, 65535, "bus " + bus.name));
-  bus.sdo_timeout = std::chrono::milliseconds(bounded<int>(src, n, "sdo_timeout_ms", 1000, 10, 60'000, "bus " + bus.name));
+  bus.master_heartbeat_period = std::chrono::milliseconds(
+      bounded<int>(src, n, "master_heartbeat_ms", 1000, 1, 65535, "bus " + bus.name));
+  bus.sdo_timeout = std::chrono::milliseconds(
+      bounded<int>(src, n, "sdo_timeout_ms", 1000, 10, 60'000, "bus " + bus.name));
   bus.realtime_priority = bounded<int>(src, n, "realtime_priority", 0, 0, 99, "bus " + bus.name);
   if (const auto policy = src.optional<std::string>(n, "other_master")) {
     if (*policy != "yield" && *policy != "warn") {
-      src.fail(n["other_master"], "other_master must be yield (transmit nothing while another master is heard) or warn, not '" +
-                                      *policy + "'");
+      src.fail(n["other_master"],
+               "other_master must be yield (transmit nothing while another master is heard) or warn, not '" + *policy +
+                   "'");
     }
-    if (bus.role == BusRole::monitor) src.fail(n["other_master"], "bus " + bus.name + ": other_master is for the master role");
+    if (bus.role == BusRole::monitor)
+      src.fail(n["other_master"], "bus " + bus.name + ": other_master is for the master role");
     bus.yield_to_other_master = *policy == "yield";
   }
   if (bus.master_node_id != 0 && bus.role == BusRole::monitor) {
@@ -253,13 +272,18 @@ std::vector<SimulatedPdo> parse_simulated_pdos(const YamlSource& src, const YAML
   for (const auto& kv : n) {
     SimulatedPdo p;
     p.name = src.as<std::string>(kv.first, "pdo");
-    if (profile.pdo(p.name) == nullptr) src.fail(kv.first, "simulation pdos: profile " + profile.key() + " has no PDO '" + p.name + "'");
+    if (profile.pdo(p.name) == nullptr)
+      src.fail(kv.first, "simulation pdos: profile " + profile.key() + " has no PDO '" + p.name + "'");
     const YAML::Node& o = kv.second;
-    src.check_keys(o, "simulation pdo", {"cob_id", "transmission_type", "inhibit_time_100us", "event_timer_ms", "mapping"});
+    src.check_keys(o, "simulation pdo",
+                   {"cob_id", "transmission_type", "inhibit_time_100us", "event_timer_ms", "mapping"});
     p.cob_id = src.optional<std::uint32_t>(o, "cob_id");
-    if (o["transmission_type"]) p.transmission_type = bounded<std::uint8_t>(src, o, "transmission_type", 0, 0, 255, "simulation pdo");
-    if (o["inhibit_time_100us"]) p.inhibit_time_100us = bounded<std::uint16_t>(src, o, "inhibit_time_100us", 0, 0, 65535, "simulation pdo");
-    if (o["event_timer_ms"]) p.event_timer_ms = bounded<std::uint16_t>(src, o, "event_timer_ms", 0, 0, 65535, "simulation pdo");
+    if (o["transmission_type"])
+      p.transmission_type = bounded<std::uint8_t>(src, o, "transmission_type", 0, 0, 255, "simulation pdo");
+    if (o["inhibit_time_100us"])
+      p.inhibit_time_100us = bounded<std::uint16_t>(src, o, "inhibit_time_100us", 0, 0, 65535, "simulation pdo");
+    if (o["event_timer_ms"])
+      p.event_timer_ms = bounded<std::uint16_t>(src, o, "event_timer_ms", 0, 0, 65535, "simulation pdo");
     if (o["mapping"]) p.mapping = parse_mapping_entries(src, o["mapping"]);
     pdos.push_back(std::move(p));
   }
@@ -267,15 +291,18 @@ std::vector<SimulatedPdo> parse_simulated_pdos(const YamlSource& src, const YAML
 }
 
 SimulationConfig parse_simulation(const YamlSource& src, const YAML::Node& n, const Profile& profile) {
-  src.check_keys(n, "simulation", {"max_speed_m_per_min", "acceleration_m_per_min_s", "scaling_pulses_per_m",
-                                   "heartbeat_period_ms", "controller_values", "identity", "pdos", "ignore_writes",
-                                   "pre_defined_error_field", "boot_up_after_nmt_reset"});
+  src.check_keys(n, "simulation",
+                 {"max_speed_m_per_min", "acceleration_m_per_min_s", "scaling_pulses_per_m", "heartbeat_period_ms",
+                  "controller_values", "identity", "pdos", "ignore_writes", "pre_defined_error_field",
+                  "boot_up_after_nmt_reset"});
   SimulationConfig sim;
   sim.max_speed_m_per_min = positive(src, n, "max_speed_m_per_min", sim.max_speed_m_per_min);
   sim.acceleration_m_per_min_s = positive(src, n, "acceleration_m_per_min_s", sim.acceleration_m_per_min_s);
-  sim.scaling_pulses_per_m = bounded<std::uint32_t>(src, n, "scaling_pulses_per_m", sim.scaling_pulses_per_m, 1, 100'000'000, "simulation");
+  sim.scaling_pulses_per_m = bounded<std::uint32_t>(src, n, "scaling_pulses_per_m", sim.scaling_pulses_per_m, 1,
+                                                    100'000'000, "simulation");
   // 0: the device sends no heartbeat until a master writes 1017h.
-  sim.heartbeat_period = std::chrono::milliseconds(bounded<int>(src, n, "heartbeat_period_ms", 100, 0, 65535, "simulation"));
+  sim.heartbeat_period = std::chrono::milliseconds(
+      bounded<int>(src, n, "heartbeat_period_ms", 100, 0, 65535, "simulation"));
   sim.pre_defined_error_field = src.optional<bool>(n, "pre_defined_error_field").value_or(true);
   sim.boot_up_after_nmt_reset = src.optional<bool>(n, "boot_up_after_nmt_reset").value_or(true);
   if (n["identity"]) sim.identity = parse_identity(src, n["identity"], "simulation identity");
@@ -295,9 +322,11 @@ SimulationConfig parse_simulation(const YamlSource& src, const YAML::Node& n, co
     for (const auto& kv : values) {
       const auto name = kv.first.as<std::string>();
       const ObjectDef* obj = profile.object(name);
-      if (obj == nullptr) src.fail(kv.first, "controller_values: profile " + profile.key() + " has no object '" + name + "'");
+      if (obj == nullptr)
+        src.fail(kv.first, "controller_values: profile " + profile.key() + " has no object '" + name + "'");
       const auto raw = src.as<std::uint64_t>(kv.second, name);
-      if (raw > canopen::type_max(obj->type)) src.fail(kv.second, "controller_values: " + name + " does not fit its type");
+      if (raw > canopen::type_max(obj->type))
+        src.fail(kv.second, "controller_values: " + name + " does not fit its type");
       sim.controller_values.emplace_back(name, raw);
     }
   }
@@ -316,8 +345,11 @@ std::vector<SdoWrite> parse_configure(const YamlSource& src, const YAML::Node& l
     if (w["object"]) {
       const auto name = src.as<std::string>(w["object"], "object");
       const ObjectDef* obj = profile.object(name);
-      if (obj == nullptr) src.fail(w["object"], "device " + device + ": profile " + profile.key() + " has no object '" + name + "'");
-      if (!obj->writable()) src.fail(w["object"], "device " + device + ": " + name + " is " + std::string(to_string(obj->access)) + ", not writable");
+      if (obj == nullptr)
+        src.fail(w["object"], "device " + device + ": profile " + profile.key() + " has no object '" + name + "'");
+      if (!obj->writable())
+        src.fail(w["object"],
+                 "device " + device + ": " + name + " is " + std::string(to_string(obj->access)) + ", not writable");
       write.index = obj->index;
       write.sub = obj->sub;
       write.type = obj->type;
@@ -345,7 +377,8 @@ std::vector<SdoWrite> parse_configure(const YamlSource& src, const YAML::Node& l
     } else {
       src.fail(w, "configure entry: " + std::string(canopen::to_string(write.type)) + " values are not supported here");
     }
-    if (auto bytes = canopen::encode(write.type, write.value); !bytes) src.fail(v, "configure entry: " + bytes.error().message);
+    if (auto bytes = canopen::encode(write.type, write.value); !bytes)
+      src.fail(v, "configure entry: " + bytes.error().message);
     if (const auto verify = src.optional<bool>(w, "verify")) write.verify = *verify;
     writes.push_back(std::move(write));
   }
@@ -366,10 +399,12 @@ std::vector<DevicePdo> resolve_pdos(const YamlSource& src, const YAML::Node* ove
     if (it == pdos.end()) {
       std::string known;
       for (const auto& p : pdos) known += (known.empty() ? "" : ", ") + p.name;
-      src.fail(kv.first, "device " + device + ": profile " + profile.key() + " has no PDO '" + name + "' (" + known + ")");
+      src.fail(kv.first,
+               "device " + device + ": profile " + profile.key() + " has no PDO '" + name + "' (" + known + ")");
     }
     const YAML::Node& o = kv.second;
-    src.check_keys(o, "pdo override", {"cob_id", "transmission_type", "inhibit_time_100us", "event_timer_ms", "mapping"});
+    src.check_keys(o, "pdo override",
+                   {"cob_id", "transmission_type", "inhibit_time_100us", "event_timer_ms", "mapping"});
     if (o["cob_id"]) {
       const auto entry = src.as<std::uint32_t>(o["cob_id"], "cob_id");
       it->validity_given = true;
@@ -380,15 +415,19 @@ std::vector<DevicePdo> resolve_pdos(const YamlSource& src, const YAML::Node* ove
         src.fail(o["cob_id"], "cob_id: an 11-bit identifier (bit 29 clear) must be below 800h");
       }
     }
-    it->transmission_type = bounded<std::uint8_t>(src, o, "transmission_type", it->transmission_type, 0, 255, "pdo " + name);
+    it->transmission_type = bounded<std::uint8_t>(src, o, "transmission_type", it->transmission_type, 0, 255,
+                                                  "pdo " + name);
     if (it->transmission_type > 240 && it->transmission_type < 252) {
-      src.fail(o["transmission_type"], "transmission_type " + std::to_string(it->transmission_type) + " is reserved (CiA 301)");
+      src.fail(o["transmission_type"],
+               "transmission_type " + std::to_string(it->transmission_type) + " is reserved (CiA 301)");
     }
     if (it->direction == PdoDirection::rx && it->transmission_type > 240 && it->transmission_type < 254) {
-      src.fail(o["transmission_type"], "transmission_type " + std::to_string(it->transmission_type) +
-                                           " is for TPDOs only: an RPDO is 0..240 (synchronous) or 254/255 (event-driven)");
+      src.fail(o["transmission_type"],
+               "transmission_type " + std::to_string(it->transmission_type) +
+                   " is for TPDOs only: an RPDO is 0..240 (synchronous) or 254/255 (event-driven)");
     }
-    it->inhibit = std::chrono::microseconds(100 * bounded<int>(src, o, "inhibit_time_100us", 0, 0, 65535, "pdo " + name));
+    it->inhibit = std::chrono::microseconds(100 *
+                                            bounded<int>(src, o, "inhibit_time_100us", 0, 0, 65535, "pdo " + name));
     it->event_timer = std::chrono::milliseconds(bounded<int>(src, o, "event_timer_ms", 0, 0, 65535, "pdo " + name));
     if (const auto m = o["mapping"]) {
       src.expect_sequence(m, "mapping");
@@ -397,9 +436,12 @@ std::vector<DevicePdo> resolve_pdos(const YamlSource& src, const YAML::Node* ove
         const auto entry = canopen::PdoEntry::from_u32(src.as<std::uint32_t>(e, "mapping"));
         if (!entry.is_dummy()) {
           const ObjectDef* obj = profile.object(entry.index, entry.sub);
-          if (obj == nullptr) src.fail(e, "mapping entry names an object profile " + profile.key() + " does not define");
-          if (canopen::bit_size(obj->type) != entry.bits) src.fail(e, "mapping entry length differs from " + obj->name + "'s type");
-          if (it->direction == PdoDirection::tx && !obj->readable()) src.fail(e, "a TPDO cannot carry " + obj->name + ", which is write-only");
+          if (obj == nullptr)
+            src.fail(e, "mapping entry names an object profile " + profile.key() + " does not define");
+          if (canopen::bit_size(obj->type) != entry.bits)
+            src.fail(e, "mapping entry length differs from " + obj->name + "'s type");
+          if (it->direction == PdoDirection::tx && !obj->readable())
+            src.fail(e, "a TPDO cannot carry " + obj->name + ", which is write-only");
           if (it->direction == PdoDirection::rx && !obj->writable()) {
             src.fail(e, "an RPDO cannot carry " + obj->name + ", which is " + std::string(to_string(obj->access)));
           }
@@ -425,19 +467,20 @@ void warn_fixed_inhibit_times(const YamlSource& src, const YAML::Node& overrides
     if (def == nullptr || def->direction != PdoDirection::tx || def->rules.cob_id != PdoAccess::fixed) continue;
     const YAML::Node o = overrides[pdo.name];
     if (!o || !o.IsMap() || !o["inhibit_time_100us"] || pdo.inhibit.count() == 0) continue;
-    warnings.push_back(src.where(o["inhibit_time_100us"]) +
-                       fmt::format(": device {}: {} inhibit_time_100us {}: profile {} makes this PDO's COB-ID const, so "
-                                   "it cannot be made not valid and CiA 301 forbids writing its inhibit time; unless the "
-                                   "device already has that value (the profile's default is 0) its boot fails with J "
-                                   "(pdo_config: adopt takes the device's value)",
-                                   dev.name, pdo.name, pdo.inhibit.count() / 100, dev.bridge_profile().key()));
+    warnings.push_back(
+        src.where(o["inhibit_time_100us"]) +
+        fmt::format(": device {}: {} inhibit_time_100us {}: profile {} makes this PDO's COB-ID const, so "
+                    "it cannot be made not valid and CiA 301 forbids writing its inhibit time; unless the "
+                    "device already has that value (the profile's default is 0) its boot fails with J "
+                    "(pdo_config: adopt takes the device's value)",
+                    dev.name, pdo.name, pdo.inhibit.count() / 100, dev.bridge_profile().key()));
   }
 }
 
 // What the devices so far use: the checks against all earlier devices stay linear in their number.
 struct Taken {
   std::unordered_set<std::string> device_names;
-  std::map<std::pair<std::string, std::uint8_t>, std::string> node_ids;  // (bus, node-ID) -> device
+  std::map<std::pair<std::string, std::uint8_t>, std::string> node_ids;         // (bus, node-ID) -> device
   std::map<std::tuple<std::string, bool, std::uint32_t>, std::string> pdo_ids;  // (bus, 29-bit, identifier) -> PDO
 };
 
@@ -459,7 +502,8 @@ void claim_pdo_identifiers(const YamlSource& src, const YAML::Node& n, const Dev
     const auto who = "pdo " + pdo.name + " of device " + dev.name;
     if (const auto use = canopen::cob::restricted_use(pdo.can_id); !pdo.extended && !use.empty()) {
       src.fail(identifier_node(n, pdo.name),
-               fmt::format("{}: identifier {:03X}h is {}: CiA 301 restricts it, no PDO may use it", who, pdo.can_id, use));
+               fmt::format("{}: identifier {:03X}h is {}: CiA 301 restricts it, no PDO may use it", who, pdo.can_id,
+                           use));
     }
     if (!pdo.enabled && pdo.validity_given) continue;  // never on the bus
     const auto [it, added] = taken.pdo_ids.try_emplace({dev.bus, pdo.extended, pdo.can_id}, who);
@@ -472,46 +516,68 @@ void claim_pdo_identifiers(const YamlSource& src, const YAML::Node& n, const Dev
 
 StartupPolicy parse_startup(const YamlSource& src, const YAML::Node& n) {
   src.expect_map(n, "startup");
-  src.check_keys(n, "startup", {"set_values_max_age_s", "after_power_loss", "restart_after_power_loss", "when_mandatory_fails",
-                                 "pdo_change_when_running"});
+  src.check_keys(n, "startup",
+                 {"set_values_max_age_s", "after_power_loss", "restart_after_power_loss", "when_mandatory_fails",
+                  "pdo_change_when_running"});
   StartupPolicy p;
-  p.set_values_max_age = std::chrono::seconds(bounded<int>(src, n, "set_values_max_age_s", 3600, 0, 30 * 86400, "startup"));
+  p.set_values_max_age = std::chrono::seconds(
+      bounded<int>(src, n, "set_values_max_age_s", 3600, 0, 30 * 86400, "startup"));
   if (const auto v = src.optional<std::string>(n, "after_power_loss")) {
-    if (*v == "non_enabling") p.after_power_loss = StartupPolicy::AfterPowerLoss::non_enabling;
-    else if (*v == "nothing") p.after_power_loss = StartupPolicy::AfterPowerLoss::nothing;
-    else src.fail(n["after_power_loss"], "after_power_loss must be non_enabling (speeds, lengths and modes come back) or nothing, not '" + *v + "'");
+    if (*v == "non_enabling")
+      p.after_power_loss = StartupPolicy::AfterPowerLoss::non_enabling;
+    else if (*v == "nothing")
+      p.after_power_loss = StartupPolicy::AfterPowerLoss::nothing;
+    else
+      src.fail(n["after_power_loss"],
+               "after_power_loss must be non_enabling (speeds, lengths and modes come back) or nothing, not '" + *v +
+                   "'");
   }
   if (const auto v = src.optional<std::string>(n, "restart_after_power_loss")) {
-    if (*v == "never") p.restart_after_power_loss = StartupPolicy::Restart::never;
-    else if (*v == "allowed") p.restart_after_power_loss = StartupPolicy::Restart::allowed;
-    else src.fail(n["restart_after_power_loss"], "restart_after_power_loss must be never or allowed, not '" + *v + "'");
+    if (*v == "never")
+      p.restart_after_power_loss = StartupPolicy::Restart::never;
+    else if (*v == "allowed")
+      p.restart_after_power_loss = StartupPolicy::Restart::allowed;
+    else
+      src.fail(n["restart_after_power_loss"], "restart_after_power_loss must be never or allowed, not '" + *v + "'");
   }
   if (const auto v = src.optional<std::string>(n, "when_mandatory_fails")) {
-    if (*v == "stop_others") p.when_mandatory_fails = StartupPolicy::WhenMandatoryFails::stop_others;
-    else if (*v == "report_only") p.when_mandatory_fails = StartupPolicy::WhenMandatoryFails::report_only;
-    else src.fail(n["when_mandatory_fails"], "when_mandatory_fails must be stop_others (every other device the bridge started is stopped until an operator starts it) or report_only, not '" + *v + "'");
+    if (*v == "stop_others")
+      p.when_mandatory_fails = StartupPolicy::WhenMandatoryFails::stop_others;
+    else if (*v == "report_only")
+      p.when_mandatory_fails = StartupPolicy::WhenMandatoryFails::report_only;
+    else
+      src.fail(n["when_mandatory_fails"], "when_mandatory_fails must be stop_others (every other device the bridge "
+                                          "started is stopped until an operator starts it) or report_only, not '" +
+                                              *v + "'");
   }
   if (const auto v = src.optional<std::string>(n, "pdo_change_when_running")) {
     using canopen::PdoChangeWhenRunning;
-    if (*v == "pre_operational") p.pdo_change_when_running = PdoChangeWhenRunning::pre_operational;
-    else if (*v == "keep_running") p.pdo_change_when_running = PdoChangeWhenRunning::keep_running;
-    else src.fail(n["pdo_change_when_running"], "pdo_change_when_running must be pre_operational (a running device is put in "
-                                                "pre-operational to write its PDOs) or keep_running, not '" + *v + "'");
+    if (*v == "pre_operational")
+      p.pdo_change_when_running = PdoChangeWhenRunning::pre_operational;
+    else if (*v == "keep_running")
+      p.pdo_change_when_running = PdoChangeWhenRunning::keep_running;
+    else
+      src.fail(n["pdo_change_when_running"],
+               "pdo_change_when_running must be pre_operational (a running device is put in "
+               "pre-operational to write its PDOs) or keep_running, not '" +
+                   *v + "'");
   }
   return p;
 }
 
 DeviceConfig parse_device(const YamlSource& src, const YAML::Node& n, const LineConfig& line,
                           const ProfileRegistry& registry, std::vector<std::string>& warnings, Taken& taken) {
-  src.check_keys(n, "device", {"name", "bus", "node_id", "profile", "version", "heartbeat_timeout_ms", "configure",
-                               "boot_retry_ms", "pdos", "simulation", "identity", "pdo_config", "on_state_unknown",
-                               "heartbeat_producer_ms", "objects", "starts_itself", "mandatory"});
+  src.check_keys(n, "device",
+                 {"name", "bus", "node_id", "profile", "version", "heartbeat_timeout_ms", "configure", "boot_retry_ms",
+                  "pdos", "simulation", "identity", "pdo_config", "on_state_unknown", "heartbeat_producer_ms",
+                  "objects", "starts_itself", "mandatory"});
   DeviceConfig dev;
   dev.name = src.required<std::string>(n, "name", "device");
   check_name(src, n["name"], dev.name);
   // rt/<line>/bridge/... and <line>/bridge/<service> are the bridge's own (diagnostics, the
   // line-wide services, lb::ddsl::kBridgeNamespace): a device of that name would meet them.
-  if (dev.name == "bridge") src.fail(n["name"], "device name 'bridge' is reserved for the bridge's own topics and services");
+  if (dev.name == "bridge")
+    src.fail(n["name"], "device name 'bridge' is reserved for the bridge's own topics and services");
   if (!taken.device_names.insert(dev.name).second) src.fail(n["name"], "device name '" + dev.name + "' is used twice");
   dev.bus = src.required<std::string>(n, "bus", "device " + dev.name);
   if (line.bus(dev.bus) == nullptr) src.fail(n["bus"], "device " + dev.name + ": no bus named '" + dev.bus + "'");
@@ -540,10 +606,12 @@ DeviceConfig parse_device(const YamlSource& src, const YAML::Node& n, const Line
     src.expect_sequence(objects, "objects");
     Profile extended = *dev.resolved_profile;
     for (const auto& o : objects) {
-      src.check_keys(o, "object", {"index", "sub", "name", "type", "access", "unit", "scale", "eng_unit", "min", "max",
-                                   "values", "special_values"});
+      src.check_keys(o, "object",
+                     {"index", "sub", "name", "type", "access", "unit", "scale", "eng_unit", "min", "max", "values",
+                      "special_values"});
       ObjectDef def = parse_object_fields(src, o, "device " + dev.name + " object");
-      if (extended.object(def.name) != nullptr) src.fail(o["name"], "object name '" + def.name + "' is already the profile's or used twice");
+      if (extended.object(def.name) != nullptr)
+        src.fail(o["name"], "object name '" + def.name + "' is already the profile's or used twice");
       if (extended.object(def.index, def.sub) != nullptr) {
         src.fail(o["index"], "device " + dev.name + ": the object at this index and sub is already " +
                                  extended.object(def.index, def.sub)->name);
@@ -552,9 +620,10 @@ DeviceConfig parse_device(const YamlSource& src, const YAML::Node& n, const Line
     }
     dev.profile_with_objects = std::make_shared<const Profile>(std::move(extended));
   }
-  dev.heartbeat_timeout =
-      std::chrono::milliseconds(bounded<int>(src, n, "heartbeat_timeout_ms", 500, 1, 65535, "device " + dev.name));
-  dev.boot_retry = std::chrono::milliseconds(bounded<int>(src, n, "boot_retry_ms", 5000, 100, 600'000, "device " + dev.name));
+  dev.heartbeat_timeout = std::chrono::milliseconds(
+      bounded<int>(src, n, "heartbeat_timeout_ms", 500, 1, 65535, "device " + dev.name));
+  dev.boot_retry = std::chrono::milliseconds(
+      bounded<int>(src, n, "boot_retry_ms", 5000, 100, 600'000, "device " + dev.name));
   if (n["configure"]) dev.configure = parse_configure(src, n["configure"], dev.bridge_profile(), dev.name);
   const YAML::Node pdo_overrides = n["pdos"];
   dev.pdos = resolve_pdos(src, pdo_overrides ? &pdo_overrides : nullptr, dev.bridge_profile(), dev.node_id, dev.name);
@@ -562,17 +631,26 @@ DeviceConfig parse_device(const YamlSource& src, const YAML::Node& n, const Line
   if (n["simulation"]) dev.simulation = parse_simulation(src, n["simulation"], *dev.resolved_profile);
   if (n["identity"]) dev.identity = parse_identity(src, n["identity"], "identity");
   if (const auto mode = src.optional<std::string>(n, "pdo_config")) {
-    if (*mode == "configure") dev.pdo_config = PdoConfigMode::configure;
-    else if (*mode == "adopt") dev.pdo_config = PdoConfigMode::adopt;
-    else src.fail(n["pdo_config"], "pdo_config must be configure (make the device match the line) or adopt (take the device's PDOs), not '" + *mode + "'");
+    if (*mode == "configure")
+      dev.pdo_config = PdoConfigMode::configure;
+    else if (*mode == "adopt")
+      dev.pdo_config = PdoConfigMode::adopt;
+    else
+      src.fail(
+          n["pdo_config"],
+          "pdo_config must be configure (make the device match the line) or adopt (take the device's PDOs), not '" +
+              *mode + "'");
   }
   if (dev.pdo_config == PdoConfigMode::configure && pdo_overrides) {
     warn_fixed_inhibit_times(src, pdo_overrides, dev, warnings);
   }
   if (const auto action = src.optional<std::string>(n, "on_state_unknown")) {
-    if (*action == "reboot") dev.on_state_unknown = StateUnknownAction::reboot;
-    else if (*action == "reset_node") dev.on_state_unknown = StateUnknownAction::reset_node;
-    else src.fail(n["on_state_unknown"], "on_state_unknown must be reboot or reset_node, not '" + *action + "'");
+    if (*action == "reboot")
+      dev.on_state_unknown = StateUnknownAction::reboot;
+    else if (*action == "reset_node")
+      dev.on_state_unknown = StateUnknownAction::reset_node;
+    else
+      src.fail(n["on_state_unknown"], "on_state_unknown must be reboot or reset_node, not '" + *action + "'");
   }
   dev.starts_itself = src.optional<bool>(n, "starts_itself").value_or(false);
   dev.mandatory = src.optional<bool>(n, "mandatory").value_or(false);
@@ -586,15 +664,16 @@ DeviceConfig parse_device(const YamlSource& src, const YAML::Node& n, const Line
     dev.heartbeat_producer = std::chrono::milliseconds(producer);
     // A consumer time at or below the producer time reports the device lost between two beats.
     if (dev.heartbeat_timeout.count() <= producer) {
-      src.fail(n["heartbeat_producer_ms"], "device " + dev.name + ": heartbeat_producer_ms " + std::to_string(producer) +
-                                               " must be below heartbeat_timeout_ms " + std::to_string(dev.heartbeat_timeout.count()) +
-                                               " (CiA 302: the consumer time needs a margin, e.g. 1.5 x the producer time)");
+      src.fail(n["heartbeat_producer_ms"],
+               "device " + dev.name + ": heartbeat_producer_ms " + std::to_string(producer) +
+                   " must be below heartbeat_timeout_ms " + std::to_string(dev.heartbeat_timeout.count()) +
+                   " (CiA 302: the consumer time needs a margin, e.g. 1.5 x the producer time)");
     }
     if (2 * dev.heartbeat_timeout.count() < 3 * producer) {
       warnings.push_back(src.where(n["heartbeat_timeout_ms"] ? n["heartbeat_timeout_ms"] : n["heartbeat_producer_ms"]) +
-                         ": device " + dev.name + ": heartbeat_timeout_ms " + std::to_string(dev.heartbeat_timeout.count()) +
-                         " is less than 1.5 x heartbeat_producer_ms " + std::to_string(producer) +
-                         ": one late heartbeat reports the device lost");
+                         ": device " + dev.name + ": heartbeat_timeout_ms " +
+                         std::to_string(dev.heartbeat_timeout.count()) + " is less than 1.5 x heartbeat_producer_ms " +
+                         std::to_string(producer) + ": one late heartbeat reports the device lost");
     }
   }
   return dev;
@@ -619,10 +698,11 @@ void check_recordings(const YamlSource& src, const YAML::Node& nodes, const std:
   }
   for (std::size_t i = 0; i < buses.size(); ++i) {
     if (buses[i].record.empty()) continue;
-    const auto [it, added] = files.try_emplace(file_identity(buses[i].record), "bus " + buses[i].name + " records into it");
+    const auto [it, added] = files.try_emplace(file_identity(buses[i].record),
+                                               "bus " + buses[i].name + " records into it");
     if (!added) {
-      src.fail(nodes[i]["record"], "bus " + buses[i].name + ": record: " + shown(buses[i].record) + " cannot be recorded into: " +
-                                       it->second);
+      src.fail(nodes[i]["record"], "bus " + buses[i].name + ": record: " + shown(buses[i].record) +
+                                       " cannot be recorded into: " + it->second);
     }
   }
 }
@@ -689,12 +769,14 @@ void warn_identity_by_profile_number_alone(LineConfig& cfg) {
       if (bare.empty()) continue;
       std::string names;
       for (const auto& n : bare) names += (names.empty() ? "" : ", ") + n;
-      cfg.warnings.push_back(fmt::format(
-          "bus {}: {} ha{} no identity: (vendor_id, product_code) and {} told apart from the other CiA {} device(s) of the bus "
-          "by 1000h bits 0..15 alone: any CiA {} device at {} node-ID is taken for {} (`linebridge-cli identity <device>` "
-          "prints the lines to add)",
-          bus.name, names, bare.size() == 1 ? "s" : "ve", bare.size() == 1 ? "is" : "are", number, number,
-          bare.size() == 1 ? "its" : "their", bare.size() == 1 ? "it" : "them"));
+      cfg.warnings.push_back(fmt::format("bus {}: {} ha{} no identity: (vendor_id, product_code) and {} told apart "
+                                         "from the other CiA {} device(s) of the bus "
+                                         "by 1000h bits 0..15 alone: any CiA {} device at {} node-ID is taken for {} "
+                                         "(`linebridge-cli identity <device>` "
+                                         "prints the lines to add)",
+                                         bus.name, names, bare.size() == 1 ? "s" : "ve",
+                                         bare.size() == 1 ? "is" : "are", number, number,
+                                         bare.size() == 1 ? "its" : "their", bare.size() == 1 ? "it" : "them"));
     }
   }
 }
@@ -731,9 +813,10 @@ Result<LineConfig> parse_line_config(const std::string& yaml_text, const std::st
       // Measured with Fast DDS 2.9.1: through an unsecured fast-discovery-server secured
       // participants fail endpoint matching; a secured server's GUID prefix is replaced by one
       // derived from its certificate, so clients never find the prefix they were given.
-      cfg.warnings.push_back(src.where(root["dds"]["discovery_servers"]) +
-                             ": dds.security with discovery servers: with Fast DDS 2.9 a secured line delivered "
-                             "nothing through a discovery server (secured or not); use simple discovery for a secured line");
+      cfg.warnings.push_back(
+          src.where(root["dds"]["discovery_servers"]) +
+          ": dds.security with discovery servers: with Fast DDS 2.9 a secured line delivered "
+          "nothing through a discovery server (secured or not); use simple discovery for a secured line");
     }
     const ProfileRegistry* profiles = &registry;
     if (const auto dir = root["profiles_dir"]) {
@@ -750,8 +833,9 @@ Result<LineConfig> parse_line_config(const std::string& yaml_text, const std::st
       // Two masters on one network hear each other's SYNC and NMT: one line, one master per bus.
       for (const auto& other : cfg.buses) {
         if (other.interface == bus.interface && other.role == BusRole::master && bus.role == BusRole::master) {
-          src.fail(b["interface"], "bus " + bus.name + ": " + bus.interface + " is already bus " + other.name +
-                                       ", and both are masters: a CAN network has one NMT master and one SYNC producer");
+          src.fail(b["interface"],
+                   "bus " + bus.name + ": " + bus.interface + " is already bus " + other.name +
+                       ", and both are masters: a CAN network has one NMT master and one SYNC producer");
         }
       }
       cfg.buses.push_back(std::move(bus));
@@ -763,17 +847,19 @@ Result<LineConfig> parse_line_config(const std::string& yaml_text, const std::st
     for (const auto& d : devices) cfg.devices.push_back(parse_device(src, d, cfg, *profiles, cfg.warnings, taken));
     warn_identity_by_profile_number_alone(cfg);
     // A reaction chosen for mandatory devices when none is: most likely a forgotten `mandatory: true`.
-    if (const auto startup = root["startup"]; startup && startup["when_mandatory_fails"] &&
-                                              std::none_of(cfg.devices.begin(), cfg.devices.end(),
-                                                           [](const DeviceConfig& d) { return d.mandatory; })) {
-      cfg.warnings.push_back(src.where(startup["when_mandatory_fails"]) +
-                             ": when_mandatory_fails is set but no device is mandatory (mandatory: true): it has no effect");
+    if (const auto startup = root["startup"];
+        startup && startup["when_mandatory_fails"] &&
+        std::none_of(cfg.devices.begin(), cfg.devices.end(), [](const DeviceConfig& d) { return d.mandatory; })) {
+      cfg.warnings.push_back(
+          src.where(startup["when_mandatory_fails"]) +
+          ": when_mandatory_fails is set but no device is mandatory (mandatory: true): it has no effect");
     }
     return cfg;
   } catch (const ConfigError& e) {
     return make_error(e.what());
   } catch (const YAML::Exception& e) {  // a conversion the checks above missed: still an error, not an abort
-    return make_error(source + ":" + std::to_string(e.mark.line + 1) + ":" + std::to_string(e.mark.column + 1) + ": " + e.msg);
+    return make_error(source + ":" + std::to_string(e.mark.line + 1) + ":" + std::to_string(e.mark.column + 1) + ": " +
+                      e.msg);
   }
 }
 

@@ -42,11 +42,11 @@ struct DdsDiscoveryServer {
 struct DdsConfig {
   std::uint32_t domain = 0;
   bool localhost_only = true;
-  std::optional<DdsSecurityConfig> security;  // absent: an unsecured domain
-  std::string profiles_file;        // Fast DDS XML profiles (absolute path); "" = none
-  std::string participant_profile;  // a participant profile of it by name; "" = its default one
+  std::optional<DdsSecurityConfig> security;          // absent: an unsecured domain
+  std::string profiles_file;                          // Fast DDS XML profiles (absolute path); "" = none
+  std::string participant_profile;                    // a participant profile of it by name; "" = its default one
   std::vector<DdsDiscoveryServer> discovery_servers;  // none: simple (multicast) discovery
-  bool shared_memory = false;       // Fast DDS's shared-memory transport besides UDP (one user only)
+  bool shared_memory = false;                         // Fast DDS's shared-memory transport besides UDP (one user only)
   // Remote participants kept at most (authenticated or pending); more announcements are dropped
   // until one leaves. Bounds what forged announcements can hold (issue 25).
   int max_remote_participants = 32;
@@ -58,8 +58,8 @@ struct BusConfig {
   std::string record;     // candump -l format file every frame of the bus is appended to; "" = none
   BusRole role = BusRole::master;
   std::chrono::microseconds sync_period{20'000};  // CiA 420-1: 20 ms
-  std::uint32_t bitrate = 500'000;                 // bit/s, for the bus load in diagnostics
-  std::uint8_t master_node_id = 0;                 // the bridge's own heartbeat (master role); 0 = none
+  std::uint32_t bitrate = 500'000;                // bit/s, for the bus load in diagnostics
+  std::uint8_t master_node_id = 0;                // the bridge's own heartbeat (master role); 0 = none
   std::chrono::milliseconds master_heartbeat_period{1000};
   std::chrono::milliseconds sdo_timeout{1000};
   // Master role: another master heard on the bus (canopen/other_master.hpp): yield = transmit
@@ -119,7 +119,7 @@ struct SdoWrite {
   std::uint8_t sub = 0;
   canopen::DataType type = canopen::DataType::unsigned8;
   canopen::ObjectValue value;
-  std::string text;  // as written in the file, for logs
+  std::string text;    // as written in the file, for logs
   bool verify = true;  // read back after writing (false: write-only objects, or `verify: false`)
 };
 
@@ -131,7 +131,7 @@ struct DevicePdo {
   bool extended = false;     // 29-bit identifier (COB-ID bit 29)
   bool enabled = true;       // COB-ID bit 31 clear
   std::uint8_t transmission_type = 1;
-  std::chrono::microseconds inhibit{0};     // event-driven: minimum gap between two transmissions
+  std::chrono::microseconds inhibit{0};      // event-driven: minimum gap between two transmissions
   std::chrono::milliseconds event_timer{0};  // event-driven: resend at least this often (0 = never)
   std::vector<canopen::PdoEntry> mapping;
 
@@ -142,9 +142,7 @@ struct DevicePdo {
   bool synchronous() const { return transmission_type <= 240; }
   bool event_driven() const { return transmission_type >= 254; }
   // The 32-bit COB-ID entry (1400h/1800h sub 1) as CiA 301 writes it.
-  std::uint32_t cob_id_entry() const {
-    return (enabled ? 0U : 0x8000'0000U) | (extended ? 0x2000'0000U : 0U) | can_id;
-  }
+  std::uint32_t cob_id_entry() const { return (enabled ? 0U : 0x8000'0000U) | (extended ? 0x2000'0000U : 0U) | can_id; }
 };
 
 // The profile's PDOs as a device at node_id has them before any override.
@@ -200,10 +198,10 @@ struct DeviceConfig {
   std::string profile;
   std::string version;
   std::chrono::milliseconds heartbeat_timeout{500};
-  std::vector<SdoWrite> configure;               // boot configuration (master role)
-  std::vector<DevicePdo> pdos;                    // the profile's PDOs with this device's overrides
-  std::chrono::milliseconds boot_retry{5000};   // a device that does not answer is tried again
-  Identity identity;                            // expected identity, checked at every boot
+  std::vector<SdoWrite> configure;             // boot configuration (master role)
+  std::vector<DevicePdo> pdos;                 // the profile's PDOs with this device's overrides
+  std::chrono::milliseconds boot_retry{5000};  // a device that does not answer is tried again
+  Identity identity;                           // expected identity, checked at every boot
   PdoConfigMode pdo_config = PdoConfigMode::configure;
   StateUnknownAction on_state_unknown = StateUnknownAction::reboot;
   // Written to 1017h at every boot, after `configure`; nullopt: the device's own value is kept.

@@ -19,9 +19,8 @@ std::string_view to_string(Access access) {
 
 double ObjectDef::to_engineering(std::uint64_t raw) const {
   const unsigned bits = canopen::bit_size(type);
-  const double value = canopen::is_signed_integer(type)
-                           ? static_cast<double>(canopen::sign_extend(raw, bits))
-                           : static_cast<double>(raw);
+  const double value = canopen::is_signed_integer(type) ? static_cast<double>(canopen::sign_extend(raw, bits))
+                                                        : static_cast<double>(raw);
   return value * scale;
 }
 
@@ -48,8 +47,7 @@ Result<std::uint64_t> ObjectDef::to_raw(double engineering) const {
   const double hi = max ? static_cast<double>(*max) : static_cast<double>(canopen::type_max(type));
   if (raw < lo || raw > hi) {
     const std::string u = eng_unit.empty() ? "" : " " + eng_unit;
-    return make_error(fmt::format("{} {}{} is out of range {}..{}{}", name, engineering, u, lo * scale,
-                                  hi * scale, u));
+    return make_error(fmt::format("{} {}{} is out of range {}..{}{}", name, engineering, u, lo * scale, hi * scale, u));
   }
   if (raw >= 9.2e18) return static_cast<std::uint64_t>(raw);  // UNSIGNED64 beyond int64: range checked above
   return check_raw(static_cast<std::int64_t>(raw));

@@ -51,9 +51,9 @@ struct ObjectDef {
   std::string name;
   canopen::DataType type = canopen::DataType::unsigned8;
   Access access = Access::ro;
-  std::string unit;      // raw unit as the specification states it, e.g. "0.1 mm"
-  double scale = 1.0;    // engineering value = raw * scale
-  std::string eng_unit;  // unit of the engineering value, e.g. "m"
+  std::string unit;                 // raw unit as the specification states it, e.g. "0.1 mm"
+  double scale = 1.0;               // engineering value = raw * scale
+  std::string eng_unit;             // unit of the engineering value, e.g. "m"
   std::optional<std::int64_t> min;  // raw limits for values the bridge sends
   std::optional<std::int64_t> max;
   bool mandatory = true;

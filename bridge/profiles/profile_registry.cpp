@@ -8,8 +8,8 @@
 #include <fmt/format.h>
 
 #include "profiles/builtin_profiles.hpp"
-#include "profiles/object_fields.hpp"
 #include "profiles/config_file.hpp"
+#include "profiles/object_fields.hpp"
 #include "profiles/yaml_source.hpp"
 
 namespace lb::profiles {
@@ -28,8 +28,8 @@ template <class T>
 T in_range(const YamlSource& src, const YAML::Node& map, std::string_view key, std::int64_t lo, std::int64_t hi) {
   const auto v = src.required<std::int64_t>(map, key, "entry");
   if (v < lo || v > hi) {
-    src.fail(map[std::string(key)], std::string(key) + " " + std::to_string(v) + " is outside " +
-                                        std::to_string(lo) + ".." + std::to_string(hi));
+    src.fail(map[std::string(key)], std::string(key) + " " + std::to_string(v) + " is outside " + std::to_string(lo) +
+                                        ".." + std::to_string(hi));
   }
   return static_cast<T>(v);
 }
@@ -46,7 +46,8 @@ std::string hex(std::uint64_t v, int digits = 4) { return fmt::format("{:0{}X}h"
 // Names that become DDS field names and log words: one spelling, checked at load time.
 bool is_snake_case(std::string_view s) {
   if (s.empty() || s.front() < 'a' || s.front() > 'z') return false;
-  return std::all_of(s.begin(), s.end(), [](char c) { return (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_'; });
+  return std::all_of(s.begin(), s.end(),
+                     [](char c) { return (c >= 'a' && c <= 'z') || (c >= '0' && c <= '9') || c == '_'; });
 }
 
 std::string snake_case_name(const YamlSource& src, const YAML::Node& node, std::string_view what) {
@@ -79,7 +80,8 @@ std::optional<std::uint64_t> parse_number(std::string_view text) {
 std::optional<ValueTable> parse_value_table(const YamlSource& src, const YAML::Node& owner, unsigned width) {
   const YAML::Node values = owner["values"];
   const YAML::Node special = owner["special_values"];
-  if (values && special) src.fail(special, "give either values (an enumeration) or special_values (a number), not both");
+  if (values && special)
+    src.fail(special, "give either values (an enumeration) or special_values (a number), not both");
   if (!values && !special) return std::nullopt;
   const YAML::Node table = values ? values : special;
   src.expect_map(table, values ? "values" : "special_values");
@@ -130,7 +132,8 @@ ObjectDef parse_object_fields(const YamlSource& src, const YAML::Node& o, const 
   def.mandatory = src.optional<bool>(o, "mandatory").value_or(true);
   const bool integer = canopen::is_signed_integer(def.type) || canopen::is_unsigned_integer(def.type);
   if ((o["values"] || o["special_values"]) && !integer) {
-    src.fail(o["values"] ? o["values"] : o["special_values"], "named codes need an integer data type, not " + type_text);
+    src.fail(o["values"] ? o["values"] : o["special_values"],
+             "named codes need an integer data type, not " + type_text);
   }
   if (auto table = parse_value_table(src, o, canopen::bit_size(def.type))) def.values = std::move(*table);
   return def;
@@ -165,7 +168,8 @@ class ProfileLoader {
     if (!o["access"]) src_.fail(o, "object: missing required key 'access'");
     ObjectDef def = parse_object_fields(src_, o, "object");
     def.enabling = src_.optional<bool>(o, "enabling").value_or(false);
-    if (def.enabling && !def.writable()) src_.fail(o["enabling"], "enabling: only an object the master writes can let a machine run");
+    if (def.enabling && !def.writable())
+      src_.fail(o["enabling"], "enabling: only an object the master writes can let a machine run");
     const auto sub = optional_in_range<std::uint8_t>(src_, o, "sub", 0, 255);
 
     const auto n = src_.optional<int>(o, "array");
@@ -216,10 +220,12 @@ class ProfileLoader {
     set.sub = sub.value_or(0);
     const ObjectDef* obj = p_.object(set.index, set.every_element ? 1 : set.sub);
     if (obj == nullptr) {
-      src_.fail(sub ? node["sub"] : node["object"], "bitset " + set.name + " names an object the profile does not define");
+      src_.fail(sub ? node["sub"] : node["object"],
+                "bitset " + set.name + " names an object the profile does not define");
     }
     if (!canopen::is_signed_integer(obj->type) && !canopen::is_unsigned_integer(obj->type)) {
-      src_.fail(node["object"], "bitset " + set.name + " needs an integer object, not " + std::string(canopen::to_string(obj->type)));
+      src_.fail(node["object"],
+                "bitset " + set.name + " needs an integer object, not " + std::string(canopen::to_string(obj->type)));
     }
     const unsigned word = canopen::bit_size(obj->type);
     const YAML::Node bits = node["bits"];
@@ -261,7 +267,8 @@ class ProfileLoader {
       f.eng_unit = src_.optional<std::string>(value, "eng_unit").value_or(f.unit);
       f.min = src_.optional<std::int64_t>(value, "min");
       f.max = src_.optional<std::int64_t>(value, "max");
-      if ((f.min || f.max) && f.width > 63) src_.fail(value, "field " + f.name + ": a range needs a field of at most 63 bits");
+      if ((f.min || f.max) && f.width > 63)
+        src_.fail(value, "field " + f.name + ": a range needs a field of at most 63 bits");
       if (auto table = parse_value_table(src_, value, f.width)) f.values = std::move(*table);
     }
     f.bit = src_.as<unsigned>(at, f.name);
@@ -288,14 +295,16 @@ class ProfileLoader {
     PdoDef pdo;
     pdo.name = src_.required<std::string>(n, "name", "pdo");
     const auto dir = src_.required<std::string>(n, "direction", "pdo");
-    if (dir != "tx" && dir != "rx") src_.fail(n["direction"], "direction must be tx (device sends) or rx (device receives)");
+    if (dir != "tx" && dir != "rx")
+      src_.fail(n["direction"], "direction must be tx (device sends) or rx (device receives)");
     pdo.direction = dir == "tx" ? PdoDirection::tx : PdoDirection::rx;
     // The name is the CiA 301 number: tpdo3 is 1802h/1A02h, rpdo1 1400h/1600h.
     const std::string prefix = dir == "tx" ? "tpdo" : "rpdo";
-    const auto number = pdo.name.rfind(prefix, 0) == 0 ? parse_number(std::string_view(pdo.name).substr(4)) : std::nullopt;
+    const auto number = pdo.name.rfind(prefix, 0) == 0 ? parse_number(std::string_view(pdo.name).substr(4))
+                                                       : std::nullopt;
     if (!number || *number < 1 || *number > 512 || pdo.name[4] == '0') {
-      src_.fail(n["name"], "a " + std::string(dir == "tx" ? "TPDO" : "RPDO") + " is named " + prefix +
-                               "1.." + prefix + "512 (its CiA 301 number), not '" + pdo.name + "'");
+      src_.fail(n["name"], "a " + std::string(dir == "tx" ? "TPDO" : "RPDO") + " is named " + prefix + "1.." + prefix +
+                               "512 (its CiA 301 number), not '" + pdo.name + "'");
     }
     for (const auto& other : p_.pdos) {
       if (other.name == pdo.name) src_.fail(n["name"], "pdo '" + pdo.name + "' is defined twice");
@@ -306,10 +315,14 @@ class ProfileLoader {
     pdo.transmission_type = in_range<std::uint8_t>(src_, n, "transmission_type", 0, 255);
     if (const YAML::Node v = n["valid"]) {
       const auto text = src_.as<std::string>(v, "valid");
-      if (text == "true") pdo.validity = PdoValidity::valid;
-      else if (text == "false") pdo.validity = PdoValidity::not_valid;
-      else if (text == "either") pdo.validity = PdoValidity::either;
-      else src_.fail(v, "valid must be true, false or either (COB-ID bit 31 as the device starts), not '" + text + "'");
+      if (text == "true")
+        pdo.validity = PdoValidity::valid;
+      else if (text == "false")
+        pdo.validity = PdoValidity::not_valid;
+      else if (text == "either")
+        pdo.validity = PdoValidity::either;
+      else
+        src_.fail(v, "valid must be true, false or either (COB-ID bit 31 as the device starts), not '" + text + "'");
     }
     pdo.mandatory = src_.optional<bool>(n, "mandatory").value_or(true);
     const YAML::Node mapping = n["mapping"];
@@ -320,7 +333,8 @@ class ProfileLoader {
       if (!entry.is_dummy()) {
         const ObjectDef* obj = p_.object(entry.index, entry.sub);
         if (obj == nullptr) src_.fail(e, "mapping entry names an object the profile does not define");
-        if (canopen::bit_size(obj->type) != entry.bits) src_.fail(e, "mapping entry length differs from the object's type");
+        if (canopen::bit_size(obj->type) != entry.bits)
+          src_.fail(e, "mapping entry length differs from the object's type");
         // A TPDO carries what the device reports, an RPDO what it is told.
         if (pdo.direction == PdoDirection::tx && !obj->readable()) {
           src_.fail(e, "a TPDO cannot carry " + obj->name + ", which is write-only");
@@ -340,8 +354,8 @@ class ProfileLoader {
       const unsigned used = pdo.mapped_bits();
       tail.bits = in_range<unsigned>(src_, md, "bits", 1, 64);
       if (used + tail.bits > 64) {
-        src_.fail(md["bits"], "manufacturer data of " + std::to_string(tail.bits) + " bits does not fit: the mapping uses " +
-                                  std::to_string(used) + " of 64 bits");
+        src_.fail(md["bits"], "manufacturer data of " + std::to_string(tail.bits) +
+                                  " bits does not fit: the mapping uses " + std::to_string(used) + " of 64 bits");
       }
       pdo.manufacturer_data = std::move(tail);
     }
@@ -354,13 +368,15 @@ class ProfileLoader {
         pdo.rules.mapping_counts.push_back(static_cast<std::uint8_t>(v));
       }
     }
-    if (n["manufacturer_entries"]) pdo.rules.manufacturer_entries = in_range<unsigned>(src_, n, "manufacturer_entries", 0, 63);
+    if (n["manufacturer_entries"])
+      pdo.rules.manufacturer_entries = in_range<unsigned>(src_, n, "manufacturer_entries", 0, 63);
     const auto most = static_cast<unsigned>(pdo.mapping.size()) + pdo.rules.manufacturer_entries;
     for (const auto c : pdo.rules.mapping_counts) {
       if (c > most) {
         src_.fail(n["mapping_counts"], "mapping_counts: " + std::to_string(c) + " entries, but the PDO has " +
                                            std::to_string(pdo.mapping.size()) + " default and " +
-                                           std::to_string(pdo.rules.manufacturer_entries) + " manufacturer-specific ones");
+                                           std::to_string(pdo.rules.manufacturer_entries) +
+                                           " manufacturer-specific ones");
       }
     }
     p_.pdos.push_back(std::move(pdo));
@@ -369,20 +385,27 @@ class ProfileLoader {
   // access: {cob_id, transmission_type, inhibit_time, event_timer, mapping_count, mapping}, each
   // rw, rw_preop, const, ro or none (cob_id also valid_bit); what is not given stays CiA 301's rw.
   PdoRules pdo_rules(const YAML::Node& a) const {
-    src_.check_keys(a, "pdo access", {"cob_id", "transmission_type", "inhibit_time", "event_timer", "mapping_count", "mapping"});
+    src_.check_keys(a, "pdo access",
+                    {"cob_id", "transmission_type", "inhibit_time", "event_timer", "mapping_count", "mapping"});
     PdoRules r;
     const auto entry = [&](std::string_view key, PdoAccess& out, bool may_be_absent) {
       const YAML::Node v = a[std::string(key)];
       if (!v) return;
       const auto text = src_.as<std::string>(v, key);
-      if (text == "rw") out = PdoAccess::rw;
-      else if (text == "rw_preop") out = PdoAccess::rw_preop;
-      else if (text == "const" || text == "ro") out = PdoAccess::fixed;
-      else if (text == "valid_bit" && key == "cob_id") out = PdoAccess::valid_bit;
-      else if (text == "none" && may_be_absent) out = PdoAccess::none;
+      if (text == "rw")
+        out = PdoAccess::rw;
+      else if (text == "rw_preop")
+        out = PdoAccess::rw_preop;
+      else if (text == "const" || text == "ro")
+        out = PdoAccess::fixed;
+      else if (text == "valid_bit" && key == "cob_id")
+        out = PdoAccess::valid_bit;
+      else if (text == "none" && may_be_absent)
+        out = PdoAccess::none;
       else {
         src_.fail(v, "access of " + std::string(key) + " must be rw, rw_preop, const or ro" +
-                         (key == "cob_id" ? ", or valid_bit" : "") + (may_be_absent ? ", or none" : "") + ", not '" + text + "'");
+                         (key == "cob_id" ? ", or valid_bit" : "") + (may_be_absent ? ", or none" : "") + ", not '" +
+                         text + "'");
       }
     };
     entry("cob_id", r.cob_id, false);
@@ -407,7 +430,8 @@ Result<Profile> parse_profile(const std::string& yaml_text, const std::string& s
   const YamlSource src(source);
   try {
     const YAML::Node root = src.parse(yaml_text);
-    src.check_keys(root, "profile", {"profile", "version", "device", "title", "device_type", "objects", "bitsets", "pdos"});
+    src.check_keys(root, "profile",
+                   {"profile", "version", "device", "title", "device_type", "objects", "bitsets", "pdos"});
     Profile p;
     p.id = src.required<std::string>(root, "profile", "profile");
     p.version = src.required<std::string>(root, "version", "profile");
@@ -422,7 +446,8 @@ Result<Profile> parse_profile(const std::string& yaml_text, const std::string& s
   } catch (const ConfigError& e) {
     return make_error(e.what());
   } catch (const YAML::Exception& e) {  // a conversion the checks missed: still an error, not an abort
-    return make_error(source + ":" + std::to_string(e.mark.line + 1) + ":" + std::to_string(e.mark.column + 1) + ": " + e.msg);
+    return make_error(source + ":" + std::to_string(e.mark.line + 1) + ":" + std::to_string(e.mark.column + 1) + ": " +
+                      e.msg);
   }
 }
 

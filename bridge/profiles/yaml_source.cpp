@@ -20,7 +20,8 @@ void YamlSource::fail(const YAML::Node& node, std::string_view what) const {
 YAML::Node YamlSource::parse(const std::string& text) const {
   // The same bound as a file has, for text from anywhere else.
   if (text.size() > kMaxConfigFileBytes) {
-    throw ConfigError(name_ + ": larger than " + std::to_string(kMaxConfigFileBytes) + " bytes (" + std::to_string(text.size()) + ")");
+    throw ConfigError(name_ + ": larger than " + std::to_string(kMaxConfigFileBytes) + " bytes (" +
+                      std::to_string(text.size()) + ")");
   }
   check_yaml_structure(text, name_);
   try {

@@ -40,11 +40,13 @@ class StructureCheck final : public YAML::EventHandler {
     key(mark, &value);
     leaf(mark, anchor);
   }
-  void OnSequenceStart(const YAML::Mark& mark, const std::string&, YAML::anchor_t anchor, YAML::EmitterStyle::value) override {
+  void OnSequenceStart(const YAML::Mark& mark, const std::string&, YAML::anchor_t anchor,
+                       YAML::EmitterStyle::value) override {
     open(mark, anchor, false);
   }
   void OnSequenceEnd() override { close(); }
-  void OnMapStart(const YAML::Mark& mark, const std::string&, YAML::anchor_t anchor, YAML::EmitterStyle::value) override {
+  void OnMapStart(const YAML::Mark& mark, const std::string&, YAML::anchor_t anchor,
+                  YAML::EmitterStyle::value) override {
     open(mark, anchor, true);
   }
   void OnMapEnd() override { close(); }
@@ -57,7 +59,7 @@ class StructureCheck final : public YAML::EventHandler {
     bool map;
     YAML::anchor_t anchor;
     std::size_t nodes_at_start;
-    bool expecting_key = true;                 // maps: the next node is a key
+    bool expecting_key = true;                  // maps: the next node is a key
     std::unordered_map<std::string, Key> keys;  // maps: the keys so far, where each was
   };
 
@@ -75,10 +77,11 @@ class StructureCheck final : public YAML::EventHandler {
     }
     if (text == nullptr) fail(mark, "a key must not be empty");
     auto& c = stack_.back();
-    const auto [it, added] = c.keys.try_emplace(*text, Key{static_cast<std::size_t>(mark.line) + 1, static_cast<std::size_t>(mark.column) + 1});
+    const auto [it, added] = c.keys.try_emplace(*text, Key{static_cast<std::size_t>(mark.line) + 1,
+                                                           static_cast<std::size_t>(mark.column) + 1});
     if (!added) {
-      fail(mark, "key '" + *text + "' is given twice in this mapping (first at line " + std::to_string(it->second.line) +
-                     ", column " + std::to_string(it->second.column) + ")");
+      fail(mark, "key '" + *text + "' is given twice in this mapping (first at line " +
+                     std::to_string(it->second.line) + ", column " + std::to_string(it->second.column) + ")");
     }
     c.expecting_key = false;
   }

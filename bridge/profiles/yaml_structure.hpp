@@ -10,8 +10,8 @@
 namespace lb::profiles {
 
 struct YamlLimits {
-  std::size_t max_depth = 32;            // our files nest 6 deep
-  std::size_t max_nodes = 2'000'000;     // after aliases are expanded
+  std::size_t max_depth = 32;         // our files nest 6 deep
+  std::size_t max_nodes = 2'000'000;  // after aliases are expanded
 };
 
 // Throws ConfigError naming source:line:column of the offending node; YAML syntax errors too.

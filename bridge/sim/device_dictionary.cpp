@@ -51,10 +51,12 @@ std::uint32_t product_code(std::string_view device_type) {
 }
 
 std::string simulated_device_name(const profiles::DeviceConfig& device, const profiles::Profile& profile) {
-  return "linebridge simulated " + profile.device + " " + device.name + " (" + profile.id + " version " + profile.version + ")";
+  return "linebridge simulated " + profile.device + " " + device.name + " (" + profile.id + " version " +
+         profile.version + ")";
 }
 
-canopen::ObjectDictionary make_device_dictionary(const profiles::DeviceConfig& device, const profiles::Profile& profile) {
+canopen::ObjectDictionary make_device_dictionary(const profiles::DeviceConfig& device,
+                                                 const profiles::Profile& profile) {
   canopen::ObjectDictionary od;
   for (const auto& o : profile.objects) {
     if (o.type == DataType::visible_string || o.type == DataType::octet_string) {
@@ -67,7 +69,8 @@ canopen::ObjectDictionary make_device_dictionary(const profiles::DeviceConfig& d
   }
 
   const auto& id = device.simulation.identity;
-  add(od, 0x1000, 0, DataType::unsigned32, ObjectAccess::ro, std::uint64_t{id.device_type.value_or(profile.device_type)});
+  add(od, 0x1000, 0, DataType::unsigned32, ObjectAccess::ro,
+      std::uint64_t{id.device_type.value_or(profile.device_type)});
   add(od, 0x1001, 0, DataType::unsigned8, ObjectAccess::ro, std::uint64_t{0});
   add(od, 0x1005, 0, DataType::unsigned32, ObjectAccess::rw, std::uint64_t{canopen::cob::sync});  // CiA 301: rw
   add(od, 0x1008, 0, DataType::visible_string, ObjectAccess::const_, simulated_device_name(device, profile));
@@ -77,8 +80,10 @@ canopen::ObjectDictionary make_device_dictionary(const profiles::DeviceConfig& d
   add(od, 0x1017, 0, DataType::unsigned16, ObjectAccess::rw,
       static_cast<std::uint64_t>(device.simulation.heartbeat_period.count()));
   add(od, 0x1018, 0, DataType::unsigned8, ObjectAccess::const_, std::uint64_t{4});
-  add(od, 0x1018, 1, DataType::unsigned32, ObjectAccess::ro, std::uint64_t{id.vendor_id.value_or(0x4C42'0000)});  // "LB"
-  add(od, 0x1018, 2, DataType::unsigned32, ObjectAccess::ro, std::uint64_t{id.product_code.value_or(product_code(profile.device))});
+  add(od, 0x1018, 1, DataType::unsigned32, ObjectAccess::ro,
+      std::uint64_t{id.vendor_id.value_or(0x4C42'0000)});  // "LB"
+  add(od, 0x1018, 2, DataType::unsigned32, ObjectAccess::ro,
+      std::uint64_t{id.product_code.value_or(product_code(profile.device))});
   add(od, 0x1018, 3, DataType::unsigned32, ObjectAccess::ro, std::uint64_t{id.revision.value_or(0x0001'0000)});
   add(od, 0x1018, 4, DataType::unsigned32, ObjectAccess::ro,
       std::uint64_t{id.serial_number.value_or(0x5100'0000U + device.node_id)});

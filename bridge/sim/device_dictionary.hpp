@@ -41,7 +41,8 @@ inline constexpr std::uint8_t kErrorFieldEntries = 8;
 std::uint32_t product_code(std::string_view device_type);
 
 // Throws std::runtime_error (start-up) on a profile the dictionary cannot represent.
-canopen::ObjectDictionary make_device_dictionary(const profiles::DeviceConfig& device, const profiles::Profile& profile);
+canopen::ObjectDictionary make_device_dictionary(const profiles::DeviceConfig& device,
+                                                 const profiles::Profile& profile);
 
 // The long, segmented-transfer-sized device name the simulators report in 1008h.
 std::string simulated_device_name(const profiles::DeviceConfig& device, const profiles::Profile& profile);

@@ -13,9 +13,7 @@ namespace lb::sim {
 using canopen::DataType;
 using profiles::PdoAccess;
 
-namespace {
-
-}  // namespace
+namespace {}  // namespace
 
 DevicePdos::DevicePdos(canopen::BusLoop& loop, const profiles::DeviceConfig& device, const profiles::Profile& profile,
                        canopen::ProcessImage& image, canopen::ObjectDictionary& dictionary, Hooks hooks,
@@ -25,7 +23,8 @@ DevicePdos::DevicePdos(canopen::BusLoop& loop, const profiles::DeviceConfig& dev
   for (const auto& def : profile.pdos) {
     Pdo p;
     p.def = &def;
-    p.application_events = std::find(application_events.begin(), application_events.end(), def.name) != application_events.end();
+    p.application_events = std::find(application_events.begin(), application_events.end(), def.name) !=
+                           application_events.end();
     p.power_on = power_on_parameters(def, device_);
     p.now = p.power_on;
     pdos_.push_back(std::move(p));
@@ -57,7 +56,8 @@ canopen::PdoTransmitter::Settings DevicePdos::settings(const PdoParameters& p) {
 
 void DevicePdos::add(std::uint16_t index, std::uint8_t sub, DataType type, PdoAccess access, Read read, Write write) {
   const bool fixed = access == PdoAccess::fixed;
-  if (auto r = dictionary_.add(index, sub, type, fixed ? canopen::ObjectAccess::const_ : canopen::ObjectAccess::rw); !r) {
+  if (auto r = dictionary_.add(index, sub, type, fixed ? canopen::ObjectAccess::const_ : canopen::ObjectAccess::rw);
+      !r) {
     throw std::runtime_error(device_.name + ": " + r.error().message);
   }
   const std::size_t size = canopen::bit_size(type) / 8;
@@ -81,9 +81,11 @@ void DevicePdos::add_objects(std::size_t i) {
   const std::uint16_t map = p.def->mapping_index();
   const std::uint8_t highest = highest_communication_sub(rules);
   add(comm, 0, DataType::unsigned8, PdoAccess::fixed, [highest] { return highest; }, {});
-  add(comm, 1, DataType::unsigned32, rules.cob_id, [this, i] { return pdos_[i].now.cob_id; },
+  add(
+      comm, 1, DataType::unsigned32, rules.cob_id, [this, i] { return pdos_[i].now.cob_id; },
       [this, i](std::uint32_t v) { return write_cob_id(i, v); });
-  add(comm, 2, DataType::unsigned8, rules.transmission_type, [this, i] { return pdos_[i].now.transmission_type; },
+  add(
+      comm, 2, DataType::unsigned8, rules.transmission_type, [this, i] { return pdos_[i].now.transmission_type; },
       [this, i](std::uint32_t v) {
         const auto type = static_cast<std::uint8_t>(v);
         return write_communication(i, pdos_[i].def->rules.transmission_type,
@@ -91,7 +93,8 @@ void DevicePdos::add_objects(std::size_t i) {
                                    [type](Pdo& q) { q.now.transmission_type = type; });
       });
   if (rules.inhibit_time != PdoAccess::none) {
-    add(comm, 3, DataType::unsigned16, rules.inhibit_time, [this, i] { return pdos_[i].now.inhibit_time; },
+    add(
+        comm, 3, DataType::unsigned16, rules.inhibit_time, [this, i] { return pdos_[i].now.inhibit_time; },
         [this, i](std::uint32_t v) {
           const auto inhibit = static_cast<std::uint16_t>(v);
           return write_communication(i, pdos_[i].def->rules.inhibit_time, check_inhibit_time(pdos_[i].now, inhibit),
@@ -99,17 +102,21 @@ void DevicePdos::add_objects(std::size_t i) {
         });
   }
   if (rules.event_timer != PdoAccess::none) {
-    add(comm, 5, DataType::unsigned16, rules.event_timer, [this, i] { return pdos_[i].now.event_timer; },
+    add(
+        comm, 5, DataType::unsigned16, rules.event_timer, [this, i] { return pdos_[i].now.event_timer; },
         [this, i](std::uint32_t v) {
           return write_communication(i, pdos_[i].def->rules.event_timer, std::nullopt,
                                      [v](Pdo& q) { q.now.event_timer = static_cast<std::uint16_t>(v); });
         });
   }
-  add(map, 0, DataType::unsigned8, rules.mapping_count, [this, i] { return pdos_[i].now.count; },
+  add(
+      map, 0, DataType::unsigned8, rules.mapping_count, [this, i] { return pdos_[i].now.count; },
       [this, i](std::uint32_t v) { return write_count(i, v); });
   for (std::size_t e = 0; e < p.now.entries.size(); ++e) {
-    add(map, static_cast<std::uint8_t>(e + 1), DataType::unsigned32, rules.mapping,
-        [this, i, e] { return pdos_[i].now.entries[e]; }, [this, i, e](std::uint32_t v) { return write_entry(i, e, v); });
+    add(
+        map, static_cast<std::uint8_t>(e + 1), DataType::unsigned32, rules.mapping,
+        [this, i, e] { return pdos_[i].now.entries[e]; },
+        [this, i, e](std::uint32_t v) { return write_entry(i, e, v); });
   }
 }
 
@@ -188,11 +195,14 @@ void DevicePdos::listen(std::size_t i) {
   p.listening.push_back(key);
   auto handler = [this, i, key](const can::CanFrame& f) {
     Pdo& q = pdos_[i];
-    if (!hooks_.operational() || !q.now.valid() || q.now.can_id() != key.first || q.now.extended() != key.second) return;
+    if (!hooks_.operational() || !q.now.valid() || q.now.can_id() != key.first || q.now.extended() != key.second)
+      return;
     receive(q, f);
   };
-  if (key.second) loop_.on_extended_frame(key.first, std::move(handler));
-  else loop_.on_frame(key.first, std::move(handler));
+  if (key.second)
+    loop_.on_extended_frame(key.first, std::move(handler));
+  else
+    loop_.on_frame(key.first, std::move(handler));
 }
 
 void DevicePdos::receive(Pdo& p, const can::CanFrame& frame) {
@@ -202,8 +212,10 @@ void DevicePdos::receive(Pdo& p, const can::CanFrame& frame) {
     if (hooks_.too_short) hooks_.too_short(*p.def, frame.len, needed);
     return;
   }
-  if (p.now.synchronous()) p.pending = frame;  // the last one before the SYNC counts
-  else apply(p, frame);
+  if (p.now.synchronous())
+    p.pending = frame;  // the last one before the SYNC counts
+  else
+    apply(p, frame);
 }
 
 void DevicePdos::apply(Pdo& p, const can::CanFrame& frame) {
@@ -215,8 +227,8 @@ void DevicePdos::apply(Pdo& p, const can::CanFrame& frame) {
 void DevicePdos::check_power_on() const {
   for (const auto& p : pdos_) {
     const auto fail = [&](std::size_t sub, std::uint32_t entry, std::uint32_t code) {
-      throw std::runtime_error(fmt::format("{}: {} mapping sub {} = {:08X}h: {:08X}h {}", device_.name, p.def->name, sub,
-                                           entry, code, canopen::sdo_abort_meaning(code)));
+      throw std::runtime_error(fmt::format("{}: {} mapping sub {} = {:08X}h: {:08X}h {}", device_.name, p.def->name,
+                                           sub, entry, code, canopen::sdo_abort_meaning(code)));
     };
     for (std::size_t e = 0; e < p.power_on.count; ++e) {
       if (auto code = check_mapping_entry(p.def->direction, p.power_on.entries[e], dictionary_, image_)) {

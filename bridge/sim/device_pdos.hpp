@@ -53,11 +53,11 @@ class DevicePdos {
   // first call checks the power-on mappings against the complete dictionary and throws
   // std::runtime_error when one names an object the device cannot map.
   void reset();
-  void started();             // the device entered operational: counts restart, event timers run
-  void left_operational();    // pending RPDOs are dropped
-  void apply_pending();       // SYNC: synchronous RPDOs take effect
-  void on_sync();             // SYNC, after the application's step: TPDOs
-  void data_changed();        // the image changed outside a SYNC: change-driven TPDOs look
+  void started();           // the device entered operational: counts restart, event timers run
+  void left_operational();  // pending RPDOs are dropped
+  void apply_pending();     // SYNC: synchronous RPDOs take effect
+  void on_sync();           // SYNC, after the application's step: TPDOs
+  void data_changed();      // the image changed outside a SYNC: change-driven TPDOs look
   // An application event of a TPDO (a new value, even an equal one): an event-driven TPDO goes
   // out now, inhibit time permitting. False when the profile has no such TPDO.
   bool event(std::string_view tpdo);
@@ -71,7 +71,7 @@ class DevicePdos {
     std::unique_ptr<canopen::PdoTransmitter> transmitter;   // TPDOs
     std::optional<can::CanFrame> pending;                   // synchronous RPDO until the next SYNC
     std::vector<std::pair<std::uint32_t, bool>> listening;  // RPDO identifiers (id, 29-bit) with a handler
-    bool application_events = false;  // TPDO: event-driven by event() only, not by changed data
+    bool application_events = false;                        // TPDO: event-driven by event() only, not by changed data
   };
   using Read = std::function<std::uint32_t()>;
   using Write = std::function<std::optional<std::uint32_t>(std::uint32_t)>;

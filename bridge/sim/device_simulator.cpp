@@ -13,7 +13,8 @@ std::unique_ptr<DeviceSimulator> make_simulator(canopen::BusLoop& loop, const pr
   const auto& profile = *device.resolved_profile;
   const auto* type = profiles::find_device_type(profile.device);
   if (type == nullptr) {
-    throw std::runtime_error(device.name + ": no simulator for device type '" + profile.device + "' (" + profile.key() + ")");
+    throw std::runtime_error(device.name + ": no simulator for device type '" + profile.device + "' (" + profile.key() +
+                             ")");
   }
   switch (type->behaviour) {
     case profiles::Behaviour::drive: return std::make_unique<DriveSimulator>(loop, device, profile);

@@ -13,13 +13,15 @@ namespace lb::sim {
 namespace {
 // A cut request shows in the status word at least this long (CiA 420-1: request bits >= 100 ms).
 constexpr auto kCutPulse = std::chrono::milliseconds(150);
-constexpr double kCutEveryM = 1.0;          // corrugator: product between two cut requests
-constexpr double kIdleLoadPercent = 15.0;   // a running drive's load at standstill
-constexpr double kLoadPerSpeed = 0.6;       // load % per speed %
+constexpr double kCutEveryM = 1.0;         // corrugator: product between two cut requests
+constexpr double kIdleLoadPercent = 15.0;  // a running drive's load at standstill
+constexpr double kLoadPerSpeed = 0.6;      // load % per speed %
 
 bool has(std::uint64_t word, std::optional<unsigned> bit) { return bit && ((word >> *bit) & 1U) != 0; }
 std::uint64_t flag(bool on, std::optional<unsigned> bit) { return on && bit ? std::uint64_t{1} << *bit : 0; }
-std::uint64_t raw16(double value) { return static_cast<std::uint64_t>(static_cast<std::int64_t>(std::lround(value))) & 0xFFFF; }
+std::uint64_t raw16(double value) {
+  return static_cast<std::uint64_t>(static_cast<std::int64_t>(std::lround(value))) & 0xFFFF;
+}
 
 std::string drive_name(const profiles::Profile& profile) {
   const auto* cw = profile.bitset("control_word");
@@ -32,7 +34,8 @@ std::string drive_name(const profiles::Profile& profile) {
 }
 }  // namespace
 
-DriveSimulator::DriveSimulator(canopen::BusLoop& loop, const profiles::DeviceConfig& device, const profiles::Profile& profile)
+DriveSimulator::DriveSimulator(canopen::BusLoop& loop, const profiles::DeviceConfig& device,
+                               const profiles::Profile& profile)
     : device_(device),
       profile_(profile),
       node_(loop, device, profile, {[this] { reset(); }, [this](double dt) { step(dt); }, {}, {}}) {
@@ -59,7 +62,8 @@ DriveSimulator::DriveSimulator(canopen::BusLoop& loop, const profiles::DeviceCon
     functions_[i] = make_switch(f + "_start", f + "_stop", f + "_running", f + "_ready");
   }
   if (!drive_.on_button || !drive_.off_button || !drive_.running_bit) {
-    throw std::runtime_error(device_.name + ": profile " + profile_.key() + " has no " + drive + " start/stop/running bits");
+    throw std::runtime_error(device_.name + ": profile " + profile_.key() + " has no " + drive +
+                             " start/stop/running bits");
   }
   sw_reverse_ = node_.bit("status_word", "reverse_direction");
   sw_master_extruder_enabled_ = node_.bit("status_word", "master_extruder_enabled");
@@ -74,8 +78,8 @@ DriveSimulator::DriveSimulator(canopen::BusLoop& loop, const profiles::DeviceCon
   add_local_objects();
 }
 
-DriveSimulator::Switch DriveSimulator::make_switch(const std::string& on, const std::string& off, const std::string& running,
-                                                   const std::string& ready) const {
+DriveSimulator::Switch DriveSimulator::make_switch(const std::string& on, const std::string& off,
+                                                   const std::string& running, const std::string& ready) const {
   Switch s;
   s.on_button = node_.bit("control_word", on);
   s.off_button = node_.bit("control_word", off);
@@ -86,7 +90,8 @@ DriveSimulator::Switch DriveSimulator::make_switch(const std::string& on, const 
 
 void DriveSimulator::add_local_objects() {
   local_mode_ = node_.add_object(kLocalModeIndex, canopen::DataType::unsigned8, canopen::ObjectAccess::rw, 0, 1);
-  local_speed_ = node_.add_object(kLocalSpeedIndex, canopen::DataType::integer16, canopen::ObjectAccess::rw, -10000, 10000);
+  local_speed_ = node_.add_object(kLocalSpeedIndex, canopen::DataType::integer16, canopen::ObjectAccess::rw, -10000,
+                                  10000);
   node_.check_writes(kLocalModeIndex, 0, [this](std::span<const std::uint8_t> v) -> std::optional<std::uint32_t> {
     spdlog::info("sim {}: {} mode", device_.name, v[0] != 0 ? "local" : "remote");
     return std::nullopt;
@@ -117,8 +122,10 @@ void DriveSimulator::reset() {
 
 void DriveSimulator::operate(Switch& s, std::uint64_t cw) const {
   // Stop is start prevention: while it is held the switch cannot start.
-  if (has(cw, s.off_button)) s.running = false;
-  else if (has(cw, s.on_button) && !has(last_cw_, s.on_button)) s.running = true;
+  if (has(cw, s.off_button))
+    s.running = false;
+  else if (has(cw, s.on_button) && !has(last_cw_, s.on_button))
+    s.running = true;
 }
 
 void DriveSimulator::step(double dt_s) {

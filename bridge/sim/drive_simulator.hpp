@@ -39,7 +39,8 @@ class DriveSimulator : public DeviceSimulator {
     bool running = false;
   };
 
-  Switch make_switch(const std::string& on, const std::string& off, const std::string& running, const std::string& ready) const;
+  Switch make_switch(const std::string& on, const std::string& off, const std::string& running,
+                     const std::string& ready) const;
   void reset();
   void step(double dt_s);
   void operate(Switch& s, std::uint64_t cw) const;

@@ -20,14 +20,14 @@ constexpr std::uint16_t kFeederError = 0xFF10;  // CiA 414-2: bitmap of the feed
 
 // EMCY FF10h's manufacturer bytes: the bitmap, little-endian.
 std::array<std::uint8_t, 5> bitmap_bytes(std::uint32_t bitmap) {
-  return {static_cast<std::uint8_t>(bitmap), static_cast<std::uint8_t>(bitmap >> 8), static_cast<std::uint8_t>(bitmap >> 16),
-          static_cast<std::uint8_t>(bitmap >> 24), 0};
+  return {static_cast<std::uint8_t>(bitmap), static_cast<std::uint8_t>(bitmap >> 8),
+          static_cast<std::uint8_t>(bitmap >> 16), static_cast<std::uint8_t>(bitmap >> 24), 0};
 }
 
 // Arrays with one element per feeder: sub 0 tells how many feeders the box has.
-constexpr const char* kPerFeeder[] = {"feeder_functions", "single_weft_filling_parameter", "feeder_error_condition",
-                                      "feeder_status", "feeder_command", "feeder_test",
-                                      "system_feeder_number_assignment", "feeder_color_assignment"};
+constexpr const char* kPerFeeder[] = {
+    "feeder_functions", "single_weft_filling_parameter",   "feeder_error_condition", "feeder_status", "feeder_command",
+    "feeder_test",      "system_feeder_number_assignment", "feeder_color_assignment"};
 
 std::uint64_t code_of(const profiles::ObjectDef& obj, std::string_view name) {
   const auto c = obj.values.code(name);
@@ -37,13 +37,17 @@ std::uint64_t code_of(const profiles::ObjectDef& obj, std::string_view name) {
 
 }  // namespace
 
-FeederSimulator::FeederSimulator(canopen::BusLoop& loop, const profiles::DeviceConfig& device, const profiles::Profile& profile)
+FeederSimulator::FeederSimulator(canopen::BusLoop& loop, const profiles::DeviceConfig& device,
+                                 const profiles::Profile& profile)
     : loop_(loop),
       device_(device),
       profile_(profile),
       node_(loop, device, profile,
             // CiA 414-2 4.6: "At each winding inserted the pre-measuring feeder transmits this TPDO."
-            {[this] { reset(); }, {}, [this](std::span<const canopen::PdoEntry> mapped) { on_rpdo(mapped); }, {"tpdo1"}}) {
+            {[this] { reset(); },
+             {},
+             [this](std::span<const canopen::PdoEntry> mapped) { on_rpdo(mapped); },
+             {"tpdo1"}}) {
   loom_status_ = node_.slot("loom_status");
   unwinding_time_ = node_.slot("feeder_unwinding_time");
   add_objects();
@@ -76,11 +80,14 @@ void FeederSimulator::reset() {
   // not active except the yarn break sensor.
   const auto& fns = bitset("feeder_functions");
   std::uint64_t functions = 0;
-  const std::pair<const char*, const char*> defaults[] = {
-      {"brush_release", "not_available"},     {"winding_direction", "s"},
-      {"angle_trigger_monitoring", "off"},     {"yarn_break_sensor", "active"},
-      {"input_knot_detection_sensor", "not_active"}, {"yarn_quality_sensor", "not_available"},
-      {"rotation_direction_sensor", "not_active"},   {"tks_sensor", "not_available"}};
+  const std::pair<const char*, const char*> defaults[] = {{"brush_release", "not_available"},
+                                                          {"winding_direction", "s"},
+                                                          {"angle_trigger_monitoring", "off"},
+                                                          {"yarn_break_sensor", "active"},
+                                                          {"input_knot_detection_sensor", "not_active"},
+                                                          {"yarn_quality_sensor", "not_available"},
+                                                          {"rotation_direction_sensor", "not_active"},
+                                                          {"tks_sensor", "not_available"}};
   for (const auto& [field, state] : defaults) {
     const auto* f = fns.field(field);
     if (f != nullptr && f->values.code(state)) functions = f->insert(functions, *f->values.code(state));
@@ -95,7 +102,8 @@ void FeederSimulator::reset() {
   }
   const auto& sources = bitset("trigger_sources_supported");
   std::uint64_t supported = 0;
-  for (const auto* name : {"brush_release_via_canopen", "angle_trigger_via_canopen", "pick_release_trigger_via_canopen"}) {
+  for (const auto* name :
+       {"brush_release_via_canopen", "angle_trigger_via_canopen", "pick_release_trigger_via_canopen"}) {
     if (auto b = sources.bit(name)) supported |= std::uint64_t{1} << *b;
   }
   const auto& supported_obj = object("trigger_sources_supported");
@@ -121,10 +129,12 @@ void FeederSimulator::add_objects() {
   }
   const auto& selected = object("trigger_sources_selected");
   const auto& supported = object("trigger_sources_supported");
-  node_.check_writes(selected.index, selected.sub, [this, &supported](std::span<const std::uint8_t> v) -> std::optional<std::uint32_t> {
-    if ((little_endian(v) & ~node_.get(supported.index, supported.sub)) != 0) return canopen::sdo_abort::value_range_exceeded;
-    return std::nullopt;
-  });
+  node_.check_writes(selected.index, selected.sub,
+                     [this, &supported](std::span<const std::uint8_t> v) -> std::optional<std::uint32_t> {
+                       if ((little_endian(v) & ~node_.get(supported.index, supported.sub)) != 0)
+                         return canopen::sdo_abort::value_range_exceeded;
+                       return std::nullopt;
+                     });
 }
 
 std::optional<std::uint32_t> FeederSimulator::on_fault_injection(std::uint64_t value) {
@@ -180,7 +190,8 @@ void FeederSimulator::raise(unsigned feeder, std::uint64_t condition) {
   if ((bitmap_ >> (feeder - 1) & 1U) == 0) node_.set(object("feeder_error_condition_1").index, sub, condition);
   node_.set(status.index, sub, code_of(status, "error_mode"));
   bitmap_ |= 1U << (feeder - 1);
-  spdlog::info("sim {}: feeder {} fault {:02X}h injected: EMCY FF10h bitmap {:08X}h", device_.name, feeder, condition, bitmap_);
+  spdlog::info("sim {}: feeder {} fault {:02X}h injected: EMCY FF10h bitmap {:08X}h", device_.name, feeder, condition,
+               bitmap_);
   node_.raise_error(kFeederError, bitmap_bytes(bitmap_));
 }
 
@@ -193,14 +204,17 @@ void FeederSimulator::clear(unsigned feeder) {
   bitmap_ &= ~(1U << (feeder - 1));
   spdlog::info("sim {}: feeder {} fault cleared: EMCY FF10h bitmap {:08X}h", device_.name, feeder, bitmap_);
   // FF10h with the feeders still in error; once none is left, its last word and the error reset.
-  if (bitmap_ != 0) node_.raise_error(kFeederError, bitmap_bytes(bitmap_));
-  else node_.clear_error(kFeederError, bitmap_bytes(0));
+  if (bitmap_ != 0)
+    node_.raise_error(kFeederError, bitmap_bytes(bitmap_));
+  else
+    node_.clear_error(kFeederError, bitmap_bytes(0));
 }
 
 void FeederSimulator::on_rpdo(std::span<const canopen::PdoEntry> mapped) {
   const auto& loom = object("loom_status");
-  const bool carries_loom_status =
-      std::any_of(mapped.begin(), mapped.end(), [&](const canopen::PdoEntry& e) { return e.index == loom.index && e.sub == loom.sub; });
+  const bool carries_loom_status = std::any_of(mapped.begin(), mapped.end(), [&](const canopen::PdoEntry& e) {
+    return e.index == loom.index && e.sub == loom.sub;
+  });
   if (!carries_loom_status) return;
   const auto status = node_.image().get(loom_status_);
   if (status == code_of(loom, "new_speed_only")) return;  // "no change of loom status"

@@ -50,7 +50,8 @@ LineController::LineController(canopen::BusLoop& loop, const profiles::BusConfig
 void LineController::start() {
   for (auto id : nodes_) (void)loop_.send(canopen::make_nmt_command(canopen::NmtCommand::start, id));
   sync_.start();
-  spdlog::info("sim: line controller on {}: SYNC, NMT start and RPDOs for {} device(s)", loop_.bus().uri(), nodes_.size());
+  spdlog::info("sim: line controller on {}: SYNC, NMT start and RPDOs for {} device(s)", loop_.bus().uri(),
+               nodes_.size());
 }
 
 }  // namespace lb::sim

@@ -15,7 +15,8 @@ namespace lb::sim {
 
 class LineController {
  public:
-  LineController(canopen::BusLoop& loop, const profiles::BusConfig& bus, const std::vector<const profiles::DeviceConfig*>& devices);
+  LineController(canopen::BusLoop& loop, const profiles::BusConfig& bus,
+                 const std::vector<const profiles::DeviceConfig*>& devices);
   void start();  // loop thread or before the loop starts
 
  private:

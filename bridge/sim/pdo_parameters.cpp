@@ -62,7 +62,8 @@ PdoParameters power_on_parameters(const profiles::PdoDef& def, const profiles::D
   };
   if (own->cob_id) {
     const std::uint32_t v = *own->cob_id;
-    if ((v & cob_bits::extended) == 0 && (v & cob_bits::identifier) > 0x7FF) fail(fmt::format("COB-ID {:08X}h: an 11-bit identifier above 7FFh", v));
+    if ((v & cob_bits::extended) == 0 && (v & cob_bits::identifier) > 0x7FF)
+      fail(fmt::format("COB-ID {:08X}h: an 11-bit identifier above 7FFh", v));
     p.cob_id = v;
   }
   if (own->transmission_type) {
@@ -104,7 +105,8 @@ std::optional<std::uint32_t> check_cob_id(PdoDirection direction, PdoAccess acce
   const bool was_valid = (current & cob_bits::invalid) == 0;
   const bool valid = (wanted & cob_bits::invalid) == 0;
   // CiA 301: a valid PDO keeps its identifier; a master invalidates it first.
-  if (was_valid && valid && (changed & (cob_bits::extended | cob_bits::identifier)) != 0) return abort::value_range_exceeded;
+  if (was_valid && valid && (changed & (cob_bits::extended | cob_bits::identifier)) != 0)
+    return abort::value_range_exceeded;
   // Restricted identifiers matter once the PDO is used; a master may park an invalid PDO anywhere.
   if (valid && !extended && restricted(id)) return abort::value_range_exceeded;
   return std::nullopt;

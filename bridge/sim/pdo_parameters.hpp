@@ -53,9 +53,9 @@ inline constexpr std::uint32_t identifier = canopen::kCobIdIdentifier;
 struct PdoParameters {
   std::uint32_t cob_id = 0;  // sub 1: the whole CiA 301 entry
   std::uint8_t transmission_type = 1;
-  std::uint16_t inhibit_time = 0;  // sub 3, 100 µs
-  std::uint16_t event_timer = 0;   // sub 5, ms
-  std::uint8_t count = 0;          // mapping sub 0: entries 1..count are mapped
+  std::uint16_t inhibit_time = 0;      // sub 3, 100 µs
+  std::uint16_t event_timer = 0;       // sub 5, ms
+  std::uint8_t count = 0;              // mapping sub 0: entries 1..count are mapped
   std::vector<std::uint32_t> entries;  // mapping subs 1..n the device has, mapped or not
 
   bool valid() const { return (cob_id & cob_bits::invalid) == 0; }

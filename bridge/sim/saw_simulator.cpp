@@ -11,7 +11,8 @@ namespace {
 constexpr auto kCuttingPulse = std::chrono::milliseconds(150);
 }  // namespace
 
-SawSimulator::SawSimulator(canopen::BusLoop& loop, const profiles::DeviceConfig& device, const profiles::Profile& profile)
+SawSimulator::SawSimulator(canopen::BusLoop& loop, const profiles::DeviceConfig& device,
+                           const profiles::Profile& profile)
     : device_(device), node_(loop, device, profile, {[this] { reset(); }, [this](double dt) { step(dt); }, {}, {}}) {
   status_word_ = node_.slot("status_word");
   control_word_ = node_.slot("control_word");

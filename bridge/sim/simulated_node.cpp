@@ -33,20 +33,23 @@ bool is_string(canopen::DataType type) {
 
 }  // namespace
 
-SimulatedNode::SimulatedNode(canopen::BusLoop& loop, const profiles::DeviceConfig& device, const profiles::Profile& profile,
-                             Application application)
+SimulatedNode::SimulatedNode(canopen::BusLoop& loop, const profiles::DeviceConfig& device,
+                             const profiles::Profile& profile, Application application)
     : loop_(loop),
       device_(device),
       profile_(profile),
       app_(std::move(application)),
-      nmt_(loop, device.node_id, {[this](Reset kind) { on_reset(kind); }, [this](NmtState from, NmtState to) { on_state(from, to); }}),
+      nmt_(loop, device.node_id,
+           {[this](Reset kind) { on_reset(kind); }, [this](NmtState from, NmtState to) { on_state(from, to); }}),
       sdo_(loop, device.node_id, make_device_dictionary(device, profile)),
       pdos_(loop, device, profile, image_, sdo_.dictionary(),
             {[this] { return nmt_.state() == NmtState::operational; },
              [this](std::span<const canopen::PdoEntry> mapped) {
                if (app_.received) app_.received(mapped);
              },
-             [this](const profiles::PdoDef& pdo, std::size_t length, std::size_t needed) { on_short_rpdo(pdo, length, needed); }},
+             [this](const profiles::PdoDef& pdo, std::size_t length, std::size_t needed) {
+               on_short_rpdo(pdo, length, needed);
+             }},
             app_.event_tpdos) {
   // No SDO answer at all in NMT stopped: a master's request times out (CiA 301).
   sdo_.set_gate([this] { return nmt_.state() != NmtState::stopped; });
@@ -93,7 +96,8 @@ void SimulatedNode::serve_from_image(std::uint16_t index, std::uint8_t sub, std:
 void SimulatedNode::link_communication_objects() {
   auto& od = sdo_.dictionary();
   (void)od.set_on_read(0x1001, 0, [this] { return canopen::ObjectDictionary::Bytes{error_register_}; });
-  (void)od.set_on_read(0x1017, 0, [this] { return bytes_of(static_cast<std::uint64_t>(heartbeat_period_.count()), 2); });
+  (void)od.set_on_read(0x1017, 0,
+                       [this] { return bytes_of(static_cast<std::uint64_t>(heartbeat_period_.count()), 2); });
   // 1005h COB-ID SYNC (CiA 301: rw). This device consumes SYNC only: bit 30 (it would produce it)
   // and bit 29 (a 29-bit identifier) are refused; bits 0..10 name the identifier it listens to.
   (void)od.set_on_read(0x1005, 0, [this] { return bytes_of(sync_id_, 4); });
@@ -132,8 +136,8 @@ void SimulatedNode::boot() {
     if (auto r = sdo_.dictionary().ignore_writes(index, sub); !r) {
       throw std::runtime_error(device_.name + ": simulation ignore_writes: " + r.error().message);
     }
-    spdlog::info("sim {}: SDO writes of {:04X}h sub {} are confirmed and ignored (simulation ignore_writes)", device_.name,
-                 index, sub);
+    spdlog::info("sim {}: SDO writes of {:04X}h sub {} are confirmed and ignored (simulation ignore_writes)",
+                 device_.name, index, sub);
   }
   spdlog::info("sim {}: {} node {} powered on ({})", device_.name, profile_.device, device_.node_id, profile_.key());
   nmt_.reset(Reset::node);
@@ -153,7 +157,8 @@ void SimulatedNode::on_reset(Reset kind) {
     error_history_.clear();  // kept in RAM: a power-on value, as CANopenNode's
     auto& od = sdo_.dictionary();
     (void)od.set(kDeviceText, 0, {});
-    for (const auto index : commands_) (void)od.set(index, 0, canopen::ObjectDictionary::Bytes(od.find(index, 0)->value.size()));
+    for (const auto index : commands_)
+      (void)od.set(index, 0, canopen::ObjectDictionary::Bytes(od.find(index, 0)->value.size()));
     if (app_.reset) app_.reset();
   }
   pdos_.reset();
@@ -162,7 +167,8 @@ void SimulatedNode::on_reset(Reset kind) {
   heartbeat_period_ = device_.simulation.heartbeat_period;
   nmt_.set_heartbeat_period(heartbeat_period_);
   last_sync_.reset();
-  spdlog::debug("sim {}: reset {}: power-on values restored", device_.name, kind == Reset::node ? "node" : "communication");
+  spdlog::debug("sim {}: reset {}: power-on values restored", device_.name,
+                kind == Reset::node ? "node" : "communication");
 }
 
 void SimulatedNode::on_state(NmtState from, NmtState to) {
@@ -174,7 +180,8 @@ void SimulatedNode::on_state(NmtState from, NmtState to) {
 std::size_t SimulatedNode::slot(std::string_view object) const {
   const auto* def = profile_.object(object);
   const std::size_t s = def != nullptr ? image_.find(def->index, def->sub) : canopen::ProcessImage::npos;
-  if (s == canopen::ProcessImage::npos) throw std::runtime_error(device_.name + ": profile has no object " + std::string(object));
+  if (s == canopen::ProcessImage::npos)
+    throw std::runtime_error(device_.name + ": profile has no object " + std::string(object));
   return s;
 }
 
@@ -208,22 +215,26 @@ void SimulatedNode::check_writes(std::uint16_t index, std::uint8_t sub, canopen:
   if (s == canopen::ProcessImage::npos) {
     throw std::runtime_error(device_.name + ": a write check for an object outside the image");
   }
-  (void)sdo_.dictionary().set_on_write(index, sub, [this, s, check = std::move(check)](std::span<const std::uint8_t> v) {
-    if (auto code = check(v)) return code;
-    image_.set(s, little_endian(v));
-    pdos_.data_changed();
-    return std::optional<std::uint32_t>{};
-  });
+  (void)sdo_.dictionary().set_on_write(index, sub,
+                                       [this, s, check = std::move(check)](std::span<const std::uint8_t> v) {
+                                         if (auto code = check(v)) return code;
+                                         image_.set(s, little_endian(v));
+                                         pdos_.data_changed();
+                                         return std::optional<std::uint32_t>{};
+                                       });
 }
 
-void SimulatedNode::add_command(std::uint16_t index, canopen::DataType type, canopen::ObjectDictionary::WriteHook hook) {
+void SimulatedNode::add_command(std::uint16_t index, canopen::DataType type,
+                                canopen::ObjectDictionary::WriteHook hook) {
   auto& od = sdo_.dictionary();
-  if (auto r = od.add(index, 0, type, canopen::ObjectAccess::rw); !r) throw std::runtime_error(device_.name + ": " + r.error().message);
+  if (auto r = od.add(index, 0, type, canopen::ObjectAccess::rw); !r)
+    throw std::runtime_error(device_.name + ": " + r.error().message);
   (void)od.set_on_write(index, 0, std::move(hook));
   commands_.push_back(index);
 }
 
-void SimulatedNode::send_emergency(std::uint16_t code, std::uint8_t error_register, std::array<std::uint8_t, 5> manufacturer) {
+void SimulatedNode::send_emergency(std::uint16_t code, std::uint8_t error_register,
+                                   std::array<std::uint8_t, 5> manufacturer) {
   error_register_ = error_register;
   // CiA 301 1003h: every EMCY goes into the history, newest at sub 1, the oldest falls off the end.
   error_history_.insert(error_history_.begin(), code);
@@ -231,8 +242,14 @@ void SimulatedNode::send_emergency(std::uint16_t code, std::uint8_t error_regist
   can::CanFrame f;
   f.id = canopen::cob::emcy_base + device_.node_id;  // 1014h
   f.len = 8;
-  f.data = {static_cast<std::uint8_t>(code), static_cast<std::uint8_t>(code >> 8), error_register, manufacturer[0],
-            manufacturer[1], manufacturer[2], manufacturer[3], manufacturer[4]};
+  f.data = {static_cast<std::uint8_t>(code),
+            static_cast<std::uint8_t>(code >> 8),
+            error_register,
+            manufacturer[0],
+            manufacturer[1],
+            manufacturer[2],
+            manufacturer[3],
+            manufacturer[4]};
   (void)loop_.send(f);
 }
 
@@ -289,7 +306,8 @@ std::uint8_t SimulatedNode::register_of_active() const {
 }
 
 void SimulatedNode::raise_error(std::uint16_t code, std::array<std::uint8_t, 5> manufacturer) {
-  if (std::find(active_errors_.begin(), active_errors_.end(), code) == active_errors_.end()) active_errors_.push_back(code);
+  if (std::find(active_errors_.begin(), active_errors_.end(), code) == active_errors_.end())
+    active_errors_.push_back(code);
   spdlog::info("sim {}: error {:04X}h active ({} active)", device_.name, code, active_errors_.size());
   send_emergency(code, register_of_active(), manufacturer);
 }
@@ -299,8 +317,8 @@ void SimulatedNode::clear_error(std::uint16_t code, std::optional<std::array<std
   if (it == active_errors_.end()) return;
   active_errors_.erase(it);
   const auto reg = register_of_active();
-  spdlog::info("sim {}: error {:04X}h cleared: EMCY 0000h with error register {:02X}h ({} still active)", device_.name, code,
-               reg, active_errors_.size());
+  spdlog::info("sim {}: error {:04X}h cleared: EMCY 0000h with error register {:02X}h ({} still active)", device_.name,
+               code, reg, active_errors_.size());
   if (last_word) send_emergency(code, reg, *last_word);
   send_emergency(0x0000, reg, {});
 }
@@ -324,7 +342,8 @@ void SimulatedNode::on_short_rpdo(const profiles::PdoDef& pdo, std::size_t lengt
   spdlog::warn("sim {}: {} with {} bytes not applied, its mapping needs {} ({} so far): EMCY 8210h", device_.name,
                pdo.name, length, needed, short_rpdos_);
   send_emergency(kEmcyPdoLength, error_register_,
-                 {static_cast<std::uint8_t>(pdo.number()), static_cast<std::uint8_t>(length), static_cast<std::uint8_t>(needed), 0, 0});
+                 {static_cast<std::uint8_t>(pdo.number()), static_cast<std::uint8_t>(length),
+                  static_cast<std::uint8_t>(needed), 0, 0});
 }
 
 }  // namespace lb::sim

@@ -61,9 +61,11 @@ TEST(Arguments, VersionAndHelpEverywhere) {
 // bridge and the simulator served the demo line without a word); --config wins over it; the
 // bridge and the simulator log which line they serve.
 TEST(Arguments, LineFileFromTheEnvironmentForEveryExecutable) {
-  const auto line = write_file("envline.yaml", "line: envline\nbuses:\n  - {name: b, interface: 'virtual:envline-" +
-                                                   std::to_string(::getpid()) + "'}\ndevices:\n"
-                                                   "  - {name: saw1, bus: b, node_id: 3, profile: cia420-4, version: '3.1'}\n");
+  const auto line = write_file("envline.yaml",
+                               "line: envline\nbuses:\n  - {name: b, interface: 'virtual:envline-" +
+                                   std::to_string(::getpid()) +
+                                   "'}\ndevices:\n"
+                                   "  - {name: saw1, bus: b, node_id: 3, profile: cia420-4, version: '3.1'}\n");
   const std::string env = "LINEBRIDGE_CONFIG=" + line;
   auto r = run_command({"/usr/bin/env", env, LB_BIN_SIM, "--duration", "0.5"});
   EXPECT_EQ(r.exit_code, 0) << r.output;
@@ -77,7 +79,8 @@ TEST(Arguments, LineFileFromTheEnvironmentForEveryExecutable) {
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("device saw1 on b node 3"), std::string::npos) << r.output;
   // --config wins over the environment.
-  r = run_command({"/usr/bin/env", "LINEBRIDGE_CONFIG=/nonexistent/line.yaml", LB_BIN_SIM, "--config", line, "--duration", "0.5"});
+  r = run_command(
+      {"/usr/bin/env", "LINEBRIDGE_CONFIG=/nonexistent/line.yaml", LB_BIN_SIM, "--config", line, "--duration", "0.5"});
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("playing line file " + line), std::string::npos) << r.output;
   // Neither: the built-in demo line, and the log says so.
@@ -91,8 +94,7 @@ TEST(Arguments, LineFileFromTheEnvironmentForEveryExecutable) {
 TEST(Arguments, HelpListsEveryExitCode) {
   const auto listed = [](const std::string& help, int code) {
     const auto from = help.find("Exit codes:");
-    return from != std::string::npos &&
-           (help.find(" " + std::to_string(code) + " ", from) != std::string::npos);
+    return from != std::string::npos && (help.find(" " + std::to_string(code) + " ", from) != std::string::npos);
   };
   const auto cli = run_command({LB_BIN_CLI, "--help"});
   ASSERT_EQ(cli.exit_code, 0) << cli.output;
@@ -164,12 +166,13 @@ TEST(Arguments, MalformedInterfacesAreConfigurationErrorsWithTheirPlace) {
   for (const auto& [interface, says] : cases) {
     const auto path = line_with_interface("iface_" + std::to_string(++n) + ".yaml", interface);
     for (const auto& argv : std::vector<std::vector<std::string>>{{LB_BIN_BRIDGE, "--config", path},
-                                                                   {LB_BIN_BRIDGE, "--check", path},
-                                                                   {LB_BIN_SIM, "--config", path},
-                                                                   {LB_BIN_CLI, "--config", path, "list"}}) {
+                                                                  {LB_BIN_BRIDGE, "--check", path},
+                                                                  {LB_BIN_SIM, "--config", path},
+                                                                  {LB_BIN_CLI, "--config", path, "list"}}) {
       const auto r = run_command(argv);
       EXPECT_EQ(r.exit_code, 2) << argv[0] << " " << interface.substr(0, 40) << ": " << r.output;
-      EXPECT_NE(r.output.find(path + ":4:16:"), std::string::npos) << interface.substr(0, 40) << ": " << r.output.substr(0, 400);
+      EXPECT_NE(r.output.find(path + ":4:16:"), std::string::npos)
+          << interface.substr(0, 40) << ": " << r.output.substr(0, 400);
       EXPECT_NE(r.output.find(says), std::string::npos) << r.output.substr(0, 400);
       EXPECT_LT(r.output.size(), 2000U) << "the message repeats a huge name";
     }

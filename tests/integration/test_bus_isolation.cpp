@@ -8,10 +8,10 @@
 #include <sys/types.h>
 #include <unistd.h>
 
+#include <dirent.h>
 #include <algorithm>
 #include <chrono>
 #include <condition_variable>
-#include <dirent.h>
 #include <fstream>
 #include <mutex>
 #include <random>
@@ -25,8 +25,8 @@
 #include "support/bus_spy.hpp"
 #include "support/child_process.hpp"
 #include "support/line_harness.hpp"
-#include "support/simulated_saw.hpp"
 #include "support/saw_setpoints.hpp"
+#include "support/simulated_saw.hpp"
 
 using namespace std::chrono_literals;
 namespace msg = linebridge_msgs::msg;
@@ -111,13 +111,13 @@ class BusIsolation : public ::testing::Test {
           seen_.cv.notify_all();
         },
         1000));
-    ASSERT_TRUE(line_.dds().subscribe<msg::DiagnosticsPubSubType>(lb::ddsl::topic_name("iso", lb::ddsl::kBridgeNamespace, "diagnostics"),
-                                                            lb::ddsl::QosKind::state,
-                                                            [this](const msg::Diagnostics& d, const auto&) {
-                                                              std::lock_guard lock(seen_.m);
-                                                              seen_.diagnostics = d;
-                                                              seen_.cv.notify_all();
-                                                            }));
+    ASSERT_TRUE(line_.dds().subscribe<msg::DiagnosticsPubSubType>(
+        lb::ddsl::topic_name("iso", lb::ddsl::kBridgeNamespace, "diagnostics"), lb::ddsl::QosKind::state,
+        [this](const msg::Diagnostics& d, const auto&) {
+          std::lock_guard lock(seen_.m);
+          seen_.diagnostics = d;
+          seen_.cv.notify_all();
+        }));
     ASSERT_TRUE(setpoints_.open(line_.dds(), "iso", "saw1"));
   }
 
@@ -187,29 +187,37 @@ TEST_F(BusIsolation, KillingTheDdsProcessTwentyTimesChangesNothingOnTheBus) {
     // applied later (checked on the bus below: every RPDO1 keeps the value in force).
     write(++request, 80.0, 0.7);
     written_while_down.push_back(request);
-    ASSERT_TRUE(seen_.wait(20s, [&] {
-      return !seen_.status.empty() && seen_.status.back().writer != old_writer && seen_.status.back().at > killed_at;
-    })) << "no status from a new DDS process after kill " << kill << "\n" << logs();
+    ASSERT_TRUE(seen_.wait(20s,
+                           [&] {
+                             return !seen_.status.empty() && seen_.status.back().writer != old_writer &&
+                                    seen_.status.back().at > killed_at;
+                           }))
+        << "no status from a new DDS process after kill " << kill << "\n"
+        << logs();
     std::lock_guard lock(seen_.m);
-    const auto first_new = std::find_if(seen_.status.begin(), seen_.status.end(),
-                                        [&](const Seen::Status& s) { return s.at > killed_at && s.writer != old_writer; });
+    const auto first_new = std::find_if(seen_.status.begin(), seen_.status.end(), [&](const Seen::Status& s) {
+      return s.at > killed_at && s.writer != old_writer;
+    });
     back_ms.push_back(std::chrono::duration<double, std::milli>(first_new->at - killed_at).count());
   }
 
   // On DDS: the bus process counted every DDS process that connected (diagnostics, republished by each).
   EXPECT_TRUE(seen_.wait(20s, [&] { return seen_.diagnostics.dds_side().connects() >= kKills + 1; }))
-      << "connects " << seen_.diagnostics.dds_side().connects() << "\n" << logs();
+      << "connects " << seen_.diagnostics.dds_side().connects() << "\n"
+      << logs();
   const auto results = setpoints_.results().samples();
   for (const auto r : written_while_down) {
-    EXPECT_FALSE(std::any_of(results.begin(), results.end(), [r](const msg::SetpointResult& a) { return a.request_id() == r; }))
-        << "a set value written while the DDS side was down was answered";
+    EXPECT_FALSE(std::any_of(results.begin(), results.end(), [r](const msg::SetpointResult& a) {
+      return a.request_id() == r;
+    })) << "a set value written while the DDS side was down was answered";
   }
 
   // On the bus, over the whole run.
   const auto sync = line_.spy().frames(0x80);
   ASSERT_GT(sync.size(), 100u);
   std::int64_t widest = 0;
-  for (std::size_t i = 1; i < sync.size(); ++i) widest = std::max(widest, sync[i].timestamp_ns - sync[i - 1].timestamp_ns);
+  for (std::size_t i = 1; i < sync.size(); ++i)
+    widest = std::max(widest, sync[i].timestamp_ns - sync[i - 1].timestamp_ns);
   const auto rpdos = line_.spy().frames(0x200 + kNode);
   ASSERT_GT(rpdos.size(), 100u);
   std::size_t other_rpdos = 0;
@@ -221,8 +229,8 @@ TEST_F(BusIsolation, KillingTheDdsProcessTwentyTimesChangesNothingOnTheBus) {
   std::sort(back_ms.begin(), back_ms.end());
   std::ostringstream summary;
   summary << "kills=" << kKills << " sync_frames=" << sync.size() << " widest_sync_gap_ms=" << widest / 1e6
-          << " rpdo1_frames=" << rpdos.size() << " heartbeats=" << heartbeats.size() << " back_ms p50=" << back_ms[back_ms.size() / 2]
-          << " max=" << back_ms.back();
+          << " rpdo1_frames=" << rpdos.size() << " heartbeats=" << heartbeats.size()
+          << " back_ms p50=" << back_ms[back_ms.size() / 2] << " max=" << back_ms.back();
   std::cout << summary.str() << "\n";
   RecordProperty("summary", summary.str());
   EXPECT_EQ(other_rpdos, 0u) << "RPDO1 changed while the DDS process was killed";

@@ -40,28 +40,34 @@ class CanopenCore : public ::testing::Test {
     bus_a_ = "virtual:core-a-" + tag;
     const std::string bus_b = "virtual:core-b-" + tag;
     config_ = ::testing::TempDir() + "/core_" + tag + ".yaml";
-    std::ofstream(config_) << "line: core\n"
-                              "dds: {domain: 4}\n"
-                              "buses:\n"
-                              "  - {name: a, interface: '" + bus_a_ + "', master_node_id: 1, sdo_timeout_ms: 300}\n"
-                              "  - {name: b, interface: '" + bus_b + "'}\n"
-                              "devices:\n"
-                              "  - name: saw1\n"
-                              "    bus: a\n"
-                              "    node_id: 5\n"
-                              "    profile: cia420-4\n"
-                              "    version: '3.1'\n"
-                              "    heartbeat_timeout_ms: 400\n"
-                              "    boot_retry_ms: 1000\n"
-                              "    configure:\n"
-                              "      - {object: saw_sync_speed_set_maximum, value: 45000}\n"
-                              "      - {index: 0x1017, sub: 0, type: UNSIGNED16, value: 100}\n"
-                              "  - {name: saw2, bus: b, node_id: 6, profile: cia420-4, version: '3.1'}\n"
-                              "  - {name: ghost, bus: a, node_id: 9, profile: cia420-4, version: '3.1', boot_retry_ms: 1000}\n";
+    std::ofstream(config_)
+        << "line: core\n"
+           "dds: {domain: 4}\n"
+           "buses:\n"
+           "  - {name: a, interface: '" +
+               bus_a_ +
+               "', master_node_id: 1, sdo_timeout_ms: 300}\n"
+               "  - {name: b, interface: '" +
+               bus_b +
+               "'}\n"
+               "devices:\n"
+               "  - name: saw1\n"
+               "    bus: a\n"
+               "    node_id: 5\n"
+               "    profile: cia420-4\n"
+               "    version: '3.1'\n"
+               "    heartbeat_timeout_ms: 400\n"
+               "    boot_retry_ms: 1000\n"
+               "    configure:\n"
+               "      - {object: saw_sync_speed_set_maximum, value: 45000}\n"
+               "      - {index: 0x1017, sub: 0, type: UNSIGNED16, value: 100}\n"
+               "  - {name: saw2, bus: b, node_id: 6, profile: cia420-4, version: '3.1'}\n"
+               "  - {name: ghost, bus: a, node_id: 9, profile: cia420-4, version: '3.1', boot_retry_ms: 1000}\n";
     spy_ = std::make_unique<lb::test::BusSpy>(bus_a_);  // first member: the hub lives in this process
     const auto tmp = ::testing::TempDir();
-    sim_ = std::make_unique<lb::test::ChildProcess>(
-        std::vector<std::string>{LB_BIN_SIM, "--config", config_, "--device", "saw1", "--device", "saw2"}, tmp + "/core_sim_" + tag + ".log");
+    sim_ = std::make_unique<lb::test::ChildProcess>(std::vector<std::string>{LB_BIN_SIM, "--config", config_,
+                                                                             "--device", "saw1", "--device", "saw2"},
+                                                    tmp + "/core_sim_" + tag + ".log");
     bridge_ = std::make_unique<lb::test::ChildProcess>(std::vector<std::string>{LB_BIN_BRIDGE, "--config", config_},
                                                        tmp + "/core_bridge_" + tag + ".log");
     auto dds = lb::ddsl::Participant::create({4, true, "core-test"});
@@ -89,12 +95,15 @@ class CanopenCore : public ::testing::Test {
   static bool operational(const msg::SawStatus& s) {
     return s.health().online() && s.health().nmt_state() == msg::NMT_OPERATIONAL;
   }
-  static std::string topic(const std::string& device, const std::string& t) { return lb::ddsl::topic_name("core", device, t); }
+  static std::string topic(const std::string& device, const std::string& t) {
+    return lb::ddsl::topic_name("core", device, t);
+  }
   std::string logs() const {
     return "--- bridge log ---\n" + (bridge_ ? bridge_->log() : "") + "--- sim log ---\n" + (sim_ ? sim_->log() : "");
   }
 
-  srv::SdoRead_Response sdo_read(const std::string& device, std::uint16_t index, std::uint8_t sub, const std::string& type) {
+  srv::SdoRead_Response sdo_read(const std::string& device, std::uint16_t index, std::uint8_t sub,
+                                 const std::string& type) {
     auto& client = client_for(reads_, "sdo_read");
     srv::SdoRead_Request req;
     req.device(device);
@@ -105,7 +114,8 @@ class CanopenCore : public ::testing::Test {
     EXPECT_TRUE(r) << (r ? "" : r.error().message);
     return r ? *r : srv::SdoRead_Response{};
   }
-  srv::SdoWrite_Response sdo_write(const std::string& device, std::uint16_t index, std::uint8_t sub, srv::ObjectValue v) {
+  srv::SdoWrite_Response sdo_write(const std::string& device, std::uint16_t index, std::uint8_t sub,
+                                   srv::ObjectValue v) {
     auto& client = client_for(writes_, "sdo_write");
     srv::SdoWrite_Request req;
     req.device(device);
@@ -344,7 +354,8 @@ TEST_F(CanopenCore, EmergenciesAreEventsAndActiveErrorsInStatus) {
   ASSERT_TRUE(spy_->send(lb::can::make_frame(0x85, {0x30, 0x81, 0x11, 0, 0, 0, 0, 0})));
   ASSERT_TRUE(saw1_.wait_last(5s, [](const msg::SawStatus& s) { return s.health().active_errors().size() == 2; }));
   ASSERT_TRUE(spy_->send(lb::can::make_frame(0x85, {0x00, 0x00, 0x00, 0, 0, 0, 0, 0})));
-  ASSERT_TRUE(emcy_.wait_last(5s, [](const msg::Emergency& x) { return x.error_code() == 0 && x.active_errors().empty(); }));
+  ASSERT_TRUE(
+      emcy_.wait_last(5s, [](const msg::Emergency& x) { return x.error_code() == 0 && x.active_errors().empty(); }));
   ASSERT_TRUE(saw1_.wait_last(5s, [](const msg::SawStatus& s) { return s.health().active_errors().empty(); }));
   // A short EMCY is refused, not decoded.
   ASSERT_TRUE(spy_->send(lb::can::make_frame(0x85, {0x10, 0x42})));

@@ -44,7 +44,8 @@ int runs = 0;
 
 CliRun run_cli(std::vector<std::string> args, std::chrono::seconds limit = 20s) {
   args.insert(args.begin(), LB_BIN_CLI);
-  lb::test::ChildProcess p(args, ::testing::TempDir() + "/cli_" + std::to_string(::getpid()) + "_" + std::to_string(++runs) + ".log");
+  lb::test::ChildProcess p(args, ::testing::TempDir() + "/cli_" + std::to_string(::getpid()) + "_" +
+                                     std::to_string(++runs) + ".log");
   const auto deadline = Clock::now() + limit;
   while (p.running() && Clock::now() < deadline) std::this_thread::sleep_for(20ms);
   const int status = p.stop();
@@ -124,8 +125,10 @@ TEST_F(Cli, EchoIntoAPipeThatClosesEndsCleanlyAndTheNextClientIsAnswered) {
   // `linebridge-cli echo ... | head -n 1`: once head has its line and is gone, the echo must end
   // by itself with exit 0 (not be killed by SIGPIPE: its DDS participant would stay matched to the
   // bridge's writers until its lease ran out), and the next client is answered at once.
-  const auto piped = lb::test::run_command(
-      {"/bin/bash", "-c", "set -o pipefail; \"$0\" --config \"$1\" echo saw1 status | head -n 1", LB_BIN_CLI, config_}, 20s);
+  const auto piped = lb::test::run_command({"/bin/bash", "-c",
+                                            "set -o pipefail; \"$0\" --config \"$1\" echo saw1 status | head -n 1",
+                                            LB_BIN_CLI, config_},
+                                           20s);
   EXPECT_EQ(piped.exit_code, 0) << "the echo's exit status through the pipe (141: killed by SIGPIPE)\n" << piped.output;
   EXPECT_TRUE(has({piped.exit_code, piped.output}, "saw1 ")) << piped.output;
   const auto next = cli({"set", "saw1", "--program", "on"}, 10s);
@@ -142,7 +145,9 @@ TEST_F(Cli, SetTakesEachDevicesSetValues) {
   }));
   r = cli({"set", "corr1", "--speed-percent", "-10"});  // extruder not given: stays as in force
   EXPECT_EQ(r.exit_code, 0) << r.output;
-  EXPECT_TRUE(corr_.wait_last(5s, [](const msg::CorrugatorStatus& s) { return std::abs(s.speed_set_percent() + 10.0) < 1e-9; }));
+  EXPECT_TRUE(corr_.wait_last(5s, [](const msg::CorrugatorStatus& s) {
+    return std::abs(s.speed_set_percent() + 10.0) < 1e-9;
+  }));
   r = cli({"set", "puller1", "--speed-percent", "120"});
   EXPECT_EQ(r.exit_code, 1) << "refused by the bridge\n" << r.output;
   EXPECT_TRUE(has(r, "set value refused")) << r.output;
@@ -218,18 +223,25 @@ TEST_F(Cli, DiagnosticsFollowAnOperatorsNmtPreOperationalAndStart) {
   };
   auto r = cli({"nmt", "puller1", "pre-operational"});
   ASSERT_EQ(r.exit_code, 0) << r.output << line_->logs();
-  EXPECT_TRUE(diag.wait_last(30s, [&](const msg::Diagnostics& d) {
-    const auto* n = puller_node(d);
-    return n != nullptr && n->node_state() == "stopped by operator" && n->boot_state() != "started" &&
-           n->boot_state().find("pre-operational") != std::string::npos;
-  })) << last_text(diag) << line_->logs();
-  EXPECT_TRUE(puller_.wait_last(10s, [](const msg::PullerStatus& s) { return s.health().nmt_state() == msg::NMT_PRE_OPERATIONAL; }));
+  EXPECT_TRUE(diag.wait_last(30s,
+                             [&](const msg::Diagnostics& d) {
+                               const auto* n = puller_node(d);
+                               return n != nullptr && n->node_state() == "stopped by operator" &&
+                                      n->boot_state() != "started" &&
+                                      n->boot_state().find("pre-operational") != std::string::npos;
+                             }))
+      << last_text(diag) << line_->logs();
+  EXPECT_TRUE(puller_.wait_last(10s, [](const msg::PullerStatus& s) {
+    return s.health().nmt_state() == msg::NMT_PRE_OPERATIONAL;
+  }));
   r = cli({"nmt", "puller1", "start"});
   ASSERT_EQ(r.exit_code, 0) << r.output << line_->logs();
-  EXPECT_TRUE(diag.wait_last(30s, [&](const msg::Diagnostics& d) {
-    const auto* n = puller_node(d);
-    return n != nullptr && n->node_state() == "operational" && n->boot_state() == "started";
-  })) << last_text(diag) << line_->logs();
+  EXPECT_TRUE(diag.wait_last(30s,
+                             [&](const msg::Diagnostics& d) {
+                               const auto* n = puller_node(d);
+                               return n != nullptr && n->node_state() == "operational" && n->boot_state() == "started";
+                             }))
+      << last_text(diag) << line_->logs();
 }
 
 // When `set` may send: once the bridge's diagnostics say the device's boot passed, or settled
@@ -248,7 +260,8 @@ TEST(CliText, SetWaitsForTheBootToPassOrSettle) {
   EXPECT_FALSE(lb::app::boot_settled(node("", "")));
   EXPECT_TRUE(lb::app::boot_settled(node("booting", "started")));  // passed; operational at its next heartbeat
   EXPECT_TRUE(lb::app::boot_settled(node("operational", "started")));
-  EXPECT_TRUE(lb::app::boot_settled(node("stopped by operator", "configured; kept pre-operational by the operator (nmt start releases it)")));
+  EXPECT_TRUE(lb::app::boot_settled(
+      node("stopped by operator", "configured; kept pre-operational by the operator (nmt start releases it)")));
   EXPECT_TRUE(lb::app::boot_settled(node("boot failed", "failed (D): identity; next try in 1000 ms")));
   EXPECT_TRUE(lb::app::boot_settled(node("monitored", "monitored")));
 }
@@ -292,27 +305,27 @@ TEST(CliWithoutBridge, SetAsksAgainUntilAnswered) {
                                                          QosKind::reply);
   ASSERT_TRUE(status && results);
   answers = *results;
-  ASSERT_TRUE(p.subscribe<msg::SawSetpointPubSubType>(
-      lb::ddsl::topic_name("askagain", "saw1", "setpoint"), QosKind::command,
-      [&](const msg::SawSetpoint& sp, const auto&) {
-        int times = 0;
-        {
-          std::lock_guard lock(m);
-          times = ++seen[sp.request_id()];
-          speed = sp.sync_speed_percent();
-        }
-        if (times < 2) return;  // the first answer "lost"
-        msg::SetpointResult r;
-        r.request_id(sp.request_id());
-        r.accepted(true);
-        answers.write(r);
-      }));
+  ASSERT_TRUE(p.subscribe<msg::SawSetpointPubSubType>(lb::ddsl::topic_name("askagain", "saw1", "setpoint"),
+                                                      QosKind::command, [&](const msg::SawSetpoint& sp, const auto&) {
+                                                        int times = 0;
+                                                        {
+                                                          std::lock_guard lock(m);
+                                                          times = ++seen[sp.request_id()];
+                                                          speed = sp.sync_speed_percent();
+                                                        }
+                                                        if (times < 2) return;  // the first answer "lost"
+                                                        msg::SetpointResult r;
+                                                        r.request_id(sp.request_id());
+                                                        r.accepted(true);
+                                                        answers.write(r);
+                                                      }));
   msg::SawStatus online;
   online.health().online(true);
   online.health().nmt_state(msg::NMT_OPERATIONAL);
   ASSERT_TRUE(status->write(online));
   // Like a bridge, it says in its diagnostics that the saw's boot passed (set waits for that).
-  auto diagnostics = p.writer<msg::DiagnosticsPubSubType>(lb::ddsl::topic_name("askagain", "bridge", "diagnostics"), QosKind::state);
+  auto diagnostics = p.writer<msg::DiagnosticsPubSubType>(lb::ddsl::topic_name("askagain", "bridge", "diagnostics"),
+                                                          QosKind::state);
   ASSERT_TRUE(diagnostics);
   msg::Diagnostics d;
   d.line("askagain");
@@ -342,8 +355,9 @@ TEST(CliWithoutBridge, SetAsksAgainUntilAnswered) {
 TEST(CliWithoutBridge, ServiceCallAsksAgainNamingTheFirstRequest) {
   ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   const std::string config = ::testing::TempDir() + "/cli_askagain_svc_" + std::to_string(::getpid()) + ".yaml";
-  std::ofstream(config) << "line: askagainsvc\ndds: {domain: 37}\nbuses:\n  - {name: b, interface: 'virtual:askagainsvc'}\n"
-                           "devices:\n  - {name: saw1, bus: b, node_id: 3, profile: cia420-4, version: '3.1'}\n";
+  std::ofstream(config)
+      << "line: askagainsvc\ndds: {domain: 37}\nbuses:\n  - {name: b, interface: 'virtual:askagainsvc'}\n"
+         "devices:\n  - {name: saw1, bus: b, node_id: 3, profile: cia420-4, version: '3.1'}\n";
   using eprosima::fastrtps::rtps::SampleIdentity;
   struct Seen {
     SampleIdentity self, related;
@@ -361,17 +375,19 @@ TEST(CliWithoutBridge, ServiceCallAsksAgainNamingTheFirstRequest) {
   ASSERT_TRUE(replies);
   answers = *replies;
   auto diagnostics = p.writer<msg::DiagnosticsPubSubType>(lb::ddsl::topic_name("askagainsvc", "bridge", "diagnostics"),
-                                                         QosKind::state);
+                                                          QosKind::state);
   ASSERT_TRUE(diagnostics);
   msg::Diagnostics d;
   d.line("askagainsvc");
   d.bridge_incarnation(p.incarnation());
   ASSERT_TRUE(diagnostics->write(d));
   ASSERT_TRUE(p.subscribe<srv::Command_RequestPubSubType>(
-      lb::ddsl::request_topic(path), QosKind::command, [&](const srv::Command_Request& rq, const lb::ddsl::fdds::SampleInfo& info) {
+      lb::ddsl::request_topic(path), QosKind::command,
+      [&](const srv::Command_Request& rq, const lb::ddsl::fdds::SampleInfo& info) {
         {
           std::lock_guard lock(m);
-          seen.push_back({info.sample_identity, info.related_sample_identity, rq.device(), rq.command(), rq.bridge_incarnation()});
+          seen.push_back(
+              {info.sample_identity, info.related_sample_identity, rq.device(), rq.command(), rq.bridge_incarnation()});
         }
         if (info.related_sample_identity == SampleIdentity::unknown()) return;  // the first answer "lost"
         srv::Command_Response r;
@@ -434,12 +450,26 @@ TEST(CliText, DiagnosticsTextShowsEveryIdlField) {
   d.nodes().push_back(n);
   const auto text = lb::app::to_text(d);
   // Shown as their value (or a unit), not under their own name; the containers are their parts.
-  const std::map<std::string, std::string> shown_as = {
-      {"stamp", ":"}, {"line", "lineX"}, {"buses", "busX"}, {"nodes", "deviceX"}, {"dds_side", "dds-side"},
-      {"name", "busX"}, {"interface_uri", "socketcan:vcanX"}, {"role", "master"}, {"state", "error-passive"},
-      {"frames_in_per_s", "/s)"}, {"frames_out_per_s", "/s)"}, {"load_percent", "load"}, {"tx_error_counter", "TEC"},
-      {"rx_error_counter", "REC"}, {"device", "deviceX"}, {"bus", "busX"}, {"node_id", "node  42"},
-      {"online", "OFFLINE"}, {"nmt_state", "unknown"}, {"last_heartbeat_age_s", "last-heartbeat-age"}};
+  const std::map<std::string, std::string> shown_as = {{"stamp", ":"},
+                                                       {"line", "lineX"},
+                                                       {"buses", "busX"},
+                                                       {"nodes", "deviceX"},
+                                                       {"dds_side", "dds-side"},
+                                                       {"name", "busX"},
+                                                       {"interface_uri", "socketcan:vcanX"},
+                                                       {"role", "master"},
+                                                       {"state", "error-passive"},
+                                                       {"frames_in_per_s", "/s)"},
+                                                       {"frames_out_per_s", "/s)"},
+                                                       {"load_percent", "load"},
+                                                       {"tx_error_counter", "TEC"},
+                                                       {"rx_error_counter", "REC"},
+                                                       {"device", "deviceX"},
+                                                       {"bus", "busX"},
+                                                       {"node_id", "node  42"},
+                                                       {"online", "OFFLINE"},
+                                                       {"nmt_state", "unknown"},
+                                                       {"last_heartbeat_age_s", "last-heartbeat-age"}};
   std::size_t checked = 0;
   for (const char* structure : {"Diagnostics", "BusDiagnostics", "NodeDiagnostics", "DdsSideDiagnostics"}) {
     const auto fields = idl_fields(idl, structure);
@@ -449,8 +479,9 @@ TEST(CliText, DiagnosticsTextShowsEveryIdlField) {
       std::string label = f;
       std::replace(label.begin(), label.end(), '_', '-');
       if (const auto it = shown_as.find(f); it != shown_as.end()) label = it->second;
-      EXPECT_NE(text.find(label), std::string::npos) << structure << "." << f << " is not printed (looked for '" << label
-                                                      << "'):\n" << text;
+      EXPECT_NE(text.find(label), std::string::npos)
+          << structure << "." << f << " is not printed (looked for '" << label << "'):\n"
+          << text;
     }
   }
   EXPECT_GT(checked, 60u);

@@ -3,10 +3,10 @@
 // outputs (RPDO3), objects beyond the typed status in other_values, bus-fault counters and a
 // replay's diagnostics. The real bridge and simulator; expected values from the specs and the
 // documentation (docs/), written here by hand.
-#include <fastdds/dds/domain/DomainParticipantFactory.hpp>
-#include <fastdds/dds/domain/DomainParticipantListener.hpp>
 #include <fmt/format.h>
 #include <gtest/gtest.h>
+#include <fastdds/dds/domain/DomainParticipantFactory.hpp>
+#include <fastdds/dds/domain/DomainParticipantListener.hpp>
 
 #include <chrono>
 #include <fstream>
@@ -75,7 +75,8 @@ std::set<Endpoint> documented(const std::string& line, const std::map<std::strin
   rows_read = 0;
   bool header = false;
   bool separator = false;
-  std::istringstream rows(text.substr(begin + std::string(kTableBegin).size(), end - begin - std::string(kTableBegin).size()));
+  std::istringstream rows(
+      text.substr(begin + std::string(kTableBegin).size(), end - begin - std::string(kTableBegin).size()));
   for (std::string row; std::getline(rows, row);) {
     if (trim(row).empty()) continue;
     if (row.rfind("| for ", 0) == 0) {
@@ -91,11 +92,12 @@ std::set<Endpoint> documented(const std::string& line, const std::map<std::strin
     std::stringstream cs(row.substr(1));
     for (std::string c; std::getline(cs, c, '|');) cells.push_back(trim(c));
     if (cells.size() < 7) throw std::runtime_error("contract row with too few cells: " + row);
-    const auto& [who, topic, type, direction, reliability, durability] =
-        std::tie(cells[0], cells[1], cells[2], cells[3], cells[4], cells[5]);
-    if (kinds.count(who) == 0) throw std::runtime_error("contract row for '" + who + "', which the test's line lacks: " + row);
-    if (directions.count(direction) == 0 || reliabilities.count(reliability) == 0 || durabilities.count(durability) == 0 ||
-        topic.find("<line>") == std::string::npos || type.empty()) {
+    const auto& [who, topic, type, direction, reliability, durability] = std::tie(cells[0], cells[1], cells[2],
+                                                                                  cells[3], cells[4], cells[5]);
+    if (kinds.count(who) == 0)
+      throw std::runtime_error("contract row for '" + who + "', which the test's line lacks: " + row);
+    if (directions.count(direction) == 0 || reliabilities.count(reliability) == 0 ||
+        durabilities.count(durability) == 0 || topic.find("<line>") == std::string::npos || type.empty()) {
       throw std::runtime_error("contract row not understood: " + row);
     }
     ++rows_read;
@@ -118,7 +120,8 @@ class Announced : public fdds::DomainParticipantListener {
     add(info.info.topicName().to_string(), info.info.typeName().to_string(), "bridge → apps",
         info.info.m_qos.m_reliability.kind, info.info.m_qos.m_durability.kind);
   }
-  void on_subscriber_discovery(fdds::DomainParticipant*, eprosima::fastrtps::rtps::ReaderDiscoveryInfo&& info) override {
+  void on_subscriber_discovery(fdds::DomainParticipant*,
+                               eprosima::fastrtps::rtps::ReaderDiscoveryInfo&& info) override {
     if (info.status != eprosima::fastrtps::rtps::ReaderDiscoveryInfo::DISCOVERED_READER) return;
     add(info.info.topicName().to_string(), info.info.typeName().to_string(), "apps → bridge",
         info.info.m_qos.m_reliability.kind, info.info.m_qos.m_durability.kind);
@@ -134,8 +137,9 @@ class Announced : public fdds::DomainParticipantListener {
     std::lock_guard lock(m_);
     endpoints_.insert({std::move(topic), std::move(type), std::move(direction),
                        r == fdds::RELIABLE_RELIABILITY_QOS ? "reliable" : "best-effort",
-                       d == fdds::TRANSIENT_LOCAL_DURABILITY_QOS ? "transient-local"
-                                                                 : (d == fdds::VOLATILE_DURABILITY_QOS ? "volatile" : "other")});
+                       d == fdds::TRANSIENT_LOCAL_DURABILITY_QOS
+                           ? "transient-local"
+                           : (d == fdds::VOLATILE_DURABILITY_QOS ? "volatile" : "other")});
   }
   std::mutex m_;
   std::set<Endpoint> endpoints_;
@@ -152,11 +156,10 @@ bool operational(const Status& s) {
   return s.health().online() && s.health().nmt_state() == msg::NMT_OPERATIONAL;
 }
 
-const std::string kDevices =
-    "  - {name: saw1, bus: b, node_id: 3, profile: cia420-4, version: '3.1'}\n"
-    "  - {name: puller1, bus: b, node_id: 6, profile: cia420-2, version: '1.0'}\n"
-    "  - {name: corr1, bus: b, node_id: 7, profile: cia420-3, version: '3.1'}\n"
-    "  - {name: box1, bus: b, node_id: 10, profile: cia414-2, version: '1.1'}\n";
+const std::string kDevices = "  - {name: saw1, bus: b, node_id: 3, profile: cia420-4, version: '3.1'}\n"
+                             "  - {name: puller1, bus: b, node_id: 6, profile: cia420-2, version: '1.0'}\n"
+                             "  - {name: corr1, bus: b, node_id: 7, profile: cia420-3, version: '3.1'}\n"
+                             "  - {name: box1, bus: b, node_id: 10, profile: cia414-2, version: '1.1'}\n";
 
 }  // namespace
 
@@ -165,7 +168,9 @@ TEST(Contract, TheContractTableIsWhatTheBridgeAnnounces) {
   lb::test::LineHarness line("contract", 27);
   Announced announced;
   // A plain Fast DDS participant: only DDS discovery tells what the bridge announces.
-  const auto remove = [](fdds::DomainParticipant* p) { fdds::DomainParticipantFactory::get_instance()->delete_participant(p); };
+  const auto remove = [](fdds::DomainParticipant* p) {
+    fdds::DomainParticipantFactory::get_instance()->delete_participant(p);
+  };
   std::unique_ptr<fdds::DomainParticipant, decltype(remove)> participant(
       fdds::DomainParticipantFactory::get_instance()->create_participant(
           27, lb::ddsl::participant_qos({27, true, "contract-probe"}), &announced, fdds::StatusMask::none()),
@@ -173,8 +178,8 @@ TEST(Contract, TheContractTableIsWhatTheBridgeAnnounces) {
   ASSERT_NE(participant, nullptr);
   line.start(kDevices);
   std::size_t rows = 0;
-  const auto expected =
-      documented("contract", {{"saw1", "saw"}, {"puller1", "puller"}, {"corr1", "corrugator"}, {"box1", "feeder"}}, rows);
+  const auto expected = documented(
+      "contract", {{"saw1", "saw"}, {"puller1", "puller"}, {"corr1", "corrugator"}, {"box1", "feeder"}}, rows);
   ASSERT_GT(rows, 0u) << kContractPage << ": the contract table has no rows";
   // Discovery is asynchronous: wait until the set stops growing and holds every documented one.
   std::set<Endpoint> seen;
@@ -196,7 +201,8 @@ TEST(Contract, TheContractTableIsWhatTheBridgeAnnounces) {
     if (std::get<0>(e).find("/contract/") != std::string::npos && expected.count(e) == 0) undocumented.insert(e);
   }
   EXPECT_TRUE(missing.empty()) << "documented but not announced (or with another type or QoS):\n" << describe(missing);
-  EXPECT_TRUE(undocumented.empty()) << "announced but not in " << kContractPage << "'s table:\n" << describe(undocumented);
+  EXPECT_TRUE(undocumented.empty()) << "announced but not in " << kContractPage << "'s table:\n"
+                                    << describe(undocumented);
 }
 
 // CiA 420 6010h: every named bit, on info, after the boot and on demand. Bit positions are
@@ -208,7 +214,8 @@ TEST(Contract, ConfigurationWordIsOnInfoBitByBit) {
   lb::test::LineHarness line("config6010", 28);
   line.start(kDevices);
   std::map<std::string, lb::test::Collector<msg::DeviceInfoPubSubType>> info;
-  for (const char* d : {"saw1", "puller1", "corr1", "box1"}) ASSERT_TRUE(info[d].subscribe(line.dds(), line.topic(d, "info"), QosKind::state));
+  for (const char* d : {"saw1", "puller1", "corr1", "box1"})
+    ASSERT_TRUE(info[d].subscribe(line.dds(), line.topic(d, "info"), QosKind::state));
   const auto started = [](const msg::DeviceInfo& i) { return i.started(); };
   for (auto& [d, c] : info) ASSERT_TRUE(c.wait_last(30s, started)) << d << "\n" << line.logs();
 
@@ -220,11 +227,15 @@ TEST(Contract, ConfigurationWordIsOnInfoBitByBit) {
   const auto saw = info["saw1"].samples().back();
   ASSERT_TRUE(saw.configuration_word().read()) << saw.configuration_word().remark();
   EXPECT_EQ(saw.configuration_word().raw(), 0x145u);
-  EXPECT_EQ(flags(saw), (std::vector<std::tuple<std::string, int, bool>>{
-                            {"speed_measuring", 0, true}, {"height_adjustment", 1, false}, {"cut_depth", 2, true},
-                            {"f1_available", 3, false},   {"f2_available", 4, false},     {"f3_available", 5, false},
-                            {"early_warning", 6, true},   {"corrugator_cut_management", 7, false},
-                            {"groove_count_mode", 8, true}}));
+  EXPECT_EQ(flags(saw), (std::vector<std::tuple<std::string, int, bool>>{{"speed_measuring", 0, true},
+                                                                         {"height_adjustment", 1, false},
+                                                                         {"cut_depth", 2, true},
+                                                                         {"f1_available", 3, false},
+                                                                         {"f2_available", 4, false},
+                                                                         {"f3_available", 5, false},
+                                                                         {"early_warning", 6, true},
+                                                                         {"corrugator_cut_management", 7, false},
+                                                                         {"groove_count_mode", 8, true}}));
   const auto puller = info["puller1"].samples().back();
   EXPECT_EQ(puller.configuration_word().raw(), 0x1u);
   EXPECT_EQ(flags(puller), (std::vector<std::tuple<std::string, int, bool>>{{"speed_measuring", 0, true}}));
@@ -245,7 +256,9 @@ TEST(Contract, ConfigurationWordIsOnInfoBitByBit) {
   const auto r = line.call(get, "get_parameter", req);
   ASSERT_TRUE(r.success()) << r.message();
   EXPECT_EQ(r.raw(), 0x145);
-  EXPECT_TRUE(info["saw1"].wait(5s, [before](const auto& v) { return v.size() > before && v.back().configuration_word().raw() == 0x145; }));
+  EXPECT_TRUE(info["saw1"].wait(5s, [before](const auto& v) {
+    return v.size() > before && v.back().configuration_word().raw() == 0x145;
+  }));
 }
 
 // Saw control bit 1 (wall-thickening active) is a level the MES sets with the other set values.
@@ -270,10 +283,12 @@ TEST(Contract, SawWallThickeningIsASetValue) {
     sp.product_length_m(1.0);
     line.spy().clear();
     ASSERT_TRUE(writer->write(sp));
-    ASSERT_TRUE(results.wait(5s, [&](const auto& v) { return !v.empty() && v.back().request_id() == sp.request_id(); }));
+    ASSERT_TRUE(
+        results.wait(5s, [&](const auto& v) { return !v.empty() && v.back().request_id() == sp.request_id(); }));
     EXPECT_TRUE(results.samples().back().accepted()) << results.samples().back().reason();
     // RPDO1 (203h): 6020h bit 0 program on, bit 1 wall-thickening.
-    ASSERT_TRUE(status.wait_last(2s, [on](const msg::SawStatus& s) { return s.control_word().wall_thickening() == on; }));
+    ASSERT_TRUE(
+        status.wait_last(2s, [on](const msg::SawStatus& s) { return s.control_word().wall_thickening() == on; }));
     std::this_thread::sleep_for(100ms);
     const auto frames = line.spy().frames(0x203);
     ASSERT_FALSE(frames.empty());
@@ -289,7 +304,8 @@ TEST(Contract, MappedObjectsBeyondTheTypedStatusArePublishedByName) {
   const std::string objects = "    objects: [{index: 0x2110, name: second_status_word, type: UNSIGNED16}]\n";
   line.start("  - name: saw1\n    bus: b\n    node_id: 3\n    profile: cia420-4\n    version: '3.1'\n" + objects +
              "    pdos: {tpdo1: {mapping: [0x60300010, 0x60000020, 0x21100010]}}\n"
-             "  - name: saw2\n    bus: b\n    node_id: 4\n    profile: cia420-4\n    version: '3.1'\n" + objects +
+             "  - name: saw2\n    bus: b\n    node_id: 4\n    profile: cia420-4\n    version: '3.1'\n" +
+             objects +
              "    pdo_config: adopt\n"
              "    simulation: {pdos: {tpdo1: {mapping: [0x60300010, 0x60000020, 0x21100010]}}}\n");
   for (const char* dev : {"saw1", "saw2"}) {
@@ -320,7 +336,8 @@ TEST(Contract, FeederDigitalOutputsGoInRpdo3WhenTheBoxHasIt) {
   ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("outputs", 31);
   line.start("  - {name: box1, bus: b, node_id: 10, profile: cia414-2, version: '1.1'}\n"
-             "  - {name: box2, bus: b, node_id: 11, profile: cia414-2, version: '1.1', pdos: {rpdo3: {cob_id: 0x8000040B}}}\n");
+             "  - {name: box2, bus: b, node_id: 11, profile: cia414-2, version: '1.1', pdos: {rpdo3: {cob_id: "
+             "0x8000040B}}}\n");
   lb::test::Collector<msg::FeederStatusPubSubType> box1;
   lb::test::Collector<msg::SetpointResultPubSubType> results;
   ASSERT_TRUE(box1.subscribe(line.dds(), line.topic("box1", "status"), QosKind::state));
@@ -372,7 +389,9 @@ TEST(Contract, ReplayDiagnosticsAreOnTheRecordingsClockAndCountRecordedFaults) {
     // 2021-01-01: heartbeats of nodes 3 and 4 every 100 ms for 2 s (4 one recorded period behind),
     // then a controller error-counter report (TEC 7Fh, REC 20h) and a bus-off.
     std::ofstream out(log);
-    const auto at = [](long us) { return fmt::format("({}.{:06}) can0 ", 1609459200 + us / 1'000'000, us % 1'000'000); };
+    const auto at = [](long us) {
+      return fmt::format("({}.{:06}) can0 ", 1609459200 + us / 1'000'000, us % 1'000'000);
+    };
     for (long i = 0; i < 20; ++i) {
       out << at(i * 100'000) << "703#05\n";
       out << at(i * 100'000 + 5'000) << "704#05\n";
@@ -382,11 +401,14 @@ TEST(Contract, ReplayDiagnosticsAreOnTheRecordingsClockAndCountRecordedFaults) {
     for (long i = 0; i < 3; ++i) out << at(2'200'000 + i * 100'000) << "703#05\n";
   }
   const std::string config = dir + "/replay_" + tag + ".yaml";
-  std::ofstream(config) << "line: replay\ndds: {domain: 32}\nbuses:\n"
-                           "  - {name: b, interface: 'log:" + log + "?pace=fast'}\n"
-                           "devices:\n"
-                           "  - {name: saw1, bus: b, node_id: 3, profile: cia420-4, version: '3.1', heartbeat_timeout_ms: 60000}\n"
-                           "  - {name: saw2, bus: b, node_id: 4, profile: cia420-4, version: '3.1', heartbeat_timeout_ms: 60000}\n";
+  std::ofstream(config)
+      << "line: replay\ndds: {domain: 32}\nbuses:\n"
+         "  - {name: b, interface: 'log:" +
+             log +
+             "?pace=fast'}\n"
+             "devices:\n"
+             "  - {name: saw1, bus: b, node_id: 3, profile: cia420-4, version: '3.1', heartbeat_timeout_ms: 60000}\n"
+             "  - {name: saw2, bus: b, node_id: 4, profile: cia420-4, version: '3.1', heartbeat_timeout_ms: 60000}\n";
   lb::test::ChildProcess bridge({LB_BIN_BRIDGE, "--config", config}, dir + "/replay_bridge_" + tag + ".log");
   lb::test::Collector<msg::DiagnosticsPubSubType> diag;  // outlives the participant that calls it
   auto created = lb::ddsl::Participant::create({32, true, "replay-test"});
@@ -394,7 +416,8 @@ TEST(Contract, ReplayDiagnosticsAreOnTheRecordingsClockAndCountRecordedFaults) {
   auto dds = std::move(*created);
   ASSERT_TRUE(diag.subscribe(*dds, lb::ddsl::topic_name("replay", "bridge", "diagnostics"), QosKind::state));
   ASSERT_TRUE(diag.wait_last(15s, [](const msg::Diagnostics& d) {
-    return d.buses().size() == 1 && d.buses()[0].bus_offs() == 1 && d.nodes().size() == 2 && d.nodes()[0].last_heartbeat_age_s() >= 0;
+    return d.buses().size() == 1 && d.buses()[0].bus_offs() == 1 && d.nodes().size() == 2 &&
+           d.nodes()[0].last_heartbeat_age_s() >= 0;
   })) << bridge.log();
   const auto d = diag.samples().back();
   const auto& b = d.buses()[0];

@@ -22,21 +22,21 @@ TEST(Demo, SecuredDemoRunsTenTimesInARow) {
   const auto bin = std::filesystem::path(LB_BIN_BRIDGE).parent_path().string();
   const auto demo = std::string(LB_SOURCE_DIR) + "/launch_scripts/demo.sh";
   for (int run = 1; run <= 10; ++run) {
-    const auto r = lb::test::run_command({"/usr/bin/env", "LINEBRIDGE_BIN=" + bin, demo, "--inside", "--secure", "--duration", "1"},
+    const auto r = lb::test::run_command({"/usr/bin/env", "LINEBRIDGE_BIN=" + bin, demo, "--inside", "--secure",
+                                          "--duration", "1"},
                                          std::chrono::seconds(120));
     const auto& out = r.output;
     ASSERT_EQ(r.exit_code, 0) << "run " << run << " of 10\n" << out;
-    EXPECT_TRUE(has(out, "saw1: accepted: program on, "))
-        << "run " << run << ": the first set value\n" << out;
-    EXPECT_TRUE(has(out, "product length 0.4 m"))
-        << "run " << run << ": the new product length\n" << out;
+    EXPECT_TRUE(has(out, "saw1: accepted: program on, ")) << "run " << run << ": the first set value\n" << out;
+    EXPECT_TRUE(has(out, "product length 0.4 m")) << "run " << run << ": the new product length\n" << out;
     EXPECT_TRUE(has(out, "saw1: set value refused")) << "run " << run << ": 120 % refused\n" << out;
     EXPECT_TRUE(has(out, "--join")) << "run " << run << ": how to join the demo's namespace\n" << out;
     // A clean stop reads clean: no client waiting for a bridge that stopped under it, no DDS
     // process reported lost.
     EXPECT_TRUE(has(out, "demo: stopped cleanly")) << "run " << run << "\n" << out;
     EXPECT_FALSE(has(out, "DDS side gone")) << "run " << run << "\n" << out;
-    const auto tail = out.substr(out.rfind("(nothing received)") == std::string::npos ? 0 : out.rfind("(nothing received)"));
+    const auto tail = out.substr(
+        out.rfind("(nothing received)") == std::string::npos ? 0 : out.rfind("(nothing received)"));
     EXPECT_FALSE(has(tail, "waiting for the bridge")) << "run " << run << ": after the demo's last step\n" << out;
     if (::testing::Test::HasFailure()) break;  // one failed run says it all; the rest would repeat it
   }

@@ -25,7 +25,9 @@ constexpr std::uint16_t kErrorSimulation = 0x2003;
 constexpr std::uint32_t kClear = 0x8000'0000;
 constexpr std::uint16_t kTemperature = 0x4210, kVoltage = 0x3120;
 
-bool operational(const msg::SawStatus& s) { return s.health().online() && s.health().nmt_state() == msg::NMT_OPERATIONAL; }
+bool operational(const msg::SawStatus& s) {
+  return s.health().online() && s.health().nmt_state() == msg::NMT_OPERATIONAL;
+}
 
 std::string saw(const std::string& name, int node, const std::string& extra = "") {
   return "  - {name: " + name + ", bus: b, node_id: " + std::to_string(node) +
@@ -59,8 +61,10 @@ TEST(DeviceTruth, ErrorResetThatLeavesErrorsIsUncertainAndTheHistoryIsOnInfo) {
   ASSERT_TRUE(info1.subscribe(line.dds(), line.topic("saw1", "info"), QosKind::state));
   ASSERT_TRUE(info2.subscribe(line.dds(), line.topic("saw2", "info"), QosKind::state));
   // After their boot the bridge read 1001h = 0: nothing active, and that is known.
-  ASSERT_TRUE(saw1.wait_last(30s, [](const auto& s) { return operational(s) && s.health().active_errors_known(); })) << line.logs();
-  ASSERT_TRUE(saw2.wait_last(30s, [](const auto& s) { return operational(s) && s.health().active_errors_known(); })) << line.logs();
+  ASSERT_TRUE(saw1.wait_last(30s, [](const auto& s) { return operational(s) && s.health().active_errors_known(); }))
+      << line.logs();
+  ASSERT_TRUE(saw2.wait_last(30s, [](const auto& s) { return operational(s) && s.health().active_errors_known(); }))
+      << line.logs();
   ASSERT_TRUE(info1.wait_last(10s, [](const msg::DeviceInfo& i) { return i.started(); })) << line.logs();
 
   for (const char* dev : {"saw1", "saw2"}) {
@@ -96,14 +100,16 @@ TEST(DeviceTruth, ErrorResetThatLeavesErrorsIsUncertainAndTheHistoryIsOnInfo) {
   const auto before1 = info1.size(), before2 = info2.size();
   ASSERT_TRUE(line.nmt("saw1", srv::NMT_RESET_COMMUNICATION).success());
   ASSERT_TRUE(line.nmt("saw2", srv::NMT_RESET_COMMUNICATION).success());
-  ASSERT_TRUE(info1.wait(30s, [before1](const auto& v) { return v.size() > before1 && v.back().started(); })) << line.logs();
+  ASSERT_TRUE(info1.wait(30s, [before1](const auto& v) { return v.size() > before1 && v.back().started(); }))
+      << line.logs();
   const auto i1 = info1.samples().back();
   ASSERT_TRUE(i1.error_history_read()) << i1.error_history_remark();
   EXPECT_EQ(i1.error_history_count(), 4);
   EXPECT_EQ(i1.error_history(), (std::vector<std::uint32_t>{0x0000, 0x0000, kVoltage, kTemperature}))
       << "every EMCY, newest first, the error resets included";
   EXPECT_TRUE(saw1.wait_last(5s, errors_are({}, true))) << "a history is no active error\n" << line.logs();
-  ASSERT_TRUE(info2.wait(30s, [before2](const auto& v) { return v.size() > before2 && v.back().started(); })) << line.logs();
+  ASSERT_TRUE(info2.wait(30s, [before2](const auto& v) { return v.size() > before2 && v.back().started(); }))
+      << line.logs();
   const auto i2 = info2.samples().back();
   EXPECT_FALSE(i2.error_history_read());
   EXPECT_TRUE(i2.error_history().empty());
@@ -129,12 +135,15 @@ TEST(DeviceTruth, BootUpClearsTheActiveErrors) {
   // to operational heartbeats would be a spoof) and the list starts empty.
   const auto before = status.size();
   ASSERT_TRUE(line.spy().send(lb::can::make_frame(0x000, {0x81, 0x03})));
-  EXPECT_TRUE(status.wait(5s, [before](const auto& v) {
-    for (std::size_t i = before; i < v.size(); ++i) {
-      if (v[i].health().active_errors().empty() && v[i].health().active_errors_known()) return true;
-    }
-    return false;
-  })) << "the boot-up must clear the list\n"
+  EXPECT_TRUE(status.wait(5s,
+                          [before](const auto& v) {
+                            for (std::size_t i = before; i < v.size(); ++i) {
+                              if (v[i].health().active_errors().empty() && v[i].health().active_errors_known())
+                                return true;
+                            }
+                            return false;
+                          }))
+      << "the boot-up must clear the list\n"
       << line.logs();
 }
 
@@ -223,7 +232,8 @@ TEST(DeviceTruth, SdoRequestsThatCannotSucceedAreRefusedAtOnce) {
   EXPECT_LT(Clock::now() - t0, 8s) << "refused only after waiting";
   EXPECT_TRUE(line.spy().frames(0x603).empty()) << "a request to the stopped device reached the bus";
   ASSERT_TRUE(line.nmt("saw1", srv::NMT_ENTER_PRE_OPERATIONAL).success());
-  ASSERT_TRUE(status.wait_last(5s, [](const msg::SawStatus& s) { return s.health().nmt_state() == msg::NMT_PRE_OPERATIONAL; }));
+  ASSERT_TRUE(
+      status.wait_last(5s, [](const msg::SawStatus& s) { return s.health().nmt_state() == msg::NMT_PRE_OPERATIONAL; }));
   r = line.sdo_read("saw1", 0x1000, 0, "UNSIGNED32");
   EXPECT_TRUE(r.success()) << "a pre-operational device answers SDO: " << r.message();
   EXPECT_EQ(r.value().unsigned_value(), 0x01A4u);

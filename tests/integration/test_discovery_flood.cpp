@@ -73,18 +73,22 @@ class DiscoveryFlood : public ::testing::Test {
  protected:
   void SetUp() override {
     ASSERT_TRUE(std::getenv("LINEBRIDGE_NETNS") != nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
-    dir_ = std::filesystem::path(::testing::TempDir() + "/flood_" + std::to_string(::getpid())).lexically_normal().string();
+    dir_ = std::filesystem::path(::testing::TempDir() + "/flood_" + std::to_string(::getpid()))
+               .lexically_normal()
+               .string();
     std::filesystem::create_directories(dir_);
     // pki.sh reads the line (its name, its devices) from an unsecured file of the same line.
     const std::string plain = dir_ + "/plain.yaml";
-    std::ofstream(plain) << "line: flood\ndds: {domain: " << kDomain << "}\ndevices:\n" << kDevices << "buses:\n  - {name: b, interface: 'virtual:x'}\n";
+    std::ofstream(plain) << "line: flood\ndds: {domain: " << kDomain << "}\ndevices:\n"
+                         << kDevices << "buses:\n  - {name: b, interface: 'virtual:x'}\n";
     pki_ = std::make_unique<lb::test::TestPki>(plain, dir_ + "/pki");
     observer_ = pki_->issue("observer", "observer");
     engineer_ = pki_->issue("engineer", "engineer");
     pki_->issue("replayed", "observer");  // the participant whose announcement the flood replays
     line_.set_dds_keys("  localhost_only: true\n" + pki_->security_yaml());
     line_.set_participant_options(pki_->options(kDomain, observer_, "flood-observer"));
-    ASSERT_NO_THROW(line_.start(kDevices, "", ", sync_period_ms: " + std::to_string(kSyncPeriodMs) + ", realtime_priority: 20"));
+    ASSERT_NO_THROW(
+        line_.start(kDevices, "", ", sync_period_ms: " + std::to_string(kSyncPeriodMs) + ", realtime_priority: 20"));
     ASSERT_TRUE(line_.dds().secured());
     ASSERT_TRUE(line_.bridge().wait_log("DDS security in force", 20s)) << line_.logs();
     ASSERT_TRUE(eventually(20s, [&] { return line_.spy().frames(kSync).size() >= 10; })) << "no SYNC\n" << line_.logs();
@@ -149,16 +153,20 @@ TEST_F(DiscoveryFlood, TheBusKeepsItsSyncAndARealClientIsAnsweredAfter200And3000
     ASSERT_NO_FATAL_FAILURE(flood(n));
     const auto answered = legitimate_read();
     // The bus process is still the one the test started: only its DDS process may go.
-    ASSERT_TRUE(line_.bridge().running()) << "the bus process died during or after the flood of " << n << "\n" << line_.logs();
+    ASSERT_TRUE(line_.bridge().running()) << "the bus process died during or after the flood of " << n << "\n"
+                                          << line_.logs();
     ASSERT_EQ(line_.bridge().pid(), bus_pid);
     const auto restarts = line_.bridge_log_count("a new DDS process starts");
     std::printf("flood=%d answered=%s after_ms=%lld dds_restarts=%zu\n", n, answered ? "yes" : "no",
-                answered ? static_cast<long long>(std::chrono::duration_cast<std::chrono::milliseconds>(*answered).count()) : -1LL,
+                answered
+                    ? static_cast<long long>(std::chrono::duration_cast<std::chrono::milliseconds>(*answered).count())
+                    : -1LL,
                 restarts - restarts_before);
     // The flood reached the DDS side (it is not vacuous): it ended at least once because of it.
     EXPECT_GT(restarts, restarts_before) << "the DDS process never noticed the flood of " << n << "\n" << line_.logs();
     restarts_before = restarts;
-    EXPECT_TRUE(answered.has_value()) << "no answer within " << kAnswerBound.count() << " s after the flood of " << n << "\n"
+    EXPECT_TRUE(answered.has_value()) << "no answer within " << kAnswerBound.count() << " s after the flood of " << n
+                                      << "\n"
                                       << line_.logs();
   }
   const auto [gap, syncs] = widest_sync_gap(line_.spy(), watch_from);

@@ -30,15 +30,19 @@ using lb::ddsl::QosKind;
 namespace {
 
 constexpr std::uint8_t kNode = 10;
-using CommandClient = lb::ddsl::ServiceClient<srv::FeederCommand_RequestPubSubType, srv::FeederWrite_ResponsePubSubType>;
-using FunctionsClient = lb::ddsl::ServiceClient<srv::FeederFunctions_RequestPubSubType, srv::FeederWrite_ResponsePubSubType>;
+using CommandClient =
+    lb::ddsl::ServiceClient<srv::FeederCommand_RequestPubSubType, srv::FeederWrite_ResponsePubSubType>;
+using FunctionsClient =
+    lb::ddsl::ServiceClient<srv::FeederFunctions_RequestPubSubType, srv::FeederWrite_ResponsePubSubType>;
 using SdoWriteClient = lb::ddsl::ServiceClient<srv::SdoWrite_RequestPubSubType, srv::SdoWrite_ResponsePubSubType>;
 using PressClient = lb::ddsl::ServiceClient<srv::Command_RequestPubSubType, srv::Command_ResponsePubSubType>;
 
 std::string device_yaml(const std::string& bus) {
   return "devices:\n"
          "  - name: feeders\n"
-         "    bus: " + bus + "\n"
+         "    bus: " +
+         bus +
+         "\n"
          "    node_id: 10\n"
          "    profile: cia414-2\n"
          "    version: '1.1'\n"
@@ -73,7 +77,8 @@ TEST(FeederLine, StatusFaultEventsCommandsAndLoomPlay) {
   const std::string tmp = ::testing::TempDir();
   const std::string cfg = tmp + "/feeder_line_" + tag + ".yaml";
   std::ofstream(cfg) << "line: itest\ndds: {domain: 7, localhost_only: true}\nbuses:\n"
-                        "  - {name: loom, interface: '" + bus + "', role: master, sync_period_ms: 20}\n" + device_yaml("loom");
+                        "  - {name: loom, interface: '" +
+                            bus + "', role: master, sync_period_ms: 20}\n" + device_yaml("loom");
 
   lb::test::BusSpy spy(bus);
   lb::test::ChildProcess sim({LB_BIN_SIM, "--config", cfg}, tmp + "/feed_sim_" + tag + ".log");
@@ -144,11 +149,15 @@ TEST(FeederLine, StatusFaultEventsCommandsAndLoomPlay) {
     EXPECT_EQ(e.condition().raw(), 0x04);
   }
   ASSERT_TRUE(status.wait_last(5s, [](const msg::FeederStatus& s) {
-    return s.error_bitmap() == 0x2 && s.feeders().size() == 4 && s.feeders()[1].in_error() && !s.feeders()[0].in_error();
+    return s.error_bitmap() == 0x2 && s.feeders().size() == 4 && s.feeders()[1].in_error() &&
+           !s.feeders()[0].in_error();
   })) << logs();
-  ASSERT_TRUE(status.wait_last(5s, [](const msg::FeederStatus& s) {
-    return s.feeders().size() == 4 && s.feeders()[1].status().name() == "error_mode";
-  })) << "the next poll reads the feeder in error mode\n" << logs();
+  ASSERT_TRUE(status.wait_last(5s,
+                               [](const msg::FeederStatus& s) {
+                                 return s.feeders().size() == 4 && s.feeders()[1].status().name() == "error_mode";
+                               }))
+      << "the next poll reads the feeder in error mode\n"
+      << logs();
 
   // Feeder commands: invalid ones refused with the reason and never on CAN; reset clears the fault.
   auto commands = CommandClient::create(**dds, "itest/feeders/feeder_command");
@@ -186,7 +195,8 @@ TEST(FeederLine, StatusFaultEventsCommandsAndLoomPlay) {
     EXPECT_EQ(e.condition().name(), "no_error");
   }
   ASSERT_TRUE(status.wait_last(5s, [](const msg::FeederStatus& s) {
-    return s.error_bitmap() == 0 && s.health().active_errors().empty() && s.feeders().size() == 4 && !s.feeders()[1].in_error();
+    return s.error_bitmap() == 0 && s.health().active_errors().empty() && s.feeders().size() == 4 &&
+           !s.feeders()[1].in_error();
   })) << logs();
 
   // Function settings: read-modify-write; a function the feeder lacks is refused with the reason.
@@ -216,7 +226,8 @@ TEST(FeederLine, StatusFaultEventsCommandsAndLoomPlay) {
   auto loom = (*dds)->writer<msg::LoomSetpointPubSubType>(topic("loom"), QosKind::command);
   ASSERT_TRUE(loom);
   const auto deadline = std::chrono::steady_clock::now() + 10s;
-  while ((loom->matched() == 0 || (*dds)->matched_writers(topic("loom_result")) == 0) && std::chrono::steady_clock::now() < deadline) {
+  while ((loom->matched() == 0 || (*dds)->matched_writers(topic("loom_result")) == 0) &&
+         std::chrono::steady_clock::now() < deadline) {
     std::this_thread::sleep_for(20ms);
   }
   msg::LoomSetpoint bad;
@@ -249,7 +260,9 @@ TEST(FeederLine, StatusFaultEventsCommandsAndLoomPlay) {
     feeders.insert(u.feeder_selected());
   }
   EXPECT_GE(feeders.size(), 2u) << "the feeders take turns";
-  EXPECT_TRUE(status.wait_last(5s, [](const msg::FeederStatus& s) { return s.loom().seen() && s.loom().loom_status().name() == "start_advice"; }));
+  EXPECT_TRUE(status.wait_last(5s, [](const msg::FeederStatus& s) {
+    return s.loom().seen() && s.loom().loom_status().name() == "start_advice";
+  }));
 
   sdo_write->reset();  // service clients before the participant they live in
   commands->reset();
@@ -265,13 +278,15 @@ TEST(FeederLine, MonitorRoleDecodesLoomControllerAndNeverTransmits) {
   const std::string bus = "virtual:mon-feed-" + tag;
   const std::string tmp = ::testing::TempDir();
   const std::string line_cfg = tmp + "/feed_mon_line_" + tag + ".yaml";
-  std::ofstream(line_cfg) << "line: fmon\nbuses:\n  - {name: m, interface: '" + bus + "', role: master}\n" + device_yaml("m");
+  std::ofstream(line_cfg) << "line: fmon\nbuses:\n  - {name: m, interface: '" + bus + "', role: master}\n" +
+                                 device_yaml("m");
   const std::string bridge_cfg = tmp + "/feed_mon_bridge_" + tag + ".yaml";
-  std::ofstream(bridge_cfg) << "line: fmon\ndds: {domain: 8}\nbuses:\n  - {name: m, interface: '" + bus + "', role: monitor}\n" +
-                                   device_yaml("m");
+  std::ofstream(bridge_cfg) << "line: fmon\ndds: {domain: 8}\nbuses:\n  - {name: m, interface: '" + bus +
+                                   "', role: monitor}\n" + device_yaml("m");
 
   lb::test::BusSpy spy(bus);
-  lb::test::ChildProcess devices({LB_BIN_SIM, "--config", line_cfg, "--role", "devices"}, tmp + "/feed_mon_sim_" + tag + ".log");
+  lb::test::ChildProcess devices({LB_BIN_SIM, "--config", line_cfg, "--role", "devices"},
+                                 tmp + "/feed_mon_sim_" + tag + ".log");
   lb::test::ChildProcess bridge({LB_BIN_BRIDGE, "--config", bridge_cfg}, tmp + "/feed_mon_bridge_" + tag + ".log");
   const auto logs = [&] { return "--- bridge ---\n" + bridge.log() + "--- devices ---\n" + devices.log(); };
 

@@ -64,7 +64,9 @@ class MandatoryDevicesLine : public ::testing::Test {
         ::testing::TempDir() + "/mandatory_saw_sim_" + std::to_string(::getpid()) + ".log");
     ASSERT_TRUE(saw_sim->started());
   }
-  std::string logs(lb::test::LineHarness& line) { return line.logs() + "--- saw sim log ---\n" + (saw_sim ? saw_sim->log() : ""); }
+  std::string logs(lb::test::LineHarness& line) {
+    return line.logs() + "--- saw sim log ---\n" + (saw_sim ? saw_sim->log() : "");
+  }
 
   // The timestamp of the first frame since the spy was cleared that matches, within the deadline (0: none).
   template <class Pred>
@@ -80,8 +82,9 @@ class MandatoryDevicesLine : public ::testing::Test {
   }
   static std::size_t count(lb::test::LineHarness& line, std::uint8_t command, std::uint8_t node_id) {
     const auto frames = line.spy().frames();
-    return static_cast<std::size_t>(
-        std::count_if(frames.begin(), frames.end(), [&](const lb::can::CanFrame& f) { return nmt(f, command, node_id); }));
+    return static_cast<std::size_t>(std::count_if(frames.begin(), frames.end(), [&](const lb::can::CanFrame& f) {
+      return nmt(f, command, node_id);
+    }));
   }
   // Waits until `n` more diagnostics samples arrived (each one is a second of the bridge's life).
   bool more_samples(std::size_t n) {
@@ -118,8 +121,14 @@ TEST_F(MandatoryDevicesLine, AStartWaitsUntilTheMandatoryDevicePassedItsBoot) {
     EXPECT_FALSE(node(d, "puller2")->mandatory());
   }
   // Configured: the boot's SDO requests went to both pullers.
-  EXPECT_NE(first(line, [](const lb::can::CanFrame& f) { return f.id == 0x603; }, 1s), 0) << "puller1 was not configured";
-  EXPECT_NE(first(line, [](const lb::can::CanFrame& f) { return f.id == 0x604; }, 1s), 0) << "puller2 was not configured";
+  EXPECT_NE(first(
+                line, [](const lb::can::CanFrame& f) { return f.id == 0x603; }, 1s),
+            0)
+      << "puller1 was not configured";
+  EXPECT_NE(first(
+                line, [](const lb::can::CanFrame& f) { return f.id == 0x604; }, 1s),
+            0)
+      << "puller2 was not configured";
   // Two more seconds of the bridge's life (two diagnostics samples later): still no NMT start.
   ASSERT_TRUE(more_samples(2));
   EXPECT_EQ(count(line, 0x01, 3), 0u) << "puller1 started before the mandatory saw passed its boot";
@@ -136,7 +145,8 @@ TEST_F(MandatoryDevicesLine, AStartWaitsUntilTheMandatoryDevicePassedItsBoot) {
   EXPECT_LE(saw_start, p1_start);
   EXPECT_LE(saw_start, p2_start);
   // The saw's SDO requests (its boot) came before its start, and every one of the pullers' before theirs.
-  const auto saw_sdo = first(line, [](const lb::can::CanFrame& f) { return f.id == 0x605; }, 1s);
+  const auto saw_sdo = first(
+      line, [](const lb::can::CanFrame& f) { return f.id == 0x605; }, 1s);
   ASSERT_NE(saw_sdo, 0);
   EXPECT_LT(saw_sdo, saw_start);
   ASSERT_TRUE(diag.wait_last(30s, [](const msg::Diagnostics& d) {
@@ -190,8 +200,10 @@ TEST_F(MandatoryDevicesLine, ALostMandatoryDeviceStopsTheOthersUntilAnOperatorSt
     const auto* p2 = node(d, "puller2");
     return b != nullptr && b->mandatory_missing().size() == 1 && b->mandatory_missing()[0] == "saw1" &&
            b->mandatory_state().find("stop_others") != std::string::npos && p1 != nullptr && p2 != nullptr &&
-           p1->line_hold().rfind("stopped: mandatory device saw1", 0) == 0 && p2->line_hold().rfind("stopped: mandatory device saw1", 0) == 0 &&
-           p1->node_state() == "stopped by the line" && p1->nmt_state() == msg::NMT_STOPPED && p2->nmt_state() == msg::NMT_STOPPED;
+           p1->line_hold().rfind("stopped: mandatory device saw1", 0) == 0 &&
+           p2->line_hold().rfind("stopped: mandatory device saw1", 0) == 0 &&
+           p1->node_state() == "stopped by the line" && p1->nmt_state() == msg::NMT_STOPPED &&
+           p2->nmt_state() == msg::NMT_STOPPED;
   })) << logs(line);
 
   // A stopping command still reaches a held device: the operator's NMT stop (on the bus), and a
@@ -210,7 +222,8 @@ TEST_F(MandatoryDevicesLine, ALostMandatoryDeviceStopsTheOthersUntilAnOperatorSt
     p.speed_set_percent(10);
     setpoint->write(p);
     taken = results.wait(1s, [](const std::vector<msg::SetpointResult>& v) {
-      return std::any_of(v.begin(), v.end(), [](const msg::SetpointResult& r) { return r.request_id() == 7 && r.accepted(); });
+      return std::any_of(v.begin(), v.end(),
+                         [](const msg::SetpointResult& r) { return r.request_id() == 7 && r.accepted(); });
     });
   }
   EXPECT_TRUE(taken) << "a set value that stops puller1 was refused while the line holds it\n" << logs(line);
@@ -231,7 +244,8 @@ TEST_F(MandatoryDevicesLine, ALostMandatoryDeviceStopsTheOthersUntilAnOperatorSt
     const auto d = diag.samples().back();
     EXPECT_EQ(node(d, "puller1")->nmt_state(), msg::NMT_STOPPED);
     EXPECT_EQ(node(d, "puller2")->nmt_state(), msg::NMT_STOPPED);
-    EXPECT_NE(node(d, "puller1")->line_hold().find("nmt start releases it"), std::string::npos) << node(d, "puller1")->line_hold();
+    EXPECT_NE(node(d, "puller1")->line_hold().find("nmt start releases it"), std::string::npos)
+        << node(d, "puller1")->line_hold();
     EXPECT_NE(bus(d)->mandatory_state().find("kept stopped until an operator starts them: puller1"), std::string::npos)
         << bus(d)->mandatory_state();
   }
@@ -239,10 +253,14 @@ TEST_F(MandatoryDevicesLine, ALostMandatoryDeviceStopsTheOthersUntilAnOperatorSt
   // The operator starts puller1: on the bus and running; puller2 stays stopped.
   const auto go = line.nmt("puller1", srv::NMT_START);
   ASSERT_TRUE(go.success()) << go.message();
-  EXPECT_NE(first(line, [](const lb::can::CanFrame& f) { return nmt(f, 0x01, 3); }, 10s), 0) << logs(line);
+  EXPECT_NE(first(
+                line, [](const lb::can::CanFrame& f) { return nmt(f, 0x01, 3); }, 10s),
+            0)
+      << logs(line);
   ASSERT_TRUE(diag.wait_last(30s, [](const msg::Diagnostics& d) {
     const auto* p1 = node(d, "puller1");
-    return p1 != nullptr && p1->node_state() == "operational" && p1->line_hold().empty() && p1->nmt_state() == msg::NMT_OPERATIONAL;
+    return p1 != nullptr && p1->node_state() == "operational" && p1->line_hold().empty() &&
+           p1->nmt_state() == msg::NMT_OPERATIONAL;
   })) << logs(line);
   EXPECT_EQ(count(line, 0x01, 4), 0u) << "puller2 was started with puller1";
   EXPECT_EQ(diag.samples().back().nodes().size(), 3u);

@@ -22,7 +22,9 @@ using Clock = std::chrono::steady_clock;
 
 namespace {
 
-bool operational(const msg::SawStatus& s) { return s.health().online() && s.health().nmt_state() == msg::NMT_OPERATIONAL; }
+bool operational(const msg::SawStatus& s) {
+  return s.health().online() && s.health().nmt_state() == msg::NMT_OPERATIONAL;
+}
 
 // A status history in which the device left operational after sample `from`, then came back.
 auto left_and_came_back(std::size_t from) {
@@ -45,7 +47,8 @@ const msg::NodeDiagnostics* node(const msg::Diagnostics& d, const std::string& d
 
 std::string saw(const std::string& name, int node_id, const std::string& extra = "") {
   return "  - name: " + name + "\n    bus: b\n    node_id: " + std::to_string(node_id) +
-         "\n    profile: cia420-4\n    version: '3.1'\n    heartbeat_timeout_ms: 400\n    boot_retry_ms: 1000\n" + extra;
+         "\n    profile: cia420-4\n    version: '3.1'\n    heartbeat_timeout_ms: 400\n    boot_retry_ms: 1000\n" +
+         extra;
 }
 
 // Frames of one identifier sent after the spy's clear(), in order.
@@ -90,7 +93,8 @@ TEST(MasterBoot, WrongDeviceAtANodeIdIsNeverStartedAndGetsNoRpdo) {
   ASSERT_TRUE(diag.subscribe(line.dds(), line.topic("bridge", "diagnostics"), QosKind::state));
   ASSERT_TRUE(results.subscribe(line.dds(), line.topic("saw1", "setpoint_result"), QosKind::reply));
 
-  ASSERT_TRUE(info1.wait_last(15s, [](const msg::DeviceInfo& i) { return !i.boot_error().code().empty(); })) << line.logs();
+  ASSERT_TRUE(info1.wait_last(15s, [](const msg::DeviceInfo& i) { return !i.boot_error().code().empty(); }))
+      << line.logs();
   auto i1 = info1.samples().back();
   EXPECT_FALSE(i1.started());
   EXPECT_EQ(i1.boot_error().code(), "M");
@@ -101,7 +105,8 @@ TEST(MasterBoot, WrongDeviceAtANodeIdIsNeverStartedAndGetsNoRpdo) {
   EXPECT_NE(i1.boot_error().message().find("product code"), std::string::npos) << i1.boot_error().message();
   EXPECT_TRUE(i1.pdos().empty()) << "the boot stops before the PDOs";
 
-  ASSERT_TRUE(info2.wait_last(15s, [](const msg::DeviceInfo& i) { return !i.boot_error().code().empty(); })) << line.logs();
+  ASSERT_TRUE(info2.wait_last(15s, [](const msg::DeviceInfo& i) { return !i.boot_error().code().empty(); }))
+      << line.logs();
   const auto i2 = info2.samples().back();
   EXPECT_FALSE(i2.started());
   EXPECT_EQ(i2.boot_error().code(), "C");
@@ -143,7 +148,8 @@ TEST(MasterBoot, WrongDeviceAtANodeIdIsNeverStartedAndGetsNoRpdo) {
   // the log says the same failure once a minute); never started, never an RPDO.
   const auto device_type_reads = [&line] {
     std::size_t n = 0;
-    for (const auto& f : line.spy().frames(0x605)) n += f.data[0] == 0x40 && f.data[1] == 0x00 && f.data[2] == 0x10 ? 1 : 0;
+    for (const auto& f : line.spy().frames(0x605))
+      n += f.data[0] == 0x40 && f.data[1] == 0x00 && f.data[2] == 0x10 ? 1 : 0;
     return n;
   };
   const std::size_t reads_before = device_type_reads();
@@ -155,7 +161,8 @@ TEST(MasterBoot, WrongDeviceAtANodeIdIsNeverStartedAndGetsNoRpdo) {
   EXPECT_FALSE(has_nmt(frames, 0x01, 6)) << "NMT start of the feeder box at a saw's node-ID";
   EXPECT_TRUE(line.spy().frames(0x205).empty()) << "an RPDO reached the wrong device";
   EXPECT_TRUE(line.spy().frames(0x206).empty()) << "an RPDO reached the wrong device";
-  EXPECT_EQ(line.bridge_log_count("(CiA 302-2 error M)"), 1u) << "the same failure logged again within a minute\n" << line.logs();
+  EXPECT_EQ(line.bridge_log_count("(CiA 302-2 error M)"), 1u) << "the same failure logged again within a minute\n"
+                                                              << line.logs();
 }
 
 // Saw 3.1 fixes its TPDO2 mapping (Table 9: const). A line file that swaps it cannot be written:
@@ -166,7 +173,8 @@ TEST(MasterBoot, OverrideOfAConstEntryIsRefusedWithTheReason) {
   line.start(saw("saw1", 5, "    pdos: {tpdo2: {mapping: [0x60070020, 0x60010020]}}\n"));
   lb::test::Collector<msg::DeviceInfoPubSubType> info;
   ASSERT_TRUE(info.subscribe(line.dds(), line.topic("saw1", "info"), QosKind::state));
-  ASSERT_TRUE(info.wait_last(15s, [](const msg::DeviceInfo& i) { return !i.boot_error().code().empty(); })) << line.logs();
+  ASSERT_TRUE(info.wait_last(15s, [](const msg::DeviceInfo& i) { return !i.boot_error().code().empty(); }))
+      << line.logs();
   const auto e = info.samples().back().boot_error();
   EXPECT_FALSE(info.samples().back().started());
   EXPECT_EQ(e.code(), "J");
@@ -193,9 +201,8 @@ TEST(MasterBoot, OverrideOfAConstEntryIsRefusedWithTheReason) {
 TEST(MasterBoot, DeviceMappingThatDiffersIsDetectedAndCanBeAdopted) {
   ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("adopt", 13);
-  const std::string factory =
-      "    simulation: {max_speed_m_per_min: 60, acceleration_m_per_min_s: 6000,\n"
-      "                 pdos: {tpdo2: {mapping: [0x60070020, 0x60010020]}}}\n";
+  const std::string factory = "    simulation: {max_speed_m_per_min: 60, acceleration_m_per_min_s: 6000,\n"
+                              "                 pdos: {tpdo2: {mapping: [0x60070020, 0x60010020]}}}\n";
   line.start(saw("saw1", 5) + saw("saw2", 6, "    pdo_config: adopt\n"),
              saw("saw1", 5, factory) + saw("saw2", 6, factory));
   lb::test::Collector<msg::DeviceInfoPubSubType> info1, info2;
@@ -206,7 +213,8 @@ TEST(MasterBoot, DeviceMappingThatDiffersIsDetectedAndCanBeAdopted) {
   ASSERT_TRUE(status2.subscribe(line.dds(), line.topic("saw2", "status"), QosKind::state));
   ASSERT_TRUE(results.subscribe(line.dds(), line.topic("saw2", "setpoint_result"), QosKind::reply));
 
-  ASSERT_TRUE(info1.wait_last(15s, [](const msg::DeviceInfo& i) { return !i.boot_error().code().empty(); })) << line.logs();
+  ASSERT_TRUE(info1.wait_last(15s, [](const msg::DeviceInfo& i) { return !i.boot_error().code().empty(); }))
+      << line.logs();
   const auto e = info1.samples().back().boot_error();
   EXPECT_EQ(e.code(), "J");
   EXPECT_EQ(e.index(), 0x1A01);
@@ -272,7 +280,9 @@ TEST(MasterBoot, SilentResetIsReconfiguredWithinOneHeartbeatTimeout) {
   ASSERT_TRUE(line.spy().send(silent_reset_request(5)));
   // Back operational after having left it.
   ASSERT_TRUE(status.wait(15s, left_and_came_back(status.size()))) << line.logs();
-  const auto is_start = [](const lb::can::CanFrame& f) { return f.id == 0x000 && f.len == 2 && f.data[0] == 0x01 && f.data[1] == 5; };
+  const auto is_start = [](const lb::can::CanFrame& f) {
+    return f.id == 0x000 && f.len == 2 && f.data[0] == 0x01 && f.data[1] == 5;
+  };
   const auto deadline = std::chrono::steady_clock::now() + 10s;
   while (std::ranges::none_of(line.spy().frames(0x000), is_start)) {
     ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "no NMT start on the bus after the reset";
@@ -342,7 +352,9 @@ TEST(MasterBoot, SilentResetOfADeviceWithoutPowerOnHeartbeatIsRecovered) {
 TEST(MasterBoot, ResetNodePolicyResetsADeviceWhoseStateIsUnknown) {
   ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("resetpol", 16);
-  line.start(saw("saw1", 5, "    on_state_unknown: reset_node\n    configure: [{object: saw_sync_speed_set_maximum, value: 45000}]\n"));
+  line.start(
+      saw("saw1", 5,
+          "    on_state_unknown: reset_node\n    configure: [{object: saw_sync_speed_set_maximum, value: 45000}]\n"));
   lb::test::Collector<msg::SawStatusPubSubType> status;
   ASSERT_TRUE(status.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
   ASSERT_TRUE(status.wait_last(15s, operational)) << line.logs();
@@ -415,13 +427,15 @@ TEST(MasterBoot, HeartbeatTimesThatDoNotFitAreReportedAndALostDeviceIsBootedAgai
   const auto written_and_started = [&line] {
     std::int64_t written = 0, started = 0;
     for (const auto& f : line.spy().frames()) {
-      if (f.id == 0x605 && f.data[0] == 0x23 && f.data[1] == 0x06 && f.data[2] == 0x60 && written == 0) written = f.timestamp_ns;
+      if (f.id == 0x605 && f.data[0] == 0x23 && f.data[1] == 0x06 && f.data[2] == 0x60 && written == 0)
+        written = f.timestamp_ns;
       if (f.id == 0x000 && f.len == 2 && f.data[0] == 0x01 && f.data[1] == 5 && written != 0) started = f.timestamp_ns;
     }
     return written != 0 && started > written;
   };
   const auto deadline = Clock::now() + 6s;
   while (!written_and_started() && Clock::now() < deadline) std::this_thread::sleep_for(50ms);
-  EXPECT_TRUE(written_and_started()) << "the device came back and was not configured and started again\n" << line.logs();
+  EXPECT_TRUE(written_and_started()) << "the device came back and was not configured and started again\n"
+                                     << line.logs();
   ASSERT_TRUE(status.wait_last(5s, operational)) << line.logs();
 }

@@ -45,10 +45,12 @@ TEST(MonitorRole, DecodesBothDirectionsAndNeverTransmits) {
   const std::string line_cfg = tmp + "/mon_line_" + tag + ".yaml";
   std::ofstream(line_cfg) << "line: mon\nbuses:\n  - {name: m, interface: '" + bus + "', role: master}\n" + device;
   const std::string bridge_cfg = tmp + "/mon_bridge_" + tag + ".yaml";
-  std::ofstream(bridge_cfg) << "line: mon\ndds: {domain: 5}\nbuses:\n  - {name: m, interface: '" + bus + "', role: monitor}\n" + device;
+  std::ofstream(bridge_cfg) << "line: mon\ndds: {domain: 5}\nbuses:\n  - {name: m, interface: '" + bus +
+                                   "', role: monitor}\n" + device;
 
   lb::test::BusSpy spy(bus);
-  lb::test::ChildProcess devices({LB_BIN_SIM, "--config", line_cfg, "--role", "devices"}, tmp + "/mon_sim_" + tag + ".log");
+  lb::test::ChildProcess devices({LB_BIN_SIM, "--config", line_cfg, "--role", "devices"},
+                                 tmp + "/mon_sim_" + tag + ".log");
   lb::test::ChildProcess bridge({LB_BIN_BRIDGE, "--config", bridge_cfg}, tmp + "/mon_bridge_" + tag + ".log");
   const auto logs = [&] { return "--- bridge ---\n" + bridge.log() + "--- devices ---\n" + devices.log(); };
 
@@ -102,7 +104,8 @@ TEST(MonitorRole, DecodesBothDirectionsAndNeverTransmits) {
   EXPECT_FALSE(c->success());
   EXPECT_NE(c->message().find("monitor role"), std::string::npos) << c->message();
 
-  auto sp_writer = (*dds)->writer<msg::SawSetpointPubSubType>(lb::ddsl::topic_name("mon", "saw1", "setpoint"), QosKind::command);
+  auto sp_writer = (*dds)->writer<msg::SawSetpointPubSubType>(lb::ddsl::topic_name("mon", "saw1", "setpoint"),
+                                                              QosKind::command);
   ASSERT_TRUE(sp_writer);
   const auto deadline = std::chrono::steady_clock::now() + 10s;
   while (sp_writer->matched() == 0 && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(20ms);
@@ -125,11 +128,16 @@ TEST(MonitorRole, DecodesBothDirectionsAndNeverTransmits) {
 
   // Phase 2: a line controller starts the device and drives it; the bridge decodes its RPDO1
   // (program on, 50.00 %, 1.5000 m) and the device's TPDOs.
-  lb::test::ChildProcess controller({LB_BIN_SIM, "--config", line_cfg, "--role", "controller"}, tmp + "/mon_ctl_" + tag + ".log");
-  ASSERT_TRUE(status.wait_last(10s, [](const msg::SawStatus& s) {
-    return s.health().nmt_state() == msg::NMT_OPERATIONAL && s.control_word().saw_program_on() &&
-           s.sync_speed_set_percent() == 50.0 && s.product_length_set_m() == 1.5 && s.product_speed_m_per_min() > 0;
-  })) << logs() << "--- controller ---\n" << controller.log();
+  lb::test::ChildProcess controller({LB_BIN_SIM, "--config", line_cfg, "--role", "controller"},
+                                    tmp + "/mon_ctl_" + tag + ".log");
+  ASSERT_TRUE(status.wait_last(10s,
+                               [](const msg::SawStatus& s) {
+                                 return s.health().nmt_state() == msg::NMT_OPERATIONAL &&
+                                        s.control_word().saw_program_on() && s.sync_speed_set_percent() == 50.0 &&
+                                        s.product_length_set_m() == 1.5 && s.product_speed_m_per_min() > 0;
+                               }))
+      << logs() << "--- controller ---\n"
+      << controller.log();
   EXPECT_TRUE(status.samples().back().status_word().saw_ready());
   // The bridge never tried to transmit (its diagnostics after everything above).
   ASSERT_NO_FATAL_FAILURE(lb::test::expect_monitor_never_sent(diag, logs()));

@@ -145,7 +145,8 @@ TEST(PdoOverrides, TransmissionTypesReachTheSawAndItsFramesFollowThem) {
   EXPECT_GE(tpdo1_at.size(), 5u);
   EXPECT_LT(tpdo1_at.size(), syncs) << "TPDO1 at every SYNC: the inhibit time is not in force";
   for (std::size_t i = 1; i < tpdo1_at.size(); ++i) {
-    EXPECT_GE(tpdo1_at[i] - tpdo1_at[i - 1], 45'000'000) << "TPDO1 frames " << i - 1 << " and " << i << " closer than the inhibit time";
+    EXPECT_GE(tpdo1_at[i] - tpdo1_at[i - 1], 45'000'000)
+        << "TPDO1 frames " << i - 1 << " and " << i << " closer than the inhibit time";
   }
   EXPECT_EQ(rpdo1_frames, 0u) << "no set value changed in these 50 SYNCs";
 
@@ -157,7 +158,8 @@ TEST(PdoOverrides, TransmissionTypesReachTheSawAndItsFramesFollowThem) {
   ASSERT_TRUE(results.wait_last(5s, [](const msg::SetpointResult& r) { return r.request_id() == 2 && r.accepted(); }));
   // Once: the first RPDO1, then 10 more SYNCs without another.
   const auto deadline = std::chrono::steady_clock::now() + 10s;
-  while (line.spy().frames(0x205).empty() && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(10ms);
+  while (line.spy().frames(0x205).empty() && std::chrono::steady_clock::now() < deadline)
+    std::this_thread::sleep_for(10ms);
   ASSERT_TRUE(wait_syncs(line.spy().frames(0x080).size() + 10));
   const auto sent = line.spy().frames(0x205);
   ASSERT_EQ(sent.size(), 1u) << line.logs();

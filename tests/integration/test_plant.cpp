@@ -9,8 +9,8 @@
 #include <cstdlib>
 #include <fstream>
 #include <functional>
-#include <sstream>
 #include <memory>
+#include <sstream>
 #include <thread>
 
 #include "dds/participant.hpp"
@@ -44,12 +44,14 @@ Line start_line(const std::string& name, const std::string& dds) {
   Line l;
   l.name = name;
   l.config = ::testing::TempDir() + "/plant_" + name + "_" + tag() + ".yaml";
-  std::ofstream(l.config) << "line: " << name << "\ndds: " << dds << "\nbuses:\n  - {name: b, interface: 'virtual:plant-" << name
-                          << "-" << tag() << "', master_node_id: 1}\ndevices:\n"
-                          << "  - {name: saw1, bus: b, node_id: 3, profile: cia420-4, version: '3.1', heartbeat_timeout_ms: 500}\n";
+  std::ofstream(l.config)
+      << "line: " << name << "\ndds: " << dds << "\nbuses:\n  - {name: b, interface: 'virtual:plant-" << name << "-"
+      << tag() << "', master_node_id: 1}\ndevices:\n"
+      << "  - {name: saw1, bus: b, node_id: 3, profile: cia420-4, version: '3.1', heartbeat_timeout_ms: 500}\n";
   const auto log = ::testing::TempDir() + "/plant_" + name + "_" + tag();
   l.sim = std::make_unique<ChildProcess>(std::vector<std::string>{LB_BIN_SIM, "--config", l.config}, log + "_sim.log");
-  l.bridge = std::make_unique<ChildProcess>(std::vector<std::string>{LB_BIN_BRIDGE, "--config", l.config}, log + "_bridge.log");
+  l.bridge = std::make_unique<ChildProcess>(std::vector<std::string>{LB_BIN_BRIDGE, "--config", l.config},
+                                            log + "_bridge.log");
   return l;
 }
 
@@ -117,7 +119,8 @@ TEST(Plant, ThreeLinesThroughADiscoveryServerWithoutMulticast) {
 TEST(Plant, TwoLinesOnOneDomainDoNotDisturbEachOther) {
   constexpr std::uint32_t kDomain = 21;
   lb::test::LineHarness north("north", kDomain), south("south", kDomain);
-  const std::string saw = "  - {name: saw1, bus: b, node_id: 3, profile: cia420-4, version: '3.1', heartbeat_timeout_ms: 500}\n";
+  const std::string saw =
+      "  - {name: saw1, bus: b, node_id: 3, profile: cia420-4, version: '3.1', heartbeat_timeout_ms: 500}\n";
   north.start(saw, "", ", master_node_id: 1");
   south.start(saw, "", ", master_node_id: 1");
   lb::test::Collector<msg::SawStatusPubSubType> north_status, south_status;
@@ -129,14 +132,19 @@ TEST(Plant, TwoLinesOnOneDomainDoNotDisturbEachOther) {
   ASSERT_TRUE(south_results.subscribe(north.dds(), south.topic("saw1", "setpoint_result"), lb::ddsl::QosKind::reply));
   ASSERT_TRUE(north_diag.subscribe(north.dds(), north.topic("bridge", "diagnostics"), lb::ddsl::QosKind::state));
   ASSERT_TRUE(south_diag.subscribe(north.dds(), south.topic("bridge", "diagnostics"), lb::ddsl::QosKind::state));
-  const auto online = [](const msg::SawStatus& s) { return s.health().online() && s.health().nmt_state() == msg::NMT_OPERATIONAL; };
+  const auto online = [](const msg::SawStatus& s) {
+    return s.health().online() && s.health().nmt_state() == msg::NMT_OPERATIONAL;
+  };
   ASSERT_TRUE(north_status.wait_last(20000ms, online)) << north.logs();
   ASSERT_TRUE(south_status.wait_last(20000ms, online)) << south.logs();
 
   // A set value for north's saw1: north's bus carries it, south's never does.
-  auto writer = north.dds().writer<msg::SawSetpointPubSubType>(north.topic("saw1", "setpoint"), lb::ddsl::QosKind::command);
+  auto writer = north.dds().writer<msg::SawSetpointPubSubType>(north.topic("saw1", "setpoint"),
+                                                               lb::ddsl::QosKind::command);
   ASSERT_TRUE(writer);
-  ASSERT_TRUE(wait_for(10s, [&] { return writer->matched() > 0 && north.dds().matched_writers(north.topic("saw1", "setpoint_result")) > 0; }));
+  ASSERT_TRUE(wait_for(10s, [&] {
+    return writer->matched() > 0 && north.dds().matched_writers(north.topic("saw1", "setpoint_result")) > 0;
+  }));
   msg::SawSetpoint sp;
   sp.request_id(4242);
   sp.saw_program_on(true);
@@ -144,9 +152,12 @@ TEST(Plant, TwoLinesOnOneDomainDoNotDisturbEachOther) {
   sp.product_length_m(1.234);
   south.spy().clear();
   writer->write(sp);
-  ASSERT_TRUE(north_results.wait_last(10000ms, [](const msg::SetpointResult& r) { return r.request_id() == 4242 && r.accepted(); }))
-      << north.logs();
-  const auto carries = [](const lb::can::CanFrame& f) { return f.len == 8 && f.data[4] == 0x34 && f.data[5] == 0x30; };  // 12340 x 0.1 mm
+  ASSERT_TRUE(north_results.wait_last(10000ms, [](const msg::SetpointResult& r) {
+    return r.request_id() == 4242 && r.accepted();
+  })) << north.logs();
+  const auto carries = [](const lb::can::CanFrame& f) {
+    return f.len == 8 && f.data[4] == 0x34 && f.data[5] == 0x30;
+  };  // 12340 x 0.1 mm
   ASSERT_TRUE(wait_for(5s, [&] {
     for (const auto& f : north.spy().frames(0x203)) {
       if (carries(f)) return true;
@@ -198,17 +209,20 @@ TEST(Plant, SiteProfileChangesTimingNotTheContract) {
 )";
   auto line = start_line("site", "{domain: 9, profiles_file: '" + xml + "'}");
   lb::test::CommandResult topics;
-  ASSERT_TRUE(wait_for(30s, [&] {
-    topics = run_command({LB_BIN_CLI, "--config", line.config, "topics", "--wait", "2"});
-    return topics.output.find("rt/site/saw1/status") != std::string::npos;
-  })) << topics.output << line.logs();
+  ASSERT_TRUE(wait_for(30s,
+                       [&] {
+                         topics = run_command({LB_BIN_CLI, "--config", line.config, "topics", "--wait", "2"});
+                         return topics.output.find("rt/site/saw1/status") != std::string::npos;
+                       }))
+      << topics.output << line.logs();
   std::string status_line;
   std::istringstream in(topics.output);
   for (std::string l; std::getline(in, l);) {
     if (l.rfind("rt/site/saw1/status", 0) == 0) status_line = l;
   }
   EXPECT_NE(status_line.find("reliable, transient-local, deadline 2 s"), std::string::npos) << topics.output;
-  EXPECT_NE(line.bridge->log().find("rt/site/saw1/status: reliability is the DDS contract's"), std::string::npos) << line.logs();
+  EXPECT_NE(line.bridge->log().find("rt/site/saw1/status: reliability is the DDS contract's"), std::string::npos)
+      << line.logs();
   EXPECT_NE(line.bridge->log().find("durability is the DDS contract's"), std::string::npos) << line.logs();
 
   // Transient-local kept: a reader that joins now still gets the saw's current status.
@@ -234,7 +248,8 @@ TEST(Plant, GatewayNotifiesTheServiceManager) {
   ::kill(line.bridge->pid(), SIGTERM);
   EXPECT_NE(socket.during(2s).find("STOPPING=1"), std::string::npos);
   EXPECT_EQ(line.bridge->stop(), 0) << line.logs();
-  EXPECT_NE(line.bridge->log().find("systemd watchdog: every bus loop must show progress within 1000 ms"), std::string::npos);
+  EXPECT_NE(line.bridge->log().find("systemd watchdog: every bus loop must show progress within 1000 ms"),
+            std::string::npos);
 }
 
 }  // namespace

@@ -55,15 +55,18 @@ class PullerCorrugatorLine : public ::testing::Test {
     std::ofstream(config_path_) << "line: itest\n"
                                    "dds: {domain: 4, localhost_only: true}\n"
                                    "buses:\n"
-                                   "  - {name: ext, interface: '" + bus_uri_ + "', role: master, sync_period_ms: 20}\n"
-                                   "devices:\n" +
+                                   "  - {name: ext, interface: '" +
+                                       bus_uri_ +
+                                       "', role: master, sync_period_ms: 20}\n"
+                                       "devices:\n" +
                                        device("puller1", kPuller, "cia420-2", "1.0") +
                                        device("corr1", kCorrugator, "cia420-3", "3.1") +
                                        device("puller3", kPuller30, "cia420-2", "3.0-status");
     spy_ = std::make_unique<lb::test::BusSpy>(bus_uri_);
     sim_ = std::make_unique<lb::test::ChildProcess>(std::vector<std::string>{LB_BIN_SIM, "--config", config_path_},
                                                     ::testing::TempDir() + "/drive_sim_" + tag + ".log");
-    bridge_ = std::make_unique<lb::test::ChildProcess>(std::vector<std::string>{LB_BIN_BRIDGE, "--config", config_path_},
+    bridge_ = std::make_unique<lb::test::ChildProcess>(std::vector<std::string>{LB_BIN_BRIDGE, "--config",
+                                                                                config_path_},
                                                        ::testing::TempDir() + "/drive_bridge_" + tag + ".log");
     ASSERT_TRUE(sim_->started());
     ASSERT_TRUE(bridge_->started());
@@ -104,8 +107,8 @@ class PullerCorrugatorLine : public ::testing::Test {
     ASSERT_TRUE(corrugator_.wait_last(15s, operational)) << logs();
     ASSERT_TRUE(puller30_.wait_last(15s, operational)) << logs();
     const auto deadline = Clock::now() + 10s;
-    while ((puller_setpoint_.matched() == 0 || puller30_setpoint_.matched() == 0 || corrugator_setpoint_.matched() == 0 ||
-            dds_->matched_writers(topic("puller1", "setpoint_result")) == 0) &&
+    while ((puller_setpoint_.matched() == 0 || puller30_setpoint_.matched() == 0 ||
+            corrugator_setpoint_.matched() == 0 || dds_->matched_writers(topic("puller1", "setpoint_result")) == 0) &&
            Clock::now() < deadline) {
       std::this_thread::sleep_for(20ms);
     }
@@ -174,14 +177,17 @@ class PullerCorrugatorLine : public ::testing::Test {
     EXPECT_TRUE(r) << r.error().message;
     return r ? *r : srv::SetParameter_Response{};
   }
-  srv::SdoWrite_Response sdo_write(const std::string& device, std::uint16_t index, const std::string& type, std::int64_t v) {
+  srv::SdoWrite_Response sdo_write(const std::string& device, std::uint16_t index, const std::string& type,
+                                   std::int64_t v) {
     srv::SdoWrite_Request req;
     req.device(device);
     req.index(index);
     req.sub_index(0);
     req.value().data_type(type);
-    if (type.rfind("INTEGER", 0) == 0) req.value().integer_value(v);
-    else req.value().unsigned_value(static_cast<std::uint64_t>(v));
+    if (type.rfind("INTEGER", 0) == 0)
+      req.value().integer_value(v);
+    else
+      req.value().unsigned_value(static_cast<std::uint64_t>(v));
     auto r = writes_->call(req, 5s);
     EXPECT_TRUE(r) << r.error().message;
     return r ? *r : srv::SdoWrite_Response{};
@@ -256,7 +262,7 @@ TEST_F(PullerCorrugatorLine, MotorStartIsHeldAtLeast100msThenReleasedAndTheSpeed
   EXPECT_DOUBLE_EQ(last.speed_set_percent(), 50.0);
   EXPECT_DOUBLE_EQ(last.speed_set_echo_percent(), 50.0);
   EXPECT_NEAR(last.product_speed_m_per_min(), 30.0, 0.01);  // 50 % of 6003h = 60 m/min
-  EXPECT_NEAR(last.load_actual_percent(), 45.0, 0.02);       // the simulator: 15 % + 0.6 x speed
+  EXPECT_NEAR(last.load_actual_percent(), 45.0, 0.02);      // the simulator: 15 % + 0.6 x speed
   EXPECT_FALSE(last.set_echo_mismatch());
   EXPECT_FALSE(last.manufacturer_status_word_present());
   bool seen = false;
@@ -282,7 +288,9 @@ TEST_F(PullerCorrugatorLine, CorrugatorRunsAtItsSetValueAndRequestsCuts) {
   sp.speed_set_percent(100.0);  // 60 m/min: a cut request every metre, every second
   const auto ok = send(corrugator_setpoint_, sp);
   ASSERT_TRUE(ok.accepted()) << ok.reason();
-  ASSERT_TRUE(corrugator_.wait_last(5s, [](const auto& s) { return std::abs(s.speed_actual_percent() - 100.0) < 1e-6; })) << logs();
+  ASSERT_TRUE(corrugator_.wait_last(5s, [](const auto& s) {
+    return std::abs(s.speed_actual_percent() - 100.0) < 1e-6;
+  })) << logs();
   ASSERT_TRUE(corrugator_.wait_last(5s, [](const auto& s) { return s.status_word().start_cut_pulse(); })) << logs();
   const auto last = corrugator_.samples().back();
   EXPECT_NEAR(last.product_speed_m_per_min(), 60.0, 1e-9);
@@ -349,7 +357,8 @@ TEST_F(PullerCorrugatorLine, SetEchoMismatchFlaggedWhileThePullerRunsLocally) {
   const auto ok = set_puller(puller30_setpoint_, true, 40.0);
   ASSERT_TRUE(ok.accepted()) << ok.reason();
   ASSERT_TRUE(puller30_.wait_last(5s, [](const auto& s) {
-    return std::abs(s.speed_actual_percent() - 40.0) < 1e-6 && s.status_word().speed_set_mode() == msg::PULLER_SPEED_SET_REMOTE;
+    return std::abs(s.speed_actual_percent() - 40.0) < 1e-6 &&
+           s.status_word().speed_set_mode() == msg::PULLER_SPEED_SET_REMOTE;
   })) << logs();
   EXPECT_FALSE(puller30_.samples().back().set_echo_mismatch());
 
@@ -361,7 +370,8 @@ TEST_F(PullerCorrugatorLine, SetEchoMismatchFlaggedWhileThePullerRunsLocally) {
   EXPECT_DOUBLE_EQ(last.speed_set_echo_percent(), 25.0);
   EXPECT_DOUBLE_EQ(last.speed_set_percent(), 40.0);
   EXPECT_EQ(last.status_word().speed_set_mode(), msg::PULLER_SPEED_SET_LOCAL);
-  ASSERT_TRUE(puller30_.wait_last(5s, [](const auto& s) { return std::abs(s.speed_actual_percent() - 25.0) < 1e-6; })) << logs();
+  ASSERT_TRUE(puller30_.wait_last(5s, [](const auto& s) { return std::abs(s.speed_actual_percent() - 25.0) < 1e-6; }))
+      << logs();
   // Only a lasting difference: the echo changed one SYNC after the mode, the flag came later.
   {
     const auto all = puller30_.samples();

@@ -34,9 +34,9 @@ struct Command {
   const char* name;
   unsigned bit;
 };
-const std::vector<Command> kSaw = {{"manual_cut", 3}, {"tip_pulse", 4}, {"stop_immediately", 5}, {"f1_stop", 6},
-                                   {"f1_start", 7},   {"f2_stop", 8},   {"f2_start", 9},         {"f3_stop", 10},
-                                   {"f3_start", 11}};
+const std::vector<Command> kSaw = {{"manual_cut", 3}, {"tip_pulse", 4}, {"stop_immediately", 5},
+                                   {"f1_stop", 6},    {"f1_start", 7},  {"f2_stop", 8},
+                                   {"f2_start", 9},   {"f3_stop", 10},  {"f3_start", 11}};
 const std::vector<Command> kPuller = {{"motor_stop", 0}, {"motor_start", 1}, {"clamp_close", 2}, {"clamp_open", 3},
                                       {"f1_stop", 7},    {"f1_start", 8},    {"f2_stop", 9},     {"f2_start", 10},
                                       {"f3_stop", 11},   {"f3_start", 12}};
@@ -78,14 +78,15 @@ std::vector<Frame> recorded_rpdo1(const std::string& path, std::uint8_t node) {
     auto r = lb::can::parse_log_line(text);
     if (!r || !*r) continue;
     const auto& f = (*r)->frame;
-    if (f.id == 0x200u + node && f.len >= 2) out.push_back({f.timestamp_ns, static_cast<std::uint16_t>(f.data[0] | f.data[1] << 8)});
+    if (f.id == 0x200u + node && f.len >= 2)
+      out.push_back({f.timestamp_ns, static_cast<std::uint16_t>(f.data[0] | f.data[1] << 8)});
   }
   return out;
 }
 
 struct Run {
-  unsigned runs = 0;    // separate runs of frames with the bit
-  unsigned frames = 0;  // frames with the bit
+  unsigned runs = 0;          // separate runs of frames with the bit
+  unsigned frames = 0;        // frames with the bit
   std::int64_t span_ns = -1;  // first frame with the bit to the first frame after it without
 };
 
@@ -108,7 +109,8 @@ Run runs_of(const std::vector<Frame>& frames, unsigned bit) {
 
 unsigned frames_seen(lb::test::BusSpy& spy, std::uint8_t node, unsigned bit) {
   unsigned n = 0;
-  for (const auto& f : spy.frames(0x200u + node)) n += f.len >= 2 && ((f.data[0] | f.data[1] << 8) >> bit & 1U) != 0 ? 1 : 0;
+  for (const auto& f : spy.frames(0x200u + node))
+    n += f.len >= 2 && ((f.data[0] | f.data[1] << 8) >> bit & 1U) != 0 ? 1 : 0;
   return n;
 }
 
@@ -163,7 +165,8 @@ TEST(Pulses, EveryMomentaryCommandIsOnTheBusForAtLeast100msUnderCpuLoad) {
     EXPECT_EQ(p.answer.frames(), run.frames) << "the answer must report the frames that carried it";
     EXPECT_GE(p.answer.held_ms(), 100.0);
     EXPECT_NEAR(p.answer.held_ms(), static_cast<double>(run.span_ns) / 1e6, 5.0);
-    EXPECT_EQ(frames_seen(line.spy(), node, p.command.bit), run.frames) << "the devices' side of the bus saw another run";
+    EXPECT_EQ(frames_seen(line.spy(), node, p.command.bit), run.frames)
+        << "the devices' side of the bus saw another run";
   }
 }
 

@@ -35,7 +35,9 @@ constexpr std::uint8_t kSaw = 3;
 constexpr std::uint32_t kRpdo1 = 0x200u + kSaw;
 constexpr unsigned kManualCutBit = 3;  // saw control word 6040h (profile-decisions.md, saw 1.0 order)
 
-bool cut_bit(const lb::can::CanFrame& f) { return f.len >= 2 && ((f.data[0] | f.data[1] << 8) >> kManualCutBit & 1U) != 0; }
+bool cut_bit(const lb::can::CanFrame& f) {
+  return f.len >= 2 && ((f.data[0] | f.data[1] << 8) >> kManualCutBit & 1U) != 0;
+}
 
 // The presses on the bus: per run of RPDO1 frames with the bit, the time from its first frame to
 // the next RPDO1 without the bit (the frame that released it; -1 while none has).
@@ -169,7 +171,8 @@ TEST_F(RequestAcrossRestart, ARepeatToTheNextBridgeIsRefusedAndTheCutIsPressedOn
 // The CLI asks again every second by itself: whenever its repeat reaches the second bridge (before
 // or after it started the saw), it is refused, and the CLI says so with exit code 4.
 TEST_F(RequestAcrossRestart, TheCliSaysTheBridgeRestartedAndExitsWith4) {
-  lb::test::ChildProcess cli({LB_BIN_CLI, "--config", line.bridge_config(), "press", "saw1", "manual_cut", "--timeout", "90"},
+  lb::test::ChildProcess cli({LB_BIN_CLI, "--config", line.bridge_config(), "press", "saw1", "manual_cut", "--timeout",
+                              "90"},
                              ::testing::TempDir() + "/reqrestart_cli_" + std::to_string(::getpid()) + ".log");
   ASSERT_TRUE(cli.started());
   ASSERT_NE(kill_at_the_press_and_restart(), lb::ddsl::kAnyIncarnation) << line.logs() << cli.log();
@@ -178,7 +181,8 @@ TEST_F(RequestAcrossRestart, TheCliSaysTheBridgeRestartedAndExitsWith4) {
   const int status = cli.stop();
   ASSERT_TRUE(WIFEXITED(status)) << cli.log();
   EXPECT_EQ(WEXITSTATUS(status), 4) << cli.log() << line.logs();
-  EXPECT_NE(cli.log().find("bridge restarted: " + std::string(lb::ddsl::kRestartedRefusal)), std::string::npos) << cli.log();
+  EXPECT_NE(cli.log().find("bridge restarted: " + std::string(lb::ddsl::kRestartedRefusal)), std::string::npos)
+      << cli.log();
 
   const std::size_t after = line.spy().frames(kRpdo1).size();
   ASSERT_TRUE(rpdo1_until(line, [&](const auto& f) { return f.size() >= after + 15; })) << line.logs();

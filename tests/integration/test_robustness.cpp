@@ -9,16 +9,16 @@
 #include <signal.h>
 #include <sys/wait.h>
 
-#include <atomic>
-#include <chrono>
 #include <algorithm>
 #include <array>
+#include <atomic>
+#include <chrono>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
 #include <iterator>
-#include <optional>
 #include <limits>
+#include <optional>
 #include <random>
 #include <sstream>
 #include <thread>
@@ -34,11 +34,14 @@ using Clock = std::chrono::steady_clock;
 
 namespace {
 
-bool operational(const msg::SawStatus& s) { return s.health().online() && s.health().nmt_state() == msg::NMT_OPERATIONAL; }
+bool operational(const msg::SawStatus& s) {
+  return s.health().online() && s.health().nmt_state() == msg::NMT_OPERATIONAL;
+}
 
 std::string saw(const std::string& name, int node_id, const std::string& extra = "") {
   return "  - name: " + name + "\n    bus: b\n    node_id: " + std::to_string(node_id) +
-         "\n    profile: cia420-4\n    version: '3.1'\n    heartbeat_timeout_ms: 400\n    boot_retry_ms: 1000\n" + extra;
+         "\n    profile: cia420-4\n    version: '3.1'\n    heartbeat_timeout_ms: 400\n    boot_retry_ms: 1000\n" +
+         extra;
 }
 
 const msg::BusDiagnostics* bus_of(const msg::Diagnostics& d) { return d.buses().empty() ? nullptr : &d.buses()[0]; }
@@ -108,7 +111,8 @@ bool answered_eventually(lb::test::Collector<msg::SetpointResultPubSubType>& res
   for (int attempt = 0; attempt < 10; ++attempt) {
     w.write(make(id));
     if (results.wait(2s, [id](const std::vector<msg::SetpointResult>& v) {
-          return std::any_of(v.begin(), v.end(), [id](const msg::SetpointResult& r) { return r.request_id() == id && r.accepted(); });
+          return std::any_of(v.begin(), v.end(),
+                             [id](const msg::SetpointResult& r) { return r.request_id() == id && r.accepted(); });
         })) {
       return true;
     }
@@ -149,7 +153,8 @@ struct SetValueLine {
     auto w = line.dds().writer<msg::SawSetpointPubSubType>(line.topic("saw1", "setpoint"), QosKind::command);
     if (!w) return ::testing::AssertionFailure() << w.error().message;
     writer = *w;
-    if (!status.wait_last(20s, operational)) return ::testing::AssertionFailure() << "saw1 not operational\n" << line.logs();
+    if (!status.wait_last(20s, operational))
+      return ::testing::AssertionFailure() << "saw1 not operational\n" << line.logs();
     wait_matched(line, writer, line.topic("saw1", "setpoint_result"));
     return ::testing::AssertionSuccess();
   }
@@ -176,7 +181,8 @@ TEST(Robustness, StopWhileClientsCallServicesIsClean) {
     std::vector<std::thread> callers;
     for (int c = 0; c < 3; ++c) {
       callers.emplace_back([&] {
-        auto client = lb::test::LineHarness::ReadClient::create(line.dds(), lb::ddsl::line_service_path(line.line(), "sdo_read"));
+        auto client = lb::test::LineHarness::ReadClient::create(line.dds(),
+                                                                lb::ddsl::line_service_path(line.line(), "sdo_read"));
         if (!client) return;
         srv::SdoRead_Request req;
         req.device("saw1");
@@ -193,7 +199,8 @@ TEST(Robustness, StopWhileClientsCallServicesIsClean) {
     stop = true;
     for (auto& t : callers) t.join();
     EXPECT_TRUE(WIFEXITED(wstatus)) << "round " << round << ": the bridge died of signal "
-                                    << (WIFSIGNALED(wstatus) ? WTERMSIG(wstatus) : 0) << "\n" << line.logs();
+                                    << (WIFSIGNALED(wstatus) ? WTERMSIG(wstatus) : 0) << "\n"
+                                    << line.logs();
     EXPECT_EQ(WIFEXITED(wstatus) ? WEXITSTATUS(wstatus) : -1, 0) << line.logs();
     EXPECT_GT(answered, 0) << "round " << round << ": no call was answered before the stop";
     const auto before = status.size();
@@ -262,7 +269,8 @@ TEST(Robustness, SetValuesInForceSurviveARestart) {
   sp.product_length_m(1.2);
   writer->write(sp);
   ASSERT_TRUE(results.wait(10s, [](const std::vector<msg::SetpointResult>& v) {
-    return std::any_of(v.begin(), v.end(), [](const msg::SetpointResult& r) { return r.request_id() == 1 && r.accepted(); });
+    return std::any_of(v.begin(), v.end(),
+                       [](const msg::SetpointResult& r) { return r.request_id() == 1 && r.accepted(); });
   })) << line.logs();
   std::this_thread::sleep_for(600ms);  // kept within 200 ms
 
@@ -283,10 +291,12 @@ TEST(Robustness, SetValuesInForceSurviveARestart) {
   ASSERT_FALSE(sent.empty()) << line.logs();
   for (const auto& f : sent) {
     ASSERT_EQ(f.len, 8);
-    EXPECT_TRUE(std::equal(in_force.begin(), in_force.end(), f.data.begin())) << "an RPDO1 after the restart is not the set value in force";
+    EXPECT_TRUE(std::equal(in_force.begin(), in_force.end(), f.data.begin()))
+        << "an RPDO1 after the restart is not the set value in force";
   }
   // The simulated saw kept its program on through the restart: its status never showed it off.
-  EXPECT_NE(line.bridge().log().find("saw1: found operational: all set values; rpdo1 restored"), std::string::npos) << line.logs();
+  EXPECT_NE(line.bridge().log().find("saw1: found operational: all set values; rpdo1 restored"), std::string::npos)
+      << line.logs();
 }
 
 // Another master on a master bus (its SYNCs): the bridge yields (sends nothing there while it is
@@ -338,7 +348,8 @@ TEST(Robustness, SpoofedBootUpsAndStraySyncsTakeNoControlAway) {
   ASSERT_TRUE(diag.subscribe(t.line.dds(), t.line.topic("bridge", "diagnostics"), QosKind::state));
   t.writer.write(saw_set_value(1));
   ASSERT_TRUE(t.results.wait(10s, [](const std::vector<msg::SetpointResult>& v) {
-    return std::any_of(v.begin(), v.end(), [](const msg::SetpointResult& r) { return r.request_id() == 1 && r.accepted(); });
+    return std::any_of(v.begin(), v.end(),
+                       [](const msg::SetpointResult& r) { return r.request_id() == 1 && r.accepted(); });
   })) << t.line.logs();
   t.line.spy().clear();
   for (int i = 0; i < 3; ++i) ASSERT_TRUE(t.line.spy().send(lb::can::make_frame(0x080, {})));
@@ -355,12 +366,14 @@ TEST(Robustness, SpoofedBootUpsAndStraySyncsTakeNoControlAway) {
   off.saw_program_on(false);
   t.writer.write(off);
   ASSERT_TRUE(t.results.wait(10s, [](const std::vector<msg::SetpointResult>& v) {
-    return std::any_of(v.begin(), v.end(), [](const msg::SetpointResult& r) { return r.request_id() == 2 && r.accepted(); });
+    return std::any_of(v.begin(), v.end(),
+                       [](const msg::SetpointResult& r) { return r.request_id() == 2 && r.accepted(); });
   })) << t.line.logs();
   const auto deadline = Clock::now() + 10s;
   bool program_off = false;
   while (!program_off && Clock::now() < deadline) {
-    for (const auto& f : t.line.spy().frames(0x205)) program_off = program_off || (f.len == 8 && (f.data[0] & 0x01) == 0);
+    for (const auto& f : t.line.spy().frames(0x205))
+      program_off = program_off || (f.len == 8 && (f.data[0] & 0x01) == 0);
     std::this_thread::sleep_for(20ms);
   }
   EXPECT_TRUE(program_off) << "no RPDO1 with the program off reached the saw\n" << t.line.logs();
@@ -421,8 +434,8 @@ TEST(Robustness, MalformedFramesAreCountedAndFloodsLoggedAtABoundedRate) {
   auto diag = line.collect<msg::DiagnosticsPubSubType>("bridge", "diagnostics", QosKind::state);
   ASSERT_TRUE(status.wait_last(20s, operational)) << line.logs();
   for (int i = 0; i < 3; ++i) ASSERT_TRUE(line.spy().send(lb::can::make_frame(0x085, {0x10, 0x42})));  // 2-byte EMCY
-  for (int i = 0; i < 2; ++i) ASSERT_TRUE(line.spy().send(lb::can::make_frame(0x705, {})));            // empty heartbeat
-  for (int i = 0; i < 4; ++i) ASSERT_TRUE(line.spy().send(lb::can::make_frame(0x1A0, {1, 2, 3})));      // TPDO1 of node 32
+  for (int i = 0; i < 2; ++i) ASSERT_TRUE(line.spy().send(lb::can::make_frame(0x705, {})));         // empty heartbeat
+  for (int i = 0; i < 4; ++i) ASSERT_TRUE(line.spy().send(lb::can::make_frame(0x1A0, {1, 2, 3})));  // TPDO1 of node 32
   const auto before = line.bridge_log_count("EMCY");
   for (int i = 0; i < 2000; ++i) {
     ASSERT_TRUE(line.spy().send(emcy(5, i % 2 == 0)));
@@ -482,11 +495,16 @@ TEST(Robustness, HostileRequestsAreRefusedAndNothingReachesTheBus) {
   odd_mode.count_mode(static_cast<msg::SawCountMode>(77));
   hostile.push_back(odd_mode);
   for (const auto& sp : hostile) writer->write(sp);
-  ASSERT_TRUE(results.wait(10s, [n = hostile.size()](const std::vector<msg::SetpointResult>& v) {
-    std::size_t refused = 0;
-    for (const auto& r : v) refused += r.request_id() >= 100 && r.request_id() < 100 + n && !r.accepted() && !r.reason().empty();
-    return refused == n;
-  })) << "every hostile set value refused with its reason\n" << line.logs();
+  ASSERT_TRUE(results.wait(10s,
+                           [n = hostile.size()](const std::vector<msg::SetpointResult>& v) {
+                             std::size_t refused = 0;
+                             for (const auto& r : v)
+                               refused += r.request_id() >= 100 && r.request_id() < 100 + n && !r.accepted() &&
+                                          !r.reason().empty();
+                             return refused == n;
+                           }))
+      << "every hostile set value refused with its reason\n"
+      << line.logs();
   for (const auto& r : results.samples()) {
     if (r.request_id() >= 100 && r.request_id() < 100 + hostile.size()) {
       EXPECT_FALSE(r.accepted()) << r.request_id();
@@ -494,7 +512,8 @@ TEST(Robustness, HostileRequestsAreRefusedAndNothingReachesTheBus) {
   }
 
   // A 10 kB device name and data type in a line-wide service request: a refusal, not silence.
-  auto client = lb::test::LineHarness::ReadClient::create(line.dds(), lb::ddsl::line_service_path(line.line(), "sdo_read"));
+  auto client = lb::test::LineHarness::ReadClient::create(line.dds(),
+                                                          lb::ddsl::line_service_path(line.line(), "sdo_read"));
   ASSERT_TRUE(client);
   srv::SdoRead_Request req;
   req.device(std::string(10'000, 'x'));
@@ -585,7 +604,8 @@ TEST(Robustness, ASetValueFloodIsAnsweredButLoggedAtABoundedRate) {
   const auto set_value = [](std::uint64_t id, double length) { return saw_set_value(id, 50, length); };
   const auto answered = [&results](std::uint64_t first, std::uint64_t end, bool accepted) {
     std::size_t n = 0;
-    for (const auto& r : results.samples()) n += r.request_id() >= first && r.request_id() < end && r.accepted() == accepted;
+    for (const auto& r : results.samples())
+      n += r.request_id() >= first && r.request_id() < end && r.accepted() == accepted;
     return n;
   };
   const auto refused_lines = line.bridge_log_count("refused: product_length_m");
@@ -611,7 +631,8 @@ TEST(Robustness, ASetValueFloodIsAnsweredButLoggedAtABoundedRate) {
 
   const auto refused = answered(1000, 3000, false);
   const auto taken = answered(5000, 7000, true);
-  std::cout << "set-value flood: " << refused << " of 2000 refused and " << taken << " of 2000 taken were answered; log lines "
+  std::cout << "set-value flood: " << refused << " of 2000 refused and " << taken
+            << " of 2000 taken were answered; log lines "
             << line.bridge_log_count("refused: product_length_m") - refused_lines << " and "
             << line.bridge_log_count(": set values: ") - taken_lines << "\n";
   ASSERT_GT(refused, 200u) << "the flood did not reach the bridge: nothing to judge";
@@ -702,7 +723,8 @@ TEST(Robustness, AFrozenThenKilledSimulatorIsSupervisedAndBootedAgain) {
     for (const auto& f : frames) {
       if (f.extended) continue;
       if (f.id == 0x605 && sdo == 0) sdo = f.timestamp_ns;
-      if (f.id == 0x000 && f.len == 2 && f.data[0] == 0x01 && (f.data[1] == 5 || f.data[1] == 0) && start == 0) start = f.timestamp_ns;
+      if (f.id == 0x000 && f.len == 2 && f.data[0] == 0x01 && (f.data[1] == 5 || f.data[1] == 0) && start == 0)
+        start = f.timestamp_ns;
     }
     return std::pair{sdo, start};
   };
@@ -789,12 +811,13 @@ TEST(Robustness, ABusLoopRunsAtItsRealtimePriority) {
 TEST(Robustness, ARefusedRealtimePriorityIsLoggedAndTheLineRuns) {
   ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("realtime_refused", 35);
-  line.set_bridge_launcher({"/usr/bin/prlimit", "--rtprio=0", "/usr/bin/setpriv", "--bounding-set=-sys_nice",
-                            "--inh-caps=-sys_nice", "--"});
+  line.set_bridge_launcher(
+      {"/usr/bin/prlimit", "--rtprio=0", "/usr/bin/setpriv", "--bounding-set=-sys_nice", "--inh-caps=-sys_nice", "--"});
   line.start(saw("saw1", 5), "", ", realtime_priority: 20");
   auto status = line.collect<msg::SawStatusPubSubType>("saw1", "status", QosKind::state);
   ASSERT_TRUE(status.wait_last(20s, operational)) << line.logs();
-  EXPECT_TRUE(line.bridge().wait_log("realtime priority 20 (SCHED_FIFO) refused: Operation not permitted", 1s)) << line.logs();
+  EXPECT_TRUE(line.bridge().wait_log("realtime priority 20 (SCHED_FIFO) refused: Operation not permitted", 1s))
+      << line.logs();
   const auto loop = thread_named(line.bridge().pid(), "lb-bus-b");
   ASSERT_TRUE(loop.has_value()) << "no thread lb-bus-b in the bridge";
   EXPECT_EQ(loop->policy, SCHED_OTHER);

@@ -22,8 +22,8 @@
 #include "support/bus_spy.hpp"
 #include "support/child_process.hpp"
 #include "support/line_harness.hpp"
-#include "support/simulated_saw.hpp"
 #include "support/saw_setpoints.hpp"
+#include "support/simulated_saw.hpp"
 
 namespace msg = linebridge_msgs::msg;
 using namespace std::chrono_literals;
@@ -52,31 +52,34 @@ struct Observed {
 class SawLine : public ::testing::Test {
  protected:
   void SetUp() override {
-    ASSERT_EQ(std::getenv("LINEBRIDGE_NETNS") != nullptr, true) << "run through launch_scripts/netns-run.sh (ctest does)";
+    ASSERT_EQ(std::getenv("LINEBRIDGE_NETNS") != nullptr, true)
+        << "run through launch_scripts/netns-run.sh (ctest does)";
     line_.start(lb::test::simulated_saw("b"), "", ", role: master, sync_period_ms: 20");
     ASSERT_TRUE(line_.sim().started());
     ASSERT_TRUE(line_.bridge().started());
 
     const auto topic = [](const char* t) { return lb::ddsl::topic_name("itest", "saw1", t); };
-    ASSERT_TRUE(line_.dds().subscribe<msg::SawStatusPubSubType>(topic("status"), lb::ddsl::QosKind::state,
-                                                          [this](const msg::SawStatus& s, const auto&) {
-                                                            std::lock_guard lock(seen_.m);
-                                                            seen_.status.push_back(s);
-                                                            seen_.cv.notify_all();
-                                                          },
-                                                          1000));  // every sample, not just the latest
+    ASSERT_TRUE(line_.dds().subscribe<msg::SawStatusPubSubType>(
+        topic("status"), lb::ddsl::QosKind::state,
+        [this](const msg::SawStatus& s, const auto&) {
+          std::lock_guard lock(seen_.m);
+          seen_.status.push_back(s);
+          seen_.cv.notify_all();
+        },
+        1000));  // every sample, not just the latest
     ASSERT_TRUE(line_.dds().subscribe<msg::SawCutPubSubType>(topic("cut"), lb::ddsl::QosKind::event,
-                                                       [this](const msg::SawCut& c, const auto&) {
-                                                         std::lock_guard lock(seen_.m);
-                                                         seen_.cuts.push_back(c);
-                                                         seen_.cv.notify_all();
-                                                       }));
+                                                             [this](const msg::SawCut& c, const auto&) {
+                                                               std::lock_guard lock(seen_.m);
+                                                               seen_.cuts.push_back(c);
+                                                               seen_.cv.notify_all();
+                                                             }));
     ASSERT_TRUE(setpoints_.open(line_.dds(), "itest", "saw1"));
 
     // The device is up and both directions of the set-value exchange are matched.
-    ASSERT_TRUE(seen_.wait(15s, [this] { return !seen_.status.empty() && seen_.status.back().health().online() &&
-                                                seen_.status.back().health().nmt_state() == msg::NMT_OPERATIONAL; }))
-        << logs();
+    ASSERT_TRUE(seen_.wait(15s, [this] {
+      return !seen_.status.empty() && seen_.status.back().health().online() &&
+             seen_.status.back().health().nmt_state() == msg::NMT_OPERATIONAL;
+    })) << logs();
     setpoints_.wait_matched(10s);
     ASSERT_GT(setpoints_.writer().matched(), 0);
   }
@@ -262,7 +265,8 @@ TEST_F(SawLine, CliCommandsReachTheSawThroughTheLineWideServices) {
   // is refused by the CLI itself (exit 2) before anything is sent.
   const auto unknown_object = cli({"get", "saw1", "no_such_object"});
   EXPECT_EQ(unknown_object.exit_code, 1) << unknown_object.output;
-  EXPECT_NE(unknown_object.output.find("refused: profile cia420-4@3.1 has no object 'no_such_object'"), std::string::npos)
+  EXPECT_NE(unknown_object.output.find("refused: profile cia420-4@3.1 has no object 'no_such_object'"),
+            std::string::npos)
       << unknown_object.output;
   const auto unknown_command = cli({"press", "saw1", "jump"});
   EXPECT_EQ(unknown_command.exit_code, 1) << unknown_command.output;

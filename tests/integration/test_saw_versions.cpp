@@ -36,12 +36,13 @@ TEST(SawVersions, OneZeroAndThreeOneSideBySide) {
   const std::string tag = std::to_string(::getpid());
   const std::string tmp = ::testing::TempDir();
   const std::string cfg = tmp + "/versions_" + tag + ".yaml";
-  std::ofstream(cfg) << "line: versions\ndds: {domain: 7}\nbuses:\n  - {name: b, interface: 'virtual:versions-" + tag + "'}\n"
-                        "devices:\n"
-                        "  - {name: old_saw, bus: b, node_id: 3, profile: cia420-4, version: '1.0',"
-                        " simulation: {max_speed_m_per_min: 60, acceleration_m_per_min_s: 6000}}\n"
-                        "  - {name: new_saw, bus: b, node_id: 4, profile: cia420-4, version: '3.1',"
-                        " simulation: {max_speed_m_per_min: 60, acceleration_m_per_min_s: 6000}}\n";
+  std::ofstream(cfg) << "line: versions\ndds: {domain: 7}\nbuses:\n  - {name: b, interface: 'virtual:versions-" + tag +
+                            "'}\n"
+                            "devices:\n"
+                            "  - {name: old_saw, bus: b, node_id: 3, profile: cia420-4, version: '1.0',"
+                            " simulation: {max_speed_m_per_min: 60, acceleration_m_per_min_s: 6000}}\n"
+                            "  - {name: new_saw, bus: b, node_id: 4, profile: cia420-4, version: '3.1',"
+                            " simulation: {max_speed_m_per_min: 60, acceleration_m_per_min_s: 6000}}\n";
   lb::test::ChildProcess sim({LB_BIN_SIM, "--config", cfg}, tmp + "/versions_sim_" + tag + ".log");
   lb::test::ChildProcess bridge({LB_BIN_BRIDGE, "--config", cfg}, tmp + "/versions_bridge_" + tag + ".log");
   const auto logs = [&] { return "--- bridge ---\n" + bridge.log() + "--- sim ---\n" + sim.log(); };
@@ -55,13 +56,18 @@ TEST(SawVersions, OneZeroAndThreeOneSideBySide) {
     status[d] = std::make_unique<lb::test::Collector<msg::SawStatusPubSubType>>();
     results[d] = std::make_unique<lb::test::Collector<msg::SetpointResultPubSubType>>();
     ASSERT_TRUE(status[d]->subscribe(**dds, lb::ddsl::topic_name("versions", d, "status"), lb::ddsl::QosKind::state));
-    ASSERT_TRUE(results[d]->subscribe(**dds, lb::ddsl::topic_name("versions", d, "setpoint_result"), lb::ddsl::QosKind::reply));
-    auto w = (*dds)->writer<msg::SawSetpointPubSubType>(lb::ddsl::topic_name("versions", d, "setpoint"), lb::ddsl::QosKind::command);
+    ASSERT_TRUE(
+        results[d]->subscribe(**dds, lb::ddsl::topic_name("versions", d, "setpoint_result"), lb::ddsl::QosKind::reply));
+    auto w = (*dds)->writer<msg::SawSetpointPubSubType>(lb::ddsl::topic_name("versions", d, "setpoint"),
+                                                        lb::ddsl::QosKind::command);
     ASSERT_TRUE(w);
     writers[d] = *w;
-    ASSERT_TRUE(status[d]->wait_last(15s, [](const msg::SawStatus& s) {
-      return s.health().online() && s.health().nmt_state() == msg::NMT_OPERATIONAL;
-    })) << d << "\n" << logs();
+    ASSERT_TRUE(status[d]->wait_last(15s,
+                                     [](const msg::SawStatus& s) {
+                                       return s.health().online() && s.health().nmt_state() == msg::NMT_OPERATIONAL;
+                                     }))
+        << d << "\n"
+        << logs();
   }
   const auto deadline = std::chrono::steady_clock::now() + 10s;
   for (const std::string d : {"old_saw", "new_saw"}) {

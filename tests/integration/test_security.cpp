@@ -92,10 +92,15 @@ class SecuredLine : public ::testing::Test {
   std::string line_yaml(const std::string& security) const {
     return "line: sec\n"
            "dds:\n"
-           "  domain: " + std::to_string(kDomain) + "\n"
-           "  localhost_only: true\n" + security +
+           "  domain: " +
+           std::to_string(kDomain) +
+           "\n"
+           "  localhost_only: true\n" +
+           security +
            "buses:\n"
-           "  - {name: ext, interface: '" + bus_uri_ + "', role: master, sync_period_ms: 20}\n"
+           "  - {name: ext, interface: '" +
+           bus_uri_ +
+           "', role: master, sync_period_ms: 20}\n"
            "devices:\n"
            "  - {name: saw1, bus: ext, node_id: 5, profile: cia420-4, version: '3.1', heartbeat_timeout_ms: 400,\n"
            "     simulation: {heartbeat_period_ms: 100}}\n"
@@ -108,7 +113,8 @@ class SecuredLine : public ::testing::Test {
     spy_ = std::make_unique<lb::test::BusSpy>(bus_uri_);
     sim_ = std::make_unique<lb::test::ChildProcess>(std::vector<std::string>{LB_BIN_SIM, "--config", config_path_},
                                                     dir_ + "/sim.log");
-    bridge_ = std::make_unique<lb::test::ChildProcess>(std::vector<std::string>{LB_BIN_BRIDGE, "--config", config_path_},
+    bridge_ = std::make_unique<lb::test::ChildProcess>(std::vector<std::string>{LB_BIN_BRIDGE, "--config",
+                                                                                config_path_},
                                                        dir_ + "/bridge.log");
     ASSERT_TRUE(sim_->started() && bridge_->started());
     observer_ = secured("observer", pki_->issue("observer", "observer"));
@@ -118,14 +124,17 @@ class SecuredLine : public ::testing::Test {
                                                                  [this, saw](const msg::SawStatus& s, const auto&) {
                                                                    std::lock_guard lock(m_);
                                                                    online_[saw] = s.health().online() &&
-                                                                                  s.health().nmt_state() == msg::NMT_OPERATIONAL;
+                                                                                  s.health().nmt_state() ==
+                                                                                      msg::NMT_OPERATIONAL;
                                                                    ++status_samples_;
                                                                  }));
     }
-    ASSERT_TRUE(eventually(20s, [this] {
-      std::lock_guard lock(m_);
-      return online_["saw1"] && online_["saw2"];
-    })) << "the secured observer never saw both saws online\n"
+    ASSERT_TRUE(eventually(20s,
+                           [this] {
+                             std::lock_guard lock(m_);
+                             return online_["saw1"] && online_["saw2"];
+                           }))
+        << "the secured observer never saw both saws online\n"
         << logs();
   }
 
@@ -180,7 +189,9 @@ std::optional<typename RepPS::type> request(lb::ddsl::Participant& dds, lb::ddsl
                                            cv.notify_all();
                                          });
   if (!sub) return std::nullopt;
-  eventually(10s, [&] { return dds.matched_writers(lb::ddsl::reply_topic(lb::ddsl::line_service_path("sec", service))) > 0; });
+  eventually(10s, [&] {
+    return dds.matched_writers(lb::ddsl::reply_topic(lb::ddsl::line_service_path("sec", service))) > 0;
+  });
   {
     std::lock_guard lock(m);
     writer.write(req, params);
@@ -200,9 +211,11 @@ TEST_F(SecuredLine, OperatorSetsAndCommandsItsOwnSawOnly) {
   ASSERT_NO_FATAL_FAILURE(start_line());
   const auto op = pki_->issue("op1", "operator", "saw1");
   spy_->clear();
-  const auto set = cli(op, {"set", "saw1", "--program", "on", "--sync-speed-percent", "50", "--product-length-m", "1.0"});
+  const auto set = cli(op,
+                       {"set", "saw1", "--program", "on", "--sync-speed-percent", "50", "--product-length-m", "1.0"});
   EXPECT_EQ(set.exit_code, 0) << set.output << logs();
-  EXPECT_TRUE(eventually(2s, [&] { return payloads(*spy_, kRpdo1Saw1).size() > 1; })) << "the set value never reached CAN";
+  EXPECT_TRUE(eventually(2s, [&] { return payloads(*spy_, kRpdo1Saw1).size() > 1; }))
+      << "the set value never reached CAN";
 
   const auto press = cli(op, {"press", "saw1", "manual_cut"});
   EXPECT_EQ(press.exit_code, 0) << press.output;
@@ -211,7 +224,8 @@ TEST_F(SecuredLine, OperatorSetsAndCommandsItsOwnSawOnly) {
   spy_->clear();
   const auto other_set = cli(op, {"set", "saw2", "--program", "on", "--timeout", "4"});
   EXPECT_NE(other_set.exit_code, 0) << other_set.output;
-  EXPECT_NE(other_set.output.find("cannot create DDS writer on rt/sec/saw2/setpoint"), std::string::npos) << other_set.output;
+  EXPECT_NE(other_set.output.find("cannot create DDS writer on rt/sec/saw2/setpoint"), std::string::npos)
+      << other_set.output;
   const auto other_press = cli(op, {"press", "saw2", "manual_cut", "--timeout", "4"});
   EXPECT_NE(other_press.exit_code, 0) << other_press.output;
   EXPECT_NE(other_press.output.find("partition 'saw2'"), std::string::npos) << other_press.output;
@@ -250,8 +264,9 @@ TEST_F(SecuredLine, ObserverCannotPublishASetValueOnEitherSide) {
   // a client that patched its check out would be. The bridge never matches it.
   const auto rogue = pki_->issue("rogue", "observer");
   std::string xml = lb::test::read_text(rogue + "/permissions.xml");
-  const std::string extra = "      <allow_rule>\n        <domains><id>99</id></domains>\n        <publish><topics><topic>rt/sec/*</topic>"
-                            "</topics></publish>\n      </allow_rule>\n";
+  const std::string extra =
+      "      <allow_rule>\n        <domains><id>99</id></domains>\n        <publish><topics><topic>rt/sec/*</topic>"
+      "</topics></publish>\n      </allow_rule>\n";
   xml.insert(xml.find("      <allow_rule>"), extra);
   std::ofstream(rogue + "/permissions.xml") << xml;
   pki_->sign(rogue + "/permissions.xml");
@@ -272,7 +287,8 @@ TEST_F(SecuredLine, UnauthenticatedAndForeignParticipantsReceiveNothingAndChange
   ASSERT_NO_FATAL_FAILURE(start_line());
   // Another CA altogether: its own identity CA, permissions CA and governance (an engineer there).
   lb::test::TestPki foreign(dir_ + "/plain.yaml", dir_ + "/foreign");
-  auto made = lb::ddsl::Participant::create_checked(foreign.options(kDomain, foreign.issue("eng", "engineer"), "stranger"));
+  auto made = lb::ddsl::Participant::create_checked(
+      foreign.options(kDomain, foreign.issue("eng", "engineer"), "stranger"));
   ASSERT_TRUE(made) << made.error().message;
   auto stranger = std::move(*made);
   auto plain = lb::ddsl::Participant::create({kDomain, true, "intruder"});
@@ -282,9 +298,9 @@ TEST_F(SecuredLine, UnauthenticatedAndForeignParticipantsReceiveNothingAndChange
   std::vector<lb::ddsl::Writer<msg::SawSetpointPubSubType>> writers;
   for (auto* p : {stranger.get(), plain->get()}) {
     ASSERT_TRUE(p->subscribe<msg::SawStatusPubSubType>(topic("saw1", "status"), lb::ddsl::QosKind::state,
-                                                        [&](const auto&, const auto&) { ++received; }));
+                                                       [&](const auto&, const auto&) { ++received; }));
     ASSERT_TRUE(p->subscribe<msg::DiagnosticsPubSubType>(topic("bridge", "diagnostics"), lb::ddsl::QosKind::state,
-                                                          [&](const auto&, const auto&) { ++received; }));
+                                                         [&](const auto&, const auto&) { ++received; }));
     auto w = p->writer<msg::SawSetpointPubSubType>(topic("saw1", "setpoint"), lb::ddsl::QosKind::command);
     ASSERT_TRUE(w);
     writers.push_back(*w);
@@ -324,19 +340,22 @@ TEST_F(SecuredLine, ALineWideRequestCountsOnlyInItsDevicesPartition) {
   auto dds = secured("op-test", op);
   ASSERT_TRUE(dds);
   const std::string path = lb::ddsl::line_service_path("sec", "command");
-  auto in_saw1 = dds->writer<srv::Command_RequestPubSubType>(lb::ddsl::request_topic(path), lb::ddsl::QosKind::command, "saw1");
+  auto in_saw1 = dds->writer<srv::Command_RequestPubSubType>(lb::ddsl::request_topic(path), lb::ddsl::QosKind::command,
+                                                             "saw1");
   ASSERT_TRUE(in_saw1);
   ASSERT_TRUE(eventually(10s, [&] { return in_saw1->matched() > 0; })) << logs();
 
   // Local side: the operator may not publish in saw2's partition.
-  EXPECT_FALSE(dds->writer<srv::Command_RequestPubSubType>(lb::ddsl::request_topic(path), lb::ddsl::QosKind::command, "saw2"));
+  EXPECT_FALSE(
+      dds->writer<srv::Command_RequestPubSubType>(lb::ddsl::request_topic(path), lb::ddsl::QosKind::command, "saw2"));
 
   // The bridge side: a request in saw1's partition that names saw2 is refused.
   spy_->clear();
   srv::Command_Request req;
   req.device("saw2");
   req.command("manual_cut");
-  auto reply = request<srv::Command_RequestPubSubType, srv::Command_ResponsePubSubType>(*dds, *in_saw1, "command", req, 5s);
+  auto reply = request<srv::Command_RequestPubSubType, srv::Command_ResponsePubSubType>(*dds, *in_saw1, "command", req,
+                                                                                        5s);
   ASSERT_TRUE(reply) << "no answer\n" << logs();
   EXPECT_FALSE(reply->success());
   EXPECT_NE(reply->message().find("partition 'saw2'"), std::string::npos) << reply->message();
@@ -363,9 +382,10 @@ TEST_F(SecuredLine, TheBridgeJudgesPartitionsOnItsOwnSide) {
   const auto rogue = pki_->issue("rogue", "operator", "saw1");
   {
     std::string xml = lb::test::read_text(rogue + "/permissions.xml");
-    xml.insert(xml.find("      <allow_rule>"),
-               "      <allow_rule>\n        <domains><id>99</id></domains>\n        <publish><topics><topic>" + request_topic +
-                   "</topic></topics><partitions><partition>*</partition></partitions></publish>\n      </allow_rule>\n");
+    xml.insert(
+        xml.find("      <allow_rule>"),
+        "      <allow_rule>\n        <domains><id>99</id></domains>\n        <publish><topics><topic>" + request_topic +
+            "</topic></topics><partitions><partition>*</partition></partitions></publish>\n      </allow_rule>\n");
     std::ofstream(rogue + "/permissions.xml") << xml;
     pki_->sign(rogue + "/permissions.xml");
   }
@@ -406,7 +426,8 @@ TEST_F(SecuredLine, TheBridgeJudgesPartitionsOnItsOwnSide) {
   std::mutex m;
   std::map<eprosima::fastrtps::rtps::GUID_t, std::vector<srv::Command_Response>> answers;
   auto sub = dds->subscribe_scoped<srv::Command_ResponsePubSubType>(
-      lb::ddsl::reply_topic(path), lb::ddsl::QosKind::reply, [&](const srv::Command_Response& r, const fdds::SampleInfo& info) {
+      lb::ddsl::reply_topic(path), lb::ddsl::QosKind::reply,
+      [&](const srv::Command_Response& r, const fdds::SampleInfo& info) {
         std::lock_guard lock(m);
         answers[info.related_sample_identity.writer_guid()].push_back(r);
       });
@@ -439,13 +460,15 @@ TEST_F(SecuredLine, TheBridgeJudgesPartitionsOnItsOwnSide) {
   EXPECT_EQ(payloads(*spy_, kRpdo1Saw2).size(), 1u) << "a request for saw2 reached CAN\n" << logs();
   std::lock_guard lock(m);
   EXPECT_TRUE(answers[in_saw1->guid()].front().success()) << answers[in_saw1->guid()].front().message();
-  EXPECT_TRUE(answers[in_saw2->guid()].empty()) << "the bridge matched a writer in a partition the grant does not allow";
+  EXPECT_TRUE(answers[in_saw2->guid()].empty())
+      << "the bridge matched a writer in a partition the grant does not allow";
   for (const auto& a : answers[mover->guid()]) {
     EXPECT_FALSE(a.success());
     EXPECT_NE(a.message().find("partition 'saw2'"), std::string::npos) << a.message();
   }
   std::printf("writer moved to saw2 after matching: %zu answer(s) from the bridge, %s\n", answers[mover->guid()].size(),
-              answers[mover->guid()].empty() ? "Fast DDS unmatched it" : "Fast DDS kept it matched, the bridge refused");
+              answers[mover->guid()].empty() ? "Fast DDS unmatched it"
+                                             : "Fast DDS kept it matched, the bridge refused");
   raw->delete_contained_entities();
   factory->delete_participant(raw);
 }
@@ -464,7 +487,8 @@ TEST_F(SecuredLine, ARevokedOperatorIsRefusedOnceTheBridgeRestartsAndTheOthersKe
     sec.erase(sec.find("    identity_crl:"));
     std::ofstream(no_crl) << line_yaml(sec);
   }
-  const auto set = [&](const std::string& config, const std::string& identity, const char* percent, const char* timeout) {
+  const auto set = [&](const std::string& config, const std::string& identity, const char* percent,
+                       const char* timeout) {
     lb::test::ChildProcess p({LB_BIN_CLI, "--config", config, "--identity", identity, "set", "saw1", "--program", "on",
                               "--sync-speed-percent", percent, "--product-length-m", "1.0", "--timeout", timeout},
                              dir_ + "/cli_" + std::to_string(++cli_runs_) + ".log");
@@ -497,7 +521,8 @@ TEST_F(SecuredLine, ARevokedOperatorIsRefusedOnceTheBridgeRestartsAndTheOthersKe
   r = set(no_crl, op1, "45", "10");
   std::printf("after pki.sh revoke, the running bridge (not restarted) %s op1: exit %d\n",
               r.exit_code == 0 ? "still accepts" : "refuses", r.exit_code);
-  EXPECT_EQ(r.exit_code, 0) << "the running bridge refused op1 before its restart: the README says otherwise\n" << r.output;
+  EXPECT_EQ(r.exit_code, 0) << "the running bridge refused op1 before its restart: the README says otherwise\n"
+                            << r.output;
 
   // The documented step: restart the bridge. It reads the new CRL.
   ASSERT_EQ(bridge_->stop(), 0) << logs();
@@ -574,7 +599,8 @@ class MisspelledPlugin : public BridgeRefuses, public ::testing::WithParamInterf
 
 TEST_P(MisspelledPlugin, BridgeRefusesToStartUnsecured) {
   const auto& p = GetParam();
-  const auto r = run_bridge(line_yaml(pki_->security_yaml() + "    properties: {" + p.property + ": " + p.value + "}\n"));
+  const auto r = run_bridge(
+      line_yaml(pki_->security_yaml() + "    properties: {" + p.property + ": " + p.value + "}\n"));
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_NE(r.output.find(p.expected), std::string::npos) << r.output;
   EXPECT_NE(r.output.find(p.value), std::string::npos) << "the refusal should show the value\n" << r.output;
@@ -592,9 +618,12 @@ INSTANTIATE_TEST_SUITE_P(
     Security, MisspelledPlugin,
     // Refused before Fast DDS sees them (security_properties.hpp); security_proof.cpp stays the backstop.
     ::testing::Values(Misspelled{"dds.sec.auth.plugin", "builtin.PKI_DH", "is not a plugin Fast DDS 2.9.1 has"},
-                      Misspelled{"dds.sec.access.plugin", "builtin.Access-Permission", "is not a plugin Fast DDS 2.9.1 has"},
+                      Misspelled{"dds.sec.access.plugin", "builtin.Access-Permission",
+                                 "is not a plugin Fast DDS 2.9.1 has"},
                       Misspelled{"dds.sec.crypto.plugin", "builtin.AES-GCM", "is not a plugin Fast DDS 2.9.1 has"}),
-    [](const auto& param) { return std::string(param.index == 0 ? "Auth" : param.index == 1 ? "Access" : "Crypto"); });
+    [](const auto& param) {
+      return std::string(param.index == 0 ? "Auth" : param.index == 1 ? "Access" : "Crypto");
+    });
 
 TEST_F(BridgeRefuses, EachBrokenFileIsNamedWithItsReason) {
   const std::string pki = pki_->dir();
@@ -617,11 +646,14 @@ TEST_F(BridgeRefuses, EachBrokenFileIsNamedWithItsReason) {
   };
   const std::string not_after = between(bridge_xml, "<not_after>", "</not_after>");
   const std::string subject = between(bridge_xml, "<subject_name>", "</subject_name>");  // CN=bridge,O=linebridge
-  const auto expired = variant("expired", replaced(replaced(bridge_xml, not_after, "2020-01-02T00:00:00"),
-                                                   between(bridge_xml, "<not_before>", "</not_before>"), "2019-01-01T00:00:00"));
+  const auto expired = variant("expired",
+                               replaced(replaced(bridge_xml, not_after, "2020-01-02T00:00:00"),
+                                        between(bridge_xml, "<not_before>", "</not_before>"), "2019-01-01T00:00:00"));
   const auto reordered = variant("reordered", replaced(bridge_xml, subject, "O=linebridge,CN=bridge"));
-  pki_->openssl("smime -sign -in bridge/permissions.xml -out notext.p7s -signer ca/permissions_ca.pem -inkey ca-private/permissions_ca.key");
-  pki_->openssl("smime -sign -text -in bridge/permissions.xml -out edited.p7s -signer ca/permissions_ca.pem -inkey ca-private/permissions_ca.key");
+  pki_->openssl("smime -sign -in bridge/permissions.xml -out notext.p7s -signer ca/permissions_ca.pem -inkey "
+                "ca-private/permissions_ca.key");
+  pki_->openssl("smime -sign -text -in bridge/permissions.xml -out edited.p7s -signer ca/permissions_ca.pem -inkey "
+                "ca-private/permissions_ca.key");
   {
     std::string edited = lb::test::read_text(pki + "/edited.p7s");
     edited = replaced(edited, "<default>DENY</default>", "<default>ALLOW</default>");

@@ -18,9 +18,9 @@
 namespace msg = linebridge_msgs::msg;
 namespace srv = linebridge_msgs::srv;
 using namespace std::chrono_literals;
-using lb::ddsl::QosKind;
 using eprosima::fastrtps::rtps::SampleIdentity;
 using eprosima::fastrtps::rtps::WriteParams;
+using lb::ddsl::QosKind;
 
 namespace {
 
@@ -69,7 +69,8 @@ TEST(ServiceRepeat, ACommandAskedAgainIsPressedOnceAndAnsweredWithTheFirstAnswer
   ASSERT_TRUE(client.wait_for(first, 1, 10s)) << line.logs();
   const std::size_t before = client.of(first).size();
   ask_again();  // after its answer: as a client whose answer was lost does
-  ASSERT_TRUE(client.wait_for(first, before + 1, 10s)) << "the repeat is answered, to the first request\n" << line.logs();
+  ASSERT_TRUE(client.wait_for(first, before + 1, 10s)) << "the repeat is answered, to the first request\n"
+                                                       << line.logs();
 
   const auto answers = client.of(first);
   ASSERT_GE(answers.size(), 2u);
@@ -100,7 +101,8 @@ TEST(ServiceRepeat, ACommandAskedAgainIsPressedOnceAndAnsweredWithTheFirstAnswer
   mismatched.related_sample_identity(first);
   ASSERT_TRUE(client.write(other, mismatched));
   ASSERT_TRUE(client.wait_for(mismatched.sample_identity(), 1, 10s))
-      << "a repeat with other content got no answer of its own\n" << line.logs();
+      << "a repeat with other content got no answer of its own\n"
+      << line.logs();
   const auto refusal = client.of(mismatched.sample_identity()).front();
   EXPECT_FALSE(refusal.success());
   EXPECT_NE(refusal.message().find("asks something else"), std::string::npos) << refusal.message();

@@ -40,12 +40,13 @@ constexpr std::uint32_t kSaw2DeviceType = 0x000201A4, kSaw2Vendor = 0x0000ABCD, 
                         kSaw2Revision = 0x00020003, kSaw2Serial = 0x00C0FFEE;
 
 // CiA 301 abort codes.
-constexpr std::uint32_t kTimeout = 0x05040000, kReadOnly = 0x06010002,
-                        kNoObject = 0x06020000, kCannotMap = 0x06040041, kLengthExceeded = 0x06040042,
-                        kNoSub = 0x06090011, kRange = 0x06090030, kDeviceState = 0x08000022;
+constexpr std::uint32_t kTimeout = 0x05040000, kReadOnly = 0x06010002, kNoObject = 0x06020000, kCannotMap = 0x06040041,
+                        kLengthExceeded = 0x06040042, kNoSub = 0x06090011, kRange = 0x06090030,
+                        kDeviceState = 0x08000022;
 
 // NMT commands (CiA 301).
-constexpr std::uint8_t kStart = 0x01, kStop = 0x02, kPreOperational = 0x80, kResetNode = 0x81, kResetCommunication = 0x82;
+constexpr std::uint8_t kStart = 0x01, kStop = 0x02, kPreOperational = 0x80, kResetNode = 0x81,
+                       kResetCommunication = 0x82;
 
 // A puller whose COB-IDs are CiA 301's rw (the 1.0 text makes them ro): the plain CiA 301 device,
 // whose PDOs a master can make invalid and remap. Its profile file is the puller 1.0 one with that
@@ -56,7 +57,8 @@ std::string puller_rw_profile() {
   text << in.rdbuf();
   auto s = text.str();
   const auto replace_all = [&s](const std::string& from, const std::string& to) {
-    for (auto pos = s.find(from); pos != std::string::npos; pos = s.find(from, pos + to.size())) s.replace(pos, from.size(), to);
+    for (auto pos = s.find(from); pos != std::string::npos; pos = s.find(from, pos + to.size()))
+      s.replace(pos, from.size(), to);
   };
   replace_all("version: \"1.0\"", "version: \"9.1\"");
   replace_all("access: {cob_id: ro, transmission_type: rw}", "access: {cob_id: rw, transmission_type: rw}");
@@ -65,9 +67,13 @@ std::string puller_rw_profile() {
 
 std::string line_config(const std::string& bus, const std::string& profiles_dir) {
   return "line: conformance\n"
-         "profiles_dir: '" + profiles_dir + "'\n"
+         "profiles_dir: '" +
+         profiles_dir +
+         "'\n"
          "buses:\n"
-         "  - {name: c, interface: '" + bus + "'}\n"
+         "  - {name: c, interface: '" +
+         bus +
+         "'}\n"
          "devices:\n"
          // The bridge's keys (pdos, configure, identity) must not reach the simulated device.
          "  - name: saw\n"
@@ -79,7 +85,8 @@ std::string line_config(const std::string& bus, const std::string& profiles_dir)
          "    configure: [{object: saw_sync_speed_set_maximum, value: 45000}]\n"
          "    identity: {vendor_id: 0x11111111}\n"
          "    simulation: {heartbeat_period_ms: 100}\n"
-         "  - {name: feeder, bus: c, node_id: 6, profile: cia414-2, version: '1.1', simulation: {heartbeat_period_ms: 100}}\n"
+         "  - {name: feeder, bus: c, node_id: 6, profile: cia414-2, version: '1.1', simulation: {heartbeat_period_ms: "
+         "100}}\n"
          "  - {name: corrugator, bus: c, node_id: 7, profile: cia420-3, version: '3.1'}\n"
          "  - {name: puller, bus: c, node_id: 8, profile: cia420-2, version: '1.0'}\n"
          "  - name: saw2\n"
@@ -90,7 +97,8 @@ std::string line_config(const std::string& bus, const std::string& profiles_dir)
          "    pdos: {tpdo2: {transmission_type: 7}}\n"
          "    simulation:\n"
          "      heartbeat_period_ms: 0\n"
-         "      identity: {device_type: 0x000201A4, vendor_id: 0x0000ABCD, product_code: 0x00001234, revision: 0x00020003,"
+         "      identity: {device_type: 0x000201A4, vendor_id: 0x0000ABCD, product_code: 0x00001234, revision: "
+         "0x00020003,"
          " serial_number: 0x00C0FFEE}\n"
          "      pdos: {tpdo2: {transmission_type: 3, mapping: [0x60070020, 0x60010020]}}\n"
          "      ignore_writes: [{index: 0x6006}, {index: 0x1801, sub: 2}]\n"
@@ -176,7 +184,8 @@ class PeerMaster {
     if (!r) return {false, 0, r.error().abort_code, r.error().message};
     return {true, 0, 0, ""};
   }
-  std::uint32_t write_abort(std::uint8_t node, std::uint16_t index, std::uint8_t sub, std::uint64_t value, std::size_t size) {
+  std::uint32_t write_abort(std::uint8_t node, std::uint16_t index, std::uint8_t sub, std::uint64_t value,
+                            std::size_t size) {
     return write(node, index, sub, value, size).abort;
   }
 
@@ -204,7 +213,8 @@ class PeerMaster {
     }
     return done();
   }
-  bool wait_frame(std::uint32_t id, const std::function<bool(const CanFrame&)>& match, std::chrono::milliseconds timeout) {
+  bool wait_frame(std::uint32_t id, const std::function<bool(const CanFrame&)>& match,
+                  std::chrono::milliseconds timeout) {
     return wait_for(
         [&] {
           for (const auto& s : from(id)) {
@@ -296,7 +306,8 @@ class SimConformance : public ::testing::Test {
   std::vector<std::uint64_t> mapping(std::uint8_t node, std::uint16_t index) {
     std::vector<std::uint64_t> entries;
     const auto count = read(node, index, 0);
-    for (std::uint64_t sub = 1; sub <= count && sub <= 64; ++sub) entries.push_back(read(node, index, static_cast<std::uint8_t>(sub)));
+    for (std::uint64_t sub = 1; sub <= count && sub <= 64; ++sub)
+      entries.push_back(read(node, index, static_cast<std::uint8_t>(sub)));
     return entries;
   }
   void write(std::uint8_t node, std::uint16_t index, std::uint8_t sub, std::uint64_t value, std::size_t size) {
@@ -396,13 +407,16 @@ TEST_F(SimConformance, SynchronousTransmissionTypesCountSyncs) {
   write(kSaw, 0x1801, 2, 2, 1);  // TPDO2 after every 2nd SYNC
   master_->nmt(kStart, kSaw);
   // Started (its heartbeat says operational) before the first SYNC it is to count.
-  ASSERT_TRUE(master_->wait_frame(0x705, [](const CanFrame& f) { return f.len == 1 && f.data[0] == 0x05; }, 10s)) << log();
+  ASSERT_TRUE(master_->wait_frame(
+      0x705, [](const CanFrame& f) { return f.len == 1 && f.data[0] == 0x05; }, 10s))
+      << log();
   master_->clear();
   // SYNC by SYNC, each after the device answered the one before (a loaded machine delays frames;
   // a fixed period would let an answer be counted after the next SYNC).
   for (std::size_t k = 1; k <= 20; ++k) {
     master_->syncs(1, 0ms);
-    ASSERT_TRUE(master_->wait_for([&] { return master_->from(0x185).size() >= k; }, 10s)) << "no TPDO1 after SYNC " << k;
+    ASSERT_TRUE(master_->wait_for([&] { return master_->from(0x185).size() >= k; }, 10s))
+        << "no TPDO1 after SYNC " << k;
   }
   ASSERT_TRUE(master_->wait_for([&] { return master_->from(0x285).size() >= 10; }, 10s));
   // Which SYNC (1..20) each TPDO went out after, in the one order the recorder saw. The device
@@ -475,8 +489,8 @@ TEST_F(SimConformance, EventDrivenTpdoObeysInhibitTimeAndEventTimer) {
   write(kCorrugator, 0x1800, 1, 0xC0000187, 4);  // not valid
   write(kCorrugator, 0x1A00, 0, 4, 1);
   write(kCorrugator, 0x1800, 2, 254, 1);
-  write(kCorrugator, 0x1800, 3, 500, 2);  // 50 ms
-  write(kCorrugator, 0x1800, 5, 300, 2);  // 300 ms
+  write(kCorrugator, 0x1800, 3, 500, 2);         // 50 ms
+  write(kCorrugator, 0x1800, 5, 300, 2);         // 300 ms
   write(kCorrugator, 0x1800, 1, 0x40000187, 4);  // valid again
   master_->nmt(kStart, kCorrugator);
   master_->clear();
@@ -825,7 +839,8 @@ TEST_F(SimConformance, CommunicationObjectsIdentityAndFaults) {
   // heartbeat_period_ms 0: the boot-up, then nothing until a master writes 1017h. Measured
   // against the other saw's heartbeat (100 ms) on the same bus: five of them, and none of saw2.
   master_->clear();
-  ASSERT_TRUE(master_->wait_for([&] { return master_->from(0x705).size() >= 5; }, 10s)) << "saw: heartbeat 100 ms" << log();
+  ASSERT_TRUE(master_->wait_for([&] { return master_->from(0x705).size() >= 5; }, 10s))
+      << "saw: heartbeat 100 ms" << log();
   EXPECT_TRUE(master_->from(0x709).empty());
   write(kSaw2, 0x1017, 0, 50, 2);
   master_->clear();
@@ -885,7 +900,8 @@ TEST_F(SimConformance, SilentResetSendsNoBootUp) {
   beats = heartbeats_after_confirmation();
   for (const auto& f : beats) EXPECT_EQ(f.data[0], 0x7F) << "pre-operational";
   std::vector<double> spacing;
-  for (std::size_t i = 1; i < 5; ++i) spacing.push_back(static_cast<double>(beats[i].timestamp_ns - beats[i - 1].timestamp_ns) / 1e6);
+  for (std::size_t i = 1; i < 5; ++i)
+    spacing.push_back(static_cast<double>(beats[i].timestamp_ns - beats[i - 1].timestamp_ns) / 1e6);
   EXPECT_GE(median(spacing), 100.0 - 40.0) << "heartbeat period 100 ms" << log();
   EXPECT_LE(median(spacing), 100.0 + 150.0) << "heartbeat period 100 ms" << log();
   EXPECT_EQ(read(kSaw, 0x6006, 0), power_on_max);

@@ -30,7 +30,9 @@ using lb::ddsl::QosKind;
 
 namespace {
 
-bool operational(const msg::SawStatus& s) { return s.health().online() && s.health().nmt_state() == msg::NMT_OPERATIONAL; }
+bool operational(const msg::SawStatus& s) {
+  return s.health().online() && s.health().nmt_state() == msg::NMT_OPERATIONAL;
+}
 
 std::string device(const std::string& name, int node_id, const std::string& profile, const std::string& version) {
   return "  - name: " + name + "\n    bus: b\n    node_id: " + std::to_string(node_id) + "\n    profile: " + profile +
@@ -148,8 +150,9 @@ class StartupPolicy : public ::testing::Test {
     for (int i = 0; i < 20; ++i) {
       write();
       if (r.wait(1s, [&](const std::vector<msg::SetpointResult>& v) {
-            return std::any_of(v.begin(), v.end(),
-                               [&](const msg::SetpointResult& x) { return x.request_id() == id && x.accepted() == accepted; });
+            return std::any_of(v.begin(), v.end(), [&](const msg::SetpointResult& x) {
+              return x.request_id() == id && x.accepted() == accepted;
+            });
           })) {
         return true;
       }
@@ -260,7 +263,8 @@ TEST_F(StartupPolicy, ADeviceResetGetsNoEnablingLevelBack) {
   const auto r = line.nmt("saw1", srv::NMT_RESET_NODE);
   ASSERT_TRUE(r.success()) << r.message();
   // The boot-up, then 25 RPDO1s after it: none with the program on.
-  ASSERT_TRUE(frame_seen(line, 0x705, [](const lb::can::CanFrame& f) { return f.len == 1 && f.data[0] == 0; })) << line.logs();
+  ASSERT_TRUE(frame_seen(line, 0x705, [](const lb::can::CanFrame& f) { return f.len == 1 && f.data[0] == 0; }))
+      << line.logs();
   std::int64_t boot_up_ns = 0;
   for (const auto& f : line.spy().frames(0x705)) {
     if (f.len == 1 && f.data[0] == 0) boot_up_ns = f.timestamp_ns;
@@ -335,7 +339,8 @@ TEST_F(StartupPolicy, AStopReachesARunningSawWhoseBootFails) {
 
   ASSERT_EQ(line.bridge().stop(), 0) << line.logs();
   {
-    std::ofstream(line.bridge_config(), std::ios::app) << "    configure: [{object: saw_sync_speed_set_maximum, value: 45000}]\n";
+    std::ofstream(line.bridge_config(), std::ios::app)
+        << "    configure: [{object: saw_sync_speed_set_maximum, value: 45000}]\n";
   }
   line.spy().clear();
   line.start_bridge();
@@ -346,11 +351,14 @@ TEST_F(StartupPolicy, AStopReachesARunningSawWhoseBootFails) {
   // It runs on, unmanaged: no RPDO by itself.
   EXPECT_TRUE(line.spy().frames(0x205).empty()) << "the failed boot sent the saw an RPDO1 unasked";
   // Program on is refused; program off is taken and reaches the saw.
-  ASSERT_TRUE(answered_until(results, 2, [&] { set_saw(true, 2); }, false)) << line.logs();
+  ASSERT_TRUE(answered_until(
+      results, 2, [&] { set_saw(true, 2); }, false))
+      << line.logs();
   EXPECT_TRUE(line.spy().frames(0x205).empty()) << "a refused set value reached the saw";
   ASSERT_TRUE(answered_until(results, 3, [&] { set_saw(false, 3); })) << line.logs();
   EXPECT_TRUE(frame_seen(line, 0x205, [](const lb::can::CanFrame& f) { return f.len == 8 && (f.data[0] & 0x03) == 0; }))
-      << "program off never reached the running saw\n" << line.logs();
+      << "program off never reached the running saw\n"
+      << line.logs();
   for (const auto& f : line.spy().frames(0x205)) EXPECT_EQ(f.data[0] & 0x03, 0) << hex(f);
   // A command that stops it (marked `stopping`) goes out: stop_immediately, 6020h bit 5, in RPDO1s
   // for at least 100 ms. One that does not stop it (manual_cut) is refused.
@@ -360,8 +368,10 @@ TEST_F(StartupPolicy, AStopReachesARunningSawWhoseBootFails) {
   ASSERT_TRUE(stop.success()) << stop.message() << "\n" << line.logs();
   EXPECT_GE(stop.held_ms(), 100.0);
   EXPECT_TRUE(frame_seen(line, 0x205, [](const lb::can::CanFrame& f) { return f.len == 8 && (f.data[0] & 0x20) != 0; }))
-      << "stop_immediately never reached the running saw\n" << line.logs();
-  for (const auto& f : line.spy().frames(0x205)) EXPECT_EQ(f.data[0] & 0x08, 0) << "a manual cut reached the saw: " << hex(f);
+      << "stop_immediately never reached the running saw\n"
+      << line.logs();
+  for (const auto& f : line.spy().frames(0x205))
+    EXPECT_EQ(f.data[0] & 0x08, 0) << "a manual cut reached the saw: " << hex(f);
 }
 
 // A reset always leads to a boot: the saw's boot-up after the operator's NMT reset is lost (the
@@ -386,16 +396,17 @@ TEST_F(StartupPolicy, AResetWhoseBootUpIsLostIsBootedAgain) {
   while (start_ns == 0 && std::chrono::steady_clock::now() < end) {
     std::this_thread::sleep_for(50ms);
     for (const auto& f : line.spy().frames()) {
-      if (f.id == 0x000 && f.len == 2 && f.data[0] == 0x81 && f.data[1] == 5 && reset_ns == 0) reset_ns = f.timestamp_ns;
+      if (f.id == 0x000 && f.len == 2 && f.data[0] == 0x81 && f.data[1] == 5 && reset_ns == 0)
+        reset_ns = f.timestamp_ns;
       if (f.id == 0x605 && reset_ns != 0 && sdo_ns == 0) sdo_ns = f.timestamp_ns;
       if (f.id == 0x000 && f.len == 2 && f.data[0] == 0x01 && f.data[1] == 5 && sdo_ns != 0) start_ns = f.timestamp_ns;
     }
   }
   ASSERT_NE(reset_ns, 0) << line.logs();
   const auto heartbeats = line.spy().frames(0x705);
-  EXPECT_TRUE(std::none_of(heartbeats.begin(), heartbeats.end(),
-                           [](const lb::can::CanFrame& f) { return f.len == 1 && f.data[0] == 0; }))
-      << "the simulated device sent a boot-up: the test proves nothing";
+  EXPECT_TRUE(std::none_of(heartbeats.begin(), heartbeats.end(), [](const lb::can::CanFrame& f) {
+    return f.len == 1 && f.data[0] == 0;
+  })) << "the simulated device sent a boot-up: the test proves nothing";
   ASSERT_NE(sdo_ns, 0) << "no boot after the reset\n" << line.logs();
   ASSERT_NE(start_ns, 0) << "never started again\n" << line.logs();
   EXPECT_LT(sdo_ns, start_ns);
@@ -419,8 +430,9 @@ TEST_F(StartupPolicy, AnOperatorsStopSurvivesAHeartbeatLossAndReturn) {
   ASSERT_TRUE(saw_status.wait_last(30s, operational)) << line.logs();
   const auto stop = line.nmt("saw1", srv::NMT_STOP);
   ASSERT_TRUE(stop.success()) << stop.message();
-  ASSERT_TRUE(saw_status.wait_last(10s, [](const msg::SawStatus& s) { return s.health().nmt_state() == msg::NMT_STOPPED; }))
-      << line.logs();
+  ASSERT_TRUE(saw_status.wait_last(10s, [](const msg::SawStatus& s) {
+    return s.health().nmt_state() == msg::NMT_STOPPED;
+  })) << line.logs();
 
   ::kill(line.sim().pid(), SIGSTOP);
   ASSERT_TRUE(saw_status.wait_last(10s, [](const msg::SawStatus& s) { return !s.health().online(); })) << line.logs();
@@ -435,7 +447,8 @@ TEST_F(StartupPolicy, AnOperatorsStopSurvivesAHeartbeatLossAndReturn) {
   for (const auto& f : line.spy().frames()) {
     sdo = sdo || f.id == 0x605;
     stopped_again = stopped_again || (f.id == 0x000 && f.len == 2 && f.data[0] == 0x02 && f.data[1] == 5);
-    EXPECT_FALSE(f.id == 0x000 && f.len == 2 && f.data[0] == 0x01 && f.data[1] == 5) << "the operator's stop was undone";
+    EXPECT_FALSE(f.id == 0x000 && f.len == 2 && f.data[0] == 0x01 && f.data[1] == 5)
+        << "the operator's stop was undone";
   }
   EXPECT_TRUE(sdo) << "not booted again after the heartbeat came back";
   EXPECT_TRUE(stopped_again) << "not put back in stopped";
@@ -459,13 +472,16 @@ TEST_F(StartupPolicy, ARunningDeviceWhosePdosMustChangeIsPausedWrittenAndStarted
   lb::test::LineHarness line("startup", 67);
   line.start(device("corr1", 7, "cia420-3", "3.1"));
   ASSERT_NO_FATAL_FAILURE(restart_wanting_another_inhibit_time(line));
-  ASSERT_TRUE(frame_seen(line, 0x000, [](const lb::can::CanFrame& f) { return f.len == 2 && f.data[0] == 0x01 && f.data[1] == 7; }))
-      << "never started\n" << line.logs();
+  ASSERT_TRUE(frame_seen(line, 0x000,
+                         [](const lb::can::CanFrame& f) { return f.len == 2 && f.data[0] == 0x01 && f.data[1] == 7; }))
+      << "never started\n"
+      << line.logs();
 
   const auto frames = line.spy().frames();
   const auto nmt = [&](std::uint8_t command) {
     for (std::size_t i = 0; i < frames.size(); ++i) {
-      if (frames[i].id == 0x000 && frames[i].len == 2 && frames[i].data[0] == command && frames[i].data[1] == 7) return i;
+      if (frames[i].id == 0x000 && frames[i].len == 2 && frames[i].data[0] == command && frames[i].data[1] == 7)
+        return i;
     }
     return frames.size();
   };
@@ -526,7 +542,8 @@ TEST_F(StartupPolicy, KeepRunningLeavesARunningDeviceRunningAndReportsItOnce) {
   for (const auto& f : heartbeats) EXPECT_EQ(hex(f), "05") << "the corrugator left operational";
   std::size_t device_type_reads = 0;
   for (const auto& f : line.spy().frames()) {
-    EXPECT_FALSE(f.id == 0x000 && f.len == 2 && f.data[1] == 7 && f.data[0] != 0x01) << "an NMT command to it: " << hex(f);
+    EXPECT_FALSE(f.id == 0x000 && f.len == 2 && f.data[1] == 7 && f.data[0] != 0x01)
+        << "an NMT command to it: " << hex(f);
     if (f.id == 0x607 && f.len == 8 && (f.data[0] & 0xF3) == 0x23 && f.data[1] == 0x00 && f.data[2] == 0x18) {
       ADD_FAILURE() << "a write to 1800h: " << hex(f);
     }

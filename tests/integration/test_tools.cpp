@@ -55,12 +55,17 @@ TEST(Check, DemoLineSummaryWithEveryTopicAndNoDdsNoCan) {
   for (const char* expected : {
            "line demo: 2 bus(es), 4 device(s)",
            "bus extrusion on virtual:demo-extrusion: master, SYNC every 20 ms",
-           "bus weaving on virtual:demo-weaving: master, SYNC every 20 ms, SDO timeout 1000 ms, loop at realtime priority 30 (SCHED_FIFO)\n",
+           "bus weaving on virtual:demo-weaving: master, SYNC every 20 ms, SDO timeout 1000 ms, loop at realtime "
+           "priority 30 (SCHED_FIFO)\n",
            "saw1 node 3: saw cia420-4 3.1",
-           "rt/demo/saw1/status", "linebridge_msgs::msg::dds_::SawStatus_", "bridge writes",
-           "rt/demo/saw1/setpoint", "bridge reads",
+           "rt/demo/saw1/status",
+           "linebridge_msgs::msg::dds_::SawStatus_",
+           "bridge writes",
+           "rt/demo/saw1/setpoint",
+           "bridge reads",
            "rt/demo/bridge/diagnostics",
-           "rq/demo/bridge/nmtRequest", "rr/demo/bridge/nmtReply",
+           "rq/demo/bridge/nmtRequest",
+           "rr/demo/bridge/nmtReply",
            "reliable, transient-local, keep-last 1",
            "ok (0 warning(s))",
        }) {
@@ -93,10 +98,14 @@ TEST(Check, ErrorsExitTwoWithTheirPlaceAndWarningsAreListed) {
   <data_writer profile_name="rt/x/saw1/statsu"><qos><deadline><period><sec>1</sec></period></deadline></qos></data_writer>
 </profiles></dds>
 )");
-  const auto warn = write("warn.yaml", "line: x\ndds: {profiles_file: '" + xml + "'}\nbuses:\n"
-                                       "  - {name: b, interface: 'socketcan:lbcheck0', record: '" + ::testing::TempDir() + "/x.log'}\n"
-                                       "devices:\n  - {name: saw1, bus: b, node_id: 3, profile: cia420-4, version: '3.1', "
-                                       "heartbeat_timeout_ms: 110, heartbeat_producer_ms: 100}\n");
+  const auto warn = write("warn.yaml",
+                          "line: x\ndds: {profiles_file: '" + xml +
+                              "'}\nbuses:\n"
+                              "  - {name: b, interface: 'socketcan:lbcheck0', record: '" +
+                              ::testing::TempDir() +
+                              "/x.log'}\n"
+                              "devices:\n  - {name: saw1, bus: b, node_id: 3, profile: cia420-4, version: '3.1', "
+                              "heartbeat_timeout_ms: 110, heartbeat_producer_ms: 100}\n");
   r = run_command({LB_BIN_BRIDGE, "--check", warn});
   EXPECT_EQ(r.exit_code, 0) << r.output;
   for (const char* expected : {"no network interface lbcheck0", "outside /var/lib/linebridge", "less than 1.5 x",
@@ -106,24 +115,28 @@ TEST(Check, ErrorsExitTwoWithTheirPlaceAndWarningsAreListed) {
   }
   // A state_dir that cannot be used would start every device from zero after a restart: an error.
   const auto not_a_dir = write("not_a_dir", "");
-  const auto stateless = write("state.yaml", "line: x\nstate_dir: '" + not_a_dir + "'\nbuses:\n  - {name: b, interface: 'virtual:x'}\ndevices: []\n");
+  const auto stateless = write("state.yaml", "line: x\nstate_dir: '" + not_a_dir +
+                                                 "'\nbuses:\n  - {name: b, interface: 'virtual:x'}\ndevices: []\n");
   r = run_command({LB_BIN_BRIDGE, "--check", stateless});
   EXPECT_EQ(r.exit_code, 2) << r.output;
-  EXPECT_NE(r.output.find("error: state_dir " + not_a_dir + ": not a directory"),
-            std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("error: state_dir " + not_a_dir + ": not a directory"), std::string::npos) << r.output;
   // Every state_dir problem is an error, each reported, with the machine's others: here a file in
   // the way, a directory this user may not create, and a missing recording, all three at once.
-  const auto blocked = write("blocked.yaml", "line: x\nstate_dir: '" + not_a_dir + "/sub'\nbuses:\n"
-                                             "  - {name: b, interface: 'log:/nonexistent/rec.log'}\ndevices: []\n");
+  const auto blocked = write("blocked.yaml", "line: x\nstate_dir: '" + not_a_dir +
+                                                 "/sub'\nbuses:\n"
+                                                 "  - {name: b, interface: 'log:/nonexistent/rec.log'}\ndevices: []\n");
   r = run_command({LB_BIN_BRIDGE, "--check", blocked});
   EXPECT_EQ(r.exit_code, 2) << r.output;
-  EXPECT_NE(r.output.find("error: state_dir " + not_a_dir + "/sub: does not exist, and "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("error: state_dir " + not_a_dir + "/sub: does not exist, and "), std::string::npos)
+      << r.output;
   EXPECT_NE(r.output.find("_not_a_dir is no directory to create it in"), std::string::npos) << r.output;
   EXPECT_NE(r.output.find("error: bus b: cannot read the recording /nonexistent/rec.log"), std::string::npos)
-      << "every error, not only the first\n" << r.output;
+      << "every error, not only the first\n"
+      << r.output;
   // Missing but creatable: fine, start-up makes it; --check itself creates nothing.
   const auto creatable = ::testing::TempDir() + "/tools_" + tag() + "_state/a/b";
-  const auto later = write("later.yaml", "line: x\nstate_dir: '" + creatable + "'\nbuses:\n  - {name: b, interface: 'virtual:x'}\ndevices: []\n");
+  const auto later = write("later.yaml", "line: x\nstate_dir: '" + creatable +
+                                             "'\nbuses:\n  - {name: b, interface: 'virtual:x'}\ndevices: []\n");
   r = run_command({LB_BIN_BRIDGE, "--check", later});
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_FALSE(std::filesystem::exists(creatable)) << "--check created the state_dir";
@@ -131,13 +144,15 @@ TEST(Check, ErrorsExitTwoWithTheirPlaceAndWarningsAreListed) {
     const auto locked = ::testing::TempDir() + "/tools_" + tag() + "_locked";
     std::filesystem::create_directory(locked);
     std::filesystem::permissions(locked, std::filesystem::perms::owner_read | std::filesystem::perms::owner_exec);
-    const auto ro = write("ro.yaml", "line: x\nstate_dir: '" + locked + "'\nbuses:\n  - {name: b, interface: 'virtual:x'}\ndevices: []\n");
+    const auto ro = write("ro.yaml", "line: x\nstate_dir: '" + locked +
+                                         "'\nbuses:\n  - {name: b, interface: 'virtual:x'}\ndevices: []\n");
     r = run_command({LB_BIN_BRIDGE, "--check", ro});
     EXPECT_EQ(r.exit_code, 2) << r.output;
     EXPECT_NE(r.output.find("error: state_dir " + locked + ": not writable"), std::string::npos) << r.output;
   }
   // A replay whose file is missing would stop start-up: an error.
-  const auto replay = write("replay.yaml", "line: x\nbuses:\n  - {name: b, interface: 'log:/nonexistent/rec.log'}\ndevices: []\n");
+  const auto replay = write("replay.yaml",
+                            "line: x\nbuses:\n  - {name: b, interface: 'log:/nonexistent/rec.log'}\ndevices: []\n");
   r = run_command({LB_BIN_BRIDGE, "--check", replay});
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_NE(r.output.find("cannot read the recording /nonexistent/rec.log"), std::string::npos) << r.output;
@@ -153,8 +168,8 @@ TEST(BoundedFiles, DevZeroAFifoAndAnOversizeFileAreRefusedEverywhere) {
   ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
   const auto oversize = write("oversize", std::string(5 * 1024 * 1024, ';'));
   const auto refused = [](const lb::test::CommandResult& r) {
-    return r.exit_code == 2 &&
-           (r.output.find("not a regular file") != std::string::npos || r.output.find("larger than") != std::string::npos);
+    return r.exit_code == 2 && (r.output.find("not a regular file") != std::string::npos ||
+                                r.output.find("larger than") != std::string::npos);
   };
   for (const auto& bad : {std::string("/dev/zero"), fifo, oversize}) {
     // An EDS file (linebridge-cli eds aborted with std::bad_alloc on /dev/zero).
@@ -163,21 +178,26 @@ TEST(BoundedFiles, DevZeroAFifoAndAnOversizeFileAreRefusedEverywhere) {
     // The line file, given or from LINEBRIDGE_CONFIG, to each executable.
     r = run_command({LB_BIN_BRIDGE, "--check", bad}, std::chrono::seconds(30));
     EXPECT_TRUE(refused(r)) << "--check " << bad << ": exit " << r.exit_code << "\n" << r.output;
-    r = run_command({"/usr/bin/env", "LINEBRIDGE_CONFIG=" + bad, LB_BIN_SIM, "--duration", "1"}, std::chrono::seconds(30));
-    EXPECT_TRUE(refused(r)) << "linebridge-sim, LINEBRIDGE_CONFIG=" << bad << ": exit " << r.exit_code << "\n" << r.output;
+    r = run_command({"/usr/bin/env", "LINEBRIDGE_CONFIG=" + bad, LB_BIN_SIM, "--duration", "1"},
+                    std::chrono::seconds(30));
+    EXPECT_TRUE(refused(r)) << "linebridge-sim, LINEBRIDGE_CONFIG=" << bad << ": exit " << r.exit_code << "\n"
+                            << r.output;
     r = run_command({LB_BIN_CLI, "--config", bad, "list"}, std::chrono::seconds(30));
     EXPECT_TRUE(refused(r)) << "linebridge-cli --config " << bad << ": exit " << r.exit_code << "\n" << r.output;
     // A site's DDS profiles file.
-    const auto with_profiles = write("profiles-line.yaml", "line: x\ndds: {profiles_file: '" + bad +
-                                                           "'}\nbuses:\n  - {name: b, interface: 'virtual:x'}\ndevices: []\n");
+    const auto with_profiles = write("profiles-line.yaml",
+                                     "line: x\ndds: {profiles_file: '" + bad +
+                                         "'}\nbuses:\n  - {name: b, interface: 'virtual:x'}\ndevices: []\n");
     r = run_command({LB_BIN_BRIDGE, "--check", with_profiles}, std::chrono::seconds(30));
     EXPECT_TRUE(refused(r)) << "profiles_file " << bad << ": exit " << r.exit_code << "\n" << r.output;
     // The security files of a secured line.
     std::string security = "line: x\ndds:\n  security:\n";
-    for (const char* key : {"identity_ca", "certificate", "private_key", "permissions_ca", "governance", "permissions"}) {
+    for (const char* key :
+         {"identity_ca", "certificate", "private_key", "permissions_ca", "governance", "permissions"}) {
       security += std::string("    ") + key + ": '" + bad + "'\n";
     }
-    const auto secured = write("secured-line.yaml", security + "buses:\n  - {name: b, interface: 'virtual:x'}\ndevices: []\n");
+    const auto secured = write("secured-line.yaml",
+                               security + "buses:\n  - {name: b, interface: 'virtual:x'}\ndevices: []\n");
     r = run_command({LB_BIN_SECURITY, "--config", secured, "check"}, std::chrono::seconds(30));
     EXPECT_TRUE(refused(r)) << "security files " << bad << ": exit " << r.exit_code << "\n" << r.output;
   }
@@ -185,7 +205,8 @@ TEST(BoundedFiles, DevZeroAFifoAndAnOversizeFileAreRefusedEverywhere) {
   const auto dir = ::testing::TempDir() + "/tools_" + tag() + "_profiles";
   std::filesystem::create_directories(dir);
   std::filesystem::copy_file(oversize, dir + "/big.yaml", std::filesystem::copy_options::overwrite_existing);
-  const auto with_dir = write("dir-line.yaml", "line: x\nprofiles_dir: '" + dir + "'\nbuses:\n  - {name: b, interface: 'virtual:x'}\ndevices: []\n");
+  const auto with_dir = write("dir-line.yaml", "line: x\nprofiles_dir: '" + dir +
+                                                   "'\nbuses:\n  - {name: b, interface: 'virtual:x'}\ndevices: []\n");
   const auto r = run_command({LB_BIN_BRIDGE, "--check", with_dir}, std::chrono::seconds(30));
   EXPECT_TRUE(refused(r)) << "a profile file: exit " << r.exit_code << "\n" << r.output;
   ::unlink(fifo.c_str());
@@ -209,7 +230,8 @@ TEST(Scripts, WhatTheScriptsSaySetupInstallsItInstalls) {
       const auto r = run_command(argv);
       ASSERT_EQ(r.exit_code, 0) << r.output;
       EXPECT_NE(("\n" + r.output).find("\n" + package + "\n"), std::string::npos)
-          << entry.path().filename() << " says setup.sh" << (*it)[2] << " installs " << package << "; it installs:\n" << r.output;
+          << entry.path().filename() << " says setup.sh" << (*it)[2] << " installs " << package << "; it installs:\n"
+          << r.output;
     }
   }
   EXPECT_GE(claims, 2u) << "install-test.sh (mmdebstrap) and pki.sh (openssl) say so";
@@ -219,12 +241,13 @@ TEST(Scripts, WhatTheScriptsSaySetupInstallsItInstalls) {
 // already running in its own, as a second terminal beside the demo does: there candump sees the
 // line's virtual bus; from any other namespace (here the test's) it sees nothing of it.
 TEST(NetnsJoin, ACommandJoinsARunningLinesNamespaceAndSeesItsBus) {
-  const auto line = write("joined.yaml", "line: joined\nbuses:\n  - {name: weaving, interface: 'virtual:joined-" + tag() +
-                                         "'}\ndevices:\n  - {name: saw1, bus: weaving, node_id: 3, profile: cia420-4, version: "
-                                         "'3.1', simulation: {heartbeat_period_ms: 50}}\n");
+  const auto line = write("joined.yaml",
+                          "line: joined\nbuses:\n  - {name: weaving, interface: 'virtual:joined-" + tag() +
+                              "'}\ndevices:\n  - {name: saw1, bus: weaving, node_id: 3, profile: cia420-4, version: "
+                              "'3.1', simulation: {heartbeat_period_ms: 50}}\n");
   // The simulator in a namespace of its own (no DDS: it has no participant), as demo.sh runs the line.
-  lb::test::ChildProcess sim({"/usr/bin/unshare", "--net", "--mount", "--propagation", "private", "--", LB_BIN_SIM, "--config",
-                              line, "--duration", "60"},
+  lb::test::ChildProcess sim({"/usr/bin/unshare", "--net", "--mount", "--propagation", "private", "--", LB_BIN_SIM,
+                              "--config", line, "--duration", "60"},
                              ::testing::TempDir() + "/joined_sim_" + tag() + ".log");
   ASSERT_TRUE(sim.started());
   const auto ns_of = [](const std::string& pid) {
@@ -238,9 +261,11 @@ TEST(NetnsJoin, ACommandJoinsARunningLinesNamespaceAndSeesItsBus) {
   }
   ASSERT_NE(ns_of(pid), ns_of("self")) << sim.log();
   const std::string netns_run = std::string(LB_SOURCE_DIR) + "/launch_scripts/netns-run.sh";
-  auto r = run_command({netns_run, "--join", pid, LB_BIN_CLI, "--config", line, "candump", "weaving", "--count", "3", "--duration", "30"});
+  auto r = run_command({netns_run, "--join", pid, LB_BIN_CLI, "--config", line, "candump", "weaving", "--count", "3",
+                        "--duration", "30"});
   EXPECT_EQ(r.exit_code, 0) << r.output << sim.log();
-  EXPECT_NE(r.output.find(" weaving 703#"), std::string::npos) << "joined: the line's heartbeats\n" << r.output << sim.log();
+  EXPECT_NE(r.output.find(" weaving 703#"), std::string::npos) << "joined: the line's heartbeats\n"
+                                                               << r.output << sim.log();
   r = run_command({LB_BIN_CLI, "--config", line, "candump", "weaving", "--count", "1", "--duration", "2"});
   EXPECT_EQ(r.output.find(" weaving 703#"), std::string::npos) << "not joined: nothing of that bus\n" << r.output;
   r = run_command({netns_run, "--join", "no-such-process-" + tag(), "true"});
@@ -287,7 +312,8 @@ TEST_F(Eds, WhatDoesNotFitTheProfileIsNamed) {
 
   r = eds(lb::test::eds_set(eds_, "6020", "AccessType", "ro"));
   EXPECT_EQ(r.exit_code, 1) << r.output;
-  EXPECT_NE(r.output.find("6020h sub 0 control_word: the profile writes it, the file says access 'ro'"), std::string::npos)
+  EXPECT_NE(r.output.find("6020h sub 0 control_word: the profile writes it, the file says access 'ro'"),
+            std::string::npos)
       << r.output;
 
   r = eds(lb::test::eds_set(eds_, "6007", "PDOMapping", "0"));
@@ -317,7 +343,8 @@ TEST_F(Eds, TheDevicesOwnPdoDefaultsBecomeOverrides) {
   r = eds(lb::test::eds_set(eds_, "1A01sub1", "DefaultValue", "0x21100010"));
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_EQ(r.output.find("mapping: ["), std::string::npos) << r.output;
-  EXPECT_NE(r.output.find("maps 2110h sub 0 by default, which profile cia420-4@3.1 does not define"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("maps 2110h sub 0 by default, which profile cia420-4@3.1 does not define"), std::string::npos)
+      << r.output;
 }
 
 TEST_F(Eds, ADcfGivesItsNodeIdAndSerialNumber) {
@@ -358,10 +385,14 @@ TEST_F(Eds, FilesThatAreNoEdsAreRefused) {
 TEST(Candump, WatchesAVirtualBusOfTheLine) {
   const auto bus = "virtual:candump-" + tag();
   const auto recording = write("old.log", "(1700000000.000000) can0 183#00\n");
-  const auto line = write("candump.yaml", "line: x\nbuses:\n  - {name: weaving, interface: '" + bus + "'}\n  - {name: old, interface: "
-                                          "'log:" + recording + "'}\ndevices:\n  - {name: saw1, bus: weaving, node_id: 3, profile: "
-                                          "cia420-4, version: '3.1', simulation: {heartbeat_period_ms: 50}}\n");
-  lb::test::ChildProcess sim({LB_BIN_SIM, "--config", line, "--duration", "20"}, ::testing::TempDir() + "/candump_sim_" + tag() + ".log");
+  const auto line = write("candump.yaml", "line: x\nbuses:\n  - {name: weaving, interface: '" + bus +
+                                              "'}\n  - {name: old, interface: "
+                                              "'log:" +
+                                              recording +
+                                              "'}\ndevices:\n  - {name: saw1, bus: weaving, node_id: 3, profile: "
+                                              "cia420-4, version: '3.1', simulation: {heartbeat_period_ms: 50}}\n");
+  lb::test::ChildProcess sim({LB_BIN_SIM, "--config", line, "--duration", "20"},
+                             ::testing::TempDir() + "/candump_sim_" + tag() + ".log");
   std::this_thread::sleep_for(std::chrono::milliseconds(300));
   auto r = run_command({LB_BIN_CLI, "--config", line, "candump", "weaving", "--count", "3", "--duration", "10"});
   EXPECT_EQ(r.exit_code, 0) << r.output << sim.log();

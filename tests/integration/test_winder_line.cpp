@@ -26,7 +26,8 @@ TEST(WinderLine, TheSimulatedWinderIsOnDdsWithItsBitsAndValuesByName) {
 
   // Idle: operational, ready to start (6030h bit 1, winder_ready_to_start), not running (bit 0).
   ASSERT_TRUE(status.wait_last(30s, [](const msg::WinderStatus& s) {
-    return s.health().online() && s.health().nmt_state() == msg::NMT_OPERATIONAL && s.status_word().winder_ready_to_start();
+    return s.health().online() && s.health().nmt_state() == msg::NMT_OPERATIONAL &&
+           s.status_word().winder_ready_to_start();
   })) << line.logs();
   {
     const auto s = status.samples().back();
@@ -36,7 +37,8 @@ TEST(WinderLine, TheSimulatedWinderIsOnDdsWithItsBitsAndValuesByName) {
 
   // The set values: extruder running (6020h bit 6) and 12.5 % (6002h, 0.01 %: raw 1250), echoed
   // by the winder in 6004h (TPDO2).
-  auto writer = line.dds().writer<msg::WinderSetpointPubSubType>(line.topic("winder1", "setpoint"), lb::ddsl::QosKind::command);
+  auto writer = line.dds().writer<msg::WinderSetpointPubSubType>(line.topic("winder1", "setpoint"),
+                                                                 lb::ddsl::QosKind::command);
   ASSERT_TRUE(writer) << writer.error().message;
   const auto deadline = std::chrono::steady_clock::now() + 20s;
   while (writer->matched() == 0 && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(20ms);
@@ -47,8 +49,8 @@ TEST(WinderLine, TheSimulatedWinderIsOnDdsWithItsBitsAndValuesByName) {
   sp.speed_set_percent(12.5);
   writer->write(sp);
   EXPECT_TRUE(status.wait_last(30s, [](const msg::WinderStatus& s) {
-    return s.control_word().extruder_running() && (s.control_word().raw() & 0x0040) != 0 && s.speed_set_percent() == 12.5 &&
-           s.speed_set_echo_percent() == 12.5;
+    return s.control_word().extruder_running() && (s.control_word().raw() & 0x0040) != 0 &&
+           s.speed_set_percent() == 12.5 && s.speed_set_echo_percent() == 12.5;
   })) << line.logs();
 
   // A momentary command named by the IDL's control word (6020h bit 1, winder_start): the winder runs.
@@ -59,11 +61,13 @@ TEST(WinderLine, TheSimulatedWinderIsOnDdsWithItsBitsAndValuesByName) {
   })) << line.logs();
 
   // linebridge-cli knows the type by its registry entry and IDL binding alone.
-  const auto set = lb::test::run_command({LB_BIN_CLI, "--config", line.bridge_config(), "set", "winder1", "--speed-percent", "20"});
+  const auto set = lb::test::run_command(
+      {LB_BIN_CLI, "--config", line.bridge_config(), "set", "winder1", "--speed-percent", "20"});
   EXPECT_EQ(set.exit_code, 0) << set.output;
-  EXPECT_TRUE(status.wait_last(30s, [](const msg::WinderStatus& s) { return s.speed_set_percent() == 20.0; })) << line.logs();
-  const auto echo =
-      lb::test::run_command({LB_BIN_CLI, "--config", line.bridge_config(), "echo", "winder1", "status", "--duration", "2"});
+  EXPECT_TRUE(status.wait_last(30s, [](const msg::WinderStatus& s) { return s.speed_set_percent() == 20.0; }))
+      << line.logs();
+  const auto echo = lb::test::run_command(
+      {LB_BIN_CLI, "--config", line.bridge_config(), "echo", "winder1", "status", "--duration", "2"});
   EXPECT_EQ(echo.exit_code, 0) << echo.output;
   EXPECT_NE(echo.output.find("winder1 "), std::string::npos) << echo.output;
   EXPECT_NE(echo.output.find("winder_running"), std::string::npos) << "status bits by their IDL names\n" << echo.output;

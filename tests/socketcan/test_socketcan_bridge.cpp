@@ -57,13 +57,14 @@ class BridgeOnVcan : public ::testing::Test {
     auto dds = lb::ddsl::Participant::create({kDomain, true, "socketcan-test"});
     ASSERT_TRUE(dds) << dds.error().message;
     dds_ = std::move(*dds);
-    ASSERT_TRUE(dds_->subscribe<msg::SawStatusPubSubType>(topic("status"), lb::ddsl::QosKind::state,
-                                                          [this](const msg::SawStatus& s, const auto&) {
-                                                            std::lock_guard lock(seen_.m);
-                                                            seen_.status.push_back(s);
-                                                            seen_.cv.notify_all();
-                                                          },
-                                                          1000));
+    ASSERT_TRUE(dds_->subscribe<msg::SawStatusPubSubType>(
+        topic("status"), lb::ddsl::QosKind::state,
+        [this](const msg::SawStatus& s, const auto&) {
+          std::lock_guard lock(seen_.m);
+          seen_.status.push_back(s);
+          seen_.cv.notify_all();
+        },
+        1000));
     ASSERT_TRUE(setpoints_.open(*dds_, "vcan", "saw1"));
   }
 
@@ -82,10 +83,15 @@ class BridgeOnVcan : public ::testing::Test {
   std::string write_config(const std::string& bus_yaml) {
     const std::string path = ::testing::TempDir() + "/line_" + tag_ + "_" + std::to_string(configs_++) + ".yaml";
     std::ofstream(path) << "line: vcan\n"
-                           "dds: {domain: " + std::to_string(kDomain) + ", localhost_only: true}\n"
-                           "buses:\n"
-                           "  - " + bus_yaml + "\n"
-                           "devices:\n" + lb::test::simulated_saw("ext");
+                           "dds: {domain: " +
+                               std::to_string(kDomain) +
+                               ", localhost_only: true}\n"
+                               "buses:\n"
+                               "  - " +
+                               bus_yaml +
+                               "\n"
+                               "devices:\n" +
+                               lb::test::simulated_saw("ext");
     return path;
   }
 
@@ -135,8 +141,8 @@ std::size_t count_lines(const std::string& text, const std::string& needle) {
 TEST_F(BridgeOnVcan, SetValueOverDdsIsExactlyTheRpdoCandumpSeesAndTheBridgeRecords) {
   const std::string recording = ::testing::TempDir() + "/record_" + tag_ + ".log";
   ::unlink(recording.c_str());
-  const auto config =
-      write_config("{name: ext, interface: 'socketcan:vcan0', role: master, sync_period_ms: 20, record: '" + recording + "'}");
+  const auto config = write_config(
+      "{name: ext, interface: 'socketcan:vcan0', role: master, sync_period_ms: 20, record: '" + recording + "'}");
   start_sim(config);
   start_bridge(config);
   ASSERT_TRUE(online_and_operational(30s)) << logs();
@@ -146,7 +152,8 @@ TEST_F(BridgeOnVcan, SetValueOverDdsIsExactlyTheRpdoCandumpSeesAndTheBridgeRecor
   ASSERT_TRUE(ok.accepted()) << ok.reason();
   std::this_thread::sleep_for(1s);
   const std::string dumped = candump.text();
-  EXPECT_GE(count_lines(dumped, std::string(" vcan0 ") + kRpdo1 + "\n"), 5u) << "RPDO1 at every SYNC\n" << dumped.substr(0, 3000);
+  EXPECT_GE(count_lines(dumped, std::string(" vcan0 ") + kRpdo1 + "\n"), 5u) << "RPDO1 at every SYNC\n"
+                                                                             << dumped.substr(0, 3000);
   EXPECT_GE(count_lines(dumped, " vcan0 080#\n"), 10u) << "SYNC every 20 ms";
   // Nothing but what the profile defines from the bridge: SYNC, NMT, RPDO1 (node 5), SDO (node 5).
   std::istringstream lines(dumped);
@@ -174,8 +181,9 @@ TEST_F(BridgeOnVcan, AfterTheLinkComesBackRpdo1IsOnTheBusAgain) {
   ASSERT_TRUE(online_and_operational(30s)) << logs();
   ASSERT_TRUE(send_setpoint(true, 50.0, 0.5).accepted());
 
-  for (const auto& [down, up] : {std::pair{"ip link set vcan0 down", "ip link set vcan0 up"},
-                                 std::pair{"ip link del vcan0", "ip link add dev vcan0 type vcan && ip link set vcan0 up"}}) {
+  for (const auto& [down, up] :
+       {std::pair{"ip link set vcan0 down", "ip link set vcan0 up"},
+        std::pair{"ip link del vcan0", "ip link add dev vcan0 type vcan && ip link set vcan0 up"}}) {
     ASSERT_EQ(sh(down), 0) << down;
     std::this_thread::sleep_for(1500ms);  // longer than the heartbeat timeout: the saw goes offline
     ASSERT_TRUE(bridge_->running()) << down << "\n" << logs();
@@ -265,8 +273,9 @@ TEST_F(BridgeOnVcan, InjectedFramesBecomeDdsSamplesMonitorStaysSilentAndTheRecor
   for (const auto& s : seen_.status) {
     for (const auto& d : dumped) {
       const std::int64_t ns = d.frame.timestamp_ns;
-      recorded_stamp = recorded_stamp || (s.stamp().sec() == static_cast<std::int32_t>(ns / 1'000'000'000) &&
-                                          s.stamp().nanosec() / 1000 == static_cast<std::uint32_t>(ns % 1'000'000'000 / 1000));
+      recorded_stamp = recorded_stamp ||
+                       (s.stamp().sec() == static_cast<std::int32_t>(ns / 1'000'000'000) &&
+                        s.stamp().nanosec() / 1000 == static_cast<std::uint32_t>(ns % 1'000'000'000 / 1000));
     }
   }
   EXPECT_TRUE(recorded_stamp) << "samples carry the recorded time";

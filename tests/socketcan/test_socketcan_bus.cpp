@@ -298,15 +298,16 @@ TEST_F(SocketCan, ARecordingHoldsWhatCandumpRecords) {
 
 TEST_F(SocketCan, ACandumpRecordingReplaysAtItsPace) {
   test::Candump candump("vcan0");
-  const std::vector<std::string> sent = {"705#05", "185#0200785634120000", "285#F401000010270000", "20000040#0000000000000000",
-                                         "1ABCDEF0#01", "701#R"};
+  const std::vector<std::string> sent = {
+      "705#05", "185#0200785634120000", "285#F401000010270000", "20000040#0000000000000000", "1ABCDEF0#01", "701#R"};
   for (const auto& f : sent) {
     ASSERT_TRUE(cansend("vcan0", f));
     std::this_thread::sleep_for(100ms);
   }
   const auto dumped = candump.records();
   ASSERT_EQ(dumped.size(), sent.size()) << candump.text();
-  const double recorded_s = static_cast<double>(dumped.back().frame.timestamp_ns - dumped.front().frame.timestamp_ns) / 1e9;
+  const double recorded_s = static_cast<double>(dumped.back().frame.timestamp_ns - dumped.front().frame.timestamp_ns) /
+                            1e9;
 
   auto replay = open_bus("log:" + candump.path());
   ASSERT_TRUE(replay) << replay.error().message;

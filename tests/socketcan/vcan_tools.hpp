@@ -28,8 +28,8 @@ inline bool cansend(const std::string& ifname, const std::string& frame) {
   return sh("cansend " + ifname + " " + frame) == 0;
 }
 
-// `candump -l <if>` (every frame, error frames too) in a directory of its own; stop() ends it (SIGTERM makes candump flush and
-// close its file) and the frames come from the file it wrote, parsed as a log: bus parses them.
+// `candump -l <if>` (every frame, error frames too) in a directory of its own; stop() ends it (SIGTERM makes candump
+// flush and close its file) and the frames come from the file it wrote, parsed as a log: bus parses them.
 class Candump {
  public:
   explicit Candump(const std::string& ifname, std::chrono::milliseconds settle = std::chrono::milliseconds(800)) {
@@ -38,7 +38,8 @@ class Candump {
     std::filesystem::remove_all(dir_);
     std::filesystem::create_directories(dir_);
     proc_ = std::make_unique<ChildProcess>(
-        std::vector<std::string>{"/bin/sh", "-c", "cd '" + dir_ + "' && exec candump -l " + ifname + ",0:0,#FFFFFFFF"}, dir_ + "/stderr.txt");
+        std::vector<std::string>{"/bin/sh", "-c", "cd '" + dir_ + "' && exec candump -l " + ifname + ",0:0,#FFFFFFFF"},
+        dir_ + "/stderr.txt");
     std::this_thread::sleep_for(settle);  // candump has opened and bound its socket
   }
   void stop() {

@@ -33,14 +33,17 @@ class LineHarness {
                                          linebridge_msgs::srv::SdoRead_ResponsePubSubType>;
   using WriteClient = ddsl::ServiceClient<linebridge_msgs::srv::SdoWrite_RequestPubSubType,
                                           linebridge_msgs::srv::SdoWrite_ResponsePubSubType>;
-  using NmtClient = ddsl::ServiceClient<linebridge_msgs::srv::Nmt_RequestPubSubType,
-                                        linebridge_msgs::srv::Nmt_ResponsePubSubType>;
+  using NmtClient =
+      ddsl::ServiceClient<linebridge_msgs::srv::Nmt_RequestPubSubType, linebridge_msgs::srv::Nmt_ResponsePubSubType>;
   using CommandClient = ddsl::ServiceClient<linebridge_msgs::srv::Command_RequestPubSubType,
                                             linebridge_msgs::srv::Command_ResponsePubSubType>;
 
   // name: the line (and the files' prefix); the bus is virtual:<name>-<pid>.
   LineHarness(std::string name, std::uint32_t domain)
-      : name_(std::move(name)), domain_(domain), tag_(std::to_string(::getpid())), bus_("virtual:" + name_ + "-" + tag_) {}
+      : name_(std::move(name)),
+        domain_(domain),
+        tag_(std::to_string(::getpid())),
+        bus_("virtual:" + name_ + "-" + tag_) {}
 
   ~LineHarness() {
     reads_.reset();  // clients before the participant they live in
@@ -54,7 +57,9 @@ class LineHarness {
 
   const std::string& bus() const { return bus_; }
   const std::string& line() const { return name_; }
-  std::string topic(const std::string& device, const std::string& t) const { return ddsl::topic_name(name_, device, t); }
+  std::string topic(const std::string& device, const std::string& t) const {
+    return ddsl::topic_name(name_, device, t);
+  }
 
   // `devices` is the YAML of the devices: list (indented by two); the bridge and the simulator
   // read the same file unless `sim_devices` gives the simulator its own.
@@ -64,9 +69,11 @@ class LineHarness {
     const auto dir = ::testing::TempDir();
     const auto write = [&](const std::string& who, const std::string& devs) {
       const auto path = dir + "/" + name_ + "_" + who + "_" + tag_ + ".yaml";
-      std::ofstream(path) << "line: " << name_ << "\n" << line_keys << "dds:\n  domain: " << domain_ << "\n"
+      std::ofstream(path) << "line: " << name_ << "\n"
+                          << line_keys << "dds:\n  domain: " << domain_ << "\n"
                           << dds_keys_ << "buses:\n  - {name: b, interface: '" << bus_ << "'" << bus_keys
-                          << "}\ndevices:\n" << devs;
+                          << "}\ndevices:\n"
+                          << devs;
       return path;
     };
     bridge_config_ = write("bridge", devices);
@@ -90,7 +97,8 @@ class LineHarness {
   void start_bridge() {
     auto argv = bridge_launcher_;
     argv.insert(argv.end(), {LB_BIN_BRIDGE, "--config", bridge_config_});
-    bridge_ = std::make_unique<ChildProcess>(std::move(argv), ::testing::TempDir() + "/" + name_ + "_bridge_" + tag_ + ".log");
+    bridge_ = std::make_unique<ChildProcess>(std::move(argv),
+                                             ::testing::TempDir() + "/" + name_ + "_bridge_" + tag_ + ".log");
   }
   // Before start(): more keys of the line file's dds: block, indented by two (a secured line's
   // "  security:\n    ...", TestPki::security_yaml()).
@@ -107,7 +115,8 @@ class LineHarness {
   template <class PubSubType>
   Collector<PubSubType> collect(const std::string& device, const std::string& t, ddsl::QosKind kind) {
     Collector<PubSubType> c;
-    if (auto r = c.subscribe(*dds_, topic(device, t), kind); !r) throw std::runtime_error(topic(device, t) + ": " + r.error().message);
+    if (auto r = c.subscribe(*dds_, topic(device, t), kind); !r)
+      throw std::runtime_error(topic(device, t) + ": " + r.error().message);
     return c;
   }
 
@@ -141,7 +150,8 @@ class LineHarness {
     req.data_type(type);
     return call(reads_, "sdo_read", req);
   }
-  std::uint64_t read_unsigned(const std::string& device, std::uint16_t index, std::uint8_t sub, const std::string& type) {
+  std::uint64_t read_unsigned(const std::string& device, std::uint16_t index, std::uint8_t sub,
+                              const std::string& type) {
     const auto r = sdo_read(device, index, sub, type);
     if (!r.success()) throw std::runtime_error(r.message());
     return r.value().unsigned_value();

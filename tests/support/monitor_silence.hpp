@@ -14,9 +14,11 @@
 
 namespace lb::test {
 
-inline void expect_monitor_never_sent(Collector<linebridge_msgs::msg::DiagnosticsPubSubType>& diag, const std::string& logs) {
+inline void expect_monitor_never_sent(Collector<linebridge_msgs::msg::DiagnosticsPubSubType>& diag,
+                                      const std::string& logs) {
   const std::size_t diag_seen = diag.size();
-  ASSERT_TRUE(diag.wait(std::chrono::seconds(10), [diag_seen](const auto& v) { return v.size() >= diag_seen + 2; })) << logs;
+  ASSERT_TRUE(diag.wait(std::chrono::seconds(10), [diag_seen](const auto& v) { return v.size() >= diag_seen + 2; }))
+      << logs;
   const auto snapshot = diag.samples().back();
   ASSERT_EQ(snapshot.buses().size(), 1u);
   EXPECT_EQ(snapshot.buses()[0].role(), "monitor");

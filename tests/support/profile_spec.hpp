@@ -167,7 +167,9 @@ struct FrameCase {
 class ProfileFrame : public ::testing::TestWithParam<FrameCase> {};
 
 // Names a failing case in gtest's output instead of dumping its bytes.
-inline void PrintTo(const FrameCase& c, std::ostream* os) { *os << c.profile << " " << c.version << " " << c.frame.name; }
+inline void PrintTo(const FrameCase& c, std::ostream* os) {
+  *os << c.profile << " " << c.version << " " << c.frame.name;
+}
 
 inline std::string frame_name(const ::testing::TestParamInfo<FrameCase>& info) { return info.param.frame.name; }
 

@@ -38,7 +38,8 @@ class RawCommandClient {
         });
     if (!sub) throw std::runtime_error(sub.error().message);
     replies_ = std::move(*sub);
-    auto w = dds.writer<linebridge_msgs::srv::Command_RequestPubSubType>(ddsl::request_topic(path), ddsl::QosKind::command);
+    auto w = dds.writer<linebridge_msgs::srv::Command_RequestPubSubType>(ddsl::request_topic(path),
+                                                                         ddsl::QosKind::command);
     if (!w) throw std::runtime_error(w.error().message);
     requests_ = *w;
   }

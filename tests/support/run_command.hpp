@@ -20,12 +20,15 @@ struct CommandResult {
   std::string output;
 };
 
-inline CommandResult run_command(std::vector<std::string> argv, std::chrono::seconds timeout = std::chrono::seconds(60)) {
+inline CommandResult run_command(std::vector<std::string> argv,
+                                 std::chrono::seconds timeout = std::chrono::seconds(60)) {
   static int counter = 0;
-  const std::string log = ::testing::TempDir() + "/cmd_" + std::to_string(::getpid()) + "_" + std::to_string(++counter) + ".log";
+  const std::string log = ::testing::TempDir() + "/cmd_" + std::to_string(::getpid()) + "_" +
+                          std::to_string(++counter) + ".log";
   ChildProcess p(std::move(argv), log);
   const auto end = std::chrono::steady_clock::now() + timeout;
-  while (p.running() && std::chrono::steady_clock::now() < end) std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  while (p.running() && std::chrono::steady_clock::now() < end)
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
   const int status = p.stop();  // the wait status; SIGTERM, then SIGKILL, if the timeout passed
   return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, p.log()};
 }

@@ -9,7 +9,9 @@ namespace lb::test {
 
 inline std::string simulated_saw(const std::string& bus) {
   return "  - name: saw1\n"
-         "    bus: " + bus + "\n"
+         "    bus: " +
+         bus +
+         "\n"
          "    node_id: 5\n"
          "    profile: cia420-4\n"
          "    version: '3.1'\n"

@@ -65,19 +65,38 @@ class TestPki {
   std::string security_yaml(const std::string& identity = "") const {
     const std::string id = identity.empty() ? dir_ + "/bridge" : identity;
     return "  security:\n"
-           "    identity_ca: " + identity_ca() + "\n"
-           "    permissions_ca: " + permissions_ca() + "\n"
-           "    governance: " + governance() + "\n"
-           "    certificate: " + id + "/cert.pem\n"
-           "    private_key: " + id + "/key.pem\n"
-           "    permissions: " + id + "/permissions.p7s\n"
-           "    identity_crl: " + identity_crl() + "\n";
+           "    identity_ca: " +
+           identity_ca() +
+           "\n"
+           "    permissions_ca: " +
+           permissions_ca() +
+           "\n"
+           "    governance: " +
+           governance() +
+           "\n"
+           "    certificate: " +
+           id +
+           "/cert.pem\n"
+           "    private_key: " +
+           id +
+           "/key.pem\n"
+           "    permissions: " +
+           id +
+           "/permissions.p7s\n"
+           "    identity_crl: " +
+           identity_crl() + "\n";
   }
 
   // The files of a secured test participant with this identity.
   ddsl::SecurityFiles files(const std::string& identity) const {
-    return {identity_ca(), identity + "/cert.pem", identity + "/key.pem", permissions_ca(), governance(),
-            identity + "/permissions.p7s", {}, identity_crl()};
+    return {identity_ca(),
+            identity + "/cert.pem",
+            identity + "/key.pem",
+            permissions_ca(),
+            governance(),
+            identity + "/permissions.p7s",
+            {},
+            identity_crl()};
   }
   ddsl::ParticipantOptions options(std::uint32_t domain, const std::string& identity, const std::string& name) const {
     return {domain, true, name, files(identity)};

@@ -26,7 +26,7 @@ using NamedBit = std::pair<unsigned, std::string_view>;  // bit -> the message f
 struct DriveVectors {
   std::uint8_t node_id = 0;
   std::uint32_t tpdo1_cob_id = 0, tpdo2_cob_id = 0, rpdo1_cob_id = 0;
-  std::vector<NamedBit> status_bits;      // every named bit a single-bit word must show alone
+  std::vector<NamedBit> status_bits;       // every named bit a single-bit word must show alone
   std::uint16_t reserved_status_bits = 0;  // bits that show in raw only
   std::vector<NamedBit> control_bits;
   std::vector<std::pair<std::string, unsigned>> momentary;  // commands, in order, and their bits
@@ -87,9 +87,9 @@ class DriveCodecTest : public ::testing::Test {
   }
   // TPDO1: status word (16), speed actual (16), load actual (16), little-endian.
   void tpdo1(std::uint16_t sw, std::uint16_t speed = 0, std::uint16_t load = 0) {
-    const std::array<std::uint8_t, 6> f{static_cast<std::uint8_t>(sw), static_cast<std::uint8_t>(sw >> 8),
+    const std::array<std::uint8_t, 6> f{static_cast<std::uint8_t>(sw),    static_cast<std::uint8_t>(sw >> 8),
                                         static_cast<std::uint8_t>(speed), static_cast<std::uint8_t>(speed >> 8),
-                                        static_cast<std::uint8_t>(load), static_cast<std::uint8_t>(load >> 8)};
+                                        static_cast<std::uint8_t>(load),  static_cast<std::uint8_t>(load >> 8)};
     ASSERT_TRUE(codec_.receive(pdo("tpdo1"), f));
   }
   template <class Word, class Flags>
@@ -100,7 +100,9 @@ class DriveCodecTest : public ::testing::Test {
     ADD_FAILURE() << "no field " << name;
     return false;
   }
-  bool status_flag(const Status& s, std::string_view name) const { return field(s.status_word(), Binding::status_flags, name); }
+  bool status_flag(const Status& s, std::string_view name) const {
+    return field(s.status_word(), Binding::status_flags, name);
+  }
   bool control_flag(const Status& s, std::string_view name) const {
     return field(s.control_word(), Binding::control_flags, name);
   }
@@ -153,7 +155,8 @@ TYPED_TEST_P(DriveCodecTest, Tpdo1ValuesInEngineeringUnits) {
     for (const auto name : t.set_flags) EXPECT_TRUE(this->status_flag(s, name)) << name;
     EXPECT_DOUBLE_EQ(s.speed_actual_percent(), t.speed_percent);
     EXPECT_DOUBLE_EQ(s.load_actual_percent(), t.load_percent);
-    EXPECT_EQ(s.manufacturer_status_word_present(), t.manufacturer.has_value()) << "a frame of " << t.frame.size() << " bytes";
+    EXPECT_EQ(s.manufacturer_status_word_present(), t.manufacturer.has_value())
+        << "a frame of " << t.frame.size() << " bytes";
     EXPECT_EQ(s.manufacturer_status_word(), t.manufacturer.value_or(0));
   }
 }
@@ -210,8 +213,10 @@ TYPED_TEST_P(DriveCodecTest, OutOfRangeSetValuesAreRefusedWithTheReason) {
   ASSERT_FALSE(r);
   EXPECT_NE(r.error().message.find("speed_set_percent"), std::string::npos) << r.error().message;
   EXPECT_NE(r.error().message.find("out of range"), std::string::npos) << r.error().message;
-  for (const auto percent : this->v_.refused) EXPECT_FALSE(this->codec_.validate(this->setpoint(true, percent))) << percent;
-  for (const auto percent : this->v_.accepted) EXPECT_TRUE(this->codec_.validate(this->setpoint(true, percent))) << percent;
+  for (const auto percent : this->v_.refused)
+    EXPECT_FALSE(this->codec_.validate(this->setpoint(true, percent))) << percent;
+  for (const auto percent : this->v_.accepted)
+    EXPECT_TRUE(this->codec_.validate(this->setpoint(true, percent))) << percent;
   EXPECT_EQ(this->rpdo1(), (std::array<std::uint8_t, 8>{}));
 }
 
@@ -221,7 +226,8 @@ TYPED_TEST_P(DriveCodecTest, EveryControlBitHasItsNameAndTheMomentaryOnesAreComm
     this->codec_.set_control_bit(bit, true);
     const auto s = this->status();
     EXPECT_EQ(s.control_word().raw(), 1U << bit);
-    for (const auto& [other, other_name] : bits) EXPECT_EQ(this->control_flag(s, other_name), other == bit) << bit << "/" << other;
+    for (const auto& [other, other_name] : bits)
+      EXPECT_EQ(this->control_flag(s, other_name), other == bit) << bit << "/" << other;
     this->codec_.set_control_bit(bit, false);
   }
   const auto commands = gateways::resolve_commands(this->codec_.bitset("control_word"),

@@ -86,7 +86,8 @@ TEST(BridgeIncarnation, ARepeatThatReachesARestartedServerIsRefusedUnrunAndTheNe
   constexpr std::uint32_t kDomain = 41;
   auto client_dds = lb::ddsl::Participant::create({kDomain, true, "client"});
   ASSERT_TRUE(client_dds) << client_dds.error().message;
-  auto client = Client::create(**client_dds, lb::ddsl::line_service_path(kLine, "command"), lb::gateways::bridge_runs(kLine));
+  auto client = Client::create(**client_dds, lb::ddsl::line_service_path(kLine, "command"),
+                               lb::gateways::bridge_runs(kLine));
   ASSERT_TRUE(client) << client.error().message;
 
   std::atomic<int> first_runs{0}, second_runs{0};

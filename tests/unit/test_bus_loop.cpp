@@ -24,7 +24,8 @@ namespace {
 class Loop : public ::testing::Test {
  protected:
   void SetUp() override {
-    uri_ = "virtual:loop-" + std::to_string(::getpid()) + "-" + ::testing::UnitTest::GetInstance()->current_test_info()->name();
+    uri_ = "virtual:loop-" + std::to_string(::getpid()) + "-" +
+           ::testing::UnitTest::GetInstance()->current_test_info()->name();
     spy_ = std::make_unique<lb::test::BusSpy>(uri_);
     loop_ = std::make_unique<BusLoop>(lb::can::open_bus(uri_).value());
   }

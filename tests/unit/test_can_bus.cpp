@@ -55,14 +55,12 @@ std::unique_ptr<VirtualBus> must_open_virtual(const std::string& name) {
 }
 
 CanFrame seq_frame(std::uint32_t id, int seq) {
-  return make_frame(id,
-                    {static_cast<std::uint8_t>(seq & 0xFF), static_cast<std::uint8_t>(seq >> 8)});
+  return make_frame(id, {static_cast<std::uint8_t>(seq & 0xFF), static_cast<std::uint8_t>(seq >> 8)});
 }
 int seq_of(const CanFrame& f) { return f.data[0] | (f.data[1] << 8); }
 
 int ms_until(Clock::time_point deadline) {
-  const auto left =
-      std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()).count();
+  const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - Clock::now()).count();
   return left > 0 ? static_cast<int>(left) : 0;
 }
 
@@ -130,8 +128,7 @@ UniqueFd event_loop_with(std::initializer_list<int> fds) {
     epoll_event ev{};
     ev.events = EPOLLIN;
     ev.data.fd = fd;
-    if (::epoll_ctl(loop.get(), EPOLL_CTL_ADD, fd, &ev) != 0)
-      throw std::runtime_error("epoll_ctl failed");
+    if (::epoll_ctl(loop.get(), EPOLL_CTL_ADD, fd, &ev) != 0) throw std::runtime_error("epoll_ctl failed");
   }
   return loop;
 }
@@ -171,8 +168,7 @@ TEST(OpenBus, RejectsMalformedUris) {
   for (const auto& c : cases) {
     auto bus = open_bus(c.uri);
     ASSERT_FALSE(bus) << "'" << c.uri << "' was accepted";
-    EXPECT_NE(bus.error().message.find(c.says), std::string::npos)
-        << "'" << c.uri << "': " << bus.error().message;
+    EXPECT_NE(bus.error().message.find(c.says), std::string::npos) << "'" << c.uri << "': " << bus.error().message;
   }
 }
 
@@ -334,8 +330,7 @@ TEST(VirtualBus, AllMembersSeeOneTotalOrder) {
 
   std::vector<std::uint32_t> log1, log2;
   auto record = [](Bus& bus, std::vector<std::uint32_t>& log) {
-    for (const CanFrame& f : drain(bus))
-      log.push_back(f.error ? 0xFFFF'FFFF : (f.id << 16 | seq_of(f)));
+    for (const CanFrame& f : drain(bus)) log.push_back(f.error ? 0xFFFF'FFFF : (f.id << 16 | seq_of(f)));
   };
   for (int round = 0; round < kPerSender / kBurst; ++round) {
     std::latch start(2);
@@ -465,8 +460,7 @@ TEST(VirtualBus, SendAloneReelects) {
   auto b = must_open_virtual(name);
   a.reset();
   const auto deadline = Clock::now() + 2s;
-  while (!b->send(make_frame(0x100, {})) && Clock::now() < deadline)
-    std::this_thread::sleep_for(5ms);
+  while (!b->send(make_frame(0x100, {})) && Clock::now() < deadline) std::this_thread::sleep_for(5ms);
   EXPECT_TRUE(b->owns_hub());
   auto c = must_open_virtual(name);
   ASSERT_TRUE(b->send(make_frame(0x101, {})));
@@ -568,8 +562,7 @@ TEST(ListenOnlyBus, RefusesToSendAndCountsIt) {
 
   auto r = monitor->send(make_frame(0x201, {0x01}));
   ASSERT_FALSE(r);
-  EXPECT_EQ(r.error().message,
-            "bus " + uri + " is listen-only (monitor role): transmission refused");
+  EXPECT_EQ(r.error().message, "bus " + uri + " is listen-only (monitor role): transmission refused");
   EXPECT_EQ(monitor->stats().tx_dropped, 1u);
   EXPECT_EQ(monitor->stats().frames_out, 0u);
   EXPECT_EQ(monitor->stats().frames_in, 1u);
@@ -587,8 +580,7 @@ bool kernel_has_socketcan() {
 }
 
 TEST(SocketCanBus, FailsCleanlyWithoutKernelSupport) {
-  if (kernel_has_socketcan())
-    GTEST_SKIP() << "this kernel has SocketCAN; tests/socketcan covers the real thing";
+  if (kernel_has_socketcan()) GTEST_SKIP() << "this kernel has SocketCAN; tests/socketcan covers the real thing";
   auto bus = open_bus("socketcan:vcan0");
   ASSERT_FALSE(bus);
   EXPECT_NE(bus.error().message.find("no SocketCAN"), std::string::npos) << bus.error().message;
@@ -600,8 +592,7 @@ TEST(SocketCanBus, MissingInterfaceIsAnError) {
   // Whatever this kernel has, an interface that does not exist cannot be opened.
   auto bus = open_bus("socketcan:lbnosuchcan0");
   ASSERT_FALSE(bus);
-  EXPECT_NE(bus.error().message.find("socketcan:lbnosuchcan0"), std::string::npos)
-      << bus.error().message;
+  EXPECT_NE(bus.error().message.find("socketcan:lbnosuchcan0"), std::string::npos) << bus.error().message;
 }
 
 }  // namespace

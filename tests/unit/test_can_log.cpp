@@ -12,8 +12,8 @@
 #include <algorithm>
 #include <atomic>
 #include <chrono>
-#include <future>
 #include <fstream>
+#include <future>
 #include <sstream>
 #include <string>
 #include <thread>
@@ -144,17 +144,17 @@ TEST(CandumpLog, AcceptsPaddedNamesExtraFieldsSeparatorsAndRawDlc) {
 }
 
 TEST(CandumpLog, RefusesWhatIsNotAClassicalFrame) {
-  for (const char* bad : {"(1700000000.000000) can0 123##311223344",   // CAN FD
-                          "(1700000000.000000) can0 1234#11",           // 4-digit id
-                          "(1700000000.000000) can0 800#11",            // 11 bits overflow
-                          "(1700000000.000000) can0 123#112",           // odd digits
+  for (const char* bad : {"(1700000000.000000) can0 123##311223344",          // CAN FD
+                          "(1700000000.000000) can0 1234#11",                 // 4-digit id
+                          "(1700000000.000000) can0 800#11",                  // 11 bits overflow
+                          "(1700000000.000000) can0 123#112",                 // odd digits
                           "(1700000000.000000) can0 123#112233445566778899",  // 9 bytes
-                          "(1700000000.000000) can0 123#R9",            // RTR length > 8
-                          "(1700000000.000000) can0 12G#11",            // not hex
-                          "1700000000.000000 can0 123#11",              // no parentheses
-                          "(1700000000) can0 123#11",                   // no fraction
-                          "(1700000000.000000) can0",                   // no frame
-                          "(1700000000.000000) can0 12311"}) {          // no '#'
+                          "(1700000000.000000) can0 123#R9",                  // RTR length > 8
+                          "(1700000000.000000) can0 12G#11",                  // not hex
+                          "1700000000.000000 can0 123#11",                    // no parentheses
+                          "(1700000000) can0 123#11",                         // no fraction
+                          "(1700000000.000000) can0",                         // no frame
+                          "(1700000000.000000) can0 12311"}) {                // no '#'
     EXPECT_FALSE(parse_log_line(bad)) << bad;
   }
   auto fd = parse_log_line("(1700000000.000000) can0 123##311223344");
@@ -197,9 +197,10 @@ TEST(CandumpLog, FormatsExactlyAsCandumpLogs) {
 }
 
 TEST(CandumpLog, EveryFrameKindRoundTrips) {
-  for (const char* line : {"(1700000000.123456) vcan0 183#0200785634120000\n", "(1700000001.000000) vcan0 12345678#DEAD\n",
-                           "(1700000002.000001) vcan0 701#R\n", "(1700000002.000001) vcan0 701#R8\n",
-                           "(1700000003.999999) vcan0 20000040#0000000000000000\n", "(1700000004.000000) vcan0 080#\n"}) {
+  for (const char* line :
+       {"(1700000000.123456) vcan0 183#0200785634120000\n", "(1700000001.000000) vcan0 12345678#DEAD\n",
+        "(1700000002.000001) vcan0 701#R\n", "(1700000002.000001) vcan0 701#R8\n",
+        "(1700000003.999999) vcan0 20000040#0000000000000000\n", "(1700000004.000000) vcan0 080#\n"}) {
     auto r = parse_log_line(line);
     ASSERT_TRUE(r && *r) << line;
     EXPECT_EQ(format_log_line((*r)->frame, (*r)->interface), line);
@@ -243,13 +244,12 @@ TEST(ControllerState, FollowsTheErrorFramesUpAndDown) {
 
 // --- replay -------------------------------------------------------------------------------------
 
-constexpr const char* kRecording =
-    "(1700000000.000000) vcan0 705#05\n"
-    "(1700000000.050000) vcan0 185#0200785634120000\n"
-    "(1700000000.050100) can1 123#FF\n"
-    "(1700000000.100000) vcan0 20000040#0000000000000000\n"
-    "(1700000000.150000) vcan0 12345678#0102\n"
-    "(1700000000.200000) vcan0 701#R\n";
+constexpr const char* kRecording = "(1700000000.000000) vcan0 705#05\n"
+                                   "(1700000000.050000) vcan0 185#0200785634120000\n"
+                                   "(1700000000.050100) can1 123#FF\n"
+                                   "(1700000000.100000) vcan0 20000040#0000000000000000\n"
+                                   "(1700000000.150000) vcan0 12345678#0102\n"
+                                   "(1700000000.200000) vcan0 701#R\n";
 
 TEST(LogBus, SpecSyntax) {
   auto plain = LogBus::parse_spec("/tmp/a.log");
@@ -378,10 +378,9 @@ TEST(LogBus, OnlyARegularFileReplaysAndAnEndlessLineIsNotHeldWhole) {
 }
 
 TEST(LogBus, ABadLineIsReportedWithItsPlaceAndSkipped) {
-  const std::string path = write_file("bad.log",
-                                      "(1700000000.000000) vcan0 181#01\n"
-                                      "(1700000000.000000) vcan0 181##0102\n"
-                                      "(1700000000.000000) vcan0 181#03\n");
+  const std::string path = write_file("bad.log", "(1700000000.000000) vcan0 181#01\n"
+                                                 "(1700000000.000000) vcan0 181##0102\n"
+                                                 "(1700000000.000000) vcan0 181#03\n");
   auto bus = open_bus("log:" + path + "?pace=fast");
   ASSERT_TRUE(bus);
   std::vector<CanFrame> frames;
@@ -472,7 +471,8 @@ TEST(RecordingBus, AFullRecordingCountsEveryFrameItCannotKeep) {
   ASSERT_TRUE(inner) << inner.error().message;
   auto rec = RecordingBus::open(std::move(*inner), fifo);
   ASSERT_TRUE(rec) << rec.error().message;
-  ASSERT_EQ(drain(**rec, kFrames, 60'000ms).size(), kFrames) << "the bus stopped delivering when its recording was full";
+  ASSERT_EQ(drain(**rec, kFrames, 60'000ms).size(), kFrames)
+      << "the bus stopped delivering when its recording was full";
   const std::uint64_t errors = (*rec)->stats().record_errors;  // final: no frame comes any more
   EXPECT_GT(errors, 0u);
   EXPECT_LT(errors, kFrames);
@@ -538,8 +538,8 @@ TEST(RecordingBus, StoppingIsBoundedWhenAWriteNeverReturns) {
   ASSERT_EQ(drain(**rec, kFrames, 60'000ms).size(), kFrames);
   const auto stop_began = Clock::now();
   auto stopped = std::async(std::launch::async, [&] { rec->reset(); });
-  const bool bounded =
-      stopped.wait_for(RecordingBus::kStopWait + RecordingBus::kStopGrace + 10s) == std::future_status::ready;
+  const bool bounded = stopped.wait_for(RecordingBus::kStopWait + RecordingBus::kStopGrace + 10s) ==
+                       std::future_status::ready;
   const auto stop_took = Clock::now() - stop_began;
 
   // A reader now: it releases the blocked write (and a destructor that waits for it, so the test
@@ -588,25 +588,30 @@ std::string line_with_bus(const std::string& bus_yaml) {
 
 TEST(LogBusConfig, ALogBusIsAMonitorAndRecordTakesAPath) {
   const auto registry = profiles::ProfileRegistry::builtin();
-  auto replay = profiles::parse_line_config(line_with_bus("{name: b, interface: 'log:/tmp/x.log?pace=fast'}"), "t.yaml", registry);
+  auto replay = profiles::parse_line_config(line_with_bus("{name: b, interface: 'log:/tmp/x.log?pace=fast'}"), "t.yaml",
+                                            registry);
   ASSERT_TRUE(replay) << replay.error().message;
   EXPECT_EQ(replay->buses[0].role, profiles::BusRole::monitor) << "a replay never transmits: monitor by default";
 
-  auto master = profiles::parse_line_config(line_with_bus("{name: b, interface: 'log:/tmp/x.log', role: master}"), "t.yaml", registry);
+  auto master = profiles::parse_line_config(line_with_bus("{name: b, interface: 'log:/tmp/x.log', role: master}"),
+                                            "t.yaml", registry);
   ASSERT_FALSE(master);
   EXPECT_NE(master.error().message.find("t.yaml:3:"), std::string::npos) << master.error().message;
   EXPECT_NE(master.error().message.find("monitor"), std::string::npos) << master.error().message;
 
-  auto pace = profiles::parse_line_config(line_with_bus("{name: b, interface: 'log:/tmp/x.log?pace=slow'}"), "t.yaml", registry);
+  auto pace = profiles::parse_line_config(line_with_bus("{name: b, interface: 'log:/tmp/x.log?pace=slow'}"), "t.yaml",
+                                          registry);
   ASSERT_FALSE(pace);
   EXPECT_NE(pace.error().message.find("pace"), std::string::npos) << pace.error().message;
 
-  auto rec = profiles::parse_line_config(line_with_bus("{name: b, interface: 'socketcan:can0', record: /var/log/can0.log}"),
+  auto rec = profiles::parse_line_config(line_with_bus(
+                                             "{name: b, interface: 'socketcan:can0', record: /var/log/can0.log}"),
                                          "t.yaml", registry);
   ASSERT_TRUE(rec) << rec.error().message;
   EXPECT_EQ(rec->buses[0].record, "/var/log/can0.log");
   EXPECT_EQ(rec->buses[0].role, profiles::BusRole::master);
-  EXPECT_FALSE(profiles::parse_line_config(line_with_bus("{name: b, interface: 'socketcan:can0', record: ''}"), "t.yaml", registry));
+  EXPECT_FALSE(profiles::parse_line_config(line_with_bus("{name: b, interface: 'socketcan:can0', record: ''}"),
+                                           "t.yaml", registry));
 }
 
 }  // namespace

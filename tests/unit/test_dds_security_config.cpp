@@ -6,8 +6,8 @@
 
 #include "profiles/line_config.hpp"
 
-using lb::profiles::ProfileRegistry;
 using lb::profiles::parse_line_config;
+using lb::profiles::ProfileRegistry;
 
 namespace {
 
@@ -22,14 +22,13 @@ std::string line(const std::string& security) {
          "  - {name: saw1, bus: ext, node_id: 3, profile: cia420-4, version: '3.1'}\n";
 }
 
-const std::string kFiles =
-    "  security:\n"
-    "    identity_ca: ca/identity_ca.pem\n"
-    "    certificate: bridge/cert.pem\n"
-    "    private_key: /secret/key.pem\n"
-    "    permissions_ca: ca/permissions_ca.pem\n"
-    "    governance: ../governance.p7s\n"
-    "    permissions: bridge/permissions.p7s\n";
+const std::string kFiles = "  security:\n"
+                           "    identity_ca: ca/identity_ca.pem\n"
+                           "    certificate: bridge/cert.pem\n"
+                           "    private_key: /secret/key.pem\n"
+                           "    permissions_ca: ca/permissions_ca.pem\n"
+                           "    governance: ../governance.p7s\n"
+                           "    permissions: bridge/permissions.p7s\n";
 
 std::string error_of(const std::string& text) {
   const auto registry = ProfileRegistry::builtin();
@@ -66,12 +65,16 @@ TEST(DdsSecurityConfig, RelativePathsAreTakenFromTheLineFilesFolder) {
 TEST(DdsSecurityConfig, MistakesStopStartUpWithTheirPlace) {
   std::string missing = kFiles;
   missing.erase(missing.find("    governance:"), std::string("    governance: ../governance.p7s\n").size());
-  EXPECT_NE(error_of(line(missing)).find("line.yaml:5:5: dds.security: missing required key 'governance'"), std::string::npos)
+  EXPECT_NE(error_of(line(missing)).find("line.yaml:5:5: dds.security: missing required key 'governance'"),
+            std::string::npos)
       << error_of(line(missing));
-  EXPECT_NE(error_of(line(kFiles + "    permisions: x\n")).find("unknown key 'permisions' in dds.security"), std::string::npos);
-  EXPECT_NE(error_of(line(kFiles + "    properties: {fastdds.push_mode: 'false'}\n")).find("is not a dds.sec.* property"),
+  EXPECT_NE(error_of(line(kFiles + "    permisions: x\n")).find("unknown key 'permisions' in dds.security"),
             std::string::npos);
-  EXPECT_NE(error_of(line(kFiles + "    properties: {dds.sec.access.builtin.Access-Permissions.permissions: file:///x}\n"))
+  EXPECT_NE(
+      error_of(line(kFiles + "    properties: {fastdds.push_mode: 'false'}\n")).find("is not a dds.sec.* property"),
+      std::string::npos);
+  EXPECT_NE(error_of(
+                line(kFiles + "    properties: {dds.sec.access.builtin.Access-Permissions.permissions: file:///x}\n"))
                 .find("names a file: give it with its own dds.security key"),
             std::string::npos);
   std::string uri = kFiles;

@@ -9,9 +9,9 @@
 #include <string>
 #include <thread>
 
-#include <fastdds/dds/log/Log.hpp>
 #include <spdlog/sinks/ostream_sink.h>
 #include <spdlog/spdlog.h>
+#include <fastdds/dds/log/Log.hpp>
 
 #include "dds/fastdds_log.hpp"
 
@@ -54,10 +54,12 @@ TEST_F(FastDdsLog, WarningsAndErrorsReachTheLogWithTheirCategory) {
     fdds::Log::Flush();
   }
   const auto text = out_.str();
-  EXPECT_NE(text.find("warning Fast DDS [RTPS_MSG_IN] Reached the maximum number of samples allowed by this reader's QoS."),
+  EXPECT_NE(text.find(
+                "warning Fast DDS [RTPS_MSG_IN] Reached the maximum number of samples allowed by this reader's QoS."),
             std::string::npos)
       << text;
-  EXPECT_NE(text.find("error Fast DDS [RTPS_MSG_IN] Problem reserving CacheChange in reader"), std::string::npos) << text;
+  EXPECT_NE(text.find("error Fast DDS [RTPS_MSG_IN] Problem reserving CacheChange in reader"), std::string::npos)
+      << text;
 }
 
 TEST_F(FastDdsLog, ABurstIsLoggedAFewTimesASecondWithTheCountHeldBack) {

@@ -40,7 +40,9 @@ class FeederCodecTest : public ::testing::Test {
     const auto len = codec_.pack(pdo(name), out);
     return {out.begin(), out.begin() + len};
   }
-  static std::vector<std::uint8_t> colours(const msg::PickInsertion& p) { return {p.colours().begin(), p.colours().end()}; }
+  static std::vector<std::uint8_t> colours(const msg::PickInsertion& p) {
+    return {p.colours().begin(), p.colours().end()};
+  }
 
   lb::profiles::ProfileRegistry registry_;
   const lb::profiles::Profile& profile_;
@@ -182,7 +184,8 @@ TEST_F(FeederCodecTest, CommandsAndTestsCheckedBeforeCan) {
   EXPECT_EQ(reset->raw, 0x04u);
   const auto fly = codec_.command(2, "fly", 0, 4u).error().message;
   EXPECT_NE(fly.find("unknown feeder command"), std::string::npos);
-  EXPECT_NE(fly.find("(non_operation_mode, operation_mode, start,"), std::string::npos) << "the reason lists the commands: " << fly;
+  EXPECT_NE(fly.find("(non_operation_mode, operation_mode, start,"), std::string::npos)
+      << "the reason lists the commands: " << fly;
   EXPECT_NE(codec_.command(5, "reset", 0, 4u).error().message.find("reports 4"), std::string::npos);
   EXPECT_FALSE(codec_.command(0, "reset", 0, std::nullopt));
   EXPECT_FALSE(codec_.command(255, "reset", 0, std::nullopt));
@@ -210,7 +213,8 @@ TEST_F(FeederCodecTest, ConfigurationWritesChecked) {
   auto merged = codec_.merge_functions(current, {{"yarn_break_sensor", "not_active"}, {"winding_direction", "z"}});
   ASSERT_TRUE(merged) << merged.error().message;
   EXPECT_EQ(*merged, 0x38002880u);
-  EXPECT_NE(codec_.merge_functions(current, {{"brush_release", "on"}}).error().message.find("not available"), std::string::npos);
+  EXPECT_NE(codec_.merge_functions(current, {{"brush_release", "on"}}).error().message.find("not available"),
+            std::string::npos);
   EXPECT_FALSE(codec_.merge_functions(current, {{"tks_sensor", "banana"}}));
   EXPECT_FALSE(codec_.merge_functions(current, {{"angle_trigger_monitoring", "not_available"}}));
   EXPECT_FALSE(codec_.merge_functions(current, {{"warp_drive", "on"}}));
@@ -228,7 +232,8 @@ TEST_F(FeederCodecTest, ConfigurationWritesChecked) {
             std::string::npos);
 
   // Access: 6009h is read-only.
-  EXPECT_NE(FeederCodec::checked(*profile_.object("feeder_status_1"), 0).error().message.find("not writable"), std::string::npos);
+  EXPECT_NE(FeederCodec::checked(*profile_.object("feeder_status_1"), 0).error().message.find("not writable"),
+            std::string::npos);
 }
 
 TEST_F(FeederCodecTest, LoomSetpointPackedIntoRpdos) {

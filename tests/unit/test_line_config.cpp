@@ -14,8 +14,8 @@
 
 #include "profiles/line_config.hpp"
 
-using lb::profiles::ProfileRegistry;
 using lb::profiles::parse_line_config;
+using lb::profiles::ProfileRegistry;
 
 namespace {
 
@@ -94,20 +94,25 @@ TEST(LineConfig, UnknownProfileIsRefusedWithTheKnownOnes) {
 }
 
 TEST(LineConfig, OtherMistakes) {
-  EXPECT_NE(error_of(replace(kGood, "node_id: 3", "node_id: 128")).find("line.yaml:16:14: device saw1: node_id 128 is outside 1..127"),
+  EXPECT_NE(error_of(replace(kGood, "node_id: 3", "node_id: 128"))
+                .find("line.yaml:16:14: device saw1: node_id 128 is outside 1..127"),
             std::string::npos);
   EXPECT_NE(error_of(replace(kGood, "node_id: 3", "node_id: three")).find("'node_id' has a value of the wrong type"),
             std::string::npos);
   EXPECT_NE(error_of(replace(kGood, "bus: ext", "bus: nowhere")).find("no bus named 'nowhere'"), std::string::npos);
   EXPECT_NE(error_of(replace(kGood, "role: monitor", "role: slave")).find("role must be master or monitor"),
             std::string::npos);
-  EXPECT_NE(error_of(replace(kGood, "virtual:x", "udp:x")).find("interface must be socketcan:<ifname>, virtual:<name> or log:<file>"),
+  EXPECT_NE(error_of(replace(kGood, "virtual:x", "udp:x"))
+                .find("interface must be socketcan:<ifname>, virtual:<name> or log:<file>"),
             std::string::npos);
-  EXPECT_NE(error_of(replace(kGood, "name: saw1", "name: saw-1")).find("'saw-1' is not a valid name"), std::string::npos);
-  EXPECT_NE(error_of(replace(kGood, "name: saw1", "name: bridge")).find("line.yaml:14:11: device name 'bridge' is reserved"),
-            std::string::npos)
+  EXPECT_NE(error_of(replace(kGood, "name: saw1", "name: saw-1")).find("'saw-1' is not a valid name"),
+            std::string::npos);
+  EXPECT_NE(
+      error_of(replace(kGood, "name: saw1", "name: bridge")).find("line.yaml:14:11: device name 'bridge' is reserved"),
+      std::string::npos)
       << error_of(replace(kGood, "name: saw1", "name: bridge"));
-  EXPECT_NE(error_of(replace(kGood, "max_speed_m_per_min: 12.5", "max_speed: 12.5")).find("unknown key 'max_speed' in simulation"),
+  EXPECT_NE(error_of(replace(kGood, "max_speed_m_per_min: 12.5", "max_speed: 12.5"))
+                .find("unknown key 'max_speed' in simulation"),
             std::string::npos);
   EXPECT_NE(error_of(kGood + "  - {name: saw2, bus: ext, node_id: 3, profile: cia420-4, version: \"3.1\"}\n")
                 .find("node-ID 3 is already used by saw1 on bus ext"),
@@ -120,7 +125,8 @@ TEST(LineConfig, OtherMistakes) {
 // realtime_priority: the bus loop's SCHED_FIFO priority, 1..99, absent or 0 = normal scheduling.
 TEST(LineConfig, RealtimePriorityOfABusLoop) {
   const auto registry = ProfileRegistry::builtin();
-  auto r = parse_line_config(replace(kGood, "    sync_period_ms: 10\n", "    sync_period_ms: 10\n    realtime_priority: 40\n"),
+  auto r = parse_line_config(replace(kGood, "    sync_period_ms: 10\n",
+                                     "    sync_period_ms: 10\n    realtime_priority: 40\n"),
                              "line.yaml", registry);
   ASSERT_TRUE(r) << r.error().message;
   EXPECT_EQ(r->buses[0].realtime_priority, 40);
@@ -133,10 +139,11 @@ TEST(LineConfig, RealtimePriorityOfABusLoop) {
 
 TEST(LineConfig, PdoOverrides) {
   const auto registry = ProfileRegistry::builtin();
-  const std::string pdos = "    pdos:\n"
-                           "      tpdo1: {cob_id: 0x80000183}\n"
-                           "      tpdo2: {cob_id: 0x20012345, transmission_type: 254, inhibit_time_100us: 10, event_timer_ms: 250}\n"
-                           "      rpdo1: {transmission_type: 0, mapping: [0x60200010, 0x00060010, 0x60020020]}\n";
+  const std::string pdos =
+      "    pdos:\n"
+      "      tpdo1: {cob_id: 0x80000183}\n"
+      "      tpdo2: {cob_id: 0x20012345, transmission_type: 254, inhibit_time_100us: 10, event_timer_ms: 250}\n"
+      "      rpdo1: {transmission_type: 0, mapping: [0x60200010, 0x00060010, 0x60020020]}\n";
   auto r = parse_line_config(replace(kGood, "    simulation:\n", pdos + "    simulation:\n"), "line.yaml", registry);
   ASSERT_TRUE(r) << r.error().message;
   const auto& p = r->devices[0].pdos;
@@ -152,14 +159,20 @@ TEST(LineConfig, PdoOverrides) {
   EXPECT_EQ(p[2].mapping[1].index, 0x0006);  // dummy UNSIGNED16
   EXPECT_EQ(p[2].transmission_type, 0);
 
-  const auto bad = [&](const std::string& text) { return error_of(replace(kGood, "    simulation:\n", text + "    simulation:\n")); };
-  EXPECT_NE(bad("    pdos: {tpdo9: {transmission_type: 1}}\n").find("has no PDO 'tpdo9' (tpdo1, tpdo2, rpdo1)"), std::string::npos);
+  const auto bad = [&](const std::string& text) {
+    return error_of(replace(kGood, "    simulation:\n", text + "    simulation:\n"));
+  };
+  EXPECT_NE(bad("    pdos: {tpdo9: {transmission_type: 1}}\n").find("has no PDO 'tpdo9' (tpdo1, tpdo2, rpdo1)"),
+            std::string::npos);
   EXPECT_NE(bad("    pdos: {tpdo1: {cob_id: 0x800}}\n").find("must be below 800h"), std::string::npos);
-  EXPECT_NE(bad("    pdos: {tpdo1: {transmission_type: 245}}\n").find("transmission_type 245 is reserved"), std::string::npos);
-  EXPECT_NE(bad("    pdos: {tpdo1: {mapping: [0x60300020]}}\n").find("mapping entry length differs"), std::string::npos);
+  EXPECT_NE(bad("    pdos: {tpdo1: {transmission_type: 245}}\n").find("transmission_type 245 is reserved"),
+            std::string::npos);
+  EXPECT_NE(bad("    pdos: {tpdo1: {mapping: [0x60300020]}}\n").find("mapping entry length differs"),
+            std::string::npos);
   EXPECT_NE(bad("    pdos: {tpdo1: {mapping: [0x70000010]}}\n").find("does not define"), std::string::npos);
   EXPECT_NE(bad("    pdos: {tpdo1: {mapping: [0x60000020, 0x60010020, 0x60070020]}}\n").find("64"), std::string::npos);
-  EXPECT_NE(bad("    configure: [{object: counter_value, value: 1}]\n").find("counter_value is ro, not writable"), std::string::npos);
+  EXPECT_NE(bad("    configure: [{object: counter_value, value: 1}]\n").find("counter_value is ro, not writable"),
+            std::string::npos);
   EXPECT_NE(bad("    configure: [{object: saw_cut_depth, value: 70000}]\n").find("configure entry"), std::string::npos);
 }
 
@@ -186,11 +199,14 @@ device_type: 0x01A4
 objects:
   - {index: 0x6030, name: status_word, type: UNSIGNED16, access: ro}
 )";
-  auto r = lb::profiles::parse_profile(base + "bitsets:\n  status_word:\n    object: 0x6030\n    bits: {a: 16}\n", "p.yaml");
+  auto r = lb::profiles::parse_profile(base + "bitsets:\n  status_word:\n    object: 0x6030\n    bits: {a: 16}\n",
+                                       "p.yaml");
   ASSERT_FALSE(r);
   EXPECT_NE(r.error().message.find("p.yaml:10:15: bit 16 does not exist in a 16-bit word"), std::string::npos)
       << r.error().message;
-  r = lb::profiles::parse_profile(base + "pdos:\n  - {name: tpdo1, direction: tx, cob_id: 0x180, transmission_type: 1, mapping: [0x60300020]}\n", "p.yaml");
+  r = lb::profiles::parse_profile(
+      base + "pdos:\n  - {name: tpdo1, direction: tx, cob_id: 0x180, transmission_type: 1, mapping: [0x60300020]}\n",
+      "p.yaml");
   ASSERT_FALSE(r);
   EXPECT_NE(r.error().message.find("mapping entry length differs"), std::string::npos) << r.error().message;
   r = lb::profiles::parse_profile(replace(base, "UNSIGNED16", "UNSIGNED17"), "p.yaml");
@@ -241,13 +257,17 @@ TEST(LineConfig, MasterBootMistakes) {
             std::string::npos);
   EXPECT_NE(error_of(replace(kGood, at, at + "    pdo_config: take\n")).find("pdo_config must be configure"),
             std::string::npos);
-  EXPECT_NE(error_of(replace(kGood, at, at + "    on_state_unknown: start\n")).find("on_state_unknown must be reboot or reset_node"),
+  EXPECT_NE(error_of(replace(kGood, at, at + "    on_state_unknown: start\n"))
+                .find("on_state_unknown must be reboot or reset_node"),
             std::string::npos);
-  EXPECT_NE(error_of(replace(kGood, at, at + "    identity: {vendor: 1}\n")).find("unknown key 'vendor'"), std::string::npos);
+  EXPECT_NE(error_of(replace(kGood, at, at + "    identity: {vendor: 1}\n")).find("unknown key 'vendor'"),
+            std::string::npos);
   // CiA 301: an RPDO is synchronous (0..240) or event-driven (254/255); dummies only in RPDOs.
-  EXPECT_NE(error_of(replace(kGood, at, at + "    pdos: {rpdo1: {transmission_type: 252}}\n")).find("is for TPDOs only"),
-            std::string::npos);
-  EXPECT_NE(error_of(replace(kGood, at, at + "    pdos: {tpdo1: {mapping: [0x00050010]}}\n")).find("a TPDO cannot carry them"),
+  EXPECT_NE(
+      error_of(replace(kGood, at, at + "    pdos: {rpdo1: {transmission_type: 252}}\n")).find("is for TPDOs only"),
+      std::string::npos);
+  EXPECT_NE(error_of(replace(kGood, at, at + "    pdos: {tpdo1: {mapping: [0x00050010]}}\n"))
+                .find("a TPDO cannot carry them"),
             std::string::npos);
 }
 
@@ -279,12 +299,13 @@ TEST(LineConfig, SimulationDeviceKeys) {
 // with them; the simulator keeps the profile as it is.
 TEST(LineConfig, DeviceObjectsExtendTheBridgesProfileOnly) {
   const auto registry = ProfileRegistry::builtin();
-  const std::string yaml = replace(kGood, "    heartbeat_timeout_ms: 300\n",
-                                   "    heartbeat_timeout_ms: 300\n"
-                                   "    objects:\n"
-                                   "      - {index: 0x2110, name: second_status_word, type: UNSIGNED16}\n"
-                                   "      - {index: 0x2120, name: blade_temperature, type: INTEGER16, unit: 0.1 °C, scale: 0.1, eng_unit: °C}\n"
-                                   "    pdos: {tpdo1: {mapping: [0x60300010, 0x60000020, 0x21100010]}}\n");
+  const std::string yaml = replace(
+      kGood, "    heartbeat_timeout_ms: 300\n",
+      "    heartbeat_timeout_ms: 300\n"
+      "    objects:\n"
+      "      - {index: 0x2110, name: second_status_word, type: UNSIGNED16}\n"
+      "      - {index: 0x2120, name: blade_temperature, type: INTEGER16, unit: 0.1 °C, scale: 0.1, eng_unit: °C}\n"
+      "    pdos: {tpdo1: {mapping: [0x60300010, 0x60000020, 0x21100010]}}\n");
   auto r = parse_line_config(yaml, "line.yaml", registry);
   ASSERT_TRUE(r) << r.error().message;
   const auto& dev = r->devices[0];
@@ -338,16 +359,21 @@ std::string temp_path(const std::string& name) {
   return ::testing::TempDir() + "/line_config_" + std::to_string(::getpid()) + "_" + name;
 }
 
-std::string with_pdos(const std::string& pdos) { return replace(kGood, "    simulation:\n", pdos + "    simulation:\n"); }
+std::string with_pdos(const std::string& pdos) {
+  return replace(kGood, "    simulation:\n", pdos + "    simulation:\n");
+}
 
 }  // namespace
 
 TEST(LineConfigHostile, NonScalarKeyIsAnErrorWithItsPlaceNotAnAbort) {
   // yaml-cpp's conversion of such a key threw YAML::TypedBadConversion past every handler.
-  EXPECT_NE(error_of("? [a, b]\n: 1\n" + kGood).find("line.yaml:1:3: a key must be a plain value, not a list"), std::string::npos)
+  EXPECT_NE(error_of("? [a, b]\n: 1\n" + kGood).find("line.yaml:1:3: a key must be a plain value, not a list"),
+            std::string::npos)
       << error_of("? [a, b]\n: 1\n" + kGood);
-  EXPECT_NE(error_of(with_pdos("    pdos: {? {x: 1} : 2}\n")).find("a key must be a plain value, not a mapping"), std::string::npos);
-  EXPECT_NE(error_of(replace(kGood, "line: test\n", "line: test\n? &k a\n: 1\n? *k\n: 2\n")).find("not an alias"), std::string::npos);
+  EXPECT_NE(error_of(with_pdos("    pdos: {? {x: 1} : 2}\n")).find("a key must be a plain value, not a mapping"),
+            std::string::npos);
+  EXPECT_NE(error_of(replace(kGood, "line: test\n", "line: test\n? &k a\n: 1\n? *k\n: 2\n")).find("not an alias"),
+            std::string::npos);
   EXPECT_NE(error_of("{: 1}\n").find("a key must not be empty"), std::string::npos) << error_of("{: 1}\n");
 
   const auto path = temp_path("list_key.yaml");
@@ -362,7 +388,8 @@ TEST(LineConfigHostile, LongNamesAreRefusedNotARecursionThatOverflowsTheStack) {
   // std::regex recursed once per character: ~100 kB overflowed the stack (SIGSEGV).
   const std::string huge(100'000, 'a');
   for (const auto& [from, to] : {std::pair<std::string, std::string>{"line: test", "line: " + huge},
-                                 {"name: ext", "name: " + huge}, {"name: saw1", "name: " + huge}}) {
+                                 {"name: ext", "name: " + huge},
+                                 {"name: saw1", "name: " + huge}}) {
     const auto e = error_of(replace(kGood, from, to));
     EXPECT_NE(e.find("is not a valid name"), std::string::npos) << e.substr(0, 300);
     EXPECT_NE(e.find("(100000 characters)"), std::string::npos) << "the message quotes the name cut short";
@@ -370,7 +397,8 @@ TEST(LineConfigHostile, LongNamesAreRefusedNotARecursionThatOverflowsTheStack) {
   }
   const auto registry = ProfileRegistry::builtin();
   EXPECT_TRUE(parse_line_config(replace(kGood, "name: saw1", "name: s" + std::string(63, 'x')), "line.yaml", registry));
-  EXPECT_NE(error_of(replace(kGood, "name: saw1", "name: s" + std::string(64, 'x'))).find("at most 64 characters"), std::string::npos);
+  EXPECT_NE(error_of(replace(kGood, "name: saw1", "name: s" + std::string(64, 'x'))).find("at most 64 characters"),
+            std::string::npos);
 }
 
 TEST(LineConfigHostile, DuplicateKeysAreRefusedWithBothPlaces) {
@@ -380,14 +408,16 @@ TEST(LineConfigHostile, DuplicateKeysAreRefusedWithBothPlaces) {
             std::string::npos)
       << error_of(replace(kGood, "    node_id: 3\n", "    node_id: 3\n    node_id: 4\n"));
   EXPECT_NE(error_of("line: a\n" + kGood).find("line.yaml:2:1: key 'line' is given twice"), std::string::npos);
-  EXPECT_NE(error_of(with_pdos("    pdos: {tpdo1: {transmission_type: 1}, tpdo1: {transmission_type: 2}}\n")).find("key 'tpdo1' is given twice"),
+  EXPECT_NE(error_of(with_pdos("    pdos: {tpdo1: {transmission_type: 1}, tpdo1: {transmission_type: 2}}\n"))
+                .find("key 'tpdo1' is given twice"),
             std::string::npos);
   // One document per file: YAML::Load read the first and ignored the rest.
   EXPECT_NE(error_of(kGood + "---\nline: other\n").find("one YAML document"), std::string::npos);
 }
 
 TEST(LineConfigHostile, DeepNestingAndAliasBombsAreRefused) {
-  EXPECT_NE(error_of("line: " + std::string(5000, '[') + std::string(5000, ']') + "\n").find("nested more than"), std::string::npos);
+  EXPECT_NE(error_of("line: " + std::string(5000, '[') + std::string(5000, ']') + "\n").find("nested more than"),
+            std::string::npos);
   std::string bomb = "a: &a [x, x, x, x, x, x, x, x, x, x]\n";
   for (char c = 'b'; c <= 'h'; ++c) {
     bomb += std::string(1, c) + ": &" + c + " [*" + static_cast<char>(c - 1);
@@ -402,7 +432,8 @@ TEST(LineConfigHostile, OnlyRegularFilesOfBoundedSizeAreRead) {
   // /dev/zero was read without end (~450 MB/s), a FIFO without a writer blocked start-up forever.
   auto r = lb::profiles::load_line_config("/dev/zero", registry);
   ASSERT_FALSE(r);
-  EXPECT_NE(r.error().message.find("/dev/zero: line configuration: not a regular file"), std::string::npos) << r.error().message;
+  EXPECT_NE(r.error().message.find("/dev/zero: line configuration: not a regular file"), std::string::npos)
+      << r.error().message;
   const auto fifo = temp_path("fifo.yaml");
   ASSERT_EQ(::mkfifo(fifo.c_str(), 0600), 0);
   r = lb::profiles::load_line_config(fifo, registry);
@@ -435,7 +466,8 @@ TEST(LineConfigHostile, TheAttacksHugeLineIsRefusedAtOnceAndBusesAreBounded) {
   const auto registry = ProfileRegistry::builtin();
   const auto line = [](int buses, int per_bus) {
     std::string text = "line: big\nbuses:\n";
-    for (int b = 0; b < buses; ++b) text += "  - {name: b" + std::to_string(b) + ", interface: \"virtual:b" + std::to_string(b) + "\"}\n";
+    for (int b = 0; b < buses; ++b)
+      text += "  - {name: b" + std::to_string(b) + ", interface: \"virtual:b" + std::to_string(b) + "\"}\n";
     text += "devices:\n";
     for (int b = 0; b < buses; ++b) {
       for (int n = 1; n <= per_bus; ++n) {
@@ -455,7 +487,8 @@ TEST(LineConfigHostile, TheAttacksHugeLineIsRefusedAtOnceAndBusesAreBounded) {
 
 TEST(LineConfigHostile, PdoIdentifiersOfRestrictedServicesAreRefused) {
   const auto e = [](const std::string& pdos) { return error_of(with_pdos(pdos)); };
-  EXPECT_NE(e("    pdos: {rpdo1: {cob_id: 0x000}}\n").find("line.yaml:20:28: pdo rpdo1 of device saw1: identifier 000h is NMT: CiA 301 restricts it"),
+  EXPECT_NE(e("    pdos: {rpdo1: {cob_id: 0x000}}\n")
+                .find("line.yaml:20:28: pdo rpdo1 of device saw1: identifier 000h is NMT: CiA 301 restricts it"),
             std::string::npos)
       << e("    pdos: {rpdo1: {cob_id: 0x000}}\n");
   EXPECT_NE(e("    pdos: {tpdo1: {cob_id: 0x080}}\n").find("identifier 080h is SYNC"), std::string::npos);
@@ -465,7 +498,9 @@ TEST(LineConfigHostile, PdoIdentifiersOfRestrictedServicesAreRefused) {
   EXPECT_NE(e("    pdos: {rpdo1: {cob_id: 0x603}}\n").find("default SDO (client to server)"), std::string::npos);
   EXPECT_NE(e("    pdos: {tpdo2: {cob_id: 0x703}}\n").find("NMT error control"), std::string::npos);
   for (const char* reserved : {"0x001", "0x07F", "0x101", "0x180", "0x6E0", "0x780", "0x7FF"}) {
-    EXPECT_NE(e(std::string("    pdos: {tpdo1: {cob_id: ") + reserved + "}}\n").find("is reserved: CiA 301 restricts it"), std::string::npos)
+    EXPECT_NE(
+        e(std::string("    pdos: {tpdo1: {cob_id: ") + reserved + "}}\n").find("is reserved: CiA 301 restricts it"),
+        std::string::npos)
         << reserved;
   }
   // A profile's default identifiers are checked too: profile files are input like the line.
@@ -476,31 +511,39 @@ TEST(LineConfigHostile, PdoIdentifiersOfRestrictedServicesAreRefused) {
   registry_with.add(emcy_base);
   auto r = parse_line_config(replace(kGood, "profile: cia420-4", "profile: x-emcy"), "line.yaml", registry_with);
   ASSERT_FALSE(r);
-  EXPECT_NE(r.error().message.find("line.yaml:16:14: pdo " + emcy_base.pdos[0].name + " of device saw1: identifier 083h is EMCY"),
+  EXPECT_NE(r.error().message.find("line.yaml:16:14: pdo " + emcy_base.pdos[0].name +
+                                   " of device saw1: identifier 083h is EMCY"),
             std::string::npos)
       << r.error().message;
   // Not valid (bit 31) does not make it usable later; a 29-bit identifier is not restricted.
   EXPECT_NE(e("    pdos: {rpdo1: {cob_id: 0x80000000}}\n").find("is NMT"), std::string::npos);
   const auto registry = ProfileRegistry::builtin();
-  EXPECT_TRUE(parse_line_config(with_pdos("    pdos: {tpdo1: {cob_id: 0x20000080}, tpdo2: {cob_id: 0x181}, rpdo1: {cob_id: 0x680}}\n"),
-                                "line.yaml", registry));
+  EXPECT_TRUE(parse_line_config(
+      with_pdos("    pdos: {tpdo1: {cob_id: 0x20000080}, tpdo2: {cob_id: 0x181}, rpdo1: {cob_id: 0x680}}\n"),
+      "line.yaml", registry));
 }
 
 TEST(LineConfigHostile, OneIdentifierCarriesOnePdoOnABus) {
   const auto registry = ProfileRegistry::builtin();
   // saw1 (node 3) has TPDO1 on 183h; a second saw whose TPDO2 is moved there collides.
-  const std::string second = "  - {name: saw2, bus: ext, node_id: 4, profile: cia420-4, version: \"3.1\", pdos: {tpdo2: {cob_id: 0x183}}}\n";
+  const std::string second =
+      "  - {name: saw2, bus: ext, node_id: 4, profile: cia420-4, version: \"3.1\", pdos: {tpdo2: {cob_id: 0x183}}}\n";
   auto e = error_of(kGood + second);
-  EXPECT_NE(e.find("line.yaml:22:98: pdo tpdo2 of device saw2: identifier 183h is already used by pdo tpdo1 of device saw1 on bus ext"),
+  EXPECT_NE(e.find("line.yaml:22:98: pdo tpdo2 of device saw2: identifier 183h is already used by pdo tpdo1 of device "
+                   "saw1 on bus ext"),
             std::string::npos)
       << e;
   e = error_of(with_pdos("    pdos: {tpdo2: {cob_id: 0x203}}\n"));  // its own RPDO1's identifier
-  EXPECT_NE(e.find("pdo rpdo1 of device saw1: identifier 203h is already used by pdo tpdo2 of device saw1"), std::string::npos) << e;
+  EXPECT_NE(e.find("pdo rpdo1 of device saw1: identifier 203h is already used by pdo tpdo2 of device saw1"),
+            std::string::npos)
+      << e;
   e = error_of(with_pdos("    pdos: {tpdo1: {cob_id: 0x20000283}, tpdo2: {cob_id: 0x20000283}}\n"));
   EXPECT_NE(e.find("identifier 00000283h is already used"), std::string::npos) << e;
   // On another bus, not valid, or 11-bit against 29-bit: no collision.
-  EXPECT_TRUE(parse_line_config(kGood + "  - {name: saw2, bus: mon, node_id: 3, profile: cia420-4, version: \"3.1\"}\n", "line.yaml", registry));
-  EXPECT_TRUE(parse_line_config(kGood + "  - {name: saw2, bus: ext, node_id: 4, profile: cia420-4, version: \"3.1\", pdos: {tpdo2: {cob_id: 0x80000183}}}\n",
+  EXPECT_TRUE(parse_line_config(kGood + "  - {name: saw2, bus: mon, node_id: 3, profile: cia420-4, version: \"3.1\"}\n",
+                                "line.yaml", registry));
+  EXPECT_TRUE(parse_line_config(kGood + "  - {name: saw2, bus: ext, node_id: 4, profile: cia420-4, version: \"3.1\", "
+                                        "pdos: {tpdo2: {cob_id: 0x80000183}}}\n",
                                 "line.yaml", registry));
   EXPECT_TRUE(parse_line_config(with_pdos("    pdos: {tpdo2: {cob_id: 0x20000183}}\n"), "line.yaml", registry));
 }
@@ -511,14 +554,19 @@ TEST(LineConfigHostile, ARecordingCannotBeAReplayedLogOrAnotherRecording) {
                      "  - {name: mon, interface: \"log:" + log + "\"}\n";
   const std::string devices = "devices: []\n";
   auto e = error_of("line: test\n" + buses + devices);
-  EXPECT_NE(e.find("line.yaml:3:49: bus ext: record: '" + log + "' cannot be recorded into: bus mon replays it"), std::string::npos) << e;
+  EXPECT_NE(e.find("line.yaml:3:49: bus ext: record: '" + log + "' cannot be recorded into: bus mon replays it"),
+            std::string::npos)
+      << e;
   // The same file by another spelling.
   const auto dir = ::testing::TempDir();
   const auto other = dir + "/./" + log.substr(dir.size() + 1);
-  e = error_of("line: test\nbuses:\n  - {name: mon, interface: \"log:" + log + "?pace=fast\", record: \"" + other + "\"}\n" + devices);
+  e = error_of("line: test\nbuses:\n  - {name: mon, interface: \"log:" + log + "?pace=fast\", record: \"" + other +
+               "\"}\n" + devices);
   EXPECT_NE(e.find("cannot be recorded into: bus mon replays it"), std::string::npos) << e;
-  e = error_of("line: test\nbuses:\n  - {name: a, interface: \"virtual:x\", record: \"" + log + "\"}\n  - {name: b, interface: \"virtual:y\", record: \"" + log + "\"}\n" + devices);
-  EXPECT_NE(e.find("bus b: record: '" + log + "' cannot be recorded into: bus a records into it"), std::string::npos) << e;
+  e = error_of("line: test\nbuses:\n  - {name: a, interface: \"virtual:x\", record: \"" + log +
+               "\"}\n  - {name: b, interface: \"virtual:y\", record: \"" + log + "\"}\n" + devices);
+  EXPECT_NE(e.find("bus b: record: '" + log + "' cannot be recorded into: bus a records into it"), std::string::npos)
+      << e;
 }
 
 // The start-up policy: safe defaults (no restart after a power loss, speeds and lengths back, one
@@ -534,8 +582,11 @@ TEST(LineConfig, StartupPolicyDefaultsAreSafeAndEachKeyIsChecked) {
   EXPECT_FALSE(plain->devices[0].starts_itself);
   EXPECT_TRUE(plain->warnings.empty());
 
-  const auto set = replace(kGood, "dds:\n", "startup: {set_values_max_age_s: 60, after_power_loss: nothing, restart_after_power_loss: allowed}\ndds:\n");
-  auto custom = parse_line_config(replace(set, "    heartbeat_timeout_ms: 300\n", "    heartbeat_timeout_ms: 300\n    starts_itself: true\n"),
+  const auto set = replace(
+      kGood, "dds:\n",
+      "startup: {set_values_max_age_s: 60, after_power_loss: nothing, restart_after_power_loss: allowed}\ndds:\n");
+  auto custom = parse_line_config(replace(set, "    heartbeat_timeout_ms: 300\n",
+                                          "    heartbeat_timeout_ms: 300\n    starts_itself: true\n"),
                                   "line.yaml", registry);
   ASSERT_TRUE(custom) << custom.error().message;
   EXPECT_EQ(custom->startup.restart_after_power_loss, StartupPolicy::Restart::allowed);
@@ -545,11 +596,14 @@ TEST(LineConfig, StartupPolicyDefaultsAreSafeAndEachKeyIsChecked) {
   ASSERT_EQ(custom->warnings.size(), 1u);
   EXPECT_NE(custom->warnings[0].find("restart_after_power_loss: allowed"), std::string::npos) << custom->warnings[0];
 
-  EXPECT_NE(error_of(replace(kGood, "dds:\n", "startup: {restart_after_power_loss: always}\ndds:\n")).find("must be never or allowed"),
+  EXPECT_NE(error_of(replace(kGood, "dds:\n", "startup: {restart_after_power_loss: always}\ndds:\n"))
+                .find("must be never or allowed"),
             std::string::npos);
-  EXPECT_NE(error_of(replace(kGood, "dds:\n", "startup: {after_power_loss: all}\ndds:\n")).find("non_enabling"), std::string::npos);
-  EXPECT_NE(error_of(replace(kGood, "dds:\n", "startup: {set_values_max_age_s: -1}\ndds:\n")).find("set_values_max_age_s"),
+  EXPECT_NE(error_of(replace(kGood, "dds:\n", "startup: {after_power_loss: all}\ndds:\n")).find("non_enabling"),
             std::string::npos);
+  EXPECT_NE(
+      error_of(replace(kGood, "dds:\n", "startup: {set_values_max_age_s: -1}\ndds:\n")).find("set_values_max_age_s"),
+      std::string::npos);
   EXPECT_NE(error_of(replace(kGood, "dds:\n", "startup: {restore: true}\ndds:\n")).find("restore"), std::string::npos);
 }
 
@@ -565,17 +619,20 @@ TEST(LineConfig, MandatoryDevicesAndWhatTheLineDoesWhenOneFails) {
   EXPECT_FALSE(plain->devices[0].mandatory);
   EXPECT_EQ(plain->startup.when_mandatory_fails, StartupPolicy::WhenMandatoryFails::stop_others);
 
-  const auto mandatory = replace(kGood, "    heartbeat_timeout_ms: 300\n", "    heartbeat_timeout_ms: 300\n    mandatory: true\n");
+  const auto mandatory = replace(kGood, "    heartbeat_timeout_ms: 300\n",
+                                 "    heartbeat_timeout_ms: 300\n    mandatory: true\n");
   auto m = parse_line_config(mandatory, "line.yaml", registry);
   ASSERT_TRUE(m) << m.error().message;
   EXPECT_TRUE(m->devices[0].mandatory);
   EXPECT_EQ(m->startup.when_mandatory_fails, StartupPolicy::WhenMandatoryFails::stop_others);
   EXPECT_TRUE(m->warnings.empty());
 
-  auto report = parse_line_config(replace(mandatory, "dds:\n", "startup: {when_mandatory_fails: report_only}\ndds:\n"), "line.yaml", registry);
+  auto report = parse_line_config(replace(mandatory, "dds:\n", "startup: {when_mandatory_fails: report_only}\ndds:\n"),
+                                  "line.yaml", registry);
   ASSERT_TRUE(report) << report.error().message;
   EXPECT_EQ(report->startup.when_mandatory_fails, StartupPolicy::WhenMandatoryFails::report_only);
-  auto stop = parse_line_config(replace(mandatory, "dds:\n", "startup: {when_mandatory_fails: stop_others}\ndds:\n"), "line.yaml", registry);
+  auto stop = parse_line_config(replace(mandatory, "dds:\n", "startup: {when_mandatory_fails: stop_others}\ndds:\n"),
+                                "line.yaml", registry);
   ASSERT_TRUE(stop) << stop.error().message;
   EXPECT_EQ(stop->startup.when_mandatory_fails, StartupPolicy::WhenMandatoryFails::stop_others);
 
@@ -583,24 +640,29 @@ TEST(LineConfig, MandatoryDevicesAndWhatTheLineDoesWhenOneFails) {
   EXPECT_NE(e.find("line.yaml:2:"), std::string::npos) << e;
   EXPECT_NE(e.find("when_mandatory_fails must be stop_others"), std::string::npos) << e;
   EXPECT_NE(e.find("'reset_all'"), std::string::npos) << e;
-  e = error_of(replace(kGood, "    heartbeat_timeout_ms: 300\n", "    heartbeat_timeout_ms: 300\n    mandatory: yes please\n"));
+  e = error_of(
+      replace(kGood, "    heartbeat_timeout_ms: 300\n", "    heartbeat_timeout_ms: 300\n    mandatory: yes please\n"));
   EXPECT_NE(e.find("line.yaml:"), std::string::npos) << e;
   EXPECT_NE(e.find("mandatory"), std::string::npos) << e;
-  e = error_of(replace(kGood, "    heartbeat_timeout_ms: 300\n", "    heartbeat_timeout_ms: 300\n    mandatory_device: true\n"));
+  e = error_of(
+      replace(kGood, "    heartbeat_timeout_ms: 300\n", "    heartbeat_timeout_ms: 300\n    mandatory_device: true\n"));
   EXPECT_NE(e.find("mandatory_device"), std::string::npos) << e;
 
   // On the monitor bus: refused, with the place and the reason.
   const auto on_monitor = replace(mandatory, "    bus: ext\n", "    bus: mon\n");
   e = error_of(on_monitor);
   EXPECT_NE(e.find("line.yaml:"), std::string::npos) << e;
-  EXPECT_NE(e.find("device saw1: mandatory is for a master bus: bus mon is in the monitor role"), std::string::npos) << e;
+  EXPECT_NE(e.find("device saw1: mandatory is for a master bus: bus mon is in the monitor role"), std::string::npos)
+      << e;
   // mandatory: false is what a monitor bus's device is anyway.
-  auto off = parse_line_config(replace(kGood, "    bus: ext\n    node_id: 3\n", "    bus: mon\n    node_id: 3\n    mandatory: false\n"),
+  auto off = parse_line_config(replace(kGood, "    bus: ext\n    node_id: 3\n",
+                                       "    bus: mon\n    node_id: 3\n    mandatory: false\n"),
                                "line.yaml", registry);
   ASSERT_TRUE(off) << off.error().message;
 
   // A reaction without a mandatory device: accepted, and --check says it does nothing.
-  auto idle = parse_line_config(replace(kGood, "dds:\n", "startup: {when_mandatory_fails: report_only}\ndds:\n"), "line.yaml", registry);
+  auto idle = parse_line_config(replace(kGood, "dds:\n", "startup: {when_mandatory_fails: report_only}\ndds:\n"),
+                                "line.yaml", registry);
   ASSERT_TRUE(idle) << idle.error().message;
   ASSERT_EQ(idle->warnings.size(), 1u);
   EXPECT_NE(idle->warnings[0].find("no device is mandatory"), std::string::npos) << idle->warnings[0];
@@ -655,13 +717,15 @@ TEST(LineConfig, InhibitTimeOfAPdoWithAConstCobIdIsWarnedAbout) {
 
 // Two master buses on one CAN network would hear each other's SYNC and NMT and silence each other.
 TEST(LineConfig, TwoMasterBusesOnOneInterfaceAreRefused) {
-  const auto two = replace(kGood, "    interface: socketcan:can1\n    role: monitor\n", "    interface: virtual:x\n    role: master\n");
+  const auto two = replace(kGood, "    interface: socketcan:can1\n    role: monitor\n",
+                           "    interface: virtual:x\n    role: master\n");
   const auto e = error_of(two);
   EXPECT_NE(e.find("is already bus ext, and both are masters"), std::string::npos) << e;
   EXPECT_NE(e.find("line.yaml:11:"), std::string::npos) << e;
   // A monitor beside a master on one interface is fine (it only listens).
   const auto registry = ProfileRegistry::builtin();
-  EXPECT_TRUE(parse_line_config(replace(kGood, "interface: socketcan:can1", "interface: virtual:x"), "line.yaml", registry));
+  EXPECT_TRUE(
+      parse_line_config(replace(kGood, "interface: socketcan:can1", "interface: virtual:x"), "line.yaml", registry));
 }
 
 // Devices of one bus that only 1000h bits 0..15 tell apart (a puller and a saw both answer 01A4h)
@@ -675,9 +739,11 @@ TEST(LineConfig, DevicesToldApartByTheProfileNumberAloneAreNamed) {
   EXPECT_NE(both->warnings[0].find("bus ext: saw1, puller1 have no identity:"), std::string::npos) << both->warnings[0];
   EXPECT_NE(both->warnings[0].find("1000h bits 0..15 alone"), std::string::npos) << both->warnings[0];
   // With the saw's identity given, only the puller is named.
-  auto one = parse_line_config(replace(kGood, "    heartbeat_timeout_ms: 300\n",
-                                       "    heartbeat_timeout_ms: 300\n    identity: {vendor_id: 1, product_code: 2}\n") + puller,
-                               "line.yaml", registry);
+  auto one =
+      parse_line_config(replace(kGood, "    heartbeat_timeout_ms: 300\n",
+                                "    heartbeat_timeout_ms: 300\n    identity: {vendor_id: 1, product_code: 2}\n") +
+                            puller,
+                        "line.yaml", registry);
   ASSERT_TRUE(one) << one.error().message;
   ASSERT_EQ(one->warnings.size(), 1u);
   EXPECT_NE(one->warnings[0].find("bus ext: puller1 has no identity:"), std::string::npos) << one->warnings[0];

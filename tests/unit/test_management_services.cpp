@@ -110,7 +110,8 @@ TEST(ManagementServices, DeviceWithoutMomentaryCommandsIsRefused) {
   feeders_only.command(cq, press.respond());
   ASSERT_EQ(press.calls, 1);
   EXPECT_FALSE(press.reply->success());
-  EXPECT_EQ(press.reply->message(), "feeders (feeder, cia414-2@1.1) has no momentary commands (no device of line weave has any)");
+  EXPECT_EQ(press.reply->message(),
+            "feeders (feeder, cia414-2@1.1) has no momentary commands (no device of line weave has any)");
 
   const ManagementServices empty("void", {});
   Answer<srv::Command_Response> none;

@@ -95,7 +95,9 @@ class Line {
     do {
       const auto f = spy_.frames(0x000);
       if (std::any_of(f.begin() + static_cast<std::ptrdiff_t>(std::min(since_, f.size())), f.end(),
-                      [&](const lb::can::CanFrame& x) { return x.len == 2 && x.data[0] == command && x.data[1] == node; })) {
+                      [&](const lb::can::CanFrame& x) {
+                        return x.len == 2 && x.data[0] == command && x.data[1] == node;
+                      })) {
         return true;
       }
       std::this_thread::sleep_for(10ms);
@@ -136,7 +138,8 @@ TEST(MandatoryDevices, WaitForTheMandatoryOneThenStopTheOthersWhenItIsLost) {
   line.boot_passes(line.puller_);
   EXPECT_EQ(line.on_loop([&] { return line.puller_.operator_hold(); }), co::NmtCommand::enter_pre_operational);
   EXPECT_EQ(line.on_loop([&] { return line.mandatory_.missing(); }), std::vector<std::string>{"saw1"});
-  EXPECT_NE(line.on_loop([&] { return line.mandatory_.hold_of(1); }).find("waiting for mandatory device saw1"), std::string::npos);
+  EXPECT_NE(line.on_loop([&] { return line.mandatory_.hold_of(1); }).find("waiting for mandatory device saw1"),
+            std::string::npos);
   EXPECT_FALSE(line.seen(0x01, kPuller, 300ms)) << "started before the mandatory saw passed";
 
   line.boot_passes(line.saw_);
@@ -146,8 +149,11 @@ TEST(MandatoryDevices, WaitForTheMandatoryOneThenStopTheOthersWhenItIsLost) {
   EXPECT_FALSE(line.on_loop([&] { return line.puller_.operator_hold().has_value(); }));
   {
     const auto f = line.spy_.frames(0x000);  // nothing marked yet: every NMT frame since the start
-    const auto saw = std::find_if(f.begin(), f.end(), [](const lb::can::CanFrame& x) { return x.data[0] == 0x01 && x.data[1] == kSaw; });
-    const auto puller = std::find_if(f.begin(), f.end(), [](const lb::can::CanFrame& x) { return x.data[0] == 0x01 && x.data[1] == kPuller; });
+    const auto saw = std::find_if(f.begin(), f.end(),
+                                  [](const lb::can::CanFrame& x) { return x.data[0] == 0x01 && x.data[1] == kSaw; });
+    const auto puller = std::find_if(f.begin(), f.end(), [](const lb::can::CanFrame& x) {
+      return x.data[0] == 0x01 && x.data[1] == kPuller;
+    });
     EXPECT_LT(saw - f.begin(), puller - f.begin()) << "the puller was started before the mandatory saw";
   }
 

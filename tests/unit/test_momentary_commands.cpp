@@ -66,7 +66,8 @@ class Momentary : public ::testing::Test {
                                     if ((f.data[0] >> kBit & 1U) != 0 && pause_after_first_bit_) sync_paused_ = true;
                                     commands_->frame_sent(at);
                                   },
-                              .not_sent = [this](PdoTransmitter::Refusal) { commands_->frame_not_sent("gate closed"); }});
+                              .not_sent =
+                                  [this](PdoTransmitter::Refusal) { commands_->frame_not_sent("gate closed"); }});
     if (with_sync) {
       sync_ = std::make_unique<lb::canopen::SyncProducer>(*loop_, 20ms);
       sync_->on_sync([this] {
@@ -127,7 +128,7 @@ class Momentary : public ::testing::Test {
   std::atomic<bool> gate_{true};
   std::atomic<bool> sync_paused_{false};
   std::atomic<bool> pause_after_first_bit_{false};  // SYNCs stop right after the first frame with the bit
-  std::uint16_t word_ = 0;  // loop thread
+  std::uint16_t word_ = 0;                          // loop thread
   std::mutex m_;
   std::vector<Sent> sent_;
 };
@@ -235,6 +236,7 @@ TEST_F(Momentary, APulseThatNoFrameCarriesIsAbandoned) {
   auto f = press();
   const auto o = wait(f);
   EXPECT_FALSE(o.on_bus);
-  EXPECT_NE(o.message.find("no RPDO carrying the control word went out within 2000 ms"), std::string::npos) << o.message;
+  EXPECT_NE(o.message.find("no RPDO carrying the control word went out within 2000 ms"), std::string::npos)
+      << o.message;
   EXPECT_FALSE(commands_->held(kBit));
 }

@@ -31,12 +31,14 @@ namespace {
 
 constexpr std::uint8_t kNode = 9;
 constexpr std::uint8_t kStart = 0x01, kStop = 0x02, kPreOp = 0x80, kResetNode = 0x81;  // CiA 301 NMT command specifiers
-constexpr std::uint8_t kBootUp = 0x00, kStopped = 0x04, kOperational = 0x05, kPreOperational = 0x7F;  // heartbeat states
+constexpr std::uint8_t kBootUp = 0x00, kStopped = 0x04, kOperational = 0x05,
+                       kPreOperational = 0x7F;  // heartbeat states
 
 co::ObjectDictionary device_dictionary() {
   co::ObjectDictionary od;
   const auto add = [&](std::uint16_t index, std::uint8_t sub, co::DataType type, std::vector<std::uint8_t> value) {
-    if (auto r = od.add(index, sub, type, co::ObjectAccess::ro, std::move(value)); !r) throw std::runtime_error(r.error().message);
+    if (auto r = od.add(index, sub, type, co::ObjectAccess::ro, std::move(value)); !r)
+      throw std::runtime_error(r.error().message);
   };
   add(0x1000, 0, co::DataType::unsigned32, {0xA4, 0x01, 0x00, 0x00});  // profile 420 (1A4h)
   add(0x1018, 1, co::DataType::unsigned32, {0x34, 0x12, 0x00, 0x00});  // vendor-ID 1234h
@@ -50,7 +52,10 @@ co::ObjectDictionary device_dictionary() {
 class ScriptedDevice {
  public:
   ScriptedDevice(const std::string& uri, std::uint8_t initial_state, bool silent)
-      : loop_(lb::can::open_bus(uri).value()), server_(loop_, kNode, device_dictionary()), state_(initial_state), silent_(silent) {
+      : loop_(lb::can::open_bus(uri).value()),
+        server_(loop_, kNode, device_dictionary()),
+        state_(initial_state),
+        silent_(silent) {
     loop_.on_frame(0x000, [this](const lb::can::CanFrame& f) {
       if (f.len != 2 || (f.data[1] != kNode && f.data[1] != 0)) return;
       switch (f.data[0]) {
@@ -74,10 +79,16 @@ class ScriptedDevice {
   }
   ~ScriptedDevice() { loop_.stop(); }
 
-  void silence(bool silent) { on_loop([this, silent] { silent_ = silent; }); }
-  void drop_next_boot_up() { on_loop([this] { drop_boot_up_ = true; }); }
+  void silence(bool silent) {
+    on_loop([this, silent] { silent_ = silent; });
+  }
+  void drop_next_boot_up() {
+    on_loop([this] { drop_boot_up_ = true; });
+  }
   // A state nobody commanded (a local reset whose boot-up was lost, a service tool).
-  void report(std::uint8_t state) { on_loop([this, state] { state_ = state; }); }
+  void report(std::uint8_t state) {
+    on_loop([this, state] { state_ = state; });
+  }
   // A power cycle: the boot-up, then pre-operational.
   void power_cycle() {
     on_loop([this] {
@@ -140,7 +151,10 @@ class Recorder final : public co::NodeDriver {
 
 class NodeStateMachineTest : public ::testing::Test {
  protected:
-  void SetUp() override { uri_ = "virtual:nsm-" + std::to_string(::getpid()) + "-" + ::testing::UnitTest::GetInstance()->current_test_info()->name(); }
+  void SetUp() override {
+    uri_ = "virtual:nsm-" + std::to_string(::getpid()) + "-" +
+           ::testing::UnitTest::GetInstance()->current_test_info()->name();
+  }
   void TearDown() override {
     if (master_) master_->stop();
   }
@@ -175,8 +189,12 @@ class NodeStateMachineTest : public ::testing::Test {
     master_->post([&] { p.set_value(f()); });
     return r.get();
   }
-  NodeState state() { return on_master<NodeState>([this] { return machine_->state(); }); }
-  co::NodeStateMachine::Counters counters() { return on_master<co::NodeStateMachine::Counters>([this] { return machine_->counters(); }); }
+  NodeState state() {
+    return on_master<NodeState>([this] { return machine_->state(); });
+  }
+  co::NodeStateMachine::Counters counters() {
+    return on_master<co::NodeStateMachine::Counters>([this] { return machine_->counters(); });
+  }
   lb::Result<void> operator_command(co::NmtCommand c) {
     return on_master<lb::Result<void>>([this, c] { return machine_->operator_command(c); });
   }
@@ -215,7 +233,9 @@ class NodeStateMachineTest : public ::testing::Test {
   }
   std::size_t nmt_count(std::uint8_t cs) {
     const auto f = spy_->frames(0x000);
-    return std::count_if(f.begin(), f.end(), [cs](const lb::can::CanFrame& x) { return x.len == 2 && x.data[0] == cs && x.data[1] == kNode; });
+    return std::count_if(f.begin(), f.end(), [cs](const lb::can::CanFrame& x) {
+      return x.len == 2 && x.data[0] == cs && x.data[1] == kNode;
+    });
   }
   // The frames' positions on the bus: the last NMT `cs`, and whether an SDO request to the node
   // came between `after` and it.
@@ -268,7 +288,8 @@ TEST_F(NodeStateMachineTest, ASilentDeviceStaysUnknownUntilHeard) {
   device_->silence(false);
   ASSERT_TRUE(reaches(NodeState::operational));
   const auto s = recorder_.states();
-  EXPECT_EQ(s, (std::vector<NodeState>{NodeState::booting, NodeState::operational})) << "a silent device is unknown, not a failed boot";
+  EXPECT_EQ(s, (std::vector<NodeState>{NodeState::booting, NodeState::operational}))
+      << "a silent device is unknown, not a failed boot";
 }
 
 // boot failed (CiA 302-2 D: vendor-ID), retried after the retry interval, never started.
@@ -314,7 +335,9 @@ TEST_F(NodeStateMachineTest, ADeviceBackAfterALossIsBootedAgain) {
   ASSERT_TRUE(nmt_seen(kStart, 2));
   ASSERT_TRUE(reaches(NodeState::operational));
   const auto frames = spy_->frames();
-  const auto first = std::find_if(frames.begin(), frames.end(), [](const auto& f) { return f.id == 0 && f.data[0] == kStart; }) - frames.begin();
+  const auto first = std::find_if(frames.begin(), frames.end(),
+                                  [](const auto& f) { return f.id == 0 && f.data[0] == kStart; }) -
+                     frames.begin();
   EXPECT_TRUE(sdo_between(frames, first, last_nmt(frames, kStart))) << "started again without a boot";
   const auto s = recorder_.states();
   const std::vector<NodeState> expected{NodeState::booting, NodeState::operational, NodeState::lost, NodeState::booting,
@@ -347,8 +370,8 @@ TEST_F(NodeStateMachineTest, AResetWhoseBootUpIsLostEndsInABootNotInLimbo) {
   ASSERT_TRUE(reaches(NodeState::operational));
   const auto frames = spy_->frames();
   EXPECT_TRUE(sdo_between(frames, last_nmt(frames, kResetNode), last_nmt(frames, kStart)));
-  const std::vector<NodeState> expected{NodeState::booting, NodeState::operational, NodeState::resetting, NodeState::booting,
-                                        NodeState::operational};
+  const std::vector<NodeState> expected{NodeState::booting, NodeState::operational, NodeState::resetting,
+                                        NodeState::booting, NodeState::operational};
   EXPECT_EQ(recorder_.states(), expected);
 }
 
@@ -393,8 +416,9 @@ TEST_F(NodeStateMachineTest, ASpoofedBootUpChangesNothing) {
   ASSERT_TRUE(reaches(NodeState::operational));
   const auto boots = counters().boots;
   ASSERT_TRUE(spy_->send(lb::can::make_frame(0x700 + kNode, {kBootUp})));
-  ASSERT_TRUE(eventually([&] { return on_master<std::uint32_t>([this] { return node_->stats().boot_ups_not_believed; }) != 0; }))
-      << "the boot-up was never judged";
+  ASSERT_TRUE(eventually([&] {
+    return on_master<std::uint32_t>([this] { return node_->stats().boot_ups_not_believed; }) != 0;
+  })) << "the boot-up was never judged";
   EXPECT_EQ(state(), NodeState::operational);
   EXPECT_EQ(counters().boots, boots);
   EXPECT_EQ(recorder_.states(), (std::vector<NodeState>{NodeState::booting, NodeState::operational}));

@@ -100,8 +100,8 @@ TEST(PdoMapping, LongerPayloadIsAllowed) {
 }
 
 TEST(PdoMapping, RefusesMappingsACanFrameCannotCarry) {
-  EXPECT_FALSE(PdoMapping::create({PdoEntry::from_u32(0x60000020), PdoEntry::from_u32(0x60010020),
-                                   PdoEntry::from_u32(0x60020008)}));
+  EXPECT_FALSE(PdoMapping::create(
+      {PdoEntry::from_u32(0x60000020), PdoEntry::from_u32(0x60010020), PdoEntry::from_u32(0x60020008)}));
   EXPECT_FALSE(PdoMapping::create({PdoEntry::from_u32(0x60000000)}));
 }
 

@@ -29,7 +29,8 @@ PdoSpec saw_tpdo1() {
   s.communication_index = 0x1800;
   s.mapping_index = 0x1A00;
   s.wanted = {0x185, 1, 0, 0, {PdoEntry::from_u32(0x60300010), PdoEntry::from_u32(0x60000020)}};
-  s.rules = {PdoAccess::fixed, PdoAccess::rw, PdoAccess::rw, PdoAccess::rw, PdoAccess::rw_preop, PdoAccess::fixed, {0, 2, 3}, 1};
+  s.rules = {PdoAccess::fixed,    PdoAccess::rw,    PdoAccess::rw, PdoAccess::rw,
+             PdoAccess::rw_preop, PdoAccess::fixed, {0, 2, 3},     1};
   return s;
 }
 

@@ -27,19 +27,28 @@ const std::vector<Flag> kTpdo1Flags{{"status_word", "drive_running", 1},
                                     {"status_word", "start_cut_pulse", 1},
                                     {"status_word", "fault", 0}};
 
-const auto kFrames = frames_of(
-    "cia420-3", "3.1",
-    {
-        {"Tpdo1StatusSpeedAndLoad", "tpdo1", {0x81, 0x40, 0x88, 0x13, 0xFF, 0xFF}, kTpdo1, kTpdo1Flags},
-        {"Tpdo1WithManufacturerStatusWord", "tpdo1", {0x81, 0x40, 0x88, 0x13, 0xFF, 0xFF, 0x01, 0x80}, kTpdo1,
-         kTpdo1Flags, 0x8001},
-        // Echo -10000 = D8F0h (-100 %); product speed -123456 = FFFE 1DC0h in 0.1 mm/min = -12.3456 m/min.
-        {"Tpdo2EchoAndProductSpeed", "tpdo2", {0xF0, 0xD8, 0xC0, 0x1D, 0xFE, 0xFF},
-         {{0x6004, 0, 0xD8F0, -100.0}, {0x6008, 0, 0xFFFE1DC0, -12.3456}}},
-        // Control 0406h: drive start (1), move in (2), f2 start (10); 75.5 % = 7550 = 1D7Eh. Sent by the
-        // bridge, and read back in the monitor role.
-        {"Rpdo1ControlAndSpeedSetValue", "rpdo1", {0x06, 0x04, 0x7E, 0x1D}, {{0x6020, 0, 0x0406}, {0x6002, 0, 0x1D7E, 75.5}}},
-    });
+const auto kFrames =
+    frames_of("cia420-3", "3.1",
+              {
+                  {"Tpdo1StatusSpeedAndLoad", "tpdo1", {0x81, 0x40, 0x88, 0x13, 0xFF, 0xFF}, kTpdo1, kTpdo1Flags},
+                  {"Tpdo1WithManufacturerStatusWord",
+                   "tpdo1",
+                   {0x81, 0x40, 0x88, 0x13, 0xFF, 0xFF, 0x01, 0x80},
+                   kTpdo1,
+                   kTpdo1Flags,
+                   0x8001},
+                  // Echo -10000 = D8F0h (-100 %); product speed -123456 = FFFE 1DC0h in 0.1 mm/min = -12.3456 m/min.
+                  {"Tpdo2EchoAndProductSpeed",
+                   "tpdo2",
+                   {0xF0, 0xD8, 0xC0, 0x1D, 0xFE, 0xFF},
+                   {{0x6004, 0, 0xD8F0, -100.0}, {0x6008, 0, 0xFFFE1DC0, -12.3456}}},
+                  // Control 0406h: drive start (1), move in (2), f2 start (10); 75.5 % = 7550 = 1D7Eh. Sent by the
+                  // bridge, and read back in the monitor role.
+                  {"Rpdo1ControlAndSpeedSetValue",
+                   "rpdo1",
+                   {0x06, 0x04, 0x7E, 0x1D},
+                   {{0x6020, 0, 0x0406}, {0x6002, 0, 0x1D7E, 75.5}}},
+              });
 
 }  // namespace
 
@@ -54,7 +63,8 @@ TEST_F(CorrugatorProfile, EveryVariableMatchesTheSpec) {
   // Tables 14-31 and 39-46: all Mandatory VARs.
   const std::vector<Variable> objects{
       {0x6000, "corrugator_speed_actual_value", DataType::integer16, Access::ro, "0.01 %", 0.01, "%", -10000, 10000},
-      {0x6001, "corrugator_speed_real_maximum", DataType::unsigned32, Access::const_, "mm/min", 0.001, "m/min", none, none},
+      {0x6001, "corrugator_speed_real_maximum", DataType::unsigned32, Access::const_, "mm/min", 0.001, "m/min", none,
+       none},
       {0x6002, "corrugator_speed_set_value", DataType::integer16, Access::rw, "0.01 %", 0.01, "%", -10000, 10000},
       {0x6003, "corrugator_speed_set_maximum", DataType::unsigned32, Access::rw, "mm/min", 0.001, "m/min", none, none},
       {0x6004, "corrugator_speed_set_echo", DataType::integer16, Access::ro, "0.01 %", 0.01, "%", -10000, 10000},
@@ -126,15 +136,40 @@ TEST_F(CorrugatorProfile, Rpdo1ValuesFromNamesAndPercent) {
 
 TEST_F(CorrugatorProfile, ControlStatusAndConfigurationBits) {
   expect_bits(p_, "control_word",
-              {{"drive_stop", 0}, {"drive_start", 1}, {"move_in", 2}, {"move_out", 3}, {"extruder_running", 6},
-               {"f1_stop", 7}, {"f1_start", 8}, {"f2_stop", 9}, {"f2_start", 10}, {"f3_stop", 11}, {"f3_start", 12}});
+              {{"drive_stop", 0},
+               {"drive_start", 1},
+               {"move_in", 2},
+               {"move_out", 3},
+               {"extruder_running", 6},
+               {"f1_stop", 7},
+               {"f1_start", 8},
+               {"f2_stop", 9},
+               {"f2_start", 10},
+               {"f3_stop", 11},
+               {"f3_start", 12}});
   expect_bits(p_, "status_word",
-              {{"drive_running", 0}, {"drive_ready_to_start", 1}, {"fault", 3}, {"alarm", 4}, {"increase_request", 5},
-               {"decrease_request", 6}, {"master_extruder_enabled", 7}, {"f1_running", 8}, {"f1_ready", 9},
-               {"f2_running", 10}, {"f2_ready", 11}, {"f3_running", 12}, {"f3_ready", 13}, {"start_cut_pulse", 14}});
+              {{"drive_running", 0},
+               {"drive_ready_to_start", 1},
+               {"fault", 3},
+               {"alarm", 4},
+               {"increase_request", 5},
+               {"decrease_request", 6},
+               {"master_extruder_enabled", 7},
+               {"f1_running", 8},
+               {"f1_ready", 9},
+               {"f2_running", 10},
+               {"f2_ready", 11},
+               {"f3_running", 12},
+               {"f3_ready", 13},
+               {"start_cut_pulse", 14}});
   expect_bits(p_, "configuration_word",
-              {{"speed_measuring", 0}, {"height_adjustment", 1}, {"pressure_set_values", 2}, {"actual_temperatures", 3},
-               {"f1_available", 4}, {"f2_available", 5}, {"f3_available", 6}});
+              {{"speed_measuring", 0},
+               {"height_adjustment", 1},
+               {"pressure_set_values", 2},
+               {"actual_temperatures", 3},
+               {"f1_available", 4},
+               {"f2_available", 5},
+               {"f3_available", 6}});
   EXPECT_EQ(p_.bitset("control_word")->index, 0x6020);
   EXPECT_EQ(p_.bitset("status_word")->index, 0x6030);
   EXPECT_EQ(p_.bitset("configuration_word")->index, 0x6010);

@@ -39,21 +39,27 @@ const auto kFrames = frames_of(
     {
         // Empty, single colour 5, single colour 16, double 3+1, triple 3/5/7; as loom controller the
         // same bytes back.
-        {"Rpdo1FivePicks", "rpdo1", {0x00, 0x05, 0x10, 0x31, 0x33},
+        {"Rpdo1FivePicks",
+         "rpdo1",
+         {0x00, 0x05, 0x10, 0x31, 0x33},
          {{0x600C, 1, 0x00, std::nullopt, "empty_pick"},
           {0x600C, 2, 0x05, std::nullopt, "single_pick"},
           {0x600C, 3, 0x10, std::nullopt, "single_pick"},
           {0x600C, 4, 0x31, std::nullopt, "double_pick"},
           {0x600C, 5, 0x33, std::nullopt, "triple_pick"}}},
         // A reserved code is carried raw and reported invalid, never guessed.
-        {"Rpdo1ReservedPickIsCarriedRaw", "rpdo1", {0xDD, 0x00, 0x00, 0x00, 0x00},
+        {"Rpdo1ReservedPickIsCarriedRaw",
+         "rpdo1",
+         {0xDD, 0x00, 0x00, 0x00, 0x00},
          {{0x600C, 1, 0xDD, std::nullopt, kInvalidCode},
           {0x600C, 2, 0x00},
           {0x600C, 3, 0x00},
           {0x600C, 4, 0x00},
           {0x600C, 5, 0x00}}},
         {"Rpdo1ShortFrameIsRefused", "rpdo1", {0x00, 0x05, 0x10, 0x31}, {}, {}, std::nullopt, true},
-        {"Rpdo3DigitalOutputs", "rpdo3", {0x01, 0x02, 0x04, 0x08, 0x10, 0x20, 0x40, 0x80},
+        {"Rpdo3DigitalOutputs",
+         "rpdo3",
+         {0x01, 0x02, 0x04, 0x08, 0x10, 0x20, 0x40, 0x80},
          {{0x600D, 1, 0x01},
           {0x600D, 2, 0x02},
           {0x600D, 3, 0x04},
@@ -180,38 +186,72 @@ TEST_F(FeederProfile, EnumerationsAndReservedCodes) {
                      {{0, "do_not_process_pdos"}, {1, "projectile"}, {2, "rapier"}, {3, "air_jet"}, {4, "water_jet"}},
                      0xFF, "6002h");
   expect_enumeration(p_.object(0x6007, 17)->values,
-                     {{0x00, "no_error"}, {0x01, "no_settings_in_eeprom"}, {0x02, "on_off_switch_off"},
-                      {0x03, "weaving_machine_parameter_missing"}, {0x04, "yarn_broken"}, {0x05, "pre_winder_running_empty"},
-                      {0x06, "temperature_too_high"}, {0x07, "motor_voltage_not_ok"}, {0x08, "no_eeprom_communication"},
-                      {0x09, "rotation_not_possible"}, {0x0A, "filling_up_failed"}, {0x0B, "color_information_missing"},
-                      {0x0C, "angle_trigger_signal_missing"}, {0x0D, "tks_event"}, {0x0E, "knot_detected"},
+                     {{0x00, "no_error"},
+                      {0x01, "no_settings_in_eeprom"},
+                      {0x02, "on_off_switch_off"},
+                      {0x03, "weaving_machine_parameter_missing"},
+                      {0x04, "yarn_broken"},
+                      {0x05, "pre_winder_running_empty"},
+                      {0x06, "temperature_too_high"},
+                      {0x07, "motor_voltage_not_ok"},
+                      {0x08, "no_eeprom_communication"},
+                      {0x09, "rotation_not_possible"},
+                      {0x0A, "filling_up_failed"},
+                      {0x0B, "color_information_missing"},
+                      {0x0C, "angle_trigger_signal_missing"},
+                      {0x0D, "tks_event"},
+                      {0x0E, "knot_detected"},
                       {0x0F, "general_error"}},
                      0xFF, "6007h");
   // 6008h: 02h, 04h, 05h, 09h, 0Ah, 0Dh, 0Eh are reserved between the defined codes.
   expect_enumeration(p_.object(0x6008)->values,
-                     {{0x00, "no_error"}, {0x01, "no_settings_in_eeprom"}, {0x03, "weaving_machine_parameter_missing"},
-                      {0x06, "temperature_too_high"}, {0x07, "motor_voltage_not_ok"}, {0x08, "no_eeprom_communication"},
-                      {0x0B, "color_information_missing"}, {0x0C, "angle_trigger_signal_missing"}, {0x0F, "general_error"}},
+                     {{0x00, "no_error"},
+                      {0x01, "no_settings_in_eeprom"},
+                      {0x03, "weaving_machine_parameter_missing"},
+                      {0x06, "temperature_too_high"},
+                      {0x07, "motor_voltage_not_ok"},
+                      {0x08, "no_eeprom_communication"},
+                      {0x0B, "color_information_missing"},
+                      {0x0C, "angle_trigger_signal_missing"},
+                      {0x0F, "general_error"}},
                      0xFF, "6008h");
   EXPECT_FALSE(p_.object(0x6008)->values.valid(0x02));
   EXPECT_FALSE(p_.object(0x6008)->values.valid(0x0E));
   expect_enumeration(p_.object(0x6009, 254)->values,
-                     {{0, "operational_mode"}, {1, "positioning_mode"}, {2, "filling_up_to_maximum_sensor"},
-                      {3, "pcat_test_mode"}, {4, "non_operational_mode"}, {5, "not_present"}, {6, "initializing_mode"},
+                     {{0, "operational_mode"},
+                      {1, "positioning_mode"},
+                      {2, "filling_up_to_maximum_sensor"},
+                      {3, "pcat_test_mode"},
+                      {4, "non_operational_mode"},
+                      {5, "not_present"},
+                      {6, "initializing_mode"},
                       {7, "error_mode"}},
                      0xFF, "6009h");
   expect_enumeration(p_.object(0x600A)->values,
-                     {{0, "stop"}, {1, "start_advice"}, {2, "new_speed_only"}, {3, "slow_motion_forward"},
+                     {{0, "stop"},
+                      {1, "start_advice"},
+                      {2, "new_speed_only"},
+                      {3, "slow_motion_forward"},
                       {4, "slow_motion_backward"}},
                      0xFF, "600Ah");
   expect_enumeration(p_.object(0x600B)->values,
-                     {{0, "no_signal"}, {1, "angle_trigger"}, {2, "pick_release_trigger"}, {3, "brush_do_not_release"},
+                     {{0, "no_signal"},
+                      {1, "angle_trigger"},
+                      {2, "pick_release_trigger"},
+                      {3, "brush_do_not_release"},
                       {4, "brush_do_release"}},
                      0xFF, "600Bh");
   // 600Eh: 09h..5Fh manufacturer-specific (valid, meaning device-defined), 60h..FFh reserved.
   const auto& command = p_.object(0x600E, 5)->values;
-  const Codes commands{{0x00, "non_operation_mode"}, {0x01, "operation_mode"}, {0x02, "start"}, {0x03, "stop_mode"},
-                       {0x04, "reset"},  {0x05, "led_on"}, {0x06, "led_off"}, {0x07, "open_pin"}, {0x08, "close_pin"}};
+  const Codes commands{{0x00, "non_operation_mode"},
+                       {0x01, "operation_mode"},
+                       {0x02, "start"},
+                       {0x03, "stop_mode"},
+                       {0x04, "reset"},
+                       {0x05, "led_on"},
+                       {0x06, "led_off"},
+                       {0x07, "open_pin"},
+                       {0x08, "close_pin"}};
   for (const auto& [code, name] : commands) {
     EXPECT_EQ(command.name(code), name);
     EXPECT_EQ(command.code(name), code) << name;  // the bridge sends commands by name
@@ -347,9 +387,14 @@ TEST_F(FeederProfile, FeederFunctionsTwoBitFields) {
     unsigned bit;
   };
   // profile-decisions.md (reading): BR 31-30, WD 29-28, AT 27-26, YB 13-12, IKD 11-10, YQ 9-8, RD 7-6, TKS 5-4.
-  const std::vector<Field> layout{{"brush_release", 30}, {"winding_direction", 28}, {"angle_trigger_monitoring", 26},
-                                 {"yarn_break_sensor", 12}, {"input_knot_detection_sensor", 10},
-                                 {"yarn_quality_sensor", 8}, {"rotation_direction_sensor", 6}, {"tks_sensor", 4}};
+  const std::vector<Field> layout{{"brush_release", 30},
+                                  {"winding_direction", 28},
+                                  {"angle_trigger_monitoring", 26},
+                                  {"yarn_break_sensor", 12},
+                                  {"input_knot_detection_sensor", 10},
+                                  {"yarn_quality_sensor", 8},
+                                  {"rotation_direction_sensor", 6},
+                                  {"tks_sensor", 4}};
   EXPECT_EQ(f->bits.size(), layout.size());
   for (const auto& e : layout) {
     const auto* field = f->field(e.name);
@@ -361,11 +406,14 @@ TEST_F(FeederProfile, FeederFunctionsTwoBitFields) {
   // F800 32E0h: BR 11 on, WD 11 Z, AT 10 off, YB 11 active, IKD 00 not available, YQ 10 not active,
   // RD 11 active, TKS 10 not active.
   const std::uint64_t word = 0xF80032E0;
-  const std::vector<std::pair<const char*, const char*>> decoded{
-      {"brush_release", "on"},           {"winding_direction", "z"},
-      {"angle_trigger_monitoring", "off"}, {"yarn_break_sensor", "active"},
-      {"input_knot_detection_sensor", "not_available"}, {"yarn_quality_sensor", "not_active"},
-      {"rotation_direction_sensor", "active"},          {"tks_sensor", "not_active"}};
+  const std::vector<std::pair<const char*, const char*>> decoded{{"brush_release", "on"},
+                                                                 {"winding_direction", "z"},
+                                                                 {"angle_trigger_monitoring", "off"},
+                                                                 {"yarn_break_sensor", "active"},
+                                                                 {"input_knot_detection_sensor", "not_available"},
+                                                                 {"yarn_quality_sensor", "not_active"},
+                                                                 {"rotation_direction_sensor", "active"},
+                                                                 {"tks_sensor", "not_active"}};
   for (const auto& [name, value] : decoded) {
     const auto* field = f->field(name);
     EXPECT_EQ(field->values.name(field->extract(word)), value) << name;

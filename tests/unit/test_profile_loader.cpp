@@ -42,8 +42,7 @@ std::string error_of(const std::string& body) {
   return p.error().message;
 }
 
-#define EXPECT_ERROR(body, text) \
-  EXPECT_EQ(error_of(body), text)
+#define EXPECT_ERROR(body, text) EXPECT_EQ(error_of(body), text)
 
 }  // namespace
 
@@ -125,7 +124,8 @@ TEST(ProfileLoader, EnumerationsNameCodesAndLeaveTheRestInvalid) {
 }
 
 TEST(ProfileLoader, SpecialValuesOfANumber) {
-  const auto p = load(R"(  - {index: 0x6007, name: scaling_factor, type: UNSIGNED32, access: rw, unit: pulse/m, special_values: {0xFFFFFFFF: not_configured}}
+  const auto p = load(
+      R"(  - {index: 0x6007, name: scaling_factor, type: UNSIGNED32, access: rw, unit: pulse/m, special_values: {0xFFFFFFFF: not_configured}}
   - {index: 0x6008, name: plain, type: UNSIGNED32, access: rw}
 )");
   const auto& v = p.object(0x6007)->values;
@@ -138,7 +138,8 @@ TEST(ProfileLoader, SpecialValuesOfANumber) {
 }
 
 TEST(ProfileLoader, DuplicateNamesMayShareCodes) {
-  const auto p = load(R"(  - {index: 0x600C, name: pick, type: UNSIGNED8, access: wo, values: {0x01..0x0F: single, 0x10: single}}
+  const auto p = load(
+      R"(  - {index: 0x600C, name: pick, type: UNSIGNED8, access: wo, values: {0x01..0x0F: single, 0x10: single}}
 )");
   EXPECT_EQ(p.object(0x600C)->values.name(0x10), "single");
   EXPECT_EQ(p.object(0x600C)->values.code("single"), std::nullopt);
@@ -230,7 +231,8 @@ pdos:
 
 // Errors: file, line and column of the offending token, and what is wrong.
 TEST(ProfileLoaderErrors, FieldWidthAndPosition) {
-  const std::string object = "  - {index: 0x6030, name: status_word, type: UNSIGNED16, access: ro}\nbitsets:\n  s:\n    object: 0x6030\n    bits:\n";
+  const std::string object = "  - {index: 0x6030, name: status_word, type: UNSIGNED16, access: ro}\nbitsets:\n  s:\n   "
+                             " object: 0x6030\n    bits:\n";
   EXPECT_ERROR(object + "      a: {bit: 0, width: 0}\n", "t.yaml:11:26: width 0 is outside 1..64");
   EXPECT_ERROR(object + "      a: {bit: 12, width: 5}\n", "t.yaml:11:16: bits 16..12 does not exist in a 16-bit word");
   EXPECT_ERROR(object + "      a: 16\n", "t.yaml:11:10: bit 16 does not exist in a 16-bit word");
@@ -243,34 +245,40 @@ TEST(ProfileLoaderErrors, FieldWidthAndPosition) {
 }
 
 TEST(ProfileLoaderErrors, OverlappingFields) {
-  const std::string object = "  - {index: 0x6030, name: status_word, type: UNSIGNED16, access: ro}\nbitsets:\n  s:\n    object: 0x6030\n    bits:\n";
+  const std::string object = "  - {index: 0x6030, name: status_word, type: UNSIGNED16, access: ro}\nbitsets:\n  s:\n   "
+                             " object: 0x6030\n    bits:\n";
   EXPECT_ERROR(object + "      a: 3\n      b: 3\n", "t.yaml:12:10: bit 3 is already a");
   EXPECT_ERROR(object + "      a: 8\n      b: {bit: 7, width: 2}\n", "t.yaml:12:16: bits 8..7 overlap a (bit 8)");
   EXPECT_ERROR(object + "      a: {bit: 4, width: 4}\n      b: 6\n", "t.yaml:12:10: bit 6 overlaps a (bits 7..4)");
   // yaml-cpp keeps duplicate keys; the loader refuses the second one (as every duplicate key).
-  EXPECT_ERROR(object + "      a: 1\n      a: 2\n", "t.yaml:12:7: key 'a' is given twice in this mapping (first at line 11, column 7)");
+  EXPECT_ERROR(object + "      a: 1\n      a: 2\n",
+               "t.yaml:12:7: key 'a' is given twice in this mapping (first at line 11, column 7)");
 }
 
 TEST(ProfileLoaderErrors, ValueTables) {
   const std::string head = "  - {index: 0x600A, name: loom_status, type: UNSIGNED8, access: wo, values: ";
-  EXPECT_ERROR(head + "{x1: stop}}\n", "t.yaml:6:78: value code 'x1' must be a number (12, 0x0C, 0b1100) or a range first..last");
+  EXPECT_ERROR(head + "{x1: stop}}\n",
+               "t.yaml:6:78: value code 'x1' must be a number (12, 0x0C, 0b1100) or a range first..last");
   EXPECT_ERROR(head + "{0x100: stop}}\n", "t.yaml:6:78: value code '0x100' does not fit in 8 bits");
   EXPECT_ERROR(head + "{5..3: stop}}\n", "t.yaml:6:78: value range '5..3' runs backwards");
   EXPECT_ERROR(head + "{0..5: stop, 3: run}}\n", "t.yaml:6:90: value code '3' overlaps stop");
-  EXPECT_ERROR(head + "{0: Stop}}\n", "t.yaml:6:81: value name 'Stop' must be snake_case (a-z, 0-9, _; starting with a letter)");
+  EXPECT_ERROR(head + "{0: Stop}}\n",
+               "t.yaml:6:81: value name 'Stop' must be snake_case (a-z, 0-9, _; starting with a letter)");
   EXPECT_ERROR(head + "[stop]}\n", "t.yaml:6:77: values must be a mapping (key: value)");
   EXPECT_ERROR(head + "{0: stop}, special_values: {1: x}}\n",
                "t.yaml:6:104: give either values (an enumeration) or special_values (a number), not both");
   EXPECT_ERROR("  - {index: 0x1008, name: device_name, type: VISIBLE_STRING, access: ro, values: {0: x}}\n",
                "t.yaml:6:82: named codes need an integer data type, not VISIBLE_STRING");
   // A field's codes must fit the field, not the word.
-  EXPECT_ERROR("  - {index: 0x6001, name: functions, type: UNSIGNED32, access: rw}\nbitsets:\n  f:\n    object: 0x6001\n"
-               "    bits:\n      br: {bit: 30, width: 2, values: {0b100: on}}\n",
-               "t.yaml:11:40: value code '0b100' does not fit in 2 bits");
+  EXPECT_ERROR(
+      "  - {index: 0x6001, name: functions, type: UNSIGNED32, access: rw}\nbitsets:\n  f:\n    object: 0x6001\n"
+      "    bits:\n      br: {bit: 30, width: 2, values: {0b100: on}}\n",
+      "t.yaml:11:40: value code '0b100' does not fit in 2 bits");
 }
 
 TEST(ProfileLoaderErrors, ObjectsSubsAndArrays) {
-  EXPECT_ERROR("  - {index: 0x6005, sub: 256, name: a, type: UNSIGNED8, access: ro}\n", "t.yaml:6:26: sub 256 is outside 0..255");
+  EXPECT_ERROR("  - {index: 0x6005, sub: 256, name: a, type: UNSIGNED8, access: ro}\n",
+               "t.yaml:6:26: sub 256 is outside 0..255");
   EXPECT_ERROR("  - {index: 0x6005, sub: 1, name: a, type: UNSIGNED8, access: ro}\n"
                "  - {index: 0x6005, sub: 1, name: b, type: UNSIGNED8, access: ro}\n",
                "t.yaml:7:13: object 6005h sub 1 is defined twice");
@@ -286,8 +294,9 @@ TEST(ProfileLoaderErrors, ObjectsSubsAndArrays) {
 }
 
 TEST(ProfileLoaderErrors, BitSetObjects) {
-  const std::string objects = "  - {index: 0x6005, sub: 1, name: supported, type: UNSIGNED16, access: ro}\n"
-                              "  - {index: 0x1008, name: device_name, type: VISIBLE_STRING, access: ro}\nbitsets:\n  s:\n";
+  const std::string objects =
+      "  - {index: 0x6005, sub: 1, name: supported, type: UNSIGNED16, access: ro}\n"
+      "  - {index: 0x1008, name: device_name, type: VISIBLE_STRING, access: ro}\nbitsets:\n  s:\n";
   EXPECT_ERROR(objects + "    object: 0x6005\n    sub: 3\n    bits: {a: 0}\n",
                "t.yaml:11:10: bitset s names an object the profile does not define");
   EXPECT_ERROR(objects + "    object: 0x1008\n    bits: {a: 0}\n",
@@ -299,31 +308,40 @@ TEST(ProfileLoaderErrors, BitSetObjects) {
 TEST(ProfileLoaderErrors, Pdos) {
   const std::string objects = "  - {index: 0x6000, name: a, type: UNSIGNED32, access: ro}\n"
                               "  - {index: 0x6001, name: b, type: UNSIGNED32, access: wo}\npdos:\n";
-  EXPECT_ERROR(objects + "  - {name: tpdo1, direction: tx, cob_id: 0x180, transmission_type: 1, valid: maybe, mapping: [0x60000020]}\n",
+  EXPECT_ERROR(objects + "  - {name: tpdo1, direction: tx, cob_id: 0x180, transmission_type: 1, valid: maybe, mapping: "
+                         "[0x60000020]}\n",
                "t.yaml:9:78: valid must be true, false or either (COB-ID bit 31 as the device starts), not 'maybe'");
-  EXPECT_ERROR(objects + "  - {name: rpdo1, direction: rx, cob_id: 0x200, transmission_type: 1, mapping: [0x60000020]}\n",
+  EXPECT_ERROR(objects +
+                   "  - {name: rpdo1, direction: rx, cob_id: 0x200, transmission_type: 1, mapping: [0x60000020]}\n",
                "t.yaml:9:81: an RPDO cannot carry a, which is ro");
-  EXPECT_ERROR(objects + "  - {name: tpdo1, direction: tx, cob_id: 0x180, transmission_type: 1, mapping: [0x60010020]}\n",
+  EXPECT_ERROR(objects +
+                   "  - {name: tpdo1, direction: tx, cob_id: 0x180, transmission_type: 1, mapping: [0x60010020]}\n",
                "t.yaml:9:81: a TPDO cannot carry b, which is write-only");
-  EXPECT_ERROR(objects + "  - {name: tpdo1, direction: tx, cob_id: 0x180, transmission_type: 1, mapping: [0x60000020],\n"
-                         "     manufacturer_data: {name: extra, bits: 33}}\n",
+  EXPECT_ERROR(objects +
+                   "  - {name: tpdo1, direction: tx, cob_id: 0x180, transmission_type: 1, mapping: [0x60000020],\n"
+                   "     manufacturer_data: {name: extra, bits: 33}}\n",
                "t.yaml:10:45: manufacturer data of 33 bits does not fit: the mapping uses 32 of 64 bits");
-  EXPECT_ERROR(objects + "  - {name: tpdo1, direction: tx, cob_id: 0x180, transmission_type: 1, mapping: [0x60000020],\n"
-                         "     manufacturer_data: {name: Extra, bits: 16}}\n",
+  EXPECT_ERROR(objects +
+                   "  - {name: tpdo1, direction: tx, cob_id: 0x180, transmission_type: 1, mapping: [0x60000020],\n"
+                   "     manufacturer_data: {name: Extra, bits: 16}}\n",
                "t.yaml:10:32: manufacturer_data name 'Extra' must be snake_case (a-z, 0-9, _; starting with a letter)");
-  EXPECT_ERROR(objects + "  - {name: tpdo1, direction: tx, cob_id: 0x180, transmission_type: 1, mapping: [0x60000020],\n"
-                         "     manufacturer_data: {name: extra}}\n",
+  EXPECT_ERROR(objects +
+                   "  - {name: tpdo1, direction: tx, cob_id: 0x180, transmission_type: 1, mapping: [0x60000020],\n"
+                   "     manufacturer_data: {name: extra}}\n",
                "t.yaml:10:25: manufacturer_data: missing required key 'bits'");
-  EXPECT_ERROR(objects + "  - {name: tpdo1, direction: tx, cob_id: 0x180, transmission_type: 1, mapping: [0x60000020], mandatory: 2}\n",
+  EXPECT_ERROR(objects + "  - {name: tpdo1, direction: tx, cob_id: 0x180, transmission_type: 1, mapping: [0x60000020], "
+                         "mandatory: 2}\n",
                "t.yaml:9:105: 'mandatory' has a value of the wrong type: '2'");
 }
 
 TEST(ProfileLoaderErrors, PdoNamesAndAccess) {
   const std::string objects = "  - {index: 0x6000, name: a, type: UNSIGNED32, access: ro}\npdos:\n";
   const std::string pdo = "  - {name: tpdo1, direction: tx, cob_id: 0x180, transmission_type: 1, mapping: [0x60000020]";
-  EXPECT_ERROR(objects + "  - {name: status, direction: tx, cob_id: 0x180, transmission_type: 1, mapping: [0x60000020]}\n",
+  EXPECT_ERROR(objects +
+                   "  - {name: status, direction: tx, cob_id: 0x180, transmission_type: 1, mapping: [0x60000020]}\n",
                "t.yaml:8:12: a TPDO is named tpdo1..tpdo512 (its CiA 301 number), not 'status'");
-  EXPECT_ERROR(objects + "  - {name: rpdo1, direction: tx, cob_id: 0x180, transmission_type: 1, mapping: [0x60000020]}\n",
+  EXPECT_ERROR(objects +
+                   "  - {name: rpdo1, direction: tx, cob_id: 0x180, transmission_type: 1, mapping: [0x60000020]}\n",
                "t.yaml:8:12: a TPDO is named tpdo1..tpdo512 (its CiA 301 number), not 'rpdo1'");
   EXPECT_ERROR(objects + pdo + ", access: {mapping: sometimes}}\n",
                "t.yaml:8:112: access of mapping must be rw, rw_preop, const or ro, not 'sometimes'");
@@ -331,9 +349,10 @@ TEST(ProfileLoaderErrors, PdoNamesAndAccess) {
                "t.yaml:8:112: access of mapping must be rw, rw_preop, const or ro, not 'none'");
   EXPECT_ERROR(objects + pdo + ", mapping_counts: [0, 3]}\n",
                "t.yaml:8:110: mapping_counts: 3 entries, but the PDO has 1 default and 0 manufacturer-specific ones");
-  const auto p = load(objects.substr(0, objects.size() - 6) + "pdos:\n" + pdo +
-                      ",\n     access: {cob_id: valid_bit, inhibit_time: none, mapping_count: rw_preop, mapping: const},\n"
-                      "     mapping_counts: [0, 1, 2], manufacturer_entries: 1}\n");
+  const auto p = load(
+      objects.substr(0, objects.size() - 6) + "pdos:\n" + pdo +
+      ",\n     access: {cob_id: valid_bit, inhibit_time: none, mapping_count: rw_preop, mapping: const},\n"
+      "     mapping_counts: [0, 1, 2], manufacturer_entries: 1}\n");
   const auto& r = p.pdo("tpdo1")->rules;
   EXPECT_EQ(r.cob_id, lb::profiles::PdoAccess::valid_bit);
   EXPECT_EQ(r.transmission_type, lb::profiles::PdoAccess::rw);  // not given: CiA 301's rw
@@ -400,7 +419,8 @@ TEST(BuiltinProfiles, PdoAccessAsTheSpecTablesSay) {
 
 // Hostile profile files (issue 12): each was accepted silently or aborted the process before.
 TEST(ProfileLoaderHostile, DuplicateAndNonScalarKeysAreRefusedWithTheirPlace) {
-  const std::string object = "  - {index: 0x6030, name: status_word, type: UNSIGNED16, access: ro}\nbitsets:\n  s:\n    object: 0x6030\n    bits:\n";
+  const std::string object = "  - {index: 0x6030, name: status_word, type: UNSIGNED16, access: ro}\nbitsets:\n  s:\n   "
+                             " object: 0x6030\n    bits:\n";
   // An object's index given twice: yaml-cpp kept one of them without a word.
   EXPECT_ERROR("  - {index: 0x6030, index: 0x6031, name: s, type: UNSIGNED16, access: ro}\n",
                "t.yaml:6:21: key 'index' is given twice in this mapping (first at line 6, column 6)");
@@ -431,11 +451,14 @@ TEST(ProfileLoaderHostile, OnlyRegularFilesOfBoundedSizeAreRead) {
 // gave node 127 the identifier 87Eh, which no 11-bit frame can carry (the bus loop threw on it).
 TEST(ProfileLoaderHostile, APdoBasePlusAnyNodeIdIsAnElevenBitIdentifier) {
   const std::string objects = "  - {index: 0x6000, name: a, type: UNSIGNED32, access: ro}\npdos:\n";
-  EXPECT_ERROR(objects + "  - {name: tpdo1, direction: tx, cob_id: 0x7FF, transmission_type: 1, mapping: [0x60000020]}\n",
+  EXPECT_ERROR(objects +
+                   "  - {name: tpdo1, direction: tx, cob_id: 0x7FF, transmission_type: 1, mapping: [0x60000020]}\n",
                "t.yaml:8:42: cob_id 2047 is outside 1..1920");
-  EXPECT_ERROR(objects + "  - {name: tpdo1, direction: tx, cob_id: 0x781, transmission_type: 1, mapping: [0x60000020]}\n",
+  EXPECT_ERROR(objects +
+                   "  - {name: tpdo1, direction: tx, cob_id: 0x781, transmission_type: 1, mapping: [0x60000020]}\n",
                "t.yaml:8:42: cob_id 1921 is outside 1..1920");
-  const auto p = load(objects + "  - {name: tpdo1, direction: tx, cob_id: 0x780, transmission_type: 1, mapping: [0x60000020]}\n");
+  const auto p = load(objects +
+                      "  - {name: tpdo1, direction: tx, cob_id: 0x780, transmission_type: 1, mapping: [0x60000020]}\n");
   ASSERT_EQ(p.pdos.size(), 1u);
   EXPECT_EQ(p.pdos[0].cob_id(127), 0x7FFu);
 }

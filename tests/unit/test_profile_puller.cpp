@@ -14,9 +14,9 @@ using namespace lb::test::spec;
 
 namespace {
 
-const Bits kControl{{"motor_stop", 0},  {"motor_start", 1}, {"clamp_close", 2}, {"clamp_open", 3},
-                    {"extruder_running", 6}, {"f1_stop", 7}, {"f1_start", 8}, {"f2_stop", 9},
-                    {"f2_start", 10}, {"f3_stop", 11}, {"f3_start", 12}};
+const Bits kControl{{"motor_stop", 0},       {"motor_start", 1}, {"clamp_close", 2}, {"clamp_open", 3},
+                    {"extruder_running", 6}, {"f1_stop", 7},     {"f1_start", 8},    {"f2_stop", 9},
+                    {"f2_start", 10},        {"f3_stop", 11},    {"f3_start", 12}};
 
 class PullerProfile : public ::testing::Test {
  protected:
@@ -40,14 +40,22 @@ const auto kFrames = frames_of(
     {
         {"Tpdo1StatusSpeedAndLoad", "tpdo1", {0x01, 0x03, 0x3C, 0xF6, 0x39, 0x30}, kTpdo1, kTpdo1Flags},
         // No second status word in a 6-byte frame; 8 bytes carry one: ABCDh.
-        {"Tpdo1WithManufacturerStatusWord", "tpdo1", {0x01, 0x03, 0x3C, 0xF6, 0x39, 0x30, 0xCD, 0xAB}, kTpdo1,
-         kTpdo1Flags, 0xABCD},
+        {"Tpdo1WithManufacturerStatusWord",
+         "tpdo1",
+         {0x01, 0x03, 0x3C, 0xF6, 0x39, 0x30, 0xCD, 0xAB},
+         kTpdo1,
+         kTpdo1Flags,
+         0xABCD},
         {"Tpdo1ShortFrameIsRefused", "tpdo1", {0x01, 0x03, 0x3C, 0xF6, 0x39}, {}, {}, std::nullopt, true},
         // Echo 10000 = 2710h (100.00 %); product speed 123456 = 0001 E240h in 0.1 mm/min = 12.3456 m/min.
-        {"Tpdo2EchoAndProductSpeed", "tpdo2", {0x10, 0x27, 0x40, 0xE2, 0x01, 0x00},
+        {"Tpdo2EchoAndProductSpeed",
+         "tpdo2",
+         {0x10, 0x27, 0x40, 0xE2, 0x01, 0x00},
          {{0x6004, 0, 0x2710, 100.0}, {0x6008, 0, 0x0001E240, 12.3456}}},
         // Reverse: -5000 = FFFF EC78h = -0.5 m/min.
-        {"Tpdo2Reverse", "tpdo2", {0xF0, 0xD8, 0x78, 0xEC, 0xFF, 0xFF},
+        {"Tpdo2Reverse",
+         "tpdo2",
+         {0xF0, 0xD8, 0x78, 0xEC, 0xFF, 0xFF},
          {{0x6004, 0, 0xD8F0, -100.0}, {0x6008, 0, 0xFFFFEC78, -0.5}}},
         // Sent by the bridge, and read back in the monitor role from the controller's frame.
         {"Rpdo1ControlAndSpeedSetValue", "rpdo1", {0x42, 0x00, 0x2E, 0xFB}, kRpdo1},
@@ -123,9 +131,20 @@ TEST_F(PullerProfile, PrintedRanges) {
 TEST_F(PullerProfile, ControlStatusAndConfigurationBits) {
   expect_bits(p_, "control_word", kControl);
   expect_bits(p_, "status_word",
-              {{"motor_running", 0}, {"motor_ready_to_start", 1}, {"clamp_closed", 2}, {"fault", 3}, {"alarm", 4},
-               {"increase_request", 5}, {"decrease_request", 6}, {"reverse_direction", 7}, {"f1_running", 8},
-               {"f1_ready", 9}, {"f2_running", 10}, {"f2_ready", 11}, {"f3_running", 12}, {"f3_ready", 13}});
+              {{"motor_running", 0},
+               {"motor_ready_to_start", 1},
+               {"clamp_closed", 2},
+               {"fault", 3},
+               {"alarm", 4},
+               {"increase_request", 5},
+               {"decrease_request", 6},
+               {"reverse_direction", 7},
+               {"f1_running", 8},
+               {"f1_ready", 9},
+               {"f2_running", 10},
+               {"f2_ready", 11},
+               {"f3_running", 12},
+               {"f3_ready", 13}});
   expect_bits(p_, "configuration_word", {{"speed_measuring", 0}});
   EXPECT_EQ(p_.bitset("control_word")->index, 0x6020);
   EXPECT_EQ(p_.bitset("status_word")->index, 0x6030);
@@ -134,10 +153,21 @@ TEST_F(PullerProfile, ControlStatusAndConfigurationBits) {
 
 TEST_F(PullerProfile, Status30MovesReverseDirectionAndAddsSpeedSetMode) {
   expect_bits(p30_, "status_word",
-              {{"motor_running", 0}, {"motor_ready_to_start", 1}, {"clamp_closed", 2}, {"fault", 3}, {"alarm", 4},
-               {"increase_request", 5}, {"decrease_request", 6}, {"f1_running", 8}, {"f1_ready", 9},
-               {"f2_running", 10}, {"f2_ready", 11}, {"f3_running", 12}, {"f3_ready", 13},
-               {"reverse_direction", 14}, {"speed_set_mode", 15}});
+              {{"motor_running", 0},
+               {"motor_ready_to_start", 1},
+               {"clamp_closed", 2},
+               {"fault", 3},
+               {"alarm", 4},
+               {"increase_request", 5},
+               {"decrease_request", 6},
+               {"f1_running", 8},
+               {"f1_ready", 9},
+               {"f2_running", 10},
+               {"f2_ready", 11},
+               {"f3_running", 12},
+               {"f3_ready", 13},
+               {"reverse_direction", 14},
+               {"speed_set_mode", 15}});
   const auto* mode = p30_.bitset("status_word")->field("speed_set_mode");
   ASSERT_NE(mode, nullptr);
   EXPECT_EQ(mode->values.name(0), "local");

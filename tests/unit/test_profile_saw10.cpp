@@ -14,9 +14,9 @@ using namespace lb::test::spec;
 namespace {
 
 // Spec file 004 figures 3.1.12/3.1.13 (bit order) and profile-decisions.md (f pairs).
-const Bits kControl10{{"saw_program_on", 0}, {"wall_thickening", 1}, {"change_of_length", 2}, {"manual_cut", 3},
-                      {"tip_pulse", 4},      {"stop_immediately", 5}, {"f1_stop", 6},         {"f1_start", 7},
-                      {"f2_stop", 8},        {"f2_start", 9},        {"f3_stop", 10},        {"f3_start", 11}};
+const Bits kControl10{{"saw_program_on", 0}, {"wall_thickening", 1},  {"change_of_length", 2}, {"manual_cut", 3},
+                      {"tip_pulse", 4},      {"stop_immediately", 5}, {"f1_stop", 6},          {"f1_start", 7},
+                      {"f2_stop", 8},        {"f2_start", 9},         {"f3_stop", 10},         {"f3_start", 11}};
 const Bits kStatus10{{"saw_ready", 0},  {"saw_cutting", 1}, {"sample_request", 2}, {"manual_cut_by_saw", 3},
                      {"fault", 4},      {"alarm", 5},       {"f1_running", 6},     {"f1_ready", 7},
                      {"f2_running", 8}, {"f2_ready", 9},    {"f3_running", 10},    {"f3_ready", 11}};
@@ -34,14 +34,22 @@ class Saw10Profile : public ::testing::Test {
 const auto kFrames = frames_of(
     "cia420-4", "1.0",
     {
-        {"Tpdo1StatusAndCounter", "tpdo1", {0x03, 0x00, 0x78, 0x56, 0x34, 0x12},
+        {"Tpdo1StatusAndCounter",
+         "tpdo1",
+         {0x03, 0x00, 0x78, 0x56, 0x34, 0x12},
          {{0x6030, 0, 0x0003}, {0x6000, 0, 0x12345678}},
          {{"status_word", "saw_ready", 1}, {"status_word", "saw_cutting", 1}, {"status_word", "sample_request", 0}}},
-        {"Tpdo1CounterAtItsTop", "tpdo1", {0x00, 0x00, 0xFF, 0xFF, 0xFF, 0xFF},
+        {"Tpdo1CounterAtItsTop",
+         "tpdo1",
+         {0x00, 0x00, 0xFF, 0xFF, 0xFF, 0xFF},
          {{0x6030, 0, 0x0000}, {0x6000, 0, 0xFFFFFFFF, 4294967295.0}}},
-        {"Tpdo2SawCounterAndProductSpeed", "tpdo2", {0xE7, 0xFF, 0xFF, 0xFF, 0xE0, 0x2E, 0x00, 0x00},
+        {"Tpdo2SawCounterAndProductSpeed",
+         "tpdo2",
+         {0xE7, 0xFF, 0xFF, 0xFF, 0xE0, 0x2E, 0x00, 0x00},
          {{0x6001, 0, 0xFFFFFFE7, -0.0025}, {0x6007, 0, 0x2EE0, 12.0}}},
-        {"Rpdo1ControlSyncSpeedAndLength", "rpdo1", {0x05, 0x00, 0x05, 0x0D, 0x98, 0x3A, 0x00, 0x00},
+        {"Rpdo1ControlSyncSpeedAndLength",
+         "rpdo1",
+         {0x05, 0x00, 0x05, 0x0D, 0x98, 0x3A, 0x00, 0x00},
          {{0x6020, 0, 0x0005}, {0x6005, 0, 0x0D05, 33.33}, {0x6002, 0, 0x3A98, 1.5}}},
     });
 
@@ -151,10 +159,17 @@ TEST_F(Saw10Profile, BitsSideBySideWith31) {
   // ...and adds these.
   const std::vector<std::pair<const char*, Bits>> only31{
       {"control_word", {{"count_mode", 12}}},
-      {"status_word", {{"saw_program_enabled", 12}, {"cut_from_limit_switch", 13}, {"start_saw_program_requested", 14}}},
+      {"status_word",
+       {{"saw_program_enabled", 12}, {"cut_from_limit_switch", 13}, {"start_saw_program_requested", 14}}},
       {"configuration_word",
-       {{"height_adjustment", 1}, {"cut_depth", 2}, {"f1_available", 3}, {"f2_available", 4}, {"f3_available", 5},
-        {"early_warning", 6}, {"corrugator_cut_management", 7}, {"groove_count_mode", 8}}},
+       {{"height_adjustment", 1},
+        {"cut_depth", 2},
+        {"f1_available", 3},
+        {"f2_available", 4},
+        {"f3_available", 5},
+        {"early_warning", 6},
+        {"corrugator_cut_management", 7},
+        {"groove_count_mode", 8}}},
   };
   for (const auto& [set, bits] : only31) {
     for (const auto& [name, bit] : bits) {
@@ -183,7 +198,8 @@ TEST_F(Saw10Profile, ProductLengthIsSignedIn10AndUnsignedIn31) {
   Image img(p_, "rpdo1");
   img.set(0x6002, *v10);
   const auto bytes = img.pack();
-  EXPECT_EQ(std::vector<std::uint8_t>(bytes.begin() + 4, bytes.end()), (std::vector<std::uint8_t>{0xF0, 0xD8, 0xFF, 0xFF}));
+  EXPECT_EQ(std::vector<std::uint8_t>(bytes.begin() + 4, bytes.end()),
+            (std::vector<std::uint8_t>{0xF0, 0xD8, 0xFF, 0xFF}));
   EXPECT_FALSE(p31_.object(0x6002)->to_raw(-1.0));
   // Upper ends: INTEGER32 stops at 214748.3647 m, UNSIGNED32 at 429496.7295 m.
   EXPECT_TRUE(p_.object(0x6002)->to_raw(214748.3647));

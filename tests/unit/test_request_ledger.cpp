@@ -44,7 +44,8 @@ constexpr Ledger::Fingerprint kReset = 0x4E5E7;
 TEST(RequestLedger, ARepeatNamesAnEarlierRequestOfItsOwnWriter) {
   EXPECT_EQ(Ledger::asked_as(info(sample(1, 5))), sample(1, 5)) << "no related identity: a request of its own";
   EXPECT_EQ(Ledger::asked_as(info(sample(1, 5), sample(1, 2))), sample(1, 2)) << "a repeat of sample 2";
-  EXPECT_EQ(Ledger::asked_as(info(sample(1, 5), sample(2, 2))), sample(1, 5)) << "another writer's request: not a repeat";
+  EXPECT_EQ(Ledger::asked_as(info(sample(1, 5), sample(2, 2))), sample(1, 5))
+      << "another writer's request: not a repeat";
   EXPECT_EQ(Ledger::asked_as(info(sample(1, 5), sample(1, 5))), sample(1, 5)) << "itself";
   EXPECT_EQ(Ledger::asked_as(info(sample(1, 5), sample(1, 9))), sample(1, 5)) << "a later sample cannot be repeated";
 }

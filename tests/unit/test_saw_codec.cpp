@@ -92,7 +92,8 @@ TEST_F(SawCodecTest, EveryStatusBitHasItsName) {
   for (const auto& [bit, get] : bits) {
     // TPDO1: status word (16, LE) then counter value (32, LE).
     const std::uint16_t word = static_cast<std::uint16_t>(1U << bit);
-    const std::array<std::uint8_t, 6> frame{static_cast<std::uint8_t>(word), static_cast<std::uint8_t>(word >> 8), 0, 0, 0, 0};
+    const std::array<std::uint8_t, 6> frame{
+        static_cast<std::uint8_t>(word), static_cast<std::uint8_t>(word >> 8), 0, 0, 0, 0};
     ASSERT_TRUE(codec_.receive(pdo("tpdo1"), frame));
     const auto s = status();
     EXPECT_EQ(s.status_word().raw(), word);
@@ -274,13 +275,15 @@ TEST_F(SawCodecTest, SawProfileObjectsMatchTheSpec) {
   // Every control and configuration bit named in profile-decisions.md.
   const auto* cw = profile_.bitset("control_word");
   const std::vector<std::pair<const char*, unsigned>> control{
-      {"saw_program_on", 0}, {"wall_thickening", 1}, {"change_of_length", 2}, {"manual_cut", 3}, {"tip_pulse", 4},
-      {"stop_immediately", 5}, {"f1_stop", 6}, {"f1_start", 7}, {"f2_stop", 8}, {"f2_start", 9}, {"f3_stop", 10},
-      {"f3_start", 11}, {"count_mode", 12}};
+      {"saw_program_on", 0},   {"wall_thickening", 1}, {"change_of_length", 2}, {"manual_cut", 3}, {"tip_pulse", 4},
+      {"stop_immediately", 5}, {"f1_stop", 6},         {"f1_start", 7},         {"f2_stop", 8},    {"f2_start", 9},
+      {"f3_stop", 10},         {"f3_start", 11},       {"count_mode", 12}};
   for (const auto& [name, bit] : control) EXPECT_EQ(cw->bit(name), bit) << name;
   const auto* cfg = profile_.bitset("configuration_word");
-  const std::vector<std::pair<const char*, unsigned>> config{
-      {"speed_measuring", 0}, {"height_adjustment", 1}, {"cut_depth", 2}, {"f1_available", 3}, {"f2_available", 4},
-      {"f3_available", 5}, {"early_warning", 6}, {"corrugator_cut_management", 7}, {"groove_count_mode", 8}};
+  const std::vector<std::pair<const char*, unsigned>> config{{"speed_measuring", 0},  {"height_adjustment", 1},
+                                                             {"cut_depth", 2},        {"f1_available", 3},
+                                                             {"f2_available", 4},     {"f3_available", 5},
+                                                             {"early_warning", 6},    {"corrugator_cut_management", 7},
+                                                             {"groove_count_mode", 8}};
   for (const auto& [name, bit] : config) EXPECT_EQ(cfg->bit(name), bit) << name;
 }

@@ -147,9 +147,10 @@ class Recorder {
 
 // ---- the device every test talks to ------------------------------------------------------------
 
-constexpr DataType kTypes2001[] = {DataType::integer8,  DataType::integer16, DataType::integer32, DataType::integer64,
-                                   DataType::unsigned8, DataType::unsigned16, DataType::unsigned32,
-                                   DataType::unsigned64, DataType::real32,   DataType::real64,    DataType::boolean};
+constexpr DataType kTypes2001[] = {DataType::integer8,   DataType::integer16,  DataType::integer32,
+                                   DataType::integer64,  DataType::unsigned8,  DataType::unsigned16,
+                                   DataType::unsigned32, DataType::unsigned64, DataType::real32,
+                                   DataType::real64,     DataType::boolean};
 
 Bytes bytes_of(std::string_view s) { return Bytes(s.begin(), s.end()); }
 
@@ -236,8 +237,8 @@ TEST(SdoAbort, EveryCodeHasItsMeaning) {
   EXPECT_TRUE(contains(std::string(sdo_abort_meaning(0x06090031)), "too high"));
   EXPECT_TRUE(contains(std::string(sdo_abort_meaning(0x06090032)), "too low"));
   EXPECT_TRUE(contains(std::string(sdo_abort_meaning(0x08000022)), "present device state"));
-  for (std::uint32_t code : {0x06010000u, 0x06040041u, 0x06040042u, 0x06070010u, 0x06090030u, 0x08000000u,
-                             0x08000020u, 0x08000021u, 0x05040005u, 0x06060000u, 0x060A0023u}) {
+  for (std::uint32_t code : {0x06010000u, 0x06040041u, 0x06040042u, 0x06070010u, 0x06090030u, 0x08000000u, 0x08000020u,
+                             0x08000021u, 0x05040005u, 0x06060000u, 0x060A0023u}) {
     EXPECT_NE(sdo_abort_meaning(code), "unknown abort code") << fmt::format("{:08X}", code);
   }
   EXPECT_EQ(sdo_abort_meaning(0x12345678), "unknown abort code");
@@ -461,8 +462,8 @@ TEST_F(Sdo, SegmentedUploadOfALongVisibleString) {
   EXPECT_EQ(*read, ObjectValue{text});
 
   // 200 bytes: 28 full segments and one of 4 (n = 3, c = 1); toggle 0, 1, 0, ...
-  expect_traffic(*tap_, {{0x605, {0x40, 0x00, 0x21, 0x00, 0, 0, 0, 0}},
-                         {0x585, {0x41, 0x00, 0x21, 0x00, 0xC8, 0, 0, 0}}});
+  expect_traffic(*tap_,
+                 {{0x605, {0x40, 0x00, 0x21, 0x00, 0, 0, 0, 0}}, {0x585, {0x41, 0x00, 0x21, 0x00, 0xC8, 0, 0, 0}}});
   for (int seg = 0; seg < 29; ++seg) {
     const bool t = seg % 2 == 1;
     Bytes data{static_cast<std::uint8_t>(t ? 0x10 : 0x00)};
@@ -471,8 +472,7 @@ TEST_F(Sdo, SegmentedUploadOfALongVisibleString) {
       const int at = seg * 7 + i;
       data.push_back(at < 200 ? static_cast<std::uint8_t>(text[static_cast<std::size_t>(at)]) : 0);
     }
-    expect_traffic(*tap_, {{0x605, {static_cast<std::uint8_t>(t ? 0x70 : 0x60), 0, 0, 0, 0, 0, 0, 0}},
-                           {0x585, data}});
+    expect_traffic(*tap_, {{0x605, {static_cast<std::uint8_t>(t ? 0x70 : 0x60), 0, 0, 0, 0, 0, 0, 0}}, {0x585, data}});
   }
   expect_quiet(*tap_);
 }
@@ -485,11 +485,10 @@ TEST_F(Sdo, SegmentedDownloadOfALongOctetString) {
   auto w = client.write_async(kNode, 0x2101, 0, DataType::octet_string, value);
   auto written = wait(w);
   ASSERT_TRUE(written) << written.error().message;
-  EXPECT_EQ(hex(on_loop(*server_loop_, [&] { return servers_[0]->dictionary().find(0x2101, 0)->value; })),
-            hex(value));
+  EXPECT_EQ(hex(on_loop(*server_loop_, [&] { return servers_[0]->dictionary().find(0x2101, 0)->value; })), hex(value));
 
-  expect_traffic(*tap_, {{0x605, {0x21, 0x01, 0x21, 0x00, 0xC8, 0, 0, 0}},
-                         {0x585, {0x60, 0x01, 0x21, 0x00, 0, 0, 0, 0}}});
+  expect_traffic(*tap_,
+                 {{0x605, {0x21, 0x01, 0x21, 0x00, 0xC8, 0, 0, 0}}, {0x585, {0x60, 0x01, 0x21, 0x00, 0, 0, 0, 0}}});
   for (int seg = 0; seg < 29; ++seg) {
     const bool t = seg % 2 == 1;
     Bytes data{static_cast<std::uint8_t>(t ? 0x10 : 0x00)};
@@ -519,10 +518,10 @@ TEST_F(Sdo, SegmentBoundaries) {
       {0, {0x21, 0x0F}, {0x41, 0x0F}},  // one empty segment: n=7, c=1
       {1, {0x2F}, {0x4F}},
       {4, {0x23}, {0x43}},
-      {5, {0x21, 0x05}, {0x41, 0x05}},              // n=2, c=1
-      {7, {0x21, 0x01}, {0x41, 0x01}},              // n=0, c=1
-      {8, {0x21, 0x00, 0x1D}, {0x41, 0x00, 0x1D}},  // then t=1, n=6, c=1
-      {14, {0x21, 0x00, 0x11}, {0x41, 0x00, 0x11}},  // then t=1, n=0, c=1
+      {5, {0x21, 0x05}, {0x41, 0x05}},                           // n=2, c=1
+      {7, {0x21, 0x01}, {0x41, 0x01}},                           // n=0, c=1
+      {8, {0x21, 0x00, 0x1D}, {0x41, 0x00, 0x1D}},               // then t=1, n=6, c=1
+      {14, {0x21, 0x00, 0x11}, {0x41, 0x00, 0x11}},              // then t=1, n=0, c=1
       {15, {0x21, 0x00, 0x10, 0x0D}, {0x41, 0x00, 0x10, 0x0D}},  // then t=0, n=6, c=1
   };
   for (const auto& c : cases) {
@@ -1105,20 +1104,23 @@ TEST_F(Sdo, LimitedRequestsAreRefusedAtTheLimitAndCancelledOnDemand) {
   std::mutex m;
   std::vector<SdoClient::UploadResult> results(6, SdoClient::UploadResult(SdoError{}));
   const auto limited = [&](int i) {
-    client.upload(9, 0x2000, static_cast<std::uint8_t>(i), [&, i](SdoClient::UploadResult r) {
-      {
-        std::lock_guard lock(m);
-        results[static_cast<std::size_t>(i)] = std::move(r);
-      }
-      done.add(i);
-    }, SdoClient::Limit{2});
+    client.upload(
+        9, 0x2000, static_cast<std::uint8_t>(i),
+        [&, i](SdoClient::UploadResult r) {
+          {
+            std::lock_guard lock(m);
+            results[static_cast<std::size_t>(i)] = std::move(r);
+          }
+          done.add(i);
+        },
+        SdoClient::Limit{2});
   };
   limited(0);  // in flight at node 9, which never answers
   ASSERT_TRUE(next_frame(*tap_));
-  limited(1);  // waits
+  limited(1);                                    // waits
   auto own = client.upload_async(9, 0x2000, 9);  // the bridge's own: not counted, not cancelled
-  limited(2);  // waits: the limit is reached
-  limited(3);  // refused at once
+  limited(2);                                    // waits: the limit is reached
+  limited(3);                                    // refused at once
   auto seen = done.wait_for(1, 500ms);
   ASSERT_EQ(seen, std::vector<int>{3});
   {
@@ -1148,7 +1150,6 @@ TEST_F(Sdo, LimitedRequestsAreRefusedAtTheLimitAndCancelledOnDemand) {
   EXPECT_EQ(ro.error().abort_code, sdo_abort::timed_out);
 }
 
-
 // An upload is bounded (SdoClient::kDefaultMaxUpload): a server indicating more is aborted with
 // 05040005h (out of memory) before a segment is asked for, so no device decides what the loop
 // thread allocates.
@@ -1158,9 +1159,9 @@ TEST_F(Sdo, AnUploadIndicatingMoreThanTheLimitIsAbortedAtOnce) {
   auto f = client.upload_async(7, 0x2000, 0);
   expect_traffic(*tap_, {{0x607, {0x40, 0x00, 0x20, 0x00, 0, 0, 0, 0}}});
   const auto size = static_cast<std::uint32_t>(SdoClient::kDefaultMaxUpload + 1);
-  ASSERT_TRUE(tap_->send(sdo_frame(0x587, {0x41, 0x00, 0x20, 0x00, static_cast<std::uint8_t>(size),
-                                           static_cast<std::uint8_t>(size >> 8), static_cast<std::uint8_t>(size >> 16),
-                                           static_cast<std::uint8_t>(size >> 24)})));
+  ASSERT_TRUE(tap_->send(
+      sdo_frame(0x587, {0x41, 0x00, 0x20, 0x00, static_cast<std::uint8_t>(size), static_cast<std::uint8_t>(size >> 8),
+                        static_cast<std::uint8_t>(size >> 16), static_cast<std::uint8_t>(size >> 24)})));
   expect_traffic(*tap_, {{0x607, {0x80, 0x00, 0x20, 0x00, 0x05, 0x00, 0x04, 0x05}}});
   auto r = wait(f);
   ASSERT_FALSE(r);
@@ -1177,7 +1178,7 @@ TEST_F(Sdo, AnUploadWithoutSizeIsAbortedAtTheLimit) {
   auto f = client.upload_async(7, 0x2000, 0);
   expect_traffic(*tap_, {{0x607, {0x40, 0x00, 0x20, 0x00, 0, 0, 0, 0}}});
   ASSERT_TRUE(tap_->send(sdo_frame(0x587, {0x40, 0x00, 0x20, 0x00, 0, 0, 0, 0})));  // segmented, no size
-  constexpr std::size_t kSegments = SdoClient::kDefaultMaxUpload / 7 + 1;  // the first past the limit
+  constexpr std::size_t kSegments = SdoClient::kDefaultMaxUpload / 7 + 1;           // the first past the limit
   std::size_t segments = 0;
   std::optional<CanFrame> last;
   for (bool toggle = false; segments <= kSegments; toggle = !toggle) {

@@ -40,13 +40,14 @@ std::string replaced(std::string s, const std::string& from, const std::string& 
 // A rule inserted before the grant's <default>, as an integrator edits a grant by hand.
 std::string with_rule(const std::string& xml, const std::string& rule_body) {
   return replaced(xml, "      <default>DENY</default>",
-                  "      <allow_rule>\n        <domains><id>" + std::to_string(kDomain) + "</id></domains>\n" + rule_body +
-                      "      </allow_rule>\n      <default>DENY</default>");
+                  "      <allow_rule>\n        <domains><id>" + std::to_string(kDomain) + "</id></domains>\n" +
+                      rule_body + "      </allow_rule>\n      <default>DENY</default>");
 }
 
 std::string publish(const std::string& topic, const std::string& partition = "") {
   return "        <publish><topics><topic>" + topic + "</topic></topics>" +
-         (partition.empty() ? "" : "<partitions><partition>" + partition + "</partition></partitions>") + "</publish>\n";
+         (partition.empty() ? "" : "<partitions><partition>" + partition + "</partition></partitions>") +
+         "</publish>\n";
 }
 
 class SecurityAudit : public ::testing::Test {
@@ -67,8 +68,11 @@ class SecurityAudit : public ::testing::Test {
   std::string line_yaml(const std::string& security) const {
     return "line: sec\n"
            "dds:\n"
-           "  domain: " + std::to_string(kDomain) + "\n"
-           "  localhost_only: true\n" + security +
+           "  domain: " +
+           std::to_string(kDomain) +
+           "\n"
+           "  localhost_only: true\n" +
+           security +
            "buses:\n"
            "  - {name: ext, interface: 'virtual:audit', role: master, sync_period_ms: 20}\n"
            "devices:\n"
@@ -144,8 +148,10 @@ TEST_F(SecurityAudit, GovernanceWithoutDiscoveryLivelinessOrMetadataEncryptionIs
       {"<liveliness_protection_kind>ENCRYPT", "<liveliness_protection_kind>NONE", "liveliness_protection_kind NONE"},
       {"<metadata_protection_kind>ENCRYPT", "<metadata_protection_kind>NONE", "metadata_protection_kind NONE"},
       {"<metadata_protection_kind>ENCRYPT", "<metadata_protection_kind>SIGN", "metadata_protection_kind SIGN"},
-      {"<enable_discovery_protection>true", "<enable_discovery_protection>false", "enable_discovery_protection is not true"},
-      {"<enable_liveliness_protection>true", "<enable_liveliness_protection>false", "enable_liveliness_protection is not true"},
+      {"<enable_discovery_protection>true", "<enable_discovery_protection>false",
+       "enable_discovery_protection is not true"},
+      {"<enable_liveliness_protection>true", "<enable_liveliness_protection>false",
+       "enable_liveliness_protection is not true"},
   };
   int n = 0;
   for (const auto& v : variants) {
@@ -176,8 +182,11 @@ TEST_F(SecurityAudit, GovernanceWithoutDiscoveryLivelinessOrMetadataEncryptionIs
 // Grants.
 
 TEST_F(SecurityAudit, GrantsThatPkiShIssuesPass) {
-  for (const auto& [name, role, devices] : std::vector<std::tuple<std::string, std::string, std::string>>{
-           {"obs", "observer", ""}, {"op", "operator", "saw1"}, {"eng", "engineer", ""}, {"eng1", "engineer", "saw2"}}) {
+  for (const auto& [name, role, devices] :
+       std::vector<std::tuple<std::string, std::string, std::string>>{{"obs", "observer", ""},
+                                                                      {"op", "operator", "saw1"},
+                                                                      {"eng", "engineer", ""},
+                                                                      {"eng1", "engineer", "saw2"}}) {
     const auto id = pki_->issue(name, role, devices);
     EXPECT_EQ(errors_of(files(id)), "") << name;
     EXPECT_TRUE(lb::ddsl::grant_warnings(files(id), kDomain).empty()) << name;
@@ -211,7 +220,8 @@ TEST_F(SecurityAudit, ExtraTopicsAndWildcardsInPublishRightsAreRefused) {
       {publish("rt/sec/saw?/setpoint"), "may publish 'rt/sec/saw?/setpoint': a wildcard"},
       {publish("rt/sec/saw[12]/setpoint"), "may publish 'rt/sec/saw[12]/setpoint': a wildcard"},
       {publish("rq/sec/bridge/commandRequest", "saw*"), "in partition 'saw*': a wildcard"},
-      {publish("rq/sec/bridge/nmtRequest", "saw1"), "may publish 'rq/sec/bridge/nmtRequest' in partition 'saw1': a right"},
+      {publish("rq/sec/bridge/nmtRequest", "saw1"),
+       "may publish 'rq/sec/bridge/nmtRequest' in partition 'saw1': a right"},
       {publish("rt/other/saw1/setpoint"), "may publish 'rt/other/saw1/setpoint': a right"},
       {publish("rt/sec/saw1/status"), "is a bridge grant (it may publish 'rt/sec/saw1/status'"},
   };
@@ -241,7 +251,8 @@ TEST_F(SecurityAudit, ExtraSubscribeRightsAreWarnedNotRefused) {
 
 TEST_F(SecurityAudit, DefaultAllowIsRefused) {
   const auto obs = pki_->issue("obs1", "observer");
-  resign(obs, replaced(lb::test::read_text(obs + "/permissions.xml"), "<default>DENY</default>", "<default>ALLOW</default>"));
+  resign(obs, replaced(lb::test::read_text(obs + "/permissions.xml"), "<default>DENY</default>",
+                       "<default>ALLOW</default>"));
   EXPECT_NE(errors_of(files(obs)).find("<default>ALLOW</default>"), std::string::npos);
 }
 
@@ -255,7 +266,8 @@ TEST_F(SecurityAudit, BridgePermissionsWithASecondBridgeGrantAreRefusedAtCheckAn
   second = replaced(second, "name=\"sec_bridge\"", "name=\"third_party\"");
   resign(bridge, xml.substr(0, end) + second + xml.substr(end));
   const std::string errors = errors_of(files(bridge));
-  EXPECT_NE(errors.find("grant 'third_party' for 'CN=app,O=linebridge' is a bridge grant"), std::string::npos) << errors;
+  EXPECT_NE(errors.find("grant 'third_party' for 'CN=app,O=linebridge' is a bridge grant"), std::string::npos)
+      << errors;
   EXPECT_EQ(errors.find("'sec_bridge'"), std::string::npos) << "the bridge's own grant is fine\n" << errors;
   const auto check = line_check();
   EXPECT_NE(check.exit_code, 0) << check.output;
@@ -287,7 +299,8 @@ TEST_F(SecurityAudit, MisspelledPluginNamesAndUnknownKeysAreRefusedBeforeStart) 
   }
   auto f = files(pki_->dir() + "/bridge");
   f.properties = {{"dds.sec.auth.builtin.PKI-DH.identity_crls", "file:///x.crl"}};
-  EXPECT_NE(errors_of(f).find("did you mean dds.sec.auth.builtin.PKI-DH.identity_crl?"), std::string::npos) << errors_of(f);
+  EXPECT_NE(errors_of(f).find("did you mean dds.sec.auth.builtin.PKI-DH.identity_crl?"), std::string::npos)
+      << errors_of(f);
   // The built-in names and the keys Fast DDS reads pass.
   f.properties = {{"dds.sec.auth.plugin", "builtin.PKI-DH"},
                   {"dds.sec.crypto.plugin", "builtin.AES-GCM-GMAC"},
@@ -295,7 +308,8 @@ TEST_F(SecurityAudit, MisspelledPluginNamesAndUnknownKeysAreRefusedBeforeStart) 
                   {"dds.sec.log.builtin.DDS_LogTopic.logging_level", "ERROR_LEVEL"}};
   EXPECT_EQ(errors_of(f), "");
   // linebridge --check said ok for a misspelled plugin; now it names it.
-  std::ofstream(config_) << line_yaml(pki_->security_yaml() + "    properties: {dds.sec.crypto.plugin: builtin.AES-GCM}\n");
+  std::ofstream(config_) << line_yaml(pki_->security_yaml() +
+                                      "    properties: {dds.sec.crypto.plugin: builtin.AES-GCM}\n");
   const auto check = line_check();
   EXPECT_NE(check.exit_code, 0) << check.output;
   EXPECT_NE(check.output.find("builtin.AES-GCM' is not a plugin"), std::string::npos) << check.output;
@@ -306,10 +320,12 @@ TEST_F(SecurityAudit, MisspelledPluginNamesAndUnknownKeysAreRefusedBeforeStart) 
 
 class Announcements : public fdds::DomainParticipantListener {
  public:
-  void on_participant_discovery(fdds::DomainParticipant*, eprosima::fastrtps::rtps::ParticipantDiscoveryInfo&& info) override {
+  void on_participant_discovery(fdds::DomainParticipant*,
+                                eprosima::fastrtps::rtps::ParticipantDiscoveryInfo&& info) override {
     if (info.status != eprosima::fastrtps::rtps::ParticipantDiscoveryInfo::DISCOVERED_PARTICIPANT) return;
     std::vector<std::string> names;
-    for (auto it = info.info.m_properties.begin(); it != info.info.m_properties.end(); ++it) names.push_back(it->first());
+    for (auto it = info.info.m_properties.begin(); it != info.info.m_properties.end(); ++it)
+      names.push_back(it->first());
     std::lock_guard lock(m_);
     seen_[info.info.m_participantName.to_string()] = std::move(names);
   }
@@ -334,7 +350,8 @@ std::optional<std::vector<std::string>> wait_for(Announcements& listener, const 
 }
 
 bool has_physical_data(const std::vector<std::string>& names) {
-  return std::any_of(names.begin(), names.end(), [](const std::string& n) { return n.rfind("fastdds.physical_data.", 0) == 0; });
+  return std::any_of(names.begin(), names.end(),
+                     [](const std::string& n) { return n.rfind("fastdds.physical_data.", 0) == 0; });
 }
 
 TEST(ParticipantAnnouncement, CarriesNoPhysicalData) {

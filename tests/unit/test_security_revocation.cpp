@@ -28,8 +28,11 @@ constexpr std::uint32_t kDomain = 23;
 std::string line_yaml(const std::string& security) {
   return "line: rev\n"
          "dds:\n"
-         "  domain: " + std::to_string(kDomain) + "\n"
-         "  localhost_only: true\n" + security +
+         "  domain: " +
+         std::to_string(kDomain) +
+         "\n"
+         "  localhost_only: true\n" +
+         security +
          "buses:\n"
          "  - {name: ext, interface: 'virtual:rev', role: master, sync_period_ms: 20}\n"
          "devices:\n"
@@ -47,8 +50,8 @@ std::string joined(const std::vector<std::string>& lines) {
 // The CRL's next update, as seconds since the epoch (openssl prints it, `date` reads it).
 std::time_t crl_time(const std::string& crl, const char* field, const std::string& log) {
   const std::string out = log + ".time";
-  lb::test::shell("date -d \"$(openssl crl -noout -" + std::string(field) + " -in '" + crl + "' | cut -d= -f2)\" +%s > '" +
-                      out + "'",
+  lb::test::shell("date -d \"$(openssl crl -noout -" + std::string(field) + " -in '" + crl +
+                      "' | cut -d= -f2)\" +%s > '" + out + "'",
                   log);
   return static_cast<std::time_t>(std::stoll(lb::test::read_text(out)));
 }
@@ -105,7 +108,8 @@ TEST(RevocationConfig, IdentityCrlIsAFileKeyAndNotAProperty) {
   const std::string files =
       "  security:\n"
       "    identity_ca: ca/identity_ca.pem\n    certificate: bridge/cert.pem\n    private_key: bridge/key.pem\n"
-      "    permissions_ca: ca/permissions_ca.pem\n    governance: governance.p7s\n    permissions: bridge/permissions.p7s\n";
+      "    permissions_ca: ca/permissions_ca.pem\n    governance: governance.p7s\n    permissions: "
+      "bridge/permissions.p7s\n";
   auto with = lb::profiles::parse_line_config(line_yaml(files + "    identity_crl: ca/identity_crl.pem\n"),
                                               "/etc/linebridge/line.yaml", registry);
   ASSERT_TRUE(with) << with.error().message;
@@ -118,7 +122,8 @@ TEST(RevocationConfig, IdentityCrlIsAFileKeyAndNotAProperty) {
       line_yaml(files + "    properties: {dds.sec.auth.builtin.PKI-DH.identity_crl: 'file:///x.pem'}\n"),
       "/etc/linebridge/line.yaml", registry);
   ASSERT_FALSE(prop);
-  EXPECT_TRUE(contains(prop.error().message, "names a file: give it with its own dds.security key")) << prop.error().message;
+  EXPECT_TRUE(contains(prop.error().message, "names a file: give it with its own dds.security key"))
+      << prop.error().message;
 }
 
 // ------------------------------------------------------------------------------------------------
@@ -153,10 +158,12 @@ TEST_F(Revocation, RevokeRefusesTheRevokedIdentityAndKeepsTheOthers) {
   EXPECT_EQ(check(files()), "") << "the bridge must keep working";
   // openssl agrees: op1 revoked, op2 not.
   const std::string ca = pki_->identity_ca();
-  EXPECT_NE(lb::test::shell("openssl verify -crl_check -CAfile '" + ca + "' -CRLfile '" + crl_ + "' '" + op1 + "/cert.pem'",
+  EXPECT_NE(lb::test::shell("openssl verify -crl_check -CAfile '" + ca + "' -CRLfile '" + crl_ + "' '" + op1 +
+                                "/cert.pem'",
                             dir_ + "/verify.log"),
             0);
-  EXPECT_EQ(lb::test::shell("openssl verify -crl_check -CAfile '" + ca + "' -CRLfile '" + crl_ + "' '" + op2 + "/cert.pem'",
+  EXPECT_EQ(lb::test::shell("openssl verify -crl_check -CAfile '" + ca + "' -CRLfile '" + crl_ + "' '" + op2 +
+                                "/cert.pem'",
                             dir_ + "/verify.log"),
             0)
       << lb::test::read_text(dir_ + "/verify.log");
@@ -173,7 +180,8 @@ TEST_F(Revocation, ACrlThatFastDdsWouldChokeOnIsRefusedWithItsReason) {
   auto f = files();
   f.identity_crl = other.dir() + "/ca/identity_crl.pem";
   std::string r = check(f);
-  EXPECT_TRUE(contains(r, "identity_crl " + f.identity_crl + ": its signature does not verify with the key of the identity CA"))
+  EXPECT_TRUE(
+      contains(r, "identity_crl " + f.identity_crl + ": its signature does not verify with the key of the identity CA"))
       << r;
   // Not a CRL, and a missing file.
   f.identity_crl = pki_->identity_ca();
@@ -200,7 +208,8 @@ TEST_F(Revocation, NextUpdateNearIsAWarningAndPastIsAProblem) {
   auto soon = at(next - 3 * 24 * 3600);
   ASSERT_TRUE(soon.problems.empty());
   ASSERT_EQ(soon.warnings.size(), 1u);
-  EXPECT_TRUE(contains(soon.warnings[0].text(), "identity_crl " + crl_ + ": its next update is ")) << soon.warnings[0].text();
+  EXPECT_TRUE(contains(soon.warnings[0].text(), "identity_crl " + crl_ + ": its next update is "))
+      << soon.warnings[0].text();
   EXPECT_TRUE(contains(soon.warnings[0].text(), "within 7 days")) << soon.warnings[0].text();
   EXPECT_TRUE(at(next - 8 * 24 * 3600).warnings.empty()) << "8 days ahead is not near";
   auto past = at(next + 60);
@@ -219,7 +228,8 @@ TEST_F(Revocation, BothPreflightChecksPrintTheNextUpdateWarning) {
   EXPECT_TRUE(contains(sec.output, "warning: identity_crl " + crl_ + ": its next update is ")) << sec.output;
   const auto bridge = lb::test::run_command({LB_BIN_BRIDGE, "--check", line});
   EXPECT_EQ(bridge.exit_code, 0) << bridge.output;
-  EXPECT_TRUE(contains(bridge.output, "warning: DDS security: identity_crl " + crl_ + ": its next update is ")) << bridge.output;
+  EXPECT_TRUE(contains(bridge.output, "warning: DDS security: identity_crl " + crl_ + ": its next update is "))
+      << bridge.output;
 }
 
 // ------------------------------------------------------------------------------------------------
@@ -261,9 +271,11 @@ TEST_F(Revocation, CaKeysBesideTheIdentityInUseAreFlagged) {
   // Not a CA key: another identity's key in the bridge's folder is not flagged.
   fs::copy_file(pki_->issue("op1", "operator", "saw1") + "/key.pem", bridge + "/op1.key");
   const std::string w = joined(lb::ddsl::security_warnings(files()));
-  EXPECT_TRUE(contains(w, "CA key " + bridge + "/backup.pem: the private key of the CA 'CN=identity CA,O=linebridge' lies beside"))
+  EXPECT_TRUE(contains(w, "CA key " + bridge +
+                              "/backup.pem: the private key of the CA 'CN=identity CA,O=linebridge' lies beside"))
       << w;
-  EXPECT_TRUE(contains(w, "CA key " + pki_->dir() + "/ca/permissions_ca.key: the private key of the CA 'CN=permissions CA"))
+  EXPECT_TRUE(
+      contains(w, "CA key " + pki_->dir() + "/ca/permissions_ca.key: the private key of the CA 'CN=permissions CA"))
       << w;
   EXPECT_FALSE(contains(w, "op1.key")) << w;
   EXPECT_EQ(check(files()), "") << "a CA key beside the identity is a warning, not a refusal";
@@ -274,5 +286,6 @@ TEST_F(Revocation, CaKeysBesideTheIdentityInUseAreFlagged) {
   EXPECT_TRUE(contains(sec.output, "warning: CA key " + bridge + "/backup.pem")) << sec.output;
   const auto check_run = lb::test::run_command({LB_BIN_BRIDGE, "--check", line});
   EXPECT_EQ(check_run.exit_code, 0) << check_run.output;
-  EXPECT_TRUE(contains(check_run.output, "warning: DDS security: CA key " + bridge + "/backup.pem")) << check_run.output;
+  EXPECT_TRUE(contains(check_run.output, "warning: DDS security: CA key " + bridge + "/backup.pem"))
+      << check_run.output;
 }

@@ -12,9 +12,9 @@
 #include <thread>
 
 #include "app/service_notifier.hpp"
-#include "support/notify_socket.hpp"
 #include "can/unique_fd.hpp"
 #include "canopen/bus_loop.hpp"
+#include "support/notify_socket.hpp"
 
 using namespace std::chrono_literals;
 using lb::test::NotifySocket;
@@ -34,7 +34,8 @@ TEST(ServiceNotifier, WatchdogIsFedOnlyWhileEveryLoopMakesProgress) {
   ::setenv("WATCHDOG_USEC", "1000000", 1);  // checks every 500 ms
   auto busy = ticking_loop("notify-a");
   auto idle = ticking_loop("notify-b");
-  lb::app::ServiceNotifier notifier({{"a", [&] { return busy->iterations(); }}, {"b", [&] { return idle->iterations(); }}});
+  lb::app::ServiceNotifier notifier(
+      {{"a", [&] { return busy->iterations(); }}, {"b", [&] { return idle->iterations(); }}});
   ::unsetenv("WATCHDOG_USEC");
   EXPECT_EQ(notifier.watchdog(), 1s);
   EXPECT_EQ(socket.next(300ms), "") << "ready before the loops run";

@@ -21,11 +21,11 @@
 #include "profiles/profile_registry.hpp"
 
 using lb::canopen::PdoEntry;
-using lb::gateways::RestoreScope;
-using lb::gateways::SetValueStore;
 using lb::gateways::check_set_values;
 using lb::gateways::clear_enabling;
 using lb::gateways::restore_scope;
+using lb::gateways::RestoreScope;
+using lb::gateways::SetValueStore;
 using lb::profiles::StartupPolicy;
 using namespace std::chrono_literals;
 
@@ -108,7 +108,8 @@ TEST(Enabling, ClearedFromAPayloadAndNamed) {
   EXPECT_EQ(saw, (std::array<std::uint8_t, 8>{0x04, 0x00, 0x88, 0x13, 0xE0, 0x2E, 0x00, 0x00}));
   // Puller: 0041h = extruder running and motor stop (start prevention); -25.00 % (F63Ch).
   std::array<std::uint8_t, 4> puller{0x41, 0x00, 0x3C, 0xF6};
-  EXPECT_EQ(clear_enabling(profile("cia420-2", "1.0"), kPullerRpdo1, puller), std::vector<std::string>{"extruder_running"});
+  EXPECT_EQ(clear_enabling(profile("cia420-2", "1.0"), kPullerRpdo1, puller),
+            std::vector<std::string>{"extruder_running"});
   EXPECT_EQ(puller, (std::array<std::uint8_t, 4>{0x01, 0x00, 0x3C, 0xF6}));
   // Feeder box RPDO2: loom status 1 (start advice) goes to 0 (stop); 6004h untouched.
   std::array<std::uint8_t, 5> loom{0x01, 0x2C, 0x01, 0x96, 0x00};
@@ -129,8 +130,10 @@ TEST(KeptSetValues, PassTheRangeChecksOfANewSetValue) {
   ASSERT_FALSE(r);
   EXPECT_NE(r.error().message.find("saw_sync_speed_set_value"), std::string::npos) << r.error().message;
   // Puller speed is signed: -100.00 % (D8F0h) passes, -100.01 % (D8EFh) does not.
-  EXPECT_TRUE(check_set_values(profile("cia420-2", "1.0"), kPullerRpdo1, std::array<std::uint8_t, 4>{0, 0, 0xF0, 0xD8}));
-  EXPECT_FALSE(check_set_values(profile("cia420-2", "1.0"), kPullerRpdo1, std::array<std::uint8_t, 4>{0, 0, 0xEF, 0xD8}));
+  EXPECT_TRUE(
+      check_set_values(profile("cia420-2", "1.0"), kPullerRpdo1, std::array<std::uint8_t, 4>{0, 0, 0xF0, 0xD8}));
+  EXPECT_FALSE(
+      check_set_values(profile("cia420-2", "1.0"), kPullerRpdo1, std::array<std::uint8_t, 4>{0, 0, 0xEF, 0xD8}));
   // A loom status the profile does not define (9).
   EXPECT_FALSE(check_set_values(profile("cia414-2", "1.1"), kFeederRpdo2, std::array<std::uint8_t, 5>{9, 0, 0, 0, 0}));
 }
@@ -139,14 +142,18 @@ TEST(Enabling, TheProfileFormatChecksTheMarks) {
   const std::string head = "profile: t\nversion: \"1\"\ndevice: t\ndevice_type: 0x01A4\nobjects:\n"
                            "  - {index: 0x6020, name: control_word, type: UNSIGNED16, access: rw}\n"
                            "  - {index: 0x6030, name: status_word, type: UNSIGNED16, access: ro}\n";
-  auto p = lb::profiles::parse_profile(head + "bitsets:\n  control_word:\n    object: 0x6020\n    enabling: [run]\n    bits: {run: 0, stop: 1}\n", "t.yaml");
+  auto p = lb::profiles::parse_profile(
+      head + "bitsets:\n  control_word:\n    object: 0x6020\n    enabling: [run]\n    bits: {run: 0, stop: 1}\n",
+      "t.yaml");
   ASSERT_TRUE(p) << p.error().message;
   EXPECT_TRUE(p->bitset("control_word")->field("run")->enabling);
   EXPECT_FALSE(p->bitset("control_word")->field("stop")->enabling);
-  p = lb::profiles::parse_profile(head + "bitsets:\n  control_word:\n    object: 0x6020\n    enabling: [runn]\n    bits: {run: 0}\n", "t.yaml");
+  p = lb::profiles::parse_profile(
+      head + "bitsets:\n  control_word:\n    object: 0x6020\n    enabling: [runn]\n    bits: {run: 0}\n", "t.yaml");
   ASSERT_FALSE(p);
   EXPECT_NE(p.error().message.find("no field 'runn'"), std::string::npos) << p.error().message;
-  p = lb::profiles::parse_profile(head + "bitsets:\n  status_word:\n    object: 0x6030\n    enabling: [ready]\n    bits: {ready: 0}\n", "t.yaml");
+  p = lb::profiles::parse_profile(
+      head + "bitsets:\n  status_word:\n    object: 0x6030\n    enabling: [ready]\n    bits: {ready: 0}\n", "t.yaml");
   ASSERT_FALSE(p);
   EXPECT_NE(p.error().message.find("not written by the master"), std::string::npos) << p.error().message;
 }
@@ -157,7 +164,9 @@ TEST(SetValueStoreFile, KeepsWhatTheDeviceIsAndWhenItWasInForce) {
     auto store = SetValueStore::open(dir, "line", true);
     ASSERT_TRUE(store) << store.error().message;
     EXPECT_FALSE((*store)->restored(kSaw));
-    (*store)->save(kSaw, {{0x4C420000, 0x04200004, 0x00010000, 0x12345678}, 0, {0x60200010, 0x60050010, 0x60020020},
+    (*store)->save(kSaw, {{0x4C420000, 0x04200004, 0x00010000, 0x12345678},
+                          0,
+                          {0x60200010, 0x60050010, 0x60020020},
                           {0x05, 0x00, 0x88, 0x13, 0xE0, 0x2E, 0x00, 0x00}});
   }  // written at the stop at the latest
   const auto text = read(dir + "/line.set_values");
@@ -180,7 +189,8 @@ TEST(SetValueStoreFile, KeepsWhatTheDeviceIsAndWhenItWasInForce) {
 TEST(SetValueStoreFile, AnOlderFormatOrJunkRestoresNothing) {
   const auto dir = temp_dir("format1");
   // Format 1 was keyed by device name alone: renaming devices moved a saw's program to another.
-  std::ofstream(dir + "/line.set_values") << "# linebridge: the set values in force\nsaw1 rpdo1 60200010,60050010,60020020 0100881300000000\n";
+  std::ofstream(dir + "/line.set_values")
+      << "# linebridge: the set values in force\nsaw1 rpdo1 60200010,60050010,60020020 0100881300000000\n";
   {
     auto store = SetValueStore::open(dir, "line", true);
     ASSERT_TRUE(store) << store.error().message;

@@ -53,13 +53,15 @@ class SimErrorHistory : public ::testing::Test {
     const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
     std::string bus = "virtual:eh" + std::to_string(::getpid()) + "-" + info->name();
     bus.resize(std::min<std::size_t>(bus.size(), 90));
-    auto config = lb::profiles::parse_line_config(
-        "line: history\n"
-        "buses:\n"
-        "  - {name: b, interface: '" + bus + "'}\n"
-        "devices:\n"
-        "  - {name: saw, bus: b, node_id: 5, profile: cia420-4, version: '3.1'}\n",
-        "history.yaml", registry_);
+    auto config =
+        lb::profiles::parse_line_config("line: history\n"
+                                        "buses:\n"
+                                        "  - {name: b, interface: '" +
+                                            bus +
+                                            "'}\n"
+                                            "devices:\n"
+                                            "  - {name: saw, bus: b, node_id: 5, profile: cia420-4, version: '3.1'}\n",
+                                        "history.yaml", registry_);
     ASSERT_TRUE(config) << config.error().message;
     config_ = std::move(*config);
     // The master's loop first: the hub lives in it.
@@ -127,7 +129,8 @@ class SimErrorHistory : public ::testing::Test {
   lb::canopen::ErrorFieldReading bridge_reading() {
     std::promise<lb::canopen::ErrorFieldReading> done;
     master_->post([this, &done] {
-      lb::canopen::read_error_field(*sdo_, kNode, {}, [&done](lb::canopen::ErrorFieldReading r) { done.set_value(std::move(r)); });
+      lb::canopen::read_error_field(*sdo_, kNode, {},
+                                    [&done](lb::canopen::ErrorFieldReading r) { done.set_value(std::move(r)); });
     });
     return done.get_future().get();
   }
@@ -152,7 +155,7 @@ TEST_F(SimErrorHistory, EveryEmcyIsRecordedNewestFirstErrorResetsIncluded) {
   simulate(kClear | kTemperature, 1);  // EMCY 0000h, register 05h: the voltage error remains
   EXPECT_EQ(read(kErrorRegister, 0).value, 0x05u);
   EXPECT_EQ(history(), (Entries{0x0000, 0x3120, 0x4210})) << "sub 0 = 3; sub 1 the newest: the error reset";
-  simulate(kClear, 1);                 // EMCY 0000h, register 00h
+  simulate(kClear, 1);  // EMCY 0000h, register 00h
   EXPECT_EQ(read(kErrorRegister, 0).value, 0x00u);
   EXPECT_EQ(history(), (Entries{0x0000, 0x0000, 0x3120, 0x4210})) << "no error active, and the history keeps them all";
 }

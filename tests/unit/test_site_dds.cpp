@@ -20,7 +20,9 @@ using lb::profiles::ProfileRegistry;
 
 namespace {
 
-std::string temp_path(const std::string& name) { return ::testing::TempDir() + "/site_" + std::to_string(::getpid()) + "_" + name; }
+std::string temp_path(const std::string& name) {
+  return ::testing::TempDir() + "/site_" + std::to_string(::getpid()) + "_" + name;
+}
 
 std::string write(const std::string& name, const std::string& text) {
   const auto path = temp_path(name);
@@ -28,9 +30,8 @@ std::string write(const std::string& name, const std::string& text) {
   return path;
 }
 
-const char* kDevices =
-    "buses:\n  - {name: b, interface: 'virtual:site'}\n"
-    "devices:\n  - {name: saw1, bus: b, node_id: 3, profile: cia420-4, version: '3.1'}\n";
+const char* kDevices = "buses:\n  - {name: b, interface: 'virtual:site'}\n"
+                       "devices:\n  - {name: saw1, bus: b, node_id: 3, profile: cia420-4, version: '3.1'}\n";
 
 lb::Result<LineConfig> parse(const std::string& head, const ProfileRegistry& registry) {
   const auto path = write("line.yaml", "line: site\n" + head + kDevices);
@@ -91,15 +92,20 @@ TEST(SiteConfig, DdsKeysAreReadAndPathsTakenFromTheLineFile) {
 }
 
 TEST(SiteConfig, BadDdsKeysAreRefusedWithTheirPlace) {
-  EXPECT_NE(error_of("dds:\n  profiles_file: no-such.xml\n").find("line.yaml:3:18: profiles_file: cannot open"), std::string::npos)
+  EXPECT_NE(error_of("dds:\n  profiles_file: no-such.xml\n").find("line.yaml:3:18: profiles_file: cannot open"),
+            std::string::npos)
       << error_of("dds:\n  profiles_file: no-such.xml\n");
-  EXPECT_NE(error_of("dds:\n  discovery_servers: [{id: 0, address: plant-ds}]\n").find("not an IPv4 address"), std::string::npos);
-  EXPECT_NE(error_of("dds:\n  discovery_servers: [{address: 127.0.0.1}]\n").find("missing required key 'id'"), std::string::npos);
-  EXPECT_NE(error_of("dds:\n  discovery_servers: [{id: 1, address: 127.0.0.1}, {id: 1, address: 127.0.0.2}]\n").find("given twice"),
+  EXPECT_NE(error_of("dds:\n  discovery_servers: [{id: 0, address: plant-ds}]\n").find("not an IPv4 address"),
+            std::string::npos);
+  EXPECT_NE(error_of("dds:\n  discovery_servers: [{address: 127.0.0.1}]\n").find("missing required key 'id'"),
+            std::string::npos);
+  EXPECT_NE(error_of("dds:\n  discovery_servers: [{id: 1, address: 127.0.0.1}, {id: 1, address: 127.0.0.2}]\n")
+                .find("given twice"),
             std::string::npos);
   EXPECT_NE(error_of("dds:\n  discovery_servers: []\n").find("empty"), std::string::npos);
   // localhost_only keeps DDS on 127.0.0.1: a server elsewhere could never be reached.
-  EXPECT_NE(error_of("dds:\n  discovery_servers: [{id: 0, address: 10.0.0.5}]\n").find("localhost_only"), std::string::npos);
+  EXPECT_NE(error_of("dds:\n  discovery_servers: [{id: 0, address: 10.0.0.5}]\n").find("localhost_only"),
+            std::string::npos);
   EXPECT_NE(error_of("dds:\n  discovery_server: []\n").find("unknown key 'discovery_server'"), std::string::npos);
 }
 
@@ -119,9 +125,10 @@ TEST(SiteConfig, ProfilesDirLoadsFilesOverTheBuiltInOnes) {
   std::ofstream(dir + "/saw-10.yaml") << v10;
   std::ofstream(dir + "/notes.txt") << "not a profile";
   const auto registry = ProfileRegistry::builtin();
-  const auto path = write("dir-line.yaml", "line: site\nprofiles_dir: " + std::filesystem::path(dir).filename().string() +
-                                               "\nbuses:\n  - {name: b, interface: 'virtual:site'}\ndevices:\n"
-                                               "  - {name: saw1, bus: b, node_id: 3, profile: cia420-4, version: '9.0'}\n");
+  const auto path = write("dir-line.yaml",
+                          "line: site\nprofiles_dir: " + std::filesystem::path(dir).filename().string() +
+                              "\nbuses:\n  - {name: b, interface: 'virtual:site'}\ndevices:\n"
+                              "  - {name: saw1, bus: b, node_id: 3, profile: cia420-4, version: '9.0'}\n");
   auto c = lb::profiles::load_line_config(path, registry);
   ASSERT_TRUE(c) << c.error().message;
   EXPECT_EQ(c->devices[0].resolved_profile->version, "9.0");
@@ -144,10 +151,11 @@ TEST(SiteConfig, ProfilesDirLoadsFilesOverTheBuiltInOnes) {
 
 TEST(SiteConfig, HeartbeatTimeoutWithoutMarginIsAWarning) {
   const auto registry = ProfileRegistry::builtin();
-  const auto path = write("hb-line.yaml",
-                          "line: site\nbuses:\n  - {name: b, interface: 'virtual:site'}\ndevices:\n"
-                          "  - {name: saw1, bus: b, node_id: 3, profile: cia420-4, version: '3.1', heartbeat_timeout_ms: 120, "
-                          "heartbeat_producer_ms: 100}\n");
+  const auto path =
+      write("hb-line.yaml",
+            "line: site\nbuses:\n  - {name: b, interface: 'virtual:site'}\ndevices:\n"
+            "  - {name: saw1, bus: b, node_id: 3, profile: cia420-4, version: '3.1', heartbeat_timeout_ms: 120, "
+            "heartbeat_producer_ms: 100}\n");
   auto c = lb::profiles::load_line_config(path, registry);
   ASSERT_TRUE(c) << c.error().message;
   ASSERT_EQ(c->warnings.size(), 1U);
@@ -189,11 +197,11 @@ TEST(SiteQos, TopicProfileChangesTimingNeverTheContract) {
   qos.reliable_writer_qos().times.heartbeatPeriod = {0, 100'000'000};
   std::vector<std::string> notes;
   lb::ddsl::apply_site_qos("rt/site/saw1/status", qos, notes);
-  EXPECT_EQ(qos.deadline().period.seconds, 2);                                              // the site's
-  EXPECT_EQ(qos.reliable_writer_qos().times.heartbeatPeriod.nanosec, 250'000'000U);        // the site's
-  EXPECT_EQ(qos.reliability().kind, fdds::RELIABLE_RELIABILITY_QOS);                        // the contract's
-  EXPECT_EQ(qos.durability().kind, fdds::TRANSIENT_LOCAL_DURABILITY_QOS);                   // the contract's
-  EXPECT_EQ(qos.history().depth, 1);                                                        // the contract's
+  EXPECT_EQ(qos.deadline().period.seconds, 2);                                       // the site's
+  EXPECT_EQ(qos.reliable_writer_qos().times.heartbeatPeriod.nanosec, 250'000'000U);  // the site's
+  EXPECT_EQ(qos.reliability().kind, fdds::RELIABLE_RELIABILITY_QOS);                 // the contract's
+  EXPECT_EQ(qos.durability().kind, fdds::TRANSIENT_LOCAL_DURABILITY_QOS);            // the contract's
+  EXPECT_EQ(qos.history().depth, 1);                                                 // the contract's
   std::string all;
   for (const auto& n : notes) all += n + "\n";
   EXPECT_NE(all.find("rt/site/saw1/status: reliability is the DDS contract's"), std::string::npos) << all;
@@ -223,9 +231,10 @@ TEST(SiteQos, ParticipantTakesTheProfileAndTheLineFileDecidesDiscoveryAndLocalho
   auto qos = lb::ddsl::participant_qos(o, &notes);
   ASSERT_TRUE(qos) << qos.error().message;
   EXPECT_EQ(qos->name().to_string(), "site-participant");  // the site named it
-  EXPECT_FALSE(qos->transport().use_builtin_transports);    // the site's transports
+  EXPECT_FALSE(qos->transport().use_builtin_transports);   // the site's transports
   EXPECT_EQ(qos->transport().user_transports.size(), 1U);
-  EXPECT_EQ(qos->wire_protocol().builtin.discovery_config.leaseDuration.seconds, 10);  // the bridge's, the site said nothing
+  EXPECT_EQ(qos->wire_protocol().builtin.discovery_config.leaseDuration.seconds,
+            10);  // the bridge's, the site said nothing
   EXPECT_TRUE(notes.empty());
 
   // localhost_only overrides the site's transports (and says so); discovery servers make a client.
@@ -267,7 +276,8 @@ TEST(SiteQos, ParticipantTakesTheProfileAndTheLineFileDecidesDiscoveryAndLocalho
 }
 
 TEST(SiteQos, BrokenXmlIsRefusedWithItsLine) {
-  const auto xml = write("broken.xml", "<?xml version=\"1.0\"?>\n<dds>\n<profiles>\n<participant profile_name=\"x\">\n</dds>\n");
+  const auto xml = write("broken.xml",
+                         "<?xml version=\"1.0\"?>\n<dds>\n<profiles>\n<participant profile_name=\"x\">\n</dds>\n");
   lb::ddsl::ParticipantOptions o;
   o.profiles_file = xml;
   auto qos = lb::ddsl::participant_qos(o, nullptr);
