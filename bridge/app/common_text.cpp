@@ -43,6 +43,7 @@ std::string errors_text(const msg::DeviceHealth& h) {
 std::string other_values_text(const std::vector<msg::ProcessValue>& values) {
   if (values.empty()) return "";
   std::vector<std::string> parts;
+  parts.reserve(values.size());
   for (const auto& v : values) {
     parts.push_back(fmt::format("{} {}{}{} ({}, raw {})", v.name(), v.value(), v.unit().empty() ? "" : " ", v.unit(),
                                 v.pdo(), v.raw()));

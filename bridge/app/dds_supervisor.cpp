@@ -1,12 +1,12 @@
 #include "app/dds_supervisor.hpp"
 
-#include <signal.h>
 #include <spdlog/spdlog.h>
 #include <sys/prctl.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
 #include <chrono>
+#include <csignal>
 #include <cstring>
 
 #include "app/arguments.hpp"

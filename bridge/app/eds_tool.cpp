@@ -119,8 +119,8 @@ std::vector<std::string> pdo_overrides(const EdsFile& eds, const profiles::Profi
     } else if (count) {
       std::vector<canopen::PdoEntry> mapping;
       bool known = true;
-      for (std::uint8_t i = 1; i <= *count; ++i) {
-        auto v = get(map, i);
+      for (unsigned i = 1; i <= *count; ++i) {
+        auto v = get(map, static_cast<std::uint8_t>(i));  // at most kMaxEntries (64)
         if (!v) {
           known = false;
           break;
@@ -202,7 +202,7 @@ int run_eds(const profiles::LineConfig& line, const profiles::ProfileRegistry& b
   else
     device_type = *t;
   if (!device_type) {
-    f.problems.push_back("1000h (device type): no default value in the file");
+    f.problems.emplace_back("1000h (device type): no default value in the file");
   } else if ((*device_type & 0xFFFF) != (profile->device_type & 0xFFFF)) {
     f.problems.push_back(
         fmt::format("1000h device type {:08X}h: profile number {} in the file, {} in {} (boot error C)", *device_type,
@@ -214,7 +214,7 @@ int run_eds(const profiles::LineConfig& line, const profiles::ProfileRegistry& b
   if (node)
     overrides = pdo_overrides(*eds, *profile, line_pdos, node, f);
   else
-    f.notes.push_back("no node-ID (--node-id, a DCF's NodeID or --device): PDO COB-IDs with $NODEID not compared");
+    f.notes.emplace_back("no node-ID (--node-id, a DCF's NodeID or --device): PDO COB-IDs with $NODEID not compared");
 
   for (const auto& p : f.problems) fmt::print("  does not fit: {}\n", p);
   for (const auto& n : f.notes) fmt::print("  note: {}\n", n);

@@ -16,11 +16,11 @@
 #include "dds/security_files.hpp"
 #include "link/bus_channel.hpp"
 
-#include <stdlib.h>
 #include <sys/mman.h>
 #include <unistd.h>
 
 #include <cerrno>
+#include <cstdlib>
 #include <cstring>
 
 #include <filesystem>

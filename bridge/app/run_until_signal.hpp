@@ -4,7 +4,6 @@
 // handler touches shared state. SIGUSR1 is the process's own wake-up: a part that failed for good
 // (a bus loop) raises it to end the wait (request_stop()).
 
-#include <signal.h>
 #include <unistd.h>
 
 #include <chrono>

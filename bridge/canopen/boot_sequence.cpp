@@ -78,7 +78,7 @@ void BootSequence::run(Done done) {
          SdoRequest::read(0x1018, 2, DataType::unsigned32, true),
          SdoRequest::read(0x1018, 3, DataType::unsigned32, true),
          SdoRequest::read(0x1018, 4, DataType::unsigned32, true)},
-        [this](Replies r) { check_identity(r); });
+        [this](const Replies& r) { check_identity(r); });
 }
 
 void BootSequence::cancel() {
@@ -155,7 +155,7 @@ void BootSequence::check_identity(const Replies& r) {
 // Two rounds: the communication parameters and each mapping's sub 0, then the entries sub 0 says
 // are mapped and those up to what the master wants (present or not: a fixed entry that is already
 // there is mapped by writing sub 0 alone).
-void BootSequence::read_pdos(std::vector<PdoSpec> specs, std::function<void(std::vector<DevicePdo>)> then) {
+void BootSequence::read_pdos(const std::vector<PdoSpec>& specs, std::function<void(std::vector<DevicePdo>)> then) {
   std::vector<SdoRequest> first;
   for (const auto& s : specs) {
     first.push_back(SdoRequest::read(s.communication_index, 1, DataType::unsigned32, s.optional));
@@ -308,11 +308,11 @@ void BootSequence::write_pdos() {
                    fmt::format("node {}: PDO parameter {:04X}h sub {} = {} refused: {}", node_.node_id(), q.index,
                                q.sub, to_string(q.value), r.back().error->message)});
     }
-    verify_pdos(std::move(written), std::move(planned));
+    verify_pdos(written, planned);
   });
 }
 
-void BootSequence::verify_pdos(std::vector<PdoSpec> specs, std::vector<PdoParameters> planned) {
+void BootSequence::verify_pdos(const std::vector<PdoSpec>& specs, const std::vector<PdoParameters>& planned) {
   set_step("reading back PDO parameters");
   read_pdos(specs, [this, specs, planned](std::vector<DevicePdo> devices) {
     for (std::size_t i = 0; i < devices.size(); ++i) {

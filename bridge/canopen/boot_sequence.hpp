@@ -126,10 +126,10 @@ class BootSequence {
   using Replies = std::vector<SdoReply>;
   void batch(std::vector<SdoRequest> requests, std::function<void(Replies)> then);
   void check_identity(const Replies& r);
-  void read_pdos(std::vector<PdoSpec> specs, std::function<void(std::vector<DevicePdo>)> then);
+  void read_pdos(const std::vector<PdoSpec>& specs, std::function<void(std::vector<DevicePdo>)> then);
   void configure_pdos(std::vector<DevicePdo> devices);
   void write_pdos();  // pdo_writes_, once the device's state is known (or its heartbeat timed out)
-  void verify_pdos(std::vector<PdoSpec> specs, std::vector<PdoParameters> planned);
+  void verify_pdos(const std::vector<PdoSpec>& specs, const std::vector<PdoParameters>& planned);
   void write_configuration();
   void verify_configuration();
   void use_pdos();

@@ -338,7 +338,7 @@ void BusLoop::request_flush(FlushId id) {
 
 void BusLoop::run_flushes() {
   // By index: a callback may request flushes (they join this round) but never creates one.
-  for (std::size_t i = 0; i < requested_flushes_.size(); ++i) {
+  for (std::size_t i = 0; i < requested_flushes_.size(); ++i) {  // NOLINT(modernize-loop-convert): it grows
     auto& f = flushes_[requested_flushes_[i]];
     f.requested = false;
     guarded(f.callback, nullptr, "burst flush", static_cast<std::uint32_t>(requested_flushes_[i]));

@@ -14,7 +14,7 @@ constexpr std::uint16_t kErrorRegister = 0x1001, kErrorField = 0x1003;
 
 }  // namespace
 
-void read_error_field(SdoClient& sdo, std::uint8_t node, std::function<bool()> cancelled,
+void read_error_field(SdoClient& sdo, std::uint8_t node, const std::function<bool()>& cancelled,
                       std::function<void(ErrorFieldReading)> done) {
   std::vector<SdoRequest> first{SdoRequest::read(kErrorRegister, 0, DataType::unsigned8),
                                 SdoRequest::read(kErrorField, 0, DataType::unsigned8, true)};

@@ -35,7 +35,7 @@ struct ErrorFieldReading {
 };
 
 // Loop thread or any; done runs on the loop thread. cancelled as run_sdo_batch's.
-void read_error_field(SdoClient& sdo, std::uint8_t node, std::function<bool()> cancelled,
+void read_error_field(SdoClient& sdo, std::uint8_t node, const std::function<bool()>& cancelled,
                       std::function<void(ErrorFieldReading)> done);
 
 // The register read applied to the active list (ActiveErrors::reconcile); the history plays no

@@ -29,6 +29,7 @@ using tinyxml2::XMLElement;
 struct Right {
   std::string topic;
   std::string partition;
+  // NOLINTNEXTLINE(modernize-use-nullptr): clang-tidy 14 misreads a defaulted <=>
   auto operator<=>(const Right&) const = default;
 };
 
@@ -139,6 +140,7 @@ std::optional<std::string> bridge_topic_published(const ParsedGrant& g, const Gr
   std::vector<std::string> bridge_only;
   std::vector<std::string> devices = policy.devices;
   devices.emplace_back("any_device");  // a pattern that covers a device not configured (yet)
+  bridge_only.reserve(devices.size());
   for (const auto& d : devices) bridge_only.push_back(topic_name(policy.line, d, "status"));
   bridge_only.push_back(topic_name(policy.line, kBridgeNamespace, "diagnostics"));
   bridge_only.push_back(reply_topic(line_service_path(policy.line, "command")));

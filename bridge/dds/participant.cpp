@@ -95,7 +95,7 @@ Result<fdds::DomainParticipantQos> base_qos(const ParticipantOptions& options, s
   if (options.localhost_only) {
     // localhost_only keeps DDS on this machine whatever a profile says.
     if (site_transports || !qos.wire_protocol().builtin.initialPeersList.empty()) {
-      notes.push_back("dds.localhost_only is true: the site profile's transports and initial peers are not used");
+      notes.emplace_back("dds.localhost_only is true: the site profile's transports and initial peers are not used");
     }
     udp_on("127.0.0.1");
     qos.wire_protocol().builtin.initialPeersList.clear();
@@ -108,11 +108,11 @@ Result<fdds::DomainParticipantQos> base_qos(const ParticipantOptions& options, s
   } else if (!site_transports) {
     udp_on(nullptr);  // every interface, as Fast DDS's built-in UDP transport
   } else if (options.shared_memory) {
-    notes.push_back("dds.shared_memory: the site profile's transports are used as they are");
+    notes.emplace_back("dds.shared_memory: the site profile's transports are used as they are");
   }
   if (!options.discovery_servers.empty()) {
     if (discovery.discoveryProtocol != eprosima::fastrtps::rtps::DiscoveryProtocol_t::SIMPLE) {
-      notes.push_back("dds.discovery_servers replaces the site profile's discovery protocol");
+      notes.emplace_back("dds.discovery_servers replaces the site profile's discovery protocol");
     }
     discovery.discoveryProtocol = options.see_all_endpoints
                                       ? eprosima::fastrtps::rtps::DiscoveryProtocol_t::SUPER_CLIENT
@@ -534,7 +534,7 @@ Participant::~Participant() {
   fdds::DomainParticipantFactory::get_instance()->delete_participant(participant_);
 }
 
-Result<fdds::Topic*> Participant::topic_for_type(const std::string& name, fdds::TypeSupport type) {
+Result<fdds::Topic*> Participant::topic_for_type(const std::string& name, const fdds::TypeSupport& type) {
   std::lock_guard lock(mutex_);
   if (auto it = topics_.find(name); it != topics_.end()) {
     if (it->second->get_type_name() != type.get_type_name()) {

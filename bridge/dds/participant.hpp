@@ -458,7 +458,7 @@ class Participant {
     // TypeSupport takes ownership of a raw pointer by API design.
     return topic_for_type(name, fdds::TypeSupport(std::make_unique<PubSubType>().release()));
   }
-  Result<fdds::Topic*> topic_for_type(const std::string& name, fdds::TypeSupport type);
+  Result<fdds::Topic*> topic_for_type(const std::string& name, const fdds::TypeSupport& type);
   fdds::DataWriter* create_writer(fdds::Topic* topic, QosKind kind, const std::string& partition = {});
   fdds::DataReader* create_reader(fdds::Topic* topic, QosKind kind, int keep_last, fdds::DataReaderListener* listener,
                                   bool any_partition = false);

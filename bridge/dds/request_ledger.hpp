@@ -84,7 +84,7 @@ class RequestLedger {
     if (it == entries_.end() || it->second.answer) return;
     it->second.answer = reply;
     --in_progress_;
-    answered_.push_back({now, request});
+    answered_.emplace_back(now, request);
     forget_old(now);
   }
 

@@ -292,7 +292,7 @@ using tinyxml2::XMLElement;
 
 std::string text_of(const XMLElement* e) { return e != nullptr && e->GetText() != nullptr ? e->GetText() : ""; }
 
-std::string trimmed(std::string s) {
+std::string trimmed(const std::string& s) {
   const auto b = s.find_first_not_of(" \t\r\n");
   if (b == std::string::npos) return "";
   return s.substr(b, s.find_last_not_of(" \t\r\n") - b + 1);

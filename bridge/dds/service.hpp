@@ -19,6 +19,7 @@
 #include <set>
 #include <string>
 #include <thread>
+#include <utility>
 
 #include <fastdds/rtps/common/SerializedPayload.h>
 
@@ -74,7 +75,7 @@ class ServiceServer {
     // itself a repeat or needs no keeping). incarnation: the server's, which every answer names.
     Responder(Writer<ReplyPS> writer, SampleIdentity request, Incarnation incarnation,
               std::shared_ptr<Ledger> ledger = nullptr)
-        : writer_(writer), request_(request), incarnation_(incarnation), ledger_(std::move(ledger)) {}
+        : writer_(writer), request_(std::move(request)), incarnation_(incarnation), ledger_(std::move(ledger)) {}
     void operator()(const Reply& answer) const {
       Reply reply = answer;
       if constexpr (NamesIncarnation<Reply>) reply.bridge_incarnation(incarnation_);
@@ -170,7 +171,7 @@ class ServiceServer {
         request_topic(path), QosKind::command,
         [&dds, w, own = dds.incarnation(), ledger = std::move(ledger), h = std::move(h)](const Request& req,
                                                                                          const fdds::SampleInfo& info) {
-          const std::string device = req.device();
+          const std::string& device = req.device();
           if (!dds.writer_in_partition(info.sample_identity.writer_guid(), device)) {
             Reply refusal;
             refusal.success(false);

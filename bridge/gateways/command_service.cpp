@@ -16,7 +16,8 @@ std::vector<CommandBit> resolve_commands(const profiles::BitSet& control_word, c
   return out;
 }
 
-void CommandService::handle(const srv::Command_Request& req, ddsl::Respond<srv::Command_Response> respond) const {
+void CommandService::handle(const srv::Command_Request& req,
+                            const ddsl::Respond<srv::Command_Response>& respond) const {
   const auto refuse = [respond](std::string message) {
     srv::Command_Response r;
     r.success(false);

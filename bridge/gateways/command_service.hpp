@@ -40,7 +40,7 @@ class CommandService {
 
   // Any thread (a Fast DDS thread); answers at once when refused, else from the loop thread.
   void handle(const linebridge_msgs::srv::Command_Request& request,
-              ddsl::Respond<linebridge_msgs::srv::Command_Response> respond) const;
+              const ddsl::Respond<linebridge_msgs::srv::Command_Response>& respond) const;
   const std::vector<CommandBit>& commands() const { return commands_; }
 
  private:

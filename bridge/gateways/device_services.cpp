@@ -77,7 +77,7 @@ srv::ObjectValue to_msg(DataType type, const canopen::ObjectValue& value) {
 // The completion of a service's SDO write: success, or the abort code and message.
 template <class Reply, class Respond>
 canopen::SdoClient::DownloadDone sdo_written(Respond respond, std::int64_t raw) {
-  return [respond, raw](canopen::SdoClient::DownloadResult result) {
+  return [respond, raw](const canopen::SdoClient::DownloadResult& result) {
     Reply reply;
     reply.success(result.has_value());
     if constexpr (requires { reply.raw(raw); }) {
@@ -234,7 +234,7 @@ void DeviceServices::start() {
   if (machine_) machine_->start();
 }
 
-void DeviceServices::sdo_read(const srv::SdoRead_Request& req, ddsl::Respond<srv::SdoRead_Response> respond) {
+void DeviceServices::sdo_read(const srv::SdoRead_Request& req, const ddsl::Respond<srv::SdoRead_Response>& respond) {
   const auto refuse = refuser(respond);
   const auto type = canopen::parse_data_type(req.data_type());
   if (!type) {
@@ -263,7 +263,7 @@ void DeviceServices::sdo_read(const srv::SdoRead_Request& req, ddsl::Respond<srv
       refuse, [this] { return answered_boot(); });
 }
 
-void DeviceServices::sdo_write(const srv::SdoWrite_Request& req, ddsl::Respond<srv::SdoWrite_Response> respond) {
+void DeviceServices::sdo_write(const srv::SdoWrite_Request& req, const ddsl::Respond<srv::SdoWrite_Response>& respond) {
   const auto refuse = refuser(respond);
   const auto type = canopen::parse_data_type(req.value().data_type());
   if (!type) return refuse("unknown data type '" + req.value().data_type() + "'");
@@ -280,7 +280,7 @@ void DeviceServices::sdo_write(const srv::SdoWrite_Request& req, ddsl::Respond<s
 }
 
 void DeviceServices::get_parameter(const srv::GetParameter_Request& req,
-                                   ddsl::Respond<srv::GetParameter_Response> respond) {
+                                   const ddsl::Respond<srv::GetParameter_Response>& respond) {
   const auto refuse = refuser(respond);
   const auto* obj = ctx_.profile.object(req.parameter());
   if (obj == nullptr) return refuse("profile " + ctx_.profile.key() + " has no object '" + req.parameter() + "'");
@@ -317,7 +317,7 @@ void DeviceServices::get_parameter(const srv::GetParameter_Request& req,
 }
 
 void DeviceServices::set_parameter(const srv::SetParameter_Request& req,
-                                   ddsl::Respond<srv::SetParameter_Response> respond) {
+                                   const ddsl::Respond<srv::SetParameter_Response>& respond) {
   const auto refuse = refuser(respond);
   const auto* obj = ctx_.profile.object(req.parameter());
   if (obj == nullptr) return refuse("profile " + ctx_.profile.key() + " has no object '" + req.parameter() + "'");
@@ -346,7 +346,7 @@ std::string DeviceServices::refusal() const {
   return {};
 }
 
-void DeviceServices::nmt(const srv::Nmt_Request& request, ddsl::Respond<srv::Nmt_Response> respond) {
+void DeviceServices::nmt(const srv::Nmt_Request& request, const ddsl::Respond<srv::Nmt_Response>& respond) {
   const auto reply = [respond](bool ok, std::string message) {
     srv::Nmt_Response r;
     r.success(ok);

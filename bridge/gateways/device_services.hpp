@@ -69,15 +69,16 @@ class DeviceServices final : public canopen::NodeDriver {
   // This device's part of the line-wide services; the request's `device` is already this one.
   // Called on a Fast DDS thread; checks what needs only the immutable profile and configuration
   // there and answers at once, or answers later from the bus loop thread (NMT sent, SDO done).
-  void nmt(const linebridge_msgs::srv::Nmt_Request& request, ddsl::Respond<linebridge_msgs::srv::Nmt_Response> respond);
+  void nmt(const linebridge_msgs::srv::Nmt_Request& request,
+           const ddsl::Respond<linebridge_msgs::srv::Nmt_Response>& respond);
   void sdo_read(const linebridge_msgs::srv::SdoRead_Request& request,
-                ddsl::Respond<linebridge_msgs::srv::SdoRead_Response> respond);
+                const ddsl::Respond<linebridge_msgs::srv::SdoRead_Response>& respond);
   void sdo_write(const linebridge_msgs::srv::SdoWrite_Request& request,
-                 ddsl::Respond<linebridge_msgs::srv::SdoWrite_Response> respond);
+                 const ddsl::Respond<linebridge_msgs::srv::SdoWrite_Response>& respond);
   void get_parameter(const linebridge_msgs::srv::GetParameter_Request& request,
-                     ddsl::Respond<linebridge_msgs::srv::GetParameter_Response> respond);
+                     const ddsl::Respond<linebridge_msgs::srv::GetParameter_Response>& respond);
   void set_parameter(const linebridge_msgs::srv::SetParameter_Request& request,
-                     ddsl::Respond<linebridge_msgs::srv::SetParameter_Response> respond);
+                     const ddsl::Respond<linebridge_msgs::srv::SetParameter_Response>& respond);
 
  private:
   std::string refusal() const;  // why this bus takes no commands, or empty

@@ -201,10 +201,10 @@ void FeederGateway::poll() {
                            }});
          }
        }});
-  read_chain(std::move(reads), 0);
+  read_chain(reads, 0);
 }
 
-void FeederGateway::read_chain(std::shared_ptr<std::vector<Read>> reads, std::size_t next) {
+void FeederGateway::read_chain(const std::shared_ptr<std::vector<Read>>& reads, std::size_t next) {
   if (next >= reads->size()) {
     polling_ = false;
     publish_status(ddsl::now_ns());
@@ -272,11 +272,11 @@ void FeederGateway::read(std::uint16_t index, std::uint8_t sub, canopen::SdoClie
                  std::move(done), limit);
 }
 
-void FeederGateway::when_sdo_possible(WriteReply reply, std::function<void()> send) {
+void FeederGateway::when_sdo_possible(const WriteReply& reply, std::function<void()> send) {
   gateways::when_sdo_possible(ctx_, std::move(send), [reply](const std::string& why) { reply(refused(why)); });
 }
 
-void FeederGateway::write(const FeederCodec::Write& w, WriteReply reply, std::function<void()> then) {
+void FeederGateway::write(const FeederCodec::Write& w, const WriteReply& reply, std::function<void()> then) {
   when_sdo_possible(reply, [this, w, reply, then = std::move(then)] { write_now(w, reply, then); });
 }
 
@@ -284,7 +284,8 @@ void FeederGateway::write_now(const FeederCodec::Write& w, WriteReply reply, std
   const auto* obj = w.object;
   ctx_.sdo->write(
       ctx_.device.node_id, obj->index, obj->sub, obj->type, canopen::ObjectValue{w.raw},
-      [this, obj, raw = w.raw, reply = std::move(reply), then = std::move(then)](canopen::SdoClient::DownloadResult r) {
+      [this, obj, raw = w.raw, reply = std::move(reply),
+       then = std::move(then)](const canopen::SdoClient::DownloadResult& r) {
         if (r && then) return then();
         srv::FeederWrite_Response resp;
         resp.success(r.has_value());
@@ -329,20 +330,20 @@ void FeederGateway::serve_services() {
 
   serve<srv::FeederCommand_RequestPubSubType>("feeder_command", [this,
                                                                  write_or_refuse](const srv::FeederCommand_Request& req,
-                                                                                  WriteReply reply) {
+                                                                                  const WriteReply& reply) {
     write_or_refuse(codec_.command(req.feeder(), req.command(), req.manufacturer_code(), feeder_count()), reply);
   });
   serve<srv::FeederTest_RequestPubSubType>("feeder_test", [this, write_or_refuse](const srv::FeederTest_Request& req,
-                                                                                  WriteReply reply) {
+                                                                                  const WriteReply& reply) {
     write_or_refuse(codec_.test(req.feeder(), req.test(), req.parameter(), feeder_count()), reply);
   });
   serve<srv::WeftInsertionType_RequestPubSubType>("weft_insertion_type",
                                                   [this, write_or_refuse](const srv::WeftInsertionType_Request& req,
-                                                                          WriteReply reply) {
+                                                                          const WriteReply& reply) {
                                                     write_or_refuse(codec_.weft_insertion_type(req.type()), reply);
                                                   });
   serve<srv::FeederAssignment_RequestPubSubType>(
-      "feeder_assignment", [this, write_or_refuse](const srv::FeederAssignment_Request& req, WriteReply reply) {
+      "feeder_assignment", [this, write_or_refuse](const srv::FeederAssignment_Request& req, const WriteReply& reply) {
         if (!req.set_number() && !req.set_color()) return reply(refused("nothing to assign: set_number or set_color"));
         std::optional<FeederCodec::Write> number, color;
         if (req.set_number()) {
@@ -360,7 +361,7 @@ void FeederGateway::serve_services() {
         write(number ? *number : *color, reply);
       });
   serve<srv::FeederFunctions_RequestPubSubType>("feeder_functions", [this](const srv::FeederFunctions_Request& req,
-                                                                           WriteReply reply) {
+                                                                           const WriteReply& reply) {
     auto obj = codec_.functions_object(req.feeder(), feeder_count());
     if (!obj) return reply(refused(obj.error().message));
     std::vector<FeederCodec::FunctionSetting> settings;
@@ -385,7 +386,7 @@ void FeederGateway::serve_services() {
     });
   });
   serve<srv::TriggerSource_RequestPubSubType>("trigger_source", [this](const srv::TriggerSource_Request& req,
-                                                                       WriteReply reply) {
+                                                                       const WriteReply& reply) {
     std::vector<std::string> selected(req.selected().begin(), req.selected().end());
     const auto& supported = codec_.trigger_sources_supported();
     when_sdo_possible(reply, [this, &supported, selected = std::move(selected), reply] {

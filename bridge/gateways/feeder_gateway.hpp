@@ -49,7 +49,7 @@ class FeederGateway : public Gateway {
 
   void on_pdo(std::size_t pdo, const can::CanFrame& frame);
   void poll();
-  void read_chain(std::shared_ptr<std::vector<Read>> reads, std::size_t next);
+  void read_chain(const std::shared_ptr<std::vector<Read>>& reads, std::size_t next);
   void publish_error_event(unsigned feeder, bool in_error, std::uint32_t bitmap, std::int64_t stamp_ns);
   void publish_status(std::int64_t stamp_ns);
   linebridge_msgs::msg::FeederEntry& entry(unsigned feeder);
@@ -62,9 +62,9 @@ class FeederGateway : public Gateway {
   std::optional<unsigned> feeder_count() const;
   // A checked write, once the box can answer SDO (sdo_admission.hpp); then() instead of the reply
   // when it succeeded (a second write follows). write_now: already admitted.
-  void write(const FeederCodec::Write& w, WriteReply reply, std::function<void()> then = {});
+  void write(const FeederCodec::Write& w, const WriteReply& reply, std::function<void()> then = {});
   void write_now(const FeederCodec::Write& w, WriteReply reply, std::function<void()> then = {});
-  void when_sdo_possible(WriteReply reply, std::function<void()> send);
+  void when_sdo_possible(const WriteReply& reply, std::function<void()> send);
   void read(std::uint16_t index, std::uint8_t sub, canopen::SdoClient::ReadDone done,
             std::optional<canopen::SdoClient::Limit> limit = std::nullopt);
 

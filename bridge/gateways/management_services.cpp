@@ -36,7 +36,7 @@ Result<std::unique_ptr<ManagementServices>> ManagementServices::serve(ddsl::Part
                                                                       std::vector<Device> devices) {
   auto router = std::make_unique<ManagementServices>(line, std::move(devices));
   using M = ManagementServices;
-  for (auto r :
+  for (const auto& r :
        {router->serve_one<srv::Nmt_RequestPubSubType, srv::Nmt_ResponsePubSubType>(dds, "nmt", &M::nmt),
         router->serve_one<srv::SdoRead_RequestPubSubType, srv::SdoRead_ResponsePubSubType>(dds, "sdo_read",
                                                                                            &M::sdo_read),

@@ -43,7 +43,7 @@ class PdoWiring final : public canopen::NodeDriver {
   };
 
   // Before the loop starts. gate: the gateway's own condition for sending (besides the device's).
-  PdoWiring(const DeviceContext& ctx, Codec& codec, Receive receive, Gate gate = {})
+  PdoWiring(const DeviceContext& ctx, Codec& codec, const Receive& receive, Gate gate = {})
       : ctx_(ctx), codec_(codec), gate_(std::move(gate)) {
     for (std::size_t i = 0; i < codec_.pdos().size(); ++i) {
       const auto& pdo = *codec_.pdos()[i].def;

@@ -43,6 +43,7 @@ class SetValueStore {
     unsigned node_id = 0;
     std::string profile;  // id@version
     std::string pdo;
+    // NOLINTNEXTLINE(modernize-use-nullptr): clang-tidy 14 misreads a defaulted <=>
     auto operator<=>(const Key&) const = default;
   };
   struct Entry {

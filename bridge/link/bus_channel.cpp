@@ -254,10 +254,8 @@ bool BusChannel::flush() {
       if (!unsent_) unsent_ = next_datagram();
       if (!unsent_) return true;
       const auto n = ::send(peer_.get(), unsent_->data(), unsent_->size(), MSG_DONTWAIT | MSG_NOSIGNAL);
-      if (n < 0) {
-        if (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR) return true;  // full: POLLOUT tells when
-        return false;
-      }
+      // Full (EAGAIN): POLLOUT tells when to go on; any other error ends the connection.
+      if (n < 0) return errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR;
       unsent_.reset();
     }
   }

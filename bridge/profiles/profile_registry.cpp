@@ -51,7 +51,7 @@ bool is_snake_case(std::string_view s) {
 }
 
 std::string snake_case_name(const YamlSource& src, const YAML::Node& node, std::string_view what) {
-  const auto name = src.as<std::string>(node, what);
+  auto name = src.as<std::string>(node, what);
   if (!is_snake_case(name)) {
     src.fail(node, std::string(what) + " '" + name + "' must be snake_case (a-z, 0-9, _; starting with a letter)");
   }
