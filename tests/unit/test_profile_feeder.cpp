@@ -430,7 +430,6 @@ TEST_F(FeederProfile, FeederFunctionsTwoBitFields) {
 }
 
 TEST_F(FeederProfile, TriggerSignalSourceBits) {
-  using Bits = std::vector<std::pair<const char*, unsigned>>;
   const Bits bits{{"brush_release_via_canopen", 0},        {"brush_release_via_parallel_line", 1},
                   {"angle_trigger_via_canopen", 4},        {"angle_trigger_via_parallel_line", 5},
                   {"pick_release_trigger_via_canopen", 8}, {"pick_release_trigger_via_parallel_line", 9}};
