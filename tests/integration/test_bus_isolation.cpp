@@ -147,10 +147,14 @@ TEST_F(BusIsolation, KillingTheDdsProcessTwentyTimesChangesNothingOnTheBus) {
   std::uint32_t request = 1;
   const std::array<std::uint8_t, 8> in_force{0x05, 0x00, 0x88, 0x13, 0x88, 0x13, 0x00, 0x00};
   bool accepted = false;
-  for (int attempt = 0; attempt < 20 && !accepted; ++attempt) {  // the saw may still be booting
+  // The saw may still be booting: a set value that enables it is refused at once until its boot
+  // passed, so refusals are asked again until a deadline, not a number of times.
+  const auto accept_deadline = Clock::now() + 60s;
+  while (!accepted && Clock::now() < accept_deadline) {
     write(++request, 50.0, 0.5);
     const auto answer = setpoints_.answer(request, 2s);
     accepted = answer && answer->accepted();
+    if (!accepted) std::this_thread::sleep_for(200ms);
   }
   ASSERT_TRUE(accepted) << logs();
   const auto on_bus_deadline = Clock::now() + 10s;
