@@ -147,14 +147,21 @@ TEST_F(BusIsolation, KillingTheDdsProcessTwentyTimesChangesNothingOnTheBus) {
   std::uint32_t request = 1;
   const std::array<std::uint8_t, 8> in_force{0x05, 0x00, 0x88, 0x13, 0x88, 0x13, 0x00, 0x00};
   bool accepted = false;
-  // The saw may still be booting: a set value that enables it is refused at once until its boot
-  // passed, so refusals are asked again until a deadline, not a number of times.
+  // A set value that enables the saw is refused until its boot passed: wait for the saw's
+  // operational heartbeat (CiA 301: 700h + node, state 05h) on the bus, then ask again on each
+  // refusal until a deadline.
   const auto accept_deadline = Clock::now() + 60s;
+  bool operational = false;
+  while (!operational && Clock::now() < accept_deadline) {
+    const auto hb = line_.spy().frames(0x700 + kNode);
+    operational = !hb.empty() && hb.back().len == 1 && hb.back().data[0] == 0x05;
+    if (!operational) std::this_thread::sleep_for(20ms);
+  }
+  ASSERT_TRUE(operational) << logs();
   while (!accepted && Clock::now() < accept_deadline) {
     write(++request, 50.0, 0.5);
     const auto answer = setpoints_.answer(request, 2s);
     accepted = answer && answer->accepted();
-    if (!accepted) std::this_thread::sleep_for(200ms);
   }
   ASSERT_TRUE(accepted) << logs();
   const auto on_bus_deadline = Clock::now() + 10s;
