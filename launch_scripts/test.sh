@@ -44,10 +44,18 @@ main_flags="-O2 -g1 -DNDEBUG"
 tsan_flags="-O1 -g1 -DNDEBUG"
 asan_flags="-O1 -gline-tables-only -DNDEBUG"
 
+# A compiler cache, when the machine has one (ccache; LINEBRIDGE_CCACHE=0 leaves it out): three
+# builds a run, so repeated runs on one machine (launch_scripts/ci-under-load.sh) rebuild only what
+# changed. A fresh machine has none and builds everything.
+launcher=()
+if [ "${LINEBRIDGE_CCACHE:-1}" != 0 ] && command -v ccache >/dev/null; then
+  launcher=(-DCMAKE_CXX_COMPILER_LAUNCHER=ccache -DCMAKE_C_COMPILER_LAUNCHER=ccache)
+fi
+
 main_stages=${LINEBRIDGE_MAIN:-1}
 if [ "$main_stages" != 0 ]; then
   stage_start "build"
-  cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=$main_flags" \
+  cmake -S . -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=$main_flags" "${launcher[@]}" \
     -DLINEBRIDGE_WERROR=ON
   cmake --build "$build"
   stage_end "build" 0
@@ -76,7 +84,7 @@ if [ "${LINEBRIDGE_TSAN:-1}" != 0 ]; then
   stage_start "ThreadSanitizer: build, unit and integration tests (${tsan_labels})"
   tsan="${build}-tsan"
   status=0
-  cmake -S . -B "$tsan" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=$tsan_flags" \
+  cmake -S . -B "$tsan" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=$tsan_flags" "${launcher[@]}" \
     -DLINEBRIDGE_WERROR=ON -DLINEBRIDGE_SANITIZE=thread -DLINEBRIDGE_BENCH=OFF &&
     cmake --build "$tsan" --target "${tsan_targets[@]}" &&
     (cd "$tsan" && TSAN_OPTIONS="suppressions=$root/tests/tsan.supp second_deadlock_stack=1" \
@@ -97,7 +105,7 @@ if [ "${LINEBRIDGE_ASAN:-1}" != 0 ]; then
   stage_start "AddressSanitizer + UBSan: build, unit and integration tests (${asan_labels})"
   asan="${build}-asan"
   status=0
-  cmake -S . -B "$asan" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=$asan_flags" \
+  cmake -S . -B "$asan" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo "-DCMAKE_CXX_FLAGS_RELWITHDEBINFO=$asan_flags" "${launcher[@]}" \
     -DCMAKE_CXX_COMPILER=clang++ \
     -DLINEBRIDGE_SANITIZE=address,undefined -DLINEBRIDGE_FUZZ=ON -DLINEBRIDGE_BENCH=OFF -DLINEBRIDGE_WERROR=ON &&
     cmake --build "$asan" --target "${asan_targets[@]}" &&
