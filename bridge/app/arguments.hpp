@@ -53,7 +53,7 @@ void add_conventions(CLI::App& cli, std::string_view program, std::span<const Ex
 int parse(CLI::App& cli, int argc, char** argv);
 
 // -c,--config FILE, or the file LINEBRIDGE_CONFIG names (the option wins); neither: the built-in
-// demo line. The same for linebridge, linebridge-sim and linebridge-cli.
+// demo line. The same for linebridge, linebridge-sim, linebridge-cli and linebridge-security.
 inline constexpr const char* kConfigEnv = "LINEBRIDGE_CONFIG";
 CLI::Option* add_config_option(CLI::App& cli, std::string& path);
 

@@ -41,8 +41,7 @@ int main(int argc, char** argv) {
   lb::app::add_conventions(cli, "linebridge-security");
   cli.require_subcommand(1);
   std::string config_path;
-  cli.add_option("-c,--config", config_path, "line configuration (YAML); default: the built-in demo line")
-      ->check(lb::app::non_empty_path());
+  lb::app::add_config_option(cli, config_path);
 
   auto* gov_cmd = cli.add_subcommand("governance", "print the governance document (XML) of the line's DDS domain");
 

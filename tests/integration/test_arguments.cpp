@@ -57,7 +57,7 @@ TEST(Arguments, VersionAndHelpEverywhere) {
   }
 }
 
-// LINEBRIDGE_CONFIG names the line file for the bridge, the simulator and the CLI alike (the
+// LINEBRIDGE_CONFIG names the line file for the bridge, the simulator, the CLI and the security tool alike (the
 // bridge and the simulator served the demo line without a word); --config wins over it; the
 // bridge and the simulator log which line they serve.
 TEST(Arguments, LineFileFromTheEnvironmentForEveryExecutable) {
@@ -78,6 +78,11 @@ TEST(Arguments, LineFileFromTheEnvironmentForEveryExecutable) {
   r = run_command({"/usr/bin/env", env, LB_BIN_CLI, "list"});
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("device saw1 on b node 3"), std::string::npos) << r.output;
+  // The bridge's grants name the line's topics: rt/envline/..., not the demo line's.
+  r = run_command(
+      {"/usr/bin/env", env, LB_BIN_SECURITY, "permissions", "--role", "bridge", "--subject", "CN=bridge,O=Plant"});
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("rt/envline/*"), std::string::npos) << r.output;
   // --config wins over the environment.
   r = run_command(
       {"/usr/bin/env", "LINEBRIDGE_CONFIG=/nonexistent/line.yaml", LB_BIN_SIM, "--config", line, "--duration", "0.5"});
