@@ -11,10 +11,10 @@
 #include <string>
 #include <vector>
 
-#include "gateways/drive_binding.hpp"
-#include "gateways/drive_codec.hpp"
-#include "gateways/feeder_codec.hpp"
-#include "gateways/saw_codec.hpp"
+#include "gateways/codecs/drive_binding.hpp"
+#include "gateways/codecs/drive_codec.hpp"
+#include "gateways/codecs/feeder_codec.hpp"
+#include "gateways/codecs/saw_codec.hpp"
 #include "profiles/device_types.hpp"
 #include "profiles/line_config.hpp"
 #include "profiles/profile_registry.hpp"

@@ -2,7 +2,7 @@
 # structs of a device with a status and a control word (<Name>Status, <Name>StatusWord,
 # <Name>ControlWord, <Name>Setpoint), one binding struct naming those types and listing, field by
 # field, the word fields the IDL declares. The profile's bit names meet these field names at
-# start-up (gateways/named_bits.hpp), and lb_check_device_types holds the two against each other at
+# start-up (gateways/codecs/named_bits.hpp), and lb_check_device_types holds the two against each other at
 # build time: a bit table is never typed by hand.
 #
 #   boolean <bit>;      -> a flag: {"<bit>", setter, getter}
@@ -98,17 +98,22 @@ function(lb_word_fields out word alias)
       lb_enum_prefix(prefix ${enumerators})
       list(GET enumerators 0 fallback)
       set(body "    w.${name}(")
+      set(get_body "    return ")
       foreach(e IN LISTS enumerators)
         if(NOT e STREQUAL fallback)
           string(LENGTH "${prefix}" n)
           string(SUBSTRING "${e}" ${n} -1 code)
           string(TOLOWER "${code}" code)
           string(APPEND body "code == \"${code}\" ? msg::${e} : ")
+          string(APPEND get_body "w.${name}() == msg::${e} ? \"${code}\" : ")
         endif()
       endforeach()
       string(APPEND body "msg::${fallback})")
+      string(APPEND get_body "\"\"")
       string(APPEND functions "  static void ${word}_${name}(msg::${word}& w, std::string_view code) {\n${body};\n  }\n")
-      string(APPEND codes "      {\"${name}\", &${word}_${name}},\n")
+      string(APPEND functions
+             "  static std::string_view ${word}_${name}_code(const msg::${word}& w) {\n${get_body};\n  }\n")
+      string(APPEND codes "      {\"${name}\", &${word}_${name}, &${word}_${name}_code},\n")
     endif()
   endforeach()
   set(${out}_flags "${flags}" PARENT_SCOPE)
@@ -209,11 +214,13 @@ struct FlagField {
 };
 
 // One enumerated field of a word: set from the name the profile gives the field's code (empty:
-// the profile has no such field).
+// the profile has no such field); get gives that name back ("" for the first enumerator, what a
+// profile without the field reports).
 template <class W>
 struct CodeField {
   std::string_view name;
   void (*set)(W&, std::string_view code);
+  std::string_view (*get)(const W&);
 };
 ${bindings}
 using All = std::tuple<${name_list}>;

@@ -19,7 +19,7 @@
 #include "app/saw_text.hpp"
 #include "app/stdout_gone.hpp"
 #include "dds/topic_names.hpp"
-#include "gateways/drive_binding.hpp"
+#include "gateways/codecs/drive_binding.hpp"
 #include "msgs/commonPubSubTypes.h"
 #include "msgs/feederPubSubTypes.h"
 #include "msgs/sawPubSubTypes.h"
@@ -83,27 +83,6 @@ Result<Subscription> subscribe(ddsl::Participant& dds, const std::string& topic,
 
 std::uint64_t status_key(const msg::DeviceHealth& h, std::uint16_t word) {
   return std::uint64_t{word} << 1 | (h.online() ? 1U : 0U);
-}
-
-// A drive's status: its own rendering (drive_text.hpp) when it has one, else its status word's
-// flags by their IDL names, so a new drive type prints without code of its own.
-template <class Binding>
-std::string drive_status_text(const typename Binding::Status& s) {
-  if constexpr (requires { to_text(s); }) {
-    return to_text(s);
-  } else {
-    std::string flags;
-    for (const auto& f : Binding::status_flags) {
-      if ((s.status_word().*f.get)()) flags += (flags.empty() ? "" : " ") + std::string(f.name);
-    }
-    return fmt::format(
-        "{} {} | speed {:7.2f} % (echo {:7.2f} %) load {:6.2f} % product {:8.3f} m/min | status {:04X}h [{}] | "
-        "set: extruder {}, speed {:.2f} %{}",
-        clock_text(s.stamp()), state_text(s.health()), s.speed_actual_percent(), s.speed_set_echo_percent(),
-        s.load_actual_percent(), s.product_speed_m_per_min(), s.status_word().raw(), flags,
-        s.control_word().extruder_running() ? "running" : "stopped", s.speed_set_percent(),
-        s.set_echo_mismatch() ? " | SET ECHO MISMATCH" : "");
-  }
 }
 
 Result<Subscription> subscribe_topic(ddsl::Participant& dds, const std::string& topic_name, const std::string& type,

@@ -10,7 +10,7 @@
 #include "canopen/data_type.hpp"
 #include "dds/service.hpp"
 #include "dds/topic_names.hpp"
-#include "gateways/bridge_runs.hpp"
+#include "gateways/routing/bridge_runs.hpp"
 #include "msgs/commonPubSubTypes.h"
 #include "msgs/feederPubSubTypes.h"
 

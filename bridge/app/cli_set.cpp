@@ -15,7 +15,7 @@
 #include "app/cli_exit.hpp"
 #include "dds/service.hpp"
 #include "dds/topic_names.hpp"
-#include "gateways/drive_binding.hpp"
+#include "gateways/codecs/drive_binding.hpp"
 #include "msgs/commonPubSubTypes.h"
 #include "msgs/feederPubSubTypes.h"
 #include "msgs/sawPubSubTypes.h"

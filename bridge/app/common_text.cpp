@@ -51,14 +51,6 @@ std::string other_values_text(const std::vector<msg::ProcessValue>& values) {
   return fmt::format(" | other: {}", fmt::join(parts, ", "));
 }
 
-std::string flags_text(std::initializer_list<std::pair<bool, const char*>> flags) {
-  std::string out;
-  for (const auto& [on, name] : flags) {
-    if (on) out += (out.empty() ? "" : " ") + std::string(name);
-  }
-  return out;
-}
-
 std::string to_text(const msg::Emergency& e) {
   return fmt::format("{} EMCY {:04X}h ({}), error register {:02X}h, manufacturer [{:02X}], active: [{:04X}]{}",
                      clock_text(e.stamp()), e.error_code(), e.family(), e.error_register(),

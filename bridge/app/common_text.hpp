@@ -1,9 +1,7 @@
 #pragma once
 // Human-readable renderings of the device-independent samples, for linebridge-cli.
 
-#include <initializer_list>
 #include <string>
-#include <utility>
 #include <vector>
 
 #include "msgs/common.h"
@@ -22,7 +20,5 @@ std::string clock_text(const linebridge_msgs::msg::Time& t);  // local HH:MM:SS.
 std::string state_text(const linebridge_msgs::msg::DeviceHealth& h);
 std::string errors_text(const linebridge_msgs::msg::DeviceHealth& h);
 std::string other_values_text(const std::vector<linebridge_msgs::msg::ProcessValue>& values);
-// " a b c" for the flags that are set, in the order given.
-std::string flags_text(std::initializer_list<std::pair<bool, const char*>> flags);
 
 }  // namespace lb::app

@@ -18,12 +18,12 @@
 #include "canopen/sdo_client.hpp"
 #include "canopen/sync_producer.hpp"
 #include "dds/participant.hpp"
-#include "gateways/device_services.hpp"
-#include "gateways/diagnostics_gateway.hpp"
-#include "gateways/gateway.hpp"
-#include "gateways/management_services.hpp"
-#include "gateways/mandatory_devices.hpp"
-#include "gateways/set_value_store.hpp"
+#include "gateways/adapters/device_services.hpp"
+#include "gateways/adapters/diagnostics_gateway.hpp"
+#include "gateways/adapters/gateway.hpp"
+#include "gateways/node/mandatory_devices.hpp"
+#include "gateways/persistence/set_value_store.hpp"
+#include "gateways/routing/management_services.hpp"
 #include "profiles/line_config.hpp"
 
 namespace lb::app {

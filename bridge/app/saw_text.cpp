@@ -3,6 +3,8 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
+#include "app/word_text.hpp"
+
 namespace lb::app {
 
 namespace msg = linebridge_msgs::msg;
@@ -10,29 +12,11 @@ namespace msg = linebridge_msgs::msg;
 std::string to_text(msg::SawCountMode m) { return m == msg::CORRUGATED_PIPE ? "corrugated pipe" : "smooth pipe"; }
 
 std::string to_text(const msg::SawStatus& s) {
+  using Binding = linebridge_msgs::bindings::Saw;
   const auto& w = s.status_word();
-  const std::string bits = flags_text({{w.saw_ready(), "ready"},
-                                       {w.saw_cutting(), "CUTTING"},
-                                       {w.sample_request(), "sample-request"},
-                                       {w.manual_cut_by_saw(), "manual-cut"},
-                                       {w.fault(), "FAULT"},
-                                       {w.alarm(), "ALARM"},
-                                       {w.f1_running(), "f1-running"},
-                                       {w.f2_running(), "f2-running"},
-                                       {w.f3_running(), "f3-running"},
-                                       {w.saw_program_enabled(), "program-enabled"},
-                                       {w.cut_from_limit_switch(), "limit-switch"},
-                                       {w.start_saw_program_requested(), "start-requested"}});
   const auto& c = s.control_word();
-  const std::string pressed = flags_text({{c.manual_cut(), "manual_cut"},
-                                          {c.tip_pulse(), "tip_pulse"},
-                                          {c.stop_immediately(), "stop_immediately"},
-                                          {c.f1_stop(), "f1_stop"},
-                                          {c.f1_start(), "f1_start"},
-                                          {c.f2_stop(), "f2_stop"},
-                                          {c.f2_start(), "f2_start"},
-                                          {c.f3_stop(), "f3_stop"},
-                                          {c.f3_start(), "f3_start"}});
+  const std::string bits = status_word_text<Binding>(w);
+  const std::string pressed = pressed_text<Binding>(c);
   return fmt::format("{} {} | saw counter {:8.4f} m  speed {:7.3f} m/min  pulses {:>10} | status {:04X}h [{}] | "
                      "set: program {}, {}, wall-thickening {}, length {:.4f} m, sync {:.2f} %{}{}{}{}",
                      clock_text(s.stamp()), state_text(s.health()), s.actual_saw_counter_m(),

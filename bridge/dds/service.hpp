@@ -187,7 +187,7 @@ class ServiceServer {
 
 // Where a client hears which run of the bridge serves it before its first request: a subscription
 // that tells `heard` each incarnation announced (the layer that knows the bridge's announcement,
-// its diagnostics, provides it: gateways/bridge_runs.hpp; this layer knows no message type).
+// its diagnostics, provides it: gateways/routing/bridge_runs.hpp; this layer knows no message type).
 using RunAnnouncements = std::function<
     Result<std::unique_ptr<Participant::Subscription>>(Participant& dds, std::function<void(Incarnation)> heard)>;
 

@@ -103,14 +103,21 @@ TEST_F(Cli, EchoShowsEveryDeviceTypeReadablyWithNames) {
   EXPECT_TRUE(has(puller, "puller1 ")) << puller.output;
   EXPECT_TRUE(has(puller, "operational     online")) << puller.output;
   EXPECT_TRUE(has(puller, "| set: extruder stopped, speed 0.00 %")) << puller.output;
-  EXPECT_TRUE(has(puller, "[ready")) << "status bits by name\n" << puller.output;
+  // Status bits by their IDL names, the word's set bits each named (CiA 420-2 6030h: bit 1 ready
+  // to start, bits 9/11/13 functions f1..f3 ready).
+  EXPECT_TRUE(has(puller, "status 2A02h [motor_ready_to_start f1_ready f2_ready f3_ready]")) << "status bits by name\n"
+                                                                                             << puller.output;
   const auto puller3 = cli({"echo", "puller3", "--duration", "2"});
-  EXPECT_TRUE(has(puller3, "speed set mode remote")) << "an enumeration by name\n" << puller3.output;
+  // Bit 15 set: the speed set value comes from remote, a code field by its profile name.
+  EXPECT_TRUE(has(puller3, "status AA02h [motor_ready_to_start f1_ready f2_ready f3_ready speed_set_mode=remote]"))
+      << "an enumeration by name\n"
+      << puller3.output;
   const auto corr = cli({"echo", "corr1", "status", "--duration", "2"});
   EXPECT_EQ(corr.exit_code, 0) << corr.output;
-  // Status bits by name: the idle corrugator is ready (6030h bit 1); "master-extruder enabled"
+  // Status bits by name: the idle corrugator is ready (6030h bit 1); master_extruder_enabled
   // (bit 7) is not expected here, the simulated drive sets it only while running.
-  EXPECT_TRUE(has(corr, "corr1 ") && has(corr, "[ready]")) << corr.output;
+  EXPECT_TRUE(has(corr, "corr1 ") && has(corr, "status 2A02h [drive_ready_to_start f1_ready f2_ready f3_ready]"))
+      << corr.output;
   const auto box = cli({"echo", "box1", "status", "--duration", "3"});
   EXPECT_EQ(box.exit_code, 0) << box.output;
   EXPECT_TRUE(has(box, "4 feeder(s)")) << box.output;

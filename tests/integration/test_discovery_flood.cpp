@@ -24,7 +24,7 @@
 #include "dds/participant.hpp"
 #include "dds/service.hpp"
 #include "dds/topic_names.hpp"
-#include "gateways/bridge_runs.hpp"
+#include "gateways/routing/bridge_runs.hpp"
 #include "msgs/commonPubSubTypes.h"
 #include "support/eventually.hpp"
 #include "support/line_harness.hpp"

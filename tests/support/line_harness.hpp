@@ -19,7 +19,7 @@
 #include "dds/participant.hpp"
 #include "dds/service.hpp"
 #include "dds/topic_names.hpp"
-#include "gateways/bridge_runs.hpp"
+#include "gateways/routing/bridge_runs.hpp"
 #include "msgs/commonPubSubTypes.h"
 #include "support/bus_spy.hpp"
 #include "support/child_process.hpp"

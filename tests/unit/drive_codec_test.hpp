@@ -12,8 +12,8 @@
 #include <string_view>
 #include <vector>
 
-#include "gateways/command_service.hpp"
-#include "gateways/drive_codec.hpp"
+#include "gateways/codecs/drive_codec.hpp"
+#include "gateways/commands/command_service.hpp"
 #include "profiles/line_config.hpp"
 #include "profiles/profile_registry.hpp"
 #include "support/codec_pdo.hpp"

@@ -9,7 +9,7 @@
 #include <string>
 #include <vector>
 
-#include "gateways/feeder_codec.hpp"
+#include "gateways/codecs/feeder_codec.hpp"
 #include "profiles/line_config.hpp"
 #include "profiles/profile_registry.hpp"
 #include "support/codec_pdo.hpp"

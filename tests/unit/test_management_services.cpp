@@ -6,7 +6,7 @@
 
 #include <optional>
 
-#include "gateways/management_services.hpp"
+#include "gateways/routing/management_services.hpp"
 
 namespace srv = linebridge_msgs::srv;
 using lb::gateways::ManagementServices;

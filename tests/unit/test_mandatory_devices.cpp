@@ -13,7 +13,7 @@
 
 #include "canopen/bus_loop.hpp"
 #include "canopen/remote_node.hpp"
-#include "gateways/mandatory_devices.hpp"
+#include "gateways/node/mandatory_devices.hpp"
 #include "support/bus_spy.hpp"
 
 using namespace std::chrono_literals;

@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "canopen/bus_loop.hpp"
-#include "gateways/pdo_burst.hpp"
+#include "gateways/node/pdo_burst.hpp"
 #include "support/bus_spy.hpp"
 
 using namespace std::chrono_literals;

@@ -11,7 +11,7 @@
 #include <string>
 #include <vector>
 
-#include "gateways/saw_codec.hpp"
+#include "gateways/codecs/saw_codec.hpp"
 #include "profiles/line_config.hpp"
 #include "profiles/profile_registry.hpp"
 #include "support/codec_pdo.hpp"

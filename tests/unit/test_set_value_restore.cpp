@@ -16,8 +16,8 @@
 #include <thread>
 
 #include "canopen/pdo_mapping.hpp"
-#include "gateways/set_value_restore.hpp"
-#include "gateways/set_value_store.hpp"
+#include "gateways/persistence/set_value_restore.hpp"
+#include "gateways/persistence/set_value_store.hpp"
 #include "profiles/profile_registry.hpp"
 
 using lb::canopen::PdoEntry;

@@ -1,0 +1,76 @@
+#pragma once
+// rt/<line>/bridge/diagnostics: per bus frames, errors, state and load; per device online, NMT
+// state, heartbeat age and counters. Each bus loop takes its own snapshot (its state is
+// loop-thread only); a publishing thread merges the latest snapshots once per period.
+
+#include <chrono>
+#include <condition_variable>
+#include <functional>
+#include <mutex>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "canopen/bus_loop.hpp"
+#include "canopen/other_master.hpp"
+#include "canopen/remote_node.hpp"
+#include "dds/participant.hpp"
+#include "gateways/adapters/device_services.hpp"
+#include "gateways/node/mandatory_devices.hpp"
+#include "msgs/commonPubSubTypes.h"
+#include "profiles/line_config.hpp"
+
+namespace lb::gateways {
+
+class DiagnosticsGateway {
+ public:
+  struct Device {
+    const profiles::DeviceConfig* config;
+    const canopen::RemoteNode* node;
+    const DeviceServices* services;
+    std::size_t index = 0;  // its place among the devices of its bus (MandatoryDevices' member)
+  };
+  struct Bus {
+    const profiles::BusConfig* config;
+    canopen::BusLoop* loop;
+    const canopen::OtherMasterWatch* other_master;  // master role only
+    std::vector<Device> devices;
+    const MandatoryDevices* mandatory = nullptr;  // master role, when a device of the bus is mandatory
+  };
+
+  // The process's own fields (the set-value store, the log), filled on the publishing thread.
+  using BridgeFields = std::function<void(linebridge_msgs::msg::Diagnostics&)>;
+  DiagnosticsGateway(ddsl::Participant& dds, const std::string& line, std::vector<Bus> buses,
+                     BridgeFields bridge_fields = {}, std::chrono::milliseconds period = std::chrono::seconds(1));
+  ~DiagnosticsGateway();
+  DiagnosticsGateway(const DiagnosticsGateway&) = delete;
+  DiagnosticsGateway& operator=(const DiagnosticsGateway&) = delete;
+
+  void start();  // before the loops start: a first snapshot, the per-bus timers, and publishing (the first at once)
+  void stop();
+
+ private:
+  struct Previous {
+    std::chrono::steady_clock::time_point at{};
+    std::uint64_t frames_in = 0, frames_out = 0, bits = 0;
+  };
+  void snapshot(std::size_t bus);  // on that bus's loop thread
+  void publish_loop();
+
+  const ddsl::Participant& dds_;
+  std::string line_;
+  std::vector<Bus> buses_;
+  BridgeFields bridge_fields_;
+  std::chrono::milliseconds period_;
+  ddsl::Writer<linebridge_msgs::msg::DiagnosticsPubSubType> writer_;
+  std::vector<Previous> previous_;  // per bus, loop thread of that bus
+
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  bool stopping_ = false;
+  std::vector<linebridge_msgs::msg::BusDiagnostics> bus_snapshots_;
+  std::vector<std::vector<linebridge_msgs::msg::NodeDiagnostics>> node_snapshots_;
+  std::thread thread_;
+};
+
+}  // namespace lb::gateways

@@ -1,0 +1,139 @@
+#include "gateways/adapters/saw_gateway.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include <stdexcept>
+
+#include "dds/topic_names.hpp"
+#include "gateways/adapters/checked.hpp"
+#include "gateways/adapters/device_health.hpp"
+#include "gateways/node/pdo_receive.hpp"
+#include "gateways/node/set_value_path.hpp"
+
+namespace lb::gateways {
+
+namespace msg = linebridge_msgs::msg;
+using profiles::PdoDirection;
+
+SawGateway::SawGateway(DeviceContext context)
+    : ctx_(context),
+      codec_(context.profile, context.device.pdos, !context.is_master()),
+      pdos_(ctx_, codec_, [this](std::size_t pdo, const can::CanFrame& f) { on_pdo(pdo, f); }),
+      commands_(
+          context.loop, [this](unsigned bit, bool on) { codec_.set_control_bit(bit, on); },
+          [this] {
+            pdos_.on_data();
+            publish_status(ddsl::now_ns());
+          }),
+      burst_(context.loop, [this](std::int64_t stamp_ns) { publish_status(stamp_ns); }),
+      command_service_(context,
+                       resolve_commands(codec_.control_word(),
+                                        {"manual_cut", "tip_pulse", "stop_immediately", "f1_stop", "f1_start",
+                                         "f2_stop", "f2_start", "f3_stop", "f3_start"}),
+                       commands_, [this] {
+                         const bool go = pdos_.ready_for_a_stop();
+                         if (go) publish_status(ddsl::now_ns());
+                         return go;
+                       }) {
+  const std::string& dev = ctx_.device.name;
+  const std::string& line = ctx_.line;
+  status_writer_ = checked(ctx_.dds.writer<msg::SawStatusPubSubType>(ddsl::topic_name(line, dev, "status"),
+                                                                     ddsl::QosKind::state),
+                           dev);
+  cut_writer_ = checked(ctx_.dds.writer<msg::SawCutPubSubType>(ddsl::topic_name(line, dev, "cut"),
+                                                               ddsl::QosKind::event),
+                        dev);
+  result_writer_ = checked(ctx_.dds.writer<msg::SetpointResultPubSubType>(ddsl::topic_name(line, dev,
+                                                                                           "setpoint_result"),
+                                                                          ddsl::QosKind::reply),
+                           dev);
+  auto sub = ctx_.dds.subscribe<msg::SawSetpointPubSubType>(ddsl::topic_name(line, dev, "setpoint"),
+                                                            ddsl::QosKind::command,
+                                                            [this](const msg::SawSetpoint& sp,
+                                                                   const ddsl::fdds::SampleInfo&) { on_setpoint(sp); });
+  if (!sub) throw std::runtime_error(dev + ": " + sub.error().message);
+
+  // Momentary commands count the RPDO frames that carry the control word (momentary_commands.hpp).
+  pdos_.observe(ctx_.profile.object("control_word")->index,
+                {.before_send = [this] { commands_.before_frame(); },
+                 .sent = [this](auto at) { commands_.frame_sent(at); },
+                 .not_sent = [this](std::string_view why) { commands_.frame_not_sent(why); }});
+  ctx_.node.attach(*this);
+  // A restarted bridge goes on with the set values in force (a running saw keeps its program);
+  // a command held at the stop is not pressed again.
+  pdos_.restore([this] {
+    for (const auto& c : command_service_.commands()) codec_.set_control_bit(c.bit, false);
+  });
+  spdlog::info("{}: saw ({}) node {} on bus {} as {}{}", dev, ctx_.profile.key(), ctx_.device.node_id, ctx_.bus.name,
+               profiles::to_string(ctx_.bus.role),
+               ctx_.is_master()
+                   ? (ctx_.set_values != nullptr ? "; RPDO1 image as kept at the last stop (zero when none)"
+                                                 : "; RPDO1 image starts all zero (saw program off)")
+                   : "");
+  publish_status(ddsl::now_ns());  // the device exists (offline) before its first heartbeat
+}
+
+// A device (re)started gets the current image at once from event-driven RPDOs too.
+void SawGateway::on_nmt_change(canopen::NmtState, bool) noexcept {
+  pdos_.resend();
+  publish_status(ddsl::now_ns());
+}
+
+void SawGateway::on_pdo(std::size_t pdo, const can::CanFrame& frame) {
+  if (receive_pdo(ctx_, codec_, burst_, pdo, frame)) burst_.add(pdo, frame.timestamp_ns);
+}
+
+void SawGateway::on_setpoint(const msg::SawSetpoint& sp) {
+  take_set_value(
+      ctx_, pdos_, set_value_log_, sp.request_id(), [&] { return codec_.validate(sp); },
+      [this](const SawCodec::RawSetpoint& r) { codec_.apply(r); },
+      [this] {
+        pdos_.on_data();
+        publish_status(ddsl::now_ns());
+        if (applied_log_.allow()) {
+          spdlog::info("{}: set values: program {}, sync speed {} %, product length {} m (control word {:04X}h){}",
+                       ctx_.device.name, status_.control_word().saw_program_on() ? "on" : "off",
+                       status_.sync_speed_set_percent(), status_.product_length_set_m(), status_.control_word().raw(),
+                       held_back_note(applied_log_));
+        }
+      },
+      [this](std::uint64_t id, bool accepted, const std::string& reason) { reply(id, accepted, reason); });
+}
+
+void SawGateway::reply(std::uint64_t request_id, bool accepted, const std::string& reason) {
+  msg::SetpointResult r;
+  r.request_id(request_id);
+  r.accepted(accepted);
+  r.reason(reason);
+  result_writer_.write(r);
+}
+
+void SawGateway::publish_status(std::int64_t stamp_ns) {
+  burst_.published();
+  const auto stamp = ddsl::to_stamp(stamp_ns);
+  status_.stamp().sec(stamp.sec);
+  status_.stamp().nanosec(stamp.nanosec);
+  fill_health(ctx_.node, status_.health());
+  codec_.fill(status_);
+  status_.pdo_length_errors(ctx_.node.stats().pdo_length_errors);
+  status_writer_.write(status_);
+
+  // The saw loads a new length when its program starts, otherwise only after the next cut.
+  const bool program_on = status_.control_word().saw_program_on();
+  if (!program_on || !program_was_on_) length_in_force_m_ = status_.product_length_set_m();
+  program_was_on_ = program_on;
+  const bool cutting = codec_.cutting();
+  if (cutting && !was_cutting_) {
+    msg::SawCut cut;
+    cut.stamp(status_.stamp());
+    cut.cut_count(++cut_count_);
+    cut.length_in_force_m(length_in_force_m_);
+    cut.counter_before_cut_m(counter_before_cut_m_);
+    cut_writer_.write(cut);
+    length_in_force_m_ = status_.product_length_set_m();
+  }
+  if (!cutting) counter_before_cut_m_ = status_.actual_saw_counter_m();
+  was_cutting_ = cutting;
+}
+
+}  // namespace lb::gateways

@@ -1,0 +1,38 @@
+#pragma once
+// What every device gateway is given: its bus loop and node, the DDS participant, its configuration.
+
+#include <string>
+#include <string_view>
+
+#include "canopen/bus_loop.hpp"
+#include "canopen/remote_node.hpp"
+#include "canopen/sdo_client.hpp"
+#include "canopen/sync_producer.hpp"
+#include "dds/participant.hpp"
+#include "gateways/persistence/set_value_store.hpp"
+#include "profiles/line_config.hpp"
+
+namespace lb::gateways {
+
+struct DeviceContext {
+  canopen::BusLoop& loop;
+  canopen::RemoteNode& node;
+  canopen::SyncProducer* sync;  // null on a monitor bus: the bridge produces no SYNC there
+  canopen::SdoClient* sdo;      // null on a monitor bus: the bridge sends no SDO requests there
+  ddsl::Participant& dds;
+  const std::string& line;
+  const profiles::BusConfig& bus;
+  const profiles::DeviceConfig& device;
+  const profiles::Profile& profile;
+  SetValueStore* set_values = nullptr;  // master role: where the set values in force are kept (null: nowhere)
+  const profiles::StartupPolicy& startup;
+
+  bool is_master() const { return bus.role == profiles::BusRole::master; }
+  // The answer to a request the bus loop refused (BusLoop::try_post: too many waiting).
+  std::string loop_busy(std::string_view what) const {
+    return "bus " + bus.name + " is overloaded (" + std::to_string(canopen::BusLoop::kMaxPosted) +
+           " requests wait for its loop): " + std::string(what) + " refused, not sent; ask again later";
+  }
+};
+
+}  // namespace lb::gateways
