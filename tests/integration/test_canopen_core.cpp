@@ -30,10 +30,6 @@ using lb::ddsl::QosKind;
 
 namespace {
 
-using lb::test::NmtClient;
-using lb::test::ReadClient;
-using lb::test::WriteClient;
-
 class CanopenCore : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -161,9 +157,9 @@ class CanopenCore : public ::testing::Test {
   std::unique_ptr<lb::test::BusSpy> spy_;
   std::unique_ptr<lb::test::ChildProcess> sim_, bridge_;
   std::unique_ptr<lb::ddsl::Participant> dds_;
-  std::unique_ptr<ReadClient> reads_;
-  std::unique_ptr<WriteClient> writes_;
-  std::unique_ptr<NmtClient> nmts_;
+  std::unique_ptr<lb::test::ReadClient> reads_;
+  std::unique_ptr<lb::test::WriteClient> writes_;
+  std::unique_ptr<lb::test::NmtClient> nmts_;
   lb::test::Collector<msg::SawStatusPubSubType> saw1_, saw2_;
   lb::test::Collector<msg::DeviceInfoPubSubType> info_;
   lb::test::Collector<msg::EmergencyPubSubType> emcy_;

@@ -9,17 +9,15 @@
 
 #include "dds/service.hpp"
 #include "msgs/commonPubSubTypes.h"
+#include "support/line_harness.hpp"
 
 namespace lb::test {
 
-using ReadClient = ddsl::ServiceClient<linebridge_msgs::srv::SdoRead_RequestPubSubType,
-                                       linebridge_msgs::srv::SdoRead_ResponsePubSubType>;
-using WriteClient = ddsl::ServiceClient<linebridge_msgs::srv::SdoWrite_RequestPubSubType,
-                                        linebridge_msgs::srv::SdoWrite_ResponsePubSubType>;
-using NmtClient =
-    ddsl::ServiceClient<linebridge_msgs::srv::Nmt_RequestPubSubType, linebridge_msgs::srv::Nmt_ResponsePubSubType>;
-using CommandClient = ddsl::ServiceClient<linebridge_msgs::srv::Command_RequestPubSubType,
-                                          linebridge_msgs::srv::Command_ResponsePubSubType>;
+// The clients LineHarness names, and those of the parameter services.
+using ReadClient = LineHarness::ReadClient;
+using WriteClient = LineHarness::WriteClient;
+using NmtClient = LineHarness::NmtClient;
+using CommandClient = LineHarness::CommandClient;
 using GetClient = ddsl::ServiceClient<linebridge_msgs::srv::GetParameter_RequestPubSubType,
                                       linebridge_msgs::srv::GetParameter_ResponsePubSubType>;
 using SetClient = ddsl::ServiceClient<linebridge_msgs::srv::SetParameter_RequestPubSubType,
