@@ -252,7 +252,9 @@ TEST_F(SecuredLine, OperatorCannotCallSdoWriteEngineerCan) {
   EXPECT_TRUE(upload_1008(requests.front())) << "an SDO request reached saw1 before the engineer's";
   for (const auto& f : requests) {
     const int ccs = f.data[0] >> 5;  // 1: initiate download, 2: initiate upload (CiA 301)
-    if (ccs == 1 || ccs == 2) EXPECT_TRUE(upload_1008(f)) << "an SDO request other than the engineer's reached saw1";
+    if (ccs == 1 || ccs == 2) {
+      EXPECT_TRUE(upload_1008(f)) << "an SDO request other than the engineer's reached saw1";
+    }
   }
 }
 
