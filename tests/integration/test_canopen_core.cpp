@@ -20,6 +20,8 @@
 #include "support/bus_spy.hpp"
 #include "support/child_process.hpp"
 #include "support/collector.hpp"
+#include "support/service_clients.hpp"
+#include "support/spy_waits.hpp"
 
 namespace msg = linebridge_msgs::msg;
 namespace srv = linebridge_msgs::srv;
@@ -27,10 +29,6 @@ using namespace std::chrono_literals;
 using lb::ddsl::QosKind;
 
 namespace {
-
-using ReadClient = lb::ddsl::ServiceClient<srv::SdoRead_RequestPubSubType, srv::SdoRead_ResponsePubSubType>;
-using WriteClient = lb::ddsl::ServiceClient<srv::SdoWrite_RequestPubSubType, srv::SdoWrite_ResponsePubSubType>;
-using NmtClient = lb::ddsl::ServiceClient<srv::Nmt_RequestPubSubType, srv::Nmt_ResponsePubSubType>;
 
 class CanopenCore : public ::testing::Test {
  protected:
@@ -110,9 +108,7 @@ class CanopenCore : public ::testing::Test {
     req.index(index);
     req.sub_index(sub);
     req.data_type(type);
-    auto r = client.call(req, 20s);
-    EXPECT_TRUE(r) << (r ? "" : r.error().message);
-    return r ? *r : srv::SdoRead_Response{};
+    return lb::test::call(client, req, 20s);
   }
   srv::SdoWrite_Response sdo_write(const std::string& device, std::uint16_t index, std::uint8_t sub,
                                    srv::ObjectValue v) {
@@ -122,18 +118,14 @@ class CanopenCore : public ::testing::Test {
     req.index(index);
     req.sub_index(sub);
     req.value(std::move(v));
-    auto r = client.call(req, 20s);
-    EXPECT_TRUE(r) << (r ? "" : r.error().message);
-    return r ? *r : srv::SdoWrite_Response{};
+    return lb::test::call(client, req, 20s);
   }
   srv::Nmt_Response nmt(const std::string& device, srv::NmtCommand c) {
     auto& client = client_for(nmts_, "nmt");
     srv::Nmt_Request req;
     req.device(device);
     req.command(c);
-    auto r = client.call(req, 20s);
-    EXPECT_TRUE(r) << (r ? "" : r.error().message);
-    return r ? *r : srv::Nmt_Response{};
+    return lb::test::call(client, req, 20s);
   }
   // One client per line-wide service for the whole test (requests name the device): discovery
   // once, not per call.
@@ -165,9 +157,9 @@ class CanopenCore : public ::testing::Test {
   std::unique_ptr<lb::test::BusSpy> spy_;
   std::unique_ptr<lb::test::ChildProcess> sim_, bridge_;
   std::unique_ptr<lb::ddsl::Participant> dds_;
-  std::unique_ptr<ReadClient> reads_;
-  std::unique_ptr<WriteClient> writes_;
-  std::unique_ptr<NmtClient> nmts_;
+  std::unique_ptr<lb::test::ReadClient> reads_;
+  std::unique_ptr<lb::test::WriteClient> writes_;
+  std::unique_ptr<lb::test::NmtClient> nmts_;
   lb::test::Collector<msg::SawStatusPubSubType> saw1_, saw2_;
   lb::test::Collector<msg::DeviceInfoPubSubType> info_;
   lb::test::Collector<msg::EmergencyPubSubType> emcy_;
@@ -283,7 +275,13 @@ TEST_F(CanopenCore, LineWideServicesRouteByDeviceName) {
   const auto nameless = nmt("", srv::NMT_RESET_NODE);
   EXPECT_FALSE(nameless.success());
   EXPECT_NE(nameless.message().find("names no device"), std::string::npos) << nameless.message();
-  std::this_thread::sleep_for(300ms);
+  // The marker: an NMT start of saw1 (already operational: nothing changes) asked after it, on the
+  // bus. The service handles requests in turn, so a reset let through would be there before it.
+  const auto marker = nmt("saw1", srv::NMT_START);
+  ASSERT_TRUE(marker.success()) << marker.message();
+  ASSERT_TRUE(lb::test::wait_frame(*spy_, 0x000, [](const lb::can::CanFrame& f) {
+    return f.len == 2 && f.data[0] == 0x01 && f.data[1] == 5;
+  })) << logs();
   for (const auto& f : spy_->frames(0x000)) EXPECT_NE(f.data[0], 0x81) << "an NMT reset reached the bus";
 }
 

@@ -20,7 +20,10 @@
 #include "support/bus_spy.hpp"
 #include "support/child_process.hpp"
 #include "support/collector.hpp"
+#include "support/eventually.hpp"
 #include "support/monitor_silence.hpp"
+#include "support/monitored_line.hpp"
+#include "support/spy_waits.hpp"
 
 namespace msg = linebridge_msgs::msg;
 namespace srv = linebridge_msgs::srv;
@@ -225,11 +228,9 @@ TEST(FeederLine, StatusFaultEventsCommandsAndLoomPlay) {
   // The bridge as loom controller: start advice in RPDO2 (event-driven), then unwinding events.
   auto loom = (*dds)->writer<msg::LoomSetpointPubSubType>(topic("loom"), QosKind::command);
   ASSERT_TRUE(loom);
-  const auto deadline = std::chrono::steady_clock::now() + 10s;
-  while ((loom->matched() == 0 || (*dds)->matched_writers(topic("loom_result")) == 0) &&
-         std::chrono::steady_clock::now() < deadline) {
-    std::this_thread::sleep_for(20ms);
-  }
+  ASSERT_TRUE(lb::test::eventually(10s, [&] {
+    return loom->matched() > 0 && (*dds)->matched_writers(topic("loom_result")) > 0;
+  })) << logs();
   msg::LoomSetpoint bad;
   bad.request_id(1);
   bad.pick_insertion({0x00, 0x07, 0xDD, 0xA3, 0x55});
@@ -274,21 +275,9 @@ TEST(FeederLine, StatusFaultEventsCommandsAndLoomPlay) {
 
 TEST(FeederLine, MonitorRoleDecodesLoomControllerAndNeverTransmits) {
   ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
-  const std::string tag = std::to_string(::getpid());
-  const std::string bus = "virtual:mon-feed-" + tag;
-  const std::string tmp = ::testing::TempDir();
-  const std::string line_cfg = tmp + "/feed_mon_line_" + tag + ".yaml";
-  std::ofstream(line_cfg) << "line: fmon\nbuses:\n  - {name: m, interface: '" + bus + "', role: master}\n" +
-                                 device_yaml("m");
-  const std::string bridge_cfg = tmp + "/feed_mon_bridge_" + tag + ".yaml";
-  std::ofstream(bridge_cfg) << "line: fmon\ndds: {domain: 8}\nbuses:\n  - {name: m, interface: '" + bus +
-                                   "', role: monitor}\n" + device_yaml("m");
-
-  lb::test::BusSpy spy(bus);
-  lb::test::ChildProcess devices({LB_BIN_SIM, "--config", line_cfg, "--role", "devices"},
-                                 tmp + "/feed_mon_sim_" + tag + ".log");
-  lb::test::ChildProcess bridge({LB_BIN_BRIDGE, "--config", bridge_cfg}, tmp + "/feed_mon_bridge_" + tag + ".log");
-  const auto logs = [&] { return "--- bridge ---\n" + bridge.log() + "--- devices ---\n" + devices.log(); };
+  lb::test::MonitoredLine line("fmon", 8, device_yaml("m"));
+  auto& spy = line.spy();
+  const auto logs = [&] { return line.logs(); };
 
   auto dds = lb::ddsl::Participant::create({8, true, "feeder-monitor-test"});
   ASSERT_TRUE(dds) << dds.error().message;
@@ -330,20 +319,17 @@ TEST(FeederLine, MonitorRoleDecodesLoomControllerAndNeverTransmits) {
   EXPECT_NE(errors.samples().front().remark().find("monitor role"), std::string::npos);
 
   // Commands are refused with the reason.
-  auto commands = CommandClient::create(**dds, "fmon/feeders/feeder_command");
-  ASSERT_TRUE(commands);
-  const auto refused = command(**commands, 1, "reset");
-  EXPECT_FALSE(refused.success());
-  EXPECT_NE(refused.message().find("monitor role"), std::string::npos) << refused.message();
-  commands->reset();  // before the participant it lives in
+  srv::FeederCommand_Request reset;
+  reset.feeder(1);
+  reset.command("reset");
+  ASSERT_NO_FATAL_FAILURE(
+      lb::test::expect_refused_by_monitor<CommandClient>(**dds, "fmon/feeders/feeder_command", reset));
 
-  // Nothing but the test's own frames and the box's heartbeats on the bus.
-  std::this_thread::sleep_for(500ms);
-  std::set<std::uint32_t> ids;
-  for (const auto& f : spy.frames()) ids.insert(f.id);
-  EXPECT_EQ(ids, (std::set<std::uint32_t>{0x700u + kNode})) << logs();
+  // Over five more of the box's heartbeats, nothing but those heartbeats on the bus (the spy does
+  // not hear its own frames).
+  EXPECT_EQ(line.ids_after_heartbeats(kNode, 5), (std::set<std::uint32_t>{0x700u + kNode})) << logs();
   // The bridge never tried to transmit (its diagnostics after everything above).
   ASSERT_NO_FATAL_FAILURE(lb::test::expect_monitor_never_sent(diag, logs()));
   dds->reset();
-  EXPECT_EQ(bridge.stop(), 0);
+  EXPECT_EQ(line.bridge().stop(), 0);
 }

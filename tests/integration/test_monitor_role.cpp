@@ -15,10 +15,12 @@
 #include "dds/topic_names.hpp"
 #include "msgs/commonPubSubTypes.h"
 #include "msgs/sawPubSubTypes.h"
-#include "support/bus_spy.hpp"
 #include "support/child_process.hpp"
 #include "support/collector.hpp"
+#include "support/eventually.hpp"
 #include "support/monitor_silence.hpp"
+#include "support/monitored_line.hpp"
+#include "support/service_clients.hpp"
 
 namespace msg = linebridge_msgs::msg;
 namespace srv = linebridge_msgs::srv;
@@ -27,32 +29,20 @@ using lb::ddsl::QosKind;
 
 TEST(MonitorRole, DecodesBothDirectionsAndNeverTransmits) {
   ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
-  const std::string tag = std::to_string(::getpid());
-  const std::string bus = "virtual:mon-" + tag;
-  const std::string tmp = ::testing::TempDir();
-  const std::string device =
-      "devices:\n"
-      "  - name: saw1\n"
-      "    bus: m\n"
-      "    node_id: 5\n"
-      "    profile: cia420-4\n"
-      "    version: '3.1'\n"
-      "    heartbeat_timeout_ms: 400\n"
-      "    simulation:\n"
-      "      max_speed_m_per_min: 60\n"
-      "      controller_values: {control_word: 1, saw_sync_speed_set_value: 5000, product_length_set_value: 15000}\n";
   // The line (simulated devices and controller) owns the bus; the bridge only listens.
-  const std::string line_cfg = tmp + "/mon_line_" + tag + ".yaml";
-  std::ofstream(line_cfg) << "line: mon\nbuses:\n  - {name: m, interface: '" + bus + "', role: master}\n" + device;
-  const std::string bridge_cfg = tmp + "/mon_bridge_" + tag + ".yaml";
-  std::ofstream(bridge_cfg) << "line: mon\ndds: {domain: 5}\nbuses:\n  - {name: m, interface: '" + bus +
-                                   "', role: monitor}\n" + device;
-
-  lb::test::BusSpy spy(bus);
-  lb::test::ChildProcess devices({LB_BIN_SIM, "--config", line_cfg, "--role", "devices"},
-                                 tmp + "/mon_sim_" + tag + ".log");
-  lb::test::ChildProcess bridge({LB_BIN_BRIDGE, "--config", bridge_cfg}, tmp + "/mon_bridge_" + tag + ".log");
-  const auto logs = [&] { return "--- bridge ---\n" + bridge.log() + "--- devices ---\n" + devices.log(); };
+  lb::test::MonitoredLine line("mon", 5,
+                               "devices:\n"
+                               "  - name: saw1\n"
+                               "    bus: m\n"
+                               "    node_id: 5\n"
+                               "    profile: cia420-4\n"
+                               "    version: '3.1'\n"
+                               "    heartbeat_timeout_ms: 400\n"
+                               "    simulation:\n"
+                               "      max_speed_m_per_min: 60\n"
+                               "      controller_values: {control_word: 1, saw_sync_speed_set_value: 5000, "
+                               "product_length_set_value: 15000}\n");
+  const auto logs = [&] { return line.logs(); };
 
   auto dds = lb::ddsl::Participant::create({5, true, "monitor-test"});
   ASSERT_TRUE(dds) << dds.error().message;
@@ -68,47 +58,32 @@ TEST(MonitorRole, DecodesBothDirectionsAndNeverTransmits) {
   })) << logs();
 
   // Phase 1: every way of making the bridge transmit is refused with the reason...
-  spy.clear();
+  line.spy().clear();
   // The services are line-wide (mon/bridge/<service>); the request names the device.
-  auto nmt = lb::ddsl::ServiceClient<srv::Nmt_RequestPubSubType, srv::Nmt_ResponsePubSubType>::create(
-      **dds, lb::ddsl::line_service_path("mon", "nmt"));
-  ASSERT_TRUE(nmt);
   srv::Nmt_Request start;
   start.device("saw1");
   start.command(srv::NMT_START);
-  auto n = (*nmt)->call(start, 10s);
-  ASSERT_TRUE(n) << n.error().message;
-  EXPECT_FALSE(n->success());
-  EXPECT_NE(n->message().find("monitor role"), std::string::npos) << n->message();
-
-  auto read = lb::ddsl::ServiceClient<srv::SdoRead_RequestPubSubType, srv::SdoRead_ResponsePubSubType>::create(
-      **dds, lb::ddsl::line_service_path("mon", "sdo_read"));
-  ASSERT_TRUE(read);
+  ASSERT_NO_FATAL_FAILURE(
+      lb::test::expect_refused_by_monitor<lb::test::NmtClient>(**dds, lb::ddsl::line_service_path("mon", "nmt"),
+                                                               start));
   srv::SdoRead_Request rq;
   rq.device("saw1");
   rq.index(0x1000);
   rq.data_type("UNSIGNED32");
-  auto r = (*read)->call(rq, 10s);
-  ASSERT_TRUE(r) << r.error().message;
-  EXPECT_FALSE(r->success());
-  EXPECT_NE(r->message().find("monitor role"), std::string::npos) << r->message();
-
-  auto press = lb::ddsl::ServiceClient<srv::Command_RequestPubSubType, srv::Command_ResponsePubSubType>::create(
-      **dds, lb::ddsl::line_service_path("mon", "command"));
-  ASSERT_TRUE(press);
+  ASSERT_NO_FATAL_FAILURE(
+      lb::test::expect_refused_by_monitor<lb::test::ReadClient>(**dds, lb::ddsl::line_service_path("mon", "sdo_read"),
+                                                                rq));
   srv::Command_Request cut;
   cut.device("saw1");
   cut.command("manual_cut");
-  auto c = (*press)->call(cut, 10s);
-  ASSERT_TRUE(c) << c.error().message;
-  EXPECT_FALSE(c->success());
-  EXPECT_NE(c->message().find("monitor role"), std::string::npos) << c->message();
+  ASSERT_NO_FATAL_FAILURE(
+      lb::test::expect_refused_by_monitor<lb::test::CommandClient>(**dds, lb::ddsl::line_service_path("mon", "command"),
+                                                                   cut));
 
   auto sp_writer = (*dds)->writer<msg::SawSetpointPubSubType>(lb::ddsl::topic_name("mon", "saw1", "setpoint"),
                                                               QosKind::command);
   ASSERT_TRUE(sp_writer);
-  const auto deadline = std::chrono::steady_clock::now() + 10s;
-  while (sp_writer->matched() == 0 && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(20ms);
+  ASSERT_TRUE(lb::test::eventually(10s, [&] { return sp_writer->matched() > 0; })) << logs();
   msg::SawSetpoint sp;
   sp.request_id(7);
   sp.saw_program_on(true);
@@ -119,17 +94,14 @@ TEST(MonitorRole, DecodesBothDirectionsAndNeverTransmits) {
   EXPECT_FALSE(results.samples().back().accepted());
   EXPECT_NE(results.samples().back().reason().find("monitor role"), std::string::npos);
 
-  // ... and in a full second nothing but the device's own heartbeats is on the bus: no NMT, no
-  // SYNC, no RPDO, no SDO request, no heartbeat of a master.
-  std::this_thread::sleep_for(1000ms);
-  std::set<std::uint32_t> ids;
-  for (const auto& f : spy.frames()) ids.insert(f.id);
-  EXPECT_EQ(ids, (std::set<std::uint32_t>{0x705})) << logs();
+  // ... and over ten more of the device's heartbeats (a second) nothing but those heartbeats is
+  // on the bus: no NMT, no SYNC, no RPDO, no SDO request, no heartbeat of a master.
+  EXPECT_EQ(line.ids_after_heartbeats(5, 10), (std::set<std::uint32_t>{0x705})) << logs();
 
   // Phase 2: a line controller starts the device and drives it; the bridge decodes its RPDO1
   // (program on, 50.00 %, 1.5000 m) and the device's TPDOs.
-  lb::test::ChildProcess controller({LB_BIN_SIM, "--config", line_cfg, "--role", "controller"},
-                                    tmp + "/mon_ctl_" + tag + ".log");
+  lb::test::ChildProcess controller({LB_BIN_SIM, "--config", line.line_config(), "--role", "controller"},
+                                    ::testing::TempDir() + "/mon_ctl_" + std::to_string(::getpid()) + ".log");
   ASSERT_TRUE(status.wait_last(10s,
                                [](const msg::SawStatus& s) {
                                  return s.health().nmt_state() == msg::NMT_OPERATIONAL &&
@@ -141,9 +113,6 @@ TEST(MonitorRole, DecodesBothDirectionsAndNeverTransmits) {
   EXPECT_TRUE(status.samples().back().status_word().saw_ready());
   // The bridge never tried to transmit (its diagnostics after everything above).
   ASSERT_NO_FATAL_FAILURE(lb::test::expect_monitor_never_sent(diag, logs()));
-  nmt.value().reset();  // service clients before the participant they live in
-  read.value().reset();
-  press.value().reset();
   dds->reset();
-  EXPECT_EQ(bridge.stop(), 0);
+  EXPECT_EQ(line.bridge().stop(), 0);
 }

@@ -19,9 +19,11 @@
 #include "msgs/sawPubSubTypes.h"
 #include "support/child_process.hpp"
 #include "support/collector.hpp"
+#include "support/fastdds_profiles_xml.hpp"
 #include "support/line_harness.hpp"
 #include "support/notify_socket.hpp"
 #include "support/run_command.hpp"
+#include "support/spy_waits.hpp"
 
 namespace msg = linebridge_msgs::msg;
 using namespace std::chrono_literals;
@@ -164,7 +166,9 @@ TEST(Plant, TwoLinesOnOneDomainDoNotDisturbEachOther) {
     }
     return false;
   }));
-  std::this_thread::sleep_for(300ms);
+  // The marker before the negative check: south's bridge's own heartbeat (701h, every second)
+  // stamped after north's bus carried the value.
+  ASSERT_TRUE(lb::test::wait_frames_after(south.spy(), 0x701, lb::test::bus_now_ns())) << south.logs();
   for (const auto& f : south.spy().frames(0x203)) EXPECT_FALSE(carries(f)) << "north's set value on south's bus";
   EXPECT_EQ(south_results.size(), 0U) << "south answered north's set value";
 
@@ -173,7 +177,7 @@ TEST(Plant, TwoLinesOnOneDomainDoNotDisturbEachOther) {
   const auto stopped = north.nmt("saw1", linebridge_msgs::srv::NMT_STOP);
   EXPECT_TRUE(stopped.success()) << stopped.message();
   ASSERT_TRUE(wait_for(5s, [&] { return !north.spy().frames(0x000).empty(); }));
-  std::this_thread::sleep_for(500ms);
+  ASSERT_TRUE(lb::test::wait_frames_after(south.spy(), 0x701, lb::test::bus_now_ns())) << south.logs();
   EXPECT_TRUE(south.spy().frames(0x000).empty()) << "an NMT command on south's bus";
   EXPECT_TRUE(south_status.samples().back().health().nmt_state() == msg::NMT_OPERATIONAL);
 
@@ -196,17 +200,11 @@ TEST(Plant, TwoLinesOnOneDomainDoNotDisturbEachOther) {
 // not; the bridge says what it did not apply. A late joiner still gets the current status.
 TEST(Plant, SiteProfileChangesTimingNotTheContract) {
   const auto xml = ::testing::TempDir() + "/plant_site_" + tag() + ".xml";
-  std::ofstream(xml) << R"(<?xml version="1.0" encoding="UTF-8" ?>
-<dds xmlns="http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles"><profiles>
-  <data_writer profile_name="rt/site/saw1/status">
-    <qos>
-      <reliability><kind>BEST_EFFORT</kind></reliability>
-      <durability><kind>VOLATILE</kind></durability>
-      <deadline><period><sec>2</sec></period></deadline>
-    </qos>
-  </data_writer>
-</profiles></dds>
-)";
+  // What a site may change (the deadline) and what it may not (reliability, durability).
+  std::ofstream(xml) << lb::test::fastdds_profiles_xml(
+      lb::test::data_writer_profile("rt/site/saw1/status", "<reliability><kind>BEST_EFFORT</kind></reliability>"
+                                                           "<durability><kind>VOLATILE</kind></durability>"
+                                                           "<deadline><period><sec>2</sec></period></deadline>"));
   auto line = start_line("site", "{domain: 9, profiles_file: '" + xml + "'}");
   lb::test::CommandResult topics;
   ASSERT_TRUE(wait_for(30s,

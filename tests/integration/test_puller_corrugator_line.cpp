@@ -22,6 +22,9 @@
 #include "support/bus_spy.hpp"
 #include "support/child_process.hpp"
 #include "support/collector.hpp"
+#include "support/eventually.hpp"
+#include "support/service_clients.hpp"
+#include "support/spy_waits.hpp"
 
 namespace msg = linebridge_msgs::msg;
 namespace srv = linebridge_msgs::srv;
@@ -33,10 +36,10 @@ namespace {
 constexpr std::uint8_t kPuller = 6, kCorrugator = 7, kPuller30 = 8;
 constexpr std::uint16_t kLocalMode = 0x2100, kLocalSpeed = 0x2101;  // DriveSimulator's local panel
 
-using CommandClient = lb::ddsl::ServiceClient<srv::Command_RequestPubSubType, srv::Command_ResponsePubSubType>;
-using GetClient = lb::ddsl::ServiceClient<srv::GetParameter_RequestPubSubType, srv::GetParameter_ResponsePubSubType>;
-using SetClient = lb::ddsl::ServiceClient<srv::SetParameter_RequestPubSubType, srv::SetParameter_ResponsePubSubType>;
-using WriteClient = lb::ddsl::ServiceClient<srv::SdoWrite_RequestPubSubType, srv::SdoWrite_ResponsePubSubType>;
+using lb::test::CommandClient;
+using lb::test::GetClient;
+using lb::test::SetClient;
+using lb::test::WriteClient;
 
 class PullerCorrugatorLine : public ::testing::Test {
  protected:
@@ -106,13 +109,10 @@ class PullerCorrugatorLine : public ::testing::Test {
     ASSERT_TRUE(puller_.wait_last(15s, operational)) << logs();
     ASSERT_TRUE(corrugator_.wait_last(15s, operational)) << logs();
     ASSERT_TRUE(puller30_.wait_last(15s, operational)) << logs();
-    const auto deadline = Clock::now() + 10s;
-    while ((puller_setpoint_.matched() == 0 || puller30_setpoint_.matched() == 0 ||
-            corrugator_setpoint_.matched() == 0 || dds_->matched_writers(topic("puller1", "setpoint_result")) == 0) &&
-           Clock::now() < deadline) {
-      std::this_thread::sleep_for(20ms);
-    }
-    ASSERT_GT(puller_setpoint_.matched(), 0);
+    ASSERT_TRUE(lb::test::eventually(10s, [&] {
+      return puller_setpoint_.matched() > 0 && puller30_setpoint_.matched() > 0 && corrugator_setpoint_.matched() > 0 &&
+             dds_->matched_writers(topic("puller1", "setpoint_result")) > 0;
+    })) << logs();
   }
 
   void TearDown() override {
@@ -156,26 +156,20 @@ class PullerCorrugatorLine : public ::testing::Test {
     srv::Command_Request req;
     req.device(device);
     req.command(name);
-    auto r = commands_->call(req, 5s);
-    EXPECT_TRUE(r) << r.error().message;
-    return r ? *r : srv::Command_Response{};
+    return lb::test::call(*commands_, req, 5s);
   }
   srv::GetParameter_Response get(const std::string& device, const std::string& parameter) {
     srv::GetParameter_Request req;
     req.device(device);
     req.parameter(parameter);
-    auto r = gets_->call(req, 5s);
-    EXPECT_TRUE(r) << r.error().message;
-    return r ? *r : srv::GetParameter_Response{};
+    return lb::test::call(*gets_, req, 5s);
   }
   srv::SetParameter_Response set(const std::string& device, const std::string& parameter, double value) {
     srv::SetParameter_Request req;
     req.device(device);
     req.parameter(parameter);
     req.value(value);
-    auto r = sets_->call(req, 5s);
-    EXPECT_TRUE(r) << r.error().message;
-    return r ? *r : srv::SetParameter_Response{};
+    return lb::test::call(*sets_, req, 5s);
   }
   srv::SdoWrite_Response sdo_write(const std::string& device, std::uint16_t index, const std::string& type,
                                    std::int64_t v) {
@@ -188,9 +182,7 @@ class PullerCorrugatorLine : public ::testing::Test {
       req.value().integer_value(v);
     else
       req.value().unsigned_value(static_cast<std::uint64_t>(v));
-    auto r = writes_->call(req, 5s);
-    EXPECT_TRUE(r) << r.error().message;
-    return r ? *r : srv::SdoWrite_Response{};
+    return lb::test::call(*writes_, req, 5s);
   }
 
   std::string bus_uri_, config_path_;
@@ -216,7 +208,8 @@ TEST_F(PullerCorrugatorLine, MotorStartIsHeldAtLeast100msThenReleasedAndTheSpeed
   const auto started = command("puller1", "motor_start");
   ASSERT_TRUE(started.success()) << started.message();
   ASSERT_TRUE(puller_.wait_last(5s, [](const auto& s) { return s.status_word().motor_running(); })) << logs();
-  std::this_thread::sleep_for(300ms);  // the release and some frames after it
+  // The answer comes once the button is released: RPDO1 frames stamped after it follow the release.
+  ASSERT_TRUE(lb::test::wait_frames_after(*spy_, 0x200 + kPuller, lb::test::bus_now_ns(), 3)) << logs();
 
   // RPDO1 (206h): control word bit 1 (motor start) set in consecutive frames for >= 100 ms, then 0.
   const auto frames = spy_->frames(0x200 + kPuller);
@@ -256,7 +249,10 @@ TEST_F(PullerCorrugatorLine, MotorStartIsHeldAtLeast100msThenReleasedAndTheSpeed
     previous = v;
   }
   EXPECT_TRUE(ramped) << "no intermediate speed seen: not a ramp";
-  std::this_thread::sleep_for(100ms);
+  // A few status samples more (one per SYNC) than the one that reached the set value: the values
+  // below are those the puller holds there, not those of the moment it got there.
+  const std::size_t reached = puller_.size();
+  ASSERT_TRUE(puller_.wait(10s, [&](const auto& v) { return v.size() >= reached + 5; })) << logs();
   const auto last = puller_.samples().back();
   EXPECT_TRUE(last.control_word().extruder_running());
   EXPECT_DOUBLE_EQ(last.speed_set_percent(), 50.0);

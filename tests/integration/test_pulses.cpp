@@ -19,7 +19,9 @@
 #include "msgs/corrugatorPubSubTypes.h"
 #include "msgs/pullerPubSubTypes.h"
 #include "msgs/sawPubSubTypes.h"
+#include "support/eventually.hpp"
 #include "support/line_harness.hpp"
+#include "support/spy_waits.hpp"
 
 namespace msg = linebridge_msgs::msg;
 namespace srv = linebridge_msgs::srv;
@@ -151,7 +153,17 @@ TEST(Pulses, EveryMomentaryCommandIsOnTheBusForAtLeast100msUnderCpuLoad) {
       for (const auto& c : *commands) pressed.push_back({device, c, line.command(device, c.name)});
     }
   }
-  std::this_thread::sleep_for(200ms);  // the spy's last frames
+  // Every answer came once its bit was cleared on the bus. An RPDO1 of each node stamped after the
+  // last answer, in the bridge's recording and at the spy, puts every clearing frame in both.
+  const std::int64_t answered_ns = lb::test::bus_now_ns();
+  for (const auto& [device, node] : nodes) {
+    SCOPED_TRACE(device);
+    EXPECT_TRUE(lb::test::eventually(10s, [&, node = node] {
+      const auto recorded = recorded_rpdo1(record, node);
+      return !recorded.empty() && recorded.back().ns > answered_ns;
+    })) << "the recording ends before the last answer";
+    EXPECT_TRUE(lb::test::wait_frames_after(line.spy(), 0x200u + node, answered_ns)) << line.logs();
+  }
 
   for (const auto& p : pressed) {
     SCOPED_TRACE(p.device + " " + p.command.name);
@@ -193,6 +205,9 @@ TEST(Pulses, ADeviceThatCannotTakeThePulseIsRefusedAndGetsNoFrame) {
   answer = line.command("saw1", "manual_cut");
   EXPECT_FALSE(answer.success());
   EXPECT_NE(answer.message().find("offline"), std::string::npos) << answer.message();
+  // A negative check after its marker, the refusal (a pulse is only started once accepted). This
+  // bus has nothing periodic left to mark a later moment (no SYNC, no master heartbeat, the saw is
+  // gone), so the sleep stays: 300 ms more for a frame that should never come.
   std::this_thread::sleep_for(300ms);
   EXPECT_EQ(frames_seen(line.spy(), 3, 3), 0u) << "a refused command reached the bus";
 }

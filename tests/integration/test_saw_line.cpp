@@ -8,9 +8,7 @@
 #include <atomic>
 #include <chrono>
 #include <cmath>
-#include <condition_variable>
 #include <fstream>
-#include <mutex>
 #include <thread>
 #include <vector>
 
@@ -21,9 +19,12 @@
 #include "msgs/sawPubSubTypes.h"
 #include "support/bus_spy.hpp"
 #include "support/child_process.hpp"
+#include "support/collector.hpp"
+#include "support/eventually.hpp"
 #include "support/line_harness.hpp"
 #include "support/saw_setpoints.hpp"
 #include "support/simulated_saw.hpp"
+#include "support/spy_waits.hpp"
 
 namespace msg = linebridge_msgs::msg;
 using namespace std::chrono_literals;
@@ -35,19 +36,21 @@ constexpr std::uint8_t kNode = 5;
 // 60 m/min at 100 %: one metre per second, 20 mm per 20 ms SYNC.
 constexpr double kStepM = 0.02;
 
-// Everything the DDS threads deliver, under one lock, with a condition to wait on.
-struct Observed {
-  std::mutex m;
-  std::condition_variable cv;
-  std::vector<msg::SawStatus> status;
-  std::vector<msg::SawCut> cuts;
+using Statuses = std::vector<msg::SawStatus>;
 
-  template <class Pred>
-  bool wait(Clock::duration timeout, Pred pred) {
-    std::unique_lock lock(m);
-    return cv.wait_for(lock, timeout, [&] { return pred(); });
+// The saw counter in the last status sample before each rising edge of "saw cutting", taken from
+// the status topic alone (samples from `from` on): where the saw really cut, and whether it was
+// shorter than `below` metres.
+std::vector<double> cut_lengths(const Statuses& status, std::size_t from, double below = 1e9) {
+  std::vector<double> lengths;
+  for (std::size_t i = std::max<std::size_t>(from, 1); i < status.size(); ++i) {
+    if (status[i].status_word().saw_cutting() && !status[i - 1].status_word().saw_cutting() &&
+        status[i - 1].actual_saw_counter_m() < below) {
+      lengths.push_back(status[i - 1].actual_saw_counter_m());
+    }
   }
-};
+  return lengths;
+}
 
 class SawLine : public ::testing::Test {
  protected:
@@ -59,26 +62,13 @@ class SawLine : public ::testing::Test {
     ASSERT_TRUE(line_.bridge().started());
 
     const auto topic = [](const char* t) { return lb::ddsl::topic_name("itest", "saw1", t); };
-    ASSERT_TRUE(line_.dds().subscribe<msg::SawStatusPubSubType>(
-        topic("status"), lb::ddsl::QosKind::state,
-        [this](const msg::SawStatus& s, const auto&) {
-          std::lock_guard lock(seen_.m);
-          seen_.status.push_back(s);
-          seen_.cv.notify_all();
-        },
-        1000));  // every sample, not just the latest
-    ASSERT_TRUE(line_.dds().subscribe<msg::SawCutPubSubType>(topic("cut"), lb::ddsl::QosKind::event,
-                                                             [this](const msg::SawCut& c, const auto&) {
-                                                               std::lock_guard lock(seen_.m);
-                                                               seen_.cuts.push_back(c);
-                                                               seen_.cv.notify_all();
-                                                             }));
+    ASSERT_TRUE(status_.subscribe(line_.dds(), topic("status"), lb::ddsl::QosKind::state));
+    ASSERT_TRUE(cuts_.subscribe(line_.dds(), topic("cut"), lb::ddsl::QosKind::event));
     ASSERT_TRUE(setpoints_.open(line_.dds(), "itest", "saw1"));
 
     // The device is up and both directions of the set-value exchange are matched.
-    ASSERT_TRUE(seen_.wait(15s, [this] {
-      return !seen_.status.empty() && seen_.status.back().health().online() &&
-             seen_.status.back().health().nmt_state() == msg::NMT_OPERATIONAL;
+    ASSERT_TRUE(status_.wait_last(15s, [](const msg::SawStatus& s) {
+      return s.health().online() && s.health().nmt_state() == msg::NMT_OPERATIONAL;
     })) << logs();
     setpoints_.wait_matched(10s);
     ASSERT_GT(setpoints_.writer().matched(), 0);
@@ -98,22 +88,7 @@ class SawLine : public ::testing::Test {
     return answer.value_or(msg::SetpointResult{});
   }
 
-  // The saw counter in the last status sample before each rising edge of "saw cutting", taken from
-  // the status topic alone: where the saw really cut.
-  std::vector<double> cut_lengths_from_status(std::size_t from) {
-    std::lock_guard lock(seen_.m);
-    std::vector<double> lengths;
-    for (std::size_t i = std::max<std::size_t>(from, 1); i < seen_.status.size(); ++i) {
-      if (seen_.status[i].status_word().saw_cutting() && !seen_.status[i - 1].status_word().saw_cutting()) {
-        lengths.push_back(seen_.status[i - 1].actual_saw_counter_m());
-      }
-    }
-    return lengths;
-  }
-  std::size_t status_count() {
-    std::lock_guard lock(seen_.m);
-    return seen_.status.size();
-  }
+  std::size_t status_count() { return status_.size(); }
 
   // linebridge-cli with this line's configuration, run to its end: exit code and output.
   struct CliRun {
@@ -125,13 +100,13 @@ class SawLine : public ::testing::Test {
     argv.insert(argv.end(), args.begin(), args.end());
     lb::test::ChildProcess p(argv, ::testing::TempDir() + "/cli_" + std::to_string(::getpid()) + "_" +
                                        std::to_string(++cli_runs_) + ".log");
-    const auto deadline = Clock::now() + 20s;
-    while (p.running() && Clock::now() < deadline) std::this_thread::sleep_for(20ms);
+    lb::test::eventually(20s, [&] { return !p.running(); });
     const int status = p.stop();
     return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, p.log()};
   }
 
-  Observed seen_;  // before line_: its participant (and every listener call) goes first
+  lb::test::Collector<msg::SawStatusPubSubType> status_;  // every sample, not just the latest
+  lb::test::Collector<msg::SawCutPubSubType> cuts_;
   lb::test::SawSetpoints setpoints_;
   lb::test::LineHarness line_{"itest", 3};
   int cli_runs_ = 0;
@@ -149,37 +124,24 @@ TEST_F(SawLine, ProductLengthSetOverDdsIsWhereTheSawCuts) {
   const auto accepted = send(true, 100.0, 0.5);
   ASSERT_TRUE(accepted.accepted()) << accepted.reason();
   // Cut events and status are separate topics: wait for both to show three cuts.
-  ASSERT_TRUE(seen_.wait(15s, [&] { return seen_.cuts.size() >= 3; })) << logs();
-  const auto deadline = Clock::now() + 5s;
-  while (cut_lengths_from_status(0).size() < 3 && Clock::now() < deadline) std::this_thread::sleep_for(20ms);
-  const auto lengths = cut_lengths_from_status(0);
+  ASSERT_TRUE(cuts_.wait(15s, [](const auto& cuts) { return cuts.size() >= 3; })) << logs();
+  status_.wait(5s, [](const Statuses& v) { return cut_lengths(v, 0).size() >= 3; });
+  const auto lengths = cut_lengths(status_.samples(), 0);
   ASSERT_GE(lengths.size(), 3u);
   for (double l : lengths) EXPECT_PRED2(near_length, l, 0.5);
-  {
-    std::lock_guard lock(seen_.m);
-    for (const auto& c : seen_.cuts) {
-      EXPECT_DOUBLE_EQ(c.length_in_force_m(), 0.5);
-      EXPECT_PRED2(near_length, c.counter_before_cut_m(), 0.5);
-    }
-    EXPECT_DOUBLE_EQ(seen_.status.back().product_length_set_m(), 0.5);
-    EXPECT_NEAR(seen_.status.back().product_speed_m_per_min(), 60.0, 1e-9);
+  for (const auto& c : cuts_.samples()) {
+    EXPECT_DOUBLE_EQ(c.length_in_force_m(), 0.5);
+    EXPECT_PRED2(near_length, c.counter_before_cut_m(), 0.5);
   }
+  EXPECT_DOUBLE_EQ(status_.samples().back().product_length_set_m(), 0.5);
+  EXPECT_NEAR(status_.samples().back().product_speed_m_per_min(), 60.0, 1e-9);
 
   // A new length is taken after the next cut (change-of-length toggle, CiA 420-4 6020h bit 2).
   const std::size_t before = status_count();
   const auto changed = send(true, 100.0, 0.3);
   ASSERT_TRUE(changed.accepted()) << changed.reason();
-  ASSERT_TRUE(seen_.wait(15s, [&] {
-    std::size_t short_cuts = 0;
-    for (std::size_t i = std::max<std::size_t>(before, 1); i < seen_.status.size(); ++i) {
-      if (seen_.status[i].status_word().saw_cutting() && !seen_.status[i - 1].status_word().saw_cutting() &&
-          seen_.status[i - 1].actual_saw_counter_m() < 0.4) {
-        ++short_cuts;
-      }
-    }
-    return short_cuts >= 2;
-  })) << logs();
-  const auto after = cut_lengths_from_status(before);
+  ASSERT_TRUE(status_.wait(15s, [&](const Statuses& v) { return cut_lengths(v, before, 0.4).size() >= 2; })) << logs();
+  const auto after = cut_lengths(status_.samples(), before);
   ASSERT_GE(after.size(), 3u);
   EXPECT_PRED2(near_length, after.front(), 0.5) << "the new length must not apply before the next cut";
   bool switched = false;
@@ -192,8 +154,7 @@ TEST_F(SawLine, ProductLengthSetOverDdsIsWhereTheSawCuts) {
   }
   EXPECT_TRUE(switched);
   // The cut events agree with the status topic: each reports the length it was made at.
-  std::lock_guard lock(seen_.m);
-  for (const auto& c : seen_.cuts) {
+  for (const auto& c : cuts_.samples()) {
     EXPECT_PRED2(near_length, c.counter_before_cut_m(), c.length_in_force_m()) << "cut #" << c.cut_count();
   }
 }
@@ -207,9 +168,11 @@ TEST_F(SawLine, OutOfRangeSetValueIsRefusedAndNeverReachesCan) {
   EXPECT_FALSE(negative.accepted());
   EXPECT_NE(negative.reason().find("product_length_m"), std::string::npos) << negative.reason();
 
-  std::this_thread::sleep_for(300ms);  // 15 SYNC cycles of RPDO1
+  // The marker before the negative check: RPDO1 frames sent after both refusals (one per SYNC).
+  ASSERT_TRUE(lb::test::wait_frames_after(line_.spy(), 0x200 + kNode, lb::test::bus_now_ns(), 5))
+      << "the bridge sends RPDO1 at every SYNC\n"
+      << logs();
   const auto rpdos = line_.spy().frames(0x200 + kNode);
-  ASSERT_GE(rpdos.size(), 5u) << "the bridge sends RPDO1 at every SYNC";
   for (const auto& f : rpdos) {
     ASSERT_EQ(f.len, 8);
     EXPECT_EQ(f.data, (std::array<std::uint8_t, 8>{})) << "a refused set value changed RPDO1";
@@ -220,22 +183,17 @@ TEST_F(SawLine, OutOfRangeSetValueIsRefusedAndNeverReachesCan) {
   const auto ok = send(true, 50.0, 0.5);
   ASSERT_TRUE(ok.accepted()) << ok.reason();
   const std::array<std::uint8_t, 8> expected{0x05, 0x00, 0x88, 0x13, 0x88, 0x13, 0x00, 0x00};
-  const auto deadline = Clock::now() + 2s;
-  bool seen = false;
-  while (!seen && Clock::now() < deadline) {
-    for (const auto& f : line_.spy().frames(0x200 + kNode)) seen = seen || f.data == expected;
-    std::this_thread::sleep_for(20ms);
-  }
-  EXPECT_TRUE(seen) << "RPDO1 05 00 88 13 88 13 00 00 not seen";
+  EXPECT_TRUE(lb::test::wait_frame(line_.spy(), 0x200 + kNode, [&](const lb::can::CanFrame& f) {
+    return f.data == expected;
+  })) << "RPDO1 05 00 88 13 88 13 00 00 not seen";
 }
 
 TEST_F(SawLine, ShortPdoIsCountedNotDecoded) {
   // A 4-byte TPDO2 (the mapping needs 8) from a misbehaving node: counted, never published as values.
   ASSERT_TRUE(line_.spy().send(lb::can::make_frame(0x280 + kNode, {0xFF, 0xFF, 0xFF, 0x7F})));
-  ASSERT_TRUE(seen_.wait(5s, [&] { return seen_.status.back().pdo_length_errors() >= 1; })) << logs();
-  {
-    std::lock_guard lock(seen_.m);
-    for (const auto& s : seen_.status) EXPECT_LT(std::abs(s.actual_saw_counter_m()), 1000.0) << "garbage was decoded";
+  ASSERT_TRUE(status_.wait_last(10s, [](const msg::SawStatus& s) { return s.pdo_length_errors() >= 1; })) << logs();
+  for (const auto& s : status_.samples()) {
+    EXPECT_LT(std::abs(s.actual_saw_counter_m()), 1000.0) << "garbage was decoded";
   }
   EXPECT_TRUE(line_.bridge().running());
   EXPECT_NE(line_.bridge().log().find("not decoded"), std::string::npos) << logs();
@@ -254,9 +212,9 @@ TEST_F(SawLine, CliCommandsReachTheSawThroughTheLineWideServices) {
   EXPECT_EQ(cut.exit_code, 0) << cut.output << logs();
   EXPECT_NE(cut.output.find("manual_cut: on the bus in "), std::string::npos) << cut.output;
   // The status shows the bit while it is held.
-  EXPECT_TRUE(seen_.wait(5s, [&] {
-    for (std::size_t i = before; i < seen_.status.size(); ++i) {
-      if (seen_.status[i].control_word().manual_cut()) return true;
+  EXPECT_TRUE(status_.wait(5s, [&](const Statuses& v) {
+    for (std::size_t i = before; i < v.size(); ++i) {
+      if (v[i].control_word().manual_cut()) return true;
     }
     return false;
   })) << logs();

@@ -27,6 +27,8 @@
 #include "support/bus_spy.hpp"
 #include "support/child_process.hpp"
 #include "support/eventually.hpp"
+#include "support/secured_line_yaml.hpp"
+#include "support/spy_waits.hpp"
 #include "support/test_pki.hpp"
 
 namespace msg = linebridge_msgs::msg;
@@ -90,22 +92,12 @@ class SecuredLine : public ::testing::Test {
   }
 
   std::string line_yaml(const std::string& security) const {
-    return "line: sec\n"
-           "dds:\n"
-           "  domain: " +
-           std::to_string(kDomain) +
-           "\n"
-           "  localhost_only: true\n" +
-           security +
-           "buses:\n"
-           "  - {name: ext, interface: '" +
-           bus_uri_ +
-           "', role: master, sync_period_ms: 20}\n"
-           "devices:\n"
-           "  - {name: saw1, bus: ext, node_id: 5, profile: cia420-4, version: '3.1', heartbeat_timeout_ms: 400,\n"
-           "     simulation: {heartbeat_period_ms: 100}}\n"
-           "  - {name: saw2, bus: ext, node_id: 6, profile: cia420-4, version: '3.1', heartbeat_timeout_ms: 400,\n"
-           "     simulation: {heartbeat_period_ms: 100}}\n";
+    return lb::test::secured_line_yaml(
+        "sec", kDomain, security, bus_uri_,
+        "  - {name: saw1, bus: ext, node_id: 5, profile: cia420-4, version: '3.1', heartbeat_timeout_ms: 400,\n"
+        "     simulation: {heartbeat_period_ms: 100}}\n"
+        "  - {name: saw2, bus: ext, node_id: 6, profile: cia420-4, version: '3.1', heartbeat_timeout_ms: 400,\n"
+        "     simulation: {heartbeat_period_ms: 100}}\n");
   }
 
   // The simulator, the bridge on the secured line, and an observer that has seen both saws online.
@@ -229,7 +221,9 @@ TEST_F(SecuredLine, OperatorSetsAndCommandsItsOwnSawOnly) {
   const auto other_press = cli(op, {"press", "saw2", "manual_cut", "--timeout", "4"});
   EXPECT_NE(other_press.exit_code, 0) << other_press.output;
   EXPECT_NE(other_press.output.find("partition 'saw2'"), std::string::npos) << other_press.output;
-  std::this_thread::sleep_for(300ms);
+  // The marker before the negative check: RPDO1 frames of saw2 the bridge sent after both refusals
+  // (one per SYNC) would carry a set value that had got through.
+  ASSERT_TRUE(lb::test::wait_frames_after(*spy_, kRpdo1Saw2, lb::test::bus_now_ns(), 5)) << logs();
   EXPECT_EQ(payloads(*spy_, kRpdo1Saw2).size(), 1u) << "RPDO1 of saw2 changed";
 }
 
@@ -244,13 +238,24 @@ TEST_F(SecuredLine, OperatorCannotCallSdoWriteEngineerCan) {
   EXPECT_NE(refused.output.find("sdo_write"), std::string::npos) << refused.output;
   const auto get = cli(op, {"get", "saw1", "saw_cut_depth", "--timeout", "4"});
   EXPECT_NE(get.exit_code, 0) << get.output;
-  std::this_thread::sleep_for(300ms);
-  EXPECT_TRUE(spy_->frames(kSdoRequestSaw1).empty()) << "an SDO request reached saw1";
 
-  // The same request from an engineer: the control that shows the refusal was the role's.
+  // The same request from an engineer: the control that shows the refusal was the role's. Its
+  // upload of 1008h:00h is also the marker: asked after both refusals, so a request they had let
+  // through would be on the bus before it. Every SDO request saw1 got is the engineer's.
   const auto read = cli(eng, {"sdo-read", "saw1", "0x1008", "0", "VISIBLE_STRING"});
   EXPECT_EQ(read.exit_code, 0) << read.output << logs();
-  EXPECT_FALSE(spy_->frames(kSdoRequestSaw1).empty());
+  const auto upload_1008 = [](const lb::can::CanFrame& f) {
+    return f.len == 8 && f.data[0] == 0x40 && f.data[1] == 0x08 && f.data[2] == 0x10 && f.data[3] == 0x00;
+  };
+  ASSERT_TRUE(lb::test::wait_frame(*spy_, kSdoRequestSaw1, upload_1008)) << "the engineer's read never reached CAN";
+  const auto requests = spy_->frames(kSdoRequestSaw1);
+  EXPECT_TRUE(upload_1008(requests.front())) << "an SDO request reached saw1 before the engineer's";
+  for (const auto& f : requests) {
+    const int ccs = f.data[0] >> 5;  // 1: initiate download, 2: initiate upload (CiA 301)
+    if (ccs == 1 || ccs == 2) {
+      EXPECT_TRUE(upload_1008(f)) << "an SDO request other than the engineer's reached saw1";
+    }
+  }
 }
 
 TEST_F(SecuredLine, ObserverCannotPublishASetValueOnEitherSide) {
@@ -275,10 +280,13 @@ TEST_F(SecuredLine, ObserverCannotPublishASetValueOnEitherSide) {
   auto w = r->writer<msg::SawSetpointPubSubType>(topic("saw1", "setpoint"), lb::ddsl::QosKind::command);
   ASSERT_TRUE(w) << "the local check was expected to pass";
   spy_->clear();
+  // Paces the rogue's writes over 3 s, past the secured handshake (~1.1 s): a stream of attempts,
+  // not a wait. The check below is negative; the observer's own status keeps the line proven alive.
   for (int i = 0; i < 30; ++i) {
     w->write(saw_setpoint(1000 + i, 80, 0.7));
     std::this_thread::sleep_for(100ms);
   }
+  ASSERT_TRUE(lb::test::wait_frames_after(*spy_, kRpdo1Saw1, lb::test::bus_now_ns(), 5)) << logs();
   EXPECT_EQ(w->matched(), 0) << "the bridge matched a writer its permissions do not allow";
   EXPECT_EQ(payloads(*spy_, kRpdo1Saw1), (std::set<std::array<std::uint8_t, 8>>{{}})) << "RPDO1 of saw1 changed";
 }
@@ -310,6 +318,8 @@ TEST_F(SecuredLine, UnauthenticatedAndForeignParticipantsReceiveNothingAndChange
     std::lock_guard lock(m_);
     return status_samples_;
   }();
+  // Paces the intruders' writes over 3 s, past the secured handshake (~1.1 s): a stream of
+  // attempts, not a wait. The checks below are negative, after the markers that follow.
   for (int i = 0; i < 30; ++i) {
     for (auto& w : writers) w.write(saw_setpoint(2000 + i, 90, 0.9));
     std::this_thread::sleep_for(100ms);
@@ -321,6 +331,8 @@ TEST_F(SecuredLine, UnauthenticatedAndForeignParticipantsReceiveNothingAndChange
   stop.device("saw1");
   stop.command(srv::NMT_STOP);
   EXPECT_FALSE((*client)->call(stop, 2s)) << "an unauthenticated participant reached the NMT service";
+  // The marker: RPDO1 frames of saw1 sent after every attempt (one per SYNC).
+  ASSERT_TRUE(lb::test::wait_frames_after(*spy_, kRpdo1Saw1, lb::test::bus_now_ns(), 5)) << logs();
 
   EXPECT_EQ(received.load(), 0) << "status or diagnostics reached an unauthenticated or foreign participant";
   for (auto& w : writers) EXPECT_EQ(w.matched(), 0);
@@ -363,9 +375,12 @@ TEST_F(SecuredLine, ALineWideRequestCountsOnlyInItsDevicesPartition) {
   reply = request<srv::Command_RequestPubSubType, srv::Command_ResponsePubSubType>(*dds, *in_saw1, "command", req, 5s);
   ASSERT_TRUE(reply);
   EXPECT_TRUE(reply->success()) << reply->message();
-  std::this_thread::sleep_for(300ms);
+  // saw1's manual cut on the bus, and RPDO1 frames of saw2 sent after both answers: the markers
+  // before the negative check (the request naming saw2 was answered first).
+  EXPECT_TRUE(eventually(10s, [&] { return payloads(*spy_, kRpdo1Saw1).size() > 1; }))
+      << "saw1's manual cut never reached CAN";
+  ASSERT_TRUE(lb::test::wait_frames_after(*spy_, kRpdo1Saw2, lb::test::bus_now_ns(), 5)) << logs();
   EXPECT_EQ(payloads(*spy_, kRpdo1Saw2).size(), 1u) << "saw2's control word changed";
-  EXPECT_GT(payloads(*spy_, kRpdo1Saw1).size(), 1u) << "saw1's manual cut never reached CAN";
 }
 
 // The remote side of the partition check, and a writer that changes its partition after matching.
@@ -438,14 +453,36 @@ TEST_F(SecuredLine, TheBridgeJudgesPartitionsOnItsOwnSide) {
   moved.partition().clear();
   moved.partition().push_back("saw2");
   ASSERT_EQ(mover_pub->set_qos(moved), eprosima::fastrtps::types::ReturnCode_t::RETCODE_OK);
-  std::this_thread::sleep_for(1500ms);  // the change reaches the bridge by discovery
 
-  spy_->clear();
   srv::Command_Request saw2;
   saw2.device("saw2");
   saw2.command("manual_cut");
   srv::Command_Request saw1 = saw2;
   saw1.device("saw1");
+  // The change reaches the bridge by discovery. Waited for by what the bridge answers: the mover's
+  // request for saw1, its old partition, is taken until the bridge knows the writer left saw1 and
+  // refused from then on (one request at a time, each answered before the next).
+  const auto mover_answers = [&] {
+    std::lock_guard lock(m);
+    return answers[mover->guid()];
+  };
+  ASSERT_TRUE(eventually(30s,
+                         [&] {
+                           const std::size_t asked = mover_answers().size();
+                           mover->write(&saw1);
+                           if (!eventually(10s, [&] { return mover_answers().size() > asked; })) return false;
+                           const auto last = mover_answers().back();
+                           return !last.success() && last.message().find("partition 'saw1'") != std::string::npos;
+                         }))
+      << "the bridge never refused the moved writer's request for saw1\n"
+      << logs();
+  {
+    std::lock_guard lock(m);
+    answers[mover->guid()].clear();
+  }
+
+  spy_->clear();
+  // Paces five attempts from each writer over a second: a stream of requests, not a wait.
   for (int i = 0; i < 5; ++i) {
     in_saw2->write(saw2);
     mover->write(&saw2);
@@ -456,7 +493,12 @@ TEST_F(SecuredLine, TheBridgeJudgesPartitionsOnItsOwnSide) {
     std::lock_guard lock(m);
     return !answers[in_saw1->guid()].empty();
   })) << logs();
-  std::this_thread::sleep_for(500ms);
+  // The markers before the negative check: the control's manual cut on the bus (asked after every
+  // attempt for saw2), and RPDO1 frames of saw2 sent after its answer.
+  EXPECT_TRUE(eventually(10s, [&] { return payloads(*spy_, kRpdo1Saw1).size() > 1; }))
+      << "the control's manual cut never reached CAN\n"
+      << logs();
+  ASSERT_TRUE(lb::test::wait_frames_after(*spy_, kRpdo1Saw2, lb::test::bus_now_ns(), 5)) << logs();
   EXPECT_EQ(payloads(*spy_, kRpdo1Saw2).size(), 1u) << "a request for saw2 reached CAN\n" << logs();
   std::lock_guard lock(m);
   EXPECT_TRUE(answers[in_saw1->guid()].front().success()) << answers[in_saw1->guid()].front().message();
@@ -501,7 +543,7 @@ TEST_F(SecuredLine, ARevokedOperatorIsRefusedOnceTheBridgeRestartsAndTheOthersKe
     const auto end = Clock::now() + 60s;
     CliRun r = set(config, identity, percent, "20");
     while (r.output.find("has not passed its boot") != std::string::npos && Clock::now() < end) {
-      std::this_thread::sleep_for(200ms);
+      std::this_thread::sleep_for(200ms);  // between two attempts, not a window anything is counted in
       r = set(config, identity, percent, "20");
     }
     return r;

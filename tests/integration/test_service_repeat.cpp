@@ -12,8 +12,10 @@
 
 #include "msgs/commonPubSubTypes.h"
 #include "msgs/sawPubSubTypes.h"
+#include "support/eventually.hpp"
 #include "support/line_harness.hpp"
 #include "support/raw_command_client.hpp"
+#include "support/spy_waits.hpp"
 
 namespace msg = linebridge_msgs::msg;
 namespace srv = linebridge_msgs::srv;
@@ -27,15 +29,33 @@ namespace {
 constexpr unsigned kManualCutBit = 3;  // saw control word 6040h (profile-decisions.md, saw 1.0 order)
 
 // Separate runs of RPDO1 frames of the node with the bit set: one per press.
+bool has_bit(const lb::can::CanFrame& f, unsigned bit) {
+  return f.len >= 2 && ((f.data[0] | f.data[1] << 8) >> bit & 1U) != 0;
+}
+
 unsigned presses(lb::test::BusSpy& spy, std::uint8_t node, unsigned bit) {
   unsigned runs = 0;
   bool in = false;
   for (const auto& f : spy.frames(0x200u + node)) {
-    const bool on = f.len >= 2 && ((f.data[0] | f.data[1] << 8) >> bit & 1U) != 0;
+    const bool on = has_bit(f, bit);
     if (on && !in) ++runs;
     in = on;
   }
   return runs;
+}
+
+// A press stamped after `after_ns` and the frame that clears it, both at the spy.
+bool pressed_and_released_after(lb::test::BusSpy& spy, std::uint8_t node, unsigned bit, std::int64_t after_ns) {
+  bool pressed = false;
+  for (const auto& f : spy.frames(0x200u + node)) {
+    if (f.timestamp_ns <= after_ns) continue;
+    if (has_bit(f, bit)) {
+      pressed = true;
+    } else if (pressed) {
+      return true;
+    }
+  }
+  return false;
 }
 
 }  // namespace
@@ -85,10 +105,14 @@ TEST(ServiceRepeat, ACommandAskedAgainIsPressedOnceAndAnsweredWithTheFirstAnswer
 
   // A new request (no related identity) is pressed again: the count below sees a second press.
   WriteParams next_params;
+  const std::int64_t asked_ns = lb::test::bus_now_ns();
   ASSERT_TRUE(client.write(cut, next_params));
   ASSERT_TRUE(client.wait_for(next_params.sample_identity(), 1, 10s)) << line.logs();
   EXPECT_TRUE(client.of(next_params.sample_identity()).front().success());
-  std::this_thread::sleep_for(300ms);  // the bit's clearing frame reaches the spy
+  ASSERT_TRUE(
+      lb::test::eventually(10s, [&] { return pressed_and_released_after(line.spy(), 3, kManualCutBit, asked_ns); }))
+      << "the new press and its clearing frame never reached the spy\n"
+      << line.logs();
   EXPECT_EQ(presses(line.spy(), 3, kManualCutBit), 2u) << "one press per request, none per repeat";
 
   // A "repeat" that names the first request but asks something else is not that request: it is

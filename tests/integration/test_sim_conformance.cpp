@@ -460,6 +460,8 @@ TEST_F(SimConformance, CobIdSyncIsWritable) {
   ASSERT_TRUE(master_->write(kSaw, 0x1005, 0, 0x81, 4).ok);
   EXPECT_EQ(master_->read(kSaw, 0x1005, 0).value, 0x81u);
   master_->clear();
+  // Both paced 20 ms apart, as a master would send them (a stream, not a wait): what counts is
+  // the order of frames below, not the time.
   master_->syncs(5, 20ms);  // on 080h: no longer SYNC for the saw
   for (int i = 0; i < 5; ++i) {
     master_->send(lb::can::make_frame(0x081, {}));
@@ -495,15 +497,19 @@ TEST_F(SimConformance, EventDrivenTpdoObeysInhibitTimeAndEventTimer) {
   master_->nmt(kStart, kCorrugator);
   master_->clear();
   master_->sync_every(10ms);  // the manufacturer word changes at every SYNC: events come faster than allowed
-  std::this_thread::sleep_for(1500ms);
+  // Twenty TPDOs waited for (at most one per 50 ms: a second or more), then the SYNCs stop.
+  const bool enough = master_->wait_for([&] { return master_->from(0x187).size() >= 20; }, 20s);
   master_->stop_sync();
+  ASSERT_TRUE(enough) << log();
   const auto busy = master_->from(0x187);
-  ASSERT_GE(busy.size(), 10u) << log();
   for (const auto& s : busy) EXPECT_EQ(s.frame.len, 8) << "6030h, 6000h, 6006h (16 each) + the manufacturer word (16)";
   // Gaps are measured where the frames arrive: on a loaded machine a late delivery shortens the
   // next gap, so single gaps prove little. Without the inhibit time the frames would come every
-  // 10 ms (one per SYNC: 150 in 1.5 s, median gap 10 ms); with it at most one per 50 ms.
-  EXPECT_LE(busy.size(), 1500u / 50u + 2u) << "inhibit time 50 ms";
+  // 10 ms (one per SYNC, median gap 10 ms); with it at most one per 50 ms over the span they
+  // cover (first to last arrival; two more for a late first and an early last delivery).
+  const auto span_ms = std::chrono::duration_cast<std::chrono::milliseconds>(busy.back().at - busy.front().at).count();
+  EXPECT_LE(busy.size(), static_cast<std::size_t>(span_ms / 50) + 2u)
+      << "inhibit time 50 ms: " << busy.size() << " frames in " << span_ms << " ms";
   EXPECT_GE(median(gaps_ms(busy)), 45.0) << "inhibit time 50 ms";
   for (const double gap : gaps_ms(busy)) EXPECT_LE(gap, 300.0 + 100.0) << "event timer 300 ms";
   EXPECT_NE(bytes(busy.front().frame), bytes(busy.back().frame));
@@ -513,7 +519,9 @@ TEST_F(SimConformance, EventDrivenTpdoObeysInhibitTimeAndEventTimer) {
 
   // No more SYNC, nothing changes: only the event timer sends. Six frames waited for (a loaded
   // machine delays them); the median of their gaps is the event timer's period (a frame sent on
-  // every change or SYNC would shorten it, a stopped timer would leave fewer than six).
+  // every change or SYNC would shorten it, a stopped timer would leave fewer than six). The pause
+  // lets the last SYNC's event (inhibited up to 50 ms) pass before the count starts; a stray one
+  // would still be a single short gap, which the median does not follow.
   std::this_thread::sleep_for(100ms);
   master_->clear();
   ASSERT_TRUE(master_->wait_for([&] { return master_->from(0x187).size() >= 6; }, 15s)) << log();
@@ -581,12 +589,17 @@ TEST_F(SimConformance, ValidBitAndExtendedIdentifiers) {
     EXPECT_NE(s.frame.data[2], 0) << "6010h bits 16..23: winding number 1 to 50 (4.6: one TPDO per winding)";
   }
   EXPECT_TRUE(master_->from(0x186).empty());
-  // Not valid: nothing at all.
+  // Not valid: nothing at all. The write is confirmed once it took effect; a TPDO already queued
+  // then may still arrive, so the count starts at the feeder's next heartbeat (706h, every 100 ms),
+  // and six more heartbeats (half a second) are the marker for the negative check.
   write(kFeeder, 0x1800, 1, 0xA1ABCDE6, 4);
-  std::this_thread::sleep_for(100ms);
   master_->clear();
-  std::this_thread::sleep_for(600ms);
-  EXPECT_TRUE(master_->from(0x01ABCDE6, true).empty());
+  ASSERT_TRUE(master_->wait_for([&] { return !master_->from(0x706).empty(); }, 10s)) << log();
+  const auto first_beat = master_->from(0x706).front().at;
+  ASSERT_TRUE(master_->wait_for([&] { return master_->from(0x706).size() >= 7; }, 10s)) << log();
+  for (const auto& s : master_->from(0x01ABCDE6, true)) {
+    EXPECT_LT(s.at, first_beat) << "a TPDO with its COB-ID not valid";
+  }
   EXPECT_TRUE(master_->from(0x186).empty());
 }
 
@@ -793,8 +806,12 @@ TEST_F(SimConformance, NmtResetsRestorePowerOnValues) {
   EXPECT_EQ(emcy[0].frame.data[1], 0x82);
 
   // Stopped: the SDO server is silent, the client times out.
+  master_->clear();
   master_->nmt(kStop, kSaw);
-  std::this_thread::sleep_for(50ms);
+  // Stopped once its heartbeat says so (04h); the checks below count from there.
+  ASSERT_TRUE(master_->wait_frame(
+      0x705, [](const CanFrame& f) { return f.len == 1 && f.data[0] == 0x04; }, 10s))
+      << log();
   master_->clear();
   const auto silent = master_->read(kSaw, 0x1000, 0);
   EXPECT_FALSE(silent.ok);
@@ -887,6 +904,22 @@ TEST_F(SimConformance, SilentResetSendsNoBootUp) {
   EXPECT_EQ(read(kSaw, 0x6006, 0), 12345u);
   master_->clear();
   master_->syncs(3, 20ms);
+  // The marker: a heartbeat after the last SYNC (the device answers in order; a TPDO1 for a SYNC
+  // would be before it).
+  ASSERT_TRUE(master_->wait_for(
+      [&] {
+        bool after_sync = false;
+        for (const auto& f : master_->frames()) {
+          if (f.ours && f.frame.id == 0x080) {
+            after_sync = false;
+          } else if (!f.ours && f.frame.id == 0x705) {
+            after_sync = true;
+          }
+        }
+        return after_sync;
+      },
+      10s))
+      << log();
   EXPECT_TRUE(master_->from(0x185).empty()) << "pre-operational: no PDO";
 
   master_->nmt(kStart, kSaw);

@@ -17,6 +17,7 @@
 #include "support/child_process.hpp"
 #include "support/eds_text.hpp"
 #include "support/run_command.hpp"
+#include "support/spy_waits.hpp"
 
 using lb::test::run_command;
 
@@ -255,10 +256,7 @@ TEST(NetnsJoin, ACommandJoinsARunningLinesNamespaceAndSeesItsBus) {
     return std::filesystem::read_symlink("/proc/" + pid + "/ns/net", ec).string();
   };
   const auto pid = std::to_string(sim.pid());
-  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(30);
-  while (ns_of(pid) == ns_of("self") && std::chrono::steady_clock::now() < deadline) {
-    std::this_thread::sleep_for(std::chrono::milliseconds(20));
-  }
+  lb::test::eventually(std::chrono::seconds(30), [&] { return ns_of(pid) != ns_of("self"); });
   ASSERT_NE(ns_of(pid), ns_of("self")) << sim.log();
   const std::string netns_run = std::string(LB_SOURCE_DIR) + "/launch_scripts/netns-run.sh";
   auto r = run_command({netns_run, "--join", pid, LB_BIN_CLI, "--config", line, "candump", "weaving", "--count", "3",
@@ -393,7 +391,9 @@ TEST(Candump, WatchesAVirtualBusOfTheLine) {
                                               "cia420-4, version: '3.1', simulation: {heartbeat_period_ms: 50}}\n");
   lb::test::ChildProcess sim({LB_BIN_SIM, "--config", line, "--duration", "20"},
                              ::testing::TempDir() + "/candump_sim_" + tag() + ".log");
-  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  // The simulator is on the bus (its first heartbeat at a passive member) before candump joins.
+  lb::test::BusSpy spy(bus);
+  ASSERT_TRUE(lb::test::wait_frames(spy, 0x703, 1, std::chrono::seconds(20))) << sim.log();
   auto r = run_command({LB_BIN_CLI, "--config", line, "candump", "weaving", "--count", "3", "--duration", "10"});
   EXPECT_EQ(r.exit_code, 0) << r.output << sim.log();
   EXPECT_NE(r.output.find(" weaving 703#7F"), std::string::npos) << r.output;

@@ -17,6 +17,7 @@
 #include "can/recording_bus.hpp"
 #include "can/socketcan_bus.hpp"
 #include "canopen/bus_loop.hpp"
+#include "support/drain_bus.hpp"
 #include "vcan_tools.hpp"
 
 namespace lb::can {
@@ -25,31 +26,13 @@ namespace {
 using namespace std::chrono_literals;
 using Clock = std::chrono::steady_clock;
 using test::cansend;
+using test::drain;
 using test::sh;
 
 std::unique_ptr<Bus> must_open(const std::string& ifname) {
   auto bus = SocketCanBus::open(ifname);
   if (!bus) throw std::runtime_error(bus.error().message);
   return std::move(*bus);
-}
-
-std::vector<CanFrame> drain(Bus& bus, std::size_t count, std::chrono::milliseconds timeout = 3000ms) {
-  std::vector<CanFrame> out;
-  const auto deadline = Clock::now() + timeout;
-  while (out.size() < count && Clock::now() < deadline) {
-    auto r = bus.receive();
-    if (!r) {
-      ADD_FAILURE() << r.error().message;
-      return out;
-    }
-    if (*r) {
-      out.push_back(**r);
-      continue;
-    }
-    pollfd p{bus.fd(), POLLIN, 0};
-    ::poll(&p, 1, 50);
-  }
-  return out;
 }
 
 bool same_frame(const CanFrame& a, const CanFrame& b) {
