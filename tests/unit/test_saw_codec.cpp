@@ -15,20 +15,17 @@
 #include "profiles/line_config.hpp"
 #include "profiles/profile_registry.hpp"
 #include "support/codec_pdo.hpp"
+#include "support/unit_codec_fixture.hpp"
 
 namespace msg = linebridge_msgs::msg;
 using lb::gateways::SawCodec;
 
 namespace {
 
-class SawCodecTest : public ::testing::Test {
+class SawCodecTest : public lb::test::CodecOnProfile<SawCodec> {
  protected:
-  SawCodecTest()
-      : registry_(lb::profiles::ProfileRegistry::builtin()),
-        profile_(*registry_.find("cia420-4", "3.1")),
-        pdos_(lb::profiles::default_pdos(profile_, 3)) {}
+  SawCodecTest() : CodecOnProfile("cia420-4", "3.1", 3) {}
 
-  std::size_t pdo(const std::string& name) const { return lb::test::pdo_index(codec_, name); }
   msg::SawStatus status() const {
     msg::SawStatus s;
     codec_.fill(s);
@@ -47,11 +44,6 @@ class SawCodecTest : public ::testing::Test {
     EXPECT_EQ(codec_.pack(pdo("rpdo1"), out), 8);
     return out;
   }
-
-  lb::profiles::ProfileRegistry registry_;
-  const lb::profiles::Profile& profile_;
-  std::vector<lb::profiles::DevicePdo> pdos_;
-  SawCodec codec_{profile_, pdos_};
 };
 
 }  // namespace
