@@ -55,8 +55,7 @@ class SecurityAudit : public ::testing::Test {
  protected:
   void SetUp() override {
     dir_ = lb::test::fresh_test_dir("security_audit");
-    std::ofstream(dir_ + "/plain.yaml") << line_yaml("");
-    pki_ = std::make_unique<lb::test::TestPki>(dir_ + "/plain.yaml", dir_ + "/pki");
+    pki_ = lb::test::pki_for(dir_, line_yaml(""));
     config_ = dir_ + "/line.yaml";
     std::ofstream(config_) << line_yaml(pki_->security_yaml());
   }

@@ -55,8 +55,7 @@ class Revocation : public ::testing::Test {
  protected:
   void SetUp() override {
     dir_ = lb::test::fresh_test_dir("revocation");
-    std::ofstream(dir_ + "/plain.yaml") << line_yaml("");
-    pki_ = std::make_unique<lb::test::TestPki>(dir_ + "/plain.yaml", dir_ + "/pki");
+    pki_ = lb::test::pki_for(dir_, line_yaml(""));
     crl_ = pki_->dir() + "/ca/identity_crl.pem";
   }
 
