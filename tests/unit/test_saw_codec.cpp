@@ -18,11 +18,10 @@
 #include "support/unit_codec_fixture.hpp"
 
 namespace msg = linebridge_msgs::msg;
-using lb::gateways::SawCodec;
 
 namespace {
 
-class SawCodecTest : public lb::test::CodecOnProfile<SawCodec> {
+class SawCodecTest : public lb::test::CodecOnProfile<lb::gateways::SawCodec> {
  protected:
   SawCodecTest() : CodecOnProfile("cia420-4", "3.1", 3) {}
 
@@ -187,7 +186,7 @@ TEST_F(SawCodecTest, AnObjectBeyondTheTypedStatusIsPublishedByName) {
   for (auto& p : pdos) {
     if (p.name == "tpdo1") p.mapping.push_back(lb::canopen::PdoEntry::from_u32(0x21100010));
   }
-  SawCodec codec(extended, pdos);
+  lb::gateways::SawCodec codec(extended, pdos);
   const std::array<std::uint8_t, 8> frame{0x01, 0x00, 0x10, 0x27, 0x00, 0x00, 0x34, 0x12};  // 2110h = 1234h
   ASSERT_TRUE(codec.receive(lb::test::pdo_index(codec, "tpdo1"), frame));
   msg::SawStatus s;
