@@ -24,13 +24,12 @@ int main(int argc, char** argv) {
   std::uint64_t expect = 10000;
   std::uint64_t warmup = 0;
   double idle_s = 3;
-  std::string out;
   program.add_prefix();
   cli.add_option("--bus", bus_index)->capture_default_str();
   cli.add_option("--expect", expect, "stamped frames to receive, warm-up included")->capture_default_str();
   cli.add_option("--warmup", warmup, "first frames left out of the figures")->capture_default_str();
   cli.add_option("--idle", idle_s, "give up after this long without a frame, seconds")->capture_default_str();
-  cli.add_option("--out", out, "write every latency (ns), one per line");
+  program.add_out();
   program.add_ready("the bus is open");
   if (auto rc = program.parse(argc, argv)) return *rc;
 
@@ -70,7 +69,7 @@ int main(int argc, char** argv) {
       if (received++ >= warmup) latencies.push_back(bench::elapsed_since(*stamp, now));
     }
   }
-  if (!out.empty()) bench::write_latencies(out, latencies);
+  program.save_latencies(latencies);
   const double busy_s = static_cast<double>(last_ns - first_ns) / 1e9;
   std::printf("sink_frames=%llu\nsink_error_frames=%llu\nsink_cpu_pct=%.1f\n",
               static_cast<unsigned long long>(received), static_cast<unsigned long long>(errors),

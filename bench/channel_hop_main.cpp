@@ -31,19 +31,17 @@
 #include <thread>
 #include <vector>
 
+#include "clock.hpp"
+#include "hop_figures.hpp"
+#include "latencies.hpp"
 #include "link/bus_channel.hpp"
 #include "link/dds_channel.hpp"
 
+namespace bench = lb::bench;
 namespace lk = lb::link;
 using namespace std::chrono_literals;
 
 namespace {
-
-std::int64_t mono_ns() {
-  timespec ts{};
-  ::clock_gettime(CLOCK_MONOTONIC, &ts);
-  return std::int64_t{ts.tv_sec} * 1'000'000'000 + ts.tv_nsec;
-}
 
 constexpr std::uint32_t kStatusId = 0;  // bus -> dds (a state endpoint, as a saw's status)
 constexpr std::uint32_t kSetId = 1;     // dds -> bus (a reader, as a set value)
@@ -55,25 +53,6 @@ std::int64_t take(const std::vector<std::uint8_t>& p, std::size_t at) {
   std::int64_t v = 0;
   std::memcpy(&v, p.data() + at, sizeof v);
   return v;
-}
-
-struct Summary {
-  double p50, p99, p999, max;
-};
-Summary summarize(std::vector<std::int64_t> v) {
-  if (v.empty()) return {0, 0, 0, 0};
-  std::sort(v.begin(), v.end());
-  auto at = [&](double q) {
-    return static_cast<double>(v[std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size())))]) /
-           1000.0;
-  };
-  return {at(0.50), at(0.99), at(0.999), static_cast<double>(v.back()) / 1000.0};
-}
-
-void print(const char* key, const std::vector<std::int64_t>& v) {
-  const auto s = summarize(v);
-  std::printf("hop_%s_p50_us=%.1f\nhop_%s_p99_us=%.1f\nhop_%s_p999_us=%.1f\nhop_%s_max_us=%.1f\n", key, s.p50, key,
-              s.p99, key, s.p999, key, s.max);
 }
 
 // The DDS side: connect, wait for Ready, echo every status sample as a set-value sample. Writes
@@ -102,34 +81,26 @@ int dds_side(const std::string& path, const std::string& out, std::uint64_t expe
     if (const auto* d = std::get_if<lk::Declare>(&**m)) (d->writer ? status_id : set_id) = d->id;
     auto* s = std::get_if<lk::Sample>(&**m);
     if (!s || !ready || s->id != status_id) continue;
-    const auto now = mono_ns();
+    const auto now = bench::monotonic_ns();
     lat.push_back(now - take(s->payload, 8));
     lk::Sample echo{set_id, {}, {}, {}, std::move(s->payload)};
-    put(echo.payload, 16, mono_ns());
+    put(echo.payload, 16, bench::monotonic_ns());
     channel->send(echo);
     // The last one: done (the bus side's stop() does not close an accepted channel at once).
     if (static_cast<std::uint64_t>(take(echo.payload, 0)) >= expect) break;
   }
-  if (FILE* f = std::fopen(out.c_str(), "w")) {
-    for (auto v : lat) std::fprintf(f, "%lld\n", static_cast<long long>(v));
-    std::fclose(f);
-  }
-  return 0;
+  return bench::write_latencies(out, lat) ? 0 : 1;
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
   CLI::App cli{"bench-channel-hop: one sample's latency through lk::BusChannel -> lk::DdsChannel and back"};
-  std::uint64_t count = 20000;
-  std::uint64_t warmup = 500;
-  int interval_us = 500;
+  bench::HopRun run;
   std::size_t size = 128;
   std::string dir = "/tmp";
   bool latest = true;
-  cli.add_option("--count", count, "timed samples")->capture_default_str();
-  cli.add_option("--warmup", warmup, "samples first, not timed")->capture_default_str();
-  cli.add_option("--interval-us", interval_us, "pause between one echo and the next sample")->capture_default_str();
+  run.add(cli);
   cli.add_option("--size", size, "payload bytes (>= 24)")->check(CLI::Range(24, 60000))->capture_default_str();
   cli.add_option("--dir", dir, "where the socket goes (a private directory is made in it)")->capture_default_str();
   cli.add_option("--latest", latest,
@@ -146,7 +117,7 @@ int main(int argc, char** argv) {
   const std::string private_dir = tmpl;
   const std::string path = private_dir + "/channel.sock";
   const std::string dds_out = private_dir + "/bus2dds.lat";
-  const std::uint64_t total = count + warmup;
+  const std::uint64_t total = run.total();
 
   // The bus side first (it listens), then the DDS side in a child process (forked before any
   // thread exists in this one).
@@ -177,7 +148,7 @@ int main(int argc, char** argv) {
   lk::Declare set{kSetId, false, false, 0, 0, static_cast<std::uint32_t>(size), "rt/bench/hop/set", "bench::Set", ""};
   const auto status_id = bus.declare(status, latest);
   bus.declare_reader(set, [&](const lk::Sample& s) {
-    const auto now = mono_ns();
+    const auto now = bench::monotonic_ns();
     if (s.payload.size() < 24) return;
     std::lock_guard lock(m);
     rtt.push_back(now - take(s.payload, 8));
@@ -192,7 +163,7 @@ int main(int argc, char** argv) {
   // Until the DDS side is connected and ready: samples until the first echo (not counted).
   for (bool up = false; !up;) {
     put(payload, 0, 0);
-    put(payload, 8, mono_ns());
+    put(payload, 8, bench::monotonic_ns());
     bus.publish(status_id, payload);
     std::unique_lock lock(m);
     up = cv.wait_for(lock, 20ms, [&] { return !rtt.empty(); });
@@ -207,9 +178,9 @@ int main(int argc, char** argv) {
     dds2bus.clear();
   }
   for (std::uint64_t seq = 1; seq <= total; ++seq) {
-    std::this_thread::sleep_for(std::chrono::microseconds(interval_us));
+    std::this_thread::sleep_for(std::chrono::microseconds(run.interval_us));
     put(payload, 0, static_cast<std::int64_t>(seq));
-    put(payload, 8, mono_ns());
+    put(payload, 8, bench::monotonic_ns());
     bus.publish(status_id, payload);
     std::unique_lock lock(m);
     if (!cv.wait_for(lock, 1s, [&] { return echoed == seq; })) ++lost;
@@ -218,26 +189,17 @@ int main(int argc, char** argv) {
   int st = 0;
   ::waitpid(child, &st, 0);
 
-  std::vector<std::int64_t> b2d;
-  if (FILE* f = std::fopen(dds_out.c_str(), "r")) {
-    long long v = 0;
-    while (std::fscanf(f, "%lld", &v) == 1) b2d.push_back(v);
-    std::fclose(f);
-  }
+  auto b2d = bench::read_latencies(dds_out);
   std::filesystem::remove_all(private_dir);
   std::lock_guard lock(m);
-  auto drop_warmup = [&](std::vector<std::int64_t>& v) {
-    // The DDS side also timed the start-up samples before the first echo: keep the last `count`.
-    if (v.size() > count) v.erase(v.begin(), v.end() - static_cast<std::ptrdiff_t>(count));
-  };
-  drop_warmup(rtt);
-  drop_warmup(dds2bus);
-  drop_warmup(b2d);
+  bench::keep_last(rtt, run.count);
+  bench::keep_last(dds2bus, run.count);
+  bench::keep_last(b2d, run.count);
   std::printf("hop_mechanism=unix_seqpacket\nhop_samples=%zu\nhop_lost=%llu\nhop_payload_bytes=%zu\n", rtt.size(),
               static_cast<unsigned long long>(lost), size);
-  print("bus2dds", b2d);
-  print("dds2bus", dds2bus);
-  print("rtt", rtt);
+  bench::print_hop("bus2dds", b2d);
+  bench::print_hop("dds2bus", dds2bus);
+  bench::print_hop("rtt", rtt);
   const auto c = bus.counters();
   std::printf("hop_channel_dropped=%llu\n", static_cast<unsigned long long>(c.dropped_queue_full + c.dropped_no_peer));
   return lost == 0 ? 0 : 1;

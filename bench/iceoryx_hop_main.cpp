@@ -20,18 +20,17 @@
 #include <thread>
 #include <vector>
 
+#include "clock.hpp"
+#include "hop_figures.hpp"
 #include "iceoryx_posh/popo/publisher.hpp"
 #include "iceoryx_posh/popo/subscriber.hpp"
 #include "iceoryx_posh/popo/wait_set.hpp"
 #include "iceoryx_posh/runtime/posh_runtime.hpp"
+#include "latencies.hpp"
+
+namespace bench = lb::bench;
 
 namespace {
-
-std::int64_t mono_ns() {
-  timespec ts{};
-  ::clock_gettime(CLOCK_MONOTONIC, &ts);
-  return std::int64_t{ts.tv_sec} * 1'000'000'000 + ts.tv_nsec;
-}
 
 struct Hop {
   std::int64_t seq = 0;
@@ -40,16 +39,16 @@ struct Hop {
   std::uint8_t fill[104]{};    // 128 bytes, as bench-channel-hop's default
 };
 
-void print(const char* key, std::vector<std::int64_t> v) {
-  std::sort(v.begin(), v.end());
-  auto at = [&](double q) {
-    return v.empty() ? 0.0
-                     : static_cast<double>(
-                           v[std::min(v.size() - 1, static_cast<std::size_t>(q * static_cast<double>(v.size())))]) /
-                           1000.0;
-  };
-  std::printf("hop_%s_p50_us=%.1f\nhop_%s_p99_us=%.1f\nhop_%s_p999_us=%.1f\nhop_%s_max_us=%.1f\n", key, at(0.5), key,
-              at(0.99), key, at(0.999), key, v.empty() ? 0.0 : static_cast<double>(v.back()) / 1000.0);
+// Every sample the subscriber holds, in order, to on_sample (what a WaitSet wake-up announced).
+template <class OnSample>
+void take_all(iox::popo::Subscriber<Hop>& sub, OnSample on_sample) {
+  for (bool got = true; got;) {
+    got = false;
+    sub.take().and_then([&](auto& s) {
+      got = true;
+      on_sample(*s);
+    });
+  }
 }
 
 // The echoing side: every Status sample back as a Set sample; its bus -> DDS times to `out`.
@@ -67,42 +66,28 @@ int dds_side(std::uint64_t total, const char* out) {
   while (last < total) {
     auto n = ws.timedWait(iox::units::Duration::fromSeconds(5));
     if (n.empty()) break;
-    while (true) {
-      bool got = false;
-      sub.take().and_then([&](auto& s) {
-        got = true;
-        const auto now = mono_ns();
-        lat.push_back(now - s->published);
-        last = static_cast<std::uint64_t>(s->seq);
-        const Hop copy = *s;
-        pub.loan().and_then([&](auto& e) {
-          *e = copy;
-          e->echoed = mono_ns();
-          e.publish();
-        });
+    take_all(sub, [&](const Hop& s) {
+      const auto now = bench::monotonic_ns();
+      lat.push_back(now - s.published);
+      last = static_cast<std::uint64_t>(s.seq);
+      pub.loan().and_then([&](auto& e) {
+        *e = s;
+        e->echoed = bench::monotonic_ns();
+        e.publish();
       });
-      if (!got) break;
-    }
+    });
   }
-  if (FILE* f = std::fopen(out, "w")) {
-    for (auto v : lat) std::fprintf(f, "%lld\n", static_cast<long long>(v));
-    std::fclose(f);
-  }
-  return 0;
+  return bench::write_latencies(out, lat) ? 0 : 1;
 }
 
 }  // namespace
 
 int main(int argc, char** argv) {
   CLI::App cli{"bench-iceoryx-hop: one sample's latency through an iceoryx publisher/subscriber pair and back"};
-  std::uint64_t count = 20000;
-  std::uint64_t warmup = 500;
-  int interval_us = 500;
-  cli.add_option("--count", count, "timed samples")->capture_default_str();
-  cli.add_option("--warmup", warmup, "samples first, not timed")->capture_default_str();
-  cli.add_option("--interval-us", interval_us, "pause between one echo and the next sample")->capture_default_str();
+  bench::HopRun run;
+  run.add(cli);
   CLI11_PARSE(cli, argc, argv);
-  const std::uint64_t total = count + warmup;
+  const std::uint64_t total = run.total();
   char out[] = "/tmp/iceoryx-hop.XXXXXX";
   const int fd = ::mkstemp(out);
   if (fd < 0) return 1;
@@ -131,30 +116,25 @@ int main(int argc, char** argv) {
     while (!done) {
       auto n = ws.timedWait(iox::units::Duration::fromMilliseconds(100));
       if (n.empty()) continue;
-      while (true) {
-        bool got = false;
-        sub.take().and_then([&](auto& s) {
-          got = true;
-          const auto now = mono_ns();
-          if (s->seq > 0) {
-            rtt.push_back(now - s->published);
-            dds2bus.push_back(now - s->echoed);
-          }
-          {
-            std::lock_guard lock(m);
-            echoed_seq.store(s->seq);
-          }
-          cv.notify_one();
-        });
-        if (!got) break;
-      }
+      take_all(sub, [&](const Hop& s) {
+        const auto now = bench::monotonic_ns();
+        if (s.seq > 0) {
+          rtt.push_back(now - s.published);
+          dds2bus.push_back(now - s.echoed);
+        }
+        {
+          std::lock_guard lock(m);
+          echoed_seq.store(s.seq);
+        }
+        cv.notify_one();
+      });
     }
   });
 
   auto send = [&](std::int64_t seq) {
     pub.loan().and_then([&](auto& s) {
       s->seq = seq;
-      s->published = mono_ns();
+      s->published = bench::monotonic_ns();
       s.publish();
     });
   };
@@ -171,7 +151,7 @@ int main(int argc, char** argv) {
   }
   std::uint64_t lost = 0;
   for (std::uint64_t seq = 1; seq <= total; ++seq) {
-    std::this_thread::sleep_for(std::chrono::microseconds(interval_us));
+    std::this_thread::sleep_for(std::chrono::microseconds(run.interval_us));
     send(static_cast<std::int64_t>(seq));
     std::unique_lock lock(m);
     if (!cv.wait_for(lock, std::chrono::seconds(1),
@@ -182,23 +162,15 @@ int main(int argc, char** argv) {
   reader.join();
   int st = 0;
   ::waitpid(child, &st, 0);
-  std::vector<std::int64_t> b2d;
-  if (FILE* f = std::fopen(out, "r")) {
-    long long v = 0;
-    while (std::fscanf(f, "%lld", &v) == 1) b2d.push_back(v);
-    std::fclose(f);
-  }
+  auto b2d = bench::read_latencies(out);
   ::unlink(out);
-  auto keep_last = [&](std::vector<std::int64_t>& v) {
-    if (v.size() > count) v.erase(v.begin(), v.end() - static_cast<std::ptrdiff_t>(count));
-  };
-  keep_last(rtt);
-  keep_last(dds2bus);
-  keep_last(b2d);
+  bench::keep_last(rtt, run.count);
+  bench::keep_last(dds2bus, run.count);
+  bench::keep_last(b2d, run.count);
   std::printf("hop_mechanism=iceoryx\nhop_samples=%zu\nhop_lost=%llu\nhop_payload_bytes=%zu\n", rtt.size(),
               static_cast<unsigned long long>(lost), sizeof(Hop));
-  print("bus2dds", b2d);
-  print("dds2bus", dds2bus);
-  print("rtt", rtt);
+  bench::print_hop("bus2dds", b2d);
+  bench::print_hop("dds2bus", dds2bus);
+  bench::print_hop("rtt", rtt);
   return lost == 0 ? 0 : 1;
 }

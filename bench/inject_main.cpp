@@ -21,13 +21,9 @@ using namespace std::chrono_literals;
 
 int main(int argc, char** argv) {
   bench::Program program{"bench-inject", "saw TPDOs with send stamps on N virtual buses"};
-  auto& cli = program.cli;
-  double rate = 3000;
-  std::uint64_t count = 10000;
   program.add_buses();
   program.add_devices("saws per bus");
-  cli.add_option("--rate", rate, "frames per second on each bus")->check(CLI::PositiveNumber)->capture_default_str();
-  cli.add_option("--count", count, "frames per bus")->capture_default_str();
+  program.add_load("frames per second on each bus", "frames per bus");
   program.add_prefix();
   program.add_ready("the buses are open");
   program.add_go("start sending");
@@ -35,6 +31,8 @@ int main(int argc, char** argv) {
   if (auto rc = program.parse(argc, argv)) return *rc;
   const int buses = program.buses;
   const int devices = program.devices;
+  const double rate = program.rate;
+  const std::uint64_t count = program.count;
 
   std::vector<std::unique_ptr<lb::can::Bus>> bus;
   for (int b = 0; b < buses; ++b) {

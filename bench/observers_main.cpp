@@ -30,12 +30,11 @@ int main(int argc, char** argv) {
   bench::Program program{"bench-observers", "N observer participants reading every status topic of the bench line"};
   auto& cli = program.cli;
   int count = 20;
-  lb::bench::SecurityOption security;
   cli.add_option("--participants", count, "observer participants")->check(CLI::Range(1, 200))->capture_default_str();
   program.add_devices("saws on bus 0");
   program.add_domain();
   program.add_ready("every observer has a matched writer on every saw's status topic");
-  security.add(cli);
+  program.add_security();
   if (auto rc = program.parse(argc, argv)) return *rc;
   const int devices = program.devices;
   bench::StopSignals stop;  // before the participants' threads start
@@ -46,7 +45,7 @@ int main(int argc, char** argv) {
   for (int d = 0; d < devices; ++d)
     status_topics.push_back(lb::ddsl::topic_name(bench::kLine, bench::device_name(0, d), "status"));
   for (int i = 0; i < count; ++i) {
-    auto dds = lb::ddsl::Participant::create(security.options(program.domain, fmt::format("bench-observer-{}", i)));
+    auto dds = lb::ddsl::Participant::create(bench::participant_options(program, fmt::format("bench-observer-{}", i)));
     if (!dds) return program.fail(dds.error().message);
     for (int d = 0; d < devices; ++d) {
       auto s = (*dds)->subscribe<msg::SawStatusPubSubType>(status_topics[static_cast<std::size_t>(d)],

@@ -1,22 +1,32 @@
 #pragma once
 // What every bench program shares: its name in messages and exit codes, the options that describe
 // the bench line (--prefix, --buses, --devices, --domain) and the rendezvous with bench.sh (--ready,
-// --go, --stop/--linger), each spelled, defaulted and checked once, so that bench.sh can pass the
-// same words to every program and a program cannot drift from the others.
+// --go, --stop/--linger) and DDS Security (--pki, --identity), each spelled, defaulted and checked once, so that
+// bench.sh can pass the same words to every program and a program cannot drift from the others.
 
 #include <CLI/CLI.hpp>
 
 #include <chrono>
+#include <cstdint>
 #include <cstdio>
 #include <optional>
 #include <string>
 #include <thread>
 #include <utility>
+#include <vector>
 
+#include "latencies.hpp"
 #include "names.hpp"
 #include "rendezvous.hpp"
 
 namespace lb::bench {
+
+// --pki DIR --identity NAME: a participant secured with an identity launch_scripts/pki.sh issued.
+inline void add_security_options(CLI::App& cli, std::string& pki, std::string& identity) {
+  auto* p = cli.add_option("--pki", pki,
+                           "DDS Security: the PKI folder launch_scripts/pki.sh made (default: unsecured)");
+  cli.add_option("--identity", identity, "DDS Security: the identity's folder in the PKI")->needs(p);
+}
 
 class Program {
  public:
@@ -30,6 +40,10 @@ class Program {
   int domain = 0;
   std::string ready_file, go_file, stop_file;
   double linger_s = 2;
+  double rate = 3000;           // --rate: frames (samples) per second, as bench.sh offers them
+  std::uint64_t count = 10000;  // --count: how many
+  std::string latencies_file;   // --out
+  std::string pki, identity;    // --pki/--identity; the participant they make: security_option.hpp
 
   const std::string& name() const { return name_; }
 
@@ -41,6 +55,17 @@ class Program {
   void add_domain(const char* help = "") {
     cli.add_option("--domain", domain, help)->check(CLI::Range(0, 232))->capture_default_str();
   }
+  // --out FILE: every latency a measuring program took, so that a run can be analysed again.
+  void add_out() { cli.add_option("--out", latencies_file, "write every latency (ns), one per line"); }
+  void save_latencies(const std::vector<std::int64_t>& ns) const {
+    if (!latencies_file.empty()) write_latencies(latencies_file, ns);
+  }
+
+  // The offered load: bench-inject's frames and bench-status-pub's samples follow the same words.
+  void add_load(const char* rate_help, const char* count_help) {
+    cli.add_option("--rate", rate, rate_help)->check(CLI::PositiveNumber)->capture_default_str();
+    cli.add_option("--count", count, count_help)->capture_default_str();
+  }
   void add_ready(const char* when) { cli.add_option("--ready", ready_file, std::string("created once ") + when); }
   void add_go(const char* what) { cli.add_option("--go", go_file, std::string(what) + " once this file exists"); }
   void add_stop(const char* after) {
@@ -48,6 +73,9 @@ class Program {
     cli.add_option("--linger", linger_s, std::string("at most this long after ") + after + ", seconds")
         ->capture_default_str();
   }
+
+  // DDS Security for the program's participants: an identity launch_scripts/pki.sh issued.
+  void add_security() { add_security_options(cli, pki, identity); }
 
   // The exit code when the command line does not parse (or asks for --help); nothing when it does.
   std::optional<int> parse(int argc, char** argv) {

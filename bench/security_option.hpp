@@ -8,32 +8,41 @@
 #include <string>
 
 #include "dds/participant.hpp"
+#include "program.hpp"
 
 namespace lb::bench {
 
+// The options of a participant named name in domain, secured with pki/identity when pki is set.
+inline lb::ddsl::ParticipantOptions participant_options(int domain, std::string name, const std::string& pki,
+                                                        const std::string& identity) {
+  lb::ddsl::ParticipantOptions o{static_cast<std::uint32_t>(domain), true, std::move(name), std::nullopt};
+  if (!pki.empty()) {
+    const std::string id = pki + "/" + identity;
+    o.security = lb::ddsl::SecurityFiles{pki + "/ca/identity_ca.pem",
+                                         id + "/cert.pem",
+                                         id + "/key.pem",
+                                         pki + "/ca/permissions_ca.pem",
+                                         pki + "/governance.p7s",
+                                         id + "/permissions.p7s",
+                                         {}};
+  }
+  return o;
+}
+
+// A Program's participant: its --domain, --pki and --identity (Program::add_security).
+inline lb::ddsl::ParticipantOptions participant_options(const Program& program, std::string name) {
+  return participant_options(program.domain, std::move(name), program.pki, program.identity);
+}
+
+// For a program that is not a bench::Program (its own command line).
 struct SecurityOption {
   std::string pki;
   std::string identity;
 
-  void add(CLI::App& cli) {
-    auto* p = cli.add_option("--pki", pki,
-                             "DDS Security: the PKI folder launch_scripts/pki.sh made (default: unsecured)");
-    cli.add_option("--identity", identity, "DDS Security: the identity's folder in the PKI")->needs(p);
-  }
+  void add(CLI::App& cli) { add_security_options(cli, pki, identity); }
 
   lb::ddsl::ParticipantOptions options(int domain, std::string name) const {
-    lb::ddsl::ParticipantOptions o{static_cast<std::uint32_t>(domain), true, std::move(name), std::nullopt};
-    if (!pki.empty()) {
-      const std::string id = pki + "/" + identity;
-      o.security = lb::ddsl::SecurityFiles{pki + "/ca/identity_ca.pem",
-                                           id + "/cert.pem",
-                                           id + "/key.pem",
-                                           pki + "/ca/permissions_ca.pem",
-                                           pki + "/governance.p7s",
-                                           id + "/permissions.p7s",
-                                           {}};
-    }
-    return o;
+    return participant_options(domain, std::move(name), pki, identity);
   }
 };
 

@@ -64,7 +64,6 @@ int main(int argc, char** argv) {
   std::uint64_t warmup = 100;
   double warmup_timeout_s = 60;
   int gap_min_us = 1000, gap_max_us = 3000;
-  std::string out;
   program.add_prefix();
   program.add_domain();
   cli.add_option("--count", count, "timed set values")->capture_default_str();
@@ -73,18 +72,17 @@ int main(int argc, char** argv) {
       ->capture_default_str();
   cli.add_option("--gap-min-us", gap_min_us)->capture_default_str();
   cli.add_option("--gap-max-us", gap_max_us)->capture_default_str();
-  cli.add_option("--out", out, "write every latency (ns), one per line");
+  program.add_out();
   program.add_ready("the bus is open");
   program.add_go("start");
-  bench::SecurityOption security;
-  security.add(cli);
+  program.add_security();
   if (auto rc = program.parse(argc, argv)) return *rc;
 
   // The bus first: this process hosts the hub, whoever starts next.
   auto bus = lb::can::open_bus(bench::bus_uri(program.prefix, 0));
   if (!bus) return program.fail(bus.error().message);
   program.ready();
-  auto dds = lb::ddsl::Participant::create(security.options(program.domain, program.name()));
+  auto dds = lb::ddsl::Participant::create(bench::participant_options(program, program.name()));
   if (!dds) return program.fail(dds.error().message);
   const std::string device = bench::device_name(0, 0);
   const std::uint8_t node = bench::node_id(0);
@@ -147,7 +145,7 @@ int main(int argc, char** argv) {
     }
     std::this_thread::sleep_for(std::chrono::microseconds(gap(rng)));
   }
-  if (!out.empty()) bench::write_latencies(out, latencies);
+  program.save_latencies(latencies);
   std::fputs(fmt::format("setpoint_sent={}\nsetpoint_lost={}\n", count, lost).c_str(), stdout);
   std::fputs(bench::format_summary("setpoint", bench::summarize(latencies)).c_str(), stdout);
   return lost == 0 ? 0 : 3;

@@ -3,12 +3,8 @@
 // a simulator playing the devices, also to the first samples with live data), with the
 // application's participant and readers already up, as on a running line. Also reports the
 // bridge's resident memory once it has settled, then stops it with SIGTERM.
-#include <fcntl.h>
 #include <fmt/format.h>
-#include <signal.h>
-#include <spawn.h>
 #include <sys/wait.h>
-#include <unistd.h>
 #include <CLI/CLI.hpp>
 
 #include <chrono>
@@ -26,6 +22,7 @@
 #include "proc_stats.hpp"
 #include "program.hpp"
 #include "security_option.hpp"
+#include "support/child_process.hpp"  // the tests' way to start a program, log to a file, stop it
 
 namespace bench = lb::bench;
 namespace msg = linebridge_msgs::msg;
@@ -46,20 +43,6 @@ struct FirstSamples {
   std::int64_t all_online_ns = 0;
   std::vector<bool> online;
 };
-
-pid_t spawn(std::vector<std::string> argv, const std::string& log) {
-  std::vector<char*> args;
-  for (auto& a : argv) args.push_back(a.data());
-  args.push_back(nullptr);
-  posix_spawn_file_actions_t actions;
-  posix_spawn_file_actions_init(&actions);
-  posix_spawn_file_actions_addopen(&actions, 1, log.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
-  posix_spawn_file_actions_adddup2(&actions, 1, 2);
-  pid_t pid = -1;
-  if (posix_spawn(&pid, args[0], &actions, nullptr, args.data(), environ) != 0) pid = -1;
-  posix_spawn_file_actions_destroy(&actions);
-  return pid;
-}
 
 }  // namespace
 
@@ -84,8 +67,7 @@ int main(int argc, char** argv) {
   bool online = false;
   cli.add_flag("--online", online, "also wait for every device's first sample with live data (a simulator plays them)");
   cli.add_option("command", command, "the bridge command line (after --)")->required();
-  bench::SecurityOption security;
-  security.add(cli);
+  program.add_security();
   if (auto rc = program.parse(argc, argv)) return *rc;
   const int buses = program.buses;
   const int devices = program.devices;
@@ -93,7 +75,7 @@ int main(int argc, char** argv) {
   FirstSamples first;  // outlives the participant's listeners
   first.seen.assign(static_cast<std::size_t>(buses * devices), false);
   first.online.assign(first.seen.size(), false);
-  auto dds = lb::ddsl::Participant::create(security.options(program.domain, program.name()));
+  auto dds = lb::ddsl::Participant::create(bench::participant_options(program, program.name()));
   if (!dds) return program.fail(dds.error().message);
   for (int b = 0; b < buses; ++b) {
     for (int d = 0; d < devices; ++d) {
@@ -122,10 +104,8 @@ int main(int argc, char** argv) {
   std::this_thread::sleep_for(std::chrono::milliseconds(quiet_ms));
 
   const auto t0 = bench::realtime_ns();
-  const pid_t pid = spawn(command, log);
-  if (pid <= 0) {
-    return program.fail("cannot start " + command.front());
-  }
+  lb::test::ChildProcess bridge(command, log);
+  if (!bridge.started()) return program.fail("cannot start " + command.front());
   bool all = false;
   {
     std::unique_lock lock(first.m);
@@ -134,10 +114,8 @@ int main(int argc, char** argv) {
     });
   }
   std::this_thread::sleep_for(std::chrono::duration<double>(settle_s));
-  const auto mem = bench::read_memory(pid);
-  ::kill(pid, SIGTERM);
-  int status = 0;
-  ::waitpid(pid, &status, 0);
+  const auto mem = bench::read_memory(bridge.pid());
+  const int status = bridge.stop();  // SIGTERM (SIGKILL if it has not ended 5 s later)
 
   std::lock_guard lock(first.m);
   std::string report = fmt::format("startup_devices={}\nstartup_devices_seen={}\n", first.seen.size(),

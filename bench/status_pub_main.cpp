@@ -23,22 +23,19 @@ using namespace std::chrono_literals;
 
 int main(int argc, char** argv) {
   bench::Program program{"bench-status-pub", "saw status samples from a bare Fast DDS writer"};
-  auto& cli = program.cli;
-  double rate = 3000;
-  std::uint64_t count = 10000;
   program.add_devices("saws on bus 0");
   program.add_domain();
-  cli.add_option("--rate", rate, "samples per second")->check(CLI::PositiveNumber)->capture_default_str();
-  cli.add_option("--count", count, "samples")->capture_default_str();
+  program.add_load("samples per second", "samples");
   program.add_ready("every writer has a matched reader");
   program.add_go("start writing");
   program.add_stop("writing");
-  bench::SecurityOption security;
-  security.add(cli);
+  program.add_security();
   if (auto rc = program.parse(argc, argv)) return *rc;
   const int devices = program.devices;
+  const double rate = program.rate;
+  const std::uint64_t count = program.count;
 
-  auto dds = lb::ddsl::Participant::create(security.options(program.domain, program.name()));
+  auto dds = lb::ddsl::Participant::create(bench::participant_options(program, program.name()));
   if (!dds) return program.fail(dds.error().message);
   auto status = bench::status_writers(**dds, devices);
   if (!status) return program.fail(status.error().message);

@@ -54,7 +54,7 @@ int main(int argc, char** argv) {
   double idle_s = 3;
   double timeout_s = 600;
   bool diagnostics = false;
-  std::string out, name = "bench-sub";
+  std::string name = "bench-sub";
   program.add_buses();
   program.add_devices("saws per bus");
   program.add_domain();
@@ -63,11 +63,10 @@ int main(int argc, char** argv) {
   cli.add_option("--idle", idle_s, "stop after this long without a sample, once samples flowed")->capture_default_str();
   cli.add_option("--timeout", timeout_s, "stop after this long in any case")->capture_default_str();
   cli.add_flag("--diagnostics", diagnostics, "also report the bridge's own counters (rt/bench/bridge/diagnostics)");
-  cli.add_option("--out", out, "write every latency (ns), one per line");
+  program.add_out();
   program.add_ready("every status topic has a matched writer");
   cli.add_option("--name", name, "participant name")->capture_default_str();
-  bench::SecurityOption security;
-  security.add(cli);
+  program.add_security();
   if (auto rc = program.parse(argc, argv)) return *rc;
   const int buses = program.buses;
   const int devices = program.devices;
@@ -76,7 +75,7 @@ int main(int argc, char** argv) {
   Tally tally;
   tally.latencies.reserve(expect);
   std::vector<bench::StampDecoder> decoders(static_cast<std::size_t>(buses * devices));
-  auto dds = lb::ddsl::Participant::create(security.options(program.domain, name));
+  auto dds = lb::ddsl::Participant::create(bench::participant_options(program, name));
   if (!dds) return program.fail(dds.error().message);
   std::vector<std::string> topics;
   for (int b = 0; b < buses; ++b) {
@@ -170,6 +169,6 @@ int main(int argc, char** argv) {
   report += bench::format_summary("sub", bench::summarize(tally.latencies));
   std::fputs(report.c_str(), stdout);
   std::fflush(stdout);
-  if (!out.empty()) bench::write_latencies(out, tally.latencies);
+  program.save_latencies(tally.latencies);
   return tally.stamped == expect ? 0 : 3;
 }

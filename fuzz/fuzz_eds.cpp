@@ -4,16 +4,14 @@
 #include <string>
 
 #include "profiles/eds.hpp"
+#include "support/text_input.hpp"
 
 using namespace lb::profiles;
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  const std::string text(reinterpret_cast<const char*>(data), size);
+  const std::string text = lb::fuzz::as_text(data, size);
   const auto eds = parse_eds(text, "fuzz.eds");
-  if (!eds) {
-    if (eds.error().message.empty()) __builtin_trap();
-    return 0;
-  }
+  if (!lb::fuzz::accepted(eds)) return 0;
   for (const auto& e : eds->entries) {
     if (eds->find(e.index, e.sub) == nullptr) __builtin_trap();
     (void)eds_number(e.default_value, eds->node_id);

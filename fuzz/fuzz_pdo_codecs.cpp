@@ -82,11 +82,19 @@ bool common_op(FuzzedDataProvider& in, int op, Codec& codec, const Profile& prof
   }
 }
 
+// Up to kMaxOps operations on codec: the shared ones (common_op, ops 0..2) and the type's own,
+// type_op(op) for op 3..last_op.
+template <class Codec, class TypeOp>
+void run_ops(FuzzedDataProvider& in, Codec& codec, const Profile& profile, int last_op, TypeOp type_op) {
+  for (int n = 0; n < kMaxOps && in.remaining_bytes() > 0; ++n) {
+    const int op = in.ConsumeIntegralInRange<int>(0, last_op);
+    if (!common_op(in, op, codec, profile)) type_op(op);
+  }
+}
+
 void saw(FuzzedDataProvider& in, const Profile& profile, const std::vector<DevicePdo>& pdos) {
   gateways::SawCodec codec(profile, pdos);
-  for (int n = 0; n < kMaxOps && in.remaining_bytes() > 0; ++n) {
-    const int op = in.ConsumeIntegralInRange<int>(0, 5);
-    if (common_op(in, op, codec, profile)) continue;
+  run_ops(in, codec, profile, 5, [&](int op) {
     if (op == 3) {
       linebridge_msgs::msg::SawStatus s;
       codec.fill(s);
@@ -101,15 +109,13 @@ void saw(FuzzedDataProvider& in, const Profile& profile, const std::vector<Devic
     } else {
       codec.set_control_bit(in.ConsumeIntegralInRange<unsigned>(0, 15), in.ConsumeBool());
     }
-  }
+  });
 }
 
 template <class Codec>
 void drive(FuzzedDataProvider& in, const Profile& profile, const std::vector<DevicePdo>& pdos) {
   Codec codec(profile, pdos);
-  for (int n = 0; n < kMaxOps && in.remaining_bytes() > 0; ++n) {
-    const int op = in.ConsumeIntegralInRange<int>(0, 5);
-    if (common_op(in, op, codec, profile)) continue;
+  run_ops(in, codec, profile, 5, [&](int op) {
     if (op == 3) {
       typename Codec::Status s;
       codec.fill(s);
@@ -121,14 +127,12 @@ void drive(FuzzedDataProvider& in, const Profile& profile, const std::vector<Dev
     } else {
       codec.set_control_bit(in.ConsumeIntegralInRange<unsigned>(0, 15), in.ConsumeBool());
     }
-  }
+  });
 }
 
 void feeder(FuzzedDataProvider& in, const Profile& profile, const std::vector<DevicePdo>& pdos) {
   gateways::FeederCodec codec(profile, pdos);
-  for (int n = 0; n < kMaxOps && in.remaining_bytes() > 0; ++n) {
-    const int op = in.ConsumeIntegralInRange<int>(0, 6);
-    if (common_op(in, op, codec, profile)) continue;
+  run_ops(in, codec, profile, 6, [&](int op) {
     if (op == 3) {
       linebridge_msgs::msg::LoomSide loom;
       codec.fill_loom(loom, in.ConsumeBool());
@@ -169,7 +173,7 @@ void feeder(FuzzedDataProvider& in, const Profile& profile, const std::vector<De
       settings[0].state = in.ConsumeRandomLengthString(24);
       (void)codec.merge_functions(in.ConsumeIntegral<std::uint64_t>(), settings);
     }
-  }
+  });
 }
 
 std::vector<const Profile*> all_profiles(const profiles::ProfileRegistry& registry) {

@@ -6,16 +6,14 @@
 
 #include "profiles/line_config.hpp"
 #include "profiles/profile_registry.hpp"
+#include "support/text_input.hpp"
 
 using namespace lb::profiles;
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
-  const std::string text(reinterpret_cast<const char*>(data), size);
+  const std::string text = lb::fuzz::as_text(data, size);
   const auto profile = parse_profile(text, "fuzz.yaml");
-  if (!profile) {
-    if (profile.error().message.empty()) __builtin_trap();
-    return 0;
-  }
+  if (!lb::fuzz::accepted(profile)) return 0;
   for (const auto& pdo : default_pdos(*profile, 127)) {
     if (pdo.can_id > 0x7FF && !pdo.extended) __builtin_trap();
   }

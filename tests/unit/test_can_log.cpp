@@ -27,6 +27,7 @@
 #include "can/unique_fd.hpp"
 #include "can/virtual_bus.hpp"
 #include "profiles/line_config.hpp"
+#include "support/unit_files.hpp"
 
 namespace lb::can {
 namespace {
@@ -49,13 +50,6 @@ std::string write_file(const std::string& name, const std::string& text) {
   const std::string path = temp_path(name);
   std::ofstream(path) << text;
   return path;
-}
-
-std::string read_file(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
 }
 
 // Everything the bus delivers, waiting on fd() like an event loop, until `count` frames or timeout.
@@ -427,7 +421,7 @@ TEST(RecordingBus, RecordsReceivedAndSentFramesAndTheRecordingReplays) {
   for (const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(5);
        lines.size() < 4 && std::chrono::steady_clock::now() < until;) {
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    text = read_file(path);
+    text = lb::test::file_text(path);
     lines.clear();
     std::istringstream in(text);
     for (std::string l; std::getline(in, l);) lines.push_back(l);

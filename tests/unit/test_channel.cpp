@@ -25,32 +25,33 @@ std::string socket_path(const std::string& name) {
   return ::testing::TempDir() + "/lb_channel_" + name + "_" + std::to_string(::getpid()) + ".sock";
 }
 
-// The next message of a kind, skipping pings (the bus side sends one every second).
+// The first message of kind T within 20 s. Pings (the bus side sends one every second) are skipped;
+// any other message before it fails the wait unless skip_others.
 template <class T>
-T next(DdsChannel& c) {
+T receive_first(DdsChannel& c, bool skip_others) {
   const auto deadline = std::chrono::steady_clock::now() + 20s;
   while (std::chrono::steady_clock::now() < deadline) {
     auto m = c.receive(200);
     if (!m) throw std::runtime_error(m.error().message);
-    if (!*m || std::holds_alternative<Ping>(**m)) continue;
+    if (!*m) continue;
     if (auto* t = std::get_if<T>(&**m)) return *t;
-    throw std::runtime_error("another message came first (index " + std::to_string((*m)->index()) + ")");
+    if (!skip_others && !std::holds_alternative<Ping>(**m)) {
+      throw std::runtime_error("another message came first (index " + std::to_string((*m)->index()) + ")");
+    }
   }
-  throw std::runtime_error("no message within 20 s");
+  throw std::runtime_error("no such message within 20 s");
+}
+
+// The next message of a kind, skipping pings.
+template <class T>
+T next(DdsChannel& c) {
+  return receive_first<T>(c, false);
 }
 
 // The first message of a kind, whatever comes before it.
 template <class T>
 T skip_to(DdsChannel& c) {
-  const auto deadline = std::chrono::steady_clock::now() + 20s;
-  while (std::chrono::steady_clock::now() < deadline) {
-    auto m = c.receive(200);
-    if (!m) throw std::runtime_error(m.error().message);
-    if (*m) {
-      if (auto* t = std::get_if<T>(&**m)) return *t;
-    }
-  }
-  throw std::runtime_error("no such message within 20 s");
+  return receive_first<T>(c, true);
 }
 
 Declare state_topic(const std::string& topic) {

@@ -5,6 +5,7 @@
 #include <array>
 #include <cmath>
 
+#include "support/unit_cia420_bits.hpp"
 #include "unit/drive_codec_test.hpp"
 
 namespace {
@@ -20,43 +21,16 @@ struct Corrugator31 {
         .tpdo1_cob_id = 0x187,
         .tpdo2_cob_id = 0x287,
         .rpdo1_cob_id = 0x207,
-        .status_bits = {{0, "drive_running"},
-                        {1, "drive_ready_to_start"},
-                        {3, "fault"},
-                        {4, "alarm"},
-                        {5, "increase_request"},
-                        {6, "decrease_request"},
-                        {7, "master_extruder_enabled"},
-                        {8, "f1_running"},
-                        {9, "f1_ready"},
-                        {10, "f2_running"},
-                        {11, "f2_ready"},
-                        {12, "f3_running"},
-                        {13, "f3_ready"},
-                        {14, "start_cut_pulse"}},
+        .status_bits = lb::test::cia420_status_bits({{0, "drive_running"},
+                                                     {1, "drive_ready_to_start"},
+                                                     {7, "master_extruder_enabled"},
+                                                     {14, "start_cut_pulse"}}),
         // Bits 2 and 15 are reserved: raw only.
         .reserved_status_bits = 0x8004,
-        .control_bits = {{0, "drive_stop"},
-                         {1, "drive_start"},
-                         {2, "move_in"},
-                         {3, "move_out"},
-                         {6, "extruder_running"},
-                         {7, "f1_stop"},
-                         {8, "f1_start"},
-                         {9, "f2_stop"},
-                         {10, "f2_start"},
-                         {11, "f3_stop"},
-                         {12, "f3_start"}},
-        .momentary = {{"drive_stop", 0},
-                      {"drive_start", 1},
-                      {"move_in", 2},
-                      {"move_out", 3},
-                      {"f1_stop", 7},
-                      {"f1_start", 8},
-                      {"f2_stop", 9},
-                      {"f2_start", 10},
-                      {"f3_stop", 11},
-                      {"f3_start", 12}},
+        .control_bits = lb::test::cia420_control_bits(
+            {{0, "drive_stop"}, {1, "drive_start"}, {2, "move_in"}, {3, "move_out"}}),
+        .momentary = lb::test::cia420_momentary(
+            {{"drive_stop", 0}, {"drive_start", 1}, {"move_in", 2}, {"move_out", 3}}),
         // TPDO1: status 0083h (running, ready, master-extruder enabled); 6000h 7550 = 1D7Eh
         // (75.5 %); 6006h 4321 = 10E1h (43.21 % of the maximum load); manufacturer word 1234h.
         .tpdo1 = {{{0x83, 0x00, 0x7E, 0x1D, 0xE1, 0x10, 0x34, 0x12},

@@ -13,20 +13,17 @@
 #include "profiles/line_config.hpp"
 #include "profiles/profile_registry.hpp"
 #include "support/codec_pdo.hpp"
+#include "support/unit_codec_fixture.hpp"
 
 namespace msg = linebridge_msgs::msg;
 using lb::gateways::FeederCodec;
 
 namespace {
 
-class FeederCodecTest : public ::testing::Test {
+class FeederCodecTest : public lb::test::CodecOnProfile<FeederCodec> {
  protected:
-  FeederCodecTest()
-      : registry_(lb::profiles::ProfileRegistry::builtin()),
-        profile_(*registry_.find("cia414-2", "1.1")),
-        pdos_(lb::profiles::default_pdos(profile_, 10)) {}
+  FeederCodecTest() : CodecOnProfile("cia414-2", "1.1", 10) {}
 
-  std::size_t pdo(const std::string& name) const { return lb::test::pdo_index(codec_, name); }
   void receive(const std::string& name, std::vector<std::uint8_t> bytes) {
     ASSERT_TRUE(codec_.receive(pdo(name), bytes)) << name;
   }
@@ -43,11 +40,6 @@ class FeederCodecTest : public ::testing::Test {
   static std::vector<std::uint8_t> colours(const msg::PickInsertion& p) {
     return {p.colours().begin(), p.colours().end()};
   }
-
-  lb::profiles::ProfileRegistry registry_;
-  const lb::profiles::Profile& profile_;
-  std::vector<lb::profiles::DevicePdo> pdos_;
-  FeederCodec codec_{profile_, pdos_};
 };
 
 TEST_F(FeederCodecTest, Tpdo1UnwindingTimeBitFields) {

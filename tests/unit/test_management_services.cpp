@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <optional>
+#include <string>
 
 #include "gateways/routing/management_services.hpp"
 
@@ -22,6 +23,12 @@ struct Answer {
       reply = r;
       ++calls;
     };
+  }
+  // The reason of the one refusal the request got, or what came instead (so a test fails with it).
+  std::string refusal() const {
+    if (calls != 1) return "<" + std::to_string(calls) + " replies>";
+    if (reply->success()) return "<accepted: " + reply->message() + ">";
+    return reply->message();
   }
 };
 
@@ -49,25 +56,20 @@ TEST(ManagementServices, UnknownDeviceIsRefusedNamingItAndTheLinesDevices) {
   nq.device("Saw1");  // names are case-sensitive, as in topic names
   nq.command(srv::NMT_RESET_NODE);
   router.nmt(nq, nmt.respond());
-  ASSERT_EQ(nmt.calls, 1);
-  EXPECT_FALSE(nmt.reply->success());
-  EXPECT_EQ(nmt.reply->message(), "no device 'Saw1' on line demo (devices: saw1, puller1, feeders)");
+  EXPECT_EQ(nmt.refusal(), "no device 'Saw1' on line demo (devices: saw1, puller1, feeders)");
 
   Answer<srv::SdoWrite_Response> write;
   srv::SdoWrite_Request wq;
   wq.device("ghost");
   router.sdo_write(wq, write.respond());
-  ASSERT_EQ(write.calls, 1);
-  EXPECT_NE(write.reply->message().find("no device 'ghost'"), std::string::npos) << write.reply->message();
+  EXPECT_NE(write.refusal().find("no device 'ghost'"), std::string::npos) << write.refusal();
 
   Answer<srv::GetParameter_Response> get;
   srv::GetParameter_Request gq;
   gq.device("ghost");
   gq.parameter("saw_cut_depth");
   router.get_parameter(gq, get.respond());
-  ASSERT_EQ(get.calls, 1);
-  EXPECT_FALSE(get.reply->success());
-  EXPECT_NE(get.reply->message().find("no device 'ghost'"), std::string::npos) << get.reply->message();
+  EXPECT_NE(get.refusal().find("no device 'ghost'"), std::string::npos) << get.refusal();
 
   Answer<srv::SetParameter_Response> set;
   srv::SetParameter_Request sq;
@@ -75,18 +77,14 @@ TEST(ManagementServices, UnknownDeviceIsRefusedNamingItAndTheLinesDevices) {
   sq.parameter("saw_cut_depth");
   sq.value(0.01);
   router.set_parameter(sq, set.respond());
-  ASSERT_EQ(set.calls, 1);
-  EXPECT_FALSE(set.reply->success());
-  EXPECT_NE(set.reply->message().find("no device 'ghost'"), std::string::npos) << set.reply->message();
+  EXPECT_NE(set.refusal().find("no device 'ghost'"), std::string::npos) << set.refusal();
 
   Answer<srv::Command_Response> press;
   srv::Command_Request cq;
   cq.device("ghost");
   cq.command("manual_cut");
   router.command(cq, press.respond());
-  ASSERT_EQ(press.calls, 1);
-  EXPECT_FALSE(press.reply->success());
-  EXPECT_NE(press.reply->message().find("no device 'ghost'"), std::string::npos) << press.reply->message();
+  EXPECT_NE(press.refusal().find("no device 'ghost'"), std::string::npos) << press.refusal();
 }
 
 TEST(ManagementServices, RequestWithoutDeviceIsRefused) {
@@ -95,9 +93,7 @@ TEST(ManagementServices, RequestWithoutDeviceIsRefused) {
   srv::Nmt_Request nq;  // device left empty, as a client of the per-device services would send it
   nq.command(srv::NMT_START);
   router.nmt(nq, nmt.respond());
-  ASSERT_EQ(nmt.calls, 1);
-  EXPECT_FALSE(nmt.reply->success());
-  EXPECT_EQ(nmt.reply->message(), "the request names no device (field 'device'; line demo: devices: saw1)");
+  EXPECT_EQ(nmt.refusal(), "the request names no device (field 'device'; line demo: devices: saw1)");
 }
 
 TEST(ManagementServices, DeviceWithoutMomentaryCommandsIsRefused) {
@@ -108,14 +104,11 @@ TEST(ManagementServices, DeviceWithoutMomentaryCommandsIsRefused) {
   cq.device("feeders");
   cq.command("start");
   feeders_only.command(cq, press.respond());
-  ASSERT_EQ(press.calls, 1);
-  EXPECT_FALSE(press.reply->success());
-  EXPECT_EQ(press.reply->message(),
+  EXPECT_EQ(press.refusal(),
             "feeders (feeder, cia414-2@1.1) has no momentary commands (no device of line weave has any)");
 
   const ManagementServices empty("void", {});
   Answer<srv::Command_Response> none;
   empty.command(cq, none.respond());
-  ASSERT_EQ(none.calls, 1);
-  EXPECT_EQ(none.reply->message(), "no device 'feeders' on line void (it has none)");
+  EXPECT_EQ(none.refusal(), "no device 'feeders' on line void (it has none)");
 }

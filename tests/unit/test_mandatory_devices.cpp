@@ -69,6 +69,12 @@ class Line {
       }
     });
   }
+  // beat(), then both devices are seen online (a fatal failure if not).
+  void beat_until_both_online() {
+    beat();
+    ASSERT_TRUE(online(puller_));
+    ASSERT_TRUE(online(saw_));
+  }
   std::uint8_t state(std::uint8_t node) {
     std::uint8_t s = 0x7F;
     for (const auto& f : spy_.frames(0x000)) {
@@ -131,9 +137,7 @@ class Line {
 // boot passes again; an operator's start releases it.
 TEST(MandatoryDevices, WaitForTheMandatoryOneThenStopTheOthersWhenItIsLost) {
   Line line(MandatoryDevices::Policy::stop_others);
-  line.beat();
-  ASSERT_TRUE(line.online(line.puller_));
-  ASSERT_TRUE(line.online(line.saw_));
+  ASSERT_NO_FATAL_FAILURE(line.beat_until_both_online());
 
   line.boot_passes(line.puller_);
   EXPECT_EQ(line.on_loop([&] { return line.puller_.operator_hold(); }), co::NmtCommand::enter_pre_operational);
@@ -187,9 +191,7 @@ TEST(MandatoryDevices, WaitForTheMandatoryOneThenStopTheOthersWhenItIsLost) {
 // report_only: the start-up wait, then a lost mandatory device is only reported.
 TEST(MandatoryDevices, ReportOnlyStopsNothing) {
   Line line(MandatoryDevices::Policy::report_only);
-  line.beat();
-  ASSERT_TRUE(line.online(line.puller_));
-  ASSERT_TRUE(line.online(line.saw_));
+  ASSERT_NO_FATAL_FAILURE(line.beat_until_both_online());
   line.boot_passes(line.puller_);
   EXPECT_FALSE(line.seen(0x01, kPuller, 300ms));
   line.boot_passes(line.saw_);

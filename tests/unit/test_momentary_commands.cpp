@@ -19,6 +19,7 @@
 #include "canopen/sync_producer.hpp"
 #include "gateways/commands/momentary_commands.hpp"
 #include "support/bus_spy.hpp"
+#include "support/unit_loop_fixture.hpp"
 
 using namespace std::chrono_literals;
 using lb::canopen::BusLoop;
@@ -31,15 +32,9 @@ namespace {
 constexpr std::uint32_t kRpdo1 = 0x205;
 constexpr unsigned kBit = 3;  // a saw's manual_cut
 
-class Momentary : public ::testing::Test {
+class Momentary : public lb::test::LoopOnOwnBus {
  protected:
-  void SetUp() override {
-    const std::string uri = "virtual:pulse-" + std::to_string(::getpid()) + "-" +
-                            ::testing::UnitTest::GetInstance()->current_test_info()->name();
-    spy_ = std::make_unique<lb::test::BusSpy>(uri);
-    loop_ = std::make_unique<BusLoop>(lb::can::open_bus(uri).value());
-  }
-  void TearDown() override { loop_->stop(); }
+  Momentary() : LoopOnOwnBus("pulse") {}
 
   // The gateway's wiring: RPDO1 carries the control word (2 bytes), the commands watch its frames.
   void make(std::uint8_t transmission_type, bool with_sync = true) {
@@ -120,8 +115,6 @@ class Momentary : public ::testing::Test {
     return n;
   }
 
-  std::unique_ptr<lb::test::BusSpy> spy_;
-  std::unique_ptr<BusLoop> loop_;
   std::unique_ptr<MomentaryCommands> commands_;
   std::unique_ptr<PdoTransmitter> tx_;
   std::unique_ptr<lb::canopen::SyncProducer> sync_;

@@ -12,6 +12,7 @@
 #include "canopen/bus_loop.hpp"
 #include "gateways/node/pdo_burst.hpp"
 #include "support/bus_spy.hpp"
+#include "support/unit_loop_fixture.hpp"
 
 using namespace std::chrono_literals;
 using lb::canopen::BusLoop;
@@ -28,19 +29,16 @@ struct Sample {
   std::int64_t stamp_ns;
 };
 
-class Burst : public ::testing::Test {
+class Burst : public lb::test::LoopOnOwnBus {
  protected:
+  Burst() : LoopOnOwnBus("burst") {}
   void SetUp() override {
-    const std::string uri = "virtual:burst-" + std::to_string(::getpid()) + "-" +
-                            ::testing::UnitTest::GetInstance()->current_test_info()->name();
-    spy_ = std::make_unique<lb::test::BusSpy>(uri);
-    loop_ = std::make_unique<BusLoop>(lb::can::open_bus(uri).value());
+    LoopOnOwnBus::SetUp();
     burst_ = std::make_unique<PdoBurst>(*loop_, [this](std::int64_t stamp) { publish(stamp); });
     loop_->on_frame(kTpdo1, [this](const lb::can::CanFrame& f) { on_pdo(0, f); });
     loop_->on_frame(kTpdo2, [this](const lb::can::CanFrame& f) { on_pdo(1, f); });
     loop_->start();
   }
-  void TearDown() override { loop_->stop(); }
 
   // As SawGateway::on_pdo: admit, decode, add.
   void on_pdo(std::size_t index, const lb::can::CanFrame& f) {
@@ -80,8 +78,6 @@ class Burst : public ::testing::Test {
     return samples_;
   }
 
-  std::unique_ptr<lb::test::BusSpy> spy_;
-  std::unique_ptr<BusLoop> loop_;
   std::unique_ptr<PdoBurst> burst_;
   std::array<std::uint8_t, 2> image_{};  // loop thread
   std::mutex m_;

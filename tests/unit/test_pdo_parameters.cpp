@@ -10,25 +10,30 @@ using namespace lb::canopen;
 
 namespace {
 
+// A PDO the line wants: its name, its communication (1400h../1800h..: a TPDO's from 1800h) and
+// mapping objects and the parameters; the CiA 301 rules (all rw) unless a test gives the profile's.
+PdoSpec pdo_spec(std::string name, std::uint16_t communication, std::uint16_t mapping, PdoParameters wanted) {
+  PdoSpec s;
+  s.name = std::move(name);
+  s.transmit = communication >= 0x1800;
+  s.communication_index = communication;
+  s.mapping_index = mapping;
+  s.wanted = std::move(wanted);
+  return s;
+}
+
 // Saw 3.1 TPDO2 (1801h/1A01h): COB-ID const, transmission type rw, mapping const.
 PdoSpec saw_tpdo2() {
-  PdoSpec s;
-  s.name = "tpdo2";
-  s.transmit = true;
-  s.communication_index = 0x1801;
-  s.mapping_index = 0x1A01;
-  s.wanted = {0x285, 1, 0, 0, {PdoEntry::from_u32(0x60010020), PdoEntry::from_u32(0x60070020)}};
+  PdoSpec s = pdo_spec("tpdo2", 0x1801, 0x1A01,
+                       {0x285, 1, 0, 0, {PdoEntry::from_u32(0x60010020), PdoEntry::from_u32(0x60070020)}});
   s.rules = {PdoAccess::fixed, PdoAccess::rw, PdoAccess::rw, PdoAccess::rw, PdoAccess::fixed, PdoAccess::fixed, {}, 0};
   return s;
 }
 
 // Saw 3.1 TPDO1 (1800h/1A00h): sub 0 rw while not operational, 00h or 02h..03h; sub 3 manufacturer's.
 PdoSpec saw_tpdo1() {
-  PdoSpec s;
-  s.name = "tpdo1";
-  s.communication_index = 0x1800;
-  s.mapping_index = 0x1A00;
-  s.wanted = {0x185, 1, 0, 0, {PdoEntry::from_u32(0x60300010), PdoEntry::from_u32(0x60000020)}};
+  PdoSpec s = pdo_spec("tpdo1", 0x1800, 0x1A00,
+                       {0x185, 1, 0, 0, {PdoEntry::from_u32(0x60300010), PdoEntry::from_u32(0x60000020)}});
   s.rules = {PdoAccess::fixed,    PdoAccess::rw,    PdoAccess::rw, PdoAccess::rw,
              PdoAccess::rw_preop, PdoAccess::fixed, {0, 2, 3},     1};
   return s;
@@ -36,11 +41,8 @@ PdoSpec saw_tpdo1() {
 
 // Puller 1.0 TPDO2 (1801h/1A01h): COB-ID ro, the rest CiA 301 rw.
 PdoSpec puller_tpdo2() {
-  PdoSpec s;
-  s.name = "tpdo2";
-  s.communication_index = 0x1801;
-  s.mapping_index = 0x1A01;
-  s.wanted = {0x286, 1, 0, 0, {PdoEntry::from_u32(0x60040010), PdoEntry::from_u32(0x60080020)}};
+  PdoSpec s = pdo_spec("tpdo2", 0x1801, 0x1A01,
+                       {0x286, 1, 0, 0, {PdoEntry::from_u32(0x60040010), PdoEntry::from_u32(0x60080020)}});
   s.rules.cob_id = PdoAccess::fixed;
   return s;
 }
@@ -182,11 +184,7 @@ TEST(PdoPlan, WritableCobIdIsInvalidatedAroundAMappingChange) {
 
 TEST(PdoPlan, ValidBitAloneMayChangeWhereOnlyItIsWritable) {
   // Corrugator 3.1 TPDO1: COB-ID rw, but only 4000 0180h + n or C000 0180h + n.
-  PdoSpec spec;
-  spec.name = "tpdo1";
-  spec.communication_index = 0x1800;
-  spec.mapping_index = 0x1A00;
-  spec.wanted = {0x80000187, 1, 0, 0, {PdoEntry::from_u32(0x60300010)}};
+  auto spec = pdo_spec("tpdo1", 0x1800, 0x1A00, {0x80000187, 1, 0, 0, {PdoEntry::from_u32(0x60300010)}});
   spec.rules.cob_id = PdoAccess::valid_bit;
   auto plan = plan_pdo(spec, device(0x40000187, 1, {0x60300010}));
   ASSERT_TRUE(plan) << plan.error().message;
@@ -197,11 +195,7 @@ TEST(PdoPlan, ValidBitAloneMayChangeWhereOnlyItIsWritable) {
 
 TEST(PdoPlan, EitherValidityTakesTheDevicesBit) {
   // Feeder TPDO1: the device may start it valid or not; the line does not say.
-  PdoSpec spec;
-  spec.name = "tpdo1";
-  spec.communication_index = 0x1800;
-  spec.mapping_index = 0x1A00;
-  spec.wanted = {0x182, 255, 0, 0, {PdoEntry::from_u32(0x60100020)}};
+  auto spec = pdo_spec("tpdo1", 0x1800, 0x1A00, {0x182, 255, 0, 0, {PdoEntry::from_u32(0x60100020)}});
   spec.validity_given = false;
   spec.rules.mapping = spec.rules.mapping_count = PdoAccess::fixed;
   const auto plan = plan_pdo(spec, device(0xC0000182, 255, {0x60100020}));
@@ -222,12 +216,7 @@ TEST(PdoPlan, MissingTimingEntryIsAMismatch) {
 }
 
 TEST(PdoPlan, RpdoTimingIsTheMastersAndNotCompared) {
-  PdoSpec spec;
-  spec.name = "rpdo1";
-  spec.transmit = false;
-  spec.communication_index = 0x1400;
-  spec.mapping_index = 0x1600;
-  spec.wanted = {0x205, 1, 500, 300, {PdoEntry::from_u32(0x60200010)}};
+  auto spec = pdo_spec("rpdo1", 0x1400, 0x1600, {0x205, 1, 500, 300, {PdoEntry::from_u32(0x60200010)}});
   const auto plan = plan_pdo(spec, device(0x205, 1, {0x60200010}));
   ASSERT_TRUE(plan) << plan.error().message;
   EXPECT_TRUE(plan->writes.empty());
@@ -280,11 +269,7 @@ TEST(PdoPlan, AbsentOptionalPdoIsNotUsed) {
 // 3: only the valid bit of its COB-ID is writable; inhibit time rw): an inhibit-time difference
 // alone is written between COB-ID C000 0187h and 4000 0187h, and takes the PDO out of service.
 TEST(PdoPlan, InhibitTimeAloneIsWrittenWhileThePdoIsNotValid) {
-  PdoSpec spec;
-  spec.name = "tpdo1";
-  spec.communication_index = 0x1800;
-  spec.mapping_index = 0x1A00;
-  spec.wanted = {0x187, 1, 100, 0, {PdoEntry::from_u32(0x60300010)}};
+  auto spec = pdo_spec("tpdo1", 0x1800, 0x1A00, {0x187, 1, 100, 0, {PdoEntry::from_u32(0x60300010)}});
   spec.rules.cob_id = PdoAccess::valid_bit;
   const auto plan = plan_pdo(spec, device(0x40000187, 1, {0x60300010}));
   ASSERT_TRUE(plan) << plan.error().message;

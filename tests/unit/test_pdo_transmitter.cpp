@@ -12,6 +12,7 @@
 #include "canopen/bus_loop.hpp"
 #include "canopen/pdo_transmitter.hpp"
 #include "support/bus_spy.hpp"
+#include "support/unit_loop_fixture.hpp"
 
 using namespace std::chrono_literals;
 using lb::canopen::BusLoop;
@@ -19,15 +20,9 @@ using lb::canopen::PdoTransmitter;
 
 namespace {
 
-class Transmitter : public ::testing::Test {
+class Transmitter : public lb::test::LoopOnOwnBus {
  protected:
-  void SetUp() override {
-    const std::string uri = "virtual:tx-" + std::to_string(::getpid()) + "-" +
-                            ::testing::UnitTest::GetInstance()->current_test_info()->name();
-    spy_ = std::make_unique<lb::test::BusSpy>(uri);
-    loop_ = std::make_unique<BusLoop>(lb::can::open_bus(uri).value());
-  }
-  void TearDown() override { loop_->stop(); }
+  Transmitter() : LoopOnOwnBus("tx") {}
 
   // Creates the transmitter on the loop thread's side of the start, then starts the loop.
   void make(PdoTransmitter::Settings s) {
@@ -69,8 +64,6 @@ class Transmitter : public ::testing::Test {
     return frames;
   }
 
-  std::unique_ptr<lb::test::BusSpy> spy_;
-  std::unique_ptr<BusLoop> loop_;
   std::unique_ptr<PdoTransmitter> tx_;
   std::atomic<std::uint8_t> value_{1};
   std::atomic<bool> gate_{true};

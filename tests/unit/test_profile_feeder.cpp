@@ -81,17 +81,23 @@ TEST_F(FeederProfile, Identity) {
   EXPECT_EQ(p_.device_type, 0x019Eu);  // 414
 }
 
+namespace {
+
+// An object (or, for an array, its sub 0) as the specification tables list it.
+struct SpecObject {
+  std::uint16_t index;
+  std::uint8_t sub;
+  const char* name;
+  DataType type;
+  Access access;
+  bool mandatory;
+};
+
+}  // namespace
+
 TEST_F(FeederProfile, VariablesAndNamedSubsMatchTheSpec) {
-  struct Expect {
-    std::uint16_t index;
-    std::uint8_t sub;
-    const char* name;
-    DataType type;
-    Access access;
-    bool mandatory;
-  };
   // Sections 5.2.1-5.2.19; conditional objects count as not mandatory.
-  const std::vector<Expect> objects{
+  const std::vector<SpecObject> objects{
       {0x6000, 0, "brush_release_count", DataType::unsigned8, Access::ro, false},
       {0x6000, 1, "brush_release_opening_delay_time", DataType::unsigned16, Access::ro, false},
       {0x6000, 2, "brush_release_closing_delay_time", DataType::unsigned16, Access::ro, false},
@@ -136,23 +142,17 @@ TEST_F(FeederProfile, VariablesAndNamedSubsMatchTheSpec) {
 }
 
 TEST_F(FeederProfile, PerFeederArraysHave254Elements) {
-  struct Expect {
-    std::uint16_t index;
-    const char* name;
-    DataType type;
-    Access access;
-    bool mandatory;
-  };
-  // Sub-index n = feeder n, 01h..FEh; sub 1 is mandatory (with a mandatory object), the rest optional.
-  const std::vector<Expect> arrays{
-      {0x6001, "feeder_functions", DataType::unsigned32, Access::rw, true},
-      {0x6003, "single_weft_filling_parameter", DataType::unsigned32, Access::wo, false},
-      {0x6007, "feeder_error_condition", DataType::unsigned8, Access::ro, false},
-      {0x6009, "feeder_status", DataType::unsigned8, Access::ro, true},
-      {0x600E, "feeder_command", DataType::unsigned8, Access::wo, true},
-      {0x600F, "feeder_test", DataType::unsigned16, Access::rw, false},
-      {0x6011, "system_feeder_number_assignment", DataType::unsigned8, Access::rw, false},
-      {0x6012, "feeder_color_assignment", DataType::unsigned8, Access::rw, false},
+  // The arrays (sub 0: their count). Sub-index n = feeder n, 01h..FEh; sub 1 is mandatory (with a mandatory object),
+  // the rest optional.
+  const std::vector<SpecObject> arrays{
+      {0x6001, 0, "feeder_functions", DataType::unsigned32, Access::rw, true},
+      {0x6003, 0, "single_weft_filling_parameter", DataType::unsigned32, Access::wo, false},
+      {0x6007, 0, "feeder_error_condition", DataType::unsigned8, Access::ro, false},
+      {0x6009, 0, "feeder_status", DataType::unsigned8, Access::ro, true},
+      {0x600E, 0, "feeder_command", DataType::unsigned8, Access::wo, true},
+      {0x600F, 0, "feeder_test", DataType::unsigned16, Access::rw, false},
+      {0x6011, 0, "system_feeder_number_assignment", DataType::unsigned8, Access::rw, false},
+      {0x6012, 0, "feeder_color_assignment", DataType::unsigned8, Access::rw, false},
   };
   for (const auto& e : arrays) {
     const auto* count = p_.object(e.index, 0);

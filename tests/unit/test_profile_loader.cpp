@@ -44,6 +44,12 @@ std::string error_of(const std::string& body) {
 
 #define EXPECT_ERROR(body, text) EXPECT_EQ(error_of(body), text)
 
+// A 16-bit status word at 6030h and the head of a bitset on it: the fields under test follow, from
+// line 11 of t.yaml.
+const std::string kBitsetHead =
+    "  - {index: 0x6030, name: status_word, type: UNSIGNED16, access: ro}\nbitsets:\n  s:\n    object: 0x6030\n"
+    "    bits:\n";
+
 }  // namespace
 
 TEST(ProfileLoader, OneBitFieldsAsBeforeAndMultiBitFields) {
@@ -231,27 +237,24 @@ pdos:
 
 // Errors: file, line and column of the offending token, and what is wrong.
 TEST(ProfileLoaderErrors, FieldWidthAndPosition) {
-  const std::string object = "  - {index: 0x6030, name: status_word, type: UNSIGNED16, access: ro}\nbitsets:\n  s:\n   "
-                             " object: 0x6030\n    bits:\n";
-  EXPECT_ERROR(object + "      a: {bit: 0, width: 0}\n", "t.yaml:11:26: width 0 is outside 1..64");
-  EXPECT_ERROR(object + "      a: {bit: 12, width: 5}\n", "t.yaml:11:16: bits 16..12 does not exist in a 16-bit word");
-  EXPECT_ERROR(object + "      a: 16\n", "t.yaml:11:10: bit 16 does not exist in a 16-bit word");
-  EXPECT_ERROR(object + "      a: {width: 2}\n", "t.yaml:11:10: field a: missing required key 'bit'");
-  EXPECT_ERROR(object + "      a: {bit: 1, widht: 2}\n",
+  EXPECT_ERROR(kBitsetHead + "      a: {bit: 0, width: 0}\n", "t.yaml:11:26: width 0 is outside 1..64");
+  EXPECT_ERROR(kBitsetHead + "      a: {bit: 12, width: 5}\n",
+               "t.yaml:11:16: bits 16..12 does not exist in a 16-bit word");
+  EXPECT_ERROR(kBitsetHead + "      a: 16\n", "t.yaml:11:10: bit 16 does not exist in a 16-bit word");
+  EXPECT_ERROR(kBitsetHead + "      a: {width: 2}\n", "t.yaml:11:10: field a: missing required key 'bit'");
+  EXPECT_ERROR(kBitsetHead + "      a: {bit: 1, widht: 2}\n",
                "t.yaml:11:19: unknown key 'widht' in field a (allowed: bit, width, unit, scale, eng_unit, min, max, "
                "values, special_values)");
-  EXPECT_ERROR(object + "      a: {bit: 1, scale: 0}\n", "t.yaml:11:26: scale must not be 0");
-  EXPECT_ERROR(object + "      a: [1, 2]\n", "t.yaml:11:10: 'a' has a value of the wrong type: '<list>'");
+  EXPECT_ERROR(kBitsetHead + "      a: {bit: 1, scale: 0}\n", "t.yaml:11:26: scale must not be 0");
+  EXPECT_ERROR(kBitsetHead + "      a: [1, 2]\n", "t.yaml:11:10: 'a' has a value of the wrong type: '<list>'");
 }
 
 TEST(ProfileLoaderErrors, OverlappingFields) {
-  const std::string object = "  - {index: 0x6030, name: status_word, type: UNSIGNED16, access: ro}\nbitsets:\n  s:\n   "
-                             " object: 0x6030\n    bits:\n";
-  EXPECT_ERROR(object + "      a: 3\n      b: 3\n", "t.yaml:12:10: bit 3 is already a");
-  EXPECT_ERROR(object + "      a: 8\n      b: {bit: 7, width: 2}\n", "t.yaml:12:16: bits 8..7 overlap a (bit 8)");
-  EXPECT_ERROR(object + "      a: {bit: 4, width: 4}\n      b: 6\n", "t.yaml:12:10: bit 6 overlaps a (bits 7..4)");
+  EXPECT_ERROR(kBitsetHead + "      a: 3\n      b: 3\n", "t.yaml:12:10: bit 3 is already a");
+  EXPECT_ERROR(kBitsetHead + "      a: 8\n      b: {bit: 7, width: 2}\n", "t.yaml:12:16: bits 8..7 overlap a (bit 8)");
+  EXPECT_ERROR(kBitsetHead + "      a: {bit: 4, width: 4}\n      b: 6\n", "t.yaml:12:10: bit 6 overlaps a (bits 7..4)");
   // yaml-cpp keeps duplicate keys; the loader refuses the second one (as every duplicate key).
-  EXPECT_ERROR(object + "      a: 1\n      a: 2\n",
+  EXPECT_ERROR(kBitsetHead + "      a: 1\n      a: 2\n",
                "t.yaml:12:7: key 'a' is given twice in this mapping (first at line 11, column 7)");
 }
 
@@ -419,13 +422,11 @@ TEST(BuiltinProfiles, PdoAccessAsTheSpecTablesSay) {
 
 // Hostile profile files (issue 12): each was accepted silently or aborted the process before.
 TEST(ProfileLoaderHostile, DuplicateAndNonScalarKeysAreRefusedWithTheirPlace) {
-  const std::string object = "  - {index: 0x6030, name: status_word, type: UNSIGNED16, access: ro}\nbitsets:\n  s:\n   "
-                             " object: 0x6030\n    bits:\n";
   // An object's index given twice: yaml-cpp kept one of them without a word.
   EXPECT_ERROR("  - {index: 0x6030, index: 0x6031, name: s, type: UNSIGNED16, access: ro}\n",
                "t.yaml:6:21: key 'index' is given twice in this mapping (first at line 6, column 6)");
   // A list as a key threw YAML::TypedBadConversion out of the loader (exit 134 in every executable).
-  EXPECT_ERROR(object + "      ? [a, b]\n      : 1\n", "t.yaml:11:9: a key must be a plain value, not a list");
+  EXPECT_ERROR(kBitsetHead + "      ? [a, b]\n      : 1\n", "t.yaml:11:9: a key must be a plain value, not a list");
   EXPECT_ERROR("  - {index: 0x6030, name: s, type: UNSIGNED8, access: ro, values: {? [1, 2] : x}}\n",
                "t.yaml:6:70: a key must be a plain value, not a list");
 }

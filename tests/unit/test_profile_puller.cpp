@@ -18,6 +18,13 @@ const Bits kControl{{"motor_stop", 0},       {"motor_start", 1}, {"clamp_close",
                     {"extruder_running", 6}, {"f1_stop", 7},     {"f1_start", 8},    {"f2_stop", 9},
                     {"f2_start", 10},        {"f3_stop", 11},    {"f3_start", 12}};
 
+// The status word bits 1.0 and the 3.0 variant share (spec section 2; profile-decisions.md
+// "Puller"): only reverse direction moves (bit 7 -> 14) and 3.0 adds speed set mode (bit 15).
+const Bits kStatusShared{{"motor_running", 0}, {"motor_ready_to_start", 1}, {"clamp_closed", 2},     {"fault", 3},
+                         {"alarm", 4},         {"increase_request", 5},     {"decrease_request", 6}, {"f1_running", 8},
+                         {"f1_ready", 9},      {"f2_running", 10},          {"f2_ready", 11},        {"f3_running", 12},
+                         {"f3_ready", 13}};
+
 class PullerProfile : public ::testing::Test {
  protected:
   lb::profiles::ProfileRegistry registry_ = lb::profiles::ProfileRegistry::builtin();
@@ -130,21 +137,9 @@ TEST_F(PullerProfile, PrintedRanges) {
 
 TEST_F(PullerProfile, ControlStatusAndConfigurationBits) {
   expect_bits(p_, "control_word", kControl);
-  expect_bits(p_, "status_word",
-              {{"motor_running", 0},
-               {"motor_ready_to_start", 1},
-               {"clamp_closed", 2},
-               {"fault", 3},
-               {"alarm", 4},
-               {"increase_request", 5},
-               {"decrease_request", 6},
-               {"reverse_direction", 7},
-               {"f1_running", 8},
-               {"f1_ready", 9},
-               {"f2_running", 10},
-               {"f2_ready", 11},
-               {"f3_running", 12},
-               {"f3_ready", 13}});
+  Bits status = kStatusShared;
+  status.push_back({"reverse_direction", 7});
+  expect_bits(p_, "status_word", status);
   expect_bits(p_, "configuration_word", {{"speed_measuring", 0}});
   EXPECT_EQ(p_.bitset("control_word")->index, 0x6020);
   EXPECT_EQ(p_.bitset("status_word")->index, 0x6030);
@@ -152,22 +147,10 @@ TEST_F(PullerProfile, ControlStatusAndConfigurationBits) {
 }
 
 TEST_F(PullerProfile, Status30MovesReverseDirectionAndAddsSpeedSetMode) {
-  expect_bits(p30_, "status_word",
-              {{"motor_running", 0},
-               {"motor_ready_to_start", 1},
-               {"clamp_closed", 2},
-               {"fault", 3},
-               {"alarm", 4},
-               {"increase_request", 5},
-               {"decrease_request", 6},
-               {"f1_running", 8},
-               {"f1_ready", 9},
-               {"f2_running", 10},
-               {"f2_ready", 11},
-               {"f3_running", 12},
-               {"f3_ready", 13},
-               {"reverse_direction", 14},
-               {"speed_set_mode", 15}});
+  Bits status = kStatusShared;
+  status.push_back({"reverse_direction", 14});
+  status.push_back({"speed_set_mode", 15});
+  expect_bits(p30_, "status_word", status);
   const auto* mode = p30_.bitset("status_word")->field("speed_set_mode");
   ASSERT_NE(mode, nullptr);
   EXPECT_EQ(mode->values.name(0), "local");

@@ -7,6 +7,7 @@
 #include <limits>
 #include <string>
 
+#include "support/unit_cia420_bits.hpp"
 #include "unit/drive_codec_test.hpp"
 
 namespace msg = linebridge_msgs::msg;
@@ -21,41 +22,13 @@ lb::test::DriveVectors puller_vectors() {
       .tpdo2_cob_id = 0x286,
       .rpdo1_cob_id = 0x206,
       // The bits both versions share (profile-decisions.md "Puller").
-      .status_bits = {{0, "motor_running"},
-                      {1, "motor_ready_to_start"},
-                      {2, "clamp_closed"},
-                      {3, "fault"},
-                      {4, "alarm"},
-                      {5, "increase_request"},
-                      {6, "decrease_request"},
-                      {8, "f1_running"},
-                      {9, "f1_ready"},
-                      {10, "f2_running"},
-                      {11, "f2_ready"},
-                      {12, "f3_running"},
-                      {13, "f3_ready"}},
+      .status_bits = lb::test::cia420_status_bits(
+          {{0, "motor_running"}, {1, "motor_ready_to_start"}, {2, "clamp_closed"}}),
       .reserved_status_bits = 0,
-      .control_bits = {{0, "motor_stop"},
-                       {1, "motor_start"},
-                       {2, "clamp_close"},
-                       {3, "clamp_open"},
-                       {6, "extruder_running"},
-                       {7, "f1_stop"},
-                       {8, "f1_start"},
-                       {9, "f2_stop"},
-                       {10, "f2_start"},
-                       {11, "f3_stop"},
-                       {12, "f3_start"}},
-      .momentary = {{"motor_stop", 0},
-                    {"motor_start", 1},
-                    {"clamp_close", 2},
-                    {"clamp_open", 3},
-                    {"f1_stop", 7},
-                    {"f1_start", 8},
-                    {"f2_stop", 9},
-                    {"f2_start", 10},
-                    {"f3_stop", 11},
-                    {"f3_start", 12}},
+      .control_bits = lb::test::cia420_control_bits(
+          {{0, "motor_stop"}, {1, "motor_start"}, {2, "clamp_close"}, {3, "clamp_open"}}),
+      .momentary = lb::test::cia420_momentary(
+          {{"motor_stop", 0}, {"motor_start", 1}, {"clamp_close", 2}, {"clamp_open", 3}}),
       .tpdo1 =
           {
               // 6000h INTEGER16 5000 = 1388h (50 %); 6006h INTEGER16 -1234 = FB2Eh (-12.34 %); a

@@ -15,20 +15,16 @@
 #include "profiles/line_config.hpp"
 #include "profiles/profile_registry.hpp"
 #include "support/codec_pdo.hpp"
+#include "support/unit_codec_fixture.hpp"
 
 namespace msg = linebridge_msgs::msg;
-using lb::gateways::SawCodec;
 
 namespace {
 
-class SawCodecTest : public ::testing::Test {
+class SawCodecTest : public lb::test::CodecOnProfile<lb::gateways::SawCodec> {
  protected:
-  SawCodecTest()
-      : registry_(lb::profiles::ProfileRegistry::builtin()),
-        profile_(*registry_.find("cia420-4", "3.1")),
-        pdos_(lb::profiles::default_pdos(profile_, 3)) {}
+  SawCodecTest() : CodecOnProfile("cia420-4", "3.1", 3) {}
 
-  std::size_t pdo(const std::string& name) const { return lb::test::pdo_index(codec_, name); }
   msg::SawStatus status() const {
     msg::SawStatus s;
     codec_.fill(s);
@@ -47,11 +43,6 @@ class SawCodecTest : public ::testing::Test {
     EXPECT_EQ(codec_.pack(pdo("rpdo1"), out), 8);
     return out;
   }
-
-  lb::profiles::ProfileRegistry registry_;
-  const lb::profiles::Profile& profile_;
-  std::vector<lb::profiles::DevicePdo> pdos_;
-  SawCodec codec_{profile_, pdos_};
 };
 
 }  // namespace
@@ -195,7 +186,7 @@ TEST_F(SawCodecTest, AnObjectBeyondTheTypedStatusIsPublishedByName) {
   for (auto& p : pdos) {
     if (p.name == "tpdo1") p.mapping.push_back(lb::canopen::PdoEntry::from_u32(0x21100010));
   }
-  SawCodec codec(extended, pdos);
+  lb::gateways::SawCodec codec(extended, pdos);
   const std::array<std::uint8_t, 8> frame{0x01, 0x00, 0x10, 0x27, 0x00, 0x00, 0x34, 0x12};  // 2110h = 1234h
   ASSERT_TRUE(codec.receive(lb::test::pdo_index(codec, "tpdo1"), frame));
   msg::SawStatus s;

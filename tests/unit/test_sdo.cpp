@@ -364,6 +364,18 @@ TEST(ObjectDictionary, KnowsTheAbortForEveryRefusal) {
 
 // ---- transfers against the server ----------------------------------------------------------------
 
+// 2001h sub (of the type kTypes2001 gives it) written with value, read back and compared.
+void write_and_read_back(SdoClient& client, std::uint8_t sub, const ObjectValue& value) {
+  const DataType type = kTypes2001[sub - 1];
+  auto w = client.write_async(kNode, 0x2001, sub, type, value);
+  auto written = wait(w);
+  ASSERT_TRUE(written) << written.error().message;
+  auto r = client.read_async(kNode, 0x2001, sub, type);
+  auto read = wait(r);
+  ASSERT_TRUE(read) << read.error().message;
+  EXPECT_EQ(*read, value);
+}
+
 TEST_F(Sdo, ExpeditedWriteAndReadOfEveryType) {
   SdoClient& client = client_and_server();
   struct Case {
@@ -384,15 +396,8 @@ TEST_F(Sdo, ExpeditedWriteAndReadOfEveryType) {
       {0x0B, std::uint64_t{1}, 0x2F, 0x4F, {0x01}},
   };
   for (const auto& c : cases) {
-    const DataType type = kTypes2001[c.sub - 1];
-    SCOPED_TRACE(std::string(to_string(type)));
-    auto w = client.write_async(kNode, 0x2001, c.sub, type, c.value);
-    auto written = wait(w);
-    ASSERT_TRUE(written) << written.error().message;
-    auto r = client.read_async(kNode, 0x2001, c.sub, type);
-    auto read = wait(r);
-    ASSERT_TRUE(read) << read.error().message;
-    EXPECT_EQ(*read, c.value);
+    SCOPED_TRACE(std::string(to_string(kTypes2001[c.sub - 1])));
+    ASSERT_NO_FATAL_FAILURE(write_and_read_back(client, c.sub, c.value));
 
     Bytes request{c.download_cs, 0x01, 0x20, c.sub, 0, 0, 0, 0};
     Bytes response{c.upload_cs, 0x01, 0x20, c.sub, 0, 0, 0, 0};
@@ -420,15 +425,8 @@ TEST_F(Sdo, SixtyFourBitTypesGoSegmented) {
       {0x0A, -0.5, {0, 0, 0, 0, 0, 0, 0xE0, 0xBF}},
   };
   for (const auto& c : cases) {
-    const DataType type = kTypes2001[c.sub - 1];
-    SCOPED_TRACE(std::string(to_string(type)));
-    auto w = client.write_async(kNode, 0x2001, c.sub, type, c.value);
-    auto written = wait(w);
-    ASSERT_TRUE(written) << written.error().message;
-    auto r = client.read_async(kNode, 0x2001, c.sub, type);
-    auto read = wait(r);
-    ASSERT_TRUE(read) << read.error().message;
-    EXPECT_EQ(*read, c.value);
+    SCOPED_TRACE(std::string(to_string(kTypes2001[c.sub - 1])));
+    ASSERT_NO_FATAL_FAILURE(write_and_read_back(client, c.sub, c.value));
 
     const Bytes& d = c.data;
     const Bytes first{0x00, d[0], d[1], d[2], d[3], d[4], d[5], d[6]};

@@ -22,6 +22,7 @@
 #include "dds/participant.hpp"
 #include "dds/security_files.hpp"
 #include "support/test_pki.hpp"
+#include "support/unit_secured_line.hpp"
 
 namespace fdds = eprosima::fastdds::dds;
 using namespace std::chrono_literals;
@@ -53,31 +54,20 @@ std::string publish(const std::string& topic, const std::string& partition = "")
 class SecurityAudit : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = std::filesystem::path(::testing::TempDir() + "/security_audit_" + std::to_string(::getpid()) + "_" +
-                                 ::testing::UnitTest::GetInstance()->current_test_info()->name())
-               .lexically_normal()
-               .string();
-    std::filesystem::remove_all(dir_);
-    std::filesystem::create_directories(dir_);
-    std::ofstream(dir_ + "/plain.yaml") << line_yaml("");
-    pki_ = std::make_unique<lb::test::TestPki>(dir_ + "/plain.yaml", dir_ + "/pki");
+    dir_ = lb::test::fresh_test_dir("security_audit");
+    pki_ = lb::test::pki_for(dir_, line_yaml(""));
     config_ = dir_ + "/line.yaml";
     std::ofstream(config_) << line_yaml(pki_->security_yaml());
   }
 
   std::string line_yaml(const std::string& security) const {
-    return "line: sec\n"
-           "dds:\n"
-           "  domain: " +
-           std::to_string(kDomain) +
-           "\n"
-           "  localhost_only: true\n" +
-           security +
-           "buses:\n"
-           "  - {name: ext, interface: 'virtual:audit', role: master, sync_period_ms: 20}\n"
-           "devices:\n"
-           "  - {name: saw1, bus: ext, node_id: 5, profile: cia420-4, version: '3.1', heartbeat_timeout_ms: 400}\n"
-           "  - {name: saw2, bus: ext, node_id: 6, profile: cia420-4, version: '3.1', heartbeat_timeout_ms: 400}\n";
+    return lb::test::secured_line_yaml(
+        "sec", kDomain, security,
+        "buses:\n"
+        "  - {name: ext, interface: 'virtual:audit', role: master, sync_period_ms: 20}\n"
+        "devices:\n"
+        "  - {name: saw1, bus: ext, node_id: 5, profile: cia420-4, version: '3.1', heartbeat_timeout_ms: 400}\n"
+        "  - {name: saw2, bus: ext, node_id: 6, profile: cia420-4, version: '3.1', heartbeat_timeout_ms: 400}\n");
   }
 
   lb::ddsl::GrantPolicy policy() const {

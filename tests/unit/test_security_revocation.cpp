@@ -18,6 +18,7 @@
 #include "profiles/line_config.hpp"
 #include "support/run_command.hpp"
 #include "support/test_pki.hpp"
+#include "support/unit_secured_line.hpp"
 
 namespace fs = std::filesystem;
 
@@ -26,17 +27,11 @@ namespace {
 constexpr std::uint32_t kDomain = 23;
 
 std::string line_yaml(const std::string& security) {
-  return "line: rev\n"
-         "dds:\n"
-         "  domain: " +
-         std::to_string(kDomain) +
-         "\n"
-         "  localhost_only: true\n" +
-         security +
-         "buses:\n"
-         "  - {name: ext, interface: 'virtual:rev', role: master, sync_period_ms: 20}\n"
-         "devices:\n"
-         "  - {name: saw1, bus: ext, node_id: 5, profile: cia420-4, version: '3.1'}\n";
+  return lb::test::secured_line_yaml("rev", kDomain, security,
+                                     "buses:\n"
+                                     "  - {name: ext, interface: 'virtual:rev', role: master, sync_period_ms: 20}\n"
+                                     "devices:\n"
+                                     "  - {name: saw1, bus: ext, node_id: 5, profile: cia420-4, version: '3.1'}\n");
 }
 
 bool contains(const std::string& text, const std::string& part) { return text.find(part) != std::string::npos; }
@@ -59,14 +54,8 @@ std::time_t crl_time(const std::string& crl, const char* field, const std::strin
 class Revocation : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::path(::testing::TempDir() + "/revocation_" + std::to_string(::getpid()) + "_" +
-                    ::testing::UnitTest::GetInstance()->current_test_info()->name())
-               .lexically_normal()
-               .string();
-    fs::remove_all(dir_);
-    fs::create_directories(dir_);
-    std::ofstream(dir_ + "/plain.yaml") << line_yaml("");
-    pki_ = std::make_unique<lb::test::TestPki>(dir_ + "/plain.yaml", dir_ + "/pki");
+    dir_ = lb::test::fresh_test_dir("revocation");
+    pki_ = lb::test::pki_for(dir_, line_yaml(""));
     crl_ = pki_->dir() + "/ca/identity_crl.pem";
   }
 
@@ -92,6 +81,18 @@ class Revocation : public ::testing::Test {
     const std::string path = dir_ + "/line.yaml";
     std::ofstream(path) << line_yaml(pki_->security_yaml(identity));  // with ca/identity_crl.pem
     return path;
+  }
+
+  // linebridge-security check and linebridge --check both pass the line file, each with this
+  // warning ("warning: ..." and "warning: DDS security: ...").
+  void expect_both_checks_warn(const std::string& warning) {
+    const std::string line = line_file();
+    const auto sec = lb::test::run_command({LB_BIN_SECURITY, "--config", line, "check"});
+    EXPECT_EQ(sec.exit_code, 0) << sec.output;
+    EXPECT_TRUE(contains(sec.output, "warning: " + warning)) << sec.output;
+    const auto bridge = lb::test::run_command({LB_BIN_BRIDGE, "--check", line});
+    EXPECT_EQ(bridge.exit_code, 0) << bridge.output;
+    EXPECT_TRUE(contains(bridge.output, "warning: DDS security: " + warning)) << bridge.output;
   }
 
   std::string dir_, crl_;
@@ -222,14 +223,7 @@ TEST_F(Revocation, NextUpdateNearIsAWarningAndPastIsAProblem) {
 
 TEST_F(Revocation, BothPreflightChecksPrintTheNextUpdateWarning) {
   ASSERT_EQ(pki("revoke --days 3"), 0) << pki_log();  // re-issued, valid 3 days only
-  const std::string line = line_file();
-  const auto sec = lb::test::run_command({LB_BIN_SECURITY, "--config", line, "check"});
-  EXPECT_EQ(sec.exit_code, 0) << sec.output;
-  EXPECT_TRUE(contains(sec.output, "warning: identity_crl " + crl_ + ": its next update is ")) << sec.output;
-  const auto bridge = lb::test::run_command({LB_BIN_BRIDGE, "--check", line});
-  EXPECT_EQ(bridge.exit_code, 0) << bridge.output;
-  EXPECT_TRUE(contains(bridge.output, "warning: DDS security: identity_crl " + crl_ + ": its next update is "))
-      << bridge.output;
+  expect_both_checks_warn("identity_crl " + crl_ + ": its next update is ");
 }
 
 // ------------------------------------------------------------------------------------------------
@@ -280,12 +274,5 @@ TEST_F(Revocation, CaKeysBesideTheIdentityInUseAreFlagged) {
   EXPECT_FALSE(contains(w, "op1.key")) << w;
   EXPECT_EQ(check(files()), "") << "a CA key beside the identity is a warning, not a refusal";
   // Both pre-flight checks say it.
-  const std::string line = line_file();
-  const auto sec = lb::test::run_command({LB_BIN_SECURITY, "--config", line, "check"});
-  EXPECT_EQ(sec.exit_code, 0) << sec.output;
-  EXPECT_TRUE(contains(sec.output, "warning: CA key " + bridge + "/backup.pem")) << sec.output;
-  const auto check_run = lb::test::run_command({LB_BIN_BRIDGE, "--check", line});
-  EXPECT_EQ(check_run.exit_code, 0) << check_run.output;
-  EXPECT_TRUE(contains(check_run.output, "warning: DDS security: CA key " + bridge + "/backup.pem"))
-      << check_run.output;
+  expect_both_checks_warn("CA key " + bridge + "/backup.pem");
 }
