@@ -27,6 +27,7 @@
 #include "can/unique_fd.hpp"
 #include "can/virtual_bus.hpp"
 #include "profiles/line_config.hpp"
+#include "support/drain_bus.hpp"
 #include "support/unit_files.hpp"
 
 namespace lb::can {
@@ -52,25 +53,7 @@ std::string write_file(const std::string& name, const std::string& text) {
   return path;
 }
 
-// Everything the bus delivers, waiting on fd() like an event loop, until `count` frames or timeout.
-std::vector<CanFrame> drain(Bus& bus, std::size_t count, std::chrono::milliseconds timeout = 3000ms) {
-  std::vector<CanFrame> out;
-  const auto deadline = Clock::now() + timeout;
-  while (out.size() < count && Clock::now() < deadline) {
-    auto r = bus.receive();
-    if (!r) {
-      ADD_FAILURE() << r.error().message;
-      continue;
-    }
-    if (*r) {
-      out.push_back(**r);
-      continue;
-    }
-    pollfd p{bus.fd(), POLLIN, 0};
-    ::poll(&p, 1, 50);
-  }
-  return out;
-}
+using lb::test::drain;
 
 // --- the format ---------------------------------------------------------------------------------
 

@@ -56,11 +56,7 @@ DriveImage::DriveImage(const profiles::Profile& profile, std::span<const profile
   others_.emplace(profile_, image_, rpdos_received);
   defs_.assign(pdos.begin(), pdos.end());
   for (const auto& pdo : defs_) {
-    others_->bind(pdos_.size(), pdo, image_);
-    auto mapping = canopen::PdoMapping::create(pdo.mapping);
-    if (!mapping)
-      throw std::runtime_error("profile " + profile_.key() + " " + pdo.name + ": " + mapping.error().message);
-    Pdo p{&pdo, canopen::PdoBinding(std::move(*mapping), image_), std::nullopt, false};
+    Pdo p{&pdo, bind_line_pdo(profile_, image_, pdo, *others_, pdos_.size()), std::nullopt, false};
     p.carries_echo = pdo.direction == profiles::PdoDirection::tx && maps(p.binding.mapping(), *speed_echo_.def);
     const auto* def = profile_pdo(profile_, pdo.name);
     if (def != nullptr && pdo.direction == profiles::PdoDirection::tx) p.manufacturer_data = def->manufacturer_data;
@@ -76,17 +72,11 @@ Result<void> DriveImage::use_pdo(std::size_t pdo, const profiles::DevicePdo& act
 }
 
 DriveImage::Object DriveImage::bind(const std::string& name) {
-  const auto* def = profile_.object(name);
-  if (def == nullptr) throw std::runtime_error("profile " + profile_.key() + " has no object '" + name + "'");
-  return {def, image_.slot(def->index, def->sub)};
+  const auto& def = required_object(profile_, name);
+  return {&def, image_.slot(def.index, def.sub)};
 }
 
-const profiles::BitSet& DriveImage::bitset(std::string_view name) const {
-  const auto* set = profile_.bitset(name);
-  if (set == nullptr)
-    throw std::runtime_error("profile " + profile_.key() + " has no bit set '" + std::string(name) + "'");
-  return *set;
-}
+const profiles::BitSet& DriveImage::bitset(std::string_view name) const { return required_bitset(profile_, name); }
 
 std::int64_t DriveImage::signed_raw(const Object& o) const {
   const std::uint64_t raw = image_.get(o.slot);

@@ -72,32 +72,16 @@ FeederCodec::FeederCodec(const profiles::Profile& profile, std::span<const profi
 
   others_.emplace(profile_, image_, rpdos_received);
   defs_.assign(pdos.begin(), pdos.end());
-  for (const auto& pdo : defs_) {
-    others_->bind(pdos_.size(), pdo, image_);
-    auto mapping = canopen::PdoMapping::create(pdo.mapping);
-    if (!mapping)
-      throw std::runtime_error("profile " + profile_.key() + " " + pdo.name + ": " + mapping.error().message);
-    pdos_.push_back({&pdo, canopen::PdoBinding(std::move(*mapping), image_)});
-  }
+  for (const auto& pdo : defs_) pdos_.push_back({&pdo, bind_line_pdo(profile_, image_, pdo, *others_, pdos_.size())});
 }
 
 Result<void> FeederCodec::use_pdo(std::size_t pdo, const profiles::DevicePdo& actual) {
   return use_device_pdo(profile_, image_, defs_[pdo], pdos_[pdo].binding, actual, *others_, pdo);
 }
 
-const ObjectDef& FeederCodec::object(std::string_view name) const {
-  const auto* def = profile_.object(name);
-  if (def == nullptr)
-    throw std::runtime_error("profile " + profile_.key() + " has no object '" + std::string(name) + "'");
-  return *def;
-}
+const ObjectDef& FeederCodec::object(std::string_view name) const { return required_object(profile_, name); }
 
-const profiles::BitSet& FeederCodec::bitset(std::string_view name) const {
-  const auto* set = profile_.bitset(name);
-  if (set == nullptr)
-    throw std::runtime_error("profile " + profile_.key() + " has no bit set '" + std::string(name) + "'");
-  return *set;
-}
+const profiles::BitSet& FeederCodec::bitset(std::string_view name) const { return required_bitset(profile_, name); }
 
 const BitField& FeederCodec::field(const profiles::BitSet& set, std::string_view name) const {
   const auto* f = set.field(name);

@@ -5,6 +5,10 @@
 
 #include <fmt/format.h>
 
+#include <stdexcept>
+#include <string>
+#include <string_view>
+
 #include "base/result.hpp"
 #include "canopen/pdo_parameters.hpp"
 #include "canopen/process_image.hpp"
@@ -12,6 +16,32 @@
 #include "profiles/line_config.hpp"
 
 namespace lb::gateways {
+
+// A profile's object or bit set a codec decodes by; a profile without it cannot be served, so its
+// absence ends start-up.
+inline const profiles::ObjectDef& required_object(const profiles::Profile& profile, std::string_view name) {
+  const auto* def = profile.object(name);
+  if (def == nullptr)
+    throw std::runtime_error("profile " + profile.key() + " has no object '" + std::string(name) + "'");
+  return *def;
+}
+
+inline const profiles::BitSet& required_bitset(const profiles::Profile& profile, std::string_view name) {
+  const auto* set = profile.bitset(name);
+  if (set == nullptr)
+    throw std::runtime_error("profile " + profile.key() + " has no bit set '" + std::string(name) + "'");
+  return *set;
+}
+
+// A codec's PDO as the line file gives it, bound at start-up; the objects the typed status does not
+// name get their slots first (others, index: the PDO's). A mapping that does not decode ends start-up.
+inline canopen::PdoBinding bind_line_pdo(const profiles::Profile& profile, canopen::ProcessImage& image,
+                                         const profiles::DevicePdo& pdo, OtherValues& others, std::size_t index) {
+  others.bind(index, pdo, image);
+  auto mapping = canopen::PdoMapping::create(pdo.mapping);
+  if (!mapping) throw std::runtime_error("profile " + profile.key() + " " + pdo.name + ": " + mapping.error().message);
+  return canopen::PdoBinding(std::move(*mapping), image);
+}
 
 inline Result<canopen::PdoBinding> bind_device_pdo(const profiles::Profile& profile, const canopen::ProcessImage& image,
                                                    const profiles::DevicePdo& pdo) {

@@ -46,13 +46,7 @@ SawCodec::SawCodec(const profiles::Profile& profile, std::span<const profiles::D
 
   others_.emplace(profile_, image_, rpdos_received);
   defs_.assign(pdos.begin(), pdos.end());
-  for (const auto& pdo : defs_) {
-    others_->bind(pdos_.size(), pdo, image_);
-    auto mapping = canopen::PdoMapping::create(pdo.mapping);
-    if (!mapping)
-      throw std::runtime_error("profile " + profile_.key() + " " + pdo.name + ": " + mapping.error().message);
-    pdos_.push_back({&pdo, canopen::PdoBinding(std::move(*mapping), image_)});
-  }
+  for (const auto& pdo : defs_) pdos_.push_back({&pdo, bind_line_pdo(profile_, image_, pdo, *others_, pdos_.size())});
 }
 
 Result<void> SawCodec::use_pdo(std::size_t pdo, const profiles::DevicePdo& actual) {
@@ -60,18 +54,11 @@ Result<void> SawCodec::use_pdo(std::size_t pdo, const profiles::DevicePdo& actua
 }
 
 SawCodec::Object SawCodec::bind(std::string_view name) {
-  const auto* def = profile_.object(name);
-  if (def == nullptr)
-    throw std::runtime_error("profile " + profile_.key() + " has no object '" + std::string(name) + "'");
-  return {def, image_.slot(def->index, def->sub)};
+  const auto& def = required_object(profile_, name);
+  return {&def, image_.slot(def.index, def.sub)};
 }
 
-const profiles::BitSet& SawCodec::bitset(std::string_view name) const {
-  const auto* set = profile_.bitset(name);
-  if (set == nullptr)
-    throw std::runtime_error("profile " + profile_.key() + " has no bit set '" + std::string(name) + "'");
-  return *set;
-}
+const profiles::BitSet& SawCodec::bitset(std::string_view name) const { return required_bitset(profile_, name); }
 
 void SawCodec::fill(msg::SawStatus& status) const {
   const std::uint64_t sw = image_.get(status_word_.slot);
