@@ -25,6 +25,7 @@
 #include "msgs/sawPubSubTypes.h"
 #include "support/collector.hpp"
 #include "support/line_harness.hpp"
+#include "support/line_views.hpp"
 #include "support/run_command.hpp"
 
 namespace msg = linebridge_msgs::msg;
@@ -32,6 +33,7 @@ namespace srv = linebridge_msgs::srv;
 using namespace std::chrono_literals;
 using lb::ddsl::QosKind;
 using Clock = std::chrono::steady_clock;
+using lb::test::operational;
 
 namespace {
 
@@ -57,11 +59,6 @@ bool has(const CliRun& r, const std::string& text) { return r.output.find(text) 
 std::string last_text(lb::test::Collector<msg::DiagnosticsPubSubType>& diag) {
   const auto all = diag.samples();
   return all.empty() ? std::string("no diagnostics\n") : lb::app::to_text(all.back());
-}
-
-template <class Status>
-bool operational(const Status& s) {
-  return s.health().online() && s.health().nmt_state() == msg::NMT_OPERATIONAL;
 }
 
 class Cli : public ::testing::Test {
@@ -170,7 +167,17 @@ TEST_F(Cli, FeederTopicsServicesAndLoomPlay) {
                                    ::testing::TempDir() + "/cli_unwinding_" + std::to_string(::getpid()) + ".log");
   lb::test::ChildProcess errors({LB_BIN_CLI, "echo", "box1", "feeder_error", "--config", config_, "--duration", "60"},
                                 ::testing::TempDir() + "/cli_feeder_error_" + std::to_string(::getpid()) + ".log");
-  std::this_thread::sleep_for(1500ms);  // both matched
+  // Both echoes subscribed before anything below causes an event: a writer of this test on each
+  // topic (it never writes) is matched with their readers once discovery has announced them, the
+  // same discovery that matches them with the bridge's writers.
+  auto unwinding_probe = line_->dds().writer<msg::FeederUnwindingPubSubType>(line_->topic("box1", "unwinding"),
+                                                                             QosKind::event);
+  auto errors_probe = line_->dds().writer<msg::FeederErrorPubSubType>(line_->topic("box1", "feeder_error"),
+                                                                      QosKind::event);
+  ASSERT_TRUE(unwinding_probe && errors_probe);
+  ASSERT_TRUE(lb::test::eventually(60s, [&] { return unwinding_probe->matched() > 0 && errors_probe->matched() > 0; }))
+      << "the echoes never subscribed\n"
+      << unwinding.log() << errors.log();
   auto r = cli({"set", "box1", "--loom-status", "start_advice", "--maximum-speed", "600", "--loom-width-m", "1.9"});
   EXPECT_EQ(r.exit_code, 0) << r.output << line_->logs();
   EXPECT_TRUE(has(r, "loom start_advice at 600 1/min, width 1.9 m")) << r.output;

@@ -12,31 +12,12 @@
 #include "msgs/pullerPubSubTypes.h"
 #include "msgs/sawPubSubTypes.h"
 #include "support/line_harness.hpp"
+#include "support/line_views.hpp"
 
 namespace msg = linebridge_msgs::msg;
 using namespace std::chrono_literals;
 using lb::ddsl::QosKind;
-
-namespace {
-
-template <class Writer>
-bool wait_matched(lb::test::LineHarness& line, Writer& writer, const std::string& result_topic) {
-  const auto deadline = std::chrono::steady_clock::now() + 10s;
-  while (writer.matched() == 0 || line.dds().matched_writers(result_topic) == 0) {
-    if (std::chrono::steady_clock::now() > deadline) return false;
-    std::this_thread::sleep_for(20ms);
-  }
-  return true;
-}
-
-const msg::PdoInfo* pdo(const msg::DeviceInfo& info, const std::string& name) {
-  for (const auto& p : info.pdos()) {
-    if (p.name() == name) return &p;
-  }
-  return nullptr;
-}
-
-}  // namespace
+using lb::test::operational;
 
 // Saw 3.1: only the transmission parameters are rw (tables 3, 7, 11); the bridge writes them and
 // the saw's PDOs follow them on the bus. Its COB-IDs are const, so its PDOs are valid for good and
@@ -56,18 +37,13 @@ TEST(PdoOverrides, TransmissionTypesReachTheSawAndItsFramesFollowThem) {
              "      rpdo1: {transmission_type: 255}\n"
              "    simulation: {max_speed_m_per_min: 60, acceleration_m_per_min_s: 6000,\n"
              "                 pdos: {tpdo1: {inhibit_time_100us: 500}}}\n");
-  lb::test::Collector<msg::SawStatusPubSubType> status;
-  lb::test::Collector<msg::SetpointResultPubSubType> results;
-  lb::test::Collector<msg::DeviceInfoPubSubType> info;
-  ASSERT_TRUE(status.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
-  ASSERT_TRUE(results.subscribe(line.dds(), line.topic("saw1", "setpoint_result"), QosKind::reply));
-  ASSERT_TRUE(info.subscribe(line.dds(), line.topic("saw1", "info"), QosKind::state));
+  auto status = line.collect<msg::SawStatusPubSubType>("saw1", "status", QosKind::state);
+  auto results = line.collect<msg::SetpointResultPubSubType>("saw1", "setpoint_result", QosKind::reply);
+  auto info = line.collect<msg::DeviceInfoPubSubType>("saw1", "info", QosKind::state);
   auto writer = line.dds().writer<msg::SawSetpointPubSubType>(line.topic("saw1", "setpoint"), QosKind::command);
   ASSERT_TRUE(writer);
-  ASSERT_TRUE(status.wait_last(15s, [](const msg::SawStatus& s) {
-    return s.health().online() && s.health().nmt_state() == msg::NMT_OPERATIONAL;
-  })) << line.logs();
-  ASSERT_TRUE(wait_matched(line, *writer, line.topic("saw1", "setpoint_result")));
+  ASSERT_TRUE(status.wait_last(30s, operational<msg::SawStatus>)) << line.logs();
+  ASSERT_TRUE(line.wait_matched(*writer, line.topic("saw1", "setpoint_result"))) << line.logs();
 
   // On the bus, the bridge's boot wrote the transmission type (expedited download of 1800h sub 2
   // = 254: 2F 00 18 02 FE) and never the inhibit time (no download to 1800h sub 3): the line's
@@ -88,20 +64,13 @@ TEST(PdoOverrides, TransmissionTypesReachTheSawAndItsFramesFollowThem) {
   EXPECT_EQ(line.read_unsigned("saw1", 0x1400, 2, "UNSIGNED8"), 255u);
   ASSERT_TRUE(info.wait_last(5s, [](const msg::DeviceInfo& i) { return i.started(); })) << line.logs();
   const auto started = info.samples().back();
-  const auto* tpdo2 = pdo(started, "tpdo2");
+  const auto* tpdo2 = lb::test::pdo_of(started, "tpdo2");
   ASSERT_NE(tpdo2, nullptr);
   EXPECT_EQ(tpdo2->transmission_type(), 2);
   EXPECT_FALSE(tpdo2->adopted());
 
   // Windows counted in the bridge's SYNCs on the bus (a loaded machine stretches time, not SYNCs).
-  const auto wait_syncs = [&line](std::size_t n) {
-    const auto deadline = std::chrono::steady_clock::now() + 30s;
-    while (line.spy().frames(0x080).size() < n) {
-      if (std::chrono::steady_clock::now() > deadline) return false;
-      std::this_thread::sleep_for(10ms);
-    }
-    return true;
-  };
+  const auto wait_syncs = [&line](std::size_t n) { return line.spy().wait_count(0x080, n, 60s).size() >= n; };
   // Quiet line: the event-driven RPDO1 is not repeated at every SYNC.
   line.spy().clear();
   ASSERT_TRUE(wait_syncs(50));
@@ -157,9 +126,7 @@ TEST(PdoOverrides, TransmissionTypesReachTheSawAndItsFramesFollowThem) {
   writer->write(sp);
   ASSERT_TRUE(results.wait_last(5s, [](const msg::SetpointResult& r) { return r.request_id() == 2 && r.accepted(); }));
   // Once: the first RPDO1, then 10 more SYNCs without another.
-  const auto deadline = std::chrono::steady_clock::now() + 10s;
-  while (line.spy().frames(0x205).empty() && std::chrono::steady_clock::now() < deadline)
-    std::this_thread::sleep_for(10ms);
+  ASSERT_FALSE(line.spy().wait_count(0x205, 1).empty()) << "no RPDO1 for the new set value\n" << line.logs();
   ASSERT_TRUE(wait_syncs(line.spy().frames(0x080).size() + 10));
   const auto sent = line.spy().frames(0x205);
   ASSERT_EQ(sent.size(), 1u) << line.logs();
@@ -182,16 +149,12 @@ TEST(PdoOverrides, RemappedTpdoIsWrittenToTheDeviceAndDecodes) {
              "    pdos:\n"
              "      tpdo2: {mapping: [0x60080020, 0x60040010]}\n"
              "    simulation: {max_speed_m_per_min: 30, acceleration_m_per_min_s: 600}\n");
-  lb::test::Collector<msg::PullerStatusPubSubType> status;
-  lb::test::Collector<msg::SetpointResultPubSubType> results;
-  ASSERT_TRUE(status.subscribe(line.dds(), line.topic("puller1", "status"), QosKind::state));
-  ASSERT_TRUE(results.subscribe(line.dds(), line.topic("puller1", "setpoint_result"), QosKind::reply));
+  auto status = line.collect<msg::PullerStatusPubSubType>("puller1", "status", QosKind::state);
+  auto results = line.collect<msg::SetpointResultPubSubType>("puller1", "setpoint_result", QosKind::reply);
   auto writer = line.dds().writer<msg::PullerSetpointPubSubType>(line.topic("puller1", "setpoint"), QosKind::command);
   ASSERT_TRUE(writer);
-  ASSERT_TRUE(status.wait_last(15s, [](const msg::PullerStatus& s) {
-    return s.health().online() && s.health().nmt_state() == msg::NMT_OPERATIONAL;
-  })) << line.logs();
-  ASSERT_TRUE(wait_matched(line, *writer, line.topic("puller1", "setpoint_result")));
+  ASSERT_TRUE(status.wait_last(30s, operational<msg::PullerStatus>)) << line.logs();
+  ASSERT_TRUE(line.wait_matched(*writer, line.topic("puller1", "setpoint_result"))) << line.logs();
   EXPECT_EQ(line.read_unsigned("puller1", 0x1A01, 0, "UNSIGNED8"), 2u);
   EXPECT_EQ(line.read_unsigned("puller1", 0x1A01, 1, "UNSIGNED32"), 0x60080020u);
   EXPECT_EQ(line.read_unsigned("puller1", 0x1A01, 2, "UNSIGNED32"), 0x60040010u);
@@ -210,12 +173,8 @@ TEST(PdoOverrides, RemappedTpdoIsWrittenToTheDeviceAndDecodes) {
   })) << line.logs();
   // The puller's next TPDO2 on the bus, waited for.
   line.spy().clear();
-  const auto deadline = std::chrono::steady_clock::now() + 10s;
-  while (line.spy().frames(0x286).empty()) {
-    ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "no TPDO2 of the puller" << line.logs();
-    std::this_thread::sleep_for(10ms);
-  }
-  const auto frames = line.spy().frames(0x286);
+  const auto frames = line.spy().wait_count(0x286, 1);
+  ASSERT_FALSE(frames.empty()) << "no TPDO2 of the puller" << line.logs();
   const auto& f = frames.back();
   ASSERT_EQ(f.len, 6);
   // Bytes 0..3 product speed 000249F0h, bytes 4..5 the set echo 1388h: the new order.

@@ -24,6 +24,7 @@
 #include "support/bus_spy.hpp"
 #include "support/child_process.hpp"
 #include "support/collector.hpp"
+#include "support/eventually.hpp"
 
 namespace lb::test {
 
@@ -177,6 +178,14 @@ class LineHarness {
     req.device(device);
     req.command(name);
     return call(commands_, "command", req);
+  }
+
+  // Waits until a set-value writer is matched with the bridge's reader and the bridge's writer of
+  // `result_topic` with this test's reader: a set value written then is read and answered.
+  template <class Writer>
+  bool wait_matched(Writer& writer, const std::string& result_topic,
+                    std::chrono::steady_clock::duration timeout = std::chrono::seconds(30)) {
+    return eventually(timeout, [&] { return writer.matched() != 0 && dds_->matched_writers(result_topic) != 0; });
   }
 
   // Counts the times `text` appears in the bridge's log.
