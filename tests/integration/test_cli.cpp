@@ -64,7 +64,6 @@ std::string last_text(lb::test::Collector<msg::DiagnosticsPubSubType>& diag) {
 class Cli : public ::testing::Test {
  protected:
   void SetUp() override {
-    ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
     line_ = std::make_unique<lb::test::LineHarness>("clitest", 33);
     line_->start("  - {name: saw1, bus: b, node_id: 3, profile: cia420-4, version: '3.1'}\n"
                  "  - {name: puller1, bus: b, node_id: 6, profile: cia420-2, version: '1.0'}\n"

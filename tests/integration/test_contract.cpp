@@ -25,6 +25,7 @@
 #include "msgs/sawPubSubTypes.h"
 #include "support/line_harness.hpp"
 #include "support/line_views.hpp"
+#include "support/set_value_client.hpp"
 
 namespace msg = linebridge_msgs::msg;
 namespace srv = linebridge_msgs::srv;
@@ -161,7 +162,6 @@ const std::string kDevices = "  - {name: saw1, bus: b, node_id: 3, profile: cia4
 }  // namespace
 
 TEST(Contract, TheContractTableIsWhatTheBridgeAnnounces) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("contract", 27);
   Announced announced;
   // A plain Fast DDS participant: only DDS discovery tells what the bridge announces.
@@ -204,7 +204,6 @@ TEST(Contract, TheContractTableIsWhatTheBridgeAnnounces) {
 // 6 early warning, 7 corrugator cut management, 8 groove count mode); the simulated saw has a
 // measuring wheel, cut depth, early warning and groove counting.
 TEST(Contract, ConfigurationWordIsOnInfoBitByBit) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("config6010", 28);
   line.start(kDevices);
   std::map<std::string, lb::test::Collector<msg::DeviceInfoPubSubType>> info;
@@ -257,15 +256,9 @@ TEST(Contract, ConfigurationWordIsOnInfoBitByBit) {
 
 // Saw control bit 1 (wall-thickening active) is a level the MES sets with the other set values.
 TEST(Contract, SawWallThickeningIsASetValue) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("wall", 29);
   line.start("  - {name: saw1, bus: b, node_id: 3, profile: cia420-4, version: '3.1'}\n");
-  auto status = line.collect<msg::SawStatusPubSubType>("saw1", "status", QosKind::state);
-  auto results = line.collect<msg::SetpointResultPubSubType>("saw1", "setpoint_result", QosKind::reply);
-  auto writer = line.dds().writer<msg::SawSetpointPubSubType>(line.topic("saw1", "setpoint"), QosKind::command);
-  ASSERT_TRUE(writer);
-  ASSERT_TRUE(status.wait_last(30s, operational<msg::SawStatus>)) << line.logs();
-  ASSERT_TRUE(line.wait_matched(*writer, line.topic("saw1", "setpoint_result"))) << line.logs();
+  lb::test::SetValueClient<msg::SawStatusPubSubType, msg::SawSetpointPubSubType> saw(line, "saw1");
   for (const bool on : {true, false}) {
     msg::SawSetpoint sp;
     sp.request_id(on ? 1 : 2);
@@ -274,13 +267,13 @@ TEST(Contract, SawWallThickeningIsASetValue) {
     sp.sync_speed_percent(50);
     sp.product_length_m(1.0);
     line.spy().clear();
-    ASSERT_TRUE(writer->write(sp));
+    ASSERT_TRUE(saw.writer.write(sp));
     ASSERT_TRUE(
-        results.wait(5s, [&](const auto& v) { return !v.empty() && v.back().request_id() == sp.request_id(); }));
-    EXPECT_TRUE(results.samples().back().accepted()) << results.samples().back().reason();
+        saw.results.wait(5s, [&](const auto& v) { return !v.empty() && v.back().request_id() == sp.request_id(); }));
+    EXPECT_TRUE(saw.results.samples().back().accepted()) << saw.results.samples().back().reason();
     // RPDO1 (203h): 6020h bit 0 program on, bit 1 wall-thickening.
     ASSERT_TRUE(
-        status.wait_last(2s, [on](const msg::SawStatus& s) { return s.control_word().wall_thickening() == on; }));
+        saw.status.wait_last(2s, [on](const msg::SawStatus& s) { return s.control_word().wall_thickening() == on; }));
     ASSERT_TRUE(line.spy().wait_until([on](const std::vector<lb::can::CanFrame>& frames) {
       return std::any_of(frames.begin(), frames.end(),
                          [on](const auto& f) { return f.id == 0x203 && (f.data[0] & 0x03) == (on ? 0x03 : 0x01); });
@@ -293,7 +286,6 @@ TEST(Contract, SawWallThickeningIsASetValue) {
 // Objects a device maps beyond the typed status: named in the line file, published by name and
 // in engineering units, whether the line maps them (configure) or the device does (adopt).
 TEST(Contract, MappedObjectsBeyondTheTypedStatusArePublishedByName) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("other", 30);
   const std::string objects = "    objects: [{index: 0x2110, name: second_status_word, type: UNSIGNED16}]\n";
   line.start("  - name: saw1\n    bus: b\n    node_id: 3\n    profile: cia420-4\n    version: '3.1'\n" + objects +
@@ -326,7 +318,6 @@ TEST(Contract, MappedObjectsBeyondTheTypedStatusArePublishedByName) {
 
 // Feeder RPDO3 (600Dh digital outputs, optional): typed in the loom set value when the box has it.
 TEST(Contract, FeederDigitalOutputsGoInRpdo3WhenTheBoxHasIt) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("outputs", 31);
   line.start("  - {name: box1, bus: b, node_id: 10, profile: cia414-2, version: '1.1'}\n"
              "  - {name: box2, bus: b, node_id: 11, profile: cia414-2, version: '1.1', pdos: {rpdo3: {cob_id: "
@@ -338,8 +329,7 @@ TEST(Contract, FeederDigitalOutputsGoInRpdo3WhenTheBoxHasIt) {
   auto w2 = line.dds().writer<msg::LoomSetpointPubSubType>(line.topic("box2", "loom"), QosKind::command);
   ASSERT_TRUE(w1 && w2);
   ASSERT_TRUE(box1.wait_last(30s, operational<msg::FeederStatus>)) << line.logs();
-  auto box2 = line.collect<msg::FeederStatusPubSubType>("box2", "status", QosKind::state);
-  ASSERT_TRUE(box2.wait_last(30s, operational<msg::FeederStatus>)) << line.logs();
+  auto box2 = line.operational_status<msg::FeederStatusPubSubType>("box2");
   ASSERT_TRUE(line.wait_matched(*w1, line.topic("box1", "loom_result"))) << line.logs();
   ASSERT_TRUE(line.wait_matched(*w2, line.topic("box2", "loom_result"))) << line.logs();
 

@@ -14,6 +14,7 @@
 #include "msgs/sawPubSubTypes.h"
 #include "support/line_harness.hpp"
 #include "support/line_views.hpp"
+#include "support/set_value_client.hpp"
 
 namespace msg = linebridge_msgs::msg;
 namespace srv = linebridge_msgs::srv;
@@ -68,7 +69,6 @@ lb::can::CanFrame silent_reset_request(std::uint8_t node_id) {
 // A puller plugged in at the saw's node-ID answers 01A4h in 1000h like the saw, so only the
 // pinned identity tells them apart (CiA 302-2 error M); a feeder there answers profile 414 (C).
 TEST(MasterBoot, WrongDeviceAtANodeIdIsNeverStartedAndGetsNoRpdo) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("wrongdev", 11);
   line.start(saw_entry("saw1", 5, "    identity: {vendor_id: 0x4C420000, product_code: 0x04200004}\n") +
                  saw_entry("saw2", 6),
@@ -152,7 +152,6 @@ TEST(MasterBoot, WrongDeviceAtANodeIdIsNeverStartedAndGetsNoRpdo) {
 // Saw 3.1 fixes its TPDO2 mapping (Table 9: const). A line file that swaps it cannot be written:
 // the saw is not started and the reason names the PDO, the entry and both values.
 TEST(MasterBoot, OverrideOfAConstEntryIsRefusedWithTheReason) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("constpdo", 12);
   line.start(saw_entry("saw1", 5, "    pdos: {tpdo2: {mapping: [0x60070020, 0x60010020]}}\n"));
   auto info = line.collect<msg::DeviceInfoPubSubType>("saw1", "info", QosKind::state);
@@ -184,7 +183,6 @@ TEST(MasterBoot, OverrideOfAConstEntryIsRefusedWithTheReason) {
 // line's default (configure) the difference is found and, the entries being const, refused; with
 // pdo_config: adopt the bridge decodes by the device's mapping and the values come out right.
 TEST(MasterBoot, DeviceMappingThatDiffersIsDetectedAndCanBeAdopted) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("adopt", 13);
   const std::string factory = "    simulation: {max_speed_m_per_min: 60, acceleration_m_per_min_s: 6000,\n"
                               "                 pdos: {tpdo2: {mapping: [0x60070020, 0x60010020]}}}\n";
@@ -192,8 +190,6 @@ TEST(MasterBoot, DeviceMappingThatDiffersIsDetectedAndCanBeAdopted) {
              saw_entry("saw1", 5, factory) + saw_entry("saw2", 6, factory));
   auto info1 = line.collect<msg::DeviceInfoPubSubType>("saw1", "info", QosKind::state);
   auto info2 = line.collect<msg::DeviceInfoPubSubType>("saw2", "info", QosKind::state);
-  auto status2 = line.collect<msg::SawStatusPubSubType>("saw2", "status", QosKind::state);
-  auto results = line.collect<msg::SetpointResultPubSubType>("saw2", "setpoint_result", QosKind::reply);
 
   ASSERT_TRUE(info1.wait_last(15s, [](const msg::DeviceInfo& i) { return !i.boot_error().code().empty(); }))
       << line.logs();
@@ -207,30 +203,24 @@ TEST(MasterBoot, DeviceMappingThatDiffersIsDetectedAndCanBeAdopted) {
   ASSERT_TRUE(info2.wait_last(15s, [](const msg::DeviceInfo& i) { return i.started(); })) << line.logs();
   const auto i2 = info2.samples().back();
   EXPECT_EQ(i2.pdo_config(), "adopt");
-  bool seen = false;
-  for (const auto& p : i2.pdos()) {
-    if (p.name() != "tpdo2") continue;
-    seen = true;
-    EXPECT_TRUE(p.adopted());
-    EXPECT_EQ(p.mapping(), (std::vector<std::uint32_t>{0x60070020, 0x60010020}));
-  }
-  EXPECT_TRUE(seen);
+  const auto* tpdo2 = lb::test::pdo_of(i2, "tpdo2");
+  ASSERT_NE(tpdo2, nullptr);
+  EXPECT_TRUE(tpdo2->adopted());
+  EXPECT_EQ(tpdo2->mapping(), (std::vector<std::uint32_t>{0x60070020, 0x60010020}));
 
-  auto writer = line.dds().writer<msg::SawSetpointPubSubType>(line.topic("saw2", "setpoint"), QosKind::command);
-  ASSERT_TRUE(writer);
-  ASSERT_TRUE(status2.wait_last(10s, operational)) << line.logs();
-  ASSERT_TRUE(line.wait_matched(*writer, line.topic("saw2", "setpoint_result"))) << line.logs();
+  lb::test::SetValueClient<msg::SawStatusPubSubType, msg::SawSetpointPubSubType> saw2(line, "saw2");
   msg::SawSetpoint sp;
   sp.request_id(1);
   sp.saw_program_on(true);
   sp.sync_speed_percent(100);
   sp.product_length_m(2.0);
-  writer->write(sp);
-  ASSERT_TRUE(results.wait_last(5s, [](const msg::SetpointResult& r) { return r.request_id() == 1 && r.accepted(); }))
-      << line.logs();
+  saw2.writer.write(sp);
+  ASSERT_TRUE(saw2.results.wait_last(5s, [](const msg::SetpointResult& r) {
+    return r.request_id() == 1 && r.accepted();
+  })) << line.logs();
   // 100 % of 60 m/min: product speed 6007h is 60 m/min, and the saw counter 6001h grows from 0
   // towards the 2 m length. Decoded by the profile's order instead, the two would be swapped.
-  ASSERT_TRUE(status2.wait_last(5s, [](const msg::SawStatus& s) {
+  ASSERT_TRUE(saw2.status.wait_last(30s, [](const msg::SawStatus& s) {
     return s.product_speed_m_per_min() == 60.0 && s.actual_saw_counter_m() > 0.1 && s.actual_saw_counter_m() < 2.0;
   })) << line.logs();
   EXPECT_NE(line.bridge().log().find("tpdo2 decoded and sent by the device's own mapping"), std::string::npos);
@@ -241,14 +231,12 @@ TEST(MasterBoot, DeviceMappingThatDiffersIsDetectedAndCanBeAdopted) {
 // and within one heartbeat timeout it is configured again (6006h, written at every boot) and
 // started. Checked on the bus, with the frames' timestamps.
 TEST(MasterBoot, SilentResetIsReconfiguredWithinOneHeartbeatTimeout) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("silent", 14);
   line.start(saw_entry("saw1", 5,
                        "    configure: [{object: saw_sync_speed_set_maximum, value: 45000}]\n"
                        "    simulation: {heartbeat_period_ms: 100}\n"));
-  auto status = line.collect<msg::SawStatusPubSubType>("saw1", "status", QosKind::state);
+  auto status = line.operational_status<msg::SawStatusPubSubType>("saw1");
   auto diag = line.collect<msg::DiagnosticsPubSubType>("bridge", "diagnostics", QosKind::state);
-  ASSERT_TRUE(status.wait_last(15s, operational)) << line.logs();
   ASSERT_EQ(line.read_unsigned("saw1", 0x6006, 0, "UNSIGNED32"), 45000u);
 
   line.spy().clear();
@@ -299,11 +287,9 @@ TEST(MasterBoot, SilentResetIsReconfiguredWithinOneHeartbeatTimeout) {
 // gives a producer time: it falls silent, so the bridge only learns of it from the heartbeat
 // timeout; it then probes the device, writes 1017h again and starts it.
 TEST(MasterBoot, SilentResetOfADeviceWithoutPowerOnHeartbeatIsRecovered) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("silent0", 15);
   line.start(saw_entry("saw1", 5, "    heartbeat_producer_ms: 100\n    simulation: {heartbeat_period_ms: 0}\n"));
-  auto status = line.collect<msg::SawStatusPubSubType>("saw1", "status", QosKind::state);
-  ASSERT_TRUE(status.wait_last(15s, operational)) << line.logs();
+  auto status = line.operational_status<msg::SawStatusPubSubType>("saw1");
   EXPECT_EQ(line.read_unsigned("saw1", 0x1017, 0, "UNSIGNED16"), 100u);
 
   wait_post_boot_reads(line, "saw1");
@@ -340,13 +326,11 @@ TEST(MasterBoot, SilentResetOfADeviceWithoutPowerOnHeartbeatIsRecovered) {
 // on_state_unknown: reset_node: the bridge answers the unknown state with an NMT reset node, and
 // the device's boot-up starts its boot.
 TEST(MasterBoot, ResetNodePolicyResetsADeviceWhoseStateIsUnknown) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("resetpol", 16);
   line.start(saw_entry(
       "saw1", 5,
       "    on_state_unknown: reset_node\n    configure: [{object: saw_sync_speed_set_maximum, value: 45000}]\n"));
-  auto status = line.collect<msg::SawStatusPubSubType>("saw1", "status", QosKind::state);
-  ASSERT_TRUE(status.wait_last(15s, operational)) << line.logs();
+  auto status = line.operational_status<msg::SawStatusPubSubType>("saw1");
   line.spy().clear();
   wait_post_boot_reads(line, "saw1");
   ASSERT_TRUE(line.spy().send(silent_reset_request(5)));
@@ -363,12 +347,10 @@ TEST(MasterBoot, ResetNodePolicyResetsADeviceWhoseStateIsUnknown) {
 // test, as a device with a loose supply would boot) are a storm: reported, and the next boot waits
 // instead of reconfiguring at once. Real boot-ups: each is followed by pre-operational heartbeats.
 TEST(MasterBoot, BootUpStormIsReportedAndBackedOff) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("storm", 17);
   line.start(saw_entry("saw1", 5));
-  auto status = line.collect<msg::SawStatusPubSubType>("saw1", "status", QosKind::state);
+  auto status = line.operational_status<msg::SawStatusPubSubType>("saw1");
   auto diag = line.collect<msg::DiagnosticsPubSubType>("bridge", "diagnostics", QosKind::state);
-  ASSERT_TRUE(status.wait_last(15s, operational)) << line.logs();
   for (int i = 0; i < 6; ++i) {
     ASSERT_TRUE(line.spy().send(lb::can::make_frame(0x000, {0x81, 0x05})));
     // Stays: it paces the injected storm (six boot-ups ~300 ms apart, each followed by the
@@ -392,7 +374,6 @@ TEST(MasterBoot, BootUpStormIsReportedAndBackedOff) {
 // reported on info (and in the log), and a heartbeat lost and back makes the bridge boot the
 // device again rather than trust it.
 TEST(MasterBoot, HeartbeatTimesThatDoNotFitAreReportedAndALostDeviceIsBootedAgain) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("hbfit", 18);
   line.start("  - name: saw1\n    bus: b\n    node_id: 5\n    profile: cia420-4\n    version: '3.1'\n"
              "    heartbeat_timeout_ms: 1400\n    boot_retry_ms: 1000\n"

@@ -13,18 +13,17 @@
 #include "msgs/sawPubSubTypes.h"
 #include "support/line_harness.hpp"
 #include "support/line_views.hpp"
+#include "support/set_value_client.hpp"
 
 namespace msg = linebridge_msgs::msg;
 using namespace std::chrono_literals;
 using lb::ddsl::QosKind;
-using lb::test::operational;
 
 // Saw 3.1: only the transmission parameters are rw (tables 3, 7, 11); the bridge writes them and
 // the saw's PDOs follow them on the bus. Its COB-IDs are const, so its PDOs are valid for good and
 // CiA 301 forbids writing their inhibit time: this saw comes with 50 ms from its factory (its
 // `simulation:`), which the line's 500 x 100 us matches, so nothing is written there.
 TEST(PdoOverrides, TransmissionTypesReachTheSawAndItsFramesFollowThem) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("pdo", 6);
   line.start("  - name: saw1\n"
              "    bus: b\n"
@@ -37,13 +36,8 @@ TEST(PdoOverrides, TransmissionTypesReachTheSawAndItsFramesFollowThem) {
              "      rpdo1: {transmission_type: 255}\n"
              "    simulation: {max_speed_m_per_min: 60, acceleration_m_per_min_s: 6000,\n"
              "                 pdos: {tpdo1: {inhibit_time_100us: 500}}}\n");
-  auto status = line.collect<msg::SawStatusPubSubType>("saw1", "status", QosKind::state);
-  auto results = line.collect<msg::SetpointResultPubSubType>("saw1", "setpoint_result", QosKind::reply);
   auto info = line.collect<msg::DeviceInfoPubSubType>("saw1", "info", QosKind::state);
-  auto writer = line.dds().writer<msg::SawSetpointPubSubType>(line.topic("saw1", "setpoint"), QosKind::command);
-  ASSERT_TRUE(writer);
-  ASSERT_TRUE(status.wait_last(30s, operational<msg::SawStatus>)) << line.logs();
-  ASSERT_TRUE(line.wait_matched(*writer, line.topic("saw1", "setpoint_result"))) << line.logs();
+  lb::test::SetValueClient<msg::SawStatusPubSubType, msg::SawSetpointPubSubType> saw(line, "saw1");
 
   // On the bus, the bridge's boot wrote the transmission type (expedited download of 1800h sub 2
   // = 254: 2F 00 18 02 FE) and never the inhibit time (no download to 1800h sub 3): the line's
@@ -81,11 +75,12 @@ TEST(PdoOverrides, TransmissionTypesReachTheSawAndItsFramesFollowThem) {
   sp.saw_program_on(true);
   sp.sync_speed_percent(100);
   sp.product_length_m(0.5);
-  writer->write(sp);
-  ASSERT_TRUE(results.wait_last(5s, [](const msg::SetpointResult& r) { return r.request_id() == 1 && r.accepted(); }))
-      << line.logs();
+  saw.writer.write(sp);
+  ASSERT_TRUE(saw.results.wait_last(5s, [](const msg::SetpointResult& r) {
+    return r.request_id() == 1 && r.accepted();
+  })) << line.logs();
   // 60 m/min, and the saw cuts at 0.5 m.
-  ASSERT_TRUE(status.wait(30s, [](const std::vector<msg::SawStatus>& v) {
+  ASSERT_TRUE(saw.status.wait(30s, [](const std::vector<msg::SawStatus>& v) {
     bool cut = false;
     for (std::size_t i = 1; i < v.size(); ++i) {
       if (v[i].status_word().saw_cutting() && !v[i - 1].status_word().saw_cutting() &&
@@ -123,8 +118,9 @@ TEST(PdoOverrides, TransmissionTypesReachTheSawAndItsFramesFollowThem) {
   line.spy().clear();
   sp.request_id(2);
   sp.product_length_m(0.4);
-  writer->write(sp);
-  ASSERT_TRUE(results.wait_last(5s, [](const msg::SetpointResult& r) { return r.request_id() == 2 && r.accepted(); }));
+  saw.writer.write(sp);
+  ASSERT_TRUE(
+      saw.results.wait_last(5s, [](const msg::SetpointResult& r) { return r.request_id() == 2 && r.accepted(); }));
   // Once: the first RPDO1, then 10 more SYNCs without another.
   ASSERT_FALSE(line.spy().wait_count(0x205, 1).empty()) << "no RPDO1 for the new set value\n" << line.logs();
   ASSERT_TRUE(wait_syncs(line.spy().frames(0x080).size() + 10));
@@ -139,7 +135,6 @@ TEST(PdoOverrides, TransmissionTypesReachTheSawAndItsFramesFollowThem) {
 // first in TPDO2 gets it written with the CiA 301 sequence (sub 0 = 0, entries, sub 0 = 2), and
 // the puller's frames and the status decode by the new layout.
 TEST(PdoOverrides, RemappedTpdoIsWrittenToTheDeviceAndDecodes) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("remap", 7);
   line.start("  - name: puller1\n"
              "    bus: b\n"
@@ -149,12 +144,7 @@ TEST(PdoOverrides, RemappedTpdoIsWrittenToTheDeviceAndDecodes) {
              "    pdos:\n"
              "      tpdo2: {mapping: [0x60080020, 0x60040010]}\n"
              "    simulation: {max_speed_m_per_min: 30, acceleration_m_per_min_s: 600}\n");
-  auto status = line.collect<msg::PullerStatusPubSubType>("puller1", "status", QosKind::state);
-  auto results = line.collect<msg::SetpointResultPubSubType>("puller1", "setpoint_result", QosKind::reply);
-  auto writer = line.dds().writer<msg::PullerSetpointPubSubType>(line.topic("puller1", "setpoint"), QosKind::command);
-  ASSERT_TRUE(writer);
-  ASSERT_TRUE(status.wait_last(30s, operational<msg::PullerStatus>)) << line.logs();
-  ASSERT_TRUE(line.wait_matched(*writer, line.topic("puller1", "setpoint_result"))) << line.logs();
+  lb::test::SetValueClient<msg::PullerStatusPubSubType, msg::PullerSetpointPubSubType> puller(line, "puller1");
   EXPECT_EQ(line.read_unsigned("puller1", 0x1A01, 0, "UNSIGNED8"), 2u);
   EXPECT_EQ(line.read_unsigned("puller1", 0x1A01, 1, "UNSIGNED32"), 0x60080020u);
   EXPECT_EQ(line.read_unsigned("puller1", 0x1A01, 2, "UNSIGNED32"), 0x60040010u);
@@ -163,11 +153,12 @@ TEST(PdoOverrides, RemappedTpdoIsWrittenToTheDeviceAndDecodes) {
   sp.request_id(1);
   sp.extruder_running(true);
   sp.speed_set_percent(50);
-  writer->write(sp);
-  ASSERT_TRUE(results.wait_last(5s, [](const msg::SetpointResult& r) { return r.request_id() == 1 && r.accepted(); }));
+  puller.writer.write(sp);
+  ASSERT_TRUE(
+      puller.results.wait_last(5s, [](const msg::SetpointResult& r) { return r.request_id() == 1 && r.accepted(); }));
   ASSERT_TRUE(line.command("puller1", "motor_start").success()) << line.logs();
   // 50 % of 30 m/min = 15 m/min (6008h: 150000 x 0.1 mm/min); the set echo 6004h is 50.00 %.
-  ASSERT_TRUE(status.wait_last(10s, [](const msg::PullerStatus& s) {
+  ASSERT_TRUE(puller.status.wait_last(10s, [](const msg::PullerStatus& s) {
     return s.product_speed_m_per_min() > 14.99 && s.product_speed_m_per_min() < 15.01 &&
            s.speed_set_echo_percent() > 49.99 && s.speed_set_echo_percent() < 50.01;
   })) << line.logs();

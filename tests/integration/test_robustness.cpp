@@ -27,6 +27,7 @@
 #include "support/line_harness.hpp"
 #include "support/line_views.hpp"
 #include "support/scratch_files.hpp"
+#include "support/set_value_client.hpp"
 
 namespace msg = linebridge_msgs::msg;
 namespace srv = linebridge_msgs::srv;
@@ -121,39 +122,15 @@ msg::SawSetpoint saw_set_value(std::uint64_t id, double speed_percent = 50, doub
   return sp;
 }
 
-// One saw (node 5) on a master bus, its status and set-value results read, a set-value writer
-// matched both ways: what every set-value test starts from.
-struct SetValueLine {
-  SetValueLine(const std::string& name, int domain) : line(name, domain) {}
-
-  ::testing::AssertionResult start() {
-    line.start(saw_entry("saw1", 5));
-    if (!status.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state) ||
-        !results.subscribe(line.dds(), line.topic("saw1", "setpoint_result"), QosKind::reply)) {
-      return ::testing::AssertionFailure() << "cannot subscribe";
-    }
-    auto w = line.dds().writer<msg::SawSetpointPubSubType>(line.topic("saw1", "setpoint"), QosKind::command);
-    if (!w) return ::testing::AssertionFailure() << w.error().message;
-    writer = *w;
-    if (!status.wait_last(20s, operational))
-      return ::testing::AssertionFailure() << "saw1 not operational\n" << line.logs();
-    if (!line.wait_matched(writer, line.topic("saw1", "setpoint_result")))
-      return ::testing::AssertionFailure() << "the set-value writer never matched the bridge\n" << line.logs();
-    return ::testing::AssertionSuccess();
-  }
-
-  lb::test::LineHarness line;
-  lb::test::Collector<msg::SawStatusPubSubType> status;
-  lb::test::Collector<msg::SetpointResultPubSubType> results;
-  lb::ddsl::Writer<msg::SawSetpointPubSubType> writer;
-};
+// One saw's set-value side (status, answers, writer), matched both ways: what every set-value
+// test starts from.
+using SawClient = lb::test::SetValueClient<msg::SawStatusPubSubType, msg::SawSetpointPubSubType>;
 
 }  // namespace
 
 // SIGTERM while clients call sdo_read: the SDO clients went before the DDS callbacks stopped, and
 // a request in between used a freed client (SIGSEGV in 6 of 15 stops). Every stop must be clean.
 TEST(Robustness, StopWhileClientsCallServicesIsClean) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("stopload", 21);
   line.start(saw_entry("saw1", 5));
   auto status = line.collect<msg::SawStatusPubSubType>("saw1", "status", QosKind::state);
@@ -204,11 +181,9 @@ TEST(Robustness, StopWhileClientsCallServicesIsClean) {
 // A subscriber of the emergency events that stops reading and acknowledging, during an EMCY burst:
 // the bridge's writes must not hold up its bus loop (SYNC stopped for 7-9 s before).
 TEST(Robustness, AFrozenSubscriberDuringAnEmcyBurstDoesNotStallTheBus) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("frozen", 22);
   line.start(saw_entry("saw1", 5));
-  auto status = line.collect<msg::SawStatusPubSubType>("saw1", "status", QosKind::state);
-  ASSERT_TRUE(status.wait_last(20s, operational)) << line.logs();
+  auto status = line.operational_status<msg::SawStatusPubSubType>("saw1");
   lb::test::ChildProcess reader({LB_BIN_CLI, "--config", line.bridge_config(), "echo", "saw1", "emergency"},
                                 ::testing::TempDir() + "/frozen_cli.log");
   ASSERT_TRUE(reader.started());
@@ -237,18 +212,13 @@ TEST(Robustness, AFrozenSubscriberDuringAnEmcyBurstDoesNotStallTheBus) {
 // A restart must not stop a running line: the set values in force come back before the first
 // RPDO, so the saw never sees its program switched off or its length at zero.
 TEST(Robustness, SetValuesInForceSurviveARestart) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   const auto dir = lb::test::fresh_dir("state");
   lb::test::LineHarness line("restart", 23);
   line.start(saw_entry("saw1", 5), "", "", "state_dir: " + dir + "\n");
-  auto status = line.collect<msg::SawStatusPubSubType>("saw1", "status", QosKind::state);
-  auto results = line.collect<msg::SetpointResultPubSubType>("saw1", "setpoint_result", QosKind::reply);
-  auto writer = line.dds().writer<msg::SawSetpointPubSubType>(line.topic("saw1", "setpoint"), QosKind::command);
-  ASSERT_TRUE(writer);
-  ASSERT_TRUE(status.wait_last(20s, operational)) << line.logs();
-  ASSERT_TRUE(line.wait_matched(*writer, line.topic("saw1", "setpoint_result"))) << line.logs();
-  writer->write(saw_set_value(1));
-  ASSERT_TRUE(results.wait(10s, [](const std::vector<msg::SetpointResult>& v) {
+  SawClient saw(line, "saw1");
+  auto& status = saw.status;
+  saw.writer.write(saw_set_value(1));
+  ASSERT_TRUE(saw.results.wait(10s, [](const std::vector<msg::SetpointResult>& v) {
     return std::any_of(v.begin(), v.end(),
                        [](const msg::SetpointResult& r) { return r.request_id() == 1 && r.accepted(); });
   })) << line.logs();
@@ -293,12 +263,10 @@ TEST(Robustness, SetValuesInForceSurviveARestart) {
 // Another master on a master bus (its SYNCs): the bridge yields (sends nothing there while it is
 // heard), says so in its diagnostics, and takes over again once the other one is silent.
 TEST(Robustness, AnotherMasterIsNoticedAndYieldedTo) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("twomasters", 24);
   line.start(saw_entry("saw1", 5));
-  auto status = line.collect<msg::SawStatusPubSubType>("saw1", "status", QosKind::state);
+  auto status = line.operational_status<msg::SawStatusPubSubType>("saw1");
   auto diag = line.collect<msg::DiagnosticsPubSubType>("bridge", "diagnostics", QosKind::state);
-  ASSERT_TRUE(status.wait_last(20s, operational)) << line.logs();
 
   // The other master: a SYNC every 20 ms for 2 s (the test's frames never reach the test's spy).
   line.spy().clear();
@@ -335,46 +303,46 @@ TEST(Robustness, AnotherMasterIsNoticedAndYieldedTo) {
 // SYNCs silenced the whole master for 5 s. Now: not believed, counted, SYNC goes on, and a
 // program-off set value reaches the saw.
 TEST(Robustness, SpoofedBootUpsAndStraySyncsTakeNoControlAway) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
-  SetValueLine t("spoof", 29);
-  ASSERT_TRUE(t.start());
+  lb::test::LineHarness line("spoof", 29);
+  line.start(saw_entry("saw1", 5));
+  SawClient saw(line, "saw1");
   lb::test::Collector<msg::DiagnosticsPubSubType> diag;
-  ASSERT_TRUE(diag.subscribe(t.line.dds(), t.line.topic("bridge", "diagnostics"), QosKind::state));
-  t.writer.write(saw_set_value(1));
-  ASSERT_TRUE(t.results.wait(10s, [](const std::vector<msg::SetpointResult>& v) {
+  ASSERT_TRUE(diag.subscribe(line.dds(), line.topic("bridge", "diagnostics"), QosKind::state));
+  saw.writer.write(saw_set_value(1));
+  ASSERT_TRUE(saw.results.wait(10s, [](const std::vector<msg::SetpointResult>& v) {
     return std::any_of(v.begin(), v.end(),
                        [](const msg::SetpointResult& r) { return r.request_id() == 1 && r.accepted(); });
-  })) << t.line.logs();
-  t.line.spy().clear();
-  for (int i = 0; i < 3; ++i) ASSERT_TRUE(t.line.spy().send(lb::can::make_frame(0x080, {})));
+  })) << line.logs();
+  line.spy().clear();
+  for (int i = 0; i < 3; ++i) ASSERT_TRUE(line.spy().send(lb::can::make_frame(0x080, {})));
   for (int i = 0; i < 12; ++i) {
-    ASSERT_TRUE(t.line.spy().send(lb::can::make_frame(0x705, {0x00})));
+    ASSERT_TRUE(line.spy().send(lb::can::make_frame(0x705, {0x00})));
     std::this_thread::sleep_for(500ms);  // stays: paces the spoofed boot-ups (12 in 6 s)
   }
   // The bridge's own SYNC never stopped (the test's frames never reach its spy).
-  const auto [count, widest_ms] = syncs(t.line.spy().frames());
+  const auto [count, widest_ms] = syncs(line.spy().frames());
   EXPECT_GE(count, 200u) << "SYNCs in 6 s at 20 ms: the master went silent";
   EXPECT_LT(widest_ms, 1000.0) << "the master went silent";
   // Program off reaches the saw: an RPDO1 with 6020h bit 0 clear.
   auto off = saw_set_value(2);
   off.saw_program_on(false);
-  t.writer.write(off);
-  ASSERT_TRUE(t.results.wait(10s, [](const std::vector<msg::SetpointResult>& v) {
+  saw.writer.write(off);
+  ASSERT_TRUE(saw.results.wait(10s, [](const std::vector<msg::SetpointResult>& v) {
     return std::any_of(v.begin(), v.end(),
                        [](const msg::SetpointResult& r) { return r.request_id() == 2 && r.accepted(); });
-  })) << t.line.logs();
-  EXPECT_TRUE(t.line.spy().wait_until([](const std::vector<lb::can::CanFrame>& frames) {
+  })) << line.logs();
+  EXPECT_TRUE(line.spy().wait_until([](const std::vector<lb::can::CanFrame>& frames) {
     return std::any_of(frames.begin(), frames.end(),
                        [](const auto& f) { return f.id == 0x205 && f.len == 8 && (f.data[0] & 0x01) == 0; });
   })) << "no RPDO1 with the program off reached the saw\n"
-      << t.line.logs();
+      << line.logs();
   ASSERT_TRUE(diag.wait_last(5s, [](const msg::Diagnostics& d) {
     const auto* n = node_of(d, "saw1");
     const auto* b = bus_of(d);
     return n != nullptr && b != nullptr && n->boot_ups_not_believed() >= 12 && n->boot_state() == "started" &&
            !b->yielding_to_other_master() && b->other_master_frames() >= 3;
-  })) << t.line.logs();
-  EXPECT_EQ(t.line.bridge().log().find("boot-up storm"), std::string::npos) << t.line.logs();
+  })) << line.logs();
+  EXPECT_EQ(line.bridge().log().find("boot-up storm"), std::string::npos) << line.logs();
 }
 
 // The bridge's own SDO traffic is bounded: a feeder box whose FF10h error bit chatters for 10 s
@@ -382,7 +350,6 @@ TEST(Robustness, SpoofedBootUpsAndStraySyncsTakeNoControlAway) {
 // read per EMCY in front of the services. Before, each EMCY queued one and an operator's request
 // waited behind thousands; now one read per feeder at a time, the rest coalesced.
 TEST(Robustness, AChatteringFeederErrorBitDoesNotStarveServiceRequests) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("chatter", 30);
   line.start("  - name: feeders\n    bus: b\n    node_id: 10\n    profile: cia414-2\n    version: '1.1'\n"
              "    heartbeat_timeout_ms: 400\n    simulation: {heartbeat_period_ms: 100}\n");
@@ -419,12 +386,10 @@ TEST(Robustness, AChatteringFeederErrorBitDoesNotStarveServiceRequests) {
 // Malformed EMCYs and heartbeats, frames of unknown nodes and an EMCY flood are counted in the
 // diagnostics, and the flood does not flood the log.
 TEST(Robustness, MalformedFramesAreCountedAndFloodsLoggedAtABoundedRate) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("malformed", 25);
   line.start(saw_entry("saw1", 5));
-  auto status = line.collect<msg::SawStatusPubSubType>("saw1", "status", QosKind::state);
+  auto status = line.operational_status<msg::SawStatusPubSubType>("saw1");
   auto diag = line.collect<msg::DiagnosticsPubSubType>("bridge", "diagnostics", QosKind::state);
-  ASSERT_TRUE(status.wait_last(20s, operational)) << line.logs();
   for (int i = 0; i < 3; ++i) ASSERT_TRUE(line.spy().send(lb::can::make_frame(0x085, {0x10, 0x42})));  // 2-byte EMCY
   for (int i = 0; i < 2; ++i) ASSERT_TRUE(line.spy().send(lb::can::make_frame(0x705, {})));         // empty heartbeat
   for (int i = 0; i < 4; ++i) ASSERT_TRUE(line.spy().send(lb::can::make_frame(0x1A0, {1, 2, 3})));  // TPDO1 of node 32
@@ -455,17 +420,13 @@ TEST(Robustness, MalformedFramesAreCountedAndFloodsLoggedAtABoundedRate) {
 // is refused with its reason, nothing of it reaches the bus (every RPDO1 stays the set value in
 // force), SYNC goes on through the flood, and the bridge answers afterwards.
 TEST(Robustness, HostileRequestsAreRefusedAndNothingReachesTheBus) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
-  SetValueLine setup("hostile_dds", 26);
-  ASSERT_TRUE(setup.start());
-  // References, not a structured binding: clang 14 cannot capture bindings in lambdas.
-  auto& line = setup.line;
-  auto& status = setup.status;
-  auto& results = setup.results;
-  auto* writer = &setup.writer;
+  lb::test::LineHarness line("hostile_dds", 26);
+  line.start(saw_entry("saw1", 5));
+  SawClient saw(line, "saw1");
   const auto valid = [](std::uint64_t id) { return saw_set_value(id); };
-  writer->write(valid(1));
-  ASSERT_TRUE(results.wait_last(5s, [](const msg::SetpointResult& r) { return r.request_id() == 1 && r.accepted(); }));
+  saw.writer.write(valid(1));
+  ASSERT_TRUE(
+      saw.results.wait_last(5s, [](const msg::SetpointResult& r) { return r.request_id() == 1 && r.accepted(); }));
   // RPDO1 of saw 3.1 (6020h control word 0005h, 6005h 5000 = 50.00 %, 6002h 12000 = 1.2 m in 0.1 mm),
   // on the bus before the hostile ones come.
   const std::array<std::uint8_t, 8> in_force{0x05, 0x00, 0x88, 0x13, 0xE0, 0x2E, 0x00, 0x00};
@@ -492,18 +453,18 @@ TEST(Robustness, HostileRequestsAreRefusedAndNothingReachesTheBus) {
   auto odd_mode = valid(100 + hostile.size());
   odd_mode.count_mode(static_cast<msg::SawCountMode>(77));
   hostile.push_back(odd_mode);
-  for (const auto& sp : hostile) writer->write(sp);
-  ASSERT_TRUE(results.wait(10s,
-                           [n = hostile.size()](const std::vector<msg::SetpointResult>& v) {
-                             std::size_t refused = 0;
-                             for (const auto& r : v)
-                               refused += r.request_id() >= 100 && r.request_id() < 100 + n && !r.accepted() &&
-                                          !r.reason().empty();
-                             return refused == n;
-                           }))
+  for (const auto& sp : hostile) saw.writer.write(sp);
+  ASSERT_TRUE(saw.results.wait(10s,
+                               [n = hostile.size()](const std::vector<msg::SetpointResult>& v) {
+                                 std::size_t refused = 0;
+                                 for (const auto& r : v)
+                                   refused += r.request_id() >= 100 && r.request_id() < 100 + n && !r.accepted() &&
+                                              !r.reason().empty();
+                                 return refused == n;
+                               }))
       << "every hostile set value refused with its reason\n"
       << line.logs();
-  for (const auto& r : results.samples()) {
+  for (const auto& r : saw.results.samples()) {
     if (r.request_id() >= 100 && r.request_id() < 100 + hostile.size()) {
       EXPECT_FALSE(r.accepted()) << r.request_id();
     }
@@ -535,35 +496,36 @@ TEST(Robustness, HostileRequestsAreRefusedAndNothingReachesTheBus) {
   const auto lost_before = diag.samples().back().commands_lost();
   std::vector<std::thread> flooders;
   for (int w = 0; w < 3; ++w) {
-    flooders.emplace_back([&line, &valid, &results, w] {
+    flooders.emplace_back([&line, &valid, &saw, w] {
       auto fw = line.dds().writer<msg::SawSetpointPubSubType>(line.topic("saw1", "setpoint"), QosKind::command);
       if (!fw) return;
       eventually(30s, [&fw] { return fw->matched() != 0; });  // if not, the first answer below fails
-      if (!answered_eventually(results, *fw, valid, 20'000 + static_cast<std::uint64_t>(w))) {
+      if (!answered_eventually(saw.results, *fw, valid, 20'000 + static_cast<std::uint64_t>(w))) {
         return;  // the count below comes up short and says so
       }
       for (int i = 0; i < 1000; ++i) fw->write(valid(10'000 + w * 1000 + i));
       // A closing set value, sent until answered: the bridge's reader keeps the latest 16 of all
       // writers together, so a writer's last flood samples can be overwritten there, and only a
       // later sample of the same writer shows the gap.
-      answered_eventually(results, *fw, valid, 30'000 + static_cast<std::uint64_t>(w));
+      answered_eventually(saw.results, *fw, valid, 30'000 + static_cast<std::uint64_t>(w));
     });
   }
   for (auto& t : flooders) t.join();
   // Asked until answered, as linebridge-cli set does: written once, its answer (the bridge's reply
   // writer's last sample after a burst) can fail to arrive though the bridge applied it (README,
   // "Requests written faster than read").
-  ASSERT_TRUE(answered_eventually(results, *writer, valid, 99'999)) << "no answer after the flood\n" << line.logs();
+  ASSERT_TRUE(answered_eventually(saw.results, saw.writer, valid, 99'999)) << "no answer after the flood\n"
+                                                                           << line.logs();
   std::size_t flood_answered = 0;
   const auto count_answered = [&] {
     flood_answered = 0;
-    for (const auto& r : results.samples()) flood_answered += r.request_id() >= 10'000 && r.request_id() < 13'000;
+    for (const auto& r : saw.results.samples()) flood_answered += r.request_id() >= 10'000 && r.request_id() < 13'000;
   };
   // Every set value of the flood is accounted for: answered, counted lost on its way to the bridge
   // (commands_lost, from the diagnostics published once a second), or its answer lost on the way
   // back (a gap in the bridge's reply numbers: the answers come as fast as the set values). One
   // the bridge took and neither answered nor counted leaves the sum short.
-  const auto replies_lost = results.gaps();
+  const auto replies_lost = saw.results.gaps();
   const bool accounted = diag.wait(30s, [&](const std::vector<msg::Diagnostics>& v) {
     count_answered();
     return flood_answered + (v.back().commands_lost() - lost_before) + replies_lost >= 3000;
@@ -585,7 +547,7 @@ TEST(Robustness, HostileRequestsAreRefusedAndNothingReachesTheBus) {
     EXPECT_TRUE(std::equal(in_force.begin(), in_force.end(), f.data.begin())) << "a hostile set value reached the bus";
   }
   EXPECT_GT(rpdos, 0u);
-  ASSERT_TRUE(status.wait_last(5s, operational));
+  ASSERT_TRUE(saw.status.wait_last(5s, operational));
 }
 
 // An application writing set values as fast as it can (bench.sh's soak found ~47,000 refusals a
@@ -593,18 +555,13 @@ TEST(Robustness, HostileRequestsAreRefusedAndNothingReachesTheBus) {
 // is still answered, but the log gets a few lines a second, with the count of the others, whether
 // the set values are refused or taken.
 TEST(Robustness, ASetValueFloodIsAnsweredButLoggedAtABoundedRate) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
-  SetValueLine setup("setvalue_flood", 33);
-  ASSERT_TRUE(setup.start());
-  // References, not a structured binding: clang 14 cannot capture bindings in lambdas.
-  auto& line = setup.line;
-  auto& status = setup.status;
-  auto& results = setup.results;
-  auto* writer = &setup.writer;
+  lb::test::LineHarness line("setvalue_flood", 33);
+  line.start(saw_entry("saw1", 5));
+  SawClient saw(line, "saw1");
   const auto set_value = [](std::uint64_t id, double length) { return saw_set_value(id, 50, length); };
-  const auto answered = [&results](std::uint64_t first, std::uint64_t end, bool accepted) {
+  const auto answered = [&saw](std::uint64_t first, std::uint64_t end, bool accepted) {
     std::size_t n = 0;
-    for (const auto& r : results.samples())
+    for (const auto& r : saw.results.samples())
       n += r.request_id() >= first && r.request_id() < end && r.accepted() == accepted;
     return n;
   };
@@ -613,20 +570,20 @@ TEST(Robustness, ASetValueFloodIsAnsweredButLoggedAtABoundedRate) {
   // 2000 refused (NaN length) and 2000 taken, paced only so that most reach the bridge (the
   // writer's keep-last 16 would otherwise replace them before they are sent).
   for (std::uint64_t i = 0; i < 2000; ++i) {
-    writer->write(set_value(1000 + i, std::numeric_limits<double>::quiet_NaN()));
+    saw.writer.write(set_value(1000 + i, std::numeric_limits<double>::quiet_NaN()));
     if (i % 10 == 9) std::this_thread::sleep_for(1ms);  // stays: paces the flood
   }
   for (std::uint64_t i = 0; i < 2000; ++i) {
-    writer->write(set_value(5000 + i, 1.0 + static_cast<double>(i) * 0.001));
+    saw.writer.write(set_value(5000 + i, 1.0 + static_cast<double>(i) * 0.001));
     if (i % 10 == 9) std::this_thread::sleep_for(1ms);  // stays: paces the flood
   }
   // After the flood's second has passed, one more of each says how many were not logged. Stays:
   // the bridge's log limit counts in seconds of its own, and a sleep is a lower bound on that time
   // however loaded the machine (the lines that prove it are waited for below).
   std::this_thread::sleep_for(1100ms);
-  writer->write(set_value(9000, std::numeric_limits<double>::quiet_NaN()));
-  writer->write(set_value(9001, 2.5));
-  ASSERT_TRUE(results.wait(10s, [](const std::vector<msg::SetpointResult>& v) {
+  saw.writer.write(set_value(9000, std::numeric_limits<double>::quiet_NaN()));
+  saw.writer.write(set_value(9001, 2.5));
+  ASSERT_TRUE(saw.results.wait(10s, [](const std::vector<msg::SetpointResult>& v) {
     return std::any_of(v.begin(), v.end(), [](const msg::SetpointResult& r) { return r.request_id() == 9001; });
   })) << line.logs();
   // Both answered; the count of those held back on the set-value lines themselves (a refusal's
@@ -642,7 +599,7 @@ TEST(Robustness, ASetValueFloodIsAnsweredButLoggedAtABoundedRate) {
   EXPECT_TRUE(eventually(30s, [&] { return held_back_lines() >= 2; }))
       << "no set-value line says how many were held back\n"
       << line.logs();
-  EXPECT_TRUE(results.wait(30s, [](const std::vector<msg::SetpointResult>& v) {
+  EXPECT_TRUE(saw.results.wait(30s, [](const std::vector<msg::SetpointResult>& v) {
     return std::any_of(v.begin(), v.end(), [](const msg::SetpointResult& r) { return r.request_id() == 9000; });
   }));
 
@@ -659,7 +616,7 @@ TEST(Robustness, ASetValueFloodIsAnsweredButLoggedAtABoundedRate) {
   EXPECT_LT(line.bridge_log_count(": set values: ") - taken_lines, 40u) << "one log line per set value taken";
   EXPECT_EQ(answered(9000, 9001, false), 1u);
   EXPECT_EQ(answered(9001, 9002, true), 1u);
-  ASSERT_TRUE(status.wait_last(5s, operational));
+  ASSERT_TRUE(saw.status.wait_last(5s, operational));
 }
 
 // Random frames at the full rate of a 500 kbit/s bus (every identifier, both formats, every length,
@@ -667,12 +624,10 @@ TEST(Robustness, ASetValueFloodIsAnsweredButLoggedAtABoundedRate) {
 // against a master bus: the saw stays operational, SYNC keeps its period, and the frames are
 // counted rather than acted upon.
 TEST(Robustness, HostileFramesAtFullLoadDoNotDisturbTheMaster) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("hostile_can", 27);
   line.start(saw_entry("saw1", 5));
-  auto status = line.collect<msg::SawStatusPubSubType>("saw1", "status", QosKind::state);
+  auto status = line.operational_status<msg::SawStatusPubSubType>("saw1");
   auto diag = line.collect<msg::DiagnosticsPubSubType>("bridge", "diagnostics", QosKind::state);
-  ASSERT_TRUE(status.wait_last(20s, operational)) << line.logs();
   line.spy().clear();
   std::mt19937 rng(12);
   const auto other = [&rng] {
@@ -721,11 +676,9 @@ TEST(Robustness, HostileFramesAtFullLoadDoNotDisturbTheMaster) {
 // powers up again: the bridge reports it offline, SYNC goes on meanwhile, and when it is heard
 // again it is booted again (SDO traffic before any NMT start), never just started.
 TEST(Robustness, AFrozenThenKilledSimulatorIsSupervisedAndBootedAgain) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("simfault", 28);
   line.start(saw_entry("saw1", 5));
-  auto status = line.collect<msg::SawStatusPubSubType>("saw1", "status", QosKind::state);
-  ASSERT_TRUE(status.wait_last(20s, operational)) << line.logs();
+  auto status = line.operational_status<msg::SawStatusPubSubType>("saw1");
   const auto offline = [](const msg::SawStatus& s) { return !s.health().online(); };
   // The first SDO request to the saw (605h) and the first NMT start of it, from the frames.
   const auto boot_then_start = [](const std::vector<lb::can::CanFrame>& frames) {
@@ -791,7 +744,6 @@ TEST(Robustness, AFrozenThenKilledSimulatorIsSupervisedAndBootedAgain) {
 // realtime_priority: the bus loop, and only it, runs SCHED_FIFO at the configured priority, so
 // SYNC and the RPDOs go out before the bridge's DDS threads and anything else of normal priority.
 TEST(Robustness, ABusLoopRunsAtItsRealtimePriority) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   // A container without CAP_SYS_NICE refuses it to everyone; the refusal has the test below.
   bool allowed = false;
   std::thread probe([&allowed] {
@@ -803,8 +755,7 @@ TEST(Robustness, ABusLoopRunsAtItsRealtimePriority) {
   if (!allowed) GTEST_SKIP() << "this machine refuses SCHED_FIFO to the tests too (no CAP_SYS_NICE, RLIMIT_RTPRIO 0)";
   lb::test::LineHarness line("realtime", 34);
   line.start(saw_entry("saw1", 5), "", ", realtime_priority: 20");
-  auto status = line.collect<msg::SawStatusPubSubType>("saw1", "status", QosKind::state);
-  ASSERT_TRUE(status.wait_last(20s, operational)) << line.logs();
+  auto status = line.operational_status<msg::SawStatusPubSubType>("saw1");
   const auto loop = thread_named(line.bridge().pid(), "lb-bus-b");
   ASSERT_TRUE(loop.has_value()) << "no thread lb-bus-b in the bridge";
   EXPECT_EQ(loop->policy, SCHED_FIFO);
@@ -820,13 +771,11 @@ TEST(Robustness, ABusLoopRunsAtItsRealtimePriority) {
 // Where the system refuses realtime (no CAP_SYS_NICE, RLIMIT_RTPRIO 0: a unit without
 // LimitRTPRIO=), the bridge says so and why, and the line runs at normal priority all the same.
 TEST(Robustness, ARefusedRealtimePriorityIsLoggedAndTheLineRuns) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("realtime_refused", 35);
   line.set_bridge_launcher(
       {"/usr/bin/prlimit", "--rtprio=0", "/usr/bin/setpriv", "--bounding-set=-sys_nice", "--inh-caps=-sys_nice", "--"});
   line.start(saw_entry("saw1", 5), "", ", realtime_priority: 20");
-  auto status = line.collect<msg::SawStatusPubSubType>("saw1", "status", QosKind::state);
-  ASSERT_TRUE(status.wait_last(20s, operational)) << line.logs();
+  auto status = line.operational_status<msg::SawStatusPubSubType>("saw1");
   EXPECT_TRUE(line.bridge().wait_log("realtime priority 20 (SCHED_FIFO) refused: Operation not permitted", 1s))
       << line.logs();
   const auto loop = thread_named(line.bridge().pid(), "lb-bus-b");
