@@ -32,7 +32,6 @@ namespace msg = linebridge_msgs::msg;
 namespace srv = linebridge_msgs::srv;
 using namespace std::chrono_literals;
 using lb::ddsl::QosKind;
-using Clock = std::chrono::steady_clock;
 using lb::test::operational;
 
 namespace {
@@ -48,8 +47,7 @@ CliRun run_cli(std::vector<std::string> args, std::chrono::seconds limit = 20s) 
   args.insert(args.begin(), LB_BIN_CLI);
   lb::test::ChildProcess p(args, ::testing::TempDir() + "/cli_" + std::to_string(::getpid()) + "_" +
                                      std::to_string(++runs) + ".log");
-  const auto deadline = Clock::now() + limit;
-  while (p.running() && Clock::now() < deadline) std::this_thread::sleep_for(20ms);
+  lb::test::eventually(limit, [&p] { return !p.running(); });  // else stopped below, and its exit code says so
   const int status = p.stop();
   return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, p.log()};
 }

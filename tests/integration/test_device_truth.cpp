@@ -149,7 +149,6 @@ TEST(DeviceTruth, ErrorsRaisedBeforeTheBridgeStartedAreUncertainAndInTheHistory)
   lb::test::LineHarness line("truth3", 25);
   line.start(saw("saw1", 3));
   auto status = line.operational_status<msg::SawStatusPubSubType>("saw1");
-  auto info = line.collect<msg::DeviceInfoPubSubType>("saw1", "info", QosKind::state);
   // The bridge goes away; meanwhile the device raises an error nobody hears.
   ASSERT_EQ(line.bridge().stop(), 0);
   // 2003h = 5000h (device hardware), a raw expedited SDO download from the test's bus member.
@@ -162,6 +161,8 @@ TEST(DeviceTruth, ErrorsRaisedBeforeTheBridgeStartedAreUncertainAndInTheHistory)
     return false;
   };
   ASSERT_TRUE(lb::test::eventually(30s, confirmed)) << "2003h not confirmed" << line.logs();
+  // What the next bridge publishes on info (the stopped one's samples went with it).
+  auto info = line.collect<msg::DeviceInfoPubSubType>("saw1", "info", QosKind::state);
   const auto before = status.size();
   const auto info_before = info.size();
   line.start_bridge();

@@ -209,15 +209,8 @@ TEST(MasterBoot, DeviceMappingThatDiffersIsDetectedAndCanBeAdopted) {
   EXPECT_EQ(tpdo2->mapping(), (std::vector<std::uint32_t>{0x60070020, 0x60010020}));
 
   lb::test::SetValueClient<msg::SawStatusPubSubType, msg::SawSetpointPubSubType> saw2(line, "saw2");
-  msg::SawSetpoint sp;
-  sp.request_id(1);
-  sp.saw_program_on(true);
-  sp.sync_speed_percent(100);
-  sp.product_length_m(2.0);
-  saw2.writer.write(sp);
-  ASSERT_TRUE(saw2.results.wait_last(5s, [](const msg::SetpointResult& r) {
-    return r.request_id() == 1 && r.accepted();
-  })) << line.logs();
+  saw2.writer.write(lb::test::saw_set_value(1, 100, 2.0));
+  ASSERT_TRUE(saw2.answered(1)) << line.logs();
   // 100 % of 60 m/min: product speed 6007h is 60 m/min, and the saw counter 6001h grows from 0
   // towards the 2 m length. Decoded by the profile's order instead, the two would be swapped.
   ASSERT_TRUE(saw2.status.wait_last(30s, [](const msg::SawStatus& s) {

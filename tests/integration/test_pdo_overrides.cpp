@@ -70,15 +70,8 @@ TEST(PdoOverrides, TransmissionTypesReachTheSawAndItsFramesFollowThem) {
   ASSERT_TRUE(wait_syncs(50));
   EXPECT_TRUE(line.spy().frames(0x205).empty()) << "event-driven RPDO1 without a change";
 
-  msg::SawSetpoint sp;
-  sp.request_id(1);
-  sp.saw_program_on(true);
-  sp.sync_speed_percent(100);
-  sp.product_length_m(0.5);
-  saw.writer.write(sp);
-  ASSERT_TRUE(saw.results.wait_last(5s, [](const msg::SetpointResult& r) {
-    return r.request_id() == 1 && r.accepted();
-  })) << line.logs();
+  saw.writer.write(lb::test::saw_set_value(1, 100, 0.5));
+  ASSERT_TRUE(saw.answered(1)) << line.logs();
   // 60 m/min, and the saw cuts at 0.5 m.
   ASSERT_TRUE(saw.status.wait(30s, [](const std::vector<msg::SawStatus>& v) {
     bool cut = false;
@@ -116,11 +109,8 @@ TEST(PdoOverrides, TransmissionTypesReachTheSawAndItsFramesFollowThem) {
 
   // A new set value: RPDO1 goes out at once, once.
   line.spy().clear();
-  sp.request_id(2);
-  sp.product_length_m(0.4);
-  saw.writer.write(sp);
-  ASSERT_TRUE(
-      saw.results.wait_last(5s, [](const msg::SetpointResult& r) { return r.request_id() == 2 && r.accepted(); }));
+  saw.writer.write(lb::test::saw_set_value(2, 100, 0.4));
+  ASSERT_TRUE(saw.answered(2)) << line.logs();
   // Once: the first RPDO1, then 10 more SYNCs without another.
   ASSERT_FALSE(line.spy().wait_count(0x205, 1).empty()) << "no RPDO1 for the new set value\n" << line.logs();
   ASSERT_TRUE(wait_syncs(line.spy().frames(0x080).size() + 10));

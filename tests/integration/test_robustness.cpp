@@ -111,16 +111,8 @@ bool answered_eventually(lb::test::Collector<msg::SetpointResultPubSubType>& res
   return false;
 }
 
-// Saw 3.1 set values (program on, count mode smooth pipe): the value in force of the tests below,
-// or one with a hostile speed or length.
-msg::SawSetpoint saw_set_value(std::uint64_t id, double speed_percent = 50, double length_m = 1.2) {
-  msg::SawSetpoint sp;
-  sp.request_id(id);
-  sp.saw_program_on(true);
-  sp.sync_speed_percent(speed_percent);
-  sp.product_length_m(length_m);
-  return sp;
-}
+// The value in force of the tests below (50 %, 1.2 m), or one with a hostile speed or length.
+using lb::test::saw_set_value;
 
 // One saw's set-value side (status, answers, writer), matched both ways: what every set-value
 // test starts from.
@@ -627,7 +619,6 @@ TEST(Robustness, HostileFramesAtFullLoadDoNotDisturbTheMaster) {
   lb::test::LineHarness line("hostile_can", 27);
   line.start(saw_entry("saw1", 5));
   auto status = line.operational_status<msg::SawStatusPubSubType>("saw1");
-  auto diag = line.collect<msg::DiagnosticsPubSubType>("bridge", "diagnostics", QosKind::state);
   line.spy().clear();
   std::mt19937 rng(12);
   const auto other = [&rng] {
@@ -664,6 +655,7 @@ TEST(Robustness, HostileFramesAtFullLoadDoNotDisturbTheMaster) {
   EXPECT_LT(widest_ms, 1000.0);
   ASSERT_TRUE(status.wait_last(5s, operational)) << line.logs();
   // Still answering, still a master, still the one saw.
+  auto diag = line.collect<msg::DiagnosticsPubSubType>("bridge", "diagnostics", QosKind::state);
   ASSERT_TRUE(diag.wait_last(5s, [](const msg::Diagnostics& d) {
     const auto* n = node_of(d, "saw1");
     const auto* b = bus_of(d);

@@ -29,10 +29,9 @@ namespace msg = linebridge_msgs::msg;
 namespace srv = linebridge_msgs::srv;
 using namespace std::chrono_literals;
 using lb::ddsl::QosKind;
-
+constexpr auto operational = lb::test::operational<msg::SawStatus>;
 using lb::test::node_of;
 using lb::test::read_text;
-constexpr auto operational = lb::test::operational<msg::SawStatus>;
 
 namespace {
 

@@ -8,6 +8,7 @@
 #include <string>
 
 #include "msgs/commonPubSubTypes.h"
+#include "msgs/sawPubSubTypes.h"
 #include "support/line_harness.hpp"
 
 namespace lb::test {
@@ -25,6 +26,17 @@ struct SetValueClient {
       throw std::runtime_error(device + ": the set-value writer never matched the bridge\n" + line.logs());
   }
 
+  // True once the answer to `request_id` says `accepted` (the first answer to it decides).
+  bool answered(std::uint64_t request_id, bool accepted = true,
+                std::chrono::milliseconds timeout = std::chrono::seconds(30)) {
+    return results.wait(timeout, [&](const std::vector<linebridge_msgs::msg::SetpointResult>& v) {
+      for (const auto& r : v) {
+        if (r.request_id() == request_id) return r.accepted() == accepted;
+      }
+      return false;
+    });
+  }
+
   Collector<StatusPubSubType> status;
   Collector<linebridge_msgs::msg::SetpointResultPubSubType> results;
   ddsl::Writer<SetpointPubSubType> writer;
@@ -36,5 +48,16 @@ struct SetValueClient {
     return *w;
   }
 };
+
+// Saw 3.1 set values: program on (count mode smooth pipe), a sync speed and a product length.
+inline linebridge_msgs::msg::SawSetpoint saw_set_value(std::uint64_t id, double speed_percent = 50,
+                                                       double length_m = 1.2) {
+  linebridge_msgs::msg::SawSetpoint sp;
+  sp.request_id(id);
+  sp.saw_program_on(true);
+  sp.sync_speed_percent(speed_percent);
+  sp.product_length_m(length_m);
+  return sp;
+}
 
 }  // namespace lb::test
