@@ -25,13 +25,14 @@
 #include "msgs/sawPubSubTypes.h"
 #include "support/collector.hpp"
 #include "support/line_harness.hpp"
+#include "support/line_views.hpp"
 #include "support/run_command.hpp"
 
 namespace msg = linebridge_msgs::msg;
 namespace srv = linebridge_msgs::srv;
 using namespace std::chrono_literals;
 using lb::ddsl::QosKind;
-using Clock = std::chrono::steady_clock;
+using lb::test::operational;
 
 namespace {
 
@@ -46,8 +47,7 @@ CliRun run_cli(std::vector<std::string> args, std::chrono::seconds limit = 20s) 
   args.insert(args.begin(), LB_BIN_CLI);
   lb::test::ChildProcess p(args, ::testing::TempDir() + "/cli_" + std::to_string(::getpid()) + "_" +
                                      std::to_string(++runs) + ".log");
-  const auto deadline = Clock::now() + limit;
-  while (p.running() && Clock::now() < deadline) std::this_thread::sleep_for(20ms);
+  lb::test::eventually(limit, [&p] { return !p.running(); });  // else stopped below, and its exit code says so
   const int status = p.stop();
   return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, p.log()};
 }
@@ -59,15 +59,9 @@ std::string last_text(lb::test::Collector<msg::DiagnosticsPubSubType>& diag) {
   return all.empty() ? std::string("no diagnostics\n") : lb::app::to_text(all.back());
 }
 
-template <class Status>
-bool operational(const Status& s) {
-  return s.health().online() && s.health().nmt_state() == msg::NMT_OPERATIONAL;
-}
-
 class Cli : public ::testing::Test {
  protected:
   void SetUp() override {
-    ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
     line_ = std::make_unique<lb::test::LineHarness>("clitest", 33);
     line_->start("  - {name: saw1, bus: b, node_id: 3, profile: cia420-4, version: '3.1'}\n"
                  "  - {name: puller1, bus: b, node_id: 6, profile: cia420-2, version: '1.0'}\n"
@@ -177,7 +171,17 @@ TEST_F(Cli, FeederTopicsServicesAndLoomPlay) {
                                    ::testing::TempDir() + "/cli_unwinding_" + std::to_string(::getpid()) + ".log");
   lb::test::ChildProcess errors({LB_BIN_CLI, "echo", "box1", "feeder_error", "--config", config_, "--duration", "60"},
                                 ::testing::TempDir() + "/cli_feeder_error_" + std::to_string(::getpid()) + ".log");
-  std::this_thread::sleep_for(1500ms);  // both matched
+  // Both echoes subscribed before anything below causes an event: a writer of this test on each
+  // topic (it never writes) is matched with their readers once discovery has announced them, the
+  // same discovery that matches them with the bridge's writers.
+  auto unwinding_probe = line_->dds().writer<msg::FeederUnwindingPubSubType>(line_->topic("box1", "unwinding"),
+                                                                             QosKind::event);
+  auto errors_probe = line_->dds().writer<msg::FeederErrorPubSubType>(line_->topic("box1", "feeder_error"),
+                                                                      QosKind::event);
+  ASSERT_TRUE(unwinding_probe && errors_probe);
+  ASSERT_TRUE(lb::test::eventually(60s, [&] { return unwinding_probe->matched() > 0 && errors_probe->matched() > 0; }))
+      << "the echoes never subscribed\n"
+      << unwinding.log() << errors.log();
   auto r = cli({"set", "box1", "--loom-status", "start_advice", "--maximum-speed", "600", "--loom-width-m", "1.9"});
   EXPECT_EQ(r.exit_code, 0) << r.output << line_->logs();
   EXPECT_TRUE(has(r, "loom start_advice at 600 1/min, width 1.9 m")) << r.output;

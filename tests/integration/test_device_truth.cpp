@@ -12,6 +12,7 @@
 
 #include "msgs/sawPubSubTypes.h"
 #include "support/line_harness.hpp"
+#include "support/line_views.hpp"
 
 namespace msg = linebridge_msgs::msg;
 namespace srv = linebridge_msgs::srv;
@@ -25,9 +26,7 @@ constexpr std::uint16_t kErrorSimulation = 0x2003;
 constexpr std::uint32_t kClear = 0x8000'0000;
 constexpr std::uint16_t kTemperature = 0x4210, kVoltage = 0x3120;
 
-bool operational(const msg::SawStatus& s) {
-  return s.health().online() && s.health().nmt_state() == msg::NMT_OPERATIONAL;
-}
+constexpr auto operational = lb::test::operational<msg::SawStatus>;
 
 std::string saw(const std::string& name, int node, const std::string& extra = "") {
   return "  - {name: " + name + ", bus: b, node_id: " + std::to_string(node) +
@@ -47,19 +46,15 @@ auto errors_are(std::vector<std::uint16_t> codes, bool known) {
 // included). Both devices, with and without 1003h, report the list as uncertain. After a new
 // boot the history is on info, newest first; the device without 1003h says it has none.
 TEST(DeviceTruth, ErrorResetThatLeavesErrorsIsUncertainAndTheHistoryIsOnInfo) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("truth", 23);
   // saw2 is a device without 1003h: the bridge's file does not know it (it cannot), the simulator's does.
   line.start(saw("saw1", 3) + saw("saw2", 4),
              saw("saw1", 3) + saw("saw2", 4, ", simulation: {pre_defined_error_field: false}"));
-  lb::test::Collector<msg::SawStatusPubSubType> saw1, saw2;
-  lb::test::Collector<msg::EmergencyPubSubType> emcy1;
-  lb::test::Collector<msg::DeviceInfoPubSubType> info1, info2;
-  ASSERT_TRUE(saw1.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
-  ASSERT_TRUE(saw2.subscribe(line.dds(), line.topic("saw2", "status"), QosKind::state));
-  ASSERT_TRUE(emcy1.subscribe(line.dds(), line.topic("saw1", "emergency"), QosKind::event));
-  ASSERT_TRUE(info1.subscribe(line.dds(), line.topic("saw1", "info"), QosKind::state));
-  ASSERT_TRUE(info2.subscribe(line.dds(), line.topic("saw2", "info"), QosKind::state));
+  auto saw1 = line.collect<msg::SawStatusPubSubType>("saw1", "status", QosKind::state);
+  auto saw2 = line.collect<msg::SawStatusPubSubType>("saw2", "status", QosKind::state);
+  auto emcy1 = line.collect<msg::EmergencyPubSubType>("saw1", "emergency", QosKind::event);
+  auto info1 = line.collect<msg::DeviceInfoPubSubType>("saw1", "info", QosKind::state);
+  auto info2 = line.collect<msg::DeviceInfoPubSubType>("saw2", "info", QosKind::state);
   // After their boot the bridge read 1001h = 0: nothing active, and that is known.
   ASSERT_TRUE(saw1.wait_last(30s, [](const auto& s) { return operational(s) && s.health().active_errors_known(); }))
       << line.logs();
@@ -87,7 +82,10 @@ TEST(DeviceTruth, ErrorResetThatLeavesErrorsIsUncertainAndTheHistoryIsOnInfo) {
   };
   EXPECT_TRUE(saw1.wait_last(5s, uncertain)) << "1003h must not be taken for the active list\n" << line.logs();
   EXPECT_TRUE(saw2.wait_last(5s, uncertain)) << line.logs();
-  std::this_thread::sleep_for(500ms);  // nothing the bridge reads afterwards may "resolve" it
+  // Nothing the bridge reads afterwards may "resolve" it: still uncertain after 25 more of the
+  // bridge's SYNCs (half a second of its bus; a negative check after a positive marker).
+  const auto syncs = line.spy().frames(0x080).size();
+  ASSERT_GE(line.spy().wait_count(0x080, syncs + 25).size(), syncs + 25) << line.logs();
   EXPECT_TRUE(uncertain(saw1.samples().back())) << saw1.samples().back().health().active_errors_note();
   // The last one cleared: 0000h with register 0 clears everything, certainly.
   for (const char* dev : {"saw1", "saw2"}) {
@@ -118,12 +116,9 @@ TEST(DeviceTruth, ErrorResetThatLeavesErrorsIsUncertainAndTheHistoryIsOnInfo) {
 
 // A boot-up: the device starts without active errors, whatever it reported before.
 TEST(DeviceTruth, BootUpClearsTheActiveErrors) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("truth2", 24);
   line.start(saw("saw1", 3, ", simulation: {pre_defined_error_field: false}"));
-  lb::test::Collector<msg::SawStatusPubSubType> status;
-  ASSERT_TRUE(status.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
-  ASSERT_TRUE(status.wait_last(30s, operational)) << line.logs();
+  auto status = line.operational_status<msg::SawStatusPubSubType>("saw1");
   // The bridge reads 1001h after the boot; an EMCY during that reading makes it read again, and a
   // register that reports an error no EMCY since the boot-up named makes the list uncertain.
   // Raise the error after it.
@@ -151,14 +146,9 @@ TEST(DeviceTruth, BootUpClearsTheActiveErrors) {
 // one is active but not which (CiA 301: 1003h is the history, its entries may long be cleared), so
 // the list is empty and uncertain, and the history on info names what the device recorded.
 TEST(DeviceTruth, ErrorsRaisedBeforeTheBridgeStartedAreUncertainAndInTheHistory) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("truth3", 25);
   line.start(saw("saw1", 3));
-  lb::test::Collector<msg::SawStatusPubSubType> status;
-  lb::test::Collector<msg::DeviceInfoPubSubType> info;
-  ASSERT_TRUE(status.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
-  ASSERT_TRUE(info.subscribe(line.dds(), line.topic("saw1", "info"), QosKind::state));
-  ASSERT_TRUE(status.wait_last(30s, operational)) << line.logs();
+  auto status = line.operational_status<msg::SawStatusPubSubType>("saw1");
   // The bridge goes away; meanwhile the device raises an error nobody hears.
   ASSERT_EQ(line.bridge().stop(), 0);
   // 2003h = 5000h (device hardware), a raw expedited SDO download from the test's bus member.
@@ -170,11 +160,9 @@ TEST(DeviceTruth, ErrorsRaisedBeforeTheBridgeStartedAreUncertainAndInTheHistory)
     }
     return false;
   };
-  const auto deadline = Clock::now() + 10s;
-  while (!confirmed()) {
-    ASSERT_LT(Clock::now(), deadline) << "2003h not confirmed" << line.logs();
-    std::this_thread::sleep_for(10ms);
-  }
+  ASSERT_TRUE(lb::test::eventually(30s, confirmed)) << "2003h not confirmed" << line.logs();
+  // What the next bridge publishes on info (the stopped one's samples went with it).
+  auto info = line.collect<msg::DeviceInfoPubSubType>("saw1", "info", QosKind::state);
   const auto before = status.size();
   const auto info_before = info.size();
   line.start_bridge();
@@ -201,17 +189,15 @@ TEST(DeviceTruth, ErrorsRaisedBeforeTheBridgeStartedAreUncertainAndInTheHistory)
 
 // SDO requests that cannot succeed are answered at once with the reason, not after a timeout.
 TEST(DeviceTruth, SdoRequestsThatCannotSucceedAreRefusedAtOnce) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("truth4", 26);
-  // saw2 is not on the bus at all; sdo_timeout_ms long (10 s), so a queued request would wait
-  // far longer than any DDS round trip on a loaded machine.
-  line.start(saw("saw1", 3) + saw("saw2", 4), saw("saw1", 3), ", sdo_timeout_ms: 10000");
-  lb::test::Collector<msg::SawStatusPubSubType> status;
-  ASSERT_TRUE(status.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
-  ASSERT_TRUE(status.wait_last(30s, operational)) << line.logs();
+  // saw2 is not on the bus at all; sdo_timeout_ms at its longest (60 s), so a queued request would
+  // wait far longer than any DDS round trip on a loaded machine: what is measured here is the
+  // answer's time, bounded at half the timeout.
+  line.start(saw("saw1", 3) + saw("saw2", 4), saw("saw1", 3), ", sdo_timeout_ms: 60000");
+  auto status = line.operational_status<msg::SawStatusPubSubType>("saw1");
   (void)line.sdo_read("saw1", 0x1000, 0, "UNSIGNED32");  // the client is matched
 
-  // Refused without a frame on the bus, and well before the 10 s SDO timeout a queued request
+  // Refused without a frame on the bus, and well before the 60 s SDO timeout a queued request
   // would have waited for.
   line.spy().clear();
   auto t0 = Clock::now();
@@ -219,7 +205,7 @@ TEST(DeviceTruth, SdoRequestsThatCannotSucceedAreRefusedAtOnce) {
   EXPECT_FALSE(r.success());
   EXPECT_NE(r.message().find("offline"), std::string::npos) << r.message();
   EXPECT_EQ(r.abort_code(), 0u);
-  EXPECT_LT(Clock::now() - t0, 8s) << "refused only after waiting";
+  EXPECT_LT(Clock::now() - t0, 30s) << "refused only after waiting";
   EXPECT_TRUE(line.spy().frames(0x604).empty()) << "the request reached the bus";
 
   ASSERT_TRUE(line.nmt("saw1", srv::NMT_STOP).success());
@@ -229,7 +215,7 @@ TEST(DeviceTruth, SdoRequestsThatCannotSucceedAreRefusedAtOnce) {
   r = line.sdo_read("saw1", 0x1000, 0, "UNSIGNED32");
   EXPECT_FALSE(r.success());
   EXPECT_NE(r.message().find("stopped"), std::string::npos) << r.message();
-  EXPECT_LT(Clock::now() - t0, 8s) << "refused only after waiting";
+  EXPECT_LT(Clock::now() - t0, 30s) << "refused only after waiting";
   EXPECT_TRUE(line.spy().frames(0x603).empty()) << "a request to the stopped device reached the bus";
   ASSERT_TRUE(line.nmt("saw1", srv::NMT_ENTER_PRE_OPERATIONAL).success());
   ASSERT_TRUE(

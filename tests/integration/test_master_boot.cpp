@@ -13,18 +13,18 @@
 
 #include "msgs/sawPubSubTypes.h"
 #include "support/line_harness.hpp"
+#include "support/line_views.hpp"
+#include "support/set_value_client.hpp"
 
 namespace msg = linebridge_msgs::msg;
 namespace srv = linebridge_msgs::srv;
 using namespace std::chrono_literals;
 using lb::ddsl::QosKind;
-using Clock = std::chrono::steady_clock;
+using lb::test::node_of;
+using lb::test::saw_entry;
+constexpr auto operational = lb::test::operational<msg::SawStatus>;
 
 namespace {
-
-bool operational(const msg::SawStatus& s) {
-  return s.health().online() && s.health().nmt_state() == msg::NMT_OPERATIONAL;
-}
 
 // A status history in which the device left operational after sample `from`, then came back.
 auto left_and_came_back(std::size_t from) {
@@ -36,19 +36,6 @@ auto left_and_came_back(std::size_t from) {
     }
     return false;
   };
-}
-
-const msg::NodeDiagnostics* node(const msg::Diagnostics& d, const std::string& device) {
-  for (const auto& n : d.nodes()) {
-    if (n.device() == device) return &n;
-  }
-  return nullptr;
-}
-
-std::string saw(const std::string& name, int node_id, const std::string& extra = "") {
-  return "  - name: " + name + "\n    bus: b\n    node_id: " + std::to_string(node_id) +
-         "\n    profile: cia420-4\n    version: '3.1'\n    heartbeat_timeout_ms: 400\n    boot_retry_ms: 1000\n" +
-         extra;
 }
 
 // Frames of one identifier sent after the spy's clear(), in order.
@@ -64,9 +51,13 @@ bool has_nmt(const std::vector<lb::can::CanFrame>& frames, std::uint8_t command,
 // The bridge's own SDO reads after a passed boot (1001h, 1003h, 6010h) share the device's SDO
 // identifiers with the test's raw request: wait until they are done, so that neither takes the
 // other's answer.
+// 6010h's read is the last of them: its answer is on info.
 void wait_post_boot_reads(lb::test::LineHarness& line, const std::string& device) {
-  line.bridge().wait_log(device + ": active errors from the device", std::chrono::seconds(10));
-  std::this_thread::sleep_for(std::chrono::milliseconds(200));  // 6010h's read follows
+  ASSERT_TRUE(line.bridge().wait_log(device + ": active errors from the device", 30s)) << line.logs();
+  auto info = line.collect<msg::DeviceInfoPubSubType>(device, "info", QosKind::state);
+  ASSERT_TRUE(info.wait_last(30s, [](const msg::DeviceInfo& i) { return i.configuration_word().read(); }))
+      << "6010h never read after the boot\n"
+      << line.logs();
 }
 
 lb::can::CanFrame silent_reset_request(std::uint8_t node_id) {
@@ -78,20 +69,17 @@ lb::can::CanFrame silent_reset_request(std::uint8_t node_id) {
 // A puller plugged in at the saw's node-ID answers 01A4h in 1000h like the saw, so only the
 // pinned identity tells them apart (CiA 302-2 error M); a feeder there answers profile 414 (C).
 TEST(MasterBoot, WrongDeviceAtANodeIdIsNeverStartedAndGetsNoRpdo) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("wrongdev", 11);
-  line.start(saw("saw1", 5, "    identity: {vendor_id: 0x4C420000, product_code: 0x04200004}\n") + saw("saw2", 6),
+  line.start(saw_entry("saw1", 5, "    identity: {vendor_id: 0x4C420000, product_code: 0x04200004}\n") +
+                 saw_entry("saw2", 6),
              // What is really on the bus: a puller at 5, a feeder box at 6.
              "  - {name: puller, bus: b, node_id: 5, profile: cia420-2, version: '1.0',\n"
              "     simulation: {identity: {vendor_id: 0x4C420000, product_code: 0x04200002}}}\n"
              "  - {name: box, bus: b, node_id: 6, profile: cia414-2, version: '1.1'}\n");
-  lb::test::Collector<msg::DeviceInfoPubSubType> info1, info2;
-  lb::test::Collector<msg::DiagnosticsPubSubType> diag;
-  lb::test::Collector<msg::SetpointResultPubSubType> results;
-  ASSERT_TRUE(info1.subscribe(line.dds(), line.topic("saw1", "info"), QosKind::state));
-  ASSERT_TRUE(info2.subscribe(line.dds(), line.topic("saw2", "info"), QosKind::state));
-  ASSERT_TRUE(diag.subscribe(line.dds(), line.topic("bridge", "diagnostics"), QosKind::state));
-  ASSERT_TRUE(results.subscribe(line.dds(), line.topic("saw1", "setpoint_result"), QosKind::reply));
+  auto info1 = line.collect<msg::DeviceInfoPubSubType>("saw1", "info", QosKind::state);
+  auto info2 = line.collect<msg::DeviceInfoPubSubType>("saw2", "info", QosKind::state);
+  auto diag = line.collect<msg::DiagnosticsPubSubType>("bridge", "diagnostics", QosKind::state);
+  auto results = line.collect<msg::SetpointResultPubSubType>("saw1", "setpoint_result", QosKind::reply);
 
   ASSERT_TRUE(info1.wait_last(15s, [](const msg::DeviceInfo& i) { return !i.boot_error().code().empty(); }))
       << line.logs();
@@ -115,7 +103,7 @@ TEST(MasterBoot, WrongDeviceAtANodeIdIsNeverStartedAndGetsNoRpdo) {
   EXPECT_NE(i2.boot_error().message().find("profile 414"), std::string::npos) << i2.boot_error().message();
 
   ASSERT_TRUE(diag.wait_last(5s, [](const msg::Diagnostics& d) {
-    const auto* n = node(d, "saw1");
+    const auto* n = node_of(d, "saw1");
     return n != nullptr && n->boot_error().code() == "M" && n->boot_state().find("failed (M)") != std::string::npos &&
            n->nmt_state() == msg::NMT_PRE_OPERATIONAL && n->boot_failures() >= 1;
   })) << line.logs();
@@ -123,11 +111,7 @@ TEST(MasterBoot, WrongDeviceAtANodeIdIsNeverStartedAndGetsNoRpdo) {
   // Set values and an NMT start are refused with the reason; nothing reaches the bus for them.
   auto writer = line.dds().writer<msg::SawSetpointPubSubType>(line.topic("saw1", "setpoint"), QosKind::command);
   ASSERT_TRUE(writer);
-  const auto deadline = Clock::now() + 10s;
-  while ((writer->matched() == 0 || line.dds().matched_writers(line.topic("saw1", "setpoint_result")) == 0) &&
-         Clock::now() < deadline) {
-    std::this_thread::sleep_for(20ms);
-  }
+  ASSERT_TRUE(line.wait_matched(*writer, line.topic("saw1", "setpoint_result"))) << line.logs();
   line.spy().clear();
   msg::SawSetpoint sp;
   sp.request_id(7);
@@ -153,9 +137,9 @@ TEST(MasterBoot, WrongDeviceAtANodeIdIsNeverStartedAndGetsNoRpdo) {
     return n;
   };
   const std::size_t reads_before = device_type_reads();
-  const auto retried_by = Clock::now() + 20s;
-  while (device_type_reads() < reads_before + 2 && Clock::now() < retried_by) std::this_thread::sleep_for(50ms);
-  EXPECT_GE(device_type_reads(), reads_before + 2) << "not booted again after boot_retry_ms\n" << line.logs();
+  EXPECT_TRUE(lb::test::eventually(30s, [&] { return device_type_reads() >= reads_before + 2; }))
+      << "not booted again after boot_retry_ms\n"
+      << line.logs();
   const auto frames = line.spy().frames();
   EXPECT_FALSE(has_nmt(frames, 0x01, 5)) << "NMT start of the puller at the saw's node-ID";
   EXPECT_FALSE(has_nmt(frames, 0x01, 6)) << "NMT start of the feeder box at a saw's node-ID";
@@ -168,11 +152,9 @@ TEST(MasterBoot, WrongDeviceAtANodeIdIsNeverStartedAndGetsNoRpdo) {
 // Saw 3.1 fixes its TPDO2 mapping (Table 9: const). A line file that swaps it cannot be written:
 // the saw is not started and the reason names the PDO, the entry and both values.
 TEST(MasterBoot, OverrideOfAConstEntryIsRefusedWithTheReason) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("constpdo", 12);
-  line.start(saw("saw1", 5, "    pdos: {tpdo2: {mapping: [0x60070020, 0x60010020]}}\n"));
-  lb::test::Collector<msg::DeviceInfoPubSubType> info;
-  ASSERT_TRUE(info.subscribe(line.dds(), line.topic("saw1", "info"), QosKind::state));
+  line.start(saw_entry("saw1", 5, "    pdos: {tpdo2: {mapping: [0x60070020, 0x60010020]}}\n"));
+  auto info = line.collect<msg::DeviceInfoPubSubType>("saw1", "info", QosKind::state);
   ASSERT_TRUE(info.wait_last(15s, [](const msg::DeviceInfo& i) { return !i.boot_error().code().empty(); }))
       << line.logs();
   const auto e = info.samples().back().boot_error();
@@ -188,8 +170,10 @@ TEST(MasterBoot, OverrideOfAConstEntryIsRefusedWithTheReason) {
   EXPECT_NE(e.message().find("pdo_config: adopt"), std::string::npos) << e.message();
   // Nothing was written: the device's mapping is as it was.
   EXPECT_EQ(line.read_unsigned("saw1", 0x1A01, 1, "UNSIGNED32"), 0x60010020u);
+  // 50 of the bridge's SYNCs (a second at 20 ms; a loaded machine stretches the time, not the
+  // count) without an RPDO or an NMT start: a negative check after a positive marker.
   line.spy().clear();
-  std::this_thread::sleep_for(1500ms);
+  ASSERT_GE(line.spy().wait_count(0x080, 50).size(), 50u) << line.logs();
   EXPECT_TRUE(line.spy().frames(0x205).empty());
   EXPECT_FALSE(has_nmt(line.spy().frames(), 0x01, 5));
   EXPECT_NE(line.bridge().log().find("boot of node 5 failed (CiA 302-2 error J)"), std::string::npos) << line.logs();
@@ -199,19 +183,13 @@ TEST(MasterBoot, OverrideOfAConstEntryIsRefusedWithTheReason) {
 // line's default (configure) the difference is found and, the entries being const, refused; with
 // pdo_config: adopt the bridge decodes by the device's mapping and the values come out right.
 TEST(MasterBoot, DeviceMappingThatDiffersIsDetectedAndCanBeAdopted) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("adopt", 13);
   const std::string factory = "    simulation: {max_speed_m_per_min: 60, acceleration_m_per_min_s: 6000,\n"
                               "                 pdos: {tpdo2: {mapping: [0x60070020, 0x60010020]}}}\n";
-  line.start(saw("saw1", 5) + saw("saw2", 6, "    pdo_config: adopt\n"),
-             saw("saw1", 5, factory) + saw("saw2", 6, factory));
-  lb::test::Collector<msg::DeviceInfoPubSubType> info1, info2;
-  lb::test::Collector<msg::SawStatusPubSubType> status2;
-  lb::test::Collector<msg::SetpointResultPubSubType> results;
-  ASSERT_TRUE(info1.subscribe(line.dds(), line.topic("saw1", "info"), QosKind::state));
-  ASSERT_TRUE(info2.subscribe(line.dds(), line.topic("saw2", "info"), QosKind::state));
-  ASSERT_TRUE(status2.subscribe(line.dds(), line.topic("saw2", "status"), QosKind::state));
-  ASSERT_TRUE(results.subscribe(line.dds(), line.topic("saw2", "setpoint_result"), QosKind::reply));
+  line.start(saw_entry("saw1", 5) + saw_entry("saw2", 6, "    pdo_config: adopt\n"),
+             saw_entry("saw1", 5, factory) + saw_entry("saw2", 6, factory));
+  auto info1 = line.collect<msg::DeviceInfoPubSubType>("saw1", "info", QosKind::state);
+  auto info2 = line.collect<msg::DeviceInfoPubSubType>("saw2", "info", QosKind::state);
 
   ASSERT_TRUE(info1.wait_last(15s, [](const msg::DeviceInfo& i) { return !i.boot_error().code().empty(); }))
       << line.logs();
@@ -225,34 +203,17 @@ TEST(MasterBoot, DeviceMappingThatDiffersIsDetectedAndCanBeAdopted) {
   ASSERT_TRUE(info2.wait_last(15s, [](const msg::DeviceInfo& i) { return i.started(); })) << line.logs();
   const auto i2 = info2.samples().back();
   EXPECT_EQ(i2.pdo_config(), "adopt");
-  bool seen = false;
-  for (const auto& p : i2.pdos()) {
-    if (p.name() != "tpdo2") continue;
-    seen = true;
-    EXPECT_TRUE(p.adopted());
-    EXPECT_EQ(p.mapping(), (std::vector<std::uint32_t>{0x60070020, 0x60010020}));
-  }
-  EXPECT_TRUE(seen);
+  const auto* tpdo2 = lb::test::pdo_of(i2, "tpdo2");
+  ASSERT_NE(tpdo2, nullptr);
+  EXPECT_TRUE(tpdo2->adopted());
+  EXPECT_EQ(tpdo2->mapping(), (std::vector<std::uint32_t>{0x60070020, 0x60010020}));
 
-  auto writer = line.dds().writer<msg::SawSetpointPubSubType>(line.topic("saw2", "setpoint"), QosKind::command);
-  ASSERT_TRUE(writer);
-  ASSERT_TRUE(status2.wait_last(10s, operational)) << line.logs();
-  const auto deadline = Clock::now() + 10s;
-  while ((writer->matched() == 0 || line.dds().matched_writers(line.topic("saw2", "setpoint_result")) == 0) &&
-         Clock::now() < deadline) {
-    std::this_thread::sleep_for(20ms);
-  }
-  msg::SawSetpoint sp;
-  sp.request_id(1);
-  sp.saw_program_on(true);
-  sp.sync_speed_percent(100);
-  sp.product_length_m(2.0);
-  writer->write(sp);
-  ASSERT_TRUE(results.wait_last(5s, [](const msg::SetpointResult& r) { return r.request_id() == 1 && r.accepted(); }))
-      << line.logs();
+  lb::test::SetValueClient<msg::SawStatusPubSubType, msg::SawSetpointPubSubType> saw2(line, "saw2");
+  saw2.writer.write(lb::test::saw_set_value(1, 100, 2.0));
+  ASSERT_TRUE(saw2.answered(1)) << line.logs();
   // 100 % of 60 m/min: product speed 6007h is 60 m/min, and the saw counter 6001h grows from 0
   // towards the 2 m length. Decoded by the profile's order instead, the two would be swapped.
-  ASSERT_TRUE(status2.wait_last(5s, [](const msg::SawStatus& s) {
+  ASSERT_TRUE(saw2.status.wait_last(30s, [](const msg::SawStatus& s) {
     return s.product_speed_m_per_min() == 60.0 && s.actual_saw_counter_m() > 0.1 && s.actual_saw_counter_m() < 2.0;
   })) << line.logs();
   EXPECT_NE(line.bridge().log().find("tpdo2 decoded and sent by the device's own mapping"), std::string::npos);
@@ -263,16 +224,12 @@ TEST(MasterBoot, DeviceMappingThatDiffersIsDetectedAndCanBeAdopted) {
 // and within one heartbeat timeout it is configured again (6006h, written at every boot) and
 // started. Checked on the bus, with the frames' timestamps.
 TEST(MasterBoot, SilentResetIsReconfiguredWithinOneHeartbeatTimeout) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("silent", 14);
-  line.start(saw("saw1", 5,
-                 "    configure: [{object: saw_sync_speed_set_maximum, value: 45000}]\n"
-                 "    simulation: {heartbeat_period_ms: 100}\n"));
-  lb::test::Collector<msg::SawStatusPubSubType> status;
-  lb::test::Collector<msg::DiagnosticsPubSubType> diag;
-  ASSERT_TRUE(status.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
-  ASSERT_TRUE(diag.subscribe(line.dds(), line.topic("bridge", "diagnostics"), QosKind::state));
-  ASSERT_TRUE(status.wait_last(15s, operational)) << line.logs();
+  line.start(saw_entry("saw1", 5,
+                       "    configure: [{object: saw_sync_speed_set_maximum, value: 45000}]\n"
+                       "    simulation: {heartbeat_period_ms: 100}\n"));
+  auto status = line.operational_status<msg::SawStatusPubSubType>("saw1");
+  auto diag = line.collect<msg::DiagnosticsPubSubType>("bridge", "diagnostics", QosKind::state);
   ASSERT_EQ(line.read_unsigned("saw1", 0x6006, 0, "UNSIGNED32"), 45000u);
 
   line.spy().clear();
@@ -283,11 +240,8 @@ TEST(MasterBoot, SilentResetIsReconfiguredWithinOneHeartbeatTimeout) {
   const auto is_start = [](const lb::can::CanFrame& f) {
     return f.id == 0x000 && f.len == 2 && f.data[0] == 0x01 && f.data[1] == 5;
   };
-  const auto deadline = std::chrono::steady_clock::now() + 10s;
-  while (std::ranges::none_of(line.spy().frames(0x000), is_start)) {
-    ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "no NMT start on the bus after the reset";
-    std::this_thread::sleep_for(10ms);
-  }
+  ASSERT_TRUE(line.spy().wait_until([&](const auto& frames) { return std::ranges::any_of(frames, is_start); }))
+      << "no NMT start on the bus after the reset";
   const auto frames = line.spy().frames();
   std::int64_t first_preop = 0, first_sdo = 0, configured = 0, started = 0;
   for (const auto& f : frames) {
@@ -317,7 +271,7 @@ TEST(MasterBoot, SilentResetIsReconfiguredWithinOneHeartbeatTimeout) {
   EXPECT_LT(started - first_preop, 10'000'000'000) << "reconfigured long after the pre-operational heartbeat";
   EXPECT_EQ(line.read_unsigned("saw1", 0x6006, 0, "UNSIGNED32"), 45000u);
   ASSERT_TRUE(diag.wait_last(10s, [](const msg::Diagnostics& d) {
-    const auto* n = node(d, "saw1");
+    const auto* n = node_of(d, "saw1");
     return n != nullptr && n->state_unknown() >= 1 && n->boot_state() == "started";
   })) << line.logs();
 }
@@ -326,22 +280,37 @@ TEST(MasterBoot, SilentResetIsReconfiguredWithinOneHeartbeatTimeout) {
 // gives a producer time: it falls silent, so the bridge only learns of it from the heartbeat
 // timeout; it then probes the device, writes 1017h again and starts it.
 TEST(MasterBoot, SilentResetOfADeviceWithoutPowerOnHeartbeatIsRecovered) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("silent0", 15);
-  line.start(saw("saw1", 5, "    heartbeat_producer_ms: 100\n    simulation: {heartbeat_period_ms: 0}\n"));
-  lb::test::Collector<msg::SawStatusPubSubType> status;
-  ASSERT_TRUE(status.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
-  ASSERT_TRUE(status.wait_last(15s, operational)) << line.logs();
+  line.start(saw_entry("saw1", 5, "    heartbeat_producer_ms: 100\n    simulation: {heartbeat_period_ms: 0}\n"));
+  auto status = line.operational_status<msg::SawStatusPubSubType>("saw1");
   EXPECT_EQ(line.read_unsigned("saw1", 0x1017, 0, "UNSIGNED16"), 100u);
 
-  line.spy().clear();
-  const auto reset_at = Clock::now();
   wait_post_boot_reads(line, "saw1");
+  line.spy().clear();
   ASSERT_TRUE(line.spy().send(silent_reset_request(5)));
-  ASSERT_TRUE(status.wait_last(3s, [](const msg::SawStatus& s) { return !s.health().online(); })) << line.logs();
-  ASSERT_TRUE(status.wait_last(5s, operational)) << line.logs();
-  // One heartbeat timeout to notice, then the boot (a few SDO round trips) and the first beat.
-  EXPECT_LT(Clock::now() - reset_at, 2000ms);
+  ASSERT_TRUE(status.wait_last(30s, [](const msg::SawStatus& s) { return !s.health().online(); })) << line.logs();
+  ASSERT_TRUE(status.wait_last(30s, operational)) << line.logs();
+  // On the bus, by the frames' stamps: the device's answer to the reset request (60h for 2002h),
+  // then the bridge's probe (its first SDO request after it), 1017h written again (2Bh 17h 10h)
+  // and the NMT start, in that order. One heartbeat timeout (400 ms) to notice, bounded loosely:
+  // a loaded machine stretches the round trips, it does not reorder them.
+  std::int64_t reset = 0, probe = 0, written = 0, started = 0;
+  for (const auto& f : line.spy().frames()) {
+    if (f.id == 0x585 && f.data[0] == 0x60 && f.data[1] == 0x02 && f.data[2] == 0x20 && reset == 0)
+      reset = f.timestamp_ns;
+    if (f.id == 0x605 && reset != 0 && probe == 0) probe = f.timestamp_ns;
+    if (f.id == 0x605 && f.data[0] == 0x2B && f.data[1] == 0x17 && f.data[2] == 0x10 && written == 0)
+      written = f.timestamp_ns;
+    if (f.id == 0x000 && f.len == 2 && f.data[0] == 0x01 && f.data[1] == 5 && started == 0) started = f.timestamp_ns;
+  }
+  ASSERT_NE(reset, 0) << "the device did not confirm the reset request";
+  ASSERT_NE(probe, 0) << "the silent device was never probed";
+  ASSERT_NE(written, 0) << "1017h was not written again";
+  ASSERT_NE(started, 0) << "no NMT start after the reset";
+  EXPECT_LT(reset, probe);
+  EXPECT_LE(probe, written);
+  EXPECT_LT(written, started);
+  EXPECT_LT(probe - reset, 3'000'000'000) << "noticed long after one heartbeat timeout";
   EXPECT_EQ(line.read_unsigned("saw1", 0x1017, 0, "UNSIGNED16"), 100u);
   for (const auto& f : line.spy().frames(0x705)) EXPECT_NE(f.data[0], 0x00) << "a boot-up message";
   EXPECT_TRUE(has_nmt(line.spy().frames(), 0x01, 5));
@@ -350,14 +319,11 @@ TEST(MasterBoot, SilentResetOfADeviceWithoutPowerOnHeartbeatIsRecovered) {
 // on_state_unknown: reset_node: the bridge answers the unknown state with an NMT reset node, and
 // the device's boot-up starts its boot.
 TEST(MasterBoot, ResetNodePolicyResetsADeviceWhoseStateIsUnknown) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("resetpol", 16);
-  line.start(
-      saw("saw1", 5,
-          "    on_state_unknown: reset_node\n    configure: [{object: saw_sync_speed_set_maximum, value: 45000}]\n"));
-  lb::test::Collector<msg::SawStatusPubSubType> status;
-  ASSERT_TRUE(status.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
-  ASSERT_TRUE(status.wait_last(15s, operational)) << line.logs();
+  line.start(saw_entry(
+      "saw1", 5,
+      "    on_state_unknown: reset_node\n    configure: [{object: saw_sync_speed_set_maximum, value: 45000}]\n"));
+  auto status = line.operational_status<msg::SawStatusPubSubType>("saw1");
   line.spy().clear();
   wait_post_boot_reads(line, "saw1");
   ASSERT_TRUE(line.spy().send(silent_reset_request(5)));
@@ -374,26 +340,24 @@ TEST(MasterBoot, ResetNodePolicyResetsADeviceWhoseStateIsUnknown) {
 // test, as a device with a loose supply would boot) are a storm: reported, and the next boot waits
 // instead of reconfiguring at once. Real boot-ups: each is followed by pre-operational heartbeats.
 TEST(MasterBoot, BootUpStormIsReportedAndBackedOff) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("storm", 17);
-  line.start(saw("saw1", 5));
-  lb::test::Collector<msg::SawStatusPubSubType> status;
-  lb::test::Collector<msg::DiagnosticsPubSubType> diag;
-  ASSERT_TRUE(status.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
-  ASSERT_TRUE(diag.subscribe(line.dds(), line.topic("bridge", "diagnostics"), QosKind::state));
-  ASSERT_TRUE(status.wait_last(15s, operational)) << line.logs();
+  line.start(saw_entry("saw1", 5));
+  auto status = line.operational_status<msg::SawStatusPubSubType>("saw1");
+  auto diag = line.collect<msg::DiagnosticsPubSubType>("bridge", "diagnostics", QosKind::state);
   for (int i = 0; i < 6; ++i) {
     ASSERT_TRUE(line.spy().send(lb::can::make_frame(0x000, {0x81, 0x05})));
+    // Stays: it paces the injected storm (six boot-ups ~300 ms apart, each followed by the
+    // device's pre-operational heartbeats); nothing is asserted on this time.
     std::this_thread::sleep_for(300ms);
   }
   ASSERT_TRUE(diag.wait_last(5s, [](const msg::Diagnostics& d) {
-    const auto* n = node(d, "saw1");
+    const auto* n = node_of(d, "saw1");
     return n != nullptr && n->boot_state().find("boot-up storm") != std::string::npos;
   })) << line.logs();
   EXPECT_NE(line.bridge().log().find("boot-up storm"), std::string::npos);
   // After the back-off (boot_retry_ms 1000 at first) it is booted and started again.
   ASSERT_TRUE(diag.wait_last(10s, [](const msg::Diagnostics& d) {
-    const auto* n = node(d, "saw1");
+    const auto* n = node_of(d, "saw1");
     return n != nullptr && n->boot_state() == "started";
   })) << line.logs();
   ASSERT_TRUE(status.wait_last(5s, operational)) << line.logs();
@@ -403,16 +367,13 @@ TEST(MasterBoot, BootUpStormIsReportedAndBackedOff) {
 // reported on info (and in the log), and a heartbeat lost and back makes the bridge boot the
 // device again rather than trust it.
 TEST(MasterBoot, HeartbeatTimesThatDoNotFitAreReportedAndALostDeviceIsBootedAgain) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("hbfit", 18);
   line.start("  - name: saw1\n    bus: b\n    node_id: 5\n    profile: cia420-4\n    version: '3.1'\n"
              "    heartbeat_timeout_ms: 1400\n    boot_retry_ms: 1000\n"
              "    configure: [{object: saw_sync_speed_set_maximum, value: 45000}]\n"
              "    simulation: {heartbeat_period_ms: 1000}\n");
-  lb::test::Collector<msg::DeviceInfoPubSubType> info;
-  lb::test::Collector<msg::SawStatusPubSubType> status;
-  ASSERT_TRUE(info.subscribe(line.dds(), line.topic("saw1", "info"), QosKind::state));
-  ASSERT_TRUE(status.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
+  auto info = line.collect<msg::DeviceInfoPubSubType>("saw1", "info", QosKind::state);
+  auto status = line.collect<msg::SawStatusPubSubType>("saw1", "status", QosKind::state);
   ASSERT_TRUE(info.wait_last(15s, [](const msg::DeviceInfo& i) { return i.started(); })) << line.logs();
   const auto i = info.samples().back();
   EXPECT_EQ(i.heartbeat_producer_ms(), 1000);
@@ -420,7 +381,7 @@ TEST(MasterBoot, HeartbeatTimesThatDoNotFitAreReportedAndALostDeviceIsBootedAgai
 
   ASSERT_TRUE(status.wait_last(5s, operational)) << line.logs();
   ::kill(line.sim().pid(), SIGSTOP);
-  ASSERT_TRUE(status.wait_last(4s, [](const msg::SawStatus& s) { return !s.health().online(); })) << line.logs();
+  ASSERT_TRUE(status.wait_last(30s, [](const msg::SawStatus& s) { return !s.health().online(); })) << line.logs();
   line.spy().clear();
   ::kill(line.sim().pid(), SIGCONT);
   // Back, it is configured again (6006h written) before it is started again.
@@ -433,9 +394,8 @@ TEST(MasterBoot, HeartbeatTimesThatDoNotFitAreReportedAndALostDeviceIsBootedAgai
     }
     return written != 0 && started > written;
   };
-  const auto deadline = Clock::now() + 6s;
-  while (!written_and_started() && Clock::now() < deadline) std::this_thread::sleep_for(50ms);
-  EXPECT_TRUE(written_and_started()) << "the device came back and was not configured and started again\n"
-                                     << line.logs();
+  EXPECT_TRUE(lb::test::eventually(30s, written_and_started))
+      << "the device came back and was not configured and started again\n"
+      << line.logs();
   ASSERT_TRUE(status.wait_last(5s, operational)) << line.logs();
 }

@@ -12,38 +12,18 @@
 #include "msgs/pullerPubSubTypes.h"
 #include "msgs/sawPubSubTypes.h"
 #include "support/line_harness.hpp"
+#include "support/line_views.hpp"
+#include "support/set_value_client.hpp"
 
 namespace msg = linebridge_msgs::msg;
 using namespace std::chrono_literals;
 using lb::ddsl::QosKind;
-
-namespace {
-
-template <class Writer>
-bool wait_matched(lb::test::LineHarness& line, Writer& writer, const std::string& result_topic) {
-  const auto deadline = std::chrono::steady_clock::now() + 10s;
-  while (writer.matched() == 0 || line.dds().matched_writers(result_topic) == 0) {
-    if (std::chrono::steady_clock::now() > deadline) return false;
-    std::this_thread::sleep_for(20ms);
-  }
-  return true;
-}
-
-const msg::PdoInfo* pdo(const msg::DeviceInfo& info, const std::string& name) {
-  for (const auto& p : info.pdos()) {
-    if (p.name() == name) return &p;
-  }
-  return nullptr;
-}
-
-}  // namespace
 
 // Saw 3.1: only the transmission parameters are rw (tables 3, 7, 11); the bridge writes them and
 // the saw's PDOs follow them on the bus. Its COB-IDs are const, so its PDOs are valid for good and
 // CiA 301 forbids writing their inhibit time: this saw comes with 50 ms from its factory (its
 // `simulation:`), which the line's 500 x 100 us matches, so nothing is written there.
 TEST(PdoOverrides, TransmissionTypesReachTheSawAndItsFramesFollowThem) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("pdo", 6);
   line.start("  - name: saw1\n"
              "    bus: b\n"
@@ -56,18 +36,8 @@ TEST(PdoOverrides, TransmissionTypesReachTheSawAndItsFramesFollowThem) {
              "      rpdo1: {transmission_type: 255}\n"
              "    simulation: {max_speed_m_per_min: 60, acceleration_m_per_min_s: 6000,\n"
              "                 pdos: {tpdo1: {inhibit_time_100us: 500}}}\n");
-  lb::test::Collector<msg::SawStatusPubSubType> status;
-  lb::test::Collector<msg::SetpointResultPubSubType> results;
-  lb::test::Collector<msg::DeviceInfoPubSubType> info;
-  ASSERT_TRUE(status.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
-  ASSERT_TRUE(results.subscribe(line.dds(), line.topic("saw1", "setpoint_result"), QosKind::reply));
-  ASSERT_TRUE(info.subscribe(line.dds(), line.topic("saw1", "info"), QosKind::state));
-  auto writer = line.dds().writer<msg::SawSetpointPubSubType>(line.topic("saw1", "setpoint"), QosKind::command);
-  ASSERT_TRUE(writer);
-  ASSERT_TRUE(status.wait_last(15s, [](const msg::SawStatus& s) {
-    return s.health().online() && s.health().nmt_state() == msg::NMT_OPERATIONAL;
-  })) << line.logs();
-  ASSERT_TRUE(wait_matched(line, *writer, line.topic("saw1", "setpoint_result")));
+  auto info = line.collect<msg::DeviceInfoPubSubType>("saw1", "info", QosKind::state);
+  lb::test::SetValueClient<msg::SawStatusPubSubType, msg::SawSetpointPubSubType> saw(line, "saw1");
 
   // On the bus, the bridge's boot wrote the transmission type (expedited download of 1800h sub 2
   // = 254: 2F 00 18 02 FE) and never the inhibit time (no download to 1800h sub 3): the line's
@@ -88,35 +58,22 @@ TEST(PdoOverrides, TransmissionTypesReachTheSawAndItsFramesFollowThem) {
   EXPECT_EQ(line.read_unsigned("saw1", 0x1400, 2, "UNSIGNED8"), 255u);
   ASSERT_TRUE(info.wait_last(5s, [](const msg::DeviceInfo& i) { return i.started(); })) << line.logs();
   const auto started = info.samples().back();
-  const auto* tpdo2 = pdo(started, "tpdo2");
+  const auto* tpdo2 = lb::test::pdo_of(started, "tpdo2");
   ASSERT_NE(tpdo2, nullptr);
   EXPECT_EQ(tpdo2->transmission_type(), 2);
   EXPECT_FALSE(tpdo2->adopted());
 
   // Windows counted in the bridge's SYNCs on the bus (a loaded machine stretches time, not SYNCs).
-  const auto wait_syncs = [&line](std::size_t n) {
-    const auto deadline = std::chrono::steady_clock::now() + 30s;
-    while (line.spy().frames(0x080).size() < n) {
-      if (std::chrono::steady_clock::now() > deadline) return false;
-      std::this_thread::sleep_for(10ms);
-    }
-    return true;
-  };
+  const auto wait_syncs = [&line](std::size_t n) { return line.spy().wait_count(0x080, n, 60s).size() >= n; };
   // Quiet line: the event-driven RPDO1 is not repeated at every SYNC.
   line.spy().clear();
   ASSERT_TRUE(wait_syncs(50));
   EXPECT_TRUE(line.spy().frames(0x205).empty()) << "event-driven RPDO1 without a change";
 
-  msg::SawSetpoint sp;
-  sp.request_id(1);
-  sp.saw_program_on(true);
-  sp.sync_speed_percent(100);
-  sp.product_length_m(0.5);
-  writer->write(sp);
-  ASSERT_TRUE(results.wait_last(5s, [](const msg::SetpointResult& r) { return r.request_id() == 1 && r.accepted(); }))
-      << line.logs();
+  saw.writer.write(lb::test::saw_set_value(1, 100, 0.5));
+  ASSERT_TRUE(saw.answered(1)) << line.logs();
   // 60 m/min, and the saw cuts at 0.5 m.
-  ASSERT_TRUE(status.wait(30s, [](const std::vector<msg::SawStatus>& v) {
+  ASSERT_TRUE(saw.status.wait(30s, [](const std::vector<msg::SawStatus>& v) {
     bool cut = false;
     for (std::size_t i = 1; i < v.size(); ++i) {
       if (v[i].status_word().saw_cutting() && !v[i - 1].status_word().saw_cutting() &&
@@ -152,14 +109,10 @@ TEST(PdoOverrides, TransmissionTypesReachTheSawAndItsFramesFollowThem) {
 
   // A new set value: RPDO1 goes out at once, once.
   line.spy().clear();
-  sp.request_id(2);
-  sp.product_length_m(0.4);
-  writer->write(sp);
-  ASSERT_TRUE(results.wait_last(5s, [](const msg::SetpointResult& r) { return r.request_id() == 2 && r.accepted(); }));
+  saw.writer.write(lb::test::saw_set_value(2, 100, 0.4));
+  ASSERT_TRUE(saw.answered(2)) << line.logs();
   // Once: the first RPDO1, then 10 more SYNCs without another.
-  const auto deadline = std::chrono::steady_clock::now() + 10s;
-  while (line.spy().frames(0x205).empty() && std::chrono::steady_clock::now() < deadline)
-    std::this_thread::sleep_for(10ms);
+  ASSERT_FALSE(line.spy().wait_count(0x205, 1).empty()) << "no RPDO1 for the new set value\n" << line.logs();
   ASSERT_TRUE(wait_syncs(line.spy().frames(0x080).size() + 10));
   const auto sent = line.spy().frames(0x205);
   ASSERT_EQ(sent.size(), 1u) << line.logs();
@@ -172,7 +125,6 @@ TEST(PdoOverrides, TransmissionTypesReachTheSawAndItsFramesFollowThem) {
 // first in TPDO2 gets it written with the CiA 301 sequence (sub 0 = 0, entries, sub 0 = 2), and
 // the puller's frames and the status decode by the new layout.
 TEST(PdoOverrides, RemappedTpdoIsWrittenToTheDeviceAndDecodes) {
-  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
   lb::test::LineHarness line("remap", 7);
   line.start("  - name: puller1\n"
              "    bus: b\n"
@@ -182,16 +134,7 @@ TEST(PdoOverrides, RemappedTpdoIsWrittenToTheDeviceAndDecodes) {
              "    pdos:\n"
              "      tpdo2: {mapping: [0x60080020, 0x60040010]}\n"
              "    simulation: {max_speed_m_per_min: 30, acceleration_m_per_min_s: 600}\n");
-  lb::test::Collector<msg::PullerStatusPubSubType> status;
-  lb::test::Collector<msg::SetpointResultPubSubType> results;
-  ASSERT_TRUE(status.subscribe(line.dds(), line.topic("puller1", "status"), QosKind::state));
-  ASSERT_TRUE(results.subscribe(line.dds(), line.topic("puller1", "setpoint_result"), QosKind::reply));
-  auto writer = line.dds().writer<msg::PullerSetpointPubSubType>(line.topic("puller1", "setpoint"), QosKind::command);
-  ASSERT_TRUE(writer);
-  ASSERT_TRUE(status.wait_last(15s, [](const msg::PullerStatus& s) {
-    return s.health().online() && s.health().nmt_state() == msg::NMT_OPERATIONAL;
-  })) << line.logs();
-  ASSERT_TRUE(wait_matched(line, *writer, line.topic("puller1", "setpoint_result")));
+  lb::test::SetValueClient<msg::PullerStatusPubSubType, msg::PullerSetpointPubSubType> puller(line, "puller1");
   EXPECT_EQ(line.read_unsigned("puller1", 0x1A01, 0, "UNSIGNED8"), 2u);
   EXPECT_EQ(line.read_unsigned("puller1", 0x1A01, 1, "UNSIGNED32"), 0x60080020u);
   EXPECT_EQ(line.read_unsigned("puller1", 0x1A01, 2, "UNSIGNED32"), 0x60040010u);
@@ -200,22 +143,19 @@ TEST(PdoOverrides, RemappedTpdoIsWrittenToTheDeviceAndDecodes) {
   sp.request_id(1);
   sp.extruder_running(true);
   sp.speed_set_percent(50);
-  writer->write(sp);
-  ASSERT_TRUE(results.wait_last(5s, [](const msg::SetpointResult& r) { return r.request_id() == 1 && r.accepted(); }));
+  puller.writer.write(sp);
+  ASSERT_TRUE(
+      puller.results.wait_last(5s, [](const msg::SetpointResult& r) { return r.request_id() == 1 && r.accepted(); }));
   ASSERT_TRUE(line.command("puller1", "motor_start").success()) << line.logs();
   // 50 % of 30 m/min = 15 m/min (6008h: 150000 x 0.1 mm/min); the set echo 6004h is 50.00 %.
-  ASSERT_TRUE(status.wait_last(10s, [](const msg::PullerStatus& s) {
+  ASSERT_TRUE(puller.status.wait_last(10s, [](const msg::PullerStatus& s) {
     return s.product_speed_m_per_min() > 14.99 && s.product_speed_m_per_min() < 15.01 &&
            s.speed_set_echo_percent() > 49.99 && s.speed_set_echo_percent() < 50.01;
   })) << line.logs();
   // The puller's next TPDO2 on the bus, waited for.
   line.spy().clear();
-  const auto deadline = std::chrono::steady_clock::now() + 10s;
-  while (line.spy().frames(0x286).empty()) {
-    ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "no TPDO2 of the puller" << line.logs();
-    std::this_thread::sleep_for(10ms);
-  }
-  const auto frames = line.spy().frames(0x286);
+  const auto frames = line.spy().wait_count(0x286, 1);
+  ASSERT_FALSE(frames.empty()) << "no TPDO2 of the puller" << line.logs();
   const auto& f = frames.back();
   ASSERT_EQ(f.len, 6);
   // Bytes 0..3 product speed 000249F0h, bytes 4..5 the set echo 1388h: the new order.

@@ -19,6 +19,7 @@
 #include "msgs/commonPubSubTypes.h"
 #include "msgs/sawPubSubTypes.h"
 #include "support/line_harness.hpp"
+#include "support/line_views.hpp"
 #include "support/raw_command_client.hpp"
 
 namespace msg = linebridge_msgs::msg;
@@ -75,17 +76,9 @@ bool rpdo1_until(lb::test::LineHarness& line, Pred pred, std::chrono::seconds de
   return false;
 }
 
-const msg::NodeDiagnostics* node(const msg::Diagnostics& d, const std::string& device) {
-  for (const auto& n : d.nodes()) {
-    if (n.device() == device) return &n;
-  }
-  return nullptr;
-}
-
 class RequestAcrossRestart : public ::testing::Test {
  protected:
   void SetUp() override {
-    ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
     line.start("  - {name: saw1, bus: b, node_id: 3, profile: cia420-4, version: '3.1', heartbeat_timeout_ms: 1000}\n");
     ASSERT_TRUE(diag.subscribe(line.dds(), line.topic("bridge", "diagnostics"), QosKind::state));
     first_run = started_run(0);
@@ -98,7 +91,7 @@ class RequestAcrossRestart : public ::testing::Test {
     lb::ddsl::Incarnation run = lb::ddsl::kAnyIncarnation;
     const bool ok = diag.wait(40s, [&](const std::vector<msg::Diagnostics>& v) {
       if (v.empty() || v.back().bridge_incarnation() == not_this) return false;
-      const auto* saw = node(v.back(), "saw1");
+      const auto* saw = lb::test::node_of(v.back(), "saw1");
       if (saw == nullptr || saw->node_state() != "operational") return false;
       run = v.back().bridge_incarnation();
       return true;

@@ -22,17 +22,18 @@
 #include "msgs/pullerPubSubTypes.h"
 #include "msgs/sawPubSubTypes.h"
 #include "support/line_harness.hpp"
+#include "support/line_views.hpp"
+#include "support/scratch_files.hpp"
 
 namespace msg = linebridge_msgs::msg;
 namespace srv = linebridge_msgs::srv;
 using namespace std::chrono_literals;
 using lb::ddsl::QosKind;
+constexpr auto operational = lb::test::operational<msg::SawStatus>;
+using lb::test::node_of;
+using lb::test::read_text;
 
 namespace {
-
-bool operational(const msg::SawStatus& s) {
-  return s.health().online() && s.health().nmt_state() == msg::NMT_OPERATIONAL;
-}
 
 std::string device(const std::string& name, int node_id, const std::string& profile, const std::string& version) {
   return "  - name: " + name + "\n    bus: b\n    node_id: " + std::to_string(node_id) + "\n    profile: " + profile +
@@ -40,43 +41,12 @@ std::string device(const std::string& name, int node_id, const std::string& prof
 }
 std::string saw_and_puller() { return device("saw1", 5, "cia420-4", "3.1") + device("puller1", 3, "cia420-2", "1.0"); }
 
-std::string state_dir(const std::string& name) {
-  const auto dir = ::testing::TempDir() + "/" + name + "-state-" + std::to_string(::getpid());
-  std::filesystem::remove_all(dir);
-  std::filesystem::create_directories(dir);
-  return dir;
-}
-
-std::string read_file(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
-}
-
-// Waits until `count` frames of `id` were seen since the spy was cleared; returns them.
-std::vector<lb::can::CanFrame> frames_of(lb::test::LineHarness& line, std::uint32_t id, std::size_t count,
-                                         std::chrono::seconds deadline = 30s) {
-  const auto end = std::chrono::steady_clock::now() + deadline;
-  auto f = line.spy().frames(id);
-  while (f.size() < count && std::chrono::steady_clock::now() < end) {
-    std::this_thread::sleep_for(50ms);
-    f = line.spy().frames(id);
-  }
-  return f;
-}
+std::string state_dir(const std::string& name) { return lb::test::fresh_dir(name + "-state"); }
 
 std::string hex(const lb::can::CanFrame& f) {
   std::string s;
   for (unsigned i = 0; i < f.len; ++i) s += fmt::format("{:02X}", f.data[i]);
   return s;
-}
-
-const msg::NodeDiagnostics* node(const msg::Diagnostics& d, const std::string& device) {
-  for (const auto& n : d.nodes()) {
-    if (n.device() == device) return &n;
-  }
-  return nullptr;
 }
 
 class StartupPolicy : public ::testing::Test {
@@ -112,16 +82,13 @@ class StartupPolicy : public ::testing::Test {
     ASSERT_TRUE(frame_seen(line, 0x203, [](const lb::can::CanFrame& f) { return f.data[0] == 0x40; })) << line.logs();
     // Kept on disk (the store writes within 200 ms): both RPDOs with those control words.
     const auto file = dir + "/startup.set_values";
-    const auto end = std::chrono::steady_clock::now() + 20s;
-    while (std::chrono::steady_clock::now() < end) {
-      const auto text = read_file(file);
-      if (text.find(" rpdo1 60200010,60050010,60020020 0500881") != std::string::npos &&
-          text.find(" rpdo1 60200010,60020010 40008813") != std::string::npos) {
-        return;
-      }
-      std::this_thread::sleep_for(50ms);
-    }
-    FAIL() << "the set values in force never reached " << file << ":\n" << read_file(file) << line.logs();
+    const auto kept = [&file] {
+      const auto text = read_text(file);
+      return text.find(" rpdo1 60200010,60050010,60020020 0500881") != std::string::npos &&
+             text.find(" rpdo1 60200010,60020010 40008813") != std::string::npos;
+    };
+    if (lb::test::eventually(30s, kept)) return;
+    FAIL() << "the set values in force never reached " << file << ":\n" << read_text(file) << line.logs();
   }
 
   void set_saw(bool program_on, std::uint64_t id) {
@@ -134,13 +101,8 @@ class StartupPolicy : public ::testing::Test {
   }
 
   template <class Writer>
-  bool wait_matched(Writer& w) {
-    const auto end = std::chrono::steady_clock::now() + 20s;
-    while (w.matched() == 0) {
-      if (std::chrono::steady_clock::now() > end) return false;
-      std::this_thread::sleep_for(20ms);
-    }
-    return true;
+  static bool wait_matched(Writer& w) {
+    return lb::test::eventually(30s, [&w] { return w.matched() != 0; });
   }
 
   // Writes again every second until answered so (a reply writer matched after the first write).
@@ -162,13 +124,9 @@ class StartupPolicy : public ::testing::Test {
 
   template <class Pred>
   static bool frame_seen(lb::test::LineHarness& line, std::uint32_t id, Pred pred) {
-    const auto end = std::chrono::steady_clock::now() + 20s;
-    while (std::chrono::steady_clock::now() < end) {
-      const auto f = line.spy().frames(id);
-      if (std::any_of(f.begin(), f.end(), pred)) return true;
-      std::this_thread::sleep_for(20ms);
-    }
-    return false;
+    return line.spy().wait_until([&](const std::vector<lb::can::CanFrame>& frames) {
+      return std::any_of(frames.begin(), frames.end(), [&](const auto& f) { return f.id == id && pred(f); });
+    });
   }
 
   // The corrugator runs, started by a first bridge; the bridge is restarted with a line file that
@@ -186,7 +144,7 @@ class StartupPolicy : public ::testing::Test {
   bool start_note(const std::string& device, const std::string& text) {
     return diag.wait(20s, [&](const std::vector<msg::Diagnostics>& v) {
       if (v.empty()) return false;
-      const auto* n = node(v.back(), device);
+      const auto* n = node_of(v.back(), device);
       return n != nullptr && n->set_values_at_start().find(text) != std::string::npos;
     });
   }
@@ -194,13 +152,13 @@ class StartupPolicy : public ::testing::Test {
   bool node_state_is(const std::string& device, const std::string& state) {
     return diag.wait(30s, [&](const std::vector<msg::Diagnostics>& v) {
       if (v.empty()) return false;
-      const auto* n = node(v.back(), device);
+      const auto* n = node_of(v.back(), device);
       return n != nullptr && n->node_state() == state;
     });
   }
   std::string last_note(const std::string& device) {
     const auto v = diag.samples();
-    const auto* n = v.empty() ? nullptr : node(v.back(), device);
+    const auto* n = v.empty() ? nullptr : node_of(v.back(), device);
     return n == nullptr ? "(no diagnostics)" : n->set_values_at_start();
   }
 
@@ -227,8 +185,8 @@ TEST_F(StartupPolicy, APowerCutStartsNoMachine) {
   line.start_bridge();
 
   // 25 cycles of both RPDOs after the restart, every one of them without an enabling level.
-  const auto saw = frames_of(line, 0x205, 25);
-  const auto puller = frames_of(line, 0x203, 25);
+  const auto saw = line.spy().wait_count(0x205, 25);
+  const auto puller = line.spy().wait_count(0x203, 25);
   ASSERT_GE(saw.size(), 25u) << line.logs();
   ASSERT_GE(puller.size(), 25u) << line.logs();
   for (const auto& f : saw) {
@@ -269,15 +227,14 @@ TEST_F(StartupPolicy, ADeviceResetGetsNoEnablingLevelBack) {
   for (const auto& f : line.spy().frames(0x705)) {
     if (f.len == 1 && f.data[0] == 0) boot_up_ns = f.timestamp_ns;
   }
-  const auto end = std::chrono::steady_clock::now() + 30s;
   std::vector<lb::can::CanFrame> after;
-  while (after.size() < 25 && std::chrono::steady_clock::now() < end) {
-    std::this_thread::sleep_for(50ms);
+  lb::test::eventually(30s, [&] {
     after.clear();
     for (const auto& f : line.spy().frames(0x205)) {
       if (f.timestamp_ns > boot_up_ns) after.push_back(f);
     }
-  }
+    return after.size() >= 25;
+  });
   ASSERT_GE(after.size(), 25u) << line.logs();
   for (const auto& f : after) EXPECT_EQ(hex(f), "04008813E02E0000") << "saw RPDO1 after its reset";
   ASSERT_TRUE(start_note("saw1", "saw_program_on")) << last_note("saw1");
@@ -296,11 +253,11 @@ TEST_F(StartupPolicy, KeptValuesTooOldOrOutOfRangeAreNotRestored) {
   // Every entry last held in force two hours ago (the default set_values_max_age_s is 3600).
   const auto now = static_cast<long long>(std::time(nullptr));
   const std::regex held(R"(( [0-9A-F]{8}:[0-9A-F]{8}:[0-9A-F]{8}:[0-9A-F]{8} )(\d+)( ))");
-  const auto kept = read_file(file);
+  const auto kept = read_text(file);
   std::ofstream(file) << std::regex_replace(kept, held, "$01" + std::to_string(now - 7200) + "$03");
   line.spy().clear();
   line.start_bridge();
-  auto saw = frames_of(line, 0x205, 10);
+  auto saw = line.spy().wait_count(0x205, 10);
   ASSERT_GE(saw.size(), 10u) << line.logs();
   for (const auto& f : saw) EXPECT_EQ(hex(f), "0000000000000000") << "an old kept value was restored";
   ASSERT_TRUE(start_note("saw1", "over set_values_max_age_s")) << last_note("saw1") << line.logs();
@@ -311,7 +268,7 @@ TEST_F(StartupPolicy, KeptValuesTooOldOrOutOfRangeAreNotRestored) {
                                             std::regex(" 05008813E02E0000"), " 0500FFFFE02E0000");
   line.spy().clear();
   line.start_bridge();
-  saw = frames_of(line, 0x205, 10);
+  saw = line.spy().wait_count(0x205, 10);
   ASSERT_GE(saw.size(), 10u) << line.logs();
   for (const auto& f : saw) EXPECT_EQ(hex(f), "0000000000000000") << "an out-of-range kept value was restored";
   ASSERT_TRUE(start_note("saw1", "out of range")) << last_note("saw1") << line.logs();
@@ -345,7 +302,7 @@ TEST_F(StartupPolicy, AStopReachesARunningSawWhoseBootFails) {
   line.spy().clear();
   line.start_bridge();
   ASSERT_TRUE(diag.wait_last(30s, [](const msg::Diagnostics& d) {
-    const auto* n = node(d, "saw1");
+    const auto* n = node_of(d, "saw1");
     return n != nullptr && n->boot_error().code() == "J";
   })) << line.logs();
   // It runs on, unmanaged: no RPDO by itself.
@@ -392,16 +349,15 @@ TEST_F(StartupPolicy, AResetWhoseBootUpIsLostIsBootedAgain) {
   EXPECT_FALSE(start.success()) << "an NMT start was taken for a device just reset";
   // On the bus: the reset, no boot-up, then SDO requests (the boot), then the NMT start.
   std::int64_t reset_ns = 0, sdo_ns = 0, start_ns = 0;
-  const auto end = std::chrono::steady_clock::now() + 30s;
-  while (start_ns == 0 && std::chrono::steady_clock::now() < end) {
-    std::this_thread::sleep_for(50ms);
+  lb::test::eventually(30s, [&] {
     for (const auto& f : line.spy().frames()) {
       if (f.id == 0x000 && f.len == 2 && f.data[0] == 0x81 && f.data[1] == 5 && reset_ns == 0)
         reset_ns = f.timestamp_ns;
       if (f.id == 0x605 && reset_ns != 0 && sdo_ns == 0) sdo_ns = f.timestamp_ns;
       if (f.id == 0x000 && f.len == 2 && f.data[0] == 0x01 && f.data[1] == 5 && sdo_ns != 0) start_ns = f.timestamp_ns;
     }
-  }
+    return start_ns != 0;
+  });
   ASSERT_NE(reset_ns, 0) << line.logs();
   const auto heartbeats = line.spy().frames(0x705);
   EXPECT_TRUE(std::none_of(heartbeats.begin(), heartbeats.end(), [](const lb::can::CanFrame& f) {
@@ -440,7 +396,7 @@ TEST_F(StartupPolicy, AnOperatorsStopSurvivesAHeartbeatLossAndReturn) {
   ::kill(line.sim().pid(), SIGCONT);
   // Booted again (SDO), and kept stopped: the boot ends with NMT stop, never NMT start.
   ASSERT_TRUE(diag.wait_last(30s, [](const msg::Diagnostics& d) {
-    const auto* n = node(d, "saw1");
+    const auto* n = node_of(d, "saw1");
     return n != nullptr && n->boot_state().find("kept stopped by the operator") != std::string::npos;
   })) << line.logs();
   bool sdo = false, stopped_again = false;
@@ -512,7 +468,7 @@ TEST_F(StartupPolicy, ARunningDeviceWhosePdosMustChangeIsPausedWrittenAndStarted
   ASSERT_TRUE(start_note("corr1", "found operational")) << last_note("corr1") << line.logs();
   ASSERT_TRUE(node_state_is("corr1", "operational")) << line.logs();
   const auto d = diag.samples().back();
-  EXPECT_EQ(node(d, "corr1")->boot_error().code(), "") << node(d, "corr1")->boot_error().message();
+  EXPECT_EQ(node_of(d, "corr1")->boot_error().code(), "") << node_of(d, "corr1")->boot_error().message();
   EXPECT_EQ(line.read_unsigned("corr1", 0x1800, 3, "UNSIGNED16"), 100u);
 }
 
@@ -525,19 +481,19 @@ TEST_F(StartupPolicy, KeepRunningLeavesARunningDeviceRunningAndReportsItOnce) {
   line.start(device("corr1", 7, "cia420-3", "3.1"), "", "", "startup: {pdo_change_when_running: keep_running}\n");
   ASSERT_NO_FATAL_FAILURE(restart_wanting_another_inhibit_time(line));
   ASSERT_TRUE(diag.wait_last(30s, [](const msg::Diagnostics& d) {
-    const auto* n = node(d, "corr1");
+    const auto* n = node_of(d, "corr1");
     return n != nullptr && n->boot_error().code() == "J" && n->node_state() == "running unmanaged";
   })) << line.logs();
   const auto failed = diag.samples().back();
-  const auto& error = node(failed, "corr1")->boot_error();
+  const auto& error = node_of(failed, "corr1")->boot_error();
   EXPECT_EQ(error.index(), 0x1800);
   EXPECT_EQ(error.sub_index(), 3);
   EXPECT_EQ(error.expected(), "100");
   EXPECT_EQ(error.actual(), "0");
-  const auto boots = node(failed, "corr1")->boots();
+  const auto boots = node_of(failed, "corr1")->boots();
 
   // Four retry intervals later, counted in the corrugator's own heartbeats (100 ms): 40 of them.
-  const auto heartbeats = frames_of(line, 0x707, 40 + line.spy().frames(0x707).size());
+  const auto heartbeats = line.spy().wait_count(0x707, 40 + line.spy().frames(0x707).size());
   ASSERT_GE(heartbeats.size(), 40u) << line.logs();
   for (const auto& f : heartbeats) EXPECT_EQ(hex(f), "05") << "the corrugator left operational";
   std::size_t device_type_reads = 0;
@@ -554,7 +510,7 @@ TEST_F(StartupPolicy, KeepRunningLeavesARunningDeviceRunningAndReportsItOnce) {
   EXPECT_EQ(device_type_reads, 1u) << "booted again while it runs unmanaged\n" << line.logs();
   EXPECT_FALSE(line.spy().frames(0x187).empty()) << "its TPDO1 stopped";
   ASSERT_TRUE(diag.wait_last(5s, [&](const msg::Diagnostics& d) {
-    const auto* n = node(d, "corr1");
+    const auto* n = node_of(d, "corr1");
     return n != nullptr && n->node_state() == "running unmanaged" && n->boots() == boots;
   })) << line.logs();
   EXPECT_EQ(line.bridge_log_count("boot of node 7 failed"), 1u) << line.logs();

@@ -5,6 +5,8 @@
 #include <poll.h>
 
 #include <atomic>
+#include <chrono>
+#include <functional>
 #include <memory>
 #include <mutex>
 #include <string>
@@ -12,6 +14,7 @@
 #include <vector>
 
 #include "can/bus.hpp"
+#include "support/eventually.hpp"
 
 namespace lb::test {
 
@@ -48,6 +51,18 @@ class BusSpy {
       if (f.id == id) out.push_back(f);
     }
     return out;
+  }
+  // Waits (up to a generous deadline) until the frames seen since the last clear() satisfy `done`;
+  // false when they never did.
+  bool wait_until(const std::function<bool(const std::vector<lb::can::CanFrame>&)>& done,
+                  std::chrono::steady_clock::duration timeout = std::chrono::seconds(30)) {
+    return eventually(timeout, [&] { return done(frames()); });
+  }
+  // Waits until `count` frames of `id` were seen since the last clear(); returns those seen.
+  std::vector<lb::can::CanFrame> wait_count(std::uint32_t id, std::size_t count,
+                                            std::chrono::steady_clock::duration timeout = std::chrono::seconds(30)) {
+    eventually(timeout, [&] { return frames(id).size() >= count; });
+    return frames(id);
   }
   void clear() {
     std::lock_guard lock(m_);

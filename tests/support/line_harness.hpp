@@ -9,6 +9,7 @@
 #include <unistd.h>
 
 #include <chrono>
+#include <cstdlib>
 #include <fstream>
 #include <memory>
 #include <optional>
@@ -24,6 +25,8 @@
 #include "support/bus_spy.hpp"
 #include "support/child_process.hpp"
 #include "support/collector.hpp"
+#include "support/eventually.hpp"
+#include "support/line_views.hpp"
 
 namespace lb::test {
 
@@ -66,6 +69,10 @@ class LineHarness {
   // line_keys: top-level keys of the line file (e.g. "state_dir: /tmp/x\n").
   void start(const std::string& devices, const std::string& sim_devices = "", const std::string& bus_keys = "",
              const std::string& line_keys = "") {
+    // Every DDS participant of a test lives in a network namespace of its own (ctest wraps each
+    // test so): never on the machine's own network.
+    if (std::getenv("LINEBRIDGE_NETNS") == nullptr)
+      throw std::runtime_error("run through launch_scripts/netns-run.sh (ctest does)");
     const auto dir = ::testing::TempDir();
     const auto write = [&](const std::string& who, const std::string& devs) {
       const auto path = dir + "/" + name_ + "_" + who + "_" + tag_ + ".yaml";
@@ -118,6 +125,17 @@ class LineHarness {
     if (auto r = c.subscribe(*dds_, topic(device, t), kind); !r)
       throw std::runtime_error(topic(device, t) + ": " + r.error().message);
     return c;
+  }
+
+  // A device's status, once it says online and operational (throws with the logs when it never
+  // does): where most tests start.
+  template <class StatusPubSubType>
+  Collector<StatusPubSubType> operational_status(const std::string& device,
+                                                 std::chrono::milliseconds timeout = std::chrono::seconds(30)) {
+    auto status = collect<StatusPubSubType>(device, "status", ddsl::QosKind::state);
+    if (!status.wait_last(timeout, operational<typename StatusPubSubType::type>))
+      throw std::runtime_error(device + " never operational\n" + logs());
+    return status;
   }
 
   const std::string& bridge_config() const { return bridge_config_; }
@@ -177,6 +195,14 @@ class LineHarness {
     req.device(device);
     req.command(name);
     return call(commands_, "command", req);
+  }
+
+  // Waits until a set-value writer is matched with the bridge's reader and the bridge's writer of
+  // `result_topic` with this test's reader: a set value written then is read and answered.
+  template <class Writer>
+  bool wait_matched(Writer& writer, const std::string& result_topic,
+                    std::chrono::steady_clock::duration timeout = std::chrono::seconds(30)) {
+    return eventually(timeout, [&] { return writer.matched() != 0 && dds_->matched_writers(result_topic) != 0; });
   }
 
   // Counts the times `text` appears in the bridge's log.
