@@ -48,6 +48,9 @@ rm -f "$d/bus0.log"
 [ -z "$profiles" ] || sed -i "s|^dds:$|dds:\n  profiles_file: '$profiles'|" "$d/line.yaml"
 "$app/linebridge-sim" --config "$d/line.yaml" >"$d/sim.out" 2>&1 &
 sim=$!
+bs=""
+# Whatever happens below, the simulator and bench-startup (which stops the bridge) end with this script.
+trap 'for x in $sim $bs; do kill -TERM "$x" 2>/dev/null || true; done' EXIT
 sleep 1
 # bench-startup reads memory after --settle and stops the bridge; meanwhile this script samples both
 # processes of the bridge (bench-startup's child and grandchild) once the boot is over.
