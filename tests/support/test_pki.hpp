@@ -33,6 +33,10 @@ class TestPki {
  public:
   // pki.sh init for the (unsecured) line file at `line_config` into `dir`: CAs, governance, bridge.
   TestPki(std::string line_config, std::string dir) : config_(std::move(line_config)), dir_(std::move(dir)) {
+    // Always a new PKI: test directories are named after the pid, and pids come round again
+    // (pid_max 32768); pki.sh init keeps an existing CA, whose leftover files from an earlier run
+    // made `openssl ca -gencrl` fail in a clean-clone CI run.
+    std::filesystem::remove_all(dir_);
     std::filesystem::create_directories(dir_);
     log_ = dir_ + "/pki.log";
     run("init --config '" + config_ + "' --dir '" + dir_ + "'");
