@@ -61,7 +61,11 @@ command -v openssl >/dev/null || die "openssl is missing (launch_scripts/setup.s
 # Where the CA keys are: --ca-dir, else DIR/ca-private, else DIR/ca (as pki.sh left them before).
 if [ -z "$cadir" ]; then
   cadir="$dir/ca-private"
-  if [ "$cmd" != init ] && [ ! -f "$cadir/identity_ca.key" ] && [ -f "$dir/ca/identity_ca.key" ]; then cadir="$dir/ca"; fi
+  if [ ! -f "$cadir/identity_ca.key" ] && [ -f "$dir/ca/identity_ca.key" ]; then
+    cadir="$dir/ca"
+    # init too: it keeps an existing CA, and its key is where that pki.sh left it.
+    [ "$cmd" != init ] || echo "pki.sh: the CA keys are in $dir/ca, beside what the bridge reads (an older pki.sh put them there): move them to $dir/ca-private and take that folder offline" >&2
+  fi
 fi
 
 bin=${LINEBRIDGE_BIN:-$root/build/bridge/app}

@@ -13,6 +13,7 @@
 #include <string>
 
 #include "dds/participant.hpp"
+#include "support/scratch_files.hpp"
 
 namespace lb::test {
 
@@ -20,13 +21,6 @@ namespace lb::test {
 inline int shell(const std::string& command, const std::string& log) {
   const int status = std::system(("(" + command + ") >>'" + log + "' 2>&1").c_str());
   return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
-
-inline std::string read_text(const std::string& path) {
-  std::ifstream in(path);
-  std::stringstream s;
-  s << in.rdbuf();
-  return s.str();
 }
 
 class TestPki {

@@ -145,6 +145,22 @@ TEST_F(Revocation, PkiInitMakesAValidEmptyCrlAndKeepsCaKeysAwayFromTheIdentity) 
   pki_->sign(op + "/permissions.xml");
 }
 
+// A PKI an older pki.sh made, its CA keys in ca/ beside what the bridge reads: init again keeps
+// its CAs, finds their keys where that pki.sh left them, issues the CRL and says where the keys
+// should go (it failed with "openssl ca -gencrl failed", looking for them in ca-private/ only).
+TEST_F(Revocation, PkiInitAgainOnAnOlderLayoutKeepsItsCaAndIssuesTheCrl) {
+  const std::string ca = pki_->dir() + "/ca", priv = pki_->dir() + "/ca-private";
+  for (const auto& e : fs::directory_iterator(priv)) fs::rename(e.path(), ca + "/" + e.path().filename().string());
+  fs::remove(priv);
+  fs::remove(crl_);
+  const auto ca_before = lb::test::read_text(pki_->identity_ca());
+  ASSERT_EQ(pki("init --config '" + dir_ + "/plain.yaml'"), 0) << pki_log();
+  EXPECT_TRUE(contains(pki_log(), "the CA keys are in " + ca + ", beside what the bridge reads")) << pki_log();
+  EXPECT_EQ(lb::test::read_text(pki_->identity_ca()), ca_before) << "the CA was kept";
+  EXPECT_TRUE(fs::exists(crl_)) << pki_log();
+  EXPECT_EQ(check(files()), "");
+}
+
 TEST_F(Revocation, RevokeRefusesTheRevokedIdentityAndKeepsTheOthers) {
   const auto op1 = pki_->issue("op1", "operator", "saw1");
   const auto op2 = pki_->issue("op2", "operator", "saw1");
