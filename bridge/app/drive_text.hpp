@@ -6,7 +6,6 @@
 #include <fmt/format.h>
 
 #include <string>
-#include <string_view>
 
 #include "app/common_text.hpp"
 #include "app/word_text.hpp"

@@ -5,6 +5,7 @@
 
 #include <fmt/format.h>
 
+#include <algorithm>
 #include <string>
 #include <string_view>
 
@@ -34,9 +35,8 @@ template <class Binding>
 std::string pressed_text(const typename Binding::ControlWord& c) {
   std::string out;
   for (const auto& f : Binding::control_flags) {
-    bool momentary = false;
-    for (const auto m : Binding::momentary) momentary = momentary || m == f.name;
-    if (momentary && (c.*f.get)()) out += (out.empty() ? "" : " ") + std::string(f.name);
+    if ((c.*f.get)() && std::ranges::find(Binding::momentary, f.name) != Binding::momentary.end())
+      out += (out.empty() ? "" : " ") + std::string(f.name);
   }
   return out;
 }

@@ -4,6 +4,7 @@
 
 #include "canopen/data_type.hpp"
 #include "gateways/codecs/pdo_binding.hpp"
+#include "gateways/codecs/profile_lookup.hpp"
 
 namespace lb::gateways {
 
@@ -49,9 +50,7 @@ DriveImage::DriveImage(const profiles::Profile& profile, std::span<const profile
   product_speed_ = bind("product_speed");
   speed_set_ = bind(d + "_speed_set_value");
   const auto& cw = bitset("control_word");
-  const auto bit = cw.bit("extruder_running");
-  if (!bit) throw std::runtime_error("profile " + profile_.key() + ": control_word has no bit 'extruder_running'");
-  bit_extruder_running_ = *bit;
+  bit_extruder_running_ = required_bit(profile_, cw, "extruder_running");
 
   others_.emplace(profile_, image_, rpdos_received);
   defs_.assign(pdos.begin(), pdos.end());

@@ -7,6 +7,7 @@
 #include <stdexcept>
 
 #include "gateways/codecs/pdo_binding.hpp"
+#include "gateways/codecs/profile_lookup.hpp"
 
 namespace lb::gateways {
 

@@ -7,7 +7,6 @@
 
 #include <stdexcept>
 #include <string>
-#include <string_view>
 
 #include "base/result.hpp"
 #include "canopen/pdo_parameters.hpp"
@@ -16,22 +15,6 @@
 #include "profiles/line_config.hpp"
 
 namespace lb::gateways {
-
-// A profile's object or bit set a codec decodes by; a profile without it cannot be served, so its
-// absence ends start-up.
-inline const profiles::ObjectDef& required_object(const profiles::Profile& profile, std::string_view name) {
-  const auto* def = profile.object(name);
-  if (def == nullptr)
-    throw std::runtime_error("profile " + profile.key() + " has no object '" + std::string(name) + "'");
-  return *def;
-}
-
-inline const profiles::BitSet& required_bitset(const profiles::Profile& profile, std::string_view name) {
-  const auto* set = profile.bitset(name);
-  if (set == nullptr)
-    throw std::runtime_error("profile " + profile.key() + " has no bit set '" + std::string(name) + "'");
-  return *set;
-}
 
 // A codec's PDO as the line file gives it, bound at start-up; the objects the typed status does not
 // name get their slots first (others, index: the PDO's). A mapping that does not decode ends start-up.

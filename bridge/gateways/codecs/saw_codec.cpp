@@ -3,23 +3,12 @@
 #include <stdexcept>
 
 #include "gateways/codecs/pdo_binding.hpp"
+#include "gateways/codecs/profile_lookup.hpp"
 #include "msgs/word_bindings.hpp"
 
 namespace lb::gateways {
 
 namespace msg = linebridge_msgs::msg;
-
-namespace {
-
-unsigned required_bit(const profiles::BitSet& set, std::string_view name, const std::string& profile) {
-  auto bit = set.bit(name);
-  if (!bit)
-    throw std::runtime_error("profile " + profile + ": bit set " + set.name + " has no bit '" + std::string(name) +
-                             "'");
-  return *bit;
-}
-
-}  // namespace
 
 SawCodec::SawCodec(const profiles::Profile& profile, std::span<const profiles::DevicePdo> pdos, bool rpdos_received)
     : profile_(profile) {
@@ -38,9 +27,9 @@ SawCodec::SawCodec(const profiles::Profile& profile, std::span<const profiles::D
   using Binding = linebridge_msgs::bindings::Saw;
   status_bits_ = NamedBits<msg::SawStatusWord>(sw, Binding::status_flags);
   control_bits_ = NamedBits<msg::SawControlWord>(cw, Binding::control_flags);
-  bit_program_on_ = required_bit(cw, "saw_program_on", profile_.key());
-  bit_change_of_length_ = required_bit(cw, "change_of_length", profile_.key());
-  bit_saw_cutting_ = required_bit(sw, "saw_cutting", profile_.key());
+  bit_program_on_ = required_bit(profile_, cw, "saw_program_on");
+  bit_change_of_length_ = required_bit(profile_, cw, "change_of_length");
+  bit_saw_cutting_ = required_bit(profile_, sw, "saw_cutting");
   bit_count_mode_ = cw.bit("count_mode");
   bit_wall_thickening_ = cw.bit("wall_thickening");
 
