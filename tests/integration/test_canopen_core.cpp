@@ -20,6 +20,7 @@
 #include "support/bus_spy.hpp"
 #include "support/child_process.hpp"
 #include "support/collector.hpp"
+#include "support/line_views.hpp"
 #include "support/service_clients.hpp"
 #include "support/spy_waits.hpp"
 
@@ -90,9 +91,7 @@ class CanopenCore : public ::testing::Test {
     if (sim_) sim_->stop();
   }
 
-  static bool operational(const msg::SawStatus& s) {
-    return s.health().online() && s.health().nmt_state() == msg::NMT_OPERATIONAL;
-  }
+  static constexpr auto operational = lb::test::operational<msg::SawStatus>;
   static std::string topic(const std::string& device, const std::string& t) {
     return lb::ddsl::topic_name("core", device, t);
   }

@@ -269,11 +269,11 @@ TEST(Contract, SawWallThickeningIsASetValue) {
     line.spy().clear();
     ASSERT_TRUE(saw.writer.write(sp));
     ASSERT_TRUE(
-        saw.results.wait(5s, [&](const auto& v) { return !v.empty() && v.back().request_id() == sp.request_id(); }));
+        saw.results.wait(30s, [&](const auto& v) { return !v.empty() && v.back().request_id() == sp.request_id(); }));
     EXPECT_TRUE(saw.results.samples().back().accepted()) << saw.results.samples().back().reason();
     // RPDO1 (203h): 6020h bit 0 program on, bit 1 wall-thickening.
     ASSERT_TRUE(
-        saw.status.wait_last(2s, [on](const msg::SawStatus& s) { return s.control_word().wall_thickening() == on; }));
+        saw.status.wait_last(30s, [on](const msg::SawStatus& s) { return s.control_word().wall_thickening() == on; }));
     ASSERT_TRUE(line.spy().wait_until([on](const std::vector<lb::can::CanFrame>& frames) {
       return std::any_of(frames.begin(), frames.end(),
                          [on](const auto& f) { return f.id == 0x203 && (f.data[0] & 0x03) == (on ? 0x03 : 0x01); });

@@ -23,6 +23,7 @@
 #include "support/child_process.hpp"
 #include "support/collector.hpp"
 #include "support/eventually.hpp"
+#include "support/line_views.hpp"
 #include "support/service_clients.hpp"
 #include "support/spy_waits.hpp"
 
@@ -103,9 +104,7 @@ class PullerCorrugatorLine : public ::testing::Test {
     gets_ = std::move(*g);
     sets_ = std::move(*p);
     writes_ = std::move(*w);
-    const auto operational = [](const auto& s) {
-      return s.health().online() && s.health().nmt_state() == msg::NMT_OPERATIONAL;
-    };
+    const auto operational = [](const auto& s) { return lb::test::operational(s); };
     ASSERT_TRUE(puller_.wait_last(15s, operational)) << logs();
     ASSERT_TRUE(corrugator_.wait_last(15s, operational)) << logs();
     ASSERT_TRUE(puller30_.wait_last(15s, operational)) << logs();

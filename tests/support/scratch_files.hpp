@@ -13,12 +13,13 @@
 namespace lb::test {
 
 // An empty directory of this test process, named after `name` (left over from an earlier run of
-// the same pid: emptied).
+// the same pid, as pids come round: emptied).
 inline std::string fresh_dir(const std::string& name) {
-  const auto dir = ::testing::TempDir() + "/" + name + "-" + std::to_string(::getpid());
+  const auto dir =
+      std::filesystem::path(::testing::TempDir() + "/" + name + "-" + std::to_string(::getpid())).lexically_normal();
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
-  return dir;
+  return dir.string();
 }
 
 // The whole file ("" when it cannot be read).

@@ -6,31 +6,20 @@
 // sender stamped after the moment from which nothing may come. The bus is ordered, so once the
 // spy holds that later frame it also holds every frame sent before it.
 
-#include <time.h>
-
 #include <chrono>
 #include <cstddef>
 #include <cstdint>
 #include <functional>
 
 #include "can/can_frame.hpp"
+#include "can/detail.hpp"
 #include "support/bus_spy.hpp"
 #include "support/eventually.hpp"
 
 namespace lb::test {
 
 // Now, on the clock the bus stamps frames with (CanFrame::timestamp_ns: CLOCK_REALTIME).
-inline std::int64_t bus_now_ns() {
-  timespec ts{};
-  ::clock_gettime(CLOCK_REALTIME, &ts);
-  return std::int64_t{ts.tv_sec} * 1'000'000'000 + ts.tv_nsec;
-}
-
-// At least `count` frames with this identifier since the spy was last cleared.
-inline bool wait_frames(BusSpy& spy, std::uint32_t id, std::size_t count,
-                        std::chrono::steady_clock::duration timeout = std::chrono::seconds(10)) {
-  return eventually(timeout, [&] { return spy.frames(id).size() >= count; });
-}
+inline std::int64_t bus_now_ns() { return lb::can::detail::realtime_ns(); }
 
 // A frame with this identifier that matches.
 inline bool wait_frame(BusSpy& spy, std::uint32_t id, const std::function<bool(const lb::can::CanFrame&)>& match,

@@ -11,18 +11,14 @@
 #include <memory>
 #include <string>
 
+#include "support/scratch_files.hpp"
 #include "support/test_pki.hpp"
 
 namespace lb::test {
 
-// <TempDir>/<kind>_<pid>_<test name>, empty.
+// <TempDir>/<kind>_<test name>-<pid>, empty.
 inline std::string fresh_test_dir(const std::string& kind) {
-  const auto dir = std::filesystem::path(::testing::TempDir() + "/" + kind + "_" + std::to_string(::getpid()) + "_" +
-                                         ::testing::UnitTest::GetInstance()->current_test_info()->name())
-                       .lexically_normal();
-  std::filesystem::remove_all(dir);
-  std::filesystem::create_directories(dir);
-  return dir.string();
+  return fresh_dir(kind + "_" + ::testing::UnitTest::GetInstance()->current_test_info()->name());
 }
 
 // The PKI launch_scripts/pki.sh makes in dir/pki for a line (its file, plain_yaml, unsecured).

@@ -28,7 +28,7 @@
 #include "can/virtual_bus.hpp"
 #include "profiles/line_config.hpp"
 #include "support/drain_bus.hpp"
-#include "support/unit_files.hpp"
+#include "support/scratch_files.hpp"
 
 namespace lb::can {
 namespace {
@@ -404,7 +404,7 @@ TEST(RecordingBus, RecordsReceivedAndSentFramesAndTheRecordingReplays) {
   for (const auto until = std::chrono::steady_clock::now() + std::chrono::seconds(5);
        lines.size() < 4 && std::chrono::steady_clock::now() < until;) {
     std::this_thread::sleep_for(std::chrono::milliseconds(10));
-    text = lb::test::file_text(path);
+    text = lb::test::read_text(path);
     lines.clear();
     std::istringstream in(text);
     for (std::string l; std::getline(in, l);) lines.push_back(l);

@@ -19,7 +19,7 @@
 #include "gateways/persistence/set_value_restore.hpp"
 #include "gateways/persistence/set_value_store.hpp"
 #include "profiles/profile_registry.hpp"
-#include "support/unit_files.hpp"
+#include "support/scratch_files.hpp"
 
 using lb::canopen::PdoEntry;
 using lb::gateways::check_set_values;
@@ -50,12 +50,7 @@ const auto kSawRpdo1 = mapping({0x60200010, 0x60050010, 0x60020020});
 const auto kPullerRpdo1 = mapping({0x60200010, 0x60020010});
 const auto kFeederRpdo2 = mapping({0x600A0008, 0x60040020});
 
-std::string temp_dir(const std::string& name) {
-  const auto d = ::testing::TempDir() + "/svr-" + name + "-" + std::to_string(::getpid());
-  std::filesystem::remove_all(d);
-  std::filesystem::create_directories(d);
-  return d;
-}
+std::string temp_dir(const std::string& name) { return lb::test::fresh_dir("svr-" + name); }
 std::int64_t unix_now() {
   return std::chrono::duration_cast<std::chrono::seconds>(std::chrono::system_clock::now().time_since_epoch()).count();
 }
@@ -164,7 +159,7 @@ TEST(SetValueStoreFile, KeepsWhatTheDeviceIsAndWhenItWasInForce) {
                           {0x60200010, 0x60050010, 0x60020020},
                           {0x05, 0x00, 0x88, 0x13, 0xE0, 0x2E, 0x00, 0x00}});
   }  // written at the stop at the latest
-  const auto text = lb::test::file_text(dir + "/line.set_values");
+  const auto text = lb::test::read_text(dir + "/line.set_values");
   EXPECT_NE(text.find("format 2\n"), std::string::npos) << text;
   EXPECT_NE(text.find("extrusion 5 cia420-4@3.1 4C420000:04200004:00010000:12345678 "), std::string::npos) << text;
   EXPECT_NE(text.find(" rpdo1 60200010,60050010,60020020 05008813E02E0000\n"), std::string::npos) << text;
@@ -227,8 +222,8 @@ TEST(SetValueStoreFile, LinksFifosAndNonDirectoriesAreRefusedNotFollowed) {
     ASSERT_TRUE(store) << store.error().message;
     (*store)->save(kSaw, {{}, 0, {0x60200010}, {0x01, 0x00}});
   }
-  EXPECT_EQ(lb::test::file_text(target), "precious\n");
-  EXPECT_NE(lb::test::file_text(dir + "/line.set_values").find(" rpdo1 60200010 0100\n"), std::string::npos);
+  EXPECT_EQ(lb::test::read_text(target), "precious\n");
+  EXPECT_NE(lb::test::read_text(dir + "/line.set_values").find(" rpdo1 60200010 0100\n"), std::string::npos);
   struct stat st {};
   ASSERT_EQ(::lstat((dir + "/line.set_values").c_str(), &st), 0);
   EXPECT_TRUE(S_ISREG(st.st_mode));
@@ -250,5 +245,5 @@ TEST(SetValueStoreFile, AFailingWriteIsReportedAndCounted) {
   const auto end2 = std::chrono::steady_clock::now() + 20s;
   while (!(*store)->problem().empty() && std::chrono::steady_clock::now() < end2) std::this_thread::sleep_for(20ms);
   EXPECT_EQ((*store)->problem(), "");
-  EXPECT_NE(lb::test::file_text(dir + "/line.set_values").find(" rpdo1 60200010 0100\n"), std::string::npos);
+  EXPECT_NE(lb::test::read_text(dir + "/line.set_values").find(" rpdo1 60200010 0100\n"), std::string::npos);
 }
