@@ -12,25 +12,18 @@ set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 buses=8; devices=30; duration=25; single=0; build_dir="$root/build"; out=""; profiles=""
 orig=("$@")
+. "$root/bench/probe_common.sh"
 while (($#)); do
+  if probe_option "$1" "${2:-}"; then shift 2; continue; fi
   case "$1" in
-    --buses) buses=$2; shift ;;
-    --devices) devices=$2; shift ;;
     --duration) duration=$2; shift ;;
     --single) single=1 ;;
-    --profiles-file) profiles=$(realpath -m "$2"); shift ;;
-    --build-dir) build_dir=$(realpath -m "$2"); shift ;;
-    --out) out=$(realpath -m "$2"); shift ;;
-    -h|--help) sed -n '2,/^set -euo/p' "$0" | grep '^#' | sed 's/^# \{0,1\}//'; exit 2 ;;
+    -h|--help) probe_usage; exit 2 ;;
     *) echo "unknown argument $1" >&2; exit 2 ;;
   esac
   shift
 done
-if [ "${LINEBRIDGE_NETNS:-}" != 1 ]; then
-  [ -n "$out" ] || out=$(mktemp -d /tmp/lb-heaptrack.XXXXXX)
-  mkdir -p "$out"
-  exec "$root/launch_scripts/netns-run.sh" "$0" "${orig[@]}" --build-dir "$build_dir" --out "$out"
-fi
+probe_in_netns lb-heaptrack "${orig[@]}"
 app="$build_dir/bridge/app"
 d="$out/${buses}x${devices}"; mkdir -p "$d"
 "$build_dir/bench/bench-config" --buses "$buses" --devices "$devices" --domain 12 --prefix "ht-$RANDOM" --role master >"$d/line.yaml"

@@ -12,25 +12,18 @@ set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 buses=8; devices=30; seconds=10; part=both; profiles=""; build_dir="$root/build"; out=""
 orig=("$@")
+. "$root/bench/probe_common.sh"
 while (($#)); do
+  if probe_option "$1" "${2:-}"; then shift 2; continue; fi
   case "$1" in
-    --buses) buses=$2; shift ;;
-    --devices) devices=$2; shift ;;
     --seconds) seconds=$2; shift ;;
     --part) part=$2; shift ;;
-    --profiles-file) profiles=$(realpath -m "$2"); shift ;;
-    --build-dir) build_dir=$(realpath -m "$2"); shift ;;
-    --out) out=$(realpath -m "$2"); shift ;;
-    -h|--help) sed -n '2,/^set -euo/p' "$0" | grep '^#' | sed 's/^# \{0,1\}//'; exit 2 ;;
+    -h|--help) probe_usage; exit 2 ;;
     *) echo "unknown argument $1" >&2; exit 2 ;;
   esac
   shift
 done
-if [ "${LINEBRIDGE_NETNS:-}" != 1 ]; then
-  [ -n "$out" ] || out=$(mktemp -d /tmp/lb-memload.XXXXXX)
-  mkdir -p "$out"
-  exec "$root/launch_scripts/netns-run.sh" "$0" "${orig[@]}" --build-dir "$build_dir" --out "$out"
-fi
+probe_in_netns lb-memload "${orig[@]}"
 bin="$build_dir/bench"; app="$build_dir/bridge/app"
 cores=$(nproc); pin=(taskset -c $((cores - 1))); harness=(taskset -c 0-$((cores - 2)))
 d="$out/${buses}x${devices}-$part${profiles:+-$(basename "$profiles" .xml)}"; mkdir -p "$d"
