@@ -22,6 +22,7 @@
 #include "gateways/codecs/drive_codec.hpp"
 #include "gateways/commands/command_service.hpp"
 #include "gateways/commands/momentary_commands.hpp"
+#include "gateways/commands/momentary_wiring.hpp"
 #include "gateways/node/pdo_burst.hpp"
 #include "gateways/node/pdo_receive.hpp"
 #include "gateways/node/pdo_wiring.hpp"
@@ -104,17 +105,7 @@ DriveGateway<Binding>::DriveGateway(DeviceContext context)
       [this](const Setpoint& sp, const ddsl::fdds::SampleInfo&) { on_setpoint(sp); });
   if (!sub) fail(sub.error());
 
-  // Momentary commands count the RPDO frames that carry the control word (momentary_commands.hpp).
-  pdos_.observe(ctx_.profile.object("control_word")->index,
-                {.before_send = [this] { commands_.before_frame(); },
-                 .sent = [this](auto at) { commands_.frame_sent(at); },
-                 .not_sent = [this](std::string_view why) { commands_.frame_not_sent(why); }});
-  ctx_.node.attach(*this);
-  // A restarted bridge goes on with the set values in force (a running puller keeps its speed);
-  // a command held at the stop is not pressed again.
-  pdos_.restore([this] {
-    for (const auto& c : command_service_.commands()) codec_.set_control_bit(c.bit, false);
-  });
+  attach_with_momentary_commands(ctx_, *this, pdos_, commands_, command_service_, codec_);
   spdlog::info("{}: {} ({}) node {} on bus {} as {}{}", dev, ctx_.profile.device, ctx_.profile.key(),
                ctx_.device.node_id, ctx_.bus.name, profiles::to_string(ctx_.bus.role),
                ctx_.is_master() ? (ctx_.set_values != nullptr

@@ -7,6 +7,7 @@
 #include "dds/topic_names.hpp"
 #include "gateways/adapters/checked.hpp"
 #include "gateways/adapters/device_health.hpp"
+#include "gateways/commands/momentary_wiring.hpp"
 #include "gateways/node/pdo_receive.hpp"
 #include "gateways/node/set_value_path.hpp"
 
@@ -53,17 +54,7 @@ SawGateway::SawGateway(DeviceContext context)
                                                                    const ddsl::fdds::SampleInfo&) { on_setpoint(sp); });
   if (!sub) throw std::runtime_error(dev + ": " + sub.error().message);
 
-  // Momentary commands count the RPDO frames that carry the control word (momentary_commands.hpp).
-  pdos_.observe(ctx_.profile.object("control_word")->index,
-                {.before_send = [this] { commands_.before_frame(); },
-                 .sent = [this](auto at) { commands_.frame_sent(at); },
-                 .not_sent = [this](std::string_view why) { commands_.frame_not_sent(why); }});
-  ctx_.node.attach(*this);
-  // A restarted bridge goes on with the set values in force (a running saw keeps its program);
-  // a command held at the stop is not pressed again.
-  pdos_.restore([this] {
-    for (const auto& c : command_service_.commands()) codec_.set_control_bit(c.bit, false);
-  });
+  attach_with_momentary_commands(ctx_, *this, pdos_, commands_, command_service_, codec_);
   spdlog::info("{}: saw ({}) node {} on bus {} as {}{}", dev, ctx_.profile.key(), ctx_.device.node_id, ctx_.bus.name,
                profiles::to_string(ctx_.bus.role),
                ctx_.is_master()
