@@ -1,9 +1,11 @@
 #!/usr/bin/env bash
 # Builds the libFuzzer targets (fuzz/, clang with AddressSanitizer and UndefinedBehaviorSanitizer)
 # and runs each, one after the other, from its committed seed corpus (fuzz/corpus/<target>/).
-#   launch_scripts/fuzz.sh [--runs N | --seconds S] [--timeout S] [target ...]
-#                          (default: every target, --runs 10000000, --timeout 10)
-# The long run: launch_scripts/fuzz.sh (at nice 19; hours on 2 cores). test.sh runs --seconds 5.
+#   launch_scripts/fuzz.sh [--runs N | --seconds S] [--timeout S] [--nice N] [target ...]
+#                          (default: every target, --runs 10000000, --timeout 10, --nice 19)
+# The long run: launch_scripts/fuzz.sh (at nice 19, so that it yields to other work; hours on 2
+# cores). test.sh runs --seconds 5 --nice 0: a 5-s limit is wall time, and at nice 19 beside a
+# busy machine most of it went to loading the seeds (seen: 3 inputs in 21 s).
 # --timeout is libFuzzer's per-input limit in wall-clock seconds: a fuzzer at nice 19 beside a
 # build can be kept off the CPU for longer than 10 s, which libFuzzer reports as a timeout (seen:
 # a profile input that runs in 1.6 s alone); a long run beside other work takes --timeout 120.
@@ -17,13 +19,15 @@ root=$PWD
 
 limit=(-runs=10000000)
 timeout=10
+niceness=19
 targets=()
 while (($#)); do
   case "$1" in
     --runs) limit=("-runs=$2"); shift 2 ;;
     --seconds) limit=("-max_total_time=$2"); shift 2 ;;
     --timeout) timeout=$2; shift 2 ;;
-    -h|--help) sed -n '2,14p' "$0"; exit 0 ;;
+    --nice) niceness=$2; shift 2 ;;
+    -h|--help) sed -n '2,16p' "$0"; exit 0 ;;
     -*) echo "fuzz.sh: unknown option $1" >&2; exit 2 ;;
     *) targets+=("$1"); shift ;;
   esac
@@ -52,7 +56,7 @@ for t in "${targets[@]}"; do
   echo "== fuzz $t (${limit[*]})"
   status=0
   # The seeds are read, never written: new inputs go to the working corpus.
-  nice -n 19 "$build/fuzz/fuzz_$t" "${args[@]}" "${limit[@]}" "$corpus" "$root/fuzz/corpus/$t" >"$log" 2>&1 || status=$?
+  nice -n "$niceness" "$build/fuzz/fuzz_$t" "${args[@]}" "${limit[@]}" "$corpus" "$root/fuzz/corpus/$t" >"$log" 2>&1 || status=$?
   grep -E '^#[0-9]+\s+DONE|^Done [0-9]+ runs|^stat::number_of_executed_units|^stat::average_exec_per_sec' "$log" || true
   # 72 with libFuzzer's own words: stopped by SIGINT (Ctrl-C, a stopped lane), not a finding.
   if [ "$status" = 72 ] && grep -q 'libFuzzer: run interrupted' "$log"; then

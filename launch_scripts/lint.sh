@@ -2,8 +2,8 @@
 # Lint: formatting and clang-tidy, the lint stage of launch_scripts/test.sh.
 #   1. clang-format --dry-run -Werror over every C++ file of bridge/ tests/ bench/ fuzz/ that git
 #      knows: a file that .clang-format would change fails the check.
-#   2. clang-tidy (.clang-tidy) over the normal build's compile_commands.json, with run-clang-tidy
-#      on LINEBRIDGE_LINT_JOBS (2) cores: the libraries' and programs' translation units (bridge/);
+#   2. clang-tidy (.clang-tidy) over the normal build's compile_commands.json, on
+#      LINEBRIDGE_LINT_JOBS (2) cores, skipping units unchanged since a clean run (see below): the libraries' and programs' translation units (bridge/);
 #      findings in our own headers and sources included from them count, generated code (build/)
 #      does not. tests/ bench/ fuzz/ are format-checked only (see below for why).
 #   launch_scripts/lint.sh [--format-only | --tidy-only] [--fix-format]
@@ -47,17 +47,20 @@ if [ "$do_tidy" = 1 ]; then
   # sources when LINEBRIDGE_UNITY is off), not the generated message types (idl/). tests/ and
   # bench/ are format-checked only: tidying their 80 translation units (each parses Fast DDS and
   # gtest) would take most of half an hour on 2 cores. Headers under bridge/ tests/ bench/ fuzz/
-  # that the units include are checked. run-clang-tidy takes the files as regular expressions.
+  # that the units include are checked. The units are chosen by a regular expression on their path.
   units_re="^(?!.*/idl/)(.*/CMakeFiles/(lb_|linebridge).*|$root/bridge/.*)\$"
   units=$(python3 -c 'import json,re,sys; print(sum(bool(re.search(sys.argv[2], e["file"])) for e in json.load(open(sys.argv[1]))))' \
     "$build/compile_commands.json" "$units_re")
   t0=$SECONDS
   log=$(mktemp)
-  # gcc-only warning flags from the build are not clang's: not an error for clang-tidy.
-  tidy=(run-clang-tidy -p "$build" -j "$jobs" -quiet -extra-arg=-Wno-unknown-warning-option
-        "-header-filter=^$root/(bridge|tests|bench|fuzz)/")
-  # run-clang-tidy 14 always asks for colour: strip it, the log is read below.
-  if ! "${tidy[@]}" "$units_re" 2>&1 | sed 's/\x1b\[[0-9;]*m//g' >"$log"; then status=1; fi
+  # gcc-only warning flags from the build are not clang's: not an error for clang-tidy. A unit
+  # whose preprocessed input, command, .clang-tidy and clang-tidy are those of an earlier clean
+  # run is not tidied again (launch_scripts/clang_tidy_cached.py; LINEBRIDGE_TIDY_CACHE=0 turns
+  # the cache off, a directory moves it): repeated runs on one machine re-tidy what changed.
+  cache_arg=()
+  [ -n "${LINEBRIDGE_TIDY_CACHE:-}" ] && cache_arg=(--cache "$LINEBRIDGE_TIDY_CACHE")
+  if ! python3 launch_scripts/clang_tidy_cached.py --build "$build" --root "$root" --units "$units_re" \
+    --jobs "$jobs" --header-filter "^$root/(bridge|tests|bench|fuzz)/" "${cache_arg[@]}" >"$log"; then status=1; fi
   findings=$(grep -cE '^/.*: (warning|error): ' "$log" || true)
   grep -E '^/.*: (warning|error): ' "$log" | sort -u | sed "s|^$root/||" || true
   echo "lint.sh: clang-tidy: $units translation units, $findings findings in $((SECONDS - t0)) s"

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Installs every build and run dependency of linebridge from Debian's packages.
 # Idempotent: installs only what is missing, so repeated runs cost a dpkg query. clang-format and
-# clang-tidy (14, with run-clang-tidy) are for the lint stage (launch_scripts/lint.sh).
+# clang-tidy (14) are for the lint stage (launch_scripts/lint.sh).
 #   launch_scripts/setup.sh [--clang] [--install-test]
 #     --clang: also clang and its sanitizer/libFuzzer runtime, for the AddressSanitizer + UBSan and
 #              fuzz stages (fuzz/)

@@ -121,7 +121,7 @@ if [ "${LINEBRIDGE_ASAN:-1}" != 0 ]; then
   if [ "$fuzz_seconds" != 0 ]; then
     stage_start "fuzz: every target for ${fuzz_seconds} s"
     status=0
-    LINEBRIDGE_FUZZ_BUILD_DIR="$asan" ./launch_scripts/fuzz.sh --seconds "$fuzz_seconds" || status=$?
+    LINEBRIDGE_FUZZ_BUILD_DIR="$asan" ./launch_scripts/fuzz.sh --seconds "$fuzz_seconds" --nice 0 || status=$?
     stage_end "fuzz" "$status"
   fi
 fi
