@@ -214,7 +214,7 @@ struct FlagField {
 };
 
 // One enumerated field of a word: set from the name the profile gives the field's code (empty:
-// the profile has no such field); get gives that name back ("" for the first enumerator, what a
+// the profile has no such field); get gives that name back (\"\" for the first enumerator, what a
 // profile without the field reports).
 template <class W>
 struct CodeField {
