@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # CI under load (issue 26, deliverable 7): does `.ci/run` hold while another process keeps every
-# core busy? Clones this repository's HEAD into a fresh temporary directory (a clean clone, as CI
-# sees it), starts `stress-ng --cpu <cores>` (Debian's stress-ng, installed with apt if missing)
+# core busy? Clones this repository's HEAD into $CI_LOAD_WORK/ci-under-load-clone, emptied first
+# (a clean clone, as CI sees it), starts `stress-ng --cpu <cores>` (Debian's stress-ng, installed with apt if missing)
 # in the background, runs `.ci/run` in the clone N times in a row, records each run's exit code,
 # wall time and test.sh's stage times, stops stress-ng and prints a summary table.
 #
@@ -52,7 +52,15 @@ fi
 logs=${CI_LOAD_LOGS:-/tmp/ci-under-load.$(date -u +%Y%m%dT%H%M%SZ)}
 mkdir -p "$logs"
 mkdir -p "${CI_LOAD_WORK:-/tmp}"
-work=$(mktemp -d "${CI_LOAD_WORK:-/tmp}/ci-under-load-clone.XXXXXX")
+# One fixed clone directory, so that a compiler cache (test.sh uses ccache when the machine has it)
+# finds the objects of an earlier invocation: the tests are compiled with the absolute paths of
+# the programs they start, which differ from one directory to the next. A lock keeps two
+# invocations out of each other's clone.
+work="${CI_LOAD_WORK:-/tmp}/ci-under-load-clone"
+exec 9>"${CI_LOAD_WORK:-/tmp}/ci-under-load.lock"
+flock -n 9 || { echo "ci-under-load: another run holds ${CI_LOAD_WORK:-/tmp}/ci-under-load.lock" >&2; exit 2; }
+rm -rf "$work"
+mkdir -p "$work"
 head=$(git rev-parse HEAD)
 git clone -q --no-hardlinks "$repo" "$work/linebridge"
 git -C "$work/linebridge" checkout -q "$head"
