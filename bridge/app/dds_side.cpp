@@ -1,5 +1,7 @@
 #include "app/dds_side.hpp"
 
+#include "app/dds_supervisor.hpp"
+
 #include <spdlog/spdlog.h>
 #include <systemd/sd-daemon.h>
 
@@ -92,6 +94,7 @@ class Relay {
 
 int run_dds_side(const ddsl::ParticipantOptions& options, const std::string& line, const std::string& channel_path,
                  std::chrono::milliseconds duration) {
+  if (!die_with_bus_process()) return kExitFailure;
   const auto started = std::chrono::steady_clock::now();
   // Remote participants beyond the line's bound end this process instead of Fast DDS's allocation
   // limit dropping new ones: measured with Fast DDS 2.9.1 (BENCHMARKS.md "Forged discovery flood"),

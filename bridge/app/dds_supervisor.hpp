@@ -2,7 +2,8 @@
 // One command for both processes of a line (linebridge --part both, the default: development,
 // the demo, the tests): the bus process starts its DDS process as a child and starts another
 // whenever it ends, as systemd does for the two units of a line. The child dies with its parent
-// (PR_SET_PDEATHSIG), and is told nothing of systemd (the parent is the service).
+// (PR_SET_PDEATHSIG, set by the child itself: die_with_bus_process()), and is told nothing of
+// systemd (the parent is the service).
 
 #include <sys/types.h>
 
@@ -17,6 +18,13 @@
 #include <vector>
 
 namespace lb::app {
+
+// The environment variable that tells a DDS process the bus process that started it.
+inline constexpr const char* kBusPidEnv = "LINEBRIDGE_BUS_PID";
+
+// For a DDS process, first thing: if a bus process started it (kBusPidEnv), it is killed when
+// that process ends. False when that process has ended already (the caller exits).
+bool die_with_bus_process();
 
 class DdsSupervisor {
  public:

@@ -161,6 +161,17 @@ int main(int argc, char** argv) {
     channel = std::move(*opened);
     dds = lb::ddsl::Participant::over_channel(dds_options, *channel);
   }
+  // The DDS process starts now, beside the line's creation and boot: its participant (about half
+  // a second) is ready when the channel first serves it. Until then it waits in the channel's
+  // backlog: it is accepted only once every endpoint is declared (channel->start() below).
+  std::optional<app::DdsSupervisor> supervisor;
+  if (part == "both") {
+    std::vector<std::string> dds_argv{own_executable(), "--part",      "dds",    "--channel",
+                                      channel_path,     "--log-level", log_level};
+    if (!config_path.empty())
+      dds_argv.insert(dds_argv.end(), {"--config", std::filesystem::absolute(config_path).string()});
+    supervisor.emplace(std::move(dds_argv), [c = channel.get()] { return c->counters().connects; });
+  }
   auto bridge = app::LineBridge::create(*config, std::move(dds));
   if (lock_memory && bridge) {
     if (::mlockall(MCL_CURRENT | MCL_FUTURE) == 0) {
@@ -176,14 +187,6 @@ int main(int argc, char** argv) {
   for (const auto& note : (*bridge)->dds().site_notes()) spdlog::warn("DDS profiles: {}", note);
   (*bridge)->start();
   if (channel) channel->start();
-  std::optional<app::DdsSupervisor> supervisor;
-  if (part == "both") {
-    std::vector<std::string> dds_argv{own_executable(), "--part",      "dds",    "--channel",
-                                      channel_path,     "--log-level", log_level};
-    if (!config_path.empty())
-      dds_argv.insert(dds_argv.end(), {"--config", std::filesystem::absolute(config_path).string()});
-    supervisor.emplace(std::move(dds_argv), [c = channel.get()] { return c->counters().connects; });
-  }
   spdlog::info("line {}: {} bus(es), {} device(s), DDS domain {}{}{}{}", config->line, config->buses.size(),
                config->devices.size(), config->dds.domain, config->dds.localhost_only ? " (localhost only)" : "",
                config->dds.discovery_servers.empty() ? "" : ", through discovery servers",

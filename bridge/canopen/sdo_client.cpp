@@ -148,6 +148,17 @@ class SdoClient::Core {
     }
   }
 
+  // Loop thread: starts this node's next request now (from a callback too: drain() runs them
+  // outside the mutex). False when a completion waits to be delivered (a refusal, a send that
+  // failed): kick() delivers it, so a callback never runs inside another.
+  bool start_now(std::uint8_t node) {
+    std::lock_guard lock(mutex_);
+    if (closed_) return true;
+    start_next(node);
+    rearm();
+    return ready_.empty();
+  }
+
   // Loop thread: starts what was submitted.
   void kick() {
     {
@@ -501,7 +512,7 @@ void SdoClient::upload_expecting(std::uint8_t node, std::uint16_t index, std::ui
                              fmt::format("node-ID {} is not 1..127", node));
   }
   core_->submit(node, std::move(r), std::move(refusal));
-  loop_.post([core = core_] { core->kick(); });
+  start_soon(node);
 }
 
 void SdoClient::download(std::uint8_t node, std::uint16_t index, std::uint8_t sub, Bytes data, DownloadDone done,
@@ -522,7 +533,7 @@ void SdoClient::download(std::uint8_t node, std::uint16_t index, std::uint8_t su
                              fmt::format("{} bytes do not fit an SDO size field", r.data.size()));
   }
   core_->submit(node, std::move(r), std::move(refusal));
-  loop_.post([core = core_] { core->kick(); });
+  start_soon(node);
 }
 
 void SdoClient::read(std::uint8_t node, std::uint16_t index, std::uint8_t sub, DataType type, ReadDone done,
@@ -565,6 +576,13 @@ void SdoClient::write(std::uint8_t node, std::uint16_t index, std::uint8_t sub, 
 void SdoClient::cancel_waiting(std::uint8_t node, const std::string& reason) {
   if (node < 1 || node > kMaxNode) return;
   core_->cancel_waiting(node, reason);
+  loop_.post([core = core_] { core->kick(); });
+}
+
+void SdoClient::start_soon(std::uint8_t node) {
+  // A boot's next step, asked from the previous step's answer on the loop thread, goes on the bus
+  // now rather than one more turn of the loop later (6-10 ms a step measured at 8 x 30 devices).
+  if (node >= 1 && node <= kMaxNode && loop_.on_loop_thread() && core_->start_now(node)) return;
   loop_.post([core = core_] { core->kick(); });
 }
 

@@ -92,6 +92,9 @@ class SdoClient {
   std::chrono::milliseconds timeout() const { return timeout_; }
 
  private:
+  // After a submit: sent at once when on the loop thread and nothing waits to be delivered, else
+  // the loop starts it.
+  void start_soon(std::uint8_t node);
   class Core;
   void require_service_thread(const char* what) const;
   void upload_expecting(std::uint8_t node, std::uint16_t index, std::uint8_t sub, std::optional<std::size_t> size,
