@@ -1,19 +1,23 @@
 #pragma once
-// What a process costs: resident memory now and at its peak (VmRSS, VmHWM, from /proc), and the
-// CPU time it has used (all threads).
+// What a process costs: resident memory now and at its peak (VmRSS, VmHWM, from /proc), alone or
+// with its children, and the CPU time it has used (all threads).
 
 #include <sys/types.h>
 #include <time.h>
 
 #include <cstdint>
+#include <filesystem>
 #include <fstream>
 #include <string>
+#include <system_error>
+#include <vector>
 
 namespace lb::bench {
 
 struct Memory {
   std::uint64_t rss_kib = 0;
   std::uint64_t hwm_kib = 0;
+  std::uint64_t pss_kib = 0;  // smaps_rollup: each shared page counted once, split between its users
 };
 
 inline Memory read_memory(pid_t pid) {
@@ -24,6 +28,27 @@ inline Memory read_memory(pid_t pid) {
     if (line.rfind("VmHWM:", 0) == 0) m.hwm_kib = std::stoull(line.substr(6));
   }
   return m;
+}
+
+// A process and its children together (the split bridge: the bus process and its DDS process).
+inline Memory read_tree_memory(pid_t pid) {
+  std::vector<pid_t> pids{pid};
+  std::error_code ec;
+  for (const auto& task : std::filesystem::directory_iterator("/proc/" + std::to_string(pid) + "/task", ec)) {
+    std::ifstream children(task.path() / "children");
+    for (pid_t c = 0; children >> c;) pids.push_back(c);
+  }
+  Memory total;
+  for (const pid_t p : pids) {
+    const auto m = read_memory(p);
+    total.rss_kib += m.rss_kib;
+    total.hwm_kib += m.hwm_kib;
+    std::ifstream rollup("/proc/" + std::to_string(p) + "/smaps_rollup");
+    for (std::string line; std::getline(rollup, line);) {
+      if (line.rfind("Pss:", 0) == 0) total.pss_kib += std::stoull(line.substr(4));
+    }
+  }
+  return total;
 }
 
 inline double process_cpu_s() {

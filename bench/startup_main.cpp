@@ -114,8 +114,8 @@ int main(int argc, char** argv) {
     });
   }
   std::this_thread::sleep_for(std::chrono::duration<double>(settle_s));
-  const auto mem = bench::read_memory(bridge.pid());
-  const int status = bridge.stop();  // SIGTERM (SIGKILL if it has not ended 5 s later)
+  const auto mem = bench::read_tree_memory(bridge.pid());  // the bus process and its DDS process
+  const int status = bridge.stop();                        // SIGTERM (SIGKILL if it has not ended 5 s later)
 
   std::lock_guard lock(first.m);
   std::string report = fmt::format("startup_devices={}\nstartup_devices_seen={}\n", first.seen.size(),
@@ -131,8 +131,8 @@ int main(int argc, char** argv) {
   if (first.devices_online == first.online.size()) {
     report += fmt::format("startup_all_online_ms={:.1f}\n", static_cast<double>(first.all_online_ns - t0) / 1e6);
   }
-  report += fmt::format("startup_rss_kib={}\nstartup_hwm_kib={}\nstartup_exit={}\n", mem.rss_kib, mem.hwm_kib,
-                        WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status));
+  report += fmt::format("startup_rss_kib={}\nstartup_hwm_kib={}\nstartup_pss_kib={}\nstartup_exit={}\n", mem.rss_kib,
+                        mem.hwm_kib, mem.pss_kib, WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status));
   std::fputs(report.c_str(), stdout);
   return all ? 0 : 3;
 }
