@@ -174,8 +174,13 @@ int main(int argc, char** argv) {
   }
   auto bridge = app::LineBridge::create(*config, std::move(dds));
   if (lock_memory && bridge) {
-    if (::mlockall(MCL_CURRENT | MCL_FUTURE) == 0) {
-      spdlog::info("memory locked (mlockall)");
+    // MCL_ONFAULT: every page resident now is locked now, every other page when it is first
+    // touched, and none is ever swapped out. Without it the kernel faulted in and pinned the
+    // whole of every mapping, each thread's 8 MiB stack included: 149.5 MB resident at 8 x 30
+    // saws against 26-34 MB unlocked. What it gives up: a page never touched before (a rarely
+    // taken path's code) costs one fault on its first use, once; the boot has run the loops' own.
+    if (::mlockall(MCL_CURRENT | MCL_FUTURE | MCL_ONFAULT) == 0) {
+      spdlog::info("memory locked (mlockall, each page from its first use)");
     } else {
       spdlog::warn("--lock-memory: mlockall refused ({}); the bus runs on with pageable memory", std::strerror(errno));
     }
