@@ -11,9 +11,9 @@ namespace {
 constexpr const char* kName = "linebridge";
 }
 
-AsyncLog::AsyncLog(std::string pattern) : pattern_(std::move(pattern)) {
+AsyncLog::AsyncLog(std::string pattern, std::size_t queue_lines) : pattern_(std::move(pattern)) {
   const auto level = spdlog::get_level();
-  spdlog::init_thread_pool(kQueue, 1);
+  spdlog::init_thread_pool(queue_lines, 1);
   auto sink = std::make_shared<spdlog::sinks::stdout_color_sink_mt>();
   auto logger = std::make_shared<spdlog::async_logger>(kName, std::move(sink), spdlog::thread_pool(),
                                                        spdlog::async_overflow_policy::overrun_oldest);

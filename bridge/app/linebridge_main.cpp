@@ -106,7 +106,7 @@ int main(int argc, char** argv) {
   }
 
   // From here on no bus loop waits for the log.
-  const app::AsyncLog async_log(pattern);
+  const app::AsyncLog async_log(pattern, part == "dds" ? app::AsyncLog::kDdsQueue : app::AsyncLog::kBusQueue);
   app::block_stop_signals();
   auto config = app::load_config(config_path, registry);
   if (!config) {

@@ -31,6 +31,7 @@
 #include "dds/incarnation.hpp"
 #include "dds/lost_samples.hpp"
 #include "dds/security_files.hpp"
+#include "dds/topic_names.hpp"
 #include "dds/writer_partitions.hpp"
 #include "link/bus_channel.hpp"
 
@@ -425,7 +426,7 @@ class Participant {
   template <class PubSubType>
   Result<Writer<PubSubType>> channel_writer(const std::string& topic, QosKind kind, const std::string& partition) {
     const auto id = channel_->declare(declaration<PubSubType>(topic, kind, true, partition, 0, false),
-                                      kind == QosKind::state);
+                                      kind == QosKind::state, kind == QosKind::state && is_status_topic(topic));
     return Writer<PubSubType>(*channel_, id);
   }
   // The channel's thread runs the callback, as a Fast DDS listener thread would, behind the same gate.

@@ -33,11 +33,11 @@ BusChannel::~BusChannel() {
   ::unlink(options_.path.c_str());
 }
 
-std::uint32_t BusChannel::declare(Declare declaration, bool latest) {
+std::uint32_t BusChannel::declare(Declare declaration, bool latest, bool first) {
   std::lock_guard lock(mutex_);
   declaration.id = static_cast<std::uint32_t>(endpoints_.size());
   if (counters_.connected) backlog_.push_back(encode(declaration));
-  endpoints_.push_back({std::move(declaration), latest, {}});
+  endpoints_.push_back({std::move(declaration), latest, latest && first, {}});
   wake();
   return endpoints_.back().declaration.id;
 }
@@ -184,16 +184,20 @@ void BusChannel::accept_peer() {
   // A new DDS side knows nothing. It creates the endpoints one at a time (a line of 8 x 30 devices
   // has about 1,500, seconds of work) and publishes a sample as soon as its writer exists: so the
   // state endpoints come first, each followed at once by its newest sample, then every other
-  // endpoint, then Ready. A device's status is on DDS after its own writer, not after the line's.
+  // endpoint, then Ready; the devices' status endpoints (`first`) before the other states. A
+  // device's status is on DDS after its own writer, not after the line's.
   backlog_.clear();
   queue_.clear();
   dirty_.clear();
   backlog_.push_back(
       encode(Hello{kChannelVersion, options_.line, options_.incarnation, static_cast<std::int32_t>(::getpid())}));
-  for (const auto& [id, datagram] : latest_) {
-    backlog_.push_back(encode(endpoints_[id].declaration));
-    backlog_.push_back(datagram);
-    ++counters_.samples_sent;
+  for (const bool first : {true, false}) {
+    for (const auto& [id, datagram] : latest_) {
+      if (endpoints_[id].first != first) continue;
+      backlog_.push_back(encode(endpoints_[id].declaration));
+      backlog_.push_back(datagram);
+      ++counters_.samples_sent;
+    }
   }
   for (std::uint32_t id = 0; id < endpoints_.size(); ++id) {
     if (!latest_.contains(id)) backlog_.push_back(encode(endpoints_[id].declaration));

@@ -58,8 +58,10 @@ class BusChannel {
   BusChannel& operator=(const BusChannel&) = delete;
 
   // Endpoints: declared at start-up (also later: a connected DDS side is told at once). `latest`:
-  // only the newest sample matters (state topics).
-  std::uint32_t declare(Declare declaration, bool latest);
+  // only the newest sample matters (state topics). `first`: a state endpoint a new DDS side gets
+  // before the other state endpoints (a device's status, which tells an application the device
+  // is there; the DDS side creates about 1,500 endpoints at a full line, one after another).
+  std::uint32_t declare(Declare declaration, bool latest, bool first = false);
   // A reader's samples from the DDS side reach `handler` on the channel's thread.
   std::uint32_t declare_reader(Declare declaration, SampleHandler handler);
 
@@ -80,6 +82,7 @@ class BusChannel {
   struct Endpoint {
     Declare declaration;
     bool latest = false;
+    bool first = false;
     SampleHandler handler;
   };
   using Datagram = std::vector<std::uint8_t>;

@@ -63,7 +63,7 @@ TEST(LockMemory, TheBusProcessLocksWhatItUsesNotEveryThreadStack) {
   // process with its stacks locked as used holds far less than half of that (1 x 1 measured:
   // RssAnon about 11.6 MB, 7 threads).
   EXPECT_LT(s.at("RssAnon"), s.at("Threads") * stack_kb / 2)
-      << "VmLck " << s.at("VmLck") << " kB, RssAnon " << s.at("RssAnon") << " kB, " << s.at("Threads")
-      << " threads of " << stack_kb << " kB stacks: the stacks were locked in full\n"
+      << "VmLck " << s.at("VmLck") << " kB, RssAnon " << s.at("RssAnon") << " kB, " << s.at("Threads") << " threads of "
+      << stack_kb << " kB stacks: the stacks were locked in full\n"
       << line.logs();
 }

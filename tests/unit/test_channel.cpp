@@ -119,22 +119,23 @@ TEST(ChannelSocket, AFileThatIsNotASocketIsNeverReplaced) {
 }
 
 // A DDS side creates one endpoint per declaration, seconds of work at a full line: each state
-// endpoint's declaration comes with its newest sample right after it, before any endpoint
-// without a state, so that a device's status is on DDS as soon as its own writer exists.
-TEST(BusChannel, EveryConnectionGetsEachStateEndpointWithItsNewestSampleThenTheRestThenReady) {
+// endpoint's declaration comes with its newest sample right after it, the ones declared `first`
+// (a device's status) before the other states, and every endpoint without a state after them, so
+// that a device's status is on DDS as soon as its own writer exists.
+TEST(BusChannel, EveryConnectionGetsTheStatesFirstEachWithItsNewestSampleThenTheRestThenReady) {
   const auto path = socket_path("snapshot");
   auto opened = BusChannel::open({path, "line7", 99});
   ASSERT_TRUE(opened) << opened.error().message;
   auto& bus = **opened;
-  const auto status = bus.declare(state_topic("rt/line7/saw1/status"), true);
+  const auto info = bus.declare(state_topic("rt/line7/saw1/info"), true);
   Declare reader = state_topic("rt/line7/saw1/setpoint");
   const auto setpoint = bus.declare_reader(reader, [](const Sample&) {});
-  const auto status2 = bus.declare(state_topic("rt/line7/saw2/status"), true);
+  const auto status = bus.declare(state_topic("rt/line7/saw1/status"), true, true);
   bus.start();
   // Before any DDS side: kept (latest only), nothing sent.
   bus.publish(status, {0, 1, 0, 0, 1});
   bus.publish(status, {0, 1, 0, 0, 2});
-  bus.publish(status2, {0, 1, 0, 0, 7});
+  bus.publish(info, {0, 1, 0, 0, 7});
 
   for (int connection = 1; connection <= 2; ++connection) {
     auto dds = DdsChannel::connect(path, 1000);
@@ -143,17 +144,17 @@ TEST(BusChannel, EveryConnectionGetsEachStateEndpointWithItsNewestSampleThenTheR
     EXPECT_EQ(hello.line, "line7");
     EXPECT_EQ(hello.incarnation, 99u);
     const auto d1 = next<Declare>(**dds);
-    EXPECT_EQ(d1.id, status);
+    EXPECT_EQ(d1.id, status) << "the status, declared last but `first`, comes first";
     EXPECT_TRUE(d1.writer);
     EXPECT_EQ(d1.topic, "rt/line7/saw1/status");
     const auto snap = next<Sample>(**dds);
     EXPECT_EQ(snap.id, status);
     EXPECT_EQ(snap.payload, (std::vector<std::uint8_t>{0, 1, 0, 0, 2})) << "the newest state, not the first";
     const auto d2 = next<Declare>(**dds);
-    EXPECT_EQ(d2.id, status2) << "the second state endpoint comes before the reader, which has no state";
-    EXPECT_EQ(d2.topic, "rt/line7/saw2/status");
+    EXPECT_EQ(d2.id, info) << "the other state endpoint comes before the reader, which has no state";
+    EXPECT_EQ(d2.topic, "rt/line7/saw1/info");
     const auto snap2 = next<Sample>(**dds);
-    EXPECT_EQ(snap2.id, status2);
+    EXPECT_EQ(snap2.id, info);
     EXPECT_EQ(snap2.payload, (std::vector<std::uint8_t>{0, 1, 0, 0, 7}));
     const auto d3 = next<Declare>(**dds);
     EXPECT_EQ(d3.id, setpoint);
