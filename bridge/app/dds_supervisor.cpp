@@ -20,6 +20,7 @@ extern char** environ;
 namespace lb::app {
 namespace {
 constexpr std::chrono::milliseconds kFirstPause{100};
+constexpr std::chrono::milliseconds kLongestPause{5000};
 
 struct SpawnAttributes {
   SpawnAttributes() { posix_spawnattr_init(&value); }
@@ -28,7 +29,6 @@ struct SpawnAttributes {
   SpawnAttributes& operator=(const SpawnAttributes&) = delete;
   posix_spawnattr_t value{};
 };
-constexpr std::chrono::milliseconds kLongestPause{5000};
 }  // namespace
 
 DdsSupervisor::DdsSupervisor(std::vector<std::string> argv, std::function<std::uint64_t()> served)
@@ -71,8 +71,9 @@ pid_t DdsSupervisor::spawn() {
   for (auto& e : env_) envp.push_back(e.data());
   envp.push_back(nullptr);
   // posix_spawn, not fork: it does not copy this process's page tables nor make its memory
-  // copy-on-write, so the running bus loops take no page faults and no wait on the address space's
-  // lock while a DDS process starts (a fork stalled SYNC by 60-85 ms at 8 x 30 devices).
+  // copy-on-write, so the running bus loops take no copy-on-write faults while a DDS process
+  // starts. (With fork, SYNC gaps of 61-85 ms were seen at the DDS process's start at 8 x 30
+  // devices; whether the fork or the child's start beside the loops caused them was not isolated.)
   // Its own process group: a terminal's Ctrl-C reaches this process, which tells the channel and
   // then ends its DDS process itself, instead of the child ending first and reading as lost.
   SpawnAttributes attr;

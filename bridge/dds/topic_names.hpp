@@ -17,12 +17,12 @@ inline std::string topic_name(std::string_view line, std::string_view device, st
   return name;
 }
 
-// "<line>/bridge/<service>": the path of a line-wide service for ServiceServer / ServiceClient,
-// which make rq/<path>Request and rr/<path>Reply of it.
 // A device's status topic (rt/<line>/<device>/status): what tells an application the device is
 // there, so a new DDS side of the bus process creates these writers first.
 inline bool is_status_topic(std::string_view topic) { return topic.ends_with("/status"); }
 
+// "<line>/bridge/<service>": the path of a line-wide service for ServiceServer / ServiceClient,
+// which make rq/<path>Request and rr/<path>Reply of it.
 inline std::string line_service_path(std::string_view line, std::string_view service) {
   std::string path(line);
   path.append("/").append(kBridgeNamespace).append("/").append(service);
