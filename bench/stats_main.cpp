@@ -1,6 +1,7 @@
 // bench-stats: figures from the latency files the bench programs write.
 //   bench-stats summary FILE                    percentiles of one set
 //   bench-stats overhead BRIDGE FLOOR [FLOOR2]  the bridge's latency, the floor's, and the difference
+//   bench-stats memory PID                      a process and its children: rss_kib, hwm_kib, pss_kib
 // A floor given as two hops (bus, DDS) is their sum for independent draws: the distribution of
 // bus[i] + dds[j] over random pairs, which is what a path of both hops with nothing in between
 // would show if the two hops do not influence each other.
@@ -12,6 +13,7 @@
 #include <vector>
 
 #include "latencies.hpp"
+#include "proc_stats.hpp"
 
 namespace bench = lb::bench;
 
@@ -28,7 +30,8 @@ std::vector<std::int64_t> sum_of_hops(const std::vector<std::int64_t>& a, const 
 }
 
 int usage() {
-  std::fputs("usage: bench-stats summary FILE\n       bench-stats overhead BRIDGE_FILE FLOOR_FILE [SECOND_HOP_FILE]\n",
+  std::fputs("usage: bench-stats summary FILE\n       bench-stats overhead BRIDGE_FILE FLOOR_FILE [SECOND_HOP_FILE]\n"
+             "       bench-stats memory PID\n",
              stderr);
   return 2;
 }
@@ -40,6 +43,11 @@ int main(int argc, char** argv) {
   const std::string cmd = argv[1];
   if (cmd == "summary" && argc == 3) {
     std::fputs(bench::format_summary("lat", bench::summarize(bench::read_latencies(argv[2]))).c_str(), stdout);
+    return 0;
+  }
+  if (cmd == "memory" && argc == 3) {
+    const auto m = bench::read_tree_memory(static_cast<pid_t>(std::stol(argv[2])));
+    std::fputs(fmt::format("rss_kib={}\nhwm_kib={}\npss_kib={}\n", m.rss_kib, m.hwm_kib, m.pss_kib).c_str(), stdout);
     return 0;
   }
   if (cmd != "overhead" || argc < 4 || argc > 5) return usage();

@@ -251,22 +251,6 @@ now_ns() { date +%s%N; }
 # mib KIB: MiB with one decimal; nothing when the figure is missing (so no verdict, not 0 and a pass).
 mib() { awk -v k="$1" 'BEGIN { if (k != "") printf "%.1f", k / 1024 }'; }
 mem_kib() { awk -v k="$2:" '$1 == k { print $2 }' "/proc/$1/status"; }
-# tree_mem_kib PID rss|hwm|pss: a process and its children together (the split bridge: the bus
-# process and its DDS process), KiB. rss and hwm sum VmRSS and VmHWM, which count the pages of a
-# shared library in each process; pss sums smaps_rollup's Pss, which counts each page once, split
-# between the processes that map it: what the bridge costs the machine.
-tree_mem_kib() {
-  local total=0 x c
-  for c in "$1" $(cat /proc/"$1"/task/*/children 2>/dev/null); do
-    case "$2" in
-      rss) x=$(mem_kib "$c" VmRSS) ;;
-      hwm) x=$(mem_kib "$c" VmHWM) ;;
-      pss) x=$(awk '$1 == "Pss:" { print $2 }' "/proc/$c/smaps_rollup" 2>/dev/null) ;;
-    esac
-    total=$((total + ${x:-0}))
-  done
-  echo "$total"
-}
 get() { sed -n "s/^$2=//p" "$1" | tail -1; }  # get FILE KEY (key=value reports)
 
 domain=10
@@ -491,7 +475,10 @@ throughput_step() {
     perf report -i "$d/perf.data" --children --sort sym --stdio -g none 2>/dev/null | grep '%' | head -80 >"$d/profile-sym.txt" || true
   fi
   finish $sub || true
-  rss=$(tree_mem_kib $br rss); hwm=$(tree_mem_kib $br hwm); pss=$(tree_mem_kib $br pss)
+  # The bus process and its DDS process together (bench/proc_stats.hpp read_tree_memory): VmRSS and
+  # VmHWM summed count a shared library's pages in each; Pss counts each page once, the target's figure.
+  "$bin/bench-stats" memory $br >"$d/memory"
+  rss=$(get "$d/memory" rss_kib); hwm=$(get "$d/memory" hwm_kib); pss=$(get "$d/memory" pss_kib)
   touch "$d/stop"
   finish $inj || true
   stop $br
