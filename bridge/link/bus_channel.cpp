@@ -176,45 +176,54 @@ void BusChannel::accept_peer() {
     return;
   }
   if (peer_) drop_peer("another DDS side connected (pid " + std::to_string(peer->pid) + ")");
-  std::lock_guard lock(mutex_);
-  peer_ = std::move(peer->fd);
-  unsent_.reset();
-  ++counters_.connects;
-  counters_.connected = true;
-  // A new DDS side knows nothing. It creates the endpoints one at a time (a line of 8 x 30 devices
-  // has about 1,500, seconds of work) and publishes a sample as soon as its writer exists: so the
-  // state endpoints come first, each followed at once by its newest sample, then every other
-  // endpoint, then Ready; the devices' status endpoints (`first`) before the other states. A
-  // device's status is on DDS after its own writer, not after the line's.
-  backlog_.clear();
-  queue_.clear();
-  dirty_.clear();
-  backlog_.push_back(
-      encode(Hello{kChannelVersion, options_.line, options_.incarnation, static_cast<std::int32_t>(::getpid())}));
-  for (const bool first : {true, false}) {
-    for (const auto& [id, datagram] : latest_) {
-      if (endpoints_[id].first != first) continue;
-      backlog_.push_back(encode(endpoints_[id].declaration));
-      backlog_.push_back(datagram);
-      ++counters_.samples_sent;
+  // Logged after the lock: a realtime bus loop may wait on mutex_, and the log's queue has a
+  // plain mutex of its own (no priority inheritance through it).
+  std::size_t endpoints = 0, samples = 0;
+  {
+    std::lock_guard lock(mutex_);
+    peer_ = std::move(peer->fd);
+    unsent_.reset();
+    ++counters_.connects;
+    counters_.connected = true;
+    // A new DDS side knows nothing. It creates the endpoints one at a time (a line of 8 x 30 devices
+    // has about 1,500, seconds of work) and publishes a sample as soon as its writer exists: so the
+    // state endpoints come first, each followed at once by its newest sample, then every other
+    // endpoint, then Ready; the devices' status endpoints (`first`) before the other states. A
+    // device's status is on DDS after its own writer, not after the line's.
+    backlog_.clear();
+    queue_.clear();
+    dirty_.clear();
+    backlog_.push_back(
+        encode(Hello{kChannelVersion, options_.line, options_.incarnation, static_cast<std::int32_t>(::getpid())}));
+    for (const bool first : {true, false}) {
+      for (const auto& [id, datagram] : latest_) {
+        if (endpoints_[id].first != first) continue;
+        backlog_.push_back(encode(endpoints_[id].declaration));
+        backlog_.push_back(datagram);
+        ++counters_.samples_sent;
+      }
     }
+    for (std::uint32_t id = 0; id < endpoints_.size(); ++id) {
+      if (!latest_.contains(id)) backlog_.push_back(encode(endpoints_[id].declaration));
+    }
+    backlog_.push_back(encode(Ready{static_cast<std::uint32_t>(endpoints_.size())}));
+    endpoints = endpoints_.size();
+    samples = latest_.size();
   }
-  for (std::uint32_t id = 0; id < endpoints_.size(); ++id) {
-    if (!latest_.contains(id)) backlog_.push_back(encode(endpoints_[id].declaration));
-  }
-  backlog_.push_back(encode(Ready{static_cast<std::uint32_t>(endpoints_.size())}));
   spdlog::info("channel {}: DDS side connected (pid {}); {} endpoints and {} state samples sent", options_.path,
-               peer->pid, endpoints_.size(), latest_.size());
+               peer->pid, endpoints, samples);
 }
 
 void BusChannel::drop_peer(const std::string& why) {
-  std::lock_guard lock(mutex_);
-  peer_.reset();
-  unsent_.reset();
-  counters_.connected = false;
-  backlog_.clear();
-  queue_.clear();
-  dirty_.clear();
+  {
+    std::lock_guard lock(mutex_);  // logged after it (see accept_peer)
+    peer_.reset();
+    unsent_.reset();
+    counters_.connected = false;
+    backlog_.clear();
+    queue_.clear();
+    dirty_.clear();
+  }
   if (stopping_) {
     spdlog::info("channel {}: DDS side stopped ({})", options_.path, why);
     return;
@@ -233,8 +242,10 @@ void BusChannel::read_peer() {
     if (n == 0) return drop_peer("it closed the channel");
     auto message = decode(std::span(buffer_.data(), static_cast<std::size_t>(n)));
     if (!message) {
-      std::lock_guard lock(mutex_);
-      ++counters_.bad_messages;
+      {
+        std::lock_guard lock(mutex_);
+        ++counters_.bad_messages;
+      }
       spdlog::warn("channel {}: {}", options_.path, message.error().message);
       continue;
     }
