@@ -337,6 +337,9 @@ TEST_F(CanopenCore, EmergenciesAreEventsAndActiveErrorsInStatus) {
   // After its boot the bridge reads the saw's error register 1001h (0), which clears the list (the
   // device is the truth, and these EMCYs come from the test, not the device): inject after that reading.
   ASSERT_TRUE(bridge_->wait_log("saw1: active errors from the device", 10s)) << logs();
+  // An event reaches only a reader already matched (seen: an EMCY sent 1 s after the DDS side was
+  // ready, before discovery had matched this reader on a loaded machine, never arrived).
+  ASSERT_TRUE(emcy_.wait_matched()) << logs();
   // EMCY 4210h (temperature), error register 09h, manufacturer bytes 01..05, from node 5.
   ASSERT_TRUE(spy_->send(lb::can::make_frame(0x85, {0x10, 0x42, 0x09, 0x01, 0x02, 0x03, 0x04, 0x05})));
   ASSERT_TRUE(emcy_.wait_last(5s, [](const msg::Emergency& e) { return e.error_code() == 0x4210; })) << logs();

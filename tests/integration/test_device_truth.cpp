@@ -61,6 +61,7 @@ TEST(DeviceTruth, ErrorResetThatLeavesErrorsIsUncertainAndTheHistoryIsOnInfo) {
   ASSERT_TRUE(saw2.wait_last(30s, [](const auto& s) { return operational(s) && s.health().active_errors_known(); }))
       << line.logs();
   ASSERT_TRUE(info1.wait_last(10s, [](const msg::DeviceInfo& i) { return i.started(); })) << line.logs();
+  ASSERT_TRUE(emcy1.wait_matched()) << line.logs();  // an event reaches only a matched reader
 
   for (const char* dev : {"saw1", "saw2"}) {
     ASSERT_TRUE(line.sdo_write(dev, kErrorSimulation, 0, "UNSIGNED32", kTemperature).success());

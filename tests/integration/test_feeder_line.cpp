@@ -98,6 +98,8 @@ TEST(FeederLine, StatusFaultEventsCommandsAndLoomPlay) {
   ASSERT_TRUE(status.subscribe(**dds, topic("status"), QosKind::state));
   ASSERT_TRUE(errors.subscribe(**dds, topic("feeder_error"), QosKind::event));
   ASSERT_TRUE(unwinding.subscribe(**dds, topic("unwinding"), QosKind::event));
+  // Events reach only matched readers: matched before anything below causes one.
+  ASSERT_TRUE(errors.wait_matched() && unwinding.wait_matched()) << logs();
   ASSERT_TRUE(loom_results.subscribe(**dds, topic("loom_result"), QosKind::reply));
 
   // Status per feeder: the four feeders polled by SDO, decoded by the profile's tables.
@@ -289,6 +291,7 @@ TEST(FeederLine, MonitorRoleDecodesLoomControllerAndNeverTransmits) {
   lb::test::Collector<msg::DiagnosticsPubSubType> diag;
   ASSERT_TRUE(diag.subscribe(**dds, lb::ddsl::topic_name("fmon", "bridge", "diagnostics"), QosKind::state));
   ASSERT_TRUE(status.wait_last(10s, [](const msg::FeederStatus& s) { return s.health().online(); })) << logs();
+  ASSERT_TRUE(errors.wait_matched()) << logs();  // an event reaches only a matched reader
 
   // The loom controller's RPDOs, built by hand (spec 4.2-4.5): start advice, 1000 1/min, 190 cm;
   // picks empty, single 7, single 16, double 10+3, reserved DDh; angle trigger.

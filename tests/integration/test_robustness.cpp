@@ -13,6 +13,7 @@
 #include <array>
 #include <atomic>
 #include <chrono>
+#include <cstdio>
 #include <filesystem>
 #include <fstream>
 #include <iostream>
@@ -341,10 +342,16 @@ TEST(Robustness, SpoofedBootUpsAndStraySyncsTakeNoControlAway) {
 // (feeder 1 in error, cleared, in error, ...: every EMCY asks for 6007h sub 1) must not queue a
 // read per EMCY in front of the services. Before, each EMCY queued one and an operator's request
 // waited behind thousands; now one read per feeder at a time, the rest coalesced.
+// The chatter (up to 4,000 EMCYs a second) loads the simulator and the bridge too: under the
+// sanitizers beside a CPU burner the simulator once took over a second to answer a probe (seen:
+// two probes of twenty aborted by the 1-s SDO timeout, 2.4 s each). So the SDO timeout is 3 s
+// here and the bound 5 s: a backlog still shows, since it grows by thousands of reads a second
+// and a probe behind it waits for all of them.
 TEST(Robustness, AChatteringFeederErrorBitDoesNotStarveServiceRequests) {
   lb::test::LineHarness line("chatter", 30);
   line.start("  - name: feeders\n    bus: b\n    node_id: 10\n    profile: cia414-2\n    version: '1.1'\n"
-             "    heartbeat_timeout_ms: 400\n    simulation: {heartbeat_period_ms: 100}\n");
+             "    heartbeat_timeout_ms: 400\n    simulation: {heartbeat_period_ms: 100}\n",
+             "", ", sdo_timeout_ms: 3000");
   auto info = line.collect<msg::DeviceInfoPubSubType>("feeders", "info", QosKind::state);
   ASSERT_TRUE(info.wait_last(30s, [](const msg::DeviceInfo& i) { return i.started(); })) << line.logs();
   std::atomic<bool> stop{false};
@@ -370,8 +377,9 @@ TEST(Robustness, AChatteringFeederErrorBitDoesNotStarveServiceRequests) {
   chatter.join();
   EXPECT_GT(sent.load(), 5000u) << "the chatter did not happen: the test proves nothing";
   ASSERT_FALSE(waits_ms.empty());
-  // A generous bound on a loaded machine; before, the waits grew with the queue to the SDO timeout.
-  for (const auto w : waits_ms) EXPECT_LT(w, 2000.0) << "a service request waited behind the bridge's own reads";
+  std::printf("probes=%zu longest_wait_ms=%.1f chatter_frames=%llu\n", waits_ms.size(),
+              *std::max_element(waits_ms.begin(), waits_ms.end()), static_cast<unsigned long long>(sent.load()));
+  for (const auto w : waits_ms) EXPECT_LT(w, 5000.0) << "a service request waited behind the bridge's own reads";
   EXPECT_TRUE(line.bridge().running());
 }
 

@@ -64,6 +64,7 @@ class SawLine : public ::testing::Test {
     const auto topic = [](const char* t) { return lb::ddsl::topic_name("itest", "saw1", t); };
     ASSERT_TRUE(status_.subscribe(line_.dds(), topic("status"), lb::ddsl::QosKind::state));
     ASSERT_TRUE(cuts_.subscribe(line_.dds(), topic("cut"), lb::ddsl::QosKind::event));
+    ASSERT_TRUE(cuts_.wait_matched()) << logs();  // a cut reaches only a matched reader
     ASSERT_TRUE(setpoints_.open(line_.dds(), "itest", "saw1"));
 
     // The device is up and both directions of the set-value exchange are matched.

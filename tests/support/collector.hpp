@@ -15,6 +15,7 @@
 #include <vector>
 
 #include "dds/participant.hpp"
+#include "support/eventually.hpp"
 
 namespace lb::test {
 
@@ -25,6 +26,8 @@ class Collector {
 
   // keep_last deepens state topics' history so the test sees every sample, not just the latest.
   lb::Result<void> subscribe(lb::ddsl::Participant& dds, const std::string& topic, lb::ddsl::QosKind kind) {
+    dds_ = &dds;
+    topic_ = topic;
     return dds.subscribe<PubSubType>(
         topic, kind,
         [state = state_](const Sample& s, const lb::ddsl::fdds::SampleInfo& info) {
@@ -41,6 +44,12 @@ class Collector {
           state->cv.notify_all();
         },
         1000);
+  }
+
+  // True once a writer (the bridge's) is matched with this reader. An event topic keeps nothing for
+  // a reader that comes later: a test waits for this before it causes the event.
+  bool wait_matched(std::chrono::steady_clock::duration timeout = std::chrono::seconds(30)) {
+    return dds_ != nullptr && eventually(timeout, [this] { return dds_->matched_writers(topic_) > 0; });
   }
 
   // True when pred(samples) held within the timeout.
@@ -75,6 +84,8 @@ class Collector {
     std::uint64_t gaps = 0;
   };
   std::shared_ptr<State> state_ = std::make_shared<State>();
+  lb::ddsl::Participant* dds_ = nullptr;  // the participant subscribe() was given (it outlives the waits)
+  std::string topic_;
 };
 
 }  // namespace lb::test
