@@ -342,11 +342,11 @@ TEST(Robustness, SpoofedBootUpsAndStraySyncsTakeNoControlAway) {
 // (feeder 1 in error, cleared, in error, ...: every EMCY asks for 6007h sub 1) must not queue a
 // read per EMCY in front of the services. Before, each EMCY queued one and an operator's request
 // waited behind thousands; now one read per feeder at a time, the rest coalesced.
-// The chatter (up to 4,000 EMCYs a second) loads the simulator and the bridge too: under the
-// sanitizers beside a CPU burner the simulator once took over a second to answer a probe (seen:
-// two probes of twenty aborted by the 1-s SDO timeout, 2.4 s each). So the SDO timeout is 3 s
-// here and the bound 5 s: a backlog still shows, since it grows by thousands of reads a second
-// and a probe behind it waits for all of them.
+// The chatter (up to 4,000 EMCYs a second) loads the simulator, the bridge and the virtual bus
+// too: under the sanitizers beside a CPU burner, a probe's answer once took over a second to
+// reach the bridge (seen: two probes of twenty aborted by the 1-s SDO timeout, 2.4 s each). So
+// the SDO timeout is 3 s here and the bound 5 s: a backlog still shows, since it grows by
+// thousands of reads a second and a probe behind it waits for all of them.
 TEST(Robustness, AChatteringFeederErrorBitDoesNotStarveServiceRequests) {
   lb::test::LineHarness line("chatter", 30);
   line.start("  - name: feeders\n    bus: b\n    node_id: 10\n    profile: cia414-2\n    version: '1.1'\n"
