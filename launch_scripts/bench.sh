@@ -32,8 +32,8 @@
 #                    nothing else wants the core
 #   --no-single      can2dds, dds2can: measure only the split bridge (the default `--part both`),
 #                    not also the one-process `--part single` beside it
-#   --profile        record the bridge with perf (call graphs) during every throughput step;
-#                    perf.data and a report per step in the output directory
+#   --profile        record the bridge (both processes) with perf (call graphs) during every
+#                    throughput step; perf.data and a report per step in the output directory
 #
 # Figures (method and limits: BENCHMARKS.md):
 #   can2dds     saw TPDOs from another process on a virtual bus -> the real linebridge -> a DDS
@@ -239,6 +239,12 @@ tree_ticks() {
     x=$(cpu_ticks "$c"); t=$((t + ${x:-0}))
   done
   echo "$t"
+}
+# A process and its children as perf's -p wants them: "PID,CHILD,..." (the split bridge's two).
+tree_pids() {
+  local p=$1 c
+  for c in $(cat /proc/"$1"/task/*/children 2>/dev/null); do p+=",$c"; done
+  echo "$p"
 }
 # bridge_part bridge|single: the bridge's extra arguments (bridge: none, the default split).
 bridge_part() { [ "$1" != single ] || echo "--part single"; }
@@ -458,19 +464,23 @@ throughput_step() {
   wait_file "$d/sub.ready" $sub 180
   sleep 0.5
   local c0 s0 i0 t0 c1 s1 i1 t1
-  c0=$(cpu_ticks $br); s0=$(cpu_ticks $sub); i0=$(cpu_ticks $inj); t0=$(now_ns)
+  # The bridge's CPU is both its processes' (the DDS process does the Fast DDS writes).
+  c0=$(tree_ticks $br); s0=$(cpu_ticks $sub); i0=$(cpu_ticks $inj); t0=$(now_ns)
   touch "$d/go"
   local perf_pid=""
   if ((profile)); then
-    printf '%s\n' "perf record -F 1999 --call-graph dwarf,16384 -o $d/perf.data -p $br -- sleep $((step_s / 2))" >>"$commands"
-    perf record -F 1999 --call-graph dwarf,16384 -o "$d/perf.data" -p $br -- sleep $((step_s / 2)) >"$d/perf.log" 2>&1 &
+    local pids
+    pids=$(tree_pids $br)  # the bus process and its DDS process
+    printf '%s\n' "perf record -F 1999 --call-graph dwarf,16384 -o $d/perf.data -p $pids -- sleep $((step_s / 2))" >>"$commands"
+    perf record -F 1999 --call-graph dwarf,16384 -o "$d/perf.data" -p "$pids" -- sleep $((step_s / 2)) >"$d/perf.log" 2>&1 &
     perf_pid=$!
   fi
   while [ ! -s "$d/inject.out" ] && kill -0 $inj 2>/dev/null; do sleep 0.05; done
-  c1=$(cpu_ticks $br); s1=$(cpu_ticks $sub); i1=$(cpu_ticks $inj); t1=$(now_ns)
+  c1=$(tree_ticks $br); s1=$(cpu_ticks $sub); i1=$(cpu_ticks $inj); t1=$(now_ns)
   local rss hwm pss
   if [ -n "$perf_pid" ]; then
     finish $perf_pid || true
+    perf report -i "$d/perf.data" --no-children --sort pid --stdio -g none 2>/dev/null | grep '%' >"$d/profile-threads.txt" || true
     perf report -i "$d/perf.data" --no-children --sort dso --stdio -g none 2>/dev/null | grep '%' >"$d/profile-dso.txt" || true
     perf report -i "$d/perf.data" --children --sort sym --stdio -g none 2>/dev/null | grep '%' | head -80 >"$d/profile-sym.txt" || true
   fi
