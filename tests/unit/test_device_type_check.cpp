@@ -128,8 +128,8 @@ TEST(DeviceTypeCheck, ADriveWhoseIdlHasNoDriveShapeIsNamed) {
   // The saw's IDL has a word binding, but not the drive's shape (no speed set value).
   types.push_back({"ghost", "cia420-4", "3.1", "saw", Behaviour::drive, "a drive entry on the saw's IDL", 0});
   const auto findings = check_device_types(ProfileRegistry::builtin(), types);
-  EXPECT_TRUE(has(findings,
-                  "ghost: idl/saw.idl declares no drive-shaped {Name}Status, StatusWord, ControlWord, Setpoint"))
+  EXPECT_TRUE(
+      has(findings, "ghost: idl/saw.idl declares no drive-shaped {Name}Status, StatusWord, ControlWord, Setpoint"))
       << all(findings);
   // And the saw's profile is a saw's, not this entry's.
   EXPECT_TRUE(has(findings, "ghost: no built-in profile cia420-4@3.1 for it")) << all(findings);
