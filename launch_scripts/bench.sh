@@ -228,6 +228,8 @@ wait_file() {
 finish() { local rc=0; wait "$1" || rc=$?; return $rc; }
 stop() { kill -TERM "$1" 2>/dev/null || true; finish "$1" || true; }
 
+# The PIDs of a process's children (space-separated).
+children() { cat /proc/"$1"/task/*/children 2>/dev/null; }
 # utime + stime in ticks; empty when the process is gone.
 cpu_ticks() { awk '{ sub(/.*\) /, ""); print $12 + $13 }' "/proc/$1/stat" 2>/dev/null || true; }
 # The same for a process and its children (the split bridge: the bus process and its DDS process).
@@ -235,7 +237,7 @@ tree_ticks() {
   local t c x
   t=$(cpu_ticks "$1")
   [ -n "$t" ] || return 0
-  for c in $(cat /proc/"$1"/task/*/children 2>/dev/null); do
+  for c in $(children "$1"); do
     x=$(cpu_ticks "$c"); t=$((t + ${x:-0}))
   done
   echo "$t"
@@ -243,7 +245,7 @@ tree_ticks() {
 # A process and its children as perf's -p wants them: "PID,CHILD,..." (the split bridge's two).
 tree_pids() {
   local p=$1 c
-  for c in $(cat /proc/"$1"/task/*/children 2>/dev/null); do p+=",$c"; done
+  for c in $(children "$1"); do p+=",$c"; done
   echo "$p"
 }
 # bridge_part bridge|single: the bridge's extra arguments (bridge: none, the default split).
@@ -900,7 +902,7 @@ hopjitter_step() {
   touch "$d/go"
   sleep 2
   local dds0 c0 b0 t0 c1 b1 t1
-  dds0=$(cat /proc/$bridge/task/*/children 2>/dev/null | tr '\n' ' ')
+  dds0=$(children $bridge | tr '\n' ' ')
   c0=$(tree_ticks $bridge); b0=$(cpu_ticks $bridge); t0=$(now_ns)
   if [ "$scenario" = flood ]; then
     start "$d/flood" "${harness_cmd[@]}" bash -c 'end=$((SECONDS + $1)); shift; n=0
@@ -917,7 +919,7 @@ hopjitter_step() {
     echo "cpu_pct=$(cpu_percent "$c0" "$c1" "$t0" "$t1")"
     echo "bus_cpu_pct=$(cpu_percent "$b0" "$b1" "$t0" "$t1")"
     echo "dds_pids_before=$dds0"
-    echo "dds_pids_after=$(cat /proc/$bridge/task/*/children 2>/dev/null | tr '\n' ' ')"
+    echo "dds_pids_after=$(children $bridge | tr '\n' ' ')"
   } >>"$d/meter.out"
   [ -z "$flood" ] || finish $flood || true
   [ -z "$obs" ] || stop $obs

@@ -171,10 +171,8 @@ int run_eds(const profiles::LineConfig& line, const profiles::ProfileRegistry& b
   } else {
     std::string candidates;
     auto type = eds->value(0x1000, 0, std::nullopt);
-    for (const auto& key : registry.keys()) {
-      const auto at = key.find('@');
-      const auto* p = registry.find(key.substr(0, at), key.substr(at + 1));
-      if (type && *type && (**type & 0xFFFF) == (p->device_type & 0xFFFF)) candidates += " " + key;
+    for (const auto& p : registry.profiles()) {
+      if (type && *type && (**type & 0xFFFF) == (p.device_type & 0xFFFF)) candidates += " " + p.key();
     }
     return fmt::print(stderr, "give --device NAME (a device of the line) or --profile ID --profile-version V{}\n",
                       candidates.empty() ? std::string() : "; profiles of this device type:" + candidates),

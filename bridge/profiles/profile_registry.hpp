@@ -2,6 +2,7 @@
 // The profiles a line can use: the built-in ones (compiled in from config/profiles/) plus any
 // loaded from files. Looked up by id and version, e.g. ("cia420-4", "3.1").
 
+#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -25,6 +26,7 @@ class ProfileRegistry {
   void add(Profile profile);
 
   const Profile* find(std::string_view id, std::string_view version) const;
+  std::span<const Profile> profiles() const { return profiles_; }
   std::vector<std::string> keys() const;  // "id@version" of every profile, for error messages
 
  private:

@@ -2,6 +2,7 @@
 // registry, the profiles and the IDL's word bindings is named, in the sentence the build prints.
 // The broken inputs are the built-in ones with one thing changed here; the expected sentences are
 // written by hand (the saw's status word bit 0 is saw_ready in both its profiles, 6030h).
+// That the built-in ones agree the build itself checks (lb-check-device-types runs in it).
 #include <gtest/gtest.h>
 
 #include <algorithm>
@@ -54,19 +55,30 @@ std::string all(const std::vector<std::string>& findings) {
   return out;
 }
 
-TEST(DeviceTypeCheck, TheBuiltInRegistryProfilesAndIdlAgree) {
-  const auto findings = check_device_types(ProfileRegistry::builtin(), builtin_types());
-  EXPECT_TRUE(findings.empty()) << all(findings);
+// The findings when `profiles` are added to the built-in ones (one of the same id and version
+// replaces the built-in), against the built-in registry of types.
+std::vector<std::string> findings_with(const std::vector<Profile>& profiles) {
+  auto registry = ProfileRegistry::builtin();
+  for (const auto& p : profiles) registry.add(p);
+  return check_device_types(registry, builtin_types());
+}
+
+// The findings when `type` joins the built-in registry of types, against the built-in profiles.
+std::vector<std::string> findings_with(const DeviceType& type) {
+  auto types = builtin_types();
+  types.push_back(type);
+  return check_device_types(ProfileRegistry::builtin(), types);
+}
+
+// The built-in saw profile of `version` with its status word bit saw_ready renamed.
+Profile saw_with_renamed_ready_bit(const std::string& version) {
+  auto saw = builtin_profile("cia420-4", version);
+  rename_bit(saw, "status_word", "saw_ready", "saw_is_ready");
+  return saw;
 }
 
 TEST(DeviceTypeCheck, AProfileBitTheIdlDoesNotDeclareAndAFieldNoProfileNamesAreBothNamed) {
-  auto registry = ProfileRegistry::builtin();
-  for (const char* version : {"1.0", "3.1"}) {
-    auto saw = builtin_profile("cia420-4", version);
-    rename_bit(saw, "status_word", "saw_ready", "saw_is_ready");
-    registry.add(saw);  // replaces the built-in one of the same id and version
-  }
-  const auto findings = check_device_types(registry, builtin_types());
+  const auto findings = findings_with({saw_with_renamed_ready_bit("1.0"), saw_with_renamed_ready_bit("3.1")});
   EXPECT_EQ(findings.size(), 3u) << all(findings);
   EXPECT_TRUE(has(findings,
                   "saw: profile cia420-4@1.0 names status_word bit 'saw_is_ready', which idl/saw.idl's status_word "
@@ -82,11 +94,7 @@ TEST(DeviceTypeCheck, AProfileBitTheIdlDoesNotDeclareAndAFieldNoProfileNamesAreB
 }
 
 TEST(DeviceTypeCheck, AFieldOneProfileStillNamesIsNotAFinding) {
-  auto registry = ProfileRegistry::builtin();
-  auto saw = builtin_profile("cia420-4", "3.1");
-  rename_bit(saw, "status_word", "saw_ready", "saw_is_ready");
-  registry.add(saw);
-  const auto findings = check_device_types(registry, builtin_types());
+  const auto findings = findings_with({saw_with_renamed_ready_bit("3.1")});
   ASSERT_EQ(findings.size(), 1u) << all(findings);
   EXPECT_EQ(findings[0],
             "saw: profile cia420-4@3.1 names status_word bit 'saw_is_ready', which idl/saw.idl's status_word does not "
@@ -94,40 +102,34 @@ TEST(DeviceTypeCheck, AFieldOneProfileStillNamesIsNotAFinding) {
 }
 
 TEST(DeviceTypeCheck, AProfileOfAnUnregisteredTypeIsNamed) {
-  auto registry = ProfileRegistry::builtin();
   auto ghost = builtin_profile("cia420-2", "1.0");
   ghost.id = "lb-ghost";
   ghost.device = "ghost";
-  registry.add(ghost);
-  const auto findings = check_device_types(registry, builtin_types());
+  const auto findings = findings_with({ghost});
   ASSERT_EQ(findings.size(), 1u) << all(findings);
   EXPECT_EQ(findings[0], "profile lb-ghost@1.0 is for device type 'ghost', which profiles/device_types.hpp lacks");
 }
 
 TEST(DeviceTypeCheck, AProfileVersionTheEntryDoesNotListIsNamed) {
-  auto registry = ProfileRegistry::builtin();
   auto saw = builtin_profile("cia420-4", "3.1");
   saw.version = "9.9";
-  registry.add(saw);
-  const auto findings = check_device_types(registry, builtin_types());
+  const auto findings = findings_with({saw});
   ASSERT_EQ(findings.size(), 1u) << all(findings);
   EXPECT_EQ(findings[0], "profile cia420-4@9.9 is for a saw, whose entry says cia420-4 versions 1.0, 3.1");
 }
 
 TEST(DeviceTypeCheck, AnEntryWithoutItsProfileIsNamed) {
-  auto types = builtin_types();
   // "none": an IDL without a word binding, so the missing profile is the only finding.
-  types.push_back({"ghost", "lb-ghost", "2.0", "none", Behaviour::feeder, "a type without its profile", 0});
-  const auto findings = check_device_types(ProfileRegistry::builtin(), types);
+  const auto findings = findings_with(
+      DeviceType{"ghost", "lb-ghost", "2.0", "none", Behaviour::feeder, "a type without its profile", 0});
   ASSERT_EQ(findings.size(), 1u) << all(findings);
   EXPECT_EQ(findings[0], "ghost: no built-in profile lb-ghost@2.0 for it");
 }
 
 TEST(DeviceTypeCheck, ADriveWhoseIdlHasNoDriveShapeIsNamed) {
-  auto types = builtin_types();
   // The saw's IDL has a word binding, but not the drive's shape (no speed set value).
-  types.push_back({"ghost", "cia420-4", "3.1", "saw", Behaviour::drive, "a drive entry on the saw's IDL", 0});
-  const auto findings = check_device_types(ProfileRegistry::builtin(), types);
+  const auto findings = findings_with(
+      DeviceType{"ghost", "cia420-4", "3.1", "saw", Behaviour::drive, "a drive entry on the saw's IDL", 0});
   EXPECT_TRUE(
       has(findings, "ghost: idl/saw.idl declares no drive-shaped {Name}Status, StatusWord, ControlWord, Setpoint"))
       << all(findings);

@@ -71,19 +71,16 @@ const DeviceType* find_type(std::span<const DeviceType> types, std::string_view 
 std::vector<std::string> check_device_types(const profiles::ProfileRegistry& registry,
                                             std::span<const DeviceType> types) {
   std::vector<std::string> findings;
-  for (const auto& key : registry.keys()) {
-    const auto at = key.find('@');
-    const auto* p = registry.find(key.substr(0, at), key.substr(at + 1));
-    if (p == nullptr) continue;  // keys() lists only what find() finds
-    const auto* type = find_type(types, p->device);
+  for (const auto& p : registry.profiles()) {
+    const auto* type = find_type(types, p.device);
     if (type == nullptr) {
-      findings.push_back(fmt::format("profile {} is for device type '{}', which profiles/device_types.hpp lacks",
-                                     p->key(), p->device));
+      findings.push_back(
+          fmt::format("profile {} is for device type '{}', which profiles/device_types.hpp lacks", p.key(), p.device));
       continue;
     }
     const auto versions = split_versions(type->versions);
-    if (p->id != type->profile_id || std::find(versions.begin(), versions.end(), p->version) == versions.end()) {
-      findings.push_back(fmt::format("profile {} is for a {}, whose entry says {} versions {}", p->key(), p->device,
+    if (p.id != type->profile_id || std::find(versions.begin(), versions.end(), p.version) == versions.end()) {
+      findings.push_back(fmt::format("profile {} is for a {}, whose entry says {} versions {}", p.key(), p.device,
                                      type->profile_id, type->versions));
     }
   }
