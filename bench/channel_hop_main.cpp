@@ -83,7 +83,9 @@ int dds_side(const std::string& path, const std::string& out, std::uint64_t expe
     if (!s || !ready || s->id != status_id) continue;
     const auto now = bench::monotonic_ns();
     lat.push_back(now - take(s->payload, 8));
-    lk::Sample echo{set_id, {}, {}, {}, std::move(s->payload)};
+    lk::Sample echo;
+    echo.id = set_id;
+    echo.payload = std::move(s->payload);
     put(echo.payload, 16, bench::monotonic_ns());
     channel->send(echo);
     // The last one: done (the bus side's stop() does not close an accepted channel at once).

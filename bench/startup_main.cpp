@@ -7,6 +7,7 @@
 #include <sys/wait.h>
 #include <CLI/CLI.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <condition_variable>
 #include <cstdio>
@@ -41,8 +42,15 @@ struct FirstSamples {
   std::size_t devices_online = 0;
   std::int64_t first_online_ns = 0;
   std::int64_t all_online_ns = 0;
-  std::vector<bool> online;
+  std::vector<std::int64_t> online_at;  // per device: when its first live sample came (0: not yet)
 };
+
+// When the devices came online, ms after t0: the p-th percentile over all of them (every one online).
+double online_percentile_ms(std::vector<std::int64_t> at, double p, std::int64_t t0) {
+  std::sort(at.begin(), at.end());
+  const auto i = static_cast<std::size_t>(p / 100.0 * static_cast<double>(at.size() - 1) + 0.5);
+  return static_cast<double>(at[i] - t0) / 1e6;
+}
 
 }  // namespace
 
@@ -74,7 +82,7 @@ int main(int argc, char** argv) {
 
   FirstSamples first;  // outlives the participant's listeners
   first.seen.assign(static_cast<std::size_t>(buses * devices), false);
-  first.online.assign(first.seen.size(), false);
+  first.online_at.assign(first.seen.size(), 0);
   auto dds = lb::ddsl::Participant::create(bench::participant_options(program, program.name()));
   if (!dds) return program.fail(dds.error().message);
   for (int b = 0; b < buses; ++b) {
@@ -90,10 +98,10 @@ int main(int argc, char** argv) {
               if (first.devices_seen++ == 0) first.first_ns = now;
               if (first.devices_seen == first.seen.size()) first.all_ns = now;
             }
-            if (s.health().online() && !first.online[index]) {
-              first.online[index] = true;
+            if (s.health().online() && first.online_at[index] == 0) {
+              first.online_at[index] = now;
               if (first.devices_online++ == 0) first.first_online_ns = now;
-              if (first.devices_online == first.online.size()) first.all_online_ns = now;
+              if (first.devices_online == first.online_at.size()) first.all_online_ns = now;
             }
             first.cv.notify_all();
           });
@@ -110,7 +118,7 @@ int main(int argc, char** argv) {
   {
     std::unique_lock lock(first.m);
     all = first.cv.wait_for(lock, std::chrono::duration<double>(timeout_s), [&] {
-      return first.devices_seen == first.seen.size() && (!online || first.devices_online == first.online.size());
+      return first.devices_seen == first.seen.size() && (!online || first.devices_online == first.online_at.size());
     });
   }
   std::this_thread::sleep_for(std::chrono::duration<double>(settle_s));
@@ -128,8 +136,12 @@ int main(int argc, char** argv) {
   if (first.devices_online > 0) {
     report += fmt::format("startup_first_online_ms={:.1f}\n", static_cast<double>(first.first_online_ns - t0) / 1e6);
   }
-  if (first.devices_online == first.online.size()) {
+  if (first.devices_online == first.online_at.size()) {
     report += fmt::format("startup_all_online_ms={:.1f}\n", static_cast<double>(first.all_online_ns - t0) / 1e6);
+    // The devices' boot times: they boot side by side, so the spread says whether any waited for another.
+    for (const double p : {10.0, 50.0, 90.0}) {
+      report += fmt::format("startup_online_p{:.0f}_ms={:.1f}\n", p, online_percentile_ms(first.online_at, p, t0));
+    }
   }
   report += fmt::format("startup_rss_kib={}\nstartup_hwm_kib={}\nstartup_pss_kib={}\nstartup_exit={}\n", mem.rss_kib,
                         mem.hwm_kib, mem.pss_kib, WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status));

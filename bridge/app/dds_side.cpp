@@ -31,6 +31,8 @@ constexpr int kSendTimeoutMs = 200;
 // watchdog (a DDS side cut off from its bus serves nothing true).
 constexpr auto kBusSilence = std::chrono::seconds(3);
 constexpr auto kConnectFor = std::chrono::seconds(10);
+// How soon a stop signal is seen while samples stream (when none do, at every receive timeout).
+constexpr auto kSignalCheckEvery = std::chrono::milliseconds(20);
 
 bool stop_pending() {
   const sigset_t set = stop_signals();
@@ -49,15 +51,17 @@ class Relay {
       writers_[d.id] = *w;
       return {};
     }
-    return dds_.subscribe_raw(d, [this, id = d.id](const std::vector<std::uint8_t>& cdr, const fdds::SampleInfo& info,
-                                                   std::vector<std::string> partitions) {
+    // A reader of one bus's devices sends on that bus's lane (Declare::lane): straight to its loop.
+    return dds_.subscribe_raw(d, [this, id = d.id, lane = d.lane](const std::vector<std::uint8_t>& cdr,
+                                                                  const fdds::SampleInfo& info,
+                                                                  std::vector<std::string> partitions) {
       link::Sample s;
       s.id = id;
       s.identity = ddsl::to_link(info.sample_identity);
       s.related = ddsl::to_link(info.related_sample_identity);
       s.partitions = std::move(partitions);
       s.payload = cdr;
-      if (!channel_.send(s)) not_forwarded_.fetch_add(1, std::memory_order_relaxed);
+      if (!channel_.send(lane, std::move(s))) not_forwarded_.fetch_add(1, std::memory_order_relaxed);
     });
   }
 
@@ -113,9 +117,19 @@ int run_dds_side(const ddsl::ParticipantOptions& options, const std::string& lin
 
   std::unique_ptr<link::DdsChannel> channel;
   while (true) {
-    auto c = link::DdsChannel::connect(channel_path, kSendTimeoutMs);
+    auto c = link::connect_channel(channel_path, kSendTimeoutMs);
     if (c) {
-      channel = std::move(*c);
+      // Connected: the bus side accepts once its line is set up, and what it says then is its
+      // answer; a refusal is final.
+      while (!channel) {
+        auto greeted = link::DdsChannel::greet(*c, kSendTimeoutMs, 100);
+        if (!greeted) {
+          spdlog::error("channel {}: {}; this DDS side ends", channel_path, greeted.error().message);
+          return kExitFailure;
+        }
+        channel = std::move(*greeted);
+        if (!channel && stop_pending()) return kExitOk;
+      }
       break;
     }
     if (std::chrono::steady_clock::now() - started > kConnectFor) {
@@ -126,19 +140,31 @@ int run_dds_side(const ddsl::ParticipantOptions& options, const std::string& lin
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
   }
 
+  if (const auto& hello = channel->hello(); hello.line != line) {
+    spdlog::error("channel {} serves line '{}', this DDS side is configured for '{}'", channel_path, hello.line, line);
+    return kExitUsage;
+  }
+  spdlog::info("channel {}: bus process pid {} of line {}, {} lane(s)", channel_path, channel->hello().pid,
+               channel->hello().line, channel->hello().lanes);
+
   Relay relay(**dds, *channel);
   uint64_t watchdog_usec = 0;
   const bool watchdog = sd_watchdog_enabled(0, &watchdog_usec) > 0;
   auto last_ping = std::chrono::steady_clock::now();
   auto next_tick = last_ping;
+  auto next_signal_check = last_ping;
   bool ready = false;
   std::size_t endpoints = 0;
   while (true) {
     const auto now = std::chrono::steady_clock::now();
     if (duration.count() > 0 && now - started >= duration) return kExitOk;
-    if (stop_pending()) {
-      sd_notify(0, "STOPPING=1");
-      return kExitOk;
+    // Not once per message: a system call per sample is what this loop's throughput is made of.
+    if (now >= next_signal_check) {
+      next_signal_check = now + kSignalCheckEvery;
+      if (stop_pending()) {
+        sd_notify(0, "STOPPING=1");
+        return kExitOk;
+      }
     }
     if (now >= next_tick) {
       next_tick = now + std::chrono::seconds(1);
@@ -160,14 +186,7 @@ int run_dds_side(const ddsl::ParticipantOptions& options, const std::string& lin
     }
     if (!*message) continue;
     auto& m = **message;
-    if (auto* hello = std::get_if<link::Hello>(&m)) {
-      if (hello->line != line) {
-        spdlog::error("channel {} serves line '{}', this DDS side is configured for '{}'", channel_path, hello->line,
-                      line);
-        return kExitUsage;
-      }
-      spdlog::info("channel {}: bus process pid {} of line {}", channel_path, hello->pid, hello->line);
-    } else if (auto* declare = std::get_if<link::Declare>(&m)) {
+    if (auto* declare = std::get_if<link::Declare>(&m)) {
       if (auto made = relay.declare(*declare); !made) {
         spdlog::error("{}", made.error().message);
         return (*dds)->secured() ? kExitUsage : kExitFailure;

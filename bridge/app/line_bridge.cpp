@@ -58,6 +58,20 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
     bridge->buses_.push_back(std::move(rt));
   }
 
+  // Over the channel, one lane per bus: its devices' set values and requests reach its loop from
+  // the DDS process in one hop (link/bus_channel.hpp). Before the channel starts, so that every
+  // DDS side gets them.
+  if (auto* channel = bridge->dds_->channel()) {
+    try {
+      for (auto& rt : bridge->buses_) {
+        rt.lane = channel->add_lane();
+        rt.loop->watch(channel->lane_fd(rt.lane), [channel, lane = rt.lane] { channel->read_lane(lane); });
+      }
+    } catch (const std::exception& e) {
+      return make_error(e.what());
+    }
+  }
+
   // The set values in force survive a restart (what comes back, and into which device, is the
   // start-up policy's: PdoWiring). A state directory that cannot be used costs that, not the line,
   // and says so in diagnostics and the log (--check refuses it).
@@ -113,12 +127,14 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
         *rt.loop,      *rt.nodes.back(), rt.sync.get(), rt.sdo.get(),         *bridge->dds_,
         config.line,   *rt.config,       dev,           dev.bridge_profile(), bridge->set_values_.get(),
         config.startup};
+    bridge->dds_->set_reader_lane(rt.lane);  // the device's readers: on its bus's lane
     try {
       rt.services.push_back(std::make_unique<gateways::DeviceServices>(ctx));
       rt.gateways.push_back(gateways::make_gateway(ctx));
     } catch (const std::runtime_error& e) {
       return make_error(e.what());
     }
+    bridge->dds_->set_reader_lane(0);  // line-wide readers (management, diagnostics): the channel's thread
     managed.push_back({dev.name, dev.resolved_profile->device + ", " + dev.resolved_profile->key(),
                        rt.services.back().get(), rt.gateways.back()->commands()});
   }

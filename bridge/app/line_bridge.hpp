@@ -71,6 +71,7 @@ class LineBridge {
     std::vector<std::unique_ptr<gateways::Gateway>> gateways;
     // Master role, when a device of the bus is mandatory: the line-level policy for them.
     std::unique_ptr<gateways::MandatoryDevices> mandatory;
+    std::uint32_t lane = 0;  // over the channel: the lane its devices' readers use (0: none)
   };
 
   // Before the buses: their gateways keep set values in it until they are gone.

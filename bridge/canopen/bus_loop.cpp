@@ -20,6 +20,7 @@ namespace {
 constexpr std::uint64_t kBusTag = 0;
 constexpr std::uint64_t kWakeTag = 1;
 constexpr std::uint64_t kTimerTagBase = 2;
+constexpr std::uint64_t kWatchTagBase = std::uint64_t{1} << 32;  // timers never number that many
 
 void epoll_add(int epoll_fd, int fd, std::uint64_t tag) {
   epoll_event ev{};
@@ -125,13 +126,27 @@ void BusLoop::disarm_timer(TimerId id) {
   ::timerfd_settime(timers_.at(id)->fd, 0, &spec, nullptr);
 }
 
+void BusLoop::watch(int fd, Task on_readable) {
+  epoll_add(epoll_fd_, fd, kWatchTagBase + watches_.size());
+  watches_.push_back({fd, std::move(on_readable), 0});
+}
+
+void BusLoop::wake_for_posted() {
+  // The loop thread runs its own posts before it waits again (loop()): no system call for them.
+  if (on_loop_thread()) {
+    posted_here_ = true;
+    return;
+  }
+  const std::uint64_t one = 1;
+  [[maybe_unused]] auto n = ::write(wake_fd_, &one, sizeof one);
+}
+
 void BusLoop::post(Task task) {
   {
     std::lock_guard lock(posted_mutex_);
     posted_.push_back(std::move(task));
   }
-  const std::uint64_t one = 1;
-  [[maybe_unused]] auto n = ::write(wake_fd_, &one, sizeof one);
+  wake_for_posted();
 }
 
 bool BusLoop::try_post(Task task) {
@@ -149,8 +164,7 @@ bool BusLoop::try_post(Task task) {
     }
   }
   if (accepted) {
-    const std::uint64_t one = 1;
-    [[maybe_unused]] auto n = ::write(wake_fd_, &one, sizeof one);
+    wake_for_posted();
   } else if (log) {
     spdlog::warn("{}: {} requests already wait for the bus loop: request refused ({} refused in all){}", bus_->uri(),
                  kMaxPosted, posts_refused(), held_back == 0 ? "" : fmt::format(" ({} more not logged)", held_back));
@@ -208,6 +222,7 @@ void BusLoop::stop() {
 // The loop's own failures end it: a loop that cannot wait or read its descriptors any more must
 // not look alive to a service manager.
 void BusLoop::run() {
+  loop_thread_.store(std::this_thread::get_id(), std::memory_order_relaxed);
   schedule_thread();
   std::string why;
   try {
@@ -225,7 +240,10 @@ void BusLoop::run() {
 void BusLoop::loop() {
   std::array<epoll_event, 16> events{};
   for (;;) {
-    const int n = ::epoll_wait(epoll_fd_, events.data(), static_cast<int>(events.size()), -1);
+    // Work posted on this thread runs first; what it posts in turn waits for the next round, so
+    // the descriptors are still polled (without blocking) in between.
+    run_posted_here();
+    const int n = ::epoll_wait(epoll_fd_, events.data(), static_cast<int>(events.size()), posted_here_ ? 0 : -1);
     iterations_.fetch_add(1, std::memory_order_relaxed);
     if (n < 0) {
       if (errno == EINTR) continue;
@@ -244,11 +262,22 @@ void BusLoop::loop() {
         }
         run_posted();
         if (backlog_) drain_bus();
+      } else if (tag >= kWatchTagBase) {
+        auto& w = watches_[tag - kWatchTagBase];
+        guarded(w.on_readable, &w.failures, "watched descriptor", static_cast<std::uint32_t>(tag - kWatchTagBase));
+        // What it posted (a set value's frame) goes out now, not after the round's other events.
+        run_posted_here();
       } else {
         run_timer(tag - kTimerTagBase);
       }
     }
   }
+}
+
+void BusLoop::run_posted_here() {
+  if (!posted_here_) return;
+  posted_here_ = false;
+  run_posted();
 }
 
 void BusLoop::run_timer(TimerId id) {
@@ -268,6 +297,7 @@ void BusLoop::run_due_timers() {
 void BusLoop::drain_bus() {
   in_burst_ = true;
   backlog_ = false;
+  auto next_timer_poll = std::chrono::steady_clock::time_point::min();
   for (int in_burst = 0, taken = 0;; ++in_burst, ++taken) {
     if (taken == kFramesPerWake) {
       // Back to epoll, so that due timers and posted work run; the wake-up brings the loop back
@@ -282,8 +312,12 @@ void BusLoop::drain_bus() {
       in_burst = 0;
     }
     // A due SYNC goes out between two frames, not after the burst: its period must not depend on
-    // how many frames a flood brings (one poll of the timers costs far less than a frame).
-    run_due_timers();
+    // how many frames a flood brings. Polled every kTimerPollEvery, not every frame: the poll is a
+    // system call, and a burst's frames take a few microseconds each.
+    if (const auto now = std::chrono::steady_clock::now(); now >= next_timer_poll) {
+      next_timer_poll = now + kTimerPollEvery;
+      run_due_timers();
+    }
     auto r = bus_->receive();
     if (!r) {
       spdlog::warn("{}: receive failed: {}", bus_->uri(), r.error().message);

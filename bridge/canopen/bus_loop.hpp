@@ -60,6 +60,9 @@ class BusLoop {
   // after every frame and adds no latency. Registration: before start() or on the loop thread.
   static constexpr int kBurstFrames = 64;
   static constexpr int kFramesPerWake = 64;  // one burst (kBurstFrames): timers wait for at most one
+  // Within a burst, how often due timers are looked for between two frames: what a SYNC may wait
+  // beyond its time while frames flood in (plus the frame being handled).
+  static constexpr std::chrono::microseconds kTimerPollEvery{20};
   // A frame handler or timer that threw this many times in a row (a normal return starts the count
   // again) ends the loop through on_failure.
   static constexpr std::uint32_t kMaxHandlerFailures = 10;
@@ -68,8 +71,13 @@ class BusLoop {
   // outside frame dispatch. Requests before that run coalesce into one call.
   void request_flush(FlushId id);
 
+  // Before start(): `on_readable` runs on the loop thread whenever `fd` (which the caller keeps
+  // open) has something to read. Level-triggered: a callback that leaves data is called again.
+  void watch(int fd, Task on_readable);
+
   // Any thread: runs the task on the loop thread, in posting order. For the bridge's own work,
-  // which its callers bound (SDO kicks, one diagnostics snapshot a second, start-up).
+  // which its callers bound (SDO kicks, one diagnostics snapshot a second, start-up). Posted on
+  // the loop thread itself, it runs once the current wake-up's work is done, without a wake-up.
   void post(Task task);
   // Any thread: as post(), for what other applications ask for (service requests, set values,
   // commands), which arrives as fast as DDS delivers it. Refused while kMaxPosted tasks wait: the
@@ -100,7 +108,7 @@ class BusLoop {
 
   void start();
   void stop();  // idempotent; joins the thread
-  bool on_loop_thread() const { return std::this_thread::get_id() == thread_.get_id(); }
+  bool on_loop_thread() const { return std::this_thread::get_id() == loop_thread_.load(std::memory_order_relaxed); }
 
   // Any thread: how many times the loop has woken up (epoll) so far. A service watchdog feeds
   // systemd only while this grows on every bus; arm a periodic timer so an idle loop still wakes.
@@ -129,6 +137,11 @@ class BusLoop {
     FrameHandler fn;
     std::uint32_t failures = 0;
   };
+  struct Watch {
+    int fd = -1;
+    Task on_readable;
+    std::uint32_t failures = 0;
+  };
 
   void run();
   void schedule_thread();  // on the loop thread, before its first wait
@@ -144,6 +157,8 @@ class BusLoop {
   void run_timer(TimerId id);
   void run_due_timers();  // between the frames of a burst
   void run_posted();
+  void run_posted_here();  // what was posted on the loop thread, if anything
+  void wake_for_posted();  // after a task joined posted_
   void dispatch(const can::CanFrame& frame);
   void run_flushes();
 
@@ -152,6 +167,7 @@ class BusLoop {
   int timers_fd_ = -1;  // epoll over the timers only: polled between frames
   int wake_fd_ = -1;    // eventfd: posted tasks and stop
   std::vector<std::unique_ptr<Timer>> timers_;
+  std::vector<Watch> watches_;
   std::array<std::vector<Handler>, cob::kStandardIdCount> handlers_;
   std::vector<std::pair<std::uint32_t, Handler>> extended_handlers_;  // few: a linear scan
   std::vector<Handler> other_handlers_;
@@ -162,6 +178,7 @@ class BusLoop {
   std::vector<Flush> flushes_;
   std::vector<FlushId> requested_flushes_;
   bool in_burst_ = false;
+  bool posted_here_ = false;  // a task was posted on the loop thread: run before the next wait
   bool backlog_ = false;
   bool held_ = false;
   std::uint64_t frames_held_ = 0;  // drain_bus() stopped at kFramesPerWake with frames possibly left
@@ -183,6 +200,8 @@ class BusLoop {
   LogRate refused_log_;    // guarded by posted_mutex_
   std::atomic<std::uint64_t> posts_refused_{0};
   std::atomic<std::uint64_t> iterations_{0};
+  // Set by the loop thread first thing: other threads read it (post) while start() assigns thread_.
+  std::atomic<std::thread::id> loop_thread_{};
   std::thread thread_;
 };
 

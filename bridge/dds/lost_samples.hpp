@@ -14,12 +14,14 @@
 #include <fastdds/dds/subscriber/SampleInfo.hpp>
 
 #include "base/log_rate.hpp"
+#include "link/pi_mutex.hpp"
 
 namespace lb::ddsl {
 
 class LostSamples {
  public:
-  // Any Fast DDS thread, for every sample taken from a command reader.
+  // Any Fast DDS thread (or bus loop, for a reader on a lane), for every sample taken from a
+  // command reader.
   void seen(const eprosima::fastrtps::rtps::SampleIdentity& id, const std::string& topic);
   std::uint64_t lost() const { return lost_.load(std::memory_order_relaxed); }
 
@@ -28,7 +30,7 @@ class LostSamples {
   // which can only miss a gap, never invent one.
   static constexpr std::size_t kMaxWriters = 1024;
 
-  std::mutex mutex_;
+  link::PiMutex mutex_;  // a realtime bus loop may wait on it (lanes): priority inheritance
   std::map<eprosima::fastrtps::rtps::GUID_t, std::uint64_t> last_;
   LogRate log_{2};
   std::atomic<std::uint64_t> lost_{0};

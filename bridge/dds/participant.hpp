@@ -224,6 +224,11 @@ class Participant {
   // stay on this side, so a restarted DDS process changes nothing a client can tell but a pause.
   static std::unique_ptr<Participant> over_channel(const ParticipantOptions& options, link::BusChannel& channel);
   const link::BusChannel* channel() const { return channel_; }
+  link::BusChannel* channel() { return channel_; }
+  // Over the channel: the lane (link::BusChannel::add_lane) of the readers subscribed from now on,
+  // whose callbacks then run on the thread that reads the lane (its bus loop); 0: the channel's
+  // own thread. Set while one bus's devices are created (app/line_bridge.cpp).
+  void set_reader_lane(std::uint32_t lane) { reader_lane_ = lane; }
   // What the site's profiles set that was not applied (contract QoS, transports over
   // localhost_only, ...), one line each, for the log and --check.
   std::vector<std::string> site_notes() const;
@@ -410,7 +415,7 @@ class Participant {
 
   template <class PubSubType>
   static link::Declare declaration(const std::string& topic, QosKind kind, bool writer, const std::string& partition,
-                                   int keep_last, bool any_partition) {
+                                   int keep_last, bool any_partition, std::uint32_t lane = 0) {
     PubSubType type;
     link::Declare d;
     d.writer = writer;
@@ -421,6 +426,7 @@ class Participant {
     d.topic = topic;
     d.type = type.getName();
     d.partition = partition;
+    d.lane = lane;
     return d;
   }
   template <class PubSubType>
@@ -429,12 +435,13 @@ class Participant {
                                       kind == QosKind::state, kind == QosKind::state && is_status_topic(topic));
     return Writer<PubSubType>(*channel_, id);
   }
-  // The channel's thread runs the callback, as a Fast DDS listener thread would, behind the same gate.
+  // The channel's thread (or the reader's lane's) runs the callback, as a Fast DDS listener thread
+  // would, behind the same gate.
   template <class PubSubType>
   Result<void> channel_reader(const std::string& topic, QosKind kind, SampleCallback<PubSubType> callback,
                               int keep_last, bool any_partition) {
     channel_->declare_reader(declaration<PubSubType>(topic, kind, false, any_partition ? "*" : "", keep_last,
-                                                     any_partition),
+                                                     any_partition, any_partition ? 0 : reader_lane_),
                              [this, cb = std::move(callback), gate = gate_, lost = lost_for(kind), topic,
                               any_partition](const link::Sample& s) {
                                std::shared_lock lock(gate->mutex);
@@ -481,6 +488,7 @@ class Participant {
   bool planning_ = false;
   Incarnation incarnation_ = draw_incarnation();
   link::BusChannel* channel_ = nullptr;
+  std::uint32_t reader_lane_ = 0;
   // Over the channel: the partitions the DDS process last said a writer is in (guarded by mutex_).
   std::map<eprosima::fastrtps::rtps::GUID_t, std::vector<std::string>> channel_partitions_;
   std::chrono::steady_clock::time_point last_undecodable_log_{};

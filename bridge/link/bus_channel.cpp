@@ -9,6 +9,7 @@
 #include <cerrno>
 #include <chrono>
 #include <cstring>
+#include <stdexcept>
 
 #include "base/log_rate.hpp"
 
@@ -44,10 +45,77 @@ std::uint32_t BusChannel::declare(Declare declaration, bool latest, bool first) 
 
 std::uint32_t BusChannel::declare_reader(Declare declaration, SampleHandler handler) {
   declaration.writer = false;
-  const auto id = declare(std::move(declaration), false);
+  auto shared = std::make_shared<const SampleHandler>(std::move(handler));
   std::lock_guard lock(mutex_);
-  endpoints_[id].handler = std::move(handler);
-  return id;
+  // Handler first, then the declaration: a DDS side told of the reader may send at once.
+  declaration.id = static_cast<std::uint32_t>(endpoints_.size());
+  if (counters_.connected) backlog_.push_back(encode(declaration));
+  endpoints_.push_back({std::move(declaration), false, false, std::move(shared)});
+  wake();
+  return endpoints_.back().declaration.id;
+}
+
+std::uint32_t BusChannel::add_lane() {
+  if (thread_.joinable()) throw std::logic_error("BusChannel::add_lane after start()");
+  auto pair = make_lane();
+  if (!pair) throw std::runtime_error("channel " + options_.path + ": " + pair.error().message);
+  auto lane = std::make_unique<Lane>();
+  lane->bus = std::move(pair->bus);
+  lane->dds = std::move(pair->dds);
+  lanes_.push_back(std::move(lane));
+  return static_cast<std::uint32_t>(lanes_.size());
+}
+
+int BusChannel::lane_fd(std::uint32_t lane) const { return lanes_.at(lane - 1)->bus.get(); }
+
+void BusChannel::read_lane(std::uint32_t lane) {
+  auto& l = *lanes_.at(lane - 1);
+  const auto room = l.buffer.room();
+  const auto n = ::recv(l.bus.get(), room.data(), room.size(), MSG_DONTWAIT);
+  if (n <= 0) return;  // empty (the DDS end stays open here: never end of file)
+  auto message = decode(l.buffer.first(static_cast<std::size_t>(n)));
+  auto* sample = message ? std::get_if<Sample>(&*message) : nullptr;
+  if (sample == nullptr) {
+    {
+      std::lock_guard lock(mutex_);
+      ++counters_.bad_messages;
+    }
+    spdlog::warn("channel {} lane {}: {}", options_.path, lane,
+                 message ? "not a sample: dropped" : message.error().message);
+    return;
+  }
+  if (sample->connection != connection_.load(std::memory_order_acquire)) {
+    std::lock_guard lock(mutex_);  // a DDS side that was replaced: what it still sent is not the line's
+    ++counters_.stale_lane_samples;
+    return;
+  }
+  take_sample(*sample, lane);
+}
+
+void BusChannel::take_sample(const Sample& sample, std::uint32_t lane) {
+  std::shared_ptr<const SampleHandler> handler;
+  bool wrong_lane = false;
+  {
+    std::lock_guard lock(mutex_);
+    ++counters_.samples_received;
+    if (sample.id < endpoints_.size()) {
+      const auto& e = endpoints_[sample.id];
+      // A lane's samples run on its loop: one of another lane's readers there would race that
+      // reader's own loop. The channel's thread may run any reader's (its handlers only post).
+      wrong_lane = lane != 0 && e.declaration.lane != lane;
+      if (wrong_lane) {
+        ++counters_.bad_messages;
+      } else {
+        handler = e.handler;
+      }
+    }
+  }
+  if (wrong_lane) {
+    spdlog::warn("channel {}: a sample of endpoint {} on lane {}, not its own: dropped", options_.path, sample.id,
+                 lane);
+    return;
+  }
+  if (handler && *handler) (*handler)(sample);
 }
 
 void BusChannel::start() {
@@ -58,11 +126,22 @@ void BusChannel::start() {
 void BusChannel::stop() {
   stop_ = true;
   wake();
-  if (thread_.joinable()) thread_.join();
-  // The DDS side sees the channel end now, not when this object goes.
-  std::lock_guard lock(mutex_);
-  peer_.reset();
-  counters_.connected = false;
+  if (!thread_.joinable()) return;
+  thread_.join();
+  Counters c;
+  {
+    // The DDS side sees the channel end now, not when this object goes.
+    std::lock_guard lock(mutex_);
+    peer_.reset();
+    counters_.connected = false;
+    c = counters_;
+  }
+  // What the DDS sides got over the run, and what they did not: for the log.
+  spdlog::info("channel {}: {} sample(s) sent to {} DDS side(s), {} received; {} state sample(s) replaced by a newer "
+               "one before they were sent; dropped: {} with no DDS side, {} beyond the queue; {} from a replaced DDS "
+               "side on a lane, {} undecodable",
+               options_.path, c.samples_sent, c.connects, c.samples_received, c.states_superseded, c.dropped_no_peer,
+               c.dropped_queue_full, c.stale_lane_samples, c.bad_messages);
 }
 
 void BusChannel::wake() {
@@ -89,7 +168,7 @@ void BusChannel::publish(std::uint32_t id, std::vector<std::uint8_t> payload, co
     if (endpoints_[id].latest) {
       // Kept while no DDS side is there: the next one's snapshot starts from it.
       latest_[id] = std::move(datagram);
-      if (counters_.connected && !direct) dirty_.insert(id);
+      if (counters_.connected && !direct && !dirty_.insert(id).second) ++counters_.states_superseded;
       if (direct) return;
     } else if (direct) {
       return;
@@ -179,12 +258,15 @@ void BusChannel::accept_peer() {
   // Logged after the lock: a realtime bus loop may wait on mutex_, and the log's queue has a
   // plain mutex of its own (no priority inheritance through it).
   std::size_t endpoints = 0, samples = 0;
+  bool hello_sent = false;
+  int hello_errno = 0;
   {
     std::lock_guard lock(mutex_);
     peer_ = std::move(peer->fd);
     unsent_.reset();
     ++counters_.connects;
     counters_.connected = true;
+    connection_.store(counters_.connects, std::memory_order_release);
     // A new DDS side knows nothing. It creates the endpoints one at a time (a line of 8 x 30 devices
     // has about 1,500, seconds of work) and publishes a sample as soon as its writer exists: so the
     // state endpoints come first, each followed at once by its newest sample, then every other
@@ -193,8 +275,15 @@ void BusChannel::accept_peer() {
     backlog_.clear();
     queue_.clear();
     dirty_.clear();
-    backlog_.push_back(
-        encode(Hello{kChannelVersion, options_.line, options_.incarnation, static_cast<std::int32_t>(::getpid())}));
+    // The Hello goes first and at once, with the lanes' DDS ends: the socket is new and empty.
+    std::vector<int> lane_fds;
+    lane_fds.reserve(lanes_.size());
+    for (const auto& l : lanes_) lane_fds.push_back(l->dds.get());
+    const auto hello = encode(Hello{kChannelVersion, options_.line, options_.incarnation,
+                                    static_cast<std::int32_t>(::getpid()), counters_.connects,
+                                    static_cast<std::uint32_t>(lanes_.size())});
+    hello_sent = send_with_fds(peer_.get(), hello, lane_fds);
+    if (!hello_sent) hello_errno = errno;
     for (const bool first : {true, false}) {
       for (const auto& [id, datagram] : latest_) {
         if (endpoints_[id].first != first) continue;
@@ -210,13 +299,15 @@ void BusChannel::accept_peer() {
     endpoints = endpoints_.size();
     samples = latest_.size();
   }
-  spdlog::info("channel {}: DDS side connected (pid {}); {} endpoints and {} state samples sent", options_.path,
-               peer->pid, endpoints, samples);
+  if (!hello_sent) return drop_peer(std::string("its Hello could not be sent: ") + std::strerror(hello_errno));
+  spdlog::info("channel {}: DDS side connected (pid {}); {} endpoints and {} state samples sent, {} lane(s)",
+               options_.path, peer->pid, endpoints, samples, lanes_.size());
 }
 
 void BusChannel::drop_peer(const std::string& why) {
   {
-    std::lock_guard lock(mutex_);  // logged after it (see accept_peer)
+    std::lock_guard lock(mutex_);                     // logged after it (see accept_peer)
+    connection_.store(0, std::memory_order_release);  // what its lanes still carry is dropped
     peer_.reset();
     unsent_.reset();
     counters_.connected = false;
@@ -234,13 +325,14 @@ void BusChannel::drop_peer(const std::string& why) {
 
 void BusChannel::read_peer() {
   for (int i = 0; i < 64 && peer_; ++i) {
-    const auto n = ::recv(peer_.get(), buffer_.data(), buffer_.size(), MSG_DONTWAIT);
+    const auto room = buffer_.room();
+    const auto n = ::recv(peer_.get(), room.data(), room.size(), MSG_DONTWAIT);
     if (n < 0) {
       if (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR) return;
       return drop_peer(std::strerror(errno));
     }
     if (n == 0) return drop_peer("it closed the channel");
-    auto message = decode(std::span(buffer_.data(), static_cast<std::size_t>(n)));
+    auto message = decode(buffer_.first(static_cast<std::size_t>(n)));
     if (!message) {
       {
         std::lock_guard lock(mutex_);
@@ -256,13 +348,7 @@ void BusChannel::read_peer() {
     }
     auto* sample = std::get_if<Sample>(&*message);
     if (sample == nullptr) continue;  // nothing else is meant for this side
-    SampleHandler handler;
-    {
-      std::lock_guard lock(mutex_);
-      ++counters_.samples_received;
-      if (sample->id < endpoints_.size()) handler = endpoints_[sample->id].handler;
-    }
-    if (handler) handler(*sample);
+    take_sample(*sample, 0);
   }
 }
 

@@ -9,6 +9,12 @@
 // in one bounded queue, and what does not fit, or finds no DDS side, is dropped and counted. One
 // thread of its own does all socket work and runs the handlers of samples from the DDS side (it
 // plays the role Fast DDS's listener threads had: handlers post to bus loops and never block).
+//
+// Lanes: a reader declared on a lane gets its samples from the DDS side on that lane's own socket
+// pair, which the lane's bus loop reads itself (read_lane), so a set value reaches its bus loop in
+// one hop instead of two (channel thread, then the loop). The pairs are made once; every DDS side
+// gets their DDS ends with its Hello, and stamps its lane samples with its connection's number, so
+// that a replaced DDS side's late samples are dropped.
 
 #include <atomic>
 #include <cstdint>
@@ -46,8 +52,10 @@ class BusChannel {
     std::uint64_t samples_received = 0;
     std::uint64_t dropped_no_peer = 0;  // events and answers while no DDS side was connected
     std::uint64_t dropped_queue_full = 0;
-    std::uint64_t bad_messages = 0;  // from the DDS side, not decodable
-    DdsStats dds;                    // the DDS side's last report
+    std::uint64_t states_superseded = 0;   // a state's sample replaced by a newer one before it was sent
+    std::uint64_t bad_messages = 0;        // from the DDS side, not decodable (or on the wrong lane)
+    std::uint64_t stale_lane_samples = 0;  // on a lane from an earlier connection
+    DdsStats dds;                          // the DDS side's last report
   };
   using SampleHandler = std::function<void(const Sample&)>;
 
@@ -62,8 +70,20 @@ class BusChannel {
   // before the other state endpoints (a device's status, which tells an application the device
   // is there; the DDS side creates about 1,500 endpoints at a full line, one after another).
   std::uint32_t declare(Declare declaration, bool latest, bool first = false);
-  // A reader's samples from the DDS side reach `handler` on the channel's thread.
+  // A reader's samples from the DDS side reach `handler` on the channel's thread, or, for a
+  // declaration on a lane (Declare::lane, from add_lane()), on the thread that reads the lane.
   std::uint32_t declare_reader(Declare declaration, SampleHandler handler);
+
+  // Before start(): a new lane, numbered from 1. Its bus end (lane_fd) is read by read_lane(lane)
+  // on one thread (a bus loop, when lane_fd is readable); the handlers of the readers declared on
+  // it run there.
+  std::uint32_t add_lane();
+  int lane_fd(std::uint32_t lane) const;
+  // Reads one datagram of the lane, if one waits, and runs its sample's handler; never blocks. One,
+  // not a batch: what the handler posted goes out before the next is read (a set value's frame
+  // does not wait for a read that finds the lane empty), and a loop that watches the descriptor
+  // level-triggered comes back for the rest, between its other descriptors.
+  void read_lane(std::uint32_t lane);
 
   void start();
   void stop();  // idempotent; the destructor stops
@@ -83,12 +103,19 @@ class BusChannel {
     Declare declaration;
     bool latest = false;
     bool first = false;
-    SampleHandler handler;
+    std::shared_ptr<const SampleHandler> handler;  // shared: run outside the lock without a copy
+  };
+  struct Lane {
+    UniqueFd bus;
+    UniqueFd dds;           // handed to every DDS side
+    DatagramBuffer buffer;  // its reader's thread
   };
   using Datagram = std::vector<std::uint8_t>;
 
   void run();
   void accept_peer();
+  // A sample from the DDS side (channel or lane), decoded: its handler, run on the caller's thread.
+  void take_sample(const Sample& sample, std::uint32_t lane);
   void read_peer();
   bool flush();  // false when the peer is gone
   void drop_peer(const std::string& why);
@@ -107,8 +134,10 @@ class BusChannel {
   std::deque<Datagram> queue_;                // other samples, in order
   std::deque<Datagram> backlog_;              // a new peer's declarations and snapshot, first
   Counters counters_;
-  std::optional<Datagram> unsent_;  // a datagram the socket refused (full): sent first
-  std::vector<std::uint8_t> buffer_ = std::vector<std::uint8_t>(kMaxMessage);  // channel thread: receiving
+  std::optional<Datagram> unsent_;            // a datagram the socket refused (full): sent first
+  std::vector<std::unique_ptr<Lane>> lanes_;  // fixed once started
+  std::atomic<std::uint64_t> connection_{0};  // the peer's number (counters_.connects)
+  DatagramBuffer buffer_;                     // channel thread: receiving
 
   std::atomic<bool> stop_{false};
   std::atomic<bool> stopping_{false};

@@ -98,6 +98,8 @@ void put_body(Writer& w, const Hello& m) {
   w.put(m.line);
   w.put(m.incarnation);
   w.put(m.pid);
+  w.put(m.connection);
+  w.put(m.lanes);
 }
 void put_body(Writer& w, const Declare& m) {
   w.put(m.id);
@@ -109,10 +111,12 @@ void put_body(Writer& w, const Declare& m) {
   w.put(m.topic);
   w.put(m.type);
   w.put(m.partition);
+  w.put(m.lane);
 }
 void put_body(Writer& w, const Ready& m) { w.put(m.endpoints); }
 void put_body(Writer& w, const Sample& m) {
   w.put(m.id);
+  w.put(m.connection);
   w.put(m.identity);
   w.put(m.related);
   w.put(static_cast<std::uint32_t>(m.partitions.size()));
@@ -134,6 +138,8 @@ Message get_body(Reader& r, std::uint8_t type) {
       m.line = r.text();
       m.incarnation = r.get<std::uint64_t>();
       m.pid = r.get<std::int32_t>();
+      m.connection = r.get<std::uint64_t>();
+      m.lanes = r.get<std::uint32_t>();
       return m;
     }
     case 1: {
@@ -147,12 +153,14 @@ Message get_body(Reader& r, std::uint8_t type) {
       m.topic = r.text();
       m.type = r.text();
       m.partition = r.text();
+      m.lane = r.get<std::uint32_t>();
       return m;
     }
     case 2: return Ready{r.get<std::uint32_t>()};
     case 3: {
       Sample m;
       m.id = r.get<std::uint32_t>();
+      m.connection = r.get<std::uint64_t>();
       m.identity = r.identity();
       m.related = r.identity();
       const auto n = r.get<std::uint32_t>();

@@ -18,7 +18,7 @@
 namespace lb::link {
 
 // A change of any message's layout is a new version; the sides refuse each other's otherwise.
-inline constexpr std::uint16_t kChannelVersion = 1;
+inline constexpr std::uint16_t kChannelVersion = 2;
 // The largest datagram either side sends or accepts (a sample's CDR is far smaller: SDO uploads,
 // the largest payloads of the contract, are at most 64 KiB).
 inline constexpr std::size_t kMaxMessage = 256 * 1024;
@@ -31,12 +31,15 @@ struct Identity {
   bool operator==(const Identity&) const = default;
 };
 
-// bus -> dds, first on every connection.
+// bus -> dds, first on every connection, with the DDS ends of the bus side's lanes attached
+// (SCM_RIGHTS, lanes of them: lane k is the k-th descriptor).
 struct Hello {
   std::uint16_t version = kChannelVersion;
   std::string line;
   std::uint64_t incarnation = 0;  // the bus process's run (every service answer names it)
   std::int32_t pid = 0;
+  std::uint64_t connection = 0;  // this connection's number: the DDS side stamps its lane samples with it
+  std::uint32_t lanes = 0;
 };
 // bus -> dds: an endpoint the DDS side creates; `id` names it in samples both ways.
 struct Declare {
@@ -49,6 +52,9 @@ struct Declare {
   std::string topic;
   std::string type;
   std::string partition;
+  // Readers: the lane (1..Hello::lanes) their samples go to, straight to the bus loop that handles
+  // them; 0 (or a lane the DDS side was not given): the channel itself.
+  std::uint32_t lane = 0;
 };
 // bus -> dds: every endpoint declared and the snapshot sent; the DDS side may report ready.
 struct Ready {
@@ -59,6 +65,7 @@ struct Ready {
 // its writer was matched in (checked at discovery).
 struct Sample {
   std::uint32_t id = 0;
+  std::uint64_t connection = 0;  // dds -> bus: Hello::connection (a lane drops other connections' samples)
   Identity identity;
   Identity related;
   std::vector<std::string> partitions;

@@ -1,10 +1,12 @@
 #include "link/channel_socket.hpp"
 
+#include <fcntl.h>
 #include <sys/socket.h>
 #include <sys/stat.h>
 #include <sys/un.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 
@@ -77,6 +79,64 @@ Result<UniqueFd> connect_channel(const std::string& path, int timeout_ms) {
   ::setsockopt(fd.get(), SOL_SOCKET, SO_SNDTIMEO, &tv, sizeof(tv));
   ::setsockopt(fd.get(), SOL_SOCKET, SO_RCVTIMEO, &tv, sizeof(tv));
   return fd;
+}
+
+Result<LanePair> make_lane() {
+  int fds[2] = {-1, -1};
+  if (::socketpair(AF_UNIX, SOCK_SEQPACKET | SOCK_CLOEXEC, 0, fds) != 0)
+    return make_error(sys_error("lane socketpair"));
+  LanePair pair{UniqueFd(fds[0]), UniqueFd(fds[1])};
+  // Non-blocking on the bus end only (SOCK_NONBLOCK would set both): the DDS end blocks, with a
+  // send timeout, in every DDS side it is handed to (they share its open file, and so its flags).
+  const int flags = ::fcntl(pair.bus.get(), F_GETFL);
+  if (flags < 0 || ::fcntl(pair.bus.get(), F_SETFL, flags | O_NONBLOCK) != 0)
+    return make_error(sys_error("lane fcntl"));
+  return pair;
+}
+
+bool send_with_fds(int socket, std::span<const std::uint8_t> datagram, std::span<const int> fds) {
+  iovec iov{const_cast<std::uint8_t*>(datagram.data()), datagram.size()};  // the API takes void*
+  msghdr msg{};
+  msg.msg_iov = &iov;
+  msg.msg_iovlen = 1;
+  std::vector<std::uint8_t> control;
+  if (!fds.empty()) {
+    control.resize(CMSG_SPACE(sizeof(int) * fds.size()));
+    msg.msg_control = control.data();
+    msg.msg_controllen = control.size();
+    cmsghdr* c = CMSG_FIRSTHDR(&msg);
+    c->cmsg_level = SOL_SOCKET;
+    c->cmsg_type = SCM_RIGHTS;
+    c->cmsg_len = CMSG_LEN(sizeof(int) * fds.size());
+    std::memcpy(CMSG_DATA(c), fds.data(), sizeof(int) * fds.size());
+  }
+  return ::sendmsg(socket, &msg, MSG_DONTWAIT | MSG_NOSIGNAL) == static_cast<ssize_t>(datagram.size());
+}
+
+Result<Received> receive_with_fds(int socket, std::span<std::uint8_t> buffer, std::size_t max_fds) {
+  iovec iov{buffer.data(), buffer.size()};
+  msghdr msg{};
+  msg.msg_iov = &iov;
+  msg.msg_iovlen = 1;
+  std::vector<std::uint8_t> control(CMSG_SPACE(sizeof(int) * std::max<std::size_t>(max_fds, 1)));
+  msg.msg_control = control.data();
+  msg.msg_controllen = control.size();
+  const auto n = ::recvmsg(socket, &msg, MSG_CMSG_CLOEXEC);
+  if (n < 0) return make_error(sys_error("channel receive"));
+  Received got;
+  got.size = static_cast<std::size_t>(n);
+  for (cmsghdr* c = CMSG_FIRSTHDR(&msg); c != nullptr; c = CMSG_NXTHDR(&msg, c)) {
+    if (c->cmsg_level != SOL_SOCKET || c->cmsg_type != SCM_RIGHTS) continue;
+    const std::size_t count = (c->cmsg_len - CMSG_LEN(0)) / sizeof(int);
+    for (std::size_t i = 0; i < count; ++i) {
+      int fd = -1;
+      std::memcpy(&fd, CMSG_DATA(c) + i * sizeof(int), sizeof(int));
+      got.fds.emplace_back(fd);  // owned (and so closed) whether kept or not
+    }
+  }
+  if (got.fds.size() > max_fds) got.fds.resize(max_fds);
+  if (n == 0) return make_error("the bus side closed the channel");
+  return got;
 }
 
 }  // namespace lb::link

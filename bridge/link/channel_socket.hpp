@@ -8,16 +8,29 @@
 #include <sys/types.h>
 
 #include <cstdint>
+#include <memory>
 #include <span>
 #include <string>
 #include <vector>
 
 #include "base/result.hpp"
 #include "can/unique_fd.hpp"
+#include "link/channel_message.hpp"
 
 namespace lb::link {
 
 using can::UniqueFd;
+
+// Room for one datagram of the channel (up to kMaxMessage bytes). Not zeroed: its pages become
+// resident only as far as datagrams reach (most are under 1 KiB), not 256 KiB per reader at start.
+class DatagramBuffer {
+ public:
+  std::span<std::uint8_t> room() { return {bytes_.get(), kMaxMessage}; }
+  std::span<const std::uint8_t> first(std::size_t n) const { return {bytes_.get(), n}; }
+
+ private:
+  std::unique_ptr<std::uint8_t[]> bytes_ = std::make_unique_for_overwrite<std::uint8_t[]>(kMaxMessage);
+};
 
 // Binds and listens on `path` (an old socket file left by a killed process is replaced; anything
 // else there is an error), non-blocking.
@@ -35,5 +48,24 @@ Result<Peer> accept_channel(int listener);
 
 // Connects to a listening channel (blocking socket, with send and receive timeouts).
 Result<UniqueFd> connect_channel(const std::string& path, int timeout_ms);
+
+// A lane (docs/bus-isolation.md): a connected pair of SOCK_SEQPACKET sockets, made by the bus
+// process once; `bus` non-blocking, `dds` handed to every DDS side.
+struct LanePair {
+  UniqueFd bus;
+  UniqueFd dds;
+};
+Result<LanePair> make_lane();
+
+// One datagram with descriptors attached (SCM_RIGHTS), never blocking: false when the socket did
+// not take it whole.
+bool send_with_fds(int socket, std::span<const std::uint8_t> datagram, std::span<const int> fds);
+// One datagram and the descriptors attached to it (at most max_fds; the ones beyond are closed),
+// waiting as the socket's receive timeout says. Descriptors arrive close-on-exec.
+struct Received {
+  std::size_t size = 0;
+  std::vector<UniqueFd> fds;
+};
+Result<Received> receive_with_fds(int socket, std::span<std::uint8_t> buffer, std::size_t max_fds);
 
 }  // namespace lb::link

@@ -3,15 +3,18 @@
 // flooded bus does not starve the timers; held transmission sends nothing; a flood of requests is
 // refused beyond the queue's limit, and counted. A real loop over a virtual bus, with a second
 // member that sends and watches.
+#include <fcntl.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
 
 #include <atomic>
 #include <chrono>
+#include <functional>
 #include <future>
 #include <stdexcept>
 #include <string>
 #include <thread>
+#include <vector>
 
 #include "canopen/bus_loop.hpp"
 #include "support/bus_spy.hpp"
@@ -241,4 +244,62 @@ TEST_F(Loop, RequestsBeyondTheQueueLimitAreRefusedAndCounted) {
   EXPECT_TRUE(loop_->try_post([&ran] { ++ran; }));
   ASSERT_TRUE(eventually([&] { return ran == taken + 1; }));
   EXPECT_EQ(loop_->posts_refused(), refused);
+}
+
+// What a lane is to a bus loop: a descriptor it watches, read on the loop thread whenever there is
+// something, until the callback has taken all of it (level-triggered).
+TEST_F(Loop, AWatchedDescriptorIsReadOnTheLoopThreadUntilEmpty) {
+  int pipe_fds[2];
+  ASSERT_EQ(::pipe2(pipe_fds, O_NONBLOCK | O_CLOEXEC), 0);
+  std::atomic<int> bytes{0}, off_loop{0};
+  loop_->watch(pipe_fds[0], [&] {
+    if (!loop_->on_loop_thread()) ++off_loop;
+    char c;
+    if (::read(pipe_fds[0], &c, 1) == 1) ++bytes;  // one byte per call: the rest brings it back
+  });
+  loop_->start();
+  ASSERT_EQ(::write(pipe_fds[1], "abc", 3), 3);
+  EXPECT_TRUE(eventually([&] { return bytes == 3; }, 20s)) << bytes << " of 3 bytes read";
+  EXPECT_EQ(off_loop, 0);
+  loop_->stop();
+  ::close(pipe_fds[0]);
+  ::close(pipe_fds[1]);
+}
+
+// Work posted on the loop thread (what a lane's set value does) runs in posting order and with no
+// wake-up of its own; a task that posts itself again and again starves neither the timers nor
+// other threads' posts.
+TEST_F(Loop, WorkPostedOnTheLoopRunsInOrderAndARepostingTaskStarvesNothing) {
+  std::vector<int> order;  // loop thread only
+  std::atomic<bool> timer_ran{false}, stop_reposting{false}, reposting_done{false};
+  std::atomic<int> reposts{0};
+  std::function<void()> again = [&] {  // one in flight at a time: each posts at most the next
+    ++reposts;
+    if (stop_reposting) {
+      reposting_done = true;
+    } else {
+      loop_->post(again);
+    }
+  };
+  const auto t = loop_->create_timer([&] { timer_ran = true; });
+  loop_->start();
+  on_loop([&] {
+    loop_->post([&] { order.push_back(1); });
+    loop_->post([&] { order.push_back(2); });
+    order.push_back(0);
+  });
+  EXPECT_EQ(on_loop([&] { return order; }), (std::vector<int>{0, 1, 2}));
+
+  on_loop([&] {
+    loop_->post(again);
+    loop_->arm_timer(t, 1ms);
+  });
+  EXPECT_TRUE(eventually([&] { return timer_ran.load(); }, 20s)) << "the timer never ran beside the reposting task";
+  std::atomic<bool> other_thread_ran{false};
+  loop_->post([&] { other_thread_ran = true; });
+  EXPECT_TRUE(eventually([&] { return other_thread_ran.load(); }, 20s)) << "another thread's post never ran";
+  EXPECT_GT(reposts, 1);
+  stop_reposting = true;
+  // None left to run after this test's variables are gone.
+  EXPECT_TRUE(eventually([&] { return reposting_done.load(); }, 20s));
 }

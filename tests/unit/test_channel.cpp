@@ -2,6 +2,7 @@
 // messages, who may connect, what a (re)connecting DDS side is sent, and that the bus side's
 // publish never waits for a DDS side that does not read.
 #include <gtest/gtest.h>
+#include <poll.h>
 #include <sys/stat.h>
 #include <unistd.h>
 
@@ -67,6 +68,7 @@ Declare state_topic(const std::string& topic) {
 TEST(ChannelMessage, EveryMessageSurvivesItsEncodingAndTruncationIsRefused) {
   Sample s;
   s.id = 7;
+  s.connection = 0x0102030405060708;
   s.identity.guid[0] = 0x01;
   s.identity.guid[15] = 0xFE;
   s.identity.seq_high = -1;
@@ -78,6 +80,7 @@ TEST(ChannelMessage, EveryMessageSurvivesItsEncodingAndTruncationIsRefused) {
   ASSERT_TRUE(back) << back.error().message;
   const auto& got = std::get<Sample>(*back);
   EXPECT_EQ(got.id, 7u);
+  EXPECT_EQ(got.connection, s.connection);
   EXPECT_EQ(got.identity, s.identity);
   EXPECT_EQ(got.partitions, s.partitions);
   EXPECT_EQ(got.payload, s.payload);
@@ -88,6 +91,30 @@ TEST(ChannelMessage, EveryMessageSurvivesItsEncodingAndTruncationIsRefused) {
   auto longer = bytes;
   longer.push_back(0);
   EXPECT_FALSE(decode(longer));
+}
+
+TEST(ChannelMessage, TheHelloNamesItsConnectionAndLanesAndADeclarationItsLane) {
+  Hello h;
+  h.line = "line7";
+  h.incarnation = 99;
+  h.pid = 1234;
+  h.connection = 3;
+  h.lanes = 8;
+  auto back = decode(encode(h));
+  ASSERT_TRUE(back) << back.error().message;
+  const auto& hello = std::get<Hello>(*back);
+  EXPECT_EQ(hello.line, "line7");
+  EXPECT_EQ(hello.pid, 1234);
+  EXPECT_EQ(hello.connection, 3u);
+  EXPECT_EQ(hello.lanes, 8u);
+
+  Declare d = state_topic("rt/line7/saw1/setpoint");
+  d.writer = false;
+  d.lane = 5;
+  auto declared = decode(encode(d));
+  ASSERT_TRUE(declared) << declared.error().message;
+  EXPECT_EQ(std::get<Declare>(*declared).lane, 5u);
+  EXPECT_EQ(std::get<Declare>(*declared).topic, "rt/line7/saw1/setpoint");
 }
 
 TEST(ChannelMessage, AnotherVersionIsRefusedWithTheReason) {
@@ -140,7 +167,7 @@ TEST(BusChannel, EveryConnectionGetsTheStatesFirstEachWithItsNewestSampleThenThe
   for (int connection = 1; connection <= 2; ++connection) {
     auto dds = DdsChannel::connect(path, 1000);
     ASSERT_TRUE(dds) << dds.error().message;
-    const auto hello = next<Hello>(**dds);
+    const auto& hello = (*dds)->hello();
     EXPECT_EQ(hello.line, "line7");
     EXPECT_EQ(hello.incarnation, 99u);
     const auto d1 = next<Declare>(**dds);
@@ -239,4 +266,132 @@ TEST(BusChannel, WithNoDdsSideEventsAreDroppedAndCounted) {
   bus.publish(cuts, {0, 1, 0, 0});
   bus.publish(cuts, {0, 1, 0, 0});
   EXPECT_EQ(bus.counters().dropped_no_peer, 2u);
+}
+
+namespace {
+
+// What a bus loop does with its lane: waits (20 s at most) until something is there, then reads.
+bool read_lane_when_ready(BusChannel& bus, std::uint32_t lane) {
+  pollfd p{bus.lane_fd(lane), POLLIN, 0};
+  if (::poll(&p, 1, 20'000) != 1) return false;
+  bus.read_lane(lane);
+  return true;
+}
+
+struct Taken {
+  std::mutex m;
+  std::condition_variable cv;
+  std::vector<std::pair<Sample, std::thread::id>> samples;
+  BusChannel::SampleHandler handler() {
+    return [this](const Sample& s) {
+      std::lock_guard lock(m);
+      samples.emplace_back(s, std::this_thread::get_id());
+      cv.notify_all();
+    };
+  }
+  std::size_t size() {
+    std::lock_guard lock(m);
+    return samples.size();
+  }
+};
+
+// A bus side with one lane and one reader on it, started: what both lane tests begin with.
+struct OneLane {
+  explicit OneLane(const std::string& name) : opened(BusChannel::open({socket_path(name), "l", 1})) {
+    if (!opened) throw std::runtime_error(opened.error().message);
+    lane = bus().add_lane();
+    Declare setpoint = state_topic("rt/l/saw1/setpoint");
+    setpoint.lane = lane;
+    reader = bus().declare_reader(setpoint, taken.handler());
+  }
+  BusChannel& bus() { return **opened; }
+  std::string path() const { return (*opened)->path(); }
+  lb::Result<std::unique_ptr<BusChannel>> opened;
+  Taken taken;
+  std::uint32_t lane = 0;
+  std::uint32_t reader = 0;
+};
+
+}  // namespace
+
+// A set value's reader on a lane: its samples come on the lane's own socket and run on the thread
+// that reads the lane (a bus loop), not on the channel's.
+TEST(BusChannel, ALaneCarriesItsReadersSamplesToTheThreadThatReadsIt) {
+  OneLane line("lane");
+  auto& bus = line.bus();
+  const auto path = line.path();
+  const auto lane = line.lane;
+  EXPECT_EQ(lane, 1u);
+  auto& on_lane = line.taken;
+  Taken off_lane;
+  const auto lane_reader = line.reader;
+  const auto plain_reader = bus.declare_reader(state_topic("rq/l/bridge/nmtRequest"), off_lane.handler());
+  bus.start();
+  auto dds = DdsChannel::connect(path, 1000);
+  ASSERT_TRUE(dds) << dds.error().message;
+  EXPECT_EQ((*dds)->hello().lanes, 1u);
+  EXPECT_EQ((*dds)->hello().connection, 1u);
+  EXPECT_EQ(skip_to<Declare>(**dds).lane, lane) << "the declaration tells the DDS side the reader's lane";
+
+  Sample s;
+  s.id = lane_reader;
+  s.identity.seq_low = 11;
+  s.payload = {0, 1, 0, 0, 42};
+  ASSERT_TRUE((*dds)->send(lane, s));
+  ASSERT_TRUE(read_lane_when_ready(bus, lane)) << "nothing came on the lane";
+  ASSERT_EQ(on_lane.size(), 1u);
+  EXPECT_EQ(on_lane.samples[0].first.payload, s.payload);
+  EXPECT_EQ(on_lane.samples[0].first.identity, s.identity);
+  EXPECT_EQ(on_lane.samples[0].second, std::this_thread::get_id()) << "the handler ran on the lane's reader";
+
+  // Another reader's sample on this lane would run on the wrong loop: dropped and counted.
+  Sample stray = s;
+  stray.id = plain_reader;
+  const auto bad_before = bus.counters().bad_messages;
+  ASSERT_TRUE((*dds)->send(lane, stray));
+  ASSERT_TRUE(read_lane_when_ready(bus, lane));
+  EXPECT_EQ(bus.counters().bad_messages, bad_before + 1);
+  EXPECT_EQ(off_lane.size(), 0u);
+
+  // A lane the DDS side was not given: its samples go on the channel, to the channel's thread.
+  Sample plain = s;
+  plain.id = plain_reader;
+  ASSERT_TRUE((*dds)->send(7, plain));
+  std::unique_lock lock(off_lane.m);
+  ASSERT_TRUE(off_lane.cv.wait_for(lock, 20s, [&] { return !off_lane.samples.empty(); }));
+  EXPECT_NE(off_lane.samples[0].second, std::this_thread::get_id());
+}
+
+// A DDS side that was replaced still holds its lanes: what it sends there after the next one
+// connected is dropped (counted), and the new one's samples are taken.
+TEST(BusChannel, ALanesSamplesFromAReplacedDdsSideAreDropped) {
+  OneLane line("lane_stale");
+  auto& bus = line.bus();
+  const auto path = line.path();
+  const auto lane = line.lane;
+  auto& taken = line.taken;
+  const auto reader = line.reader;
+  bus.start();
+  auto first = DdsChannel::connect(path, 1000);
+  ASSERT_TRUE(first) << first.error().message;
+  auto second = DdsChannel::connect(path, 1000);
+  ASSERT_TRUE(second) << second.error().message;
+  EXPECT_EQ((*second)->hello().connection, (*first)->hello().connection + 1);
+  // The bus side counts a connection before it sends its Hello: nothing to wait for.
+  ASSERT_EQ(bus.counters().connects, 2u);
+
+  Sample late;
+  late.id = reader;
+  late.payload = {0, 1, 0, 0, 1};
+  ASSERT_TRUE((*first)->send(lane, late));
+  ASSERT_TRUE(read_lane_when_ready(bus, lane));
+  EXPECT_EQ(taken.size(), 0u) << "the replaced DDS side's sample was taken";
+  EXPECT_EQ(bus.counters().stale_lane_samples, 1u);
+
+  Sample fresh = late;
+  fresh.payload = {0, 1, 0, 0, 2};
+  ASSERT_TRUE((*second)->send(lane, fresh));
+  ASSERT_TRUE(read_lane_when_ready(bus, lane));
+  ASSERT_EQ(taken.size(), 1u);
+  EXPECT_EQ(taken.samples[0].first.payload, fresh.payload);
 }
