@@ -128,7 +128,7 @@ void BusLoop::disarm_timer(TimerId id) {
 
 void BusLoop::watch(int fd, Task on_readable) {
   epoll_add(epoll_fd_, fd, kWatchTagBase + watches_.size());
-  watches_.push_back({fd, std::move(on_readable), 0});
+  watches_.push_back({std::move(on_readable), 0});
 }
 
 void BusLoop::wake_for_posted() {

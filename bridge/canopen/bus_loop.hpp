@@ -138,7 +138,6 @@ class BusLoop {
     std::uint32_t failures = 0;
   };
   struct Watch {
-    int fd = -1;
     Task on_readable;
     std::uint32_t failures = 0;
   };

@@ -436,7 +436,9 @@ class Participant {
     return Writer<PubSubType>(*channel_, id);
   }
   // The channel's thread (or the reader's lane's) runs the callback, as a Fast DDS listener thread
-  // would, behind the same gate.
+  // would, behind the same gate. An any-partition reader stays on the channel's thread whatever the
+  // lane: its callback records the writer's partitions under mutex_, a plain mutex a realtime bus
+  // loop must not wait on.
   template <class PubSubType>
   Result<void> channel_reader(const std::string& topic, QosKind kind, SampleCallback<PubSubType> callback,
                               int keep_last, bool any_partition) {

@@ -35,22 +35,21 @@ BusChannel::~BusChannel() {
 }
 
 std::uint32_t BusChannel::declare(Declare declaration, bool latest, bool first) {
-  std::lock_guard lock(mutex_);
-  declaration.id = static_cast<std::uint32_t>(endpoints_.size());
-  if (counters_.connected) backlog_.push_back(encode(declaration));
-  endpoints_.push_back({std::move(declaration), latest, latest && first, {}});
-  wake();
-  return endpoints_.back().declaration.id;
+  return add_endpoint({std::move(declaration), latest, latest && first, {}});
 }
 
 std::uint32_t BusChannel::declare_reader(Declare declaration, SampleHandler handler) {
   declaration.writer = false;
-  auto shared = std::make_shared<const SampleHandler>(std::move(handler));
+  // With its handler in one step: a DDS side told of the reader may send at once.
+  return add_endpoint(
+      {std::move(declaration), false, false, std::make_shared<const SampleHandler>(std::move(handler))});
+}
+
+std::uint32_t BusChannel::add_endpoint(Endpoint endpoint) {
   std::lock_guard lock(mutex_);
-  // Handler first, then the declaration: a DDS side told of the reader may send at once.
-  declaration.id = static_cast<std::uint32_t>(endpoints_.size());
-  if (counters_.connected) backlog_.push_back(encode(declaration));
-  endpoints_.push_back({std::move(declaration), false, false, std::move(shared)});
+  endpoint.declaration.id = static_cast<std::uint32_t>(endpoints_.size());
+  if (counters_.connected) backlog_.push_back(encode(endpoint.declaration));
+  endpoints_.push_back(std::move(endpoint));
   wake();
   return endpoints_.back().declaration.id;
 }
@@ -84,11 +83,6 @@ void BusChannel::read_lane(std::uint32_t lane) {
                  message ? "not a sample: dropped" : message.error().message);
     return;
   }
-  if (sample->connection != connection_.load(std::memory_order_acquire)) {
-    std::lock_guard lock(mutex_);  // a DDS side that was replaced: what it still sent is not the line's
-    ++counters_.stale_lane_samples;
-    return;
-  }
   take_sample(*sample, lane);
 }
 
@@ -97,6 +91,12 @@ void BusChannel::take_sample(const Sample& sample, std::uint32_t lane) {
   bool wrong_lane = false;
   {
     std::lock_guard lock(mutex_);
+    // On a lane, a sample of any connection but the current one is from a DDS side that was
+    // replaced (it still holds the lane's other end): not the line's.
+    if (lane != 0 && (!counters_.connected || sample.connection != counters_.connects)) {
+      ++counters_.stale_lane_samples;
+      return;
+    }
     ++counters_.samples_received;
     if (sample.id < endpoints_.size()) {
       const auto& e = endpoints_[sample.id];
@@ -266,7 +266,6 @@ void BusChannel::accept_peer() {
     unsent_.reset();
     ++counters_.connects;
     counters_.connected = true;
-    connection_.store(counters_.connects, std::memory_order_release);
     // A new DDS side knows nothing. It creates the endpoints one at a time (a line of 8 x 30 devices
     // has about 1,500, seconds of work) and publishes a sample as soon as its writer exists: so the
     // state endpoints come first, each followed at once by its newest sample, then every other
@@ -306,8 +305,7 @@ void BusChannel::accept_peer() {
 
 void BusChannel::drop_peer(const std::string& why) {
   {
-    std::lock_guard lock(mutex_);                     // logged after it (see accept_peer)
-    connection_.store(0, std::memory_order_release);  // what its lanes still carry is dropped
+    std::lock_guard lock(mutex_);  // logged after it (see accept_peer)
     peer_.reset();
     unsent_.reset();
     counters_.connected = false;

@@ -112,6 +112,7 @@ class BusChannel {
   };
   using Datagram = std::vector<std::uint8_t>;
 
+  std::uint32_t add_endpoint(Endpoint endpoint);
   void run();
   void accept_peer();
   // A sample from the DDS side (channel or lane), decoded: its handler, run on the caller's thread.
@@ -136,7 +137,6 @@ class BusChannel {
   Counters counters_;
   std::optional<Datagram> unsent_;            // a datagram the socket refused (full): sent first
   std::vector<std::unique_ptr<Lane>> lanes_;  // fixed once started
-  std::atomic<std::uint64_t> connection_{0};  // the peer's number (counters_.connects)
   DatagramBuffer buffer_;                     // channel thread: receiving
 
   std::atomic<bool> stop_{false};

@@ -5,6 +5,7 @@
 
 #include <cerrno>
 #include <cstring>
+#include <string>
 
 namespace lb::link {
 namespace {
@@ -17,7 +18,10 @@ Result<std::unique_ptr<DdsChannel>> DdsChannel::connect(const std::string& path,
   auto fd = connect_channel(path, send_timeout_ms);
   if (!fd) return fd.error();
   auto channel = greet(*fd, send_timeout_ms, kHelloWaitMs);
-  if (channel && !*channel) return make_error("channel " + path + ": no Hello from the bus side within 10 s");
+  if (channel && !*channel) {
+    return make_error("channel " + path + ": no Hello from the bus side within " + std::to_string(kHelloWaitMs) +
+                      " ms");
+  }
   return channel;
 }
 

@@ -266,8 +266,8 @@ TEST_F(Loop, AWatchedDescriptorIsReadOnTheLoopThreadUntilEmpty) {
   ::close(pipe_fds[1]);
 }
 
-// Work posted on the loop thread (what a lane's set value does) runs in posting order and with no
-// wake-up of its own; a task that posts itself again and again starves neither the timers nor
+// Work posted on the loop thread (what a lane's set value does) runs in posting order, after the
+// task that posted it; a task that posts itself again and again starves neither the timers nor
 // other threads' posts.
 TEST_F(Loop, WorkPostedOnTheLoopRunsInOrderAndARepostingTaskStarvesNothing) {
   std::vector<int> order;  // loop thread only
