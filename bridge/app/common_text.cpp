@@ -119,10 +119,10 @@ std::string to_text(const msg::Diagnostics& d) {
   out += fmt::format("  set-value-store: {}\n", or_dash(d.set_value_store()));
   const auto& side = d.dds_side();
   out += fmt::format(
-      "  dds-side: connected {} connects {} samples-dropped {} samples-not-forwarded {} remote-participants {} "
-      "remote-participants-refused {}{}\n",
+      "  dds-side: connected {} connects {} samples-dropped {} samples-not-forwarded {} samples-on-lanes {} "
+      "remote-participants {} remote-participants-refused {}{}\n",
       yes_no(side.connected()), side.connects(), side.samples_dropped(), side.samples_not_forwarded(),
-      side.remote_participants(), side.remote_participants_refused(),
+      side.samples_on_lanes(), side.remote_participants(), side.remote_participants_refused(),
       side.connects() != 0 && !side.connected() ? "  (the DDS process is NOT CONNECTED)" : "");
   for (const auto& b : d.buses()) {
     out += fmt::format("  bus {:<12} {:<28} {:<7} {:<13} frames-in {:>9} ({:7.1f}/s) frames-out {:>9} ({:7.1f}/s) "

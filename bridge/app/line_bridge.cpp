@@ -197,6 +197,7 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
             side.connects(c.connects);
             side.samples_dropped(c.dropped_no_peer + c.dropped_queue_full);
             side.samples_not_forwarded(c.dds.samples_not_forwarded);
+            side.samples_on_lanes(c.samples_on_lanes);
             side.remote_participants(c.dds.remote_participants);
             side.remote_participants_refused(c.dds.remote_participants_refused);
           }

@@ -107,6 +107,7 @@ void BusChannel::take_sample(const Sample& sample, std::uint32_t lane) {
         ++counters_.bad_messages;
       } else {
         handler = e.handler;
+        if (lane != 0) ++counters_.samples_on_lanes;
       }
     }
   }
@@ -137,11 +138,12 @@ void BusChannel::stop() {
     c = counters_;
   }
   // What the DDS sides got over the run, and what they did not: for the log.
-  spdlog::info("channel {}: {} sample(s) sent to {} DDS side(s), {} received; {} state sample(s) replaced by a newer "
+  spdlog::info("channel {}: {} sample(s) sent to {} DDS side(s), {} received ({} on lanes); {} state sample(s) "
+               "replaced by a newer "
                "one before they were sent; dropped: {} with no DDS side, {} beyond the queue; {} from a replaced DDS "
                "side on a lane, {} undecodable",
-               options_.path, c.samples_sent, c.connects, c.samples_received, c.states_superseded, c.dropped_no_peer,
-               c.dropped_queue_full, c.stale_lane_samples, c.bad_messages);
+               options_.path, c.samples_sent, c.connects, c.samples_received, c.samples_on_lanes, c.states_superseded,
+               c.dropped_no_peer, c.dropped_queue_full, c.stale_lane_samples, c.bad_messages);
 }
 
 void BusChannel::wake() {

@@ -50,7 +50,8 @@ class BusChannel {
     std::uint64_t peers_refused = 0;  // connections refused (credentials)
     std::uint64_t samples_sent = 0;
     std::uint64_t samples_received = 0;
-    std::uint64_t dropped_no_peer = 0;  // events and answers while no DDS side was connected
+    std::uint64_t samples_on_lanes = 0;  // of samples_received: handed to their reader on its lane
+    std::uint64_t dropped_no_peer = 0;   // events and answers while no DDS side was connected
     std::uint64_t dropped_queue_full = 0;
     std::uint64_t states_superseded = 0;   // a state's sample replaced by a newer one before it was sent
     std::uint64_t bad_messages = 0;        // from the DDS side, not decodable (or on the wrong lane)

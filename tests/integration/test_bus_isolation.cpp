@@ -133,45 +133,49 @@ class BusIsolation : public ::testing::Test {
     ASSERT_TRUE(setpoints_.write(request_id, true, percent, length_m));
   }
 
+  // The saw operational and a set value in force (RPDO1 bytes from CiA 420-4 by hand, as in
+  // SawLine: control word 0005h, 50.00 % = 1388h, 0.5 m = 1388h in 0.1 mm); `request` is the last
+  // request id written.
+  static constexpr std::array<std::uint8_t, 8> kInForce{0x05, 0x00, 0x88, 0x13, 0x88, 0x13, 0x00, 0x00};
+  void put_set_value_in_force(std::uint32_t& request) {
+    ASSERT_TRUE(seen_.wait(30s, [&] { return !seen_.status.empty(); })) << logs();
+    ASSERT_TRUE(setpoints_.wait_matched(20s)) << logs();
+    bool accepted = false;
+    // A set value that enables the saw is refused until its boot passed: wait for the saw's
+    // operational heartbeat (CiA 301: 700h + node, state 05h) on the bus, then ask again on each
+    // refusal until a deadline.
+    const auto accept_deadline = Clock::now() + 60s;
+    bool operational = false;
+    while (!operational && Clock::now() < accept_deadline) {
+      const auto hb = line_.spy().frames(0x700 + kNode);
+      operational = !hb.empty() && hb.back().len == 1 && hb.back().data[0] == 0x05;
+      if (!operational) std::this_thread::sleep_for(20ms);
+    }
+    ASSERT_TRUE(operational) << logs();
+    while (!accepted && Clock::now() < accept_deadline) {
+      write(++request, 50.0, 0.5);
+      const auto answer = setpoints_.answer(request, 2s);
+      accepted = answer && answer->accepted();
+    }
+    ASSERT_TRUE(accepted) << logs();
+    const auto on_bus_deadline = Clock::now() + 10s;
+    bool on_bus = false;
+    while (!on_bus && Clock::now() < on_bus_deadline) {
+      const auto f = line_.spy().frames(0x200 + kNode);
+      on_bus = !f.empty() && f.back().data == kInForce;
+      if (!on_bus) std::this_thread::sleep_for(20ms);
+    }
+    ASSERT_TRUE(on_bus) << "RPDO1 with the set value never on the bus\n" << logs();
+  }
+
   Seen seen_;  // before line_: its participant (and every listener call) goes first
   lb::test::SawSetpoints setpoints_;
   lb::test::LineHarness line_{"iso", 11};
 };
 
 TEST_F(BusIsolation, KillingTheDdsProcessTwentyTimesChangesNothingOnTheBus) {
-  // The saw operational and a set value in force (RPDO1 bytes from CiA 420-4 by hand, as in
-  // SawLine: control word 0005h, 50.00 % = 1388h, 0.5 m = 1388h in 0.1 mm).
-  ASSERT_TRUE(seen_.wait(30s, [&] { return !seen_.status.empty(); })) << logs();
-  const auto matched_deadline = Clock::now() + 20s;
-  while (setpoints_.writer().matched() == 0 && Clock::now() < matched_deadline) std::this_thread::sleep_for(20ms);
   std::uint32_t request = 1;
-  const std::array<std::uint8_t, 8> in_force{0x05, 0x00, 0x88, 0x13, 0x88, 0x13, 0x00, 0x00};
-  bool accepted = false;
-  // A set value that enables the saw is refused until its boot passed: wait for the saw's
-  // operational heartbeat (CiA 301: 700h + node, state 05h) on the bus, then ask again on each
-  // refusal until a deadline.
-  const auto accept_deadline = Clock::now() + 60s;
-  bool operational = false;
-  while (!operational && Clock::now() < accept_deadline) {
-    const auto hb = line_.spy().frames(0x700 + kNode);
-    operational = !hb.empty() && hb.back().len == 1 && hb.back().data[0] == 0x05;
-    if (!operational) std::this_thread::sleep_for(20ms);
-  }
-  ASSERT_TRUE(operational) << logs();
-  while (!accepted && Clock::now() < accept_deadline) {
-    write(++request, 50.0, 0.5);
-    const auto answer = setpoints_.answer(request, 2s);
-    accepted = answer && answer->accepted();
-  }
-  ASSERT_TRUE(accepted) << logs();
-  const auto on_bus_deadline = Clock::now() + 10s;
-  bool on_bus = false;
-  while (!on_bus && Clock::now() < on_bus_deadline) {
-    const auto f = line_.spy().frames(0x200 + kNode);
-    on_bus = !f.empty() && f.back().data == in_force;
-    std::this_thread::sleep_for(20ms);
-  }
-  ASSERT_TRUE(on_bus) << "RPDO1 with the set value never on the bus\n" << logs();
+  ASSERT_NO_FATAL_FAILURE(put_set_value_in_force(request));
   line_.spy().clear();  // from here on every frame is checked
 
   std::mt19937 rng(std::random_device{}());
@@ -232,7 +236,7 @@ TEST_F(BusIsolation, KillingTheDdsProcessTwentyTimesChangesNothingOnTheBus) {
   const auto rpdos = line_.spy().frames(0x200 + kNode);
   ASSERT_GT(rpdos.size(), 100u);
   std::size_t other_rpdos = 0;
-  for (const auto& f : rpdos) other_rpdos += f.data != in_force ? 1 : 0;
+  for (const auto& f : rpdos) other_rpdos += f.data != kInForce ? 1 : 0;
   std::size_t not_operational = 0;
   const auto heartbeats = line_.spy().frames(0x700 + kNode);
   for (const auto& f : heartbeats) not_operational += (f.len != 1 || f.data[0] != 0x05) ? 1 : 0;
@@ -255,4 +259,32 @@ TEST_F(BusIsolation, KillingTheDdsProcessTwentyTimesChangesNothingOnTheBus) {
     EXPECT_LT(back_ms[back_ms.size() / 2], 1000.0) << summary.str();
   }
   EXPECT_TRUE(line_.bridge().running()) << logs();
+}
+
+// Issue 27: a device's set values reach its bus loop on that bus's own lane, not through the
+// channel's thread (docs/bus-isolation.md). The bus process counts what it handed to a reader on
+// its lane and publishes the count (diagnostics, dds_side.samples_on_lanes): every set value the
+// saw accepted came that way, and nothing is counted twice. A bridge whose DDS side sent set
+// values on the channel would pass every other test here and fail this one.
+TEST_F(BusIsolation, EverySetValueReachesItsBusLoopOnTheBussLane) {
+  std::uint32_t request = 1;
+  ASSERT_NO_FATAL_FAILURE(put_set_value_in_force(request));
+  for (int i = 1; i <= 5; ++i) {
+    write(++request, 50.0 + i, 0.5);
+    const auto answer = setpoints_.answer(request, 10s);
+    ASSERT_TRUE(answer && answer->accepted()) << "set value " << request << " not accepted\n" << logs();
+  }
+  std::size_t accepted = 0;
+  for (const auto& r : setpoints_.results().samples()) accepted += r.accepted() ? 1 : 0;
+  const std::uint64_t written = request - 1;  // request ids 2 .. request
+  ASSERT_GE(accepted, 6u);
+  std::uint64_t on_lanes = 0;
+  EXPECT_TRUE(seen_.wait(20s,
+                         [&] {
+                           on_lanes = seen_.diagnostics.dds_side().samples_on_lanes();
+                           return on_lanes >= accepted;
+                         }))
+      << "set values taken on a lane: " << on_lanes << ", accepted: " << accepted << "\n"
+      << logs();
+  EXPECT_LE(on_lanes, written) << "more samples on the lane than set values written";
 }

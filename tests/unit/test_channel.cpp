@@ -343,6 +343,7 @@ TEST(BusChannel, ALaneCarriesItsReadersSamplesToTheThreadThatReadsIt) {
   EXPECT_EQ(on_lane.samples[0].first.payload, s.payload);
   EXPECT_EQ(on_lane.samples[0].first.identity, s.identity);
   EXPECT_EQ(on_lane.samples[0].second, std::this_thread::get_id()) << "the handler ran on the lane's reader";
+  EXPECT_EQ(bus.counters().samples_on_lanes, 1u);
 
   // Another reader's sample on this lane would run on the wrong loop: dropped and counted.
   Sample stray = s;
@@ -360,6 +361,9 @@ TEST(BusChannel, ALaneCarriesItsReadersSamplesToTheThreadThatReadsIt) {
   std::unique_lock lock(off_lane.m);
   ASSERT_TRUE(off_lane.cv.wait_for(lock, 20s, [&] { return !off_lane.samples.empty(); }));
   EXPECT_NE(off_lane.samples[0].second, std::this_thread::get_id());
+  const auto c = bus.counters();
+  EXPECT_EQ(c.samples_on_lanes, 1u) << "only the lane reader's own sample counts as taken on a lane";
+  EXPECT_EQ(c.samples_received, 3u) << "the stray counts as received, then as a bad message";
 }
 
 // A DDS side that was replaced still holds its lanes: what it sends there after the next one
@@ -387,6 +391,7 @@ TEST(BusChannel, ALanesSamplesFromAReplacedDdsSideAreDropped) {
   ASSERT_TRUE(read_lane_when_ready(bus, lane));
   EXPECT_EQ(taken.size(), 0u) << "the replaced DDS side's sample was taken";
   EXPECT_EQ(bus.counters().stale_lane_samples, 1u);
+  EXPECT_EQ(bus.counters().samples_on_lanes, 0u);
 
   Sample fresh = late;
   fresh.payload = {0, 1, 0, 0, 2};
@@ -394,4 +399,5 @@ TEST(BusChannel, ALanesSamplesFromAReplacedDdsSideAreDropped) {
   ASSERT_TRUE(read_lane_when_ready(bus, lane));
   ASSERT_EQ(taken.size(), 1u);
   EXPECT_EQ(taken.samples[0].first.payload, fresh.payload);
+  EXPECT_EQ(bus.counters().samples_on_lanes, 1u);
 }
