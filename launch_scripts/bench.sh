@@ -47,6 +47,8 @@
 #               relay (Fast DDS listener that sends the frame); also the relay through the
 #               bridge's BusLoop hand-over. The split bridge and `--part single` alternate, as in
 #               can2dds.
+#               can2dds and dds2can also report the method's own noise: the floor (can2dds: the bare
+#               relay) against itself, its odd chunks minus its even ones.
 #   throughput  N buses x 30 saws at 8000 frames/s each: the largest N with no frame lost and no
 #               sample missing, the largest N whose frames the bridge all took, the bridge's CPU;
 #               and what one bus costs a bare Fast DDS writer and a bare bus reader.
@@ -262,6 +264,20 @@ mib() { awk -v k="$1" 'BEGIN { if (k != "") printf "%.1f", k / 1024 }'; }
 mem_kib() { awk -v k="$2:" '$1 == k { print $2 }' "/proc/$1/status"; }
 get() { sed -n "s/^$2=//p" "$1" | tail -1; }  # get FILE KEY (key=value reports)
 
+# The method's own noise: one floor set against itself, its odd chunks minus its even chunks (the
+# same program, alternating with the others like every set). What a difference between two sets
+# can show at all on this host: a bridge-minus-floor figure within this of zero is no difference.
+self_noise() {  # SET_DIR FILE KEY_PREFIX: appends KEY_PREFIX_p50_us, _p99_us, _p999_us to $vals
+  local dir=$1 file=$2 key=$3 c odd=() even=()
+  for ((c = 1; c <= chunks; c++)); do
+    if ((c % 2)); then odd+=("$dir/c$c/$file"); else even+=("$dir/c$c/$file"); fi
+  done
+  ((${#even[@]} > 0)) || return 0
+  cat "${odd[@]}" >"$dir/odd.lat"
+  cat "${even[@]}" >"$dir/even.lat"
+  "$bin/bench-stats" overhead "$dir/odd.lat" "$dir/even.lat" | sed -n "s/^overhead_/${key}_/p" >>"$vals"
+}
+
 domain=10
 # The security figure's secured steps: every participant gets an identity of this PKI (pki.sh), and
 # all of them use its one domain, since the governance and the grants name it.
@@ -377,6 +393,7 @@ fig_can2dds() {  # RUN
   "$bin/bench-stats" overhead "$d/bridge.lat" "$d/bus.lat" "$d/dds.lat" | sed 's/^/can2dds_/' >>"$vals"
   "$bin/bench-stats" overhead "$d/bridge.lat" "$d/relay.lat" | sed -n 's/^floor_/can2dds_relay_/p; s/^overhead_/can2dds_over_relay_/p' >>"$vals"
   "$bin/bench-stats" summary "$d/bus.lat" | sed 's/^lat_/can2dds_bus_/' >>"$vals"
+  self_noise "$d/relay" relay.lat can2dds_relay_self
   "$bin/bench-stats" summary "$d/dds.lat" | sed 's/^lat_/can2dds_dds_/' >>"$vals"
   # Per chunk: CPU (mean over chunks) and missing samples (sum).
   for set in bridge relay; do
@@ -443,6 +460,7 @@ fig_dds2can() {  # RUN
   cat "$d"/handoff/c*/relay.lat >"$d/handoff.lat"
   "$bin/bench-stats" overhead "$d/bridge.lat" "$d/relay.lat" | sed 's/^/dds2can_/' >>"$vals"
   "$bin/bench-stats" overhead "$d/handoff.lat" "$d/relay.lat" | sed -n 's/^bridge_/dds2can_handoff_/p' >>"$vals"
+  self_noise "$d/relay" relay.lat dds2can_floor_self
   sed -n 's/^chunk_lost=//p' "$vals" | awk '{ s += $1 } END { printf "dds2can_lost=%d\n", s }' >>"$vals"
   if ((single)); then
     cat "$d"/single/c*/single.lat >"$d/single.lat"
@@ -1014,6 +1032,7 @@ cmd() { echo "launch_scripts/bench.sh --only $1$quick_flag --runs $runs$run_flag
     echo "| CAN->DDS samples (n per set), missing | $(stat can2dds can2dds_bridge_n), $(stat can2dds can2dds_bridge_missing) | 0 missing | $(verdict "$(median can2dds can2dds_bridge_missing)" "<=" 0) | \`$(cmd can2dds)\` |"
     echo "| CAN->DDS bare relay (same 3-process path, no bridge logic) p50 / p99 / p99.9 (µs) | $(stat can2dds can2dds_relay_p50_us) / $(stat can2dds can2dds_relay_p99_us) / $(stat can2dds can2dds_relay_p999_us) | | | \`$(cmd can2dds)\` |"
     echo "| CAN->DDS bridge minus bare relay p50 / p99 (µs) | $(stat can2dds can2dds_over_relay_p50_us) / $(stat can2dds can2dds_over_relay_p99_us) | | | \`$(cmd can2dds)\` |"
+    echo "| CAN->DDS the method's own noise: bare relay minus bare relay (its odd chunks minus its even ones) p50 / p99 (µs) | $(stat can2dds can2dds_relay_self_p50_us) / $(stat can2dds can2dds_relay_self_p99_us) | | | \`$(cmd can2dds)\` |"
     echo "| CPU at $lat_rate frames/s, 1 bus x $devices saws (% of a core): bridge (split: both processes); bare relay | $(stat can2dds can2dds_bridge_cpu_pct); $(stat can2dds can2dds_relay_cpu_pct) | | | \`$(cmd can2dds)\` |"
     if ((single)); then
       echo "| CAN->DDS one-process bridge (--part single), same run, p50 / p99 / p99.9 (µs); CPU (% of a core); missing | $(stat can2dds can2dds_single_p50_us) / $(stat can2dds can2dds_single_p99_us) / $(stat can2dds can2dds_single_p999_us); $(stat can2dds can2dds_single_cpu_pct); $(stat can2dds can2dds_single_missing) | | | \`$(cmd can2dds)\` |"
@@ -1027,6 +1046,7 @@ cmd() { echo "launch_scripts/bench.sh --only $1$quick_flag --runs $runs$run_flag
     echo "| DDS->CAN relay + the bridge's BusLoop hand-over p50 / p99 / p99.9 (µs) | $(stat dds2can dds2can_handoff_p50_us) / $(stat dds2can dds2can_handoff_p99_us) / $(stat dds2can dds2can_handoff_p999_us) | | | \`$(cmd dds2can)\` |"
     echo "| DDS->CAN overhead over the floor, p50 (µs) | $(stat dds2can dds2can_overhead_p50_us) | <= 20 | $(verdict "$(median dds2can dds2can_overhead_p50_us)" "<=" 20) | \`$(cmd dds2can)\` |"
     echo "| DDS->CAN overhead over the floor, p99 (µs) | $(stat dds2can dds2can_overhead_p99_us) | <= 100 | $(verdict "$(median dds2can dds2can_overhead_p99_us)" "<=" 100) | \`$(cmd dds2can)\` |"
+    echo "| DDS->CAN the method's own noise: floor minus floor (its odd chunks minus its even ones) p50 / p99 (µs) | $(stat dds2can dds2can_floor_self_p50_us) / $(stat dds2can dds2can_floor_self_p99_us) | | | \`$(cmd dds2can)\` |"
     echo "| DDS->CAN set values (n per set), lost | $(stat dds2can dds2can_bridge_n), $(stat dds2can dds2can_lost) | 0 lost | $(verdict "$(median dds2can dds2can_lost)" "<=" 0) | \`$(cmd dds2can)\` |"
     if ((single)); then
       echo "| DDS->CAN one-process bridge (--part single), same run, p50 / p99 / p99.9 (µs); lost | $(stat dds2can dds2can_single_p50_us) / $(stat dds2can dds2can_single_p99_us) / $(stat dds2can dds2can_single_p999_us); $(stat dds2can dds2can_single_lost) | | | \`$(cmd dds2can)\` |"
