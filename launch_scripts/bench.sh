@@ -26,6 +26,9 @@
 #   --jitter-rate N  frames/s of the saws' TPDOs in the jitter figure (default: full load, 8000)
 #   --realtime-priority N  jitter and soak: the bridge's bus loop runs SCHED_FIFO at N (the bus key
 #                    realtime_priority:), the floor's timer too (chrt -f N); default 0: normal
+#   --shared-memory  every DDS participant (the bridge's: dds.shared_memory: true, and the harness's)
+#                    adds Fast DDS's shared-memory transport; default: UDP on loopback only, as the
+#                    bridge ships
 #   --keep-awake     jitter: a SCHED_IDLE busy loop on the bridge's core, so that the core never
 #                    halts between wake-ups (what idle=poll or /dev/cpu_dma_latency do on a line
 #                    PC: a halted virtual CPU can wake milliseconds late); it runs only when
@@ -118,6 +121,7 @@ while (($#)); do
     --jitter-rate) jitter_rate=${2:?}; shift ;;
     --realtime-priority) rt_priority=${2:?}; shift ;;
     --keep-awake) keep_awake=1 ;;
+    --shared-memory) export LINEBRIDGE_BENCH_SHARED_MEMORY=1 ;;
     --report-only) report_only=1; do_build=0 ;;
     -h|--help) usage ;;
     *) echo "bench.sh: unknown argument $1" >&2; usage ;;
@@ -1018,6 +1022,7 @@ run_flags=""
 [ "$niceness" = 0 ] || run_flags=" --nice $niceness"
 ((rt_priority == 0)) || run_flags+=" --realtime-priority $rt_priority"
 ((!keep_awake)) || run_flags+=" --keep-awake"
+[ -z "${LINEBRIDGE_BENCH_SHARED_MEMORY:-}" ] || run_flags+=" --shared-memory"
 ((pin)) || run_flags+=" --no-pin"
 cmd() { echo "launch_scripts/bench.sh --only $1$quick_flag --runs $runs$run_flags"; }
 {
@@ -1151,6 +1156,7 @@ cmd() { echo "launch_scripts/bench.sh --only $1$quick_flag --runs $runs$run_flag
   fi
   echo "machine: $(lscpu | sed -n 's/^Model name: *//p' | head -1), $cores cores, $(uname -r), $(awk '/MemTotal/ { printf "%.0f GiB", $2 / 1048576 }' /proc/meminfo) RAM"
   echo "niceness of every bench process: $(nice)"
+  echo "DDS transport: $([ -n "${LINEBRIDGE_BENCH_SHARED_MEMORY:-}" ] && echo "UDP on loopback + shared memory (--shared-memory)" || echo "UDP on loopback only")"
   ((report_only)) || echo "load average (1/5/15 min) before: $load_before, after: $(cut -d' ' -f1-3 /proc/loadavg)"
   echo
   column -t -s '|' -o '|' "$table"
