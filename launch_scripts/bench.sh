@@ -990,7 +990,10 @@ load_before=$(cut -d' ' -f1-3 /proc/loadavg)
 if ((report_only)); then
   runs=$(find "$out_dir" -mindepth 2 -maxdepth 2 -type d -name 'run*' | sed 's/.*run//' | sort -n | tail -1)
   [ -n "$runs" ] || { echo "bench.sh: no measurements in $out_dir" >&2; exit 1; }
+  # The transport the figures were measured with, not this invocation's (--shared-memory).
+  if [ "$(cat "$out_dir/transport" 2>/dev/null)" = shared-memory ]; then export LINEBRIDGE_BENCH_SHARED_MEMORY=1; else unset LINEBRIDGE_BENCH_SHARED_MEMORY; fi
 else
+  if [ -n "${LINEBRIDGE_BENCH_SHARED_MEMORY:-}" ]; then echo shared-memory; else echo udp; fi >"$out_dir/transport"
   for ((r = 1; r <= runs; r++)); do
     for f in can2dds dds2can throughput memory startup security jitter soak hop hopjitter; do
       if want $f; then
