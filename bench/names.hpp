@@ -3,6 +3,7 @@
 // and the buses, topics and node-IDs the others use always agree.
 
 #include <cstdint>
+#include <cstdlib>
 #include <string>
 
 namespace lb::bench {
@@ -20,5 +21,9 @@ inline std::string device_name(int bus, int device) {
   return "b" + std::to_string(bus) + "saw" + std::to_string(device);
 }
 inline std::uint8_t node_id(int device) { return static_cast<std::uint8_t>(kFirstNodeId + device); }
+
+// bench.sh --shared-memory: the line file bench-config writes (dds.shared_memory) and every bench
+// participant add Fast DDS's shared-memory transport, so a figure can be measured on both.
+inline bool shared_memory_transport() { return std::getenv("LINEBRIDGE_BENCH_SHARED_MEMORY") != nullptr; }
 
 }  // namespace lb::bench

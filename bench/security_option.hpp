@@ -5,7 +5,6 @@
 
 #include <CLI/CLI.hpp>
 
-#include <cstdlib>
 #include <string>
 
 #include "dds/participant.hpp"
@@ -17,9 +16,7 @@ namespace lb::bench {
 inline lb::ddsl::ParticipantOptions participant_options(int domain, std::string name, const std::string& pki,
                                                         const std::string& identity) {
   lb::ddsl::ParticipantOptions o{static_cast<std::uint32_t>(domain), true, std::move(name), std::nullopt};
-  // bench.sh --shared-memory: every bench participant, and the bridge's line file, add Fast DDS's
-  // shared-memory transport (dds.shared_memory), so a figure can be measured on both transports.
-  o.shared_memory = std::getenv("LINEBRIDGE_BENCH_SHARED_MEMORY") != nullptr;
+  o.shared_memory = shared_memory_transport();
   if (!pki.empty()) {
     const std::string id = pki + "/" + identity;
     o.security = lb::ddsl::SecurityFiles{pki + "/ca/identity_ca.pem",

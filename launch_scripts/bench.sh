@@ -396,8 +396,8 @@ fig_can2dds() {  # RUN
   fi
   "$bin/bench-stats" overhead "$d/bridge.lat" "$d/bus.lat" "$d/dds.lat" | sed 's/^/can2dds_/' >>"$vals"
   "$bin/bench-stats" overhead "$d/bridge.lat" "$d/relay.lat" | sed -n 's/^floor_/can2dds_relay_/p; s/^overhead_/can2dds_over_relay_/p' >>"$vals"
-  "$bin/bench-stats" summary "$d/bus.lat" | sed 's/^lat_/can2dds_bus_/' >>"$vals"
   self_noise "$d/relay" relay.lat can2dds_relay_self
+  "$bin/bench-stats" summary "$d/bus.lat" | sed 's/^lat_/can2dds_bus_/' >>"$vals"
   "$bin/bench-stats" summary "$d/dds.lat" | sed 's/^lat_/can2dds_dds_/' >>"$vals"
   # Per chunk: CPU (mean over chunks) and missing samples (sum).
   for set in bridge relay; do

@@ -17,8 +17,7 @@ namespace lb::link {
 
 class DdsChannel {
  public:
-  // send_timeout_ms: how long a send may wait for the bus side to take it before it is dropped;
-  // also how long the bus side's Hello may take.
+  // send_timeout_ms: how long a send may wait for the bus side to take it before it is dropped.
   // Waits up to 10 s for the bus side's Hello (it is sent once the bus side accepts).
   static Result<std::unique_ptr<DdsChannel>> connect(const std::string& path, int send_timeout_ms);
   // On a socket already connected (connect_channel): the channel once the Hello came, nullptr when
