@@ -30,14 +30,21 @@ inline Memory read_memory(pid_t pid) {
   return m;
 }
 
-// A process and its children together (the split bridge: the bus process and its DDS process).
-inline Memory read_tree_memory(pid_t pid) {
-  std::vector<pid_t> pids{pid};
+// A process's children (the split bridge's bus process: its DDS process).
+inline std::vector<pid_t> children_of(pid_t pid) {
+  std::vector<pid_t> pids;
   std::error_code ec;
   for (const auto& task : std::filesystem::directory_iterator("/proc/" + std::to_string(pid) + "/task", ec)) {
     std::ifstream children(task.path() / "children");
     for (pid_t c = 0; children >> c;) pids.push_back(c);
   }
+  return pids;
+}
+
+// A process and its children together (the split bridge: the bus process and its DDS process).
+inline Memory read_tree_memory(pid_t pid) {
+  std::vector<pid_t> pids{pid};
+  for (const pid_t c : children_of(pid)) pids.push_back(c);
   Memory total;
   for (const pid_t p : pids) {
     const auto m = read_memory(p);
@@ -47,6 +54,20 @@ inline Memory read_tree_memory(pid_t pid) {
     for (std::string line; std::getline(rollup, line);) {
       if (line.rfind("Pss:", 0) == 0) total.pss_kib += std::stoull(line.substr(4));
     }
+  }
+  return total;
+}
+
+// The CPU time another process's threads have run, in ns (each thread's schedstat: nanoseconds,
+// where /proc/PID/stat counts clock ticks). Threads that have ended are not counted: for a window
+// of a start-up, read while the process's threads all run.
+inline std::int64_t read_cpu_ns(pid_t pid) {
+  std::int64_t total = 0;
+  std::error_code ec;
+  for (const auto& task : std::filesystem::directory_iterator("/proc/" + std::to_string(pid) + "/task", ec)) {
+    std::ifstream schedstat(task.path() / "schedstat");
+    std::int64_t run_ns = 0;
+    if (schedstat >> run_ns) total += run_ns;
   }
   return total;
 }

@@ -2,7 +2,10 @@
 // status sample an application receives (and to the last device's first sample; with --online and
 // a simulator playing the devices, also to the first samples with live data), with the
 // application's participant and readers already up, as on a running line. Also reports the
-// bridge's resident memory once it has settled, then stops it with SIGTERM.
+// bridge's resident memory once it has settled, then stops it with SIGTERM; and the CPU each part
+// used from the spawn until every device's first sample (--online: every device online): the bus
+// process, its DDS process, this subscriber, and the process --watch-pid names (the simulator),
+// which on a machine of few cores is what the start-up shares them with.
 #include <fmt/format.h>
 #include <sys/wait.h>
 #include <CLI/CLI.hpp>
@@ -75,6 +78,8 @@ int main(int argc, char** argv) {
   bool online = false;
   cli.add_flag("--online", online, "also wait for every device's first sample with live data (a simulator plays them)");
   cli.add_option("command", command, "the bridge command line (after --)")->required();
+  int watched = 0;
+  cli.add_option("--watch-pid", watched, "also report the CPU this process used over the start (the simulator)");
   program.add_security();
   if (auto rc = program.parse(argc, argv)) return *rc;
   const int buses = program.buses;
@@ -111,6 +116,8 @@ int main(int argc, char** argv) {
   // By default our own initial announcements are over: the bridge finds a running application.
   std::this_thread::sleep_for(std::chrono::milliseconds(quiet_ms));
 
+  const std::int64_t watched_cpu0 = watched > 0 ? bench::read_cpu_ns(watched) : 0;
+  const double own_cpu0 = bench::process_cpu_s();
   const auto t0 = bench::realtime_ns();
   lb::test::ChildProcess bridge(command, log);
   if (!bridge.started()) return program.fail("cannot start " + command.front());
@@ -121,6 +128,13 @@ int main(int argc, char** argv) {
       return first.devices_seen == first.seen.size() && (!online || first.devices_online == first.online_at.size());
     });
   }
+  // Read at once, while every thread of the start still runs (read_cpu_ns counts live threads).
+  const auto cpu_window_ns = bench::realtime_ns() - t0;
+  const auto bus_cpu_ns = bench::read_cpu_ns(bridge.pid());
+  std::int64_t dds_cpu_ns = 0;
+  for (const pid_t c : bench::children_of(bridge.pid())) dds_cpu_ns += bench::read_cpu_ns(c);
+  const std::int64_t watched_cpu_ns = watched > 0 ? bench::read_cpu_ns(watched) - watched_cpu0 : 0;
+  const double own_cpu_s = bench::process_cpu_s() - own_cpu0;
   std::this_thread::sleep_for(std::chrono::duration<double>(settle_s));
   const auto mem = bench::read_tree_memory(bridge.pid());  // the bus process and its DDS process
   const int status = bridge.stop();                        // SIGTERM (SIGKILL if it has not ended 5 s later)
@@ -142,6 +156,14 @@ int main(int argc, char** argv) {
     for (const double p : {10.0, 50.0, 90.0}) {
       report += fmt::format("startup_online_p{:.0f}_ms={:.1f}\n", p, online_percentile_ms(first.online_at, p, t0));
     }
+  }
+  if (all) {
+    report += fmt::format("startup_cpu_window_ms={:.1f}\nstartup_cpu_bus_ms={:.1f}\nstartup_cpu_dds_ms={:.1f}\n"
+                          "startup_cpu_sub_ms={:.1f}\n",
+                          static_cast<double>(cpu_window_ns) / 1e6, static_cast<double>(bus_cpu_ns) / 1e6,
+                          static_cast<double>(dds_cpu_ns) / 1e6, own_cpu_s * 1e3);
+    if (watched > 0)
+      report += fmt::format("startup_cpu_watched_ms={:.1f}\n", static_cast<double>(watched_cpu_ns) / 1e6);
   }
   report += fmt::format("startup_rss_kib={}\nstartup_hwm_kib={}\nstartup_pss_kib={}\nstartup_exit={}\n", mem.rss_kib,
                         mem.hwm_kib, mem.pss_kib, WIFEXITED(status) ? WEXITSTATUS(status) : 128 + WTERMSIG(status));

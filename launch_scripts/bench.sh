@@ -149,7 +149,7 @@ if [ "${LINEBRIDGE_NETNS:-}" != "1" ]; then
     fi
     cmake --build "$build_dir" --target linebridge linebridge-sim linebridge-security bench-config bench-inject bench-can-sink \
       bench-status-pub bench-status-sub bench-setpoint bench-relay bench-can-relay bench-startup bench-stats \
-      bench-sync-jitter bench-frozen-reader bench-timer-floor bench-request-flood bench-channel-hop bench-observers \
+      bench-sync-jitter bench-frozen-reader bench-timer-floor bench-request-flood bench-channel-hop bench-observers bench-switch \
       bench-forged-announcements >&2
     # The iceoryx comparison, when that build has it (-DLINEBRIDGE_BENCH_ICEORYX=ON).
     if grep -q '^LINEBRIDGE_BENCH_ICEORYX:BOOL=ON' "$build_dir/CMakeCache.txt"; then cmake --build "$build_dir" --target bench-iceoryx-hop >&2; fi
@@ -471,6 +471,11 @@ fig_dds2can() {  # RUN
     "$bin/bench-stats" overhead "$d/bridge.lat" "$d/single.lat" | sed -n 's/^floor_/dds2can_single_/p; s/^overhead_/dds2can_split_over_single_/p' >>"$vals"
     sed -n 's/^chunk_single_lost=//p' "$vals" | awk '{ s += $1 } END { printf "dds2can_single_lost=%d\n", s }' >>"$vals"
   fi
+  # What this machine charges for the two hand-overs themselves, on the bridge's core: to another
+  # thread (the one-process bridge's listener waking its bus loop) and to another process (the
+  # split's DDS process waking the bus process).
+  printf '%s\n' "${pin_cmd[*]} $bin/bench-switch" >>"$commands"
+  "${pin_cmd[@]}" "$bin/bench-switch" 2>"$d/switch.err" | sed 's/^/dds2can_/' >>"$vals" || true
 }
 
 # throughput_step DIR N -> key=value lines in DIR/step, exit 0 when nothing was lost.
@@ -659,9 +664,9 @@ fig_startup() {  # RUN: each size several times (discovery makes the spread wort
       start "$base.sim" "$sim_bin" --config "$base.yaml"
       local sim=$pid
       sleep 1
-      printf '%s\n' "$bin/bench-startup --online --buses $b --devices $n --domain $domain --log $base.bridge.log -- $bridge_bin --config $base.yaml" >>"$commands"
-      "$bin/bench-startup" --online --buses "$b" --devices "$n" --domain $domain --log "$base.bridge.log" -- \
-        "$bridge_bin" --config "$base.yaml" >"$base.out" 2>"$base.err" || true
+      printf '%s\n' "$bin/bench-startup --online --buses $b --devices $n --domain $domain --log $base.bridge.log --watch-pid SIMULATOR -- $bridge_bin --config $base.yaml" >>"$commands"
+      "$bin/bench-startup" --online --buses "$b" --devices "$n" --domain $domain --log "$base.bridge.log" \
+        --watch-pid $sim -- "$bridge_bin" --config "$base.yaml" >"$base.out" 2>"$base.err" || true
       stop $sim
       echo "startup_${spec}_first_ms=$(get "$base.out" startup_first_ms)" >>"$vals"
       echo "startup_${spec}_all_ms=$(get "$base.out" startup_all_ms)" >>"$vals"
@@ -670,6 +675,7 @@ fig_startup() {  # RUN: each size several times (discovery makes the spread wort
       for q in 10 50 90; do echo "startup_${spec}_online_p${q}_ms=$(get "$base.out" startup_online_p${q}_ms)" >>"$vals"; done
       echo "startup_${spec}_rss_mib=$(mib "$(get "$base.out" startup_rss_kib)")" >>"$vals"
       echo "startup_${spec}_pss_mib=$(mib "$(get "$base.out" startup_pss_kib)")" >>"$vals"
+      for part in window bus dds watched sub; do echo "startup_${spec}_cpu_${part}_ms=$(get "$base.out" startup_cpu_${part}_ms)" >>"$vals"; done
     done
   done
 }
@@ -1061,6 +1067,7 @@ cmd() { echo "launch_scripts/bench.sh --only $1$quick_flag --runs $runs$run_flag
       echo "| DDS->CAN the hop's cost: split minus single, p50 (µs) | $(stat dds2can dds2can_split_over_single_p50_us) | <= 20 | $(verdict "$(median dds2can dds2can_split_over_single_p50_us)" "<=" 20) | \`$(cmd dds2can)\` |"
       echo "| DDS->CAN split minus single, p99 / p99.9 (µs) | $(stat dds2can dds2can_split_over_single_p99_us) / $(stat dds2can dds2can_split_over_single_p999_us) | | | \`$(cmd dds2can)\` |"
     fi
+    echo "| DDS->CAN this machine's hand-overs where the bridge runs (its core when pinned; bench-switch: a byte over pipes, one way): to a thread p50 / p99; to a process p50 / p99 (µs) | $(stat dds2can dds2can_switch_thread_oneway_p50_us) / $(stat dds2can dds2can_switch_thread_oneway_p99_us); $(stat dds2can dds2can_switch_process_oneway_p50_us) / $(stat dds2can dds2can_switch_process_oneway_p99_us) | | | \`$(cmd dds2can)\` |"
   fi
   if want throughput; then
     echo "| Buses x $devices saws at $full_rate frames/s, no frame lost, no sample missing (bridge pinned to 1 core) | $(stat throughput throughput_max_buses) (tried: $buses_list) | >= 8 | $(verdict "$(median throughput throughput_max_buses)" ">=" 8) | \`$(cmd throughput)\` |"
@@ -1085,6 +1092,7 @@ cmd() { echo "launch_scripts/bench.sh --only $1$quick_flag --runs $runs$run_flag
     echo "| Start-up with the devices powered (simulator): -> first sample with live data (device booted, online), 1x1 / ${mem_buses}x$devices (ms) | $(stat startup startup_1x1_first_online_ms) / $(stat startup startup_${mem_buses}x${devices}_first_online_ms) | | | \`$(cmd startup)\` |"
     echo "| Start-up with the devices powered: -> every saw online, 1x1 / ${mem_buses}x$devices (ms) | $(stat startup startup_1x1_all_online_ms) / $(stat startup startup_${mem_buses}x${devices}_all_online_ms) | <= 1000 | $(verdict "$(median startup startup_${mem_buses}x${devices}_all_online_ms)" "<=" 1000) | \`$(cmd startup)\` |"
     echo "| Start-up, ${mem_buses}x$devices: when each saw came online (booted the CiA 302-2 way), p10 / p50 / p90 of the $((mem_buses * devices)) (ms) | $(stat startup startup_${mem_buses}x${devices}_online_p10_ms) / $(stat startup startup_${mem_buses}x${devices}_online_p50_ms) / $(stat startup startup_${mem_buses}x${devices}_online_p90_ms) | | | \`$(cmd startup)\` |"
+    echo "| Start-up, ${mem_buses}x$devices: CPU used from the spawn until every saw online (ms): bus process / DDS process / simulator / the application (bench-startup); the window (ms), on $cores cores | $(stat startup startup_${mem_buses}x${devices}_cpu_bus_ms) / $(stat startup startup_${mem_buses}x${devices}_cpu_dds_ms) / $(stat startup startup_${mem_buses}x${devices}_cpu_watched_ms) / $(stat startup startup_${mem_buses}x${devices}_cpu_sub_ms); $(stat startup startup_${mem_buses}x${devices}_cpu_window_ms) | | | \`$(cmd startup)\` |"
     echo "| Memory idle after start-up, bus + DDS process, 1x1 / ${mem_buses}x$devices, master role: PSS (VmRSS summed) (MiB) | $(stat startup startup_1x1_pss_mib) ($(stat startup startup_1x1_rss_mib)) / $(stat startup startup_${mem_buses}x${devices}_pss_mib) ($(stat startup startup_${mem_buses}x${devices}_rss_mib)) | | | \`$(cmd startup)\` |"
   fi
   if want jitter; then
