@@ -5,7 +5,9 @@
 // bridge's resident memory once it has settled, then stops it with SIGTERM; and the CPU each part
 // used from the spawn until every device's first sample (--online: every device online): the bus
 // process, its DDS process, this subscriber, and the process --watch-pid names (the simulator),
-// which on a machine of few cores is what the start-up shares them with.
+// which on a machine of few cores is what the start-up shares them with. And when this application
+// discovered the bridge's DDS participant and its first and last status writer: a slow start's
+// time is then placed in discovery or after it.
 #include <fmt/format.h>
 #include <sys/wait.h>
 #include <CLI/CLI.hpp>
@@ -16,6 +18,8 @@
 #include <cstdio>
 #include <fstream>
 #include <mutex>
+#include <set>
+#include <string>
 #include <thread>
 #include <vector>
 
@@ -46,6 +50,17 @@ struct FirstSamples {
   std::int64_t first_online_ns = 0;
   std::int64_t all_online_ns = 0;
   std::vector<std::int64_t> online_at;  // per device: when its first live sample came (0: not yet)
+};
+
+// When this application learnt of the bridge's DDS side: its participant, then its devices'
+// status writers (discovery, before any sample), so that a slow start is told apart by its phase.
+struct Discovered {
+  std::mutex m;
+  std::set<std::string> status_topics;  // the ones this application reads
+  std::set<std::string> writers_seen;   // of those topics
+  std::int64_t participant_ns = 0;
+  std::int64_t first_writer_ns = 0;
+  std::int64_t all_writers_ns = 0;
 };
 
 // When the devices came online, ms after t0: the p-th percentile over all of them (every one online).
@@ -88,7 +103,26 @@ int main(int argc, char** argv) {
   FirstSamples first;  // outlives the participant's listeners
   first.seen.assign(static_cast<std::size_t>(buses * devices), false);
   first.online_at.assign(first.seen.size(), 0);
-  auto dds = lb::ddsl::Participant::create(bench::participant_options(program, program.name()));
+  Discovered discovered;  // outlives the participant's listener too
+  for (int b = 0; b < buses; ++b) {
+    for (int d = 0; d < devices; ++d) {
+      discovered.status_topics.insert(lb::ddsl::topic_name(bench::kLine, bench::device_name(b, d), "status"));
+    }
+  }
+  auto options = bench::participant_options(program, program.name());
+  options.on_discovery = [&discovered](const lb::ddsl::DiscoveryEvent& e) {
+    if (e.removed) return;
+    const auto now = bench::realtime_ns();
+    std::lock_guard lock(discovered.m);
+    if (e.kind == lb::ddsl::DiscoveryEvent::Kind::participant) {
+      if (discovered.participant_ns == 0) discovered.participant_ns = now;
+    } else if (e.kind == lb::ddsl::DiscoveryEvent::Kind::writer && discovered.status_topics.contains(e.name) &&
+               discovered.writers_seen.insert(e.name).second) {
+      if (discovered.writers_seen.size() == 1) discovered.first_writer_ns = now;
+      if (discovered.writers_seen.size() == discovered.status_topics.size()) discovered.all_writers_ns = now;
+    }
+  };
+  auto dds = lb::ddsl::Participant::create(options);
   if (!dds) return program.fail(dds.error().message);
   for (int b = 0; b < buses; ++b) {
     for (int d = 0; d < devices; ++d) {
@@ -139,9 +173,22 @@ int main(int argc, char** argv) {
   const auto mem = bench::read_tree_memory(bridge.pid());  // the bus process and its DDS process
   const int status = bridge.stop();                        // SIGTERM (SIGKILL if it has not ended 5 s later)
 
+  std::string report;
+  {
+    // This application knows no other participant before the spawn (its own namespace).
+    std::lock_guard lock(discovered.m);
+    const auto after = [t0](std::int64_t ns) { return static_cast<double>(ns - t0) / 1e6; };
+    if (discovered.participant_ns > 0)
+      report += fmt::format("startup_found_dds_ms={:.1f}\n", after(discovered.participant_ns));
+    if (discovered.first_writer_ns > 0) {
+      report += fmt::format("startup_found_first_status_writer_ms={:.1f}\n", after(discovered.first_writer_ns));
+    }
+    if (discovered.all_writers_ns > 0) {
+      report += fmt::format("startup_found_all_status_writers_ms={:.1f}\n", after(discovered.all_writers_ns));
+    }
+  }
   std::lock_guard lock(first.m);
-  std::string report = fmt::format("startup_devices={}\nstartup_devices_seen={}\n", first.seen.size(),
-                                   first.devices_seen);
+  report += fmt::format("startup_devices={}\nstartup_devices_seen={}\n", first.seen.size(), first.devices_seen);
   if (first.devices_seen > 0)
     report += fmt::format("startup_first_ms={:.1f}\n", static_cast<double>(first.first_ns - t0) / 1e6);
   if (first.devices_seen == first.seen.size()) {

@@ -676,6 +676,7 @@ fig_startup() {  # RUN: each size several times (discovery makes the spread wort
       echo "startup_${spec}_rss_mib=$(mib "$(get "$base.out" startup_rss_kib)")" >>"$vals"
       echo "startup_${spec}_pss_mib=$(mib "$(get "$base.out" startup_pss_kib)")" >>"$vals"
       for part in window bus dds watched sub; do echo "startup_${spec}_cpu_${part}_ms=$(get "$base.out" startup_cpu_${part}_ms)" >>"$vals"; done
+      for f in found_dds found_first_status_writer found_all_status_writers; do echo "startup_${spec}_${f}_ms=$(get "$base.out" startup_${f}_ms)" >>"$vals"; done
     done
   done
 }
@@ -1092,6 +1093,7 @@ cmd() { echo "launch_scripts/bench.sh --only $1$quick_flag --runs $runs$run_flag
     echo "| Start-up with the devices powered (simulator): -> first sample with live data (device booted, online), 1x1 / ${mem_buses}x$devices (ms) | $(stat startup startup_1x1_first_online_ms) / $(stat startup startup_${mem_buses}x${devices}_first_online_ms) | | | \`$(cmd startup)\` |"
     echo "| Start-up with the devices powered: -> every saw online, 1x1 / ${mem_buses}x$devices (ms) | $(stat startup startup_1x1_all_online_ms) / $(stat startup startup_${mem_buses}x${devices}_all_online_ms) | <= 1000 | $(verdict "$(median startup startup_${mem_buses}x${devices}_all_online_ms)" "<=" 1000) | \`$(cmd startup)\` |"
     echo "| Start-up, ${mem_buses}x$devices: when each saw came online (booted the CiA 302-2 way), p10 / p50 / p90 of the $((mem_buses * devices)) (ms) | $(stat startup startup_${mem_buses}x${devices}_online_p10_ms) / $(stat startup startup_${mem_buses}x${devices}_online_p50_ms) / $(stat startup startup_${mem_buses}x${devices}_online_p90_ms) | | | \`$(cmd startup)\` |"
+    echo "| Start-up, ${mem_buses}x$devices: when the application discovered the bridge's DDS participant / the first / the last of the $((mem_buses * devices)) status writers; first status sample (ms) | $(stat startup startup_${mem_buses}x${devices}_found_dds_ms) / $(stat startup startup_${mem_buses}x${devices}_found_first_status_writer_ms) / $(stat startup startup_${mem_buses}x${devices}_found_all_status_writers_ms); $(stat startup startup_${mem_buses}x${devices}_first_ms) | | | \`$(cmd startup)\` |"
     echo "| Start-up, ${mem_buses}x$devices: CPU used from the spawn until every saw online (ms): bus process / DDS process / simulator / the application (bench-startup); the window (ms), on $cores cores | $(stat startup startup_${mem_buses}x${devices}_cpu_bus_ms) / $(stat startup startup_${mem_buses}x${devices}_cpu_dds_ms) / $(stat startup startup_${mem_buses}x${devices}_cpu_watched_ms) / $(stat startup startup_${mem_buses}x${devices}_cpu_sub_ms); $(stat startup startup_${mem_buses}x${devices}_cpu_window_ms) | | | \`$(cmd startup)\` |"
     echo "| Memory idle after start-up, bus + DDS process, 1x1 / ${mem_buses}x$devices, master role: PSS (VmRSS summed) (MiB) | $(stat startup startup_1x1_pss_mib) ($(stat startup startup_1x1_rss_mib)) / $(stat startup startup_${mem_buses}x${devices}_pss_mib) ($(stat startup startup_${mem_buses}x${devices}_rss_mib)) | | | \`$(cmd startup)\` |"
   fi
