@@ -49,14 +49,17 @@
 #   dds2can     a set value written by another process -> its RPDO1 on the bus. Floor: a bare
 #               relay (Fast DDS listener that sends the frame); also the relay through the
 #               bridge's BusLoop hand-over. The split bridge and `--part single` alternate, as in
-#               can2dds.
+#               can2dds. Then what a hand-over costs this machine by itself on the bridge's core
+#               (bench-switch: to another thread, to another process).
 #               can2dds and dds2can also report the method's own noise: the floor (can2dds: the bare
 #               relay) against itself, its odd chunks minus its even ones.
 #   throughput  N buses x 30 saws at 8000 frames/s each: the largest N with no frame lost and no
 #               sample missing, the largest N whose frames the bridge all took, the bridge's CPU;
 #               and what one bus costs a bare Fast DDS writer and a bare bus reader.
 #   memory      VmRSS / VmHWM of the bridge with 8 buses x 30 saws under full load.
-#   startup     process start -> first status sample at an already running subscriber.
+#   startup     process start -> first status sample at an already running subscriber; when the
+#               subscriber discovered the bridge's DDS participant and its status writers; the CPU
+#               each process used until every saw was online (bus, DDS, simulator, subscriber).
 #   jitter      SYNC period jitter (p50/p99/p99.9/max deviation from 20 ms) of a master bridge with
 #               30 saws: idle (no load: the unloaded figure); then at full load (8000 frames/s,
 #               --jitter-rate) with an EMCY burst (1000/s), three ways: alone; with an emergency
