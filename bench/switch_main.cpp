@@ -6,7 +6,6 @@
 // and a read. The same idea as lmbench's lat_ctx and `perf bench sched pipe`, without the tools.
 //
 // Prints key=value lines: switch_{thread,process}_oneway_{p50,p99}_us, switch_round_trips.
-#include <fmt/format.h>
 #include <sched.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -16,6 +15,7 @@
 #include <array>
 #include <chrono>
 #include <cstdio>
+#include <stdexcept>
 #include <thread>
 #include <vector>
 
