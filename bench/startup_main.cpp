@@ -103,12 +103,14 @@ int main(int argc, char** argv) {
   FirstSamples first;  // outlives the participant's listeners
   first.seen.assign(static_cast<std::size_t>(buses * devices), false);
   first.online_at.assign(first.seen.size(), 0);
-  Discovered discovered;  // outlives the participant's listener too
+  std::vector<std::string> status_topics;  // by device index, bus by bus
   for (int b = 0; b < buses; ++b) {
     for (int d = 0; d < devices; ++d) {
-      discovered.status_topics.insert(lb::ddsl::topic_name(bench::kLine, bench::device_name(b, d), "status"));
+      status_topics.push_back(lb::ddsl::topic_name(bench::kLine, bench::device_name(b, d), "status"));
     }
   }
+  Discovered discovered;  // outlives the participant's listener too
+  discovered.status_topics.insert(status_topics.begin(), status_topics.end());
   auto options = bench::participant_options(program, program.name());
   options.on_discovery = [&discovered](const lb::ddsl::DiscoveryEvent& e) {
     if (e.removed) return;
@@ -124,28 +126,28 @@ int main(int argc, char** argv) {
   };
   auto dds = lb::ddsl::Participant::create(options);
   if (!dds) return program.fail(dds.error().message);
-  for (int b = 0; b < buses; ++b) {
-    for (int d = 0; d < devices; ++d) {
-      const auto index = static_cast<std::size_t>(b * devices + d);
-      auto sub = (*dds)->subscribe<msg::SawStatusPubSubType>(
-          lb::ddsl::topic_name(bench::kLine, bench::device_name(b, d), "status"), lb::ddsl::QosKind::state,
-          [&first, index](const msg::SawStatus& s, const lb::ddsl::fdds::SampleInfo&) {
-            const auto now = bench::realtime_ns();
-            std::lock_guard lock(first.m);
-            if (!first.seen[index]) {
-              first.seen[index] = true;
-              if (first.devices_seen++ == 0) first.first_ns = now;
-              if (first.devices_seen == first.seen.size()) first.all_ns = now;
-            }
-            if (s.health().online() && first.online_at[index] == 0) {
-              first.online_at[index] = now;
-              if (first.devices_online++ == 0) first.first_online_ns = now;
-              if (first.devices_online == first.online_at.size()) first.all_online_ns = now;
-            }
-            first.cv.notify_all();
-          });
-      if (!sub) return program.fail(sub.error().message);
-    }
+  for (std::size_t index = 0; index < status_topics.size(); ++index) {
+    auto sub = (*dds)->subscribe<msg::SawStatusPubSubType>(status_topics[index], lb::ddsl::QosKind::state,
+                                                           [&first, index](const msg::SawStatus& s,
+                                                                           const lb::ddsl::fdds::SampleInfo&) {
+                                                             const auto now = bench::realtime_ns();
+                                                             std::lock_guard lock(first.m);
+                                                             if (!first.seen[index]) {
+                                                               first.seen[index] = true;
+                                                               if (first.devices_seen++ == 0) first.first_ns = now;
+                                                               if (first.devices_seen == first.seen.size())
+                                                                 first.all_ns = now;
+                                                             }
+                                                             if (s.health().online() && first.online_at[index] == 0) {
+                                                               first.online_at[index] = now;
+                                                               if (first.devices_online++ == 0)
+                                                                 first.first_online_ns = now;
+                                                               if (first.devices_online == first.online_at.size())
+                                                                 first.all_online_ns = now;
+                                                             }
+                                                             first.cv.notify_all();
+                                                           });
+    if (!sub) return program.fail(sub.error().message);
   }
   // By default our own initial announcements are over: the bridge finds a running application.
   std::this_thread::sleep_for(std::chrono::milliseconds(quiet_ms));

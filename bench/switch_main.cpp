@@ -13,11 +13,15 @@
 
 #include <algorithm>
 #include <array>
-#include <chrono>
+#include <cstdint>
 #include <cstdio>
 #include <stdexcept>
 #include <thread>
+#include <utility>
 #include <vector>
+
+#include "clock.hpp"
+#include "latencies.hpp"
 
 namespace {
 
@@ -46,28 +50,23 @@ void echo(int from, int to, int round_trips) {
   }
 }
 
-// Round trips timed from this side; the other side (thread or process) echoes.
-std::vector<double> ping(int to, int from, int round_trips) {
-  std::vector<double> us;
-  us.reserve(static_cast<std::size_t>(round_trips));
+// Round trips timed from this side (the other side, thread or process, echoes): one way each, in
+// ns, half its round trip.
+std::vector<std::int64_t> ping(int to, int from, int round_trips) {
+  std::vector<std::int64_t> one_way_ns;
+  one_way_ns.reserve(static_cast<std::size_t>(round_trips));
   char byte = 1;
   for (int i = 0; i < round_trips; ++i) {
-    const auto t0 = std::chrono::steady_clock::now();
+    const auto t0 = lb::bench::monotonic_ns();
     if (::write(to, &byte, 1) != 1 || ::read(from, &byte, 1) != 1) break;
-    us.push_back(std::chrono::duration<double, std::micro>(std::chrono::steady_clock::now() - t0).count());
+    one_way_ns.push_back((lb::bench::monotonic_ns() - t0) / 2);
   }
-  return us;
+  return one_way_ns;
 }
 
-double percentile(std::vector<double> v, double p) {
-  if (v.empty()) return 0;
-  std::sort(v.begin(), v.end());
-  return v[static_cast<std::size_t>(p / 100.0 * static_cast<double>(v.size() - 1) + 0.5)];
-}
-
-void report(const char* what, const std::vector<double>& rtt_us) {
-  std::printf("switch_%s_oneway_p50_us=%.2f\nswitch_%s_oneway_p99_us=%.2f\n", what, percentile(rtt_us, 50) / 2, what,
-              percentile(rtt_us, 99) / 2);
+void report(const char* what, std::vector<std::int64_t> one_way_ns) {
+  const auto s = lb::bench::summarize(std::move(one_way_ns));
+  std::printf("switch_%s_oneway_p50_us=%.2f\nswitch_%s_oneway_p99_us=%.2f\n", what, s.p50_us, what, s.p99_us);
 }
 
 }  // namespace
@@ -97,10 +96,10 @@ int main(int argc, char** argv) {
     Pipe there, back;
     std::thread other([&] { echo(there.fd[0], back.fd[1], warmup + round_trips); });
     ping(there.fd[1], back.fd[0], warmup);
-    const auto rtt = ping(there.fd[1], back.fd[0], round_trips);
+    auto one_way = ping(there.fd[1], back.fd[0], round_trips);
     other.join();
-    if (static_cast<int>(rtt.size()) != round_trips) return 1;
-    report("thread", rtt);
+    if (static_cast<int>(one_way.size()) != round_trips) return 1;
+    report("thread", std::move(one_way));
   }
   {
     Pipe there, back;
@@ -115,11 +114,11 @@ int main(int argc, char** argv) {
       ::_exit(0);
     }
     ping(there.fd[1], back.fd[0], warmup);
-    const auto rtt = ping(there.fd[1], back.fd[0], round_trips);
+    auto one_way = ping(there.fd[1], back.fd[0], round_trips);
     int status = 0;
     ::waitpid(child, &status, 0);
-    if (static_cast<int>(rtt.size()) != round_trips) return 1;
-    report("process", rtt);
+    if (static_cast<int>(one_way.size()) != round_trips) return 1;
+    report("process", std::move(one_way));
   }
   std::printf("switch_round_trips=%d\n", round_trips);
   return 0;
