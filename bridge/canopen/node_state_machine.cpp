@@ -66,9 +66,12 @@ Result<void> NodeStateMachine::operator_command(NmtCommand command) {
   // A device whose boot did not pass (or whose state became unknown since) may have lost its
   // configuration: starting it would hand it RPDOs it may misread. Its boot starts it.
   if (command == NmtCommand::start && !node_.configured()) {
+    const auto text = [](const BootError& e) {
+      return e.code != 0 ? fmt::format("CiA 302-2 error {}: {}", e.code, e.message) : e.message;
+    };
     const auto& e = boot_.report().error;
-    const std::string why = e ? (e->code != 0 ? fmt::format("CiA 302-2 error {}: {}", e->code, e->message) : e->message)
-                              : detail();
+    std::string why = e ? text(*e) : detail();
+    if (!e && last_failure_) why += "; its last boot failed: " + text(*last_failure_);
     return make_error(
         fmt::format("{}: has not passed its boot ({}): NMT start refused; the bridge starts it when its boot "
                     "passes (reset-node boots it again)",
@@ -218,6 +221,11 @@ bool NodeStateMachine::storm() {
 }
 
 void NodeStateMachine::finished(const BootReport& report) {
+  if (report.error) {
+    last_failure_ = report.error;
+  } else if (report.started || report.held_by_operator) {
+    last_failure_.reset();
+  }
   if (report.started) {
     ++counters_.boots_started;  // operational once heard so (on_heartbeat), which may be before this
   } else if (report.held_by_operator) {

@@ -24,6 +24,7 @@
 #include <chrono>
 #include <cstdint>
 #include <deque>
+#include <optional>
 #include <string>
 #include <string_view>
 
@@ -109,7 +110,10 @@ class NodeStateMachine final : public NodeDriver {
   std::deque<std::chrono::steady_clock::time_point> recent_;
   std::chrono::milliseconds backoff_{0};
   std::string waiting_;  // why the next boot is pending, or empty
-  RepeatLog boot_log_;   // an absent device is tried every retry interval: the same line once a minute
+  // The last boot's failure until a boot passes: a retry under way does not hide why the device is
+  // not started (an NMT start refused during it names it).
+  std::optional<BootError> last_failure_;
+  RepeatLog boot_log_;  // an absent device is tried every retry interval: the same line once a minute
   Counters counters_;
 };
 
