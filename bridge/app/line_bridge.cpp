@@ -3,6 +3,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cstdlib>
 #include <filesystem>
 #include <stdexcept>
@@ -10,6 +11,7 @@
 #include "app/async_log.hpp"
 #include "app/run_until_signal.hpp"
 #include "can/recording_bus.hpp"
+#include "gateways/commands/momentary_commands.hpp"
 
 namespace lb::app {
 
@@ -29,6 +31,10 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
                                                        const BusOpener& open_bus) {
   auto bridge = std::make_unique<LineBridge>();
   bridge->dds_ = std::move(dds);
+  // A press the run before this one began (it may have been killed in the middle of it) ended
+  // before this start: holding every RPDO back for a hold time from here keeps it on the bus for
+  // at least that long, since this run's first RPDO is the frame that ends it.
+  const auto rpdos_from = std::chrono::steady_clock::now() + gateways::MomentaryCommands::kHold;
 
   for (const auto& bus_cfg : config.buses) {
     const bool master = bus_cfg.role == profiles::BusRole::master;
@@ -124,9 +130,9 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
       rt.sync->on_sync([node = rt.nodes.back().get()] { node->tell([](canopen::NodeDriver& d) { d.on_sync(); }); });
     }
     const gateways::DeviceContext ctx{
-        *rt.loop,      *rt.nodes.back(), rt.sync.get(), rt.sdo.get(),         *bridge->dds_,
-        config.line,   *rt.config,       dev,           dev.bridge_profile(), bridge->set_values_.get(),
-        config.startup};
+        *rt.loop,       *rt.nodes.back(), rt.sync.get(), rt.sdo.get(),         *bridge->dds_,
+        config.line,    *rt.config,       dev,           dev.bridge_profile(), bridge->set_values_.get(),
+        config.startup, rpdos_from};
     bridge->dds_->set_reader_lane(rt.lane);  // the device's readers: on its bus's lane
     try {
       rt.services.push_back(std::make_unique<gateways::DeviceServices>(ctx));

@@ -17,7 +17,7 @@ void PdoTransmitter::on_sync() {
   if (type == 0) {
     if (data_changed()) send();
   } else if (type <= 240) {
-    if (++sync_count_ >= type) {
+    if (++sync_count_ >= type || owed_) {
       sync_count_ = 0;
       send();
     }
@@ -37,6 +37,7 @@ void PdoTransmitter::reconfigure(Settings settings) {
   settings_ = settings;
   sync_count_ = 0;
   pending_ = false;
+  owed_ = false;
   have_last_ = false;
   loop_.disarm_timer(inhibit_timer_);
   loop_.disarm_timer(event_timer_);
@@ -63,8 +64,27 @@ void PdoTransmitter::send_when_inhibit_allows() {
   send();
 }
 
+bool PdoTransmitter::held_back_quiet() {
+  if (quiet_over_) return false;  // no clock read per frame once the quiet time is over
+  const auto now = std::chrono::steady_clock::now();
+  if (now >= quiet_until_) {
+    quiet_over_ = true;
+    return false;
+  }
+  if (settings_.transmission_type >= 254) {
+    pending_ = true;
+    loop_.arm_timer(inhibit_timer_, quiet_until_ - now);
+  } else {
+    // Not sent between two SYNCs: a device may take a synchronous PDO only in its SYNC window.
+    owed_ = true;
+  }
+  return true;
+}
+
 void PdoTransmitter::send() {
   pending_ = false;
+  if (held_back_quiet()) return;
+  owed_ = false;
   if (!hooks_.may_send()) return refused(Refusal::gate);
   if (hooks_.before_send) hooks_.before_send();
   can::CanFrame f;

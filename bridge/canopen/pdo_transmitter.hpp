@@ -59,10 +59,18 @@ class PdoTransmitter {
   // inhibit time still counts from the last frame sent).
   void reconfigure(Settings settings);
   const Settings& settings() const { return settings_; }
+  // Before the loop starts or on the loop thread: no frame of this PDO before `t`. A trigger
+  // before then is held back, not refused: an event-driven PDO goes out at `t`, a synchronous one
+  // at its first SYNC from `t` on. Survives reconfigure().
+  void quiet_until(std::chrono::steady_clock::time_point t) {
+    quiet_until_ = t;
+    quiet_over_ = false;
+  }
 
  private:
   bool data_changed();
   void send();
+  bool held_back_quiet();
   void send_when_inhibit_allows();
   void refused(Refusal why);
   void arm_event_timer();
@@ -74,6 +82,9 @@ class PdoTransmitter {
   BusLoop::TimerId event_timer_;
   unsigned sync_count_ = 0;
   bool pending_ = false;
+  bool owed_ = false;  // a synchronous PDO held back by quiet_until_: its next SYNC sends it
+  std::chrono::steady_clock::time_point quiet_until_{};
+  bool quiet_over_ = false;
   bool have_last_ = false;
   can::CanFrame last_;
   std::optional<std::chrono::steady_clock::time_point> last_sent_;

@@ -158,10 +158,9 @@ TEST_F(RequestAcrossRestart, ARepeatToTheNextBridgeIsRefusedAndTheCutIsPressedOn
   ASSERT_TRUE(rpdo1_until(line, [&](const auto& f) { return f.size() >= after + 15; })) << line.logs();
   const auto held = presses(line.spy());
   ASSERT_EQ(held.size(), 1u) << "the cut was pressed again on the second bridge: " << describe(held);
-  // Released by the second bridge's first RPDO1. Not asserted: that this came 100 ms or more after
-  // the press. A bridge killed mid-press holds nothing, and a fast restart releases sooner (85 ms
-  // seen in CI; docs/dds-contract.md says so); a living bridge's holds: test_pulses.cpp.
-  EXPECT_GT(held.front(), 0.0) << "the press was never released: " << describe(held);
+  // Released by the second bridge's first RPDO1, which a bus side sends no sooner than 100 ms after
+  // its start: the killed bridge's press keeps its 100 ms however fast the restart (85 ms before).
+  EXPECT_GE(held.front(), 100.0) << describe(held);
 }
 
 // The CLI asks again every second by itself: whenever its repeat reaches the second bridge (before
@@ -184,5 +183,5 @@ TEST_F(RequestAcrossRestart, TheCliSaysTheBridgeRestartedAndExitsWith4) {
   ASSERT_TRUE(rpdo1_until(line, [&](const auto& f) { return f.size() >= after + 15; })) << line.logs();
   const auto held = presses(line.spy());
   ASSERT_EQ(held.size(), 1u) << "the cut was pressed again on the second bridge: " << describe(held);
-  EXPECT_GT(held.front(), 0.0) << "the press was never released: " << describe(held);  // see above
+  EXPECT_GE(held.front(), 100.0) << describe(held);  // see above
 }

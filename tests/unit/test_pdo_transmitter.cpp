@@ -25,7 +25,8 @@ class Transmitter : public lb::test::LoopOnOwnBus {
   Transmitter() : LoopOnOwnBus("tx") {}
 
   // Creates the transmitter on the loop thread's side of the start, then starts the loop.
-  void make(PdoTransmitter::Settings s) {
+  // quiet: how long from now the transmitter sends nothing (PdoTransmitter::quiet_until).
+  void make(PdoTransmitter::Settings s, std::chrono::milliseconds quiet = 0ms) {
     s.can_id = 0x181;
     tx_ = std::make_unique<PdoTransmitter>(
         *loop_, s,
@@ -38,6 +39,8 @@ class Transmitter : public lb::test::LoopOnOwnBus {
                               .may_send = [this] { return gate_.load(); },
                               .sent = [this](const lb::can::CanFrame&, auto) { ++sent_; },
                               .not_sent = [this](PdoTransmitter::Refusal) { ++refused_; }});
+    quiet_from_ = std::chrono::system_clock::now();  // before the quiet time's start: a bound for the bus's stamps
+    if (quiet > 0ms) tx_->quiet_until(std::chrono::steady_clock::now() + quiet);
     loop_->start();
   }
   // Runs on the loop thread and waits for it.
@@ -64,7 +67,13 @@ class Transmitter : public lb::test::LoopOnOwnBus {
     return frames;
   }
 
+  // The earliest a frame may carry (CLOCK_REALTIME, as the bus stamps frames) after a quiet time.
+  std::int64_t quiet_over_ns(std::chrono::milliseconds quiet) const {
+    return std::chrono::duration_cast<std::chrono::nanoseconds>((quiet_from_ + quiet).time_since_epoch()).count();
+  }
+
   std::unique_ptr<PdoTransmitter> tx_;
+  std::chrono::system_clock::time_point quiet_from_;
   std::atomic<std::uint8_t> value_{1};
   std::atomic<bool> gate_{true};
   std::atomic<int> sent_{0};
@@ -212,4 +221,38 @@ TEST_F(Transmitter, RefusalsAreReportedWithTheirCause) {
   on_loop([this] { tx_->on_sync(); });
   EXPECT_EQ(sent_.load(), 1);
   EXPECT_EQ(refused_.load(), 1);
+}
+
+// A new bus side holds its RPDOs back at first (a press its predecessor began keeps its 100 ms):
+// an event-driven PDO due then is not refused but goes out once the quiet time is over.
+TEST_F(Transmitter, AQuietTimeHoldsAnEventDrivenPdoBackAndThenSendsIt) {
+  make({.transmission_type = 255}, 1000ms);
+  on_loop([this] { tx_->on_data(); });
+  value_ = 7;
+  on_loop([this] { tx_->on_data(); });
+  on_loop([this] { tx_->resend(); });
+  const auto deadline = std::chrono::steady_clock::now() + 10s;
+  while (sent_.load() == 0 && std::chrono::steady_clock::now() < deadline) std::this_thread::sleep_for(2ms);
+  const auto frames = sent_frames();
+  ASSERT_EQ(frames.size(), 1u) << "held back, then sent once with the latest data";
+  EXPECT_EQ(frames[0].data[0], 7);
+  EXPECT_GE(frames[0].timestamp_ns, quiet_over_ns(1000ms)) << "sent inside the quiet time";
+  EXPECT_EQ(refused_.load(), 0) << "a trigger inside the quiet time is held back, not refused";
+}
+
+// A synchronous PDO is never sent between SYNCs (a device takes it in its SYNC window): the
+// first SYNC after the quiet time sends it, though it is not the n-th; then every n-th again.
+TEST_F(Transmitter, AQuietTimeHoldsASynchronousPdoBackUntilTheFirstSyncAfterIt) {
+  make({.transmission_type = 3}, 1000ms);
+  for (int i = 0; i < 4; ++i) on_loop([this] { tx_->on_sync(); });
+  EXPECT_EQ(sent_.load(), 0) << "sent inside the quiet time";
+  EXPECT_EQ(refused_.load(), 0) << "a SYNC inside the quiet time holds the PDO back, it does not refuse it";
+  std::this_thread::sleep_for(1100ms);  // past the quiet time: no SYNC, so nothing may go out
+  EXPECT_EQ(sent_.load(), 0) << "a synchronous PDO went out without a SYNC";
+  on_loop([this] { tx_->on_sync(); });  // the first after it: the 5th, not a 3rd
+  auto frames = sent_frames();
+  ASSERT_EQ(frames.size(), 1u);
+  EXPECT_GE(frames[0].timestamp_ns, quiet_over_ns(1000ms));
+  for (int i = 0; i < 3; ++i) on_loop([this] { tx_->on_sync(); });
+  EXPECT_EQ(sent_frames().size(), 2u) << "then every 3rd SYNC again";
 }

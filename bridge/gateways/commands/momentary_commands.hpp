@@ -30,6 +30,8 @@ namespace lb::gateways {
 class MomentaryCommands {
  public:
   using Clock = std::chrono::steady_clock;
+  // CiA 420-1: "not shorter than 100 ms".
+  static constexpr std::chrono::milliseconds kHold{100};
   // How a press ended. on_bus: the bit was on the bus for at least the hold time (frames and held
   // say how long and in how many frames); otherwise message says why it was not, or not fully.
   struct Outcome {
@@ -44,7 +46,7 @@ class MomentaryCommands {
   // at once) and the status that the image changed. A pulse that no frame carries within `patience`
   // (a PDO sent every n-th SYNC, remote-only, a SYNC that stopped) is abandoned.
   MomentaryCommands(canopen::BusLoop& loop, std::function<void(unsigned bit, bool on)> set_bit,
-                    std::function<void()> changed, std::chrono::milliseconds hold = std::chrono::milliseconds(100),
+                    std::function<void()> changed, std::chrono::milliseconds hold = kHold,
                     std::chrono::milliseconds patience = std::chrono::seconds(2));
   MomentaryCommands(const MomentaryCommands&) = delete;
   MomentaryCommands& operator=(const MomentaryCommands&) = delete;

@@ -1,6 +1,7 @@
 #pragma once
 // What every device gateway is given: its bus loop and node, the DDS participant, its configuration.
 
+#include <chrono>
 #include <string>
 #include <string_view>
 
@@ -26,6 +27,10 @@ struct DeviceContext {
   const profiles::Profile& profile;
   SetValueStore* set_values = nullptr;  // master role: where the set values in force are kept (null: nowhere)
   const profiles::StartupPolicy& startup;
+  // Master role: no RPDO of this bus side goes out before this time (its start plus a momentary
+  // command's hold). The run before it may have been killed in the middle of a press, and the
+  // press it began must stay on the bus for its 100 ms: the first RPDO of this run ends it.
+  std::chrono::steady_clock::time_point rpdos_from{};
 
   bool is_master() const { return bus.role == profiles::BusRole::master; }
   // The answer to a request the bus loop refused (BusLoop::try_post: too many waiting).

@@ -80,6 +80,7 @@ class PdoWiring final : public canopen::NodeDriver {
                            notify(i, [&text](const RpdoObserver& o) { o.not_sent(text); });
                          }
                        }})});
+      rpdos_.back().transmitter->quiet_until(ctx_.rpdos_from);
     }
     if (ctx_.is_master()) ctx_.node.attach(*this);
   }
