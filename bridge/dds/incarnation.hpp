@@ -7,7 +7,8 @@
 // reply), and a client names the incarnation it last heard in each request; a bridge runs only
 // requests that name its own or none (0: an old client, a tool that wants no check), and refuses
 // the others unrun. The refusal cannot say whether the first bridge ran the request: the client
-// must look at the device and decide.
+// must look at the device and decide. A request that stops a machine is the exception: it runs on
+// any run (ServiceServer's Stops), since a stop is never refused while the device is heard.
 
 #include <cstdint>
 #include <string_view>
@@ -32,10 +33,11 @@ inline constexpr std::string_view kRestartedRefusal =
     "refused: the bridge restarted since this request was first sent, so it did not run here; it may or may "
     "not have run before the restart: look at the device's state and ask again";
 
-// A reply to a request that named `named`, from the bridge `answered_by`: a bridge runs only what
-// names it or none, so a reply from another bridge than the one named is this refusal.
-constexpr bool refused_as_restarted(Incarnation named, Incarnation answered_by) {
-  return named != kAnyIncarnation && answered_by != named;
+// A reply to a request that named `named`, from the bridge `answered_by`: this refusal, not an
+// answer of its own (a stop runs on any run and may fail there for other reasons).
+constexpr bool refused_as_restarted(Incarnation named, Incarnation answered_by, bool success,
+                                    std::string_view message) {
+  return named != kAnyIncarnation && answered_by != named && !success && message == kRestartedRefusal;
 }
 
 }  // namespace lb::ddsl

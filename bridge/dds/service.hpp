@@ -92,20 +92,25 @@ class ServiceServer {
     std::shared_ptr<Ledger> ledger_;
   };
   using Handler = std::function<void(const Request&, Responder)>;
+  // Whether a request stops a machine (an NMT stop, a command marked `stopping`): it runs whatever
+  // run of the bridge it names, since a stop is never refused while the device is heard, and a
+  // stop that ran before a restart and runs again stops twice. Any thread; must not block.
+  using Stops = std::function<bool(const Request&)>;
 
   // path: "<line>/<device>/<service>", or "<line>/bridge/<service>" for a line-wide service.
   // Errors only at start-up.
-  static Result<void> serve(Participant& dds, const std::string& path, Handler handler) {
+  static Result<void> serve(Participant& dds, const std::string& path, Handler handler, Stops stops = {}) {
     auto writer = dds.writer<ReplyPS>(reply_topic(path), QosKind::reply);
     if (!writer) return writer.error();
     auto ledger = std::make_shared<Ledger>();
     if constexpr (NamesDevice<Request> && Refusable<Reply>) {
-      if (dds.secured()) return serve_by_partition(dds, path, *writer, std::move(ledger), std::move(handler));
+      if (dds.secured())
+        return serve_by_partition(dds, path, *writer, std::move(ledger), std::move(handler), std::move(stops));
     }
     return dds.subscribe<RequestPS>(request_topic(path), QosKind::command,
-                                    [w = *writer, own = dds.incarnation(), ledger,
-                                     h = std::move(handler)](const Request& req, const fdds::SampleInfo& info) {
-                                      dispatch(req, info, w, own, ledger, h);
+                                    [w = *writer, own = dds.incarnation(), ledger, h = std::move(handler),
+                                     st = std::move(stops)](const Request& req, const fdds::SampleInfo& info) {
+                                      dispatch(req, info, w, own, ledger, h, st);
                                     });
   }
 
@@ -114,12 +119,14 @@ class ServiceServer {
   // (its answer will reach the client: both carry the first request's identity). Refusals are
   // answered here when the reply can say so (every service's can: Refusable).
   static void dispatch(const Request& req, const fdds::SampleInfo& info, const Writer<ReplyPS>& w, Incarnation own,
-                       const std::shared_ptr<Ledger>& ledger, const Handler& h) {
+                       const std::shared_ptr<Ledger>& ledger, const Handler& h, const Stops& stops) {
     const SampleIdentity request = Ledger::asked_as(info);
     if constexpr (NamesIncarnation<Request>) {
       // Meant for an earlier run of the bridge, which this ledger never saw: it may have run there
-      // (a repeat after a kill), so it must not run here. Not recorded: every repeat is refused so.
-      if (!meant_for(req.bridge_incarnation(), own)) return refuse(w, own, request, std::string(kRestartedRefusal));
+      // (a repeat after a kill), so it must not run here, unless it stops a machine. Not recorded:
+      // every repeat is refused so.
+      if (!meant_for(req.bridge_incarnation(), own) && !(stops && stops(req)))
+        return refuse(w, own, request, std::string(kRestartedRefusal));
     }
     auto admission = ledger->admit(request, fingerprint(req));
     switch (admission.seen) {
@@ -166,11 +173,11 @@ class ServiceServer {
   // The permissions decide which partitions a client's writer may be in (Fast DDS checks them on
   // both sides at matching); the request's device must be one of them.
   static Result<void> serve_by_partition(Participant& dds, const std::string& path, Writer<ReplyPS> w,
-                                         std::shared_ptr<Ledger> ledger, Handler h) {
+                                         std::shared_ptr<Ledger> ledger, Handler h, Stops stops) {
     return dds.subscribe_any_partition<RequestPS>(
         request_topic(path), QosKind::command,
-        [&dds, w, own = dds.incarnation(), ledger = std::move(ledger), h = std::move(h)](const Request& req,
-                                                                                         const fdds::SampleInfo& info) {
+        [&dds, w, own = dds.incarnation(), ledger = std::move(ledger), h = std::move(h),
+         st = std::move(stops)](const Request& req, const fdds::SampleInfo& info) {
           const std::string& device = req.device();
           if (!dds.writer_in_partition(info.sample_identity.writer_guid(), device)) {
             Reply refusal;
@@ -180,7 +187,7 @@ class ServiceServer {
                             "' (secured line; the partition must be granted by the requester's permissions)");
             return Responder(w, Ledger::asked_as(info), own)(refusal);
           }
-          dispatch(req, info, w, own, ledger, h);
+          dispatch(req, info, w, own, ledger, h, st);
         });
   }
 };
@@ -204,11 +211,11 @@ class ServiceClient {
     Reply reply;
     Incarnation asked_of = kAnyIncarnation;
     // Refused unrun by a bridge that restarted after the request was first sent: it may or may
-    // not have run on the bridge before. (A bridge runs only what names it, so a reply from
-    // another run is this refusal; a success would be a bridge breaking that rule, not a restart.)
+    // not have run on the bridge before. (A stop runs on any run: its answer from another run is
+    // its own, success or not.)
     bool bridge_restarted() const {
       if constexpr (NamesIncarnation<Reply> && Refusable<Reply>) {
-        return !reply.success() && refused_as_restarted(asked_of, reply.bridge_incarnation());
+        return refused_as_restarted(asked_of, reply.bridge_incarnation(), reply.success(), reply.message());
       }
       return false;
     }

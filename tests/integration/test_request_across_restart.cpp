@@ -4,7 +4,8 @@
 // the bus and is killed at once; a second bridge starts on the same bus and starts the saw; the
 // client asks again as it does when its answer is lost. What is checked is the saw's RPDO1 on the
 // bus (one run of frames with the bit, not a second rising edge) and the refusal the client gets;
-// linebridge-cli's answer and exit code likewise.
+// linebridge-cli's answer and exit code likewise. A stop is the exception, never refused while the
+// device is heard: its repeat runs on the next bridge and is on the bus twice.
 #include <gtest/gtest.h>
 #include <signal.h>
 #include <sys/wait.h>
@@ -34,20 +35,22 @@ namespace {
 
 constexpr std::uint8_t kSaw = 3;
 constexpr std::uint32_t kRpdo1 = 0x200u + kSaw;
-constexpr unsigned kManualCutBit = 3;  // saw control word 6040h (profile-decisions.md, saw 1.0 order)
+// Saw control word 6020h (CiA 420-4 3.1), by hand from the specification's bit table.
+constexpr unsigned kManualCutBit = 3;
+constexpr unsigned kStopImmediatelyBit = 5;  // marked `stopping`
 
-bool cut_bit(const lb::can::CanFrame& f) {
-  return f.len >= 2 && ((f.data[0] | f.data[1] << 8) >> kManualCutBit & 1U) != 0;
+bool has_bit(const lb::can::CanFrame& f, unsigned bit) {
+  return f.len >= 2 && ((f.data[0] | f.data[1] << 8) >> bit & 1U) != 0;
 }
 
-// The presses on the bus: per run of RPDO1 frames with the bit, the time from its first frame to
-// the next RPDO1 without the bit (the frame that released it; -1 while none has).
-std::vector<double> presses(lb::test::BusSpy& spy) {
+// The presses of a bit on the bus: per run of RPDO1 frames with the bit, the time from its first
+// frame to the next RPDO1 without the bit (the frame that released it; -1 while none has).
+std::vector<double> presses(lb::test::BusSpy& spy, unsigned bit = kManualCutBit) {
   std::vector<double> held_ms;
   std::int64_t since = 0;
   bool in = false;
   for (const auto& f : spy.frames(kRpdo1)) {
-    const bool on = cut_bit(f);
+    const bool on = has_bit(f, bit);
     if (on && !in) {
       since = f.timestamp_ns;
       held_ms.push_back(-1);
@@ -102,10 +105,13 @@ class RequestAcrossRestart : public ::testing::Test {
     return run;
   }
 
-  // Kills the bridge as soon as the manual-cut bit is on the bus (it has not answered yet), then
-  // starts a new bridge on the same bus; returns the new run once it has started the saw.
-  lb::ddsl::Incarnation kill_at_the_press_and_restart() {
-    const bool pressed = rpdo1_until(line, [](const auto& f) { return std::any_of(f.begin(), f.end(), cut_bit); });
+  // Kills the bridge as soon as the bit (the manual cut's by default) is on the bus (it has not
+  // answered yet), then starts a new bridge on the same bus; returns the new run once it has
+  // started the saw.
+  lb::ddsl::Incarnation kill_at_the_press_and_restart(unsigned bit = kManualCutBit) {
+    const bool pressed = rpdo1_until(line, [bit](const auto& f) {
+      return std::any_of(f.begin(), f.end(), [bit](const lb::can::CanFrame& x) { return has_bit(x, bit); });
+    });
     EXPECT_TRUE(pressed) << "the first request never reached the bus\n" << line.logs();
     if (!pressed) return lb::ddsl::kAnyIncarnation;
     ::kill(line.bridge().pid(), SIGKILL);
@@ -184,4 +190,67 @@ TEST_F(RequestAcrossRestart, TheCliSaysTheBridgeRestartedAndExitsWith4) {
   const auto held = presses(line.spy());
   ASSERT_EQ(held.size(), 1u) << "the cut was pressed again on the second bridge: " << describe(held);
   EXPECT_GE(held.front(), 100.0) << describe(held);  // see above
+}
+
+// A stop is never refused while the device is heard: stop_immediately (marked `stopping` in the
+// profile) repeated to the next bridge runs there and is pressed again on the bus, answered as its
+// own (success, naming the new run); an NMT stop naming the bridge before reaches the bus too.
+TEST_F(RequestAcrossRestart, ARepeatedStopRunsOnTheNextBridgeAndReachesTheBus) {
+  lb::test::RawCommandClient client(line.dds(), lb::ddsl::line_service_path(line.line(), "command"));
+  ASSERT_TRUE(client.matched(20s)) << line.logs();
+
+  srv::Command_Request stop;
+  stop.device("saw1");
+  stop.command("stop_immediately");
+  stop.bridge_incarnation(first_run);
+  WriteParams first_params;
+  ASSERT_TRUE(client.write(stop, first_params));
+  const SampleIdentity first = first_params.sample_identity();
+
+  const auto second_run = kill_at_the_press_and_restart(kStopImmediatelyBit);
+  ASSERT_NE(second_run, lb::ddsl::kAnyIncarnation) << "the second bridge never started the saw\n" << line.logs();
+  EXPECT_TRUE(client.of(first).empty()) << "the first bridge answered before it was killed: the test proves nothing";
+  ASSERT_TRUE(client.matched(20s)) << "the second bridge's command service never matched\n" << line.logs();
+
+  WriteParams again;
+  again.related_sample_identity(first);
+  ASSERT_TRUE(client.write(stop, again));
+  ASSERT_TRUE(client.wait_for(first, 1, 10s)) << "the repeated stop got no answer\n" << line.logs();
+  const auto answer = client.of(first).front();
+  EXPECT_TRUE(answer.success()) << "the repeated stop was refused: " << answer.message();
+  EXPECT_EQ(answer.bridge_incarnation(), second_run) << "answered by the bridge that ran it";
+  EXPECT_GE(answer.frames(), 1u);
+
+  // On the bus: the first bridge's press and the second's, each released after >= 100 ms.
+  const std::size_t after = line.spy().frames(kRpdo1).size();
+  ASSERT_TRUE(rpdo1_until(line, [&](const auto& f) { return f.size() >= after + 5; })) << line.logs();
+  const auto held = presses(line.spy(), kStopImmediatelyBit);
+  ASSERT_EQ(held.size(), 2u) << "the repeated stop was not pressed again on the bus: " << describe(held);
+  EXPECT_GE(held[0], 100.0) << describe(held);
+  EXPECT_GE(held[1], 100.0) << describe(held);
+
+  // NMT stop (CiA 301: 000h, command 02h, node 3) naming the bridge before runs as well.
+  auto nmt_client = lb::ddsl::ServiceClient<srv::Nmt_RequestPubSubType, srv::Nmt_ResponsePubSubType>::create(
+      line.dds(), lb::ddsl::line_service_path(line.line(), "nmt"));
+  ASSERT_TRUE(nmt_client) << nmt_client.error().message;
+  srv::Nmt_Request nmt_stop;
+  nmt_stop.device("saw1");
+  nmt_stop.command(srv::NMT_STOP);
+  nmt_stop.bridge_incarnation(first_run);
+  const std::size_t nmt_before = line.spy().frames(0x000).size();
+  const auto nmt_answer = (*nmt_client)->ask(nmt_stop, 20s);
+  ASSERT_TRUE(nmt_answer) << nmt_answer.error().message;
+  EXPECT_TRUE(nmt_answer->reply.success()) << "NMT stop refused: " << nmt_answer->reply.message();
+  EXPECT_FALSE(nmt_answer->bridge_restarted());
+  const auto end = Clock::now() + 10s;
+  bool on_bus = false;
+  while (!on_bus && Clock::now() < end) {
+    const auto nmt = line.spy().frames(0x000);
+    on_bus = std::any_of(nmt.begin() + static_cast<std::ptrdiff_t>(std::min(nmt_before, nmt.size())), nmt.end(),
+                         [](const lb::can::CanFrame& f) {
+                           return f.len == 2 && f.data[0] == 0x02 && f.data[1] == kSaw;
+                         });
+    if (!on_bus) std::this_thread::sleep_for(5ms);
+  }
+  EXPECT_TRUE(on_bus) << "no NMT stop for node 3 on the bus\n" << line.logs();
 }

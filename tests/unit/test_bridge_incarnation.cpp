@@ -37,10 +37,14 @@ TEST(BridgeIncarnation, ARequestRunsOnlyOnTheRunItNamesOrOnAnyWhenItNamesNone) {
   EXPECT_TRUE(lb::ddsl::meant_for(7, 7));
   EXPECT_TRUE(lb::ddsl::meant_for(kAnyIncarnation, 7)) << "an old client's request runs";
   EXPECT_FALSE(lb::ddsl::meant_for(7, 8)) << "meant for an earlier run";
-  // The reply names who answered: from another run than the one named, it is the refusal.
-  EXPECT_TRUE(lb::ddsl::refused_as_restarted(7, 8));
-  EXPECT_FALSE(lb::ddsl::refused_as_restarted(7, 7));
-  EXPECT_FALSE(lb::ddsl::refused_as_restarted(kAnyIncarnation, 8));
+  // The reply names who answered: from another run than the one named, and refused so, it is the
+  // refusal; a stop runs on any run, and its own answer (success or not) is no such refusal.
+  const std::string refusal(lb::ddsl::kRestartedRefusal);
+  EXPECT_TRUE(lb::ddsl::refused_as_restarted(7, 8, false, refusal));
+  EXPECT_FALSE(lb::ddsl::refused_as_restarted(7, 7, false, refusal));
+  EXPECT_FALSE(lb::ddsl::refused_as_restarted(kAnyIncarnation, 8, false, refusal));
+  EXPECT_FALSE(lb::ddsl::refused_as_restarted(7, 8, true, "")) << "a stop that ran on the next run";
+  EXPECT_FALSE(lb::ddsl::refused_as_restarted(7, 8, false, "saw1 is offline")) << "a stop refused for its own reason";
 }
 
 namespace {
@@ -55,18 +59,22 @@ struct BridgeRun {
   lb::ddsl::Writer<msg::DiagnosticsPubSubType> diagnostics;
 
   // answer: whether the handler answers (the first run is killed before it does).
-  BridgeRun(std::uint32_t domain, bool answer, std::atomic<int>& runs, std::promise<Incarnation>* named = nullptr) {
+  // stops: the server's Stops (which requests run on any run).
+  BridgeRun(std::uint32_t domain, bool answer, std::atomic<int>& runs, std::promise<Incarnation>* named = nullptr,
+            Server::Stops stops = {}) {
     auto p = lb::ddsl::Participant::create({domain, true, "run"});
     if (!p) throw std::runtime_error(p.error().message);
     dds = std::move(*p);
-    auto served = Server::serve(*dds, lb::ddsl::line_service_path(kLine, "command"),
-                                [answer, &runs, named](const srv::Command_Request& req, Server::Responder respond) {
-                                  if (++runs == 1 && named != nullptr) named->set_value(req.bridge_incarnation());
-                                  if (!answer) return;
-                                  srv::Command_Response done;
-                                  done.success(true);
-                                  respond(done);
-                                });
+    auto served = Server::serve(
+        *dds, lb::ddsl::line_service_path(kLine, "command"),
+        [answer, &runs, named](const srv::Command_Request& req, Server::Responder respond) {
+          if (++runs == 1 && named != nullptr) named->set_value(req.bridge_incarnation());
+          if (!answer) return;
+          srv::Command_Response done;
+          done.success(true);
+          respond(done);
+        },
+        std::move(stops));
     if (!served) throw std::runtime_error(served.error().message);
     auto w = dds->writer<msg::DiagnosticsPubSubType>(lb::ddsl::topic_name(kLine, "bridge", "diagnostics"),
                                                      lb::ddsl::QosKind::state);
@@ -124,4 +132,53 @@ TEST(BridgeIncarnation, ARepeatThatReachesARestartedServerIsRefusedUnrunAndTheNe
   EXPECT_FALSE(next->bridge_restarted());
   EXPECT_EQ(next->asked_of, second.dds->incarnation());
   EXPECT_EQ(second_runs, 1);
+}
+
+// A stop is never refused while the device is heard: a repeat of one that reaches a restarted
+// server runs there (stopping twice is still stopped), answered as its own, not as the refusal;
+// the same server still refuses any other request that names the run before it.
+TEST(BridgeIncarnation, AStopRepeatedToARestartedServerRunsThereAndOtherRequestsAreStillRefused) {
+  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
+  constexpr std::uint32_t kDomain = 42;
+  auto client_dds = lb::ddsl::Participant::create({kDomain, true, "client"});
+  ASSERT_TRUE(client_dds) << client_dds.error().message;
+  auto client = Client::create(**client_dds, lb::ddsl::line_service_path(kLine, "command"),
+                               lb::gateways::bridge_runs(kLine));
+  ASSERT_TRUE(client) << client.error().message;
+  const auto stops = [](const srv::Command_Request& r) { return r.command() == "stop_immediately"; };
+
+  std::atomic<int> first_runs{0}, second_runs{0};
+  std::promise<Incarnation> named;
+  auto first = std::make_unique<BridgeRun>(kDomain, false, first_runs, &named, stops);
+  const Incarnation first_run = first->dds->incarnation();
+
+  srv::Command_Request stop;
+  stop.device("saw1");
+  stop.command("stop_immediately");
+  auto asked = std::async(std::launch::async, [&] { return (*client)->ask(stop, 30s); });
+  auto named_run = named.get_future();
+  ASSERT_EQ(named_run.wait_for(20s), std::future_status::ready) << "the stop never reached the first run";
+  EXPECT_EQ(named_run.get(), first_run);
+
+  first.reset();  // killed before it answered
+  BridgeRun second(kDomain, true, second_runs, nullptr, stops);
+
+  const auto answer = asked.get();  // the client's repeat names the first run
+  ASSERT_TRUE(answer) << answer.error().message;
+  EXPECT_EQ(answer->asked_of, first_run);
+  EXPECT_TRUE(answer->reply.success()) << "the repeated stop was refused: " << answer->reply.message();
+  EXPECT_FALSE(answer->bridge_restarted());
+  EXPECT_EQ(answer->reply.bridge_incarnation(), second.dds->incarnation());
+  EXPECT_EQ(second_runs, 1) << "the repeated stop did not run on the restarted server";
+
+  // Any other request naming the run before is refused unrun, as ever.
+  srv::Command_Request cut;
+  cut.device("saw1");
+  cut.command("manual_cut");
+  cut.bridge_incarnation(first_run);
+  const auto refused = (*client)->ask(cut, 20s);
+  ASSERT_TRUE(refused) << refused.error().message;
+  EXPECT_TRUE(refused->bridge_restarted());
+  EXPECT_EQ(refused->reply.message(), std::string(lb::ddsl::kRestartedRefusal));
+  EXPECT_EQ(second_runs, 1) << "a request meant for the run before ran";
 }

@@ -304,17 +304,19 @@ void FeederGateway::write_now(const FeederCodec::Write& w, WriteReply reply, std
 
 template <class RequestPS>
 void FeederGateway::serve(const std::string& name,
-                          std::function<void(const typename RequestPS::type&, WriteReply)> handler) {
+                          std::function<void(const typename RequestPS::type&, WriteReply)> handler,
+                          std::function<bool(const typename RequestPS::type&)> stops) {
   // Every service: refused in the monitor role, validated against the profile on the DDS thread,
   // and only then an SDO request.
   using Service = ddsl::ServiceServer<RequestPS, srv::FeederWrite_ResponsePubSubType>;
-  auto served = Service::serve(ctx_.dds, ctx_.line + "/" + ctx_.device.name + "/" + name,
-                               [this, handler = std::move(handler)](const typename RequestPS::type& req,
-                                                                    typename Service::Responder respond) {
-                                 const WriteReply reply = [respond](srv::FeederWrite_Response r) { respond(r); };
-                                 if (auto why = refusal(); !why.empty()) return reply(refused(why));
-                                 handler(req, reply);
-                               });
+  auto served = Service::serve(
+      ctx_.dds, ctx_.line + "/" + ctx_.device.name + "/" + name,
+      [this, handler = std::move(handler)](const typename RequestPS::type& req, typename Service::Responder respond) {
+        const WriteReply reply = [respond](srv::FeederWrite_Response r) { respond(r); };
+        if (auto why = refusal(); !why.empty()) return reply(refused(why));
+        handler(req, reply);
+      },
+      std::move(stops));
   if (!served) throw std::runtime_error(ctx_.device.name + ": " + served.error().message);
 }
 
@@ -328,11 +330,15 @@ void FeederGateway::serve_services() {
     write(*w, reply);
   };
 
-  serve<srv::FeederCommand_RequestPubSubType>("feeder_command", [this,
-                                                                 write_or_refuse](const srv::FeederCommand_Request& req,
-                                                                                  const WriteReply& reply) {
-    write_or_refuse(codec_.command(req.feeder(), req.command(), req.manufacturer_code(), feeder_count()), reply);
-  });
+  serve<srv::FeederCommand_RequestPubSubType>(
+      "feeder_command",
+      [this, write_or_refuse](const srv::FeederCommand_Request& req, const WriteReply& reply) {
+        write_or_refuse(codec_.command(req.feeder(), req.command(), req.manufacturer_code(), feeder_count()), reply);
+      },
+      // 600Eh: the two commands that take a feeder out of operation.
+      [](const srv::FeederCommand_Request& req) {
+        return req.command() == "stop_mode" || req.command() == "non_operation_mode";
+      });
   serve<srv::FeederTest_RequestPubSubType>("feeder_test", [this, write_or_refuse](const srv::FeederTest_Request& req,
                                                                                   const WriteReply& reply) {
     write_or_refuse(codec_.test(req.feeder(), req.test(), req.parameter(), feeder_count()), reply);

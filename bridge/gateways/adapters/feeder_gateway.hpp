@@ -56,7 +56,9 @@ class FeederGateway : public Gateway {
 
   void serve_services();
   template <class RequestPS>
-  void serve(const std::string& name, std::function<void(const typename RequestPS::type&, WriteReply)> handler);
+  // stops: which requests stop a feeder (they run whatever run of the bridge they name).
+  void serve(const std::string& name, std::function<void(const typename RequestPS::type&, WriteReply)> handler,
+             std::function<bool(const typename RequestPS::type&)> stops = {});
   // Validated on the DDS thread; empty when the bus takes commands.
   std::string refusal() const;
   std::optional<unsigned> feeder_count() const;

@@ -21,13 +21,15 @@ template <class RequestPS, class ReplyPS>
 Result<void> ManagementServices::serve_one(ddsl::Participant& dds, const std::string& service,
                                            void (ManagementServices::*handler)(const typename RequestPS::type&,
                                                                                ddsl::Respond<typename ReplyPS::type>)
-                                               const) {
+                                               const,
+                                           typename ddsl::ServiceServer<RequestPS, ReplyPS>::Stops stops) {
   using Server = ddsl::ServiceServer<RequestPS, ReplyPS>;
-  auto served = Server::serve(dds, ddsl::line_service_path(line_, service),
-                              [this, handler](const typename RequestPS::type& request,
-                                              typename Server::Responder respond) {
-                                (this->*handler)(request, respond);
-                              });
+  auto served = Server::serve(
+      dds, ddsl::line_service_path(line_, service),
+      [this, handler](const typename RequestPS::type& request, typename Server::Responder respond) {
+        (this->*handler)(request, respond);
+      },
+      std::move(stops));
   if (!served) return make_error("line-wide service " + service + ": " + served.error().message);
   return {};
 }
@@ -37,12 +39,14 @@ Result<std::unique_ptr<ManagementServices>> ManagementServices::serve(ddsl::Part
   auto router = std::make_unique<ManagementServices>(line, std::move(devices));
   using M = ManagementServices;
   for (const auto& r :
-       {router->serve_one<srv::Nmt_RequestPubSubType, srv::Nmt_ResponsePubSubType>(dds, "nmt", &M::nmt),
+       {router->serve_one<srv::Nmt_RequestPubSubType, srv::Nmt_ResponsePubSubType>(
+            dds, "nmt", &M::nmt, [](const srv::Nmt_Request& r) { return stops(r); }),
         router->serve_one<srv::SdoRead_RequestPubSubType, srv::SdoRead_ResponsePubSubType>(dds, "sdo_read",
                                                                                            &M::sdo_read),
         router->serve_one<srv::SdoWrite_RequestPubSubType, srv::SdoWrite_ResponsePubSubType>(dds, "sdo_write",
                                                                                              &M::sdo_write),
-        router->serve_one<srv::Command_RequestPubSubType, srv::Command_ResponsePubSubType>(dds, "command", &M::command),
+        router->serve_one<srv::Command_RequestPubSubType, srv::Command_ResponsePubSubType>(
+            dds, "command", &M::command, [r = router.get()](const srv::Command_Request& c) { return r->stops(c); }),
         router->serve_one<srv::GetParameter_RequestPubSubType, srv::GetParameter_ResponsePubSubType>(dds,
                                                                                                      "get_parameter",
                                                                                                      &M::get_parameter),
@@ -97,6 +101,25 @@ void ManagementServices::command(const srv::Command_Request& request,
                     ")");
     respond(refused);
   });
+}
+
+bool ManagementServices::stops(const srv::Nmt_Request& request) {
+  switch (request.command()) {
+    case srv::NMT_STOP:
+    case srv::NMT_ENTER_PRE_OPERATIONAL:
+    case srv::NMT_RESET_NODE:
+    case srv::NMT_RESET_COMMUNICATION: return true;
+    default: return false;  // start, or a value the enum lacks (refused by its handler, not run)
+  }
+}
+
+bool ManagementServices::stops(const srv::Command_Request& request) const {
+  const auto it = devices_.find(request.device());
+  if (it == devices_.end() || it->second.commands == nullptr) return false;
+  for (const auto& c : it->second.commands->commands()) {
+    if (c.name == request.command()) return c.stopping;
+  }
+  return false;
 }
 
 void ManagementServices::get_parameter(const srv::GetParameter_Request& request,

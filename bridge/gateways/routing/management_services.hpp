@@ -61,6 +61,12 @@ class ManagementServices {
   void set_parameter(const linebridge_msgs::srv::SetParameter_Request& request,
                      ddsl::Respond<linebridge_msgs::srv::SetParameter_Response> respond) const;
 
+  // Whether a request stops its device: it then runs whatever run of the bridge it names
+  // (ddsl::ServiceServer's Stops). Every NMT command but start (stop, pre-operational and the
+  // resets all end operational); a momentary command the profile marks `stopping`.
+  static bool stops(const linebridge_msgs::srv::Nmt_Request& request);
+  bool stops(const linebridge_msgs::srv::Command_Request& request) const;
+
  private:
   // The named device, or the refusal that names it and lists the line's devices.
   Result<const Device*> find(const std::string& name) const;
@@ -70,7 +76,8 @@ class ManagementServices {
   template <class RequestPS, class ReplyPS>
   Result<void> serve_one(ddsl::Participant& dds, const std::string& service,
                          void (ManagementServices::*handler)(const typename RequestPS::type&,
-                                                             ddsl::Respond<typename ReplyPS::type>) const);
+                                                             ddsl::Respond<typename ReplyPS::type>) const,
+                         typename ddsl::ServiceServer<RequestPS, ReplyPS>::Stops stops = {});
 
   std::string line_;
   // Immutable after construction, so every DDS thread may read them without a lock.
