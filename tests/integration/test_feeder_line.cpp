@@ -12,6 +12,7 @@
 #include <set>
 #include <thread>
 
+#include "dds/incarnation.hpp"
 #include "dds/participant.hpp"
 #include "dds/service.hpp"
 #include "dds/topic_names.hpp"
@@ -335,4 +336,64 @@ TEST(FeederLine, MonitorRoleDecodesLoomControllerAndNeverTransmits) {
   ASSERT_NO_FATAL_FAILURE(lb::test::expect_monitor_never_sent(diag, logs()));
   dds->reset();
   EXPECT_EQ(line.bridge().stop(), 0);
+}
+
+// A stop is never refused while the device is heard: feeder_command stop_mode (600Eh 03h) naming
+// a run of the bridge that is not this one (a client's repeat after a restart) runs, as its own
+// request; any other feeder command naming it is refused unrun, as every such request is.
+TEST(FeederLine, AStopModeNamingAnEarlierBridgeRunRunsAndOtherCommandsAreRefused) {
+  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
+  const std::string tag = std::to_string(::getpid());
+  const std::string bus = "virtual:it-feedstop-" + tag;
+  const std::string tmp = ::testing::TempDir();
+  const std::string cfg = tmp + "/feeder_stop_" + tag + ".yaml";
+  std::ofstream(cfg) << "line: itest\ndds: {domain: 7, localhost_only: true}\nbuses:\n"
+                        "  - {name: loom, interface: '" +
+                            bus + "', role: master, sync_period_ms: 20}\n" + device_yaml("loom");
+
+  lb::test::BusSpy spy(bus);
+  lb::test::ChildProcess sim({LB_BIN_SIM, "--config", cfg}, tmp + "/feedstop_sim_" + tag + ".log");
+  lb::test::ChildProcess bridge({LB_BIN_BRIDGE, "--config", cfg}, tmp + "/feedstop_bridge_" + tag + ".log");
+  const auto logs = [&] { return "--- bridge ---\n" + bridge.log() + "--- sim ---\n" + sim.log(); };
+
+  auto dds = lb::ddsl::Participant::create({7, true, "feeder-stop-test"});
+  ASSERT_TRUE(dds) << dds.error().message;
+  lb::test::Collector<msg::FeederStatusPubSubType> status;
+  ASSERT_TRUE(status.subscribe(**dds, lb::ddsl::topic_name("itest", "feeders", "status"), QosKind::state));
+  ASSERT_TRUE(status.wait_last(20s, [](const msg::FeederStatus& s) {
+    return s.health().nmt_state() == msg::NMT_OPERATIONAL && s.feeders().size() == 4 && s.feeders()[0].status_read() &&
+           s.feeders()[0].status().name() == "operational_mode";
+  })) << logs();
+
+  auto commands = CommandClient::create(**dds, "itest/feeders/feeder_command");
+  ASSERT_TRUE(commands) << commands.error().message;
+  // A run this bridge is not: 64 random bits make this one's own a 2^-64 chance.
+  constexpr lb::ddsl::Incarnation kEarlierRun = 0x5EED'0000'0000'0001ULL;
+  srv::FeederCommand_Request led;
+  led.feeder(1);
+  led.command("led_on");
+  led.bridge_incarnation(kEarlierRun);
+  const auto refused = (*commands)->ask(led, 10s);
+  ASSERT_TRUE(refused) << refused.error().message;
+  EXPECT_FALSE(refused->reply.success());
+  EXPECT_TRUE(refused->bridge_restarted()) << refused->reply.message();
+  EXPECT_EQ(sdo_downloads(spy, 0x600E), 0u) << "a command meant for an earlier run reached CAN";
+
+  srv::FeederCommand_Request stop;
+  stop.feeder(1);
+  stop.command("stop_mode");
+  stop.bridge_incarnation(kEarlierRun);
+  const auto stopped = (*commands)->ask(stop, 10s);
+  ASSERT_TRUE(stopped) << stopped.error().message;
+  EXPECT_TRUE(stopped->reply.success()) << "the stop was refused: " << stopped->reply.message();
+  EXPECT_FALSE(stopped->bridge_restarted());
+  EXPECT_EQ(stopped->reply.raw(), 0x03u) << "CiA 414-2 600Eh: stop mode is 03h";
+  EXPECT_EQ(sdo_downloads(spy, 0x600E), 1u);
+  EXPECT_TRUE(status.wait_last(10s,
+                               [](const msg::FeederStatus& s) {
+                                 return s.feeders().size() == 4 &&
+                                        s.feeders()[0].status().name() == "non_operational_mode";
+                               }))
+      << "the box never reported feeder 1 out of operation\n"
+      << logs();
 }
