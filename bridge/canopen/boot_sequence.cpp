@@ -441,7 +441,8 @@ void BootSequence::start() {
   // this attempt put in pre-operational to write its PDOs was running when the boot began.
   report_.was_operational = paused_running_ || node_.state() == NmtState::operational;
   const auto& id = report_.identity;
-  node_.starting({report_.was_operational, {id.vendor_id, id.product_code, id.revision_number, id.serial_number}});
+  node_.starting({report_.was_operational, paused_running_,
+                  {id.vendor_id, id.product_code, id.revision_number, id.serial_number}});
   if (const auto hold = node_.operator_hold()) {
     if (auto r = node_.command(*hold); !r) {
       return fail({0, "start", 0, 0, "", "", 0,

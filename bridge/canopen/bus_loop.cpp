@@ -183,6 +183,16 @@ Result<void> BusLoop::send(const can::CanFrame& frame) {
   return r;
 }
 
+Result<void> BusLoop::send_stop(const can::CanFrame& frame) {
+  auto r = bus_->send(frame);
+  if (r) {
+    bits_out_ += frame_bits(frame);
+    if (held_) ++stops_sent_while_held_;
+  }
+  if (!r) spdlog::debug("{}: stop {:03X} failed: {}", bus_->uri(), frame.id, r.error().message);
+  return r;
+}
+
 void BusLoop::set_thread(std::string name, int realtime_priority) {
   if (realtime_priority < 0 || realtime_priority > 99) throw std::invalid_argument("realtime priority must be 0..99");
   thread_name_ = std::move(name);

@@ -90,7 +90,12 @@ class BusLoop {
   // Loop thread: transmits, counting and logging failures (the caller decides nothing on them).
   // Refused while transmission is held.
   Result<void> send(const can::CanFrame& frame);
-  // Loop thread: hold every transmission (another master owns the bus) or release it.
+  // Loop thread: a frame that stops a machine (an RPDO carrying a stop, an NMT stop): sent whether or
+  // not transmission is held. A stop never waits for what the master believes about another
+  // master; only the bus itself can refuse it.
+  Result<void> send_stop(const can::CanFrame& frame);
+  std::uint64_t stops_sent_while_held() const { return stops_sent_while_held_; }
+  // Loop thread: hold every transmission but stops (another master owns the bus) or release it.
   void hold_transmission(bool held) { held_ = held; }
   bool transmission_held() const { return held_; }
   std::uint64_t frames_held() const { return frames_held_; }  // refused while held
@@ -178,9 +183,10 @@ class BusLoop {
   std::vector<FlushId> requested_flushes_;
   bool in_burst_ = false;
   bool posted_here_ = false;  // a task was posted on the loop thread: run before the next wait
-  bool backlog_ = false;
+  bool backlog_ = false;  // drain_bus() stopped at kFramesPerWake with frames possibly left
   bool held_ = false;
-  std::uint64_t frames_held_ = 0;  // drain_bus() stopped at kFramesPerWake with frames possibly left
+  std::uint64_t frames_held_ = 0;
+  std::uint64_t stops_sent_while_held_ = 0;
   std::uint64_t error_frames_logged_ = 0;
   std::uint64_t handler_failures_ = 0;
   std::uint64_t frames_unclaimed_ = 0;

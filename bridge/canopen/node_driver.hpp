@@ -6,6 +6,7 @@
 
 #include <array>
 #include <cstdint>
+#include <optional>
 #include <span>
 
 #include "base/result.hpp"
@@ -22,6 +23,10 @@ struct BootReport;
 // device's first RPDO carries).
 struct StartFacts {
   bool found_operational = false;           // it reported operational when the boot began
+  // The boot put it, found operational, in pre-operational to write its PDO parameters
+  // (pdo_change_when_running: pre_operational): a pause, after which no enabling level comes back
+  // by itself.
+  bool paused_by_boot = false;
   std::array<std::uint32_t, 4> identity{};  // 1018h sub 1..4 as read (0 where absent)
 };
 
@@ -47,6 +52,9 @@ class NodeDriver {
   virtual Result<void> on_config(std::span<const PdoInUse> /*pdos*/) noexcept { return {}; }
   // Right before the boot sends NMT start.
   virtual void on_start(const StartFacts& /*facts*/) noexcept {}
+  // An operator's or the line's hold on the node was set, changed or released (nullopt)
+  // (RemoteNode::hold): what a restarted bridge must keep.
+  virtual void on_hold(const std::optional<NmtCommand>& /*hold*/) noexcept {}
   // An NMT command went out to the node, whoever sent it (the boot, an operator, the line).
   virtual void on_command(NmtCommand /*command*/) noexcept {}
   // The state the device reports or its online flag changed (both roles).

@@ -49,7 +49,21 @@ RemoteNode::RemoteNode(BusLoop& loop, std::uint8_t node_id, std::chrono::millise
                            }
                          },
                  }) {
-  loop_.on_frame(cob::emcy_base + node_id, [this](const can::CanFrame& f) { on_emcy_frame(f); });
+  loop_.on_frame(cob::emcy_base + node_id, [this](const can::CanFrame& f) {
+    heard_frame(f.timestamp_ns);
+    on_emcy_frame(f);
+  });
+  // Its heartbeats (the consumer's own handler judges them) and its SDO answers are its own too.
+  loop_.on_frame(cob::heartbeat_base + node_id, [this](const can::CanFrame& f) { heard_frame(f.timestamp_ns); });
+  loop_.on_frame(cob::sdo_tx_base + node_id, [this](const can::CanFrame& f) { heard_frame(f.timestamp_ns); });
+}
+
+bool RemoteNode::heard() const {
+  if (last_heard_ns_ == 0) return false;
+  const auto now = std::chrono::duration_cast<std::chrono::nanoseconds>(
+                       std::chrono::system_clock::now().time_since_epoch())
+                       .count();
+  return now - last_heard_ns_ <= std::chrono::nanoseconds(heartbeat_timeout_).count();
 }
 
 Result<void> RemoteNode::command(NmtCommand cmd) {

@@ -6,6 +6,7 @@
 // boot-up, a lost heartbeat, a state it was not told to take); what to do about it is the node
 // state machine's business (canopen/node_state_machine.hpp).
 
+#include <algorithm>
 #include <array>
 #include <chrono>
 #include <cstdint>
@@ -58,8 +59,15 @@ class RemoteNode {
   // Loop thread: an operator's NMT stop or enter pre-operational is kept until an operator starts
   // (or resets) the device: every boot in between configures it and puts it back in that state
   // instead of starting it, whatever happens to its heartbeat.
-  void hold(NmtCommand command) { hold_ = command; }
-  void release_hold() { hold_.reset(); }
+  void hold(NmtCommand command) {
+    hold_ = command;
+    for (auto* d : drivers_) d->on_hold(hold_);
+  }
+  void release_hold() {
+    if (!hold_) return;
+    hold_.reset();
+    for (auto* d : drivers_) d->on_hold(hold_);
+  }
   const std::optional<NmtCommand>& operator_hold() const { return hold_; }
   // Loop thread: the boot passed (the device holds the configuration), or a boot begins or failed:
   // then what the device was told before no longer counts (it is pre-operational while booted).
@@ -85,6 +93,13 @@ class RemoteNode {
   std::uint8_t node_id() const { return heartbeat_.node_id(); }
   NmtState state() const { return heartbeat_.state(); }
   bool online() const { return heartbeat_.online(); }
+  // Loop thread: the device sent a frame of its own (heartbeat or boot-up, EMCY, SDO answer, a
+  // TPDO reported through heard_frame) within its heartbeat timeout. What the stop path asks:
+  // a device that is heard takes a stop, whatever the master believes about its state.
+  bool heard() const;
+  std::int64_t last_heard_ns() const { return last_heard_ns_; }
+  // Loop thread: a frame only the device sends (its TPDOs, as the gateway decodes them).
+  void heard_frame(std::int64_t timestamp_ns) { last_heard_ns_ = std::max(last_heard_ns_, timestamp_ns); }
   std::int64_t last_heartbeat_ns() const { return heartbeat_.last_heartbeat_ns(); }
   std::chrono::milliseconds heartbeat_timeout() const { return heartbeat_timeout_; }
   bool may_transmit() const { return may_transmit_; }
@@ -134,6 +149,7 @@ class RemoteNode {
   LogRate malformed_log_;
   LogRate spoof_log_{1};
   std::string set_values_at_start_;
+  std::int64_t last_heard_ns_ = 0;  // the newest frame of the device's own (its bus's timestamps)
   HeartbeatConsumer heartbeat_;
 };
 

@@ -85,7 +85,7 @@ class Line {
   // What BootSequence::start does once every check passed: tell the listeners, then the hold or NMT start.
   void boot_passes(co::RemoteNode& node) {
     on_loop([&] {
-      node.starting({false, {}});
+      node.starting({false, false, {}});
       if (const auto hold = node.operator_hold()) {
         (void)node.command(*hold);
       } else {
