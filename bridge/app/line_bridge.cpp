@@ -11,7 +11,7 @@
 #include "app/async_log.hpp"
 #include "app/run_until_signal.hpp"
 #include "can/recording_bus.hpp"
-#include "gateways/commands/momentary_commands.hpp"
+#include "gateways/node/momentary_commands.hpp"
 
 namespace lb::app {
 
@@ -79,7 +79,7 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
   }
 
   // The set values in force survive a restart (what comes back, and into which device, is the
-  // start-up policy's: PdoWiring). A state directory that cannot be used costs that, not the line,
+  // start-up policy's: DeviceOutput). A state directory that cannot be used costs that, not the line,
   // and says so in diagnostics and the log (--check refuses it).
   std::string state_dir = config.state_dir;
   if (const char* systemd = std::getenv("STATE_DIRECTORY"); state_dir.empty() && systemd != nullptr) {

@@ -103,6 +103,28 @@ void PdoTransmitter::send() {
   if (hooks_.sent) hooks_.sent(f, at);
 }
 
+Result<void> PdoTransmitter::send_now() {
+  pending_ = false;
+  owed_ = false;
+  loop_.disarm_timer(inhibit_timer_);
+  if (hooks_.before_send) hooks_.before_send();
+  can::CanFrame f;
+  f.id = settings_.can_id;
+  f.extended = settings_.extended;
+  hooks_.pack(f);
+  const auto at = std::chrono::steady_clock::now();
+  if (auto r = loop_.send_stop(f); !r) {
+    refused(Refusal::bus);
+    return r;
+  }
+  last_ = f;
+  have_last_ = true;
+  last_sent_ = at;
+  arm_event_timer();
+  if (hooks_.sent) hooks_.sent(f, at);
+  return {};
+}
+
 void PdoTransmitter::refused(Refusal why) {
   // The next trigger tries again: unchanged data still counts as unsent (last_ is the last frame
   // sent), and an event-driven PDO's event timer keeps running, so a refused send does not

@@ -54,6 +54,12 @@ class PdoTransmitter {
   void on_sync();  // a SYNC went out (master) or came in (device)
   void on_data();  // the image may have changed: event-driven and acyclic types look
   void resend();   // forget what was sent: the next trigger sends even unchanged data
+  // Loop thread: a frame that carries a stop, now, whatever the transmission type, the inhibit
+  // time, the quiet time, the gate or another master's hold (BusLoop::send_stop): a synchronous
+  // PDO sent between two SYNCs is taken by the device at the next SYNC, which is as soon as it can
+  // act on it anyway. Only the bus can refuse it (then not_sent(bus) and the error). The frame
+  // counts as sent for everything that follows (hooks, inhibit time, event timer).
+  Result<void> send_now();
   // Loop thread: a new identifier, type or timing (a device's PDO parameters written, a mapping
   // adopted at boot). The SYNC count restarts, timers stop and what was sent is forgotten (the
   // inhibit time still counts from the last frame sent).

@@ -60,15 +60,17 @@ RemoteNode::RemoteNode(BusLoop& loop, std::uint8_t node_id, std::chrono::millise
 
 bool RemoteNode::heard() const {
   if (last_heard_ns_ == 0) return false;
-  const auto now = std::chrono::duration_cast<std::chrono::nanoseconds>(
-                       std::chrono::system_clock::now().time_since_epoch())
-                       .count();
+  const auto now =
+      std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch()).count();
   return now - last_heard_ns_ <= std::chrono::nanoseconds(heartbeat_timeout_).count();
 }
 
 Result<void> RemoteNode::command(NmtCommand cmd) {
   if (!may_transmit_) return make_error("the bus is in the monitor role: the bridge sends no NMT commands there");
-  if (auto r = loop_.send(make_nmt_command(cmd, node_id())); !r) return r;
+  // A stop (stopped, pre-operational) goes out whatever another master's presence holds back.
+  const bool stops = cmd == NmtCommand::stop || cmd == NmtCommand::enter_pre_operational;
+  const auto frame = make_nmt_command(cmd, node_id());
+  if (auto r = stops ? loop_.send_stop(frame) : loop_.send(frame); !r) return r;
   commanded_ = state_after(cmd);
   if (cmd == NmtCommand::reset_node || cmd == NmtCommand::reset_communication) configured_ = false;
   confirmed_ = false;

@@ -249,29 +249,60 @@ TEST_F(StartupPolicy, KeptValuesTooOldOrOutOfRangeAreNotRestored) {
   if (HasFatalFailure()) return;
   const auto file = dir + "/startup.set_values";
 
+  // A power cut: bridge and saw restart together. Every entry last held in force two hours ago
+  // (the default set_values_max_age_s is 3600): nothing comes back, the saw gets zeros (it lost
+  // power: program off is what it has anyway).
   ASSERT_EQ(line.bridge().stop(), 0) << line.logs();
-  // Every entry last held in force two hours ago (the default set_values_max_age_s is 3600).
+  line.sim().stop();
   const auto now = static_cast<long long>(std::time(nullptr));
   const std::regex held(R"(( [0-9A-F]{8}:[0-9A-F]{8}:[0-9A-F]{8}:[0-9A-F]{8} )(\d+)( ))");
   const auto kept = read_text(file);
   std::ofstream(file) << std::regex_replace(kept, held, "$01" + std::to_string(now - 7200) + "$03");
   line.spy().clear();
+  line.start_sim();
   line.start_bridge();
   auto saw = line.spy().wait_count(0x205, 10);
   ASSERT_GE(saw.size(), 10u) << line.logs();
   for (const auto& f : saw) EXPECT_EQ(hex(f), "0000000000000000") << "an old kept value was restored";
   ASSERT_TRUE(start_note("saw1", "over set_values_max_age_s")) << last_note("saw1") << line.logs();
 
-  // Fresh, but the saw's sync speed FFFFh (655.35 %) is over the profile's 100.00 %.
+  // Fresh, but the saw's sync speed FFFFh (655.35 %) is over the profile's 100.00 %: the same.
   ASSERT_EQ(line.bridge().stop(), 0) << line.logs();
+  line.sim().stop();
   std::ofstream(file) << std::regex_replace(std::regex_replace(kept, held, "$01" + std::to_string(now) + "$03"),
                                             std::regex(" 05008813E02E0000"), " 0500FFFFE02E0000");
   line.spy().clear();
+  line.start_sim();
   line.start_bridge();
   saw = line.spy().wait_count(0x205, 10);
   ASSERT_GE(saw.size(), 10u) << line.logs();
   for (const auto& f : saw) EXPECT_EQ(hex(f), "0000000000000000") << "an out-of-range kept value was restored";
   ASSERT_TRUE(start_note("saw1", "out of range")) << last_note("saw1") << line.logs();
+}
+
+// A restarted bridge that cannot use its kept values never sends zeros to a running saw: it reads
+// back what the saw holds (6020h, 6005h, 6002h by SDO) and goes on with that. Here the file is two
+// hours old, and the saw runs with what an operator set before the restart: program on, 50 %, 1.2 m.
+TEST_F(StartupPolicy, ARunningSawWhoseKeptValuesAreRefusedKeepsWhatItHolds) {
+  const auto dir = state_dir("readback");
+  lb::test::LineHarness line("startup", 69);
+  run_line_with_set_values(line, dir);
+  if (HasFatalFailure()) return;
+  const auto file = dir + "/startup.set_values";
+  ASSERT_EQ(line.bridge().stop(), 0) << line.logs();
+  const auto now = static_cast<long long>(std::time(nullptr));
+  const std::regex held(R"(( [0-9A-F]{8}:[0-9A-F]{8}:[0-9A-F]{8}:[0-9A-F]{8} )(\d+)( ))");
+  const auto kept = read_text(file);
+  std::ofstream(file) << std::regex_replace(kept, held, "$01" + std::to_string(now - 7200) + "$03");
+  line.spy().clear();
+  line.start_bridge();
+  const auto saw = line.spy().wait_count(0x205, 25);
+  ASSERT_GE(saw.size(), 25u) << line.logs();
+  // 0005h: program on, the length-change toggle as the first length left it; 5000 = 50.00 %;
+  // 12000 x 0.1 mm = 1.2 m.
+  for (const auto& f : saw) EXPECT_EQ(hex(f), "05008813E02E0000") << "the running saw was sent other values";
+  ASSERT_TRUE(start_note("saw1", "rpdo1 read back from the device")) << last_note("saw1") << line.logs();
+  EXPECT_NE(last_note("saw1").find("over set_values_max_age_s"), std::string::npos) << last_note("saw1");
 }
 
 // A command that stops a machine is never refused while the device is heard: the bridge restarts

@@ -17,7 +17,7 @@
 #include "canopen/bus_loop.hpp"
 #include "canopen/pdo_transmitter.hpp"
 #include "canopen/sync_producer.hpp"
-#include "gateways/commands/momentary_commands.hpp"
+#include "gateways/node/momentary_commands.hpp"
 #include "support/bus_spy.hpp"
 #include "support/unit_loop_fixture.hpp"
 

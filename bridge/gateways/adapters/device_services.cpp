@@ -364,6 +364,11 @@ void DeviceServices::nmt(const srv::Nmt_Request& request, const ddsl::Respond<sr
     // NMT is unconfirmed (CiA 301): only the device's heartbeat tells that it was heard. A device
     // that has none (offline) may be gone; sending may still help (a reset), claiming it did not.
     if (!ctx_.node.online()) {
+      const bool stops = c == canopen::NmtCommand::stop || c == canopen::NmtCommand::enter_pre_operational;
+      if (stops && ctx_.node.heard()) {
+        return reply(true, "sent; " + ctx_.device.name +
+                               " sends no heartbeat just now, but it is heard (its other frames): a stop goes out");
+      }
       return reply(false, "sent, but " + ctx_.device.name +
                               " is offline (no heartbeat within its timeout): nothing confirms that it took effect");
     }

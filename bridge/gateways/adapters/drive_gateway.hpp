@@ -21,11 +21,9 @@
 #include "gateways/adapters/gateway.hpp"
 #include "gateways/codecs/drive_codec.hpp"
 #include "gateways/commands/command_service.hpp"
-#include "gateways/commands/momentary_commands.hpp"
-#include "gateways/commands/momentary_wiring.hpp"
+#include "gateways/node/device_output.hpp"
 #include "gateways/node/pdo_burst.hpp"
 #include "gateways/node/pdo_receive.hpp"
-#include "gateways/node/pdo_wiring.hpp"
 #include "gateways/node/set_value_path.hpp"
 #include "msgs/commonPubSubTypes.h"
 
@@ -43,11 +41,8 @@ class DriveGateway : public Gateway {
 
   const CommandService* commands() const override { return &command_service_; }
 
-  // NodeDriver: what the node hears (both roles). The SYNC is the PDOs' (PdoWiring).
-  void on_nmt_change(canopen::NmtState, bool) noexcept override {
-    pdos_.resend();  // a (re)started device gets the image at once
-    publish_status(ddsl::now_ns());
-  }
+  // NodeDriver: what the node hears (both roles). The SYNC and the RPDOs are the output's.
+  void on_nmt_change(canopen::NmtState, bool) noexcept override { publish_status(ddsl::now_ns()); }
   void on_emcy(const canopen::Emergency& e) noexcept override { publish_status(e.timestamp_ns); }
   void on_errors() noexcept override { publish_status(ddsl::now_ns()); }
 
@@ -61,10 +56,9 @@ class DriveGateway : public Gateway {
   SharedLogRate set_value_log_;  // refusals, from DDS threads and the loop
   LogRate applied_log_;          // set values taken, on the loop
   Codec codec_;                  // loop thread, except validate() (const, any thread)
-  PdoWiring<Codec> pdos_;
-  MomentaryCommands commands_;
   PdoBurst burst_;
-  CommandService command_service_;  // presses commands_
+  DeviceOutput<Codec> output_;      // the RPDO image and what of it goes out
+  CommandService command_service_;  // presses through output_
   ddsl::Writer<typename Binding::StatusTopic> status_writer_;
   ddsl::Writer<linebridge_msgs::msg::SetpointResultPubSubType> result_writer_;
   Status status_;  // loop thread
@@ -75,19 +69,17 @@ template <class Binding>
 DriveGateway<Binding>::DriveGateway(DeviceContext context)
     : ctx_(context),
       codec_(context.profile, context.device.pdos, {}, !context.is_master()),
-      pdos_(ctx_, codec_, [this](std::size_t pdo, const can::CanFrame& f) { on_pdo(pdo, f); }),
-      commands_(
-          context.loop, [this](unsigned bit, bool on) { codec_.set_control_bit(bit, on); },
-          [this] {
-            pdos_.on_data();
-            publish_status(ddsl::now_ns());
-          }),
       burst_(context.loop, [this](std::int64_t stamp_ns) { publish_status(stamp_ns); }),
+      output_(
+          ctx_, codec_, [this](std::size_t pdo, const can::CanFrame& f) { on_pdo(pdo, f); },
+          {.commands = resolve_commands(codec_.bitset("control_word"), momentary_commands<Binding>()),
+           .silent_until_told = false,
+           .refuse_unless_started = false,
+           .state_pdo = {}},
+          [this] { publish_status(ddsl::now_ns()); }),
       command_service_(context, resolve_commands(codec_.bitset("control_word"), momentary_commands<Binding>()),
-                       commands_, [this] {
-                         const bool go = pdos_.ready_for_a_stop();
-                         if (go) publish_status(ddsl::now_ns());
-                         return go;
+                       [this](const CommandBit& c, const auto& refuse, MomentaryCommands::Done done) {
+                         output_.press(c, refuse, std::move(done));
                        }) {
   namespace msg = linebridge_msgs::msg;
   const std::string& dev = ctx_.device.name;
@@ -105,13 +97,10 @@ DriveGateway<Binding>::DriveGateway(DeviceContext context)
       [this](const Setpoint& sp, const ddsl::fdds::SampleInfo&) { on_setpoint(sp); });
   if (!sub) fail(sub.error());
 
-  attach_with_momentary_commands(ctx_, *this, pdos_, commands_, command_service_, codec_);
+  ctx_.node.attach(*this);
   spdlog::info("{}: {} ({}) node {} on bus {} as {}{}", dev, ctx_.profile.device, ctx_.profile.key(),
                ctx_.device.node_id, ctx_.bus.name, profiles::to_string(ctx_.bus.role),
-               ctx_.is_master() ? (ctx_.set_values != nullptr
-                                       ? "; RPDO1 image as kept at the last stop (zero when none)"
-                                       : "; RPDO1 image starts all zero (extruder stopped, speed set value 0)")
-                                : "");
+               ctx_.is_master() ? "; what its RPDO1 carries is decided at its start (the start-up policy)" : "");
   publish_status(ddsl::now_ns());  // the device exists (offline) before its first heartbeat
 }
 
@@ -133,11 +122,9 @@ void DriveGateway<Binding>::on_pdo(std::size_t pdo, const can::CanFrame& frame) 
 template <class Binding>
 void DriveGateway<Binding>::on_setpoint(const Setpoint& sp) {
   take_set_value(
-      ctx_, pdos_, set_value_log_, sp.request_id(), [&] { return codec_.validate(sp); },
+      ctx_, output_, set_value_log_, sp.request_id(), [&] { return codec_.validate(sp); },
       [this](const auto& r) { codec_.apply(r); },
       [this] {
-        pdos_.on_data();
-        publish_status(ddsl::now_ns());
         if (applied_log_.allow()) {
           spdlog::info("{}: set values: extruder {}, speed {} % (control word {:04X}h){}", ctx_.device.name,
                        codec_.extruder_running() ? "running" : "stopped", codec_.speed_set_percent(),

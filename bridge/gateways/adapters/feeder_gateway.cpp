@@ -42,10 +42,15 @@ FeederGateway::FeederGateway(DeviceContext context)
       codec_(context.profile, context.device.pdos, !context.is_master()),
       burst_(context.loop, [this](std::int64_t stamp_ns) { publish_status(stamp_ns); }),
       // The loom controller's RPDOs are event-driven (255): they go out when a loom set value
-      // changes them, and never before the first one (loom_active_).
-      pdos_(
+      // changes them, and never before the first one. Only the loom status is a state (sent again
+      // to a restarted box); triggers and picks are events.
+      output_(
           ctx_, codec_, [this](std::size_t pdo, const can::CanFrame& f) { on_pdo(pdo, f); },
-          [this] { return loom_active_; }) {
+          {.commands = {},
+           .silent_until_told = true,
+           .refuse_unless_started = true,
+           .state_pdo = [this](std::size_t pdo) { return codec_.carries(pdo, kLoomStatus); }},
+          [this] { publish_status(ddsl::now_ns()); }) {
   const std::string& dev = ctx_.device.name;
 
   const std::string& line = ctx_.line;
@@ -92,14 +97,8 @@ void FeederGateway::on_pdo(std::size_t pdo, const can::CanFrame& frame) {
   burst_.add(pdo, frame.timestamp_ns);  // a loom controller's RPDO (monitor role)
 }
 
-// A restarted control box gets the loom status again (it is a state; triggers and picks are
-// events and are not repeated).
+// A restarted control box gets the loom status again (DeviceOutput: state_pdo).
 void FeederGateway::on_nmt_change(canopen::NmtState, bool online) noexcept {
-  for (auto& r : pdos_.rpdos()) {
-    if (!codec_.carries(r.pdo, kLoomStatus)) continue;
-    r.transmitter->resend();
-    r.transmitter->on_data();
-  }
   if (!online) feeder_count_ = -1;
   publish_status(ddsl::now_ns());
 }
@@ -272,12 +271,14 @@ void FeederGateway::read(std::uint16_t index, std::uint8_t sub, canopen::SdoClie
                  std::move(done), limit);
 }
 
-void FeederGateway::when_sdo_possible(const WriteReply& reply, std::function<void()> send) {
-  gateways::when_sdo_possible(ctx_, std::move(send), [reply](const std::string& why) { reply(refused(why)); });
+void FeederGateway::when_sdo_possible(const WriteReply& reply, std::function<void()> send, bool stop) {
+  gateways::when_sdo_possible(
+      ctx_, std::move(send), [reply](const std::string& why) { reply(refused(why)); }, {}, stop);
 }
 
-void FeederGateway::write(const FeederCodec::Write& w, const WriteReply& reply, std::function<void()> then) {
-  when_sdo_possible(reply, [this, w, reply, then = std::move(then)] { write_now(w, reply, then); });
+void FeederGateway::write(const FeederCodec::Write& w, const WriteReply& reply, std::function<void()> then, bool stop) {
+  when_sdo_possible(
+      reply, [this, w, reply, then = std::move(then)] { write_now(w, reply, then); }, stop);
 }
 
 void FeederGateway::write_now(const FeederCodec::Write& w, WriteReply reply, std::function<void()> then) {
@@ -321,24 +322,26 @@ void FeederGateway::serve(const std::string& name,
 }
 
 void FeederGateway::serve_services() {
-  const auto write_or_refuse = [this](Result<FeederCodec::Write> w, const WriteReply& reply) {
+  const auto write_or_refuse = [this](Result<FeederCodec::Write> w, const WriteReply& reply, bool stop = false) {
     if (!w) {
       if (auto more = refusal_log_.allow())
         spdlog::warn("{}: refused: {}{}", ctx_.device.name, w.error().message, *more);
       return reply(refused(w.error().message));
     }
-    write(*w, reply);
+    write(*w, reply, {}, stop);
+  };
+  // 600Eh: the two commands that take a feeder out of operation. They go whenever the box is heard.
+  const auto stops = [](const srv::FeederCommand_Request& req) {
+    return req.command() == "stop_mode" || req.command() == "non_operation_mode";
   };
 
   serve<srv::FeederCommand_RequestPubSubType>(
       "feeder_command",
-      [this, write_or_refuse](const srv::FeederCommand_Request& req, const WriteReply& reply) {
-        write_or_refuse(codec_.command(req.feeder(), req.command(), req.manufacturer_code(), feeder_count()), reply);
+      [this, write_or_refuse, stops](const srv::FeederCommand_Request& req, const WriteReply& reply) {
+        write_or_refuse(codec_.command(req.feeder(), req.command(), req.manufacturer_code(), feeder_count()), reply,
+                        stops(req));
       },
-      // 600Eh: the two commands that take a feeder out of operation.
-      [](const srv::FeederCommand_Request& req) {
-        return req.command() == "stop_mode" || req.command() == "non_operation_mode";
-      });
+      stops);
   serve<srv::FeederTest_RequestPubSubType>("feeder_test", [this, write_or_refuse](const srv::FeederTest_Request& req,
                                                                                   const WriteReply& reply) {
     write_or_refuse(codec_.test(req.feeder(), req.test(), req.parameter(), feeder_count()), reply);
@@ -424,31 +427,34 @@ void FeederGateway::on_loom(const msg::LoomSetpoint& sp) {
     return loom_reply(sp.request_id(), false, raw.error().message);
   }
   const bool posted = ctx_.loop.try_post([this, r = *raw, id = sp.request_id()] {
-    if (!ctx_.node.ready_for_pdos()) {
-      return loom_reply(id, false,
-                        ctx_.device.name + " is not started by this bridge or offline: loom set value not sent");
-    }
     if (!r.outputs.empty() && !outputs_in_use()) {
       return loom_reply(id, false,
                         ctx_.device.name + ": RPDO3 (600Dh digital outputs) is not in use: the box does not have "
                                            "it, or it is disabled (COB-ID bit 31); loom set value not sent");
     }
-    if (!loom_active_)
-      spdlog::info("{}: the bridge now plays the loom controller (RPDOs from here on)", ctx_.device.name);
-    loom_active_ = true;
-    codec_.apply(r);
     // Each part given is an event on its own PDO, sent even when unchanged (a trigger repeats).
-    for (auto& t : pdos_.rpdos()) {
-      const bool touched = (r.loom_status && codec_.carries(t.pdo, kLoomStatus)) ||
-                           (r.trigger && codec_.carries(t.pdo, kTrigger)) ||
-                           (r.picks && codec_.carries(t.pdo, kPicks)) ||
-                           (!r.outputs.empty() && codec_.carries(t.pdo, kOutputs));
-      if (!touched) continue;
-      t.transmitter->resend();
-      t.transmitter->on_data();
+    std::vector<std::size_t> touched;
+    for (const auto& t : output_.rpdos()) {
+      if ((r.loom_status && codec_.carries(t.pdo, kLoomStatus)) || (r.trigger && codec_.carries(t.pdo, kTrigger)) ||
+          (r.picks && codec_.carries(t.pdo, kPicks)) || (!r.outputs.empty() && codec_.carries(t.pdo, kOutputs))) {
+        touched.push_back(t.pdo);
+      }
     }
-    publish_status(ddsl::now_ns());
-    loom_reply(id, true, "");
+    const bool first = !loom_played_;
+    output_.take([this, &r] { codec_.apply(r); },
+                 [this, id, first](bool accepted, const std::string& reason) {
+                   if (accepted && first) {
+                     loom_played_ = true;
+                     spdlog::info("{}: the bridge now plays the loom controller (RPDOs from here on)",
+                                  ctx_.device.name);
+                   }
+                   if (!accepted) {
+                     if (auto more = refusal_log_.allow())
+                       spdlog::warn("{}: loom set value {} refused: {}{}", ctx_.device.name, id, reason, *more);
+                   }
+                   loom_reply(id, accepted, reason);
+                 },
+                 touched);
   });
   if (!posted) loom_reply(sp.request_id(), false, ctx_.loop_busy("loom set value"));
 }
@@ -462,7 +468,7 @@ bool FeederGateway::outputs_in_use() {
     }
     return false;
   }
-  for (const auto& t : pdos_.rpdos()) {
+  for (const auto& t : output_.rpdos()) {
     if (t.valid_on_device && codec_.carries(t.pdo, kOutputs)) return true;
   }
   return false;

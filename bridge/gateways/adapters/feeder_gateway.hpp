@@ -21,7 +21,7 @@
 #include "gateways/adapters/gateway.hpp"
 #include "gateways/codecs/feeder_codec.hpp"
 #include "gateways/node/pdo_burst.hpp"
-#include "gateways/node/pdo_wiring.hpp"
+#include "gateways/node/device_output.hpp"
 #include "msgs/commonPubSubTypes.h"
 #include "msgs/feederPubSubTypes.h"
 
@@ -32,7 +32,7 @@ class FeederGateway : public Gateway {
   // Throws std::runtime_error at start-up when the profile lacks what a feeder needs.
   explicit FeederGateway(DeviceContext context);
 
-  // NodeDriver: what the node hears (both roles). The SYNC is the PDOs' (PdoWiring).
+  // NodeDriver: what the node hears (both roles). The RPDOs are the output's.
   void on_nmt_change(canopen::NmtState state, bool online) noexcept override;
   void on_emcy(const canopen::Emergency& e) noexcept override;
   void on_errors() noexcept override { publish_status(ddsl::now_ns()); }
@@ -64,9 +64,10 @@ class FeederGateway : public Gateway {
   std::optional<unsigned> feeder_count() const;
   // A checked write, once the box can answer SDO (sdo_admission.hpp); then() instead of the reply
   // when it succeeded (a second write follows). write_now: already admitted.
-  void write(const FeederCodec::Write& w, const WriteReply& reply, std::function<void()> then = {});
+  // stop: a command that takes a feeder out of operation, sent whenever the box is heard.
+  void write(const FeederCodec::Write& w, const WriteReply& reply, std::function<void()> then = {}, bool stop = false);
   void write_now(const FeederCodec::Write& w, WriteReply reply, std::function<void()> then = {});
-  void when_sdo_possible(const WriteReply& reply, std::function<void()> send);
+  void when_sdo_possible(const WriteReply& reply, std::function<void()> send, bool stop = false);
   void read(std::uint16_t index, std::uint8_t sub, canopen::SdoClient::ReadDone done,
             std::optional<canopen::SdoClient::Limit> limit = std::nullopt);
 
@@ -79,7 +80,9 @@ class FeederGateway : public Gateway {
   SharedLogRate refusal_log_;  // refused writes and loom set values, from DDS threads and the loop
   FeederCodec codec_;          // loop thread, except the const validation (any thread)
   PdoBurst burst_;
-  PdoWiring<FeederCodec> pdos_;  // the loom controller's RPDOs: sent only once loom play began
+  // The loom controller's RPDOs: silent until the first loom set value of this run (a loom
+  // controller normally drives them, and only one may drive a bus).
+  DeviceOutput<FeederCodec> output_;
 
   ddsl::Writer<linebridge_msgs::msg::FeederStatusPubSubType> status_writer_;
   ddsl::Writer<linebridge_msgs::msg::FeederUnwindingPubSubType> unwinding_writer_;
@@ -91,7 +94,7 @@ class FeederGateway : public Gateway {
   // Loop-thread state.
   canopen::BusLoop::TimerId poll_timer_{};
   bool polling_ = false;
-  bool loom_active_ = false;
+  bool loom_played_ = false;  // a loom set value was taken in this run (logged once)
   std::uint32_t bitmap_ = 0;
   // Feeders whose 6007h detail read is queued or under way (loop thread): one read per feeder at
   // a time, so a chattering FF10h bit cannot grow the node's SDO queue (at most 32 reads wait);

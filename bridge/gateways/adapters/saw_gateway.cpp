@@ -7,7 +7,6 @@
 #include "dds/topic_names.hpp"
 #include "gateways/adapters/checked.hpp"
 #include "gateways/adapters/device_health.hpp"
-#include "gateways/commands/momentary_wiring.hpp"
 #include "gateways/node/pdo_receive.hpp"
 #include "gateways/node/set_value_path.hpp"
 
@@ -16,25 +15,30 @@ namespace lb::gateways {
 namespace msg = linebridge_msgs::msg;
 using profiles::PdoDirection;
 
+namespace {
+
+// The saw's momentary commands (CiA 420-4 6020h), those its profile version has.
+std::vector<CommandBit> saw_commands(const SawCodec& codec) {
+  return resolve_commands(codec.control_word(), {"manual_cut", "tip_pulse", "stop_immediately", "f1_stop", "f1_start",
+                                                 "f2_stop", "f2_start", "f3_stop", "f3_start"});
+}
+
+}  // namespace
+
 SawGateway::SawGateway(DeviceContext context)
     : ctx_(context),
       codec_(context.profile, context.device.pdos, !context.is_master()),
-      pdos_(ctx_, codec_, [this](std::size_t pdo, const can::CanFrame& f) { on_pdo(pdo, f); }),
-      commands_(
-          context.loop, [this](unsigned bit, bool on) { codec_.set_control_bit(bit, on); },
-          [this] {
-            pdos_.on_data();
-            publish_status(ddsl::now_ns());
-          }),
       burst_(context.loop, [this](std::int64_t stamp_ns) { publish_status(stamp_ns); }),
-      command_service_(context,
-                       resolve_commands(codec_.control_word(),
-                                        {"manual_cut", "tip_pulse", "stop_immediately", "f1_stop", "f1_start",
-                                         "f2_stop", "f2_start", "f3_stop", "f3_start"}),
-                       commands_, [this] {
-                         const bool go = pdos_.ready_for_a_stop();
-                         if (go) publish_status(ddsl::now_ns());
-                         return go;
+      output_(
+          ctx_, codec_, [this](std::size_t pdo, const can::CanFrame& f) { on_pdo(pdo, f); },
+          {.commands = saw_commands(codec_),
+           .silent_until_told = false,
+           .refuse_unless_started = false,
+           .state_pdo = {}},
+          [this] { publish_status(ddsl::now_ns()); }),
+      command_service_(context, saw_commands(codec_),
+                       [this](const CommandBit& c, const auto& refuse, MomentaryCommands::Done done) {
+                         output_.press(c, refuse, std::move(done));
                        }) {
   const std::string& dev = ctx_.device.name;
   const std::string& line = ctx_.line;
@@ -54,21 +58,14 @@ SawGateway::SawGateway(DeviceContext context)
                                                                    const ddsl::fdds::SampleInfo&) { on_setpoint(sp); });
   if (!sub) throw std::runtime_error(dev + ": " + sub.error().message);
 
-  attach_with_momentary_commands(ctx_, *this, pdos_, commands_, command_service_, codec_);
+  ctx_.node.attach(*this);
   spdlog::info("{}: saw ({}) node {} on bus {} as {}{}", dev, ctx_.profile.key(), ctx_.device.node_id, ctx_.bus.name,
                profiles::to_string(ctx_.bus.role),
-               ctx_.is_master()
-                   ? (ctx_.set_values != nullptr ? "; RPDO1 image as kept at the last stop (zero when none)"
-                                                 : "; RPDO1 image starts all zero (saw program off)")
-                   : "");
+               ctx_.is_master() ? "; what its RPDO1 carries is decided at its start (the start-up policy)" : "");
   publish_status(ddsl::now_ns());  // the device exists (offline) before its first heartbeat
 }
 
-// A device (re)started gets the current image at once from event-driven RPDOs too.
-void SawGateway::on_nmt_change(canopen::NmtState, bool) noexcept {
-  pdos_.resend();
-  publish_status(ddsl::now_ns());
-}
+void SawGateway::on_nmt_change(canopen::NmtState, bool) noexcept { publish_status(ddsl::now_ns()); }
 
 void SawGateway::on_pdo(std::size_t pdo, const can::CanFrame& frame) {
   if (receive_pdo(ctx_, codec_, burst_, pdo, frame)) burst_.add(pdo, frame.timestamp_ns);
@@ -76,11 +73,9 @@ void SawGateway::on_pdo(std::size_t pdo, const can::CanFrame& frame) {
 
 void SawGateway::on_setpoint(const msg::SawSetpoint& sp) {
   take_set_value(
-      ctx_, pdos_, set_value_log_, sp.request_id(), [&] { return codec_.validate(sp); },
+      ctx_, output_, set_value_log_, sp.request_id(), [&] { return codec_.validate(sp); },
       [this](const SawCodec::RawSetpoint& r) { codec_.apply(r); },
       [this] {
-        pdos_.on_data();
-        publish_status(ddsl::now_ns());
         if (applied_log_.allow()) {
           spdlog::info("{}: set values: program {}, sync speed {} %, product length {} m (control word {:04X}h){}",
                        ctx_.device.name, status_.control_word().saw_program_on() ? "on" : "off",

@@ -13,9 +13,8 @@
 #include "gateways/adapters/gateway.hpp"
 #include "gateways/codecs/saw_codec.hpp"
 #include "gateways/commands/command_service.hpp"
-#include "gateways/commands/momentary_commands.hpp"
+#include "gateways/node/device_output.hpp"
 #include "gateways/node/pdo_burst.hpp"
-#include "gateways/node/pdo_wiring.hpp"
 #include "msgs/commonPubSubTypes.h"
 #include "msgs/sawPubSubTypes.h"
 
@@ -28,7 +27,7 @@ class SawGateway : public Gateway {
 
   const CommandService* commands() const override { return &command_service_; }
 
-  // NodeDriver: what the node hears (both roles). The SYNC is the PDOs' (PdoWiring).
+  // NodeDriver: what the node hears (both roles). The SYNC and the RPDOs are the output's.
   void on_nmt_change(canopen::NmtState state, bool online) noexcept override;
   void on_emcy(const canopen::Emergency& e) noexcept override { publish_status(e.timestamp_ns); }
   void on_errors() noexcept override { publish_status(ddsl::now_ns()); }
@@ -44,10 +43,9 @@ class SawGateway : public Gateway {
   SharedLogRate set_value_log_;  // refusals, from DDS threads and the loop
   LogRate applied_log_;          // set values taken, on the loop
   SawCodec codec_;               // loop thread, except validate() (const, any thread)
-  PdoWiring<SawCodec> pdos_;
-  MomentaryCommands commands_;
   PdoBurst burst_;
-  CommandService command_service_;  // presses commands_
+  DeviceOutput<SawCodec> output_;   // the RPDO image and what of it goes out
+  CommandService command_service_;  // presses through output_
 
   ddsl::Writer<linebridge_msgs::msg::SawStatusPubSubType> status_writer_;
   ddsl::Writer<linebridge_msgs::msg::SawCutPubSubType> cut_writer_;

@@ -33,6 +33,13 @@ struct DeviceContext {
   std::chrono::steady_clock::time_point rpdos_from{};
 
   bool is_master() const { return bus.role == profiles::BusRole::master; }
+  // The answer to a request (not a stop) while the bridge yields to another master on this bus.
+  std::string another_master(std::string_view what) const {
+    return "another master's SYNC runs on bus " + bus.name +
+           ": the bridge transmits nothing but stops there until it is silent (diagnostics: "
+           "yielding_to_other_master): " +
+           std::string(what);
+  }
   // The answer to a request the bus loop refused (BusLoop::try_post: too many waiting).
   std::string loop_busy(std::string_view what) const {
     return "bus " + bus.name + " is overloaded (" + std::to_string(canopen::BusLoop::kMaxPosted) +

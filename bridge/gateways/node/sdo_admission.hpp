@@ -20,8 +20,15 @@ inline constexpr canopen::SdoClient::Limit kServiceSdoLimit{8};
 // Loop thread: why an SDO request to the device cannot succeed now; empty when it can.
 // answered_boot: the device has no heartbeat but answered its last boot's SDO requests (the boot
 // failed later, e.g. on a mapping): it is asked, since that is how an integrator finds out why.
-inline std::string sdo_refusal(const DeviceContext& ctx, bool answered_boot = false) {
-  if (!ctx.node.online() && !answered_boot) return ctx.device.name + " is offline (no heartbeat): SDO request not sent";
+// stop: the request stops a machine (the feeder's 600Eh stop modes): it goes whenever the device
+// is heard (RemoteNode::heard), whatever its heartbeat supervision believes.
+inline std::string sdo_refusal(const DeviceContext& ctx, bool answered_boot = false, bool stop = false) {
+  if (stop && !ctx.node.heard()) {
+    return ctx.device.name + " is not heard (no frame of its own within its heartbeat timeout): the stop cannot reach "
+                             "it; SDO request not sent";
+  }
+  if (!stop && !ctx.node.online() && !answered_boot)
+    return ctx.device.name + " is offline (no heartbeat): SDO request not sent";
   if (ctx.node.state() == canopen::NmtState::stopped) {
     return ctx.device.name + " is stopped (NMT): a stopped device answers no SDO (CiA 301); SDO request not sent";
   }
@@ -30,14 +37,15 @@ inline std::string sdo_refusal(const DeviceContext& ctx, bool answered_boot = fa
 
 // Any thread: runs send() on the loop thread when the device can answer SDO, else refuse(why) there.
 template <class Send, class Refuse>
-void when_sdo_possible(const DeviceContext& ctx, Send send, Refuse refuse, std::function<bool()> answered_boot = {}) {
+void when_sdo_possible(const DeviceContext& ctx, Send send, Refuse refuse, std::function<bool()> answered_boot = {},
+                       bool stop = false) {
   // refuse is needed on both paths: the copy answers when the loop has no room for the request.
   auto busy = refuse;
-  const bool posted = ctx.loop.try_post(
-      [&ctx, send = std::move(send), refuse = std::move(refuse), answered_boot = std::move(answered_boot)]() mutable {
-        if (auto why = sdo_refusal(ctx, answered_boot && answered_boot()); !why.empty()) return refuse(why);
-        send();
-      });
+  const bool posted = ctx.loop.try_post([&ctx, send = std::move(send), refuse = std::move(refuse),
+                                         answered_boot = std::move(answered_boot), stop]() mutable {
+    if (auto why = sdo_refusal(ctx, answered_boot && answered_boot(), stop); !why.empty()) return refuse(why);
+    send();
+  });
   if (!posted) busy(ctx.loop_busy("SDO request"));
 }
 

@@ -28,8 +28,10 @@ std::string_view to_string(RestoreScope scope) {
   return "?";
 }
 
-RestoreScope restore_scope(const profiles::StartupPolicy& policy, bool found_operational, bool starts_itself) {
-  if (found_operational && !starts_itself) return RestoreScope::all;
+RestoreScope restore_scope(const profiles::StartupPolicy& policy, bool found_operational, bool starts_itself,
+                           bool paused_by_boot) {
+  if (found_operational && !starts_itself && !paused_by_boot) return RestoreScope::all;
+  if (paused_by_boot && !starts_itself) return RestoreScope::non_enabling;
   if (policy.after_power_loss == profiles::StartupPolicy::AfterPowerLoss::nothing) return RestoreScope::nothing;
   return policy.restart_after_power_loss == profiles::StartupPolicy::Restart::allowed ? RestoreScope::all
                                                                                       : RestoreScope::non_enabling;
@@ -63,34 +65,71 @@ Result<void> check_set_values(const profiles::Profile& profile, const canopen::P
   return {};
 }
 
-std::vector<std::string> clear_enabling(const profiles::Profile& profile, const canopen::PdoMapping& mapping,
-                                        std::span<std::uint8_t> payload) {
-  std::vector<std::string> cleared;
+namespace {
+
+// Calls visit(name, value&) for every enabling level of the unpacked values, then packs them back
+// over the mapped bytes only (bytes after them, a manufacturer-specific tail, stay) when any changed.
+template <class Visit>
+void each_enabling(const profiles::Profile& profile, const canopen::PdoMapping& mapping,
+                   std::span<std::uint8_t> payload, Visit visit) {
   canopen::PdoMapping::Values raw{};
-  if (!mapping.unpack(payload, raw)) return cleared;
+  if (!mapping.unpack(payload, raw)) return;  // a payload shorter than the mapping is left as it is
+  const auto before = raw;
   const auto entries = mapping.entries();
   for (std::size_t i = 0; i < entries.size(); ++i) {
     const auto& e = entries[i];
     if (e.is_dummy()) continue;
-    if (const auto* obj = profile.object(e.index, e.sub); obj != nullptr && obj->enabling && raw[i] != 0) {
-      cleared.push_back(obj->name);
-      raw[i] = 0;
+    if (const auto* obj = profile.object(e.index, e.sub); obj != nullptr && obj->enabling) {
+      const std::uint64_t ones = e.bits >= 64 ? ~std::uint64_t{0} : (std::uint64_t{1} << e.bits) - 1;
+      visit(obj->name, raw[i], ones);
     }
     for (const auto& set : profile.bitsets) {
       if (!set.applies_to(e.index, e.sub)) continue;
       for (const auto& f : set.bits) {
-        if (!f.enabling || f.extract(raw[i]) == 0) continue;
-        cleared.push_back(f.name);
-        raw[i] = f.insert(raw[i], 0);
+        if (!f.enabling) continue;
+        std::uint64_t v = f.extract(raw[i]);
+        const std::uint64_t ones = f.width >= 64 ? ~std::uint64_t{0} : (std::uint64_t{1} << f.width) - 1;
+        visit(f.name, v, ones);
+        raw[i] = f.insert(raw[i], v);
       }
     }
   }
-  if (cleared.empty()) return cleared;
-  // Packed back over the mapped bytes only: bytes after them (a manufacturer-specific tail) stay.
+  if (raw == before) return;
   std::array<std::uint8_t, 8> packed{};
   const auto n = mapping.pack(std::span<const std::uint64_t>(raw.data(), entries.size()), packed);
   std::copy_n(packed.begin(), std::min<std::size_t>(n, payload.size()), payload.begin());
+}
+
+}  // namespace
+
+std::vector<std::string> clear_enabling(const profiles::Profile& profile, const canopen::PdoMapping& mapping,
+                                        std::span<std::uint8_t> payload) {
+  std::vector<std::string> cleared;
+  each_enabling(profile, mapping, payload, [&cleared](const std::string& name, std::uint64_t& v, std::uint64_t) {
+    if (v == 0) return;
+    cleared.push_back(name);
+    v = 0;
+  });
   return cleared;
+}
+
+std::vector<EnablingLevel> enabling_levels(const profiles::Profile& profile, const canopen::PdoMapping& mapping,
+                                           std::span<const std::uint8_t> payload) {
+  std::vector<EnablingLevel> levels;
+  std::array<std::uint8_t, 8> copy{};
+  const auto n = std::min<std::size_t>(payload.size(), copy.size());
+  std::copy_n(payload.begin(), n, copy.begin());
+  each_enabling(profile, mapping, std::span<std::uint8_t>(copy.data(), n),
+                [&levels](const std::string& name, std::uint64_t& v, std::uint64_t) {
+                  levels.push_back({name, v});
+                });
+  return levels;
+}
+
+void force_enabling(const profiles::Profile& profile, const canopen::PdoMapping& mapping,
+                    std::span<std::uint8_t> payload, bool on) {
+  each_enabling(profile, mapping, payload,
+                [on](const std::string&, std::uint64_t& v, std::uint64_t ones) { v = on ? ones : 0; });
 }
 
 }  // namespace lb::gateways

@@ -1,7 +1,7 @@
 #pragma once
 // What of a device's set values goes (back) into its RPDOs when the bridge starts it, after every
 // boot: the start-up policy (profiles::StartupPolicy) applied to one RPDO payload. Pure logic on
-// raw payloads and the profile, so every gateway applies it the same way (PdoWiring) and the unit
+// raw payloads and the profile, so every gateway applies it the same way (DeviceOutput) and the unit
 // tests drive it without a bus.
 
 #include <cstdint>
@@ -24,7 +24,10 @@ enum class RestoreScope {
 std::string_view to_string(RestoreScope scope);
 
 // found_operational: the device reported operational before the bridge started it in this boot.
-RestoreScope restore_scope(const profiles::StartupPolicy& policy, bool found_operational, bool starts_itself);
+// paused_by_boot: the boot put it in pre-operational to write its PDO parameters; it comes back with
+// what enables nothing (a pause is not an operator's decision to run it again).
+RestoreScope restore_scope(const profiles::StartupPolicy& policy, bool found_operational, bool starts_itself,
+                           bool paused_by_boot = false);
 
 // A kept payload passes the checks a new set value passes: every mapped object of the profile
 // within its range (min/max, else its data type) and, for an enumeration, a code it defines;
@@ -37,5 +40,17 @@ Result<void> check_set_values(const profiles::Profile& profile, const canopen::P
 // A payload shorter than the mapping is left as it is.
 std::vector<std::string> clear_enabling(const profiles::Profile& profile, const canopen::PdoMapping& mapping,
                                         std::span<std::uint8_t> payload);
+
+// Every enabling level the payload carries, in mapping order: its name and raw value (a stop is a
+// change that writes 0 to one of them and non-zero to none).
+struct EnablingLevel {
+  std::string name;
+  std::uint64_t value = 0;
+};
+std::vector<EnablingLevel> enabling_levels(const profiles::Profile& profile, const canopen::PdoMapping& mapping,
+                                           std::span<const std::uint8_t> payload);
+// Sets every enabling level of the payload to all ones (on) or to zero; other bits stay.
+void force_enabling(const profiles::Profile& profile, const canopen::PdoMapping& mapping,
+                    std::span<std::uint8_t> payload, bool on);
 
 }  // namespace lb::gateways

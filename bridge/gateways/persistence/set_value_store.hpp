@@ -5,7 +5,7 @@
 // device *is* (bus, node-ID, profile) and stamped with the identity its boot read (1018h) and the
 // time the bridge last held it in force. So a renamed device keeps its values, another device at
 // that node-ID gets none, and a file from before a long stop restores nothing
-// (StartupPolicy::set_values_max_age). Whether and what is restored is PdoWiring's decision.
+// (StartupPolicy::set_values_max_age). Whether and what is restored is DeviceOutput's decision.
 //
 // One file per line, <state_dir>/<line>.set_values, text, written atomically (a fresh temporary
 // file opened without following links, fsync, rename, fsync of the directory) by a thread of its

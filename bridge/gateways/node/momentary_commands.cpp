@@ -1,4 +1,4 @@
-#include "gateways/commands/momentary_commands.hpp"
+#include "gateways/node/momentary_commands.hpp"
 
 #include <fmt/format.h>
 

@@ -1,0 +1,21 @@
+#pragma once
+// What a running device holds in the objects one of its RPDOs maps, read back by SDO and packed as
+// that RPDO's payload: the set values in force as the device has them. A restarted bridge that
+// adopts a running device sends it this rather than zeros or a file's values it cannot trust
+// (CiA 301: an RPDO's objects are the device's own, readable unless the profile makes them
+// write-only). Dummy entries read as 0. Loop thread; `done` runs once, on the loop thread.
+
+#include <cstdint>
+#include <functional>
+#include <vector>
+
+#include "base/result.hpp"
+#include "canopen/pdo_mapping.hpp"
+#include "canopen/sdo_client.hpp"
+
+namespace lb::gateways {
+
+using ReadBackDone = std::function<void(Result<std::vector<std::uint8_t>>)>;
+void read_back_rpdo(canopen::SdoClient& sdo, std::uint8_t node, const canopen::PdoMapping& mapping, ReadBackDone done);
+
+}  // namespace lb::gateways
