@@ -24,6 +24,8 @@
 using lb::canopen::PdoEntry;
 using lb::gateways::check_set_values;
 using lb::gateways::clear_enabling;
+using lb::gateways::enabling_levels;
+using lb::gateways::force_enabling;
 using lb::gateways::restore_scope;
 using lb::gateways::RestoreScope;
 using lb::gateways::SetValueStore;
@@ -70,6 +72,9 @@ TEST(RestoreScope, OnlyADeviceFoundRunningGetsItsEnablingLevelsBack) {
   policy = {};
   policy.restart_after_power_loss = StartupPolicy::Restart::allowed;
   EXPECT_EQ(restore_scope(policy, false, false), RestoreScope::all);
+  // Paused by its boot to write PDO parameters: found running, but nothing enabling comes back.
+  policy = {};
+  EXPECT_EQ(restore_scope(policy, true, false, true), RestoreScope::non_enabling);
 }
 
 TEST(Enabling, TheProfilesMarkTheLevelsThatLetAMachineRun) {
@@ -109,6 +114,38 @@ TEST(Enabling, ClearedFromAPayloadAndNamed) {
   std::array<std::uint8_t, 8> off{0x04, 0x00, 0x88, 0x13, 0xE0, 0x2E, 0x00, 0x00};
   EXPECT_TRUE(clear_enabling(profile("cia420-4", "3.1"), kSawRpdo1, off).empty());
   EXPECT_EQ(off[0], 0x04);
+}
+
+// What tells a stop from a switch-on (DeviceOutput tries a change on forced copies): every
+// enabling level with its value, and all of them forced on (all ones) or off, other bits kept.
+TEST(Enabling, ReadAndForcedInAPayload) {
+  const auto& saw = profile("cia420-4", "3.1");
+  // 0005h: program on, the length-change toggle (bit 2), wall thickening off.
+  const std::array<std::uint8_t, 8> on{0x05, 0x00, 0x88, 0x13, 0xE0, 0x2E, 0x00, 0x00};
+  const auto levels = enabling_levels(saw, kSawRpdo1, on);
+  ASSERT_EQ(levels.size(), 2u);
+  EXPECT_EQ(levels[0].name, "saw_program_on");
+  EXPECT_EQ(levels[0].value, 1u);
+  EXPECT_EQ(levels[1].name, "wall_thickening");
+  EXPECT_EQ(levels[1].value, 0u);
+  auto forced = on;
+  force_enabling(saw, kSawRpdo1, forced, true);
+  EXPECT_EQ(forced, (std::array<std::uint8_t, 8>{0x07, 0x00, 0x88, 0x13, 0xE0, 0x2E, 0x00, 0x00}));
+  force_enabling(saw, kSawRpdo1, forced, false);
+  EXPECT_EQ(forced, (std::array<std::uint8_t, 8>{0x04, 0x00, 0x88, 0x13, 0xE0, 0x2E, 0x00, 0x00}));
+  // Feeder RPDO2: loom status (600Ah) is one UNSIGNED8 level: forced on, all ones (FFh).
+  std::array<std::uint8_t, 5> loom{0x00, 0x2C, 0x01, 0x96, 0x00};
+  force_enabling(profile("cia414-2", "1.1"), kFeederRpdo2, loom, true);
+  EXPECT_EQ(loom, (std::array<std::uint8_t, 5>{0xFF, 0x2C, 0x01, 0x96, 0x00}));
+  const auto loom_levels = enabling_levels(profile("cia414-2", "1.1"), kFeederRpdo2, loom);
+  ASSERT_EQ(loom_levels.size(), 1u);
+  EXPECT_EQ(loom_levels[0].name, "loom_status");
+  EXPECT_EQ(loom_levels[0].value, 0xFFu);
+  // A payload shorter than the mapping is left alone and names nothing.
+  std::array<std::uint8_t, 2> short_payload{0x05, 0x00};
+  force_enabling(saw, kSawRpdo1, short_payload, false);
+  EXPECT_EQ(short_payload[0], 0x05);
+  EXPECT_TRUE(enabling_levels(saw, kSawRpdo1, short_payload).empty());
 }
 
 TEST(KeptSetValues, PassTheRangeChecksOfANewSetValue) {

@@ -177,6 +177,7 @@ class DeviceOutput final : public canopen::NodeDriver {
     quiet_ = true;  // the press's own frame goes out below, once
     if (!ctx_.node.ready_for_pdos() || ctx_.loop.transmission_held() || carrier()->silent) {
       stop_mode_ = true;
+      fill_undecided();
       if (const auto off = switch_off_enabling(); !off.empty()) {
         spdlog::warn("{}: {} for a device the bridge does not control just now: switched off first: {}", name, c.name,
                      fmt::join(off, ", "));
@@ -343,6 +344,7 @@ class DeviceOutput final : public canopen::NodeDriver {
   void take_stop(Apply& apply, const Change& change, const Taken& taken, std::span<const std::size_t> resend) {
     const auto& name = ctx_.device.name;
     if (!ctx_.node.heard()) return taken(false, not_heard("set value"));
+    fill_undecided();
     write(apply, change, resend);
     if (!ctx_.node.ready_for_pdos() || ctx_.loop.transmission_held()) stop_mode_ = true;
     std::string failed;
@@ -411,6 +413,21 @@ class DeviceOutput final : public canopen::NodeDriver {
       off.insert(off.end(), names.begin(), names.end());
     }
     return off;
+  }
+  // Before a stop's frame for an RPDO no start has decided yet (a restarted bridge still booting the
+  // device) or kept silent: the kept values, where their mapping is the one in use and they pass
+  // today's range checks, so that the stop carries the device's last speeds and lengths rather
+  // than zeros. Whatever comes back of them, the stop's own switch-off follows.
+  void fill_undecided() {
+    if (ctx_.set_values == nullptr) return;
+    for (auto& r : rpdos_) {
+      if (r.told || (started_once_ && !r.silent)) continue;
+      const auto kept = ctx_.set_values->restored(store_key(r));
+      if (!kept || kept->mapping != mapping_of(def(r)) || !check_set_values(ctx_.profile, mapping(r), kept->payload))
+        continue;
+      static_cast<void>(codec_.receive(r.pdo, kept->payload));
+      clear_momentary();
+    }
   }
   void clear_momentary() {
     if constexpr (requires(Codec & c) { c.set_control_bit(0U, false); }) {
