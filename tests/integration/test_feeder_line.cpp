@@ -5,7 +5,11 @@
 // as loom controller. Monitor role: hand-built loom-controller RPDOs decoded, nothing transmitted.
 // Runs inside launch_scripts/netns-run.sh (CTest does that).
 #include <gtest/gtest.h>
+#include <signal.h>
 #include <unistd.h>
+
+#include <algorithm>
+#include <memory>
 
 #include <chrono>
 #include <fstream>
@@ -396,4 +400,97 @@ TEST(FeederLine, AStopModeNamingAnEarlierBridgeRunRunsAndOtherCommandsAreRefused
                                }))
       << "the box never reported feeder 1 out of operation\n"
       << logs();
+}
+
+// After a power cut of the box alone, the feeders do not run again by themselves (IEC 60204-1):
+// the bridge, which played the loom controller with start advice, sends the restarted box its loom
+// status as stop (CiA 414-2 600Ah 00h), never start advice, until the loom (an operator) says so.
+// RPDO2 (300h + 10, event-driven) carries 600Ah (UNSIGNED8) and 6004h (UNSIGNED32: bits 0-15 the
+// maximum speed 600 1/min = 0258h, bits 16-31 the loom width 190 cm = 00BEh).
+TEST(FeederLine, ABoxThatLostPowerIsNotToldToRunAgain) {
+  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
+  const std::string tag = std::to_string(::getpid());
+  const std::string bus = "virtual:it-feedpower-" + tag;
+  const std::string tmp = ::testing::TempDir();
+  const std::string cfg = tmp + "/feeder_power_" + tag + ".yaml";
+  std::ofstream(cfg) << "line: itest\ndds: {domain: 8, localhost_only: true}\nbuses:\n"
+                        "  - {name: loom, interface: '" +
+                            bus + "', role: master, sync_period_ms: 20}\n" + device_yaml("loom");
+
+  lb::test::BusSpy spy(bus);
+  auto sim = std::make_unique<lb::test::ChildProcess>(std::vector<std::string>{LB_BIN_SIM, "--config", cfg},
+                                                      tmp + "/feedpower_sim_" + tag + ".log");
+  lb::test::ChildProcess bridge({LB_BIN_BRIDGE, "--config", cfg}, tmp + "/feedpower_bridge_" + tag + ".log");
+  const auto logs = [&] { return "--- bridge ---\n" + bridge.log() + "--- sim ---\n" + sim->log(); };
+
+  auto dds = lb::ddsl::Participant::create({8, true, "feeder-power-test"});
+  ASSERT_TRUE(dds) << dds.error().message;
+  lb::test::Collector<msg::FeederStatusPubSubType> status;
+  lb::test::Collector<msg::SetpointResultPubSubType> loom_results;
+  ASSERT_TRUE(status.subscribe(**dds, lb::ddsl::topic_name("itest", "feeders", "status"), QosKind::state));
+  ASSERT_TRUE(loom_results.subscribe(**dds, lb::ddsl::topic_name("itest", "feeders", "loom_result"), QosKind::reply));
+  ASSERT_TRUE(status.wait_last(20s, [](const msg::FeederStatus& s) {
+    return s.health().nmt_state() == msg::NMT_OPERATIONAL;
+  })) << logs();
+  auto loom = (*dds)->writer<msg::LoomSetpointPubSubType>(lb::ddsl::topic_name("itest", "feeders", "loom"),
+                                                          QosKind::command);
+  ASSERT_TRUE(loom);
+  ASSERT_TRUE(lb::test::eventually(10s, [&] {
+    return loom->matched() > 0 && (*dds)->matched_writers(lb::ddsl::topic_name("itest", "feeders", "loom_result")) > 0;
+  })) << logs();
+  msg::LoomSetpoint run;
+  run.request_id(1);
+  run.loom_status("start_advice");
+  run.maximum_speed_per_min(600);
+  run.loom_width_m(1.9);
+  loom->write(run);
+  ASSERT_TRUE(loom_results.wait_last(5s, [](const msg::SetpointResult& r) { return r.request_id() == 1; })) << logs();
+  ASSERT_TRUE(loom_results.samples().back().accepted()) << loom_results.samples().back().reason();
+  const auto payload = [](const lb::can::CanFrame& f) {
+    return std::vector<std::uint8_t>(f.data.begin(), f.data.begin() + f.len);
+  };
+  ASSERT_TRUE(spy.wait_until([&](const std::vector<lb::can::CanFrame>& frames) {
+    return std::any_of(frames.begin(), frames.end(), [&](const auto& f) {
+      return f.id == 0x300 + kNode && payload(f) == std::vector<std::uint8_t>{0x01, 0x58, 0x02, 0xBE, 0x00};
+    });
+  })) << "start advice never reached the box\n"
+      << logs();
+
+  // The box alone loses power (the bridge keeps running) and comes back.
+  ::kill(sim->pid(), SIGKILL);
+  sim.reset();
+  spy.clear();
+  sim = std::make_unique<lb::test::ChildProcess>(std::vector<std::string>{LB_BIN_SIM, "--config", cfg},
+                                                 tmp + "/feedpower_sim2_" + tag + ".log");
+  // Its boot-up, then the bridge's NMT start (000h: 01h, node 10), then its loom status again.
+  ASSERT_TRUE(spy.wait_until([&](const std::vector<lb::can::CanFrame>& frames) {
+    const auto start = std::find_if(frames.begin(), frames.end(), [](const auto& f) {
+      return f.id == 0x000 && f.len == 2 && f.data[0] == 0x01 && f.data[1] == kNode;
+    });
+    return start != frames.end() &&
+           std::any_of(start, frames.end(), [](const auto& f) { return f.id == 0x300 + kNode; });
+  })) << "the restarted box was never started and sent its loom status\n"
+      << logs();
+  ASSERT_TRUE(status.wait_last(10s, [](const msg::FeederStatus& s) {
+    return s.health().nmt_state() == msg::NMT_OPERATIONAL;
+  })) << logs();
+  for (const auto& f : spy.frames(0x300 + kNode)) {
+    ASSERT_GE(f.len, 1);
+    EXPECT_EQ(f.data[0], 0x00) << "600Ah is not stop after the box's power cut: the feeders were told to run";
+  }
+  // The maximum speed and the loom width in force stay (they enable nothing).
+  const auto after = spy.frames(0x300 + kNode);
+  ASSERT_FALSE(after.empty());
+  EXPECT_EQ(payload(after.front()), (std::vector<std::uint8_t>{0x00, 0x58, 0x02, 0xBE, 0x00}));
+  // An operator's start advice runs them again.
+  run.request_id(2);
+  loom->write(run);
+  ASSERT_TRUE(loom_results.wait_last(5s, [](const msg::SetpointResult& r) { return r.request_id() == 2; })) << logs();
+  EXPECT_TRUE(loom_results.samples().back().accepted()) << loom_results.samples().back().reason();
+  EXPECT_TRUE(spy.wait_until([&](const std::vector<lb::can::CanFrame>& frames) {
+    return std::any_of(frames.begin(), frames.end(),
+                       [&](const auto& f) { return f.id == 0x300 + kNode && f.data[0] == 0x01; });
+  })) << logs();
+  dds->reset();
+  EXPECT_EQ(bridge.stop(), 0) << logs();
 }
