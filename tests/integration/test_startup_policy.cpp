@@ -305,6 +305,80 @@ TEST_F(StartupPolicy, ARunningSawWhoseKeptValuesAreRefusedKeepsWhatItHolds) {
   EXPECT_NE(last_note("saw1").find("over set_values_max_age_s"), std::string::npos) << last_note("saw1");
 }
 
+// A stop an operator sends while a restarted bridge boots a running saw is not undone by the
+// values kept at the bridge's last stop. The saw's heartbeat comes every 5 s here (its TPDOs every
+// SYNC), so the boot waits up to 5 s for a heartbeat after the configuration: the program-off
+// arrives in that wait. It is answered accepted once its RPDO1 is on the bus (within 100 ms of the
+// request), and no RPDO1 after it carries saw_program_on (6020h bit 0), the start included.
+TEST_F(StartupPolicy, AStopDuringARestartedBootIsNotUndone) {
+  const auto dir = state_dir("stopduringboot");
+  lb::test::LineHarness line("startup", 70);
+  const auto saw = "  - name: saw1\n    bus: b\n    node_id: 5\n    profile: cia420-4\n    version: '3.1'\n"
+                   "    heartbeat_timeout_ms: 8000\n    boot_retry_ms: 1000\n"
+                   "    simulation: {heartbeat_period_ms: 5000}\n";
+  line.start(saw, "", "", "state_dir: " + dir + "\n");
+  ASSERT_TRUE(saw_status.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
+  ASSERT_TRUE(results.subscribe(line.dds(), line.topic("saw1", "setpoint_result"), QosKind::reply));
+  ASSERT_TRUE(diag.subscribe(line.dds(), line.topic("bridge", "diagnostics"), QosKind::state));
+  auto w = line.dds().writer<msg::SawSetpointPubSubType>(line.topic("saw1", "setpoint"), QosKind::command);
+  ASSERT_TRUE(w);
+  saw_writer = *w;
+  ASSERT_TRUE(saw_status.wait_last(30s, operational)) << line.logs();
+  ASSERT_TRUE(answered_until(results, 1, [&] { set_saw(true, 1); })) << line.logs();
+  ASSERT_TRUE(frame_seen(line, 0x205, [](const lb::can::CanFrame& f) { return f.data[0] == 0x05; })) << line.logs();
+  ASSERT_TRUE(lb::test::eventually(
+      30s,
+      [&] {
+        return read_text(dir + "/startup.set_values").find(" rpdo1 60200010,60050010,60020020 05008813E02E0000") !=
+               std::string::npos;
+      }))
+      << "program on never kept\n"
+      << line.logs();
+
+  ASSERT_EQ(line.bridge().stop(), 0) << line.logs();
+  line.spy().clear();
+  line.start_bridge();
+  ASSERT_TRUE(diag.wait(20s,
+                        [](const std::vector<msg::Diagnostics>& v) {
+                          const auto* n = v.empty() ? nullptr : node_of(v.back(), "saw1");
+                          return n != nullptr && n->boot_state().find("waiting for its heartbeat") != std::string::npos;
+                        }))
+      << "the restarted bridge's boot never waited for the saw's heartbeat\n"
+      << line.logs();
+  ASSERT_TRUE(line.wait_matched(saw_writer, line.topic("saw1", "setpoint_result"))) << line.logs();
+  ASSERT_EQ(line.bridge_log_count("checked, configured"), 0u) << "the boot was over before the stop: try again\n"
+                                                              << line.logs();
+  const auto asked_ns = lb::ddsl::now_ns();
+  set_saw(false, 2);
+  ASSERT_TRUE(results.wait(10s, [](const std::vector<msg::SetpointResult>& v) {
+    return std::any_of(v.begin(), v.end(), [](const msg::SetpointResult& r) { return r.request_id() == 2; });
+  })) << line.logs();
+  for (const auto& r : results.samples()) {
+    if (r.request_id() == 2) {
+      EXPECT_TRUE(r.accepted()) << "the stop was refused: " << r.reason();
+    }
+  }
+  // On the bus within 100 ms of the request: program off (0004h), 50.00 %, 1.2 m.
+  const auto first = line.spy().wait_count(0x205, 1);
+  ASSERT_FALSE(first.empty()) << line.logs();
+  EXPECT_EQ(hex(first.front()), "04008813E02E0000");
+  EXPECT_LT(first.front().timestamp_ns - asked_ns, 100'000'000) << "the stop took longer than 100 ms to the bus";
+  // The boot ends (NMT start 000#0105), and 25 RPDO1 after it still carry program off.
+  ASSERT_TRUE(frame_seen(line, 0x000, [](const lb::can::CanFrame& f) {
+    return f.len == 2 && f.data[0] == 0x01 && f.data[1] == 0x05;
+  })) << line.logs();
+  ASSERT_TRUE(line.spy().wait_until([](const std::vector<lb::can::CanFrame>& frames) {
+    const auto start = std::find_if(frames.begin(), frames.end(), [](const auto& f) {
+      return f.id == 0x000 && f.len == 2 && f.data[0] == 0x01 && f.data[1] == 0x05;
+    });
+    return start != frames.end() &&
+           std::count_if(start, frames.end(), [](const auto& f) { return f.id == 0x205; }) >= 25;
+  })) << line.logs();
+  for (const auto& f : line.spy().frames(0x205)) {
+    EXPECT_EQ(f.data[0] & 0x01, 0) << "a stop accepted during the boot was undone: " << hex(f);
+  }
+}
+
 // A command that stops a machine is never refused while the device is heard: the bridge restarts
 // while the saw runs, and its boot fails (a configuration write the saw confirms and ignores:
 // error J), so the bridge does not start it and it runs on unmanaged. Nothing is sent by itself
