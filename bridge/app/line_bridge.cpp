@@ -96,11 +96,11 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
                    config.restore_set_values ? "" : " (restore_set_values: false: a start begins from zero)");
     } else {
       bridge->store_problem_ = "not kept: " + store.error().message;
-      spdlog::error("set values in force will not survive a restart: {}", store.error().message);
+      spdlog::error("set values in force and holds will not survive a restart: {}", store.error().message);
     }
   } else {
     bridge->store_problem_ = "not kept: no state_dir (and no $STATE_DIRECTORY)";
-    spdlog::info("set values in force are not kept across restarts (no state_dir)");
+    spdlog::info("set values in force and holds are not kept across restarts (no state_dir)");
   }
 
   // Master buses: another master there is noticed and, by default, yielded to.
@@ -167,6 +167,29 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
     }
   }
 
+  // Holds outlive the bridge (HoldKeeper: an operator's stop or pre-operational, the line's
+  // stop_others): one keeper per device of a master bus, attached after every other driver of its
+  // node, and the holds kept from before put back on their nodes now, before any loop runs, so
+  // that the first boot of each held device puts it back in its held state instead of starting it.
+  for (auto& rt : bridge->buses_) {
+    if (rt.config->role != profiles::BusRole::master || !bridge->set_values_) continue;
+    std::size_t i = 0;
+    for (const auto& dev : config.devices) {
+      if (dev.bus != rt.config->name) continue;
+      auto keeper = std::make_unique<gateways::HoldKeeper>(*rt.loop, *rt.nodes[i], *bridge->set_values_,
+                                                           gateways::KeptHold::Key{dev.bus, dev.node_id,
+                                                                                   dev.bridge_profile().key()},
+                                                           dev.name);
+      if (rt.mandatory) keeper->set_line_view([m = rt.mandatory.get(), i] { return m->line_hold(i); });
+      rt.services[i]->on_operator_nmt([k = keeper.get()](canopen::NmtCommand c) { k->operator_command(c); });
+      const auto kept = keeper->restore();
+      if (kept && kept->holder == gateways::KeptHold::Holder::line_stop && rt.mandatory)
+        rt.mandatory->kept_stop(i, *kept);
+      rt.holds.push_back(std::move(keeper));
+      ++i;
+    }
+  }
+
   // After every device: a request may name any of them from the moment the services are matched.
   auto management = gateways::ManagementServices::serve(*bridge->dds_, config.line, std::move(managed));
   if (!management) return management.error();
@@ -178,7 +201,8 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
     for (std::size_t i = 0; i < rt.nodes.size(); ++i) {
       for (const auto& dev : config.devices) {
         if (dev.bus == rt.config->name && dev.node_id == rt.nodes[i]->node_id()) {
-          b.devices.push_back({&dev, rt.nodes[i].get(), rt.services[i].get(), i});
+          b.devices.push_back(
+              {&dev, rt.nodes[i].get(), rt.services[i].get(), i, i < rt.holds.size() ? rt.holds[i].get() : nullptr});
         }
       }
     }
@@ -193,7 +217,12 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
             d.set_value_store(problem);
           } else {
             const auto failing = store->problem();
-            d.set_value_store(failing.empty() ? "kept in " + store->path() : "failing: " + failing);
+            auto text = failing.empty() ? "kept in " + store->path() + " (holds in " + store->holds_path() + ")"
+                                        : "failing: " + failing;
+            // A holds file that could not be read: the holds before the restart are gone (said until
+            // the bridge restarts again).
+            if (!store->holds_problem().empty()) text += "; " + store->holds_problem();
+            d.set_value_store(text);
           }
           d.log_lines_dropped(log_lines_dropped());
           if (channel != nullptr) {

@@ -22,6 +22,7 @@
 #include "gateways/adapters/diagnostics_gateway.hpp"
 #include "gateways/adapters/gateway.hpp"
 #include "gateways/node/mandatory_devices.hpp"
+#include "gateways/persistence/hold_keeper.hpp"
 #include "gateways/persistence/set_value_store.hpp"
 #include "gateways/routing/management_services.hpp"
 #include "profiles/line_config.hpp"
@@ -71,6 +72,8 @@ class LineBridge {
     std::vector<std::unique_ptr<gateways::Gateway>> gateways;
     // Master role, when a device of the bus is mandatory: the line-level policy for them.
     std::unique_ptr<gateways::MandatoryDevices> mandatory;
+    // Master role, when the state directory is usable: per device (bus order), its hold kept across restarts.
+    std::vector<std::unique_ptr<gateways::HoldKeeper>> holds;
     std::uint32_t lane = 0;  // over the channel: the lane its devices' readers use (0: none)
   };
 

@@ -5,6 +5,7 @@
 // pre-operational), byte 1 the node-ID (saw 5, pullers 3 and 4); SDO requests to node n on 600h + n.
 #include <gtest/gtest.h>
 #include <signal.h>
+#include <sys/wait.h>
 
 #include <algorithm>
 #include <chrono>
@@ -14,6 +15,7 @@
 
 #include "msgs/pullerPubSubTypes.h"
 #include "support/line_harness.hpp"
+#include "support/scratch_files.hpp"
 
 namespace msg = linebridge_msgs::msg;
 namespace srv = linebridge_msgs::srv;
@@ -268,3 +270,139 @@ TEST_F(MandatoryDevicesLine, ALostMandatoryDeviceStopsTheOthersUntilAnOperatorSt
 }
 
 }  // namespace
+
+// The line's stop outlives the bridge: the mandatory saw is lost and both pullers get NMT stop;
+// the saw comes back (the pullers stay stopped); the bridge is killed (SIGKILL) and started again
+// on the same state_dir. The restarted bridge boots and starts the saw, boots both pullers and
+// puts them back in stopped (000#0203, 000#0204): no NMT start reaches either, their heartbeats say
+// stopped (70xh, 04h), diagnostics say the line's hold is from before the restart. An operator's
+// nmt start then starts puller1; puller2 stays stopped.
+TEST_F(MandatoryDevicesLine, TheLinesStopSurvivesABridgeKill) {
+  const auto dir = lb::test::fresh_dir("mandatory-held");
+  lb::test::LineHarness line("mandatory", 69);
+  line.start(line_devices(), pullers(), "", "state_dir: " + dir + "\n");
+  start_saw(line);
+  ASSERT_TRUE(diag.subscribe(line.dds(), line.topic("bridge", "diagnostics"), QosKind::state));
+  const auto all_operational = [](const msg::Diagnostics& d) {
+    for (const char* n : {"saw1", "puller1", "puller2"}) {
+      const auto* x = node(d, n);
+      if (x == nullptr || x->node_state() != "operational") return false;
+    }
+    return true;
+  };
+  ASSERT_TRUE(diag.wait_last(30s, all_operational)) << logs(line);
+
+  ::kill(saw_sim->pid(), SIGKILL);  // the mandatory saw loses power
+  ASSERT_NE(first(line, [](const lb::can::CanFrame& f) { return nmt(f, 0x02, 3); }), 0) << logs(line);
+  ASSERT_NE(first(line, [](const lb::can::CanFrame& f) { return nmt(f, 0x02, 4); }), 0) << logs(line);
+  saw_sim->stop();
+  // The line's holds reach the state directory (waited for, not asserted: the bus below decides).
+  const auto file = dir + "/mandatory.holds";
+  if (!lb::test::eventually(10s, [&] {
+        const auto text = lb::test::read_text(file);
+        return text.find("b 3 cia420-2@1.0 ") != std::string::npos &&
+               text.find("b 4 cia420-2@1.0 ") != std::string::npos;
+      })) {
+    ADD_FAILURE() << "the line's holds never reached " << file << ":\n" << lb::test::read_text(file);
+  }
+  // The saw comes back and is started; the pullers stay stopped.
+  start_saw(line);
+  ASSERT_NE(first(line, [](const lb::can::CanFrame& f) { return nmt(f, 0x01, 5); }), 0) << logs(line);
+  ASSERT_TRUE(diag.wait_last(30s, [](const msg::Diagnostics& d) {
+    const auto* b = bus(d);
+    return b != nullptr && b->mandatory_missing().empty() && node(d, "saw1")->node_state() == "operational" &&
+           node(d, "puller1")->nmt_state() == msg::NMT_STOPPED && node(d, "puller2")->nmt_state() == msg::NMT_STOPPED;
+  })) << logs(line);
+
+  const auto first_run = diag.samples().back().bridge_incarnation();
+  ::kill(line.bridge().pid(), SIGKILL);
+  ASSERT_TRUE(WIFSIGNALED(line.bridge().stop())) << logs(line);
+  line.spy().clear();
+  line.start_bridge();
+
+  // The restarted bridge: the saw booted and started, both pullers' boots ended (held or started),
+  // three more seconds of its life; no NMT start to either puller, both put back in stopped.
+  ASSERT_TRUE(diag.wait(40s,
+                        [&](const std::vector<msg::Diagnostics>& v) {
+                          if (v.empty() || v.back().bridge_incarnation() == first_run) return false;
+                          const auto& d = v.back();
+                          const auto* saw = node(d, "saw1");
+                          if (saw == nullptr || saw->node_state() != "operational") return false;
+                          for (const char* n : {"puller1", "puller2"}) {
+                            const auto* p = node(d, n);
+                            if (p == nullptr ||
+                                (p->node_state() != "operational" && p->node_state() != "stopped by the line"))
+                              return false;
+                          }
+                          return true;
+                        }))
+      << "the restarted bridge never finished booting the line\n"
+      << logs(line);
+  ASSERT_TRUE(more_samples(3));
+  EXPECT_EQ(count(line, 0x01, 3), 0u) << "the restarted bridge started puller1, which the line holds";
+  EXPECT_EQ(count(line, 0x01, 4), 0u) << "the restarted bridge started puller2, which the line holds";
+  ASSERT_GE(count(line, 0x02, 3), 1u) << "puller1's boot did not put it back in stopped\n" << logs(line);
+  ASSERT_GE(count(line, 0x02, 4), 1u) << "puller2's boot did not put it back in stopped\n" << logs(line);
+  EXPECT_NE(first(
+                line, [](const lb::can::CanFrame& f) { return f.id == 0x603; }, 1s),
+            0)
+      << "puller1 not booted";
+  EXPECT_NE(first(
+                line, [](const lb::can::CanFrame& f) { return f.id == 0x604; }, 1s),
+            0)
+      << "puller2 not booted";
+  for (const std::uint8_t id : {3, 4}) {
+    std::int64_t stopped_ns = 0;
+    for (const auto& f : line.spy().frames(0x000)) {
+      if (nmt(f, 0x02, id)) stopped_ns = f.timestamp_ns;
+    }
+    std::size_t after = 0;
+    for (const auto& f : line.spy().frames(0x700u + id)) {
+      if (f.timestamp_ns <= stopped_ns + 150'000'000) continue;  // one period for the device to take it
+      ++after;
+      EXPECT_TRUE(f.len == 1 && f.data[0] == 0x04) << "node " << int(id) << " left stopped";
+    }
+    EXPECT_GE(after, 10u) << "node " << int(id);
+  }
+
+  // Diagnostics: both held by the line, since before the restart.
+  ASSERT_TRUE(diag.wait_last(10s,
+                             [](const msg::Diagnostics& d) {
+                               for (const char* n : {"puller1", "puller2"}) {
+                                 const auto* p = node(d, n);
+                                 if (p == nullptr || p->node_state() != "stopped by the line" ||
+                                     p->line_hold().rfind("stopped: mandatory device saw1", 0) != 0 ||
+                                     p->line_hold().find("kept from before the bridge restarted") == std::string::npos)
+                                   return false;
+                               }
+                               return bus(d) != nullptr &&
+                                      bus(d)->mandatory_state().find(
+                                          "kept stopped until an operator starts them: puller1") != std::string::npos;
+                             }))
+      << (diag.samples().empty() || node(diag.samples().back(), "puller1") == nullptr
+              ? std::string("(no diagnostics)")
+              : node(diag.samples().back(), "puller1")->line_hold());
+
+  // The operator starts puller1: on the bus and running, its hold gone; puller2 stays stopped.
+  const auto go = line.nmt("puller1", srv::NMT_START);
+  ASSERT_TRUE(go.success()) << go.message();
+  EXPECT_NE(first(
+                line, [](const lb::can::CanFrame& f) { return nmt(f, 0x01, 3); }, 10s),
+            0)
+      << logs(line);
+  ASSERT_TRUE(diag.wait_last(30s, [](const msg::Diagnostics& d) {
+    const auto* p1 = node(d, "puller1");
+    return p1 != nullptr && p1->node_state() == "operational" && p1->line_hold().empty() &&
+           p1->nmt_state() == msg::NMT_OPERATIONAL;
+  })) << logs(line);
+  EXPECT_EQ(count(line, 0x01, 4), 0u) << "puller2 was started with puller1";
+  EXPECT_EQ(node(diag.samples().back(), "puller2")->nmt_state(), msg::NMT_STOPPED);
+  EXPECT_TRUE(lb::test::eventually(10s,
+                                   [&] {
+                                     const auto text = lb::test::read_text(file);
+                                     return text.find("b 3 cia420-2@1.0 ") == std::string::npos &&
+                                            text.find("b 4 cia420-2@1.0 ") != std::string::npos;
+                                   }))
+      << "puller1's released hold is still kept, or puller2's is gone:\n"
+      << lb::test::read_text(file);
+}

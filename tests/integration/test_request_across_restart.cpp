@@ -254,3 +254,57 @@ TEST_F(RequestAcrossRestart, ARepeatedStopRunsOnTheNextBridgeAndReachesTheBus) {
   }
   EXPECT_TRUE(on_bus) << "no NMT stop for node 3 on the bus\n" << line.logs();
 }
+
+// An NMT reset is an ordinary request, not a stop: it releases any hold and its boot ends in NMT
+// start. The saw runs on a second bridge (the first killed with SIGKILL), an operator stops it
+// there; a client's repeat of a reset node, then of a reset communication, naming the first run
+// is refused unrun with the restart text: no reset (000#8103, 000#8203) and no NMT start (000#0103)
+// reaches the bus, and the saw stays stopped (703#04).
+TEST_F(RequestAcrossRestart, ARepeatedResetNamingTheRunBeforeIsRefusedAndTheStopHolds) {
+  ::kill(line.bridge().pid(), SIGKILL);
+  const int status = line.bridge().stop();
+  ASSERT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL) << "the bridge ended otherwise: " << status;
+  line.start_bridge();
+  const auto second_run = started_run(first_run);
+  ASSERT_NE(second_run, lb::ddsl::kAnyIncarnation) << "the second bridge never started the saw\n" << line.logs();
+
+  auto nmt_client = lb::ddsl::ServiceClient<srv::Nmt_RequestPubSubType, srv::Nmt_ResponsePubSubType>::create(
+      line.dds(), lb::ddsl::line_service_path(line.line(), "nmt"));
+  ASSERT_TRUE(nmt_client) << nmt_client.error().message;
+  srv::Nmt_Request stop;
+  stop.device("saw1");
+  stop.command(srv::NMT_STOP);
+  stop.bridge_incarnation(second_run);
+  const auto stopped = (*nmt_client)->ask(stop, 20s);
+  ASSERT_TRUE(stopped) << stopped.error().message;
+  ASSERT_TRUE(stopped->reply.success()) << stopped->reply.message();
+  ASSERT_TRUE(line.spy().wait_until([](const std::vector<lb::can::CanFrame>& frames) {
+    return std::any_of(frames.begin(), frames.end(), [](const lb::can::CanFrame& f) {
+      return f.id == 0x700u + kSaw && f.len == 1 && f.data[0] == 0x04;
+    });
+  })) << "the saw never reported stopped\n"
+      << line.logs();
+
+  line.spy().clear();
+  for (const auto command : {srv::NMT_RESET_NODE, srv::NMT_RESET_COMMUNICATION}) {
+    srv::Nmt_Request reset;
+    reset.device("saw1");
+    reset.command(command);
+    reset.bridge_incarnation(first_run);  // a repeat of one first sent to the run before
+    const auto answer = (*nmt_client)->ask(reset, 20s);
+    ASSERT_TRUE(answer) << answer.error().message;
+    EXPECT_FALSE(answer->reply.success()) << "a reset naming the run before ran: " << answer->reply.message();
+    EXPECT_TRUE(answer->bridge_restarted());
+    EXPECT_EQ(answer->reply.message(), std::string(lb::ddsl::kRestartedRefusal));
+    EXPECT_EQ(answer->reply.bridge_incarnation(), second_run);
+  }
+  // Twenty more of the saw's heartbeats (a refused request is answered without reaching the bus
+  // loop; a reset that ran would have been sent before its answer): every one says stopped, and
+  // no NMT frame for node 3 was sent.
+  const auto heartbeats = line.spy().wait_count(0x700u + kSaw, 20);
+  ASSERT_GE(heartbeats.size(), 20u) << line.logs();
+  for (const auto& f : heartbeats) EXPECT_TRUE(f.len == 1 && f.data[0] == 0x04) << "the saw left stopped";
+  for (const auto& f : line.spy().frames(0x000)) {
+    EXPECT_FALSE(f.len == 2 && f.data[1] == kSaw) << "an NMT command to the saw: " << std::hex << int(f.data[0]);
+  }
+}

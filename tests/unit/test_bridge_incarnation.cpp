@@ -9,12 +9,14 @@
 #include <future>
 #include <mutex>
 #include <set>
+#include <vector>
 
 #include "dds/incarnation.hpp"
 #include "dds/participant.hpp"
 #include "dds/service.hpp"
 #include "dds/topic_names.hpp"
 #include "gateways/routing/bridge_runs.hpp"
+#include "gateways/routing/management_services.hpp"
 #include "msgs/commonPubSubTypes.h"
 
 namespace msg = linebridge_msgs::msg;
@@ -181,4 +183,67 @@ TEST(BridgeIncarnation, AStopRepeatedToARestartedServerRunsThereAndOtherRequests
   EXPECT_TRUE(refused->bridge_restarted());
   EXPECT_EQ(refused->reply.message(), std::string(lb::ddsl::kRestartedRefusal));
   EXPECT_EQ(second_runs, 1) << "a request meant for the run before ran";
+}
+
+// The line-wide nmt service's rule (ManagementServices::stops as the server's Stops): a reset
+// node or reset communication naming another run is refused unrun with the restart text, as a
+// start is; a stop and enter pre-operational naming it run. The handler stands for the bus: it
+// is what would send the NMT frame.
+TEST(BridgeIncarnation, AResetNamingAnotherRunIsRefusedUnrunAndAStopRuns) {
+  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
+  using NmtServer = lb::ddsl::ServiceServer<srv::Nmt_RequestPubSubType, srv::Nmt_ResponsePubSubType>;
+  using NmtClient = lb::ddsl::ServiceClient<srv::Nmt_RequestPubSubType, srv::Nmt_ResponsePubSubType>;
+  constexpr std::uint32_t kDomain = 43;
+  auto server_dds = lb::ddsl::Participant::create({kDomain, true, "run"});
+  ASSERT_TRUE(server_dds) << server_dds.error().message;
+  std::mutex m;
+  std::vector<srv::NmtCommand> sent;  // what reached the "bus"
+  auto served = NmtServer::serve(
+      **server_dds, lb::ddsl::line_service_path(kLine, "nmt"),
+      [&](const srv::Nmt_Request& req, NmtServer::Responder respond) {
+        {
+          std::lock_guard lock(m);
+          sent.push_back(req.command());
+        }
+        srv::Nmt_Response done;
+        done.success(true);
+        respond(done);
+      },
+      [](const srv::Nmt_Request& r) { return lb::gateways::ManagementServices::stops(r); });
+  ASSERT_TRUE(served) << served.error().message;
+  const Incarnation own = (*server_dds)->incarnation();
+  const Incarnation before = own + 1 == kAnyIncarnation ? own + 2 : own + 1;  // a run that is not this one
+
+  auto client_dds = lb::ddsl::Participant::create({kDomain, true, "client"});
+  ASSERT_TRUE(client_dds) << client_dds.error().message;
+  auto client = NmtClient::create(**client_dds, lb::ddsl::line_service_path(kLine, "nmt"));
+  ASSERT_TRUE(client) << client.error().message;
+  const auto ask = [&](srv::NmtCommand c) {
+    srv::Nmt_Request r;
+    r.device("saw1");
+    r.command(c);
+    r.bridge_incarnation(before);
+    return (*client)->ask(r, 20s);
+  };
+  const auto sent_now = [&] {
+    std::lock_guard lock(m);
+    return sent;
+  };
+
+  for (const auto c : {srv::NMT_RESET_NODE, srv::NMT_RESET_COMMUNICATION, srv::NMT_START}) {
+    const auto answer = ask(c);
+    ASSERT_TRUE(answer) << answer.error().message;
+    EXPECT_FALSE(answer->reply.success()) << "command " << static_cast<int>(c) << " naming another run ran";
+    EXPECT_TRUE(answer->bridge_restarted());
+    EXPECT_EQ(answer->reply.message(), std::string(lb::ddsl::kRestartedRefusal));
+    EXPECT_EQ(answer->reply.bridge_incarnation(), own);
+  }
+  EXPECT_TRUE(sent_now().empty()) << "a request naming another run reached the bus";
+  for (const auto c : {srv::NMT_STOP, srv::NMT_ENTER_PRE_OPERATIONAL}) {
+    const auto answer = ask(c);
+    ASSERT_TRUE(answer) << answer.error().message;
+    EXPECT_TRUE(answer->reply.success()) << "a stop naming another run was refused: " << answer->reply.message();
+    EXPECT_FALSE(answer->bridge_restarted());
+  }
+  EXPECT_EQ(sent_now(), (std::vector<srv::NmtCommand>{srv::NMT_STOP, srv::NMT_ENTER_PRE_OPERATIONAL}));
 }

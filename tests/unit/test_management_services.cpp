@@ -112,3 +112,20 @@ TEST(ManagementServices, DeviceWithoutMomentaryCommandsIsRefused) {
   empty.command(cq, none.respond());
   EXPECT_EQ(none.refusal(), "no device 'feeders' on line void (it has none)");
 }
+
+// Which NMT requests run whatever run of the bridge they name (a stop is never refused while the
+// device is heard): stop and enter pre-operational only. A reset releases any hold and its boot
+// ends in NMT start, so a repeat of one naming an earlier run must be refused as a start is.
+TEST(ManagementServices, OnlyStopAndPreOperationalRunOnAnyRun) {
+  const auto stops = [](srv::NmtCommand c) {
+    srv::Nmt_Request r;
+    r.device("saw1");
+    r.command(c);
+    return ManagementServices::stops(r);
+  };
+  EXPECT_TRUE(stops(srv::NMT_STOP));
+  EXPECT_TRUE(stops(srv::NMT_ENTER_PRE_OPERATIONAL));
+  EXPECT_FALSE(stops(srv::NMT_START));
+  EXPECT_FALSE(stops(srv::NMT_RESET_NODE)) << "a reset ends in NMT start: not a stop";
+  EXPECT_FALSE(stops(srv::NMT_RESET_COMMUNICATION)) << "a reset ends in NMT start: not a stop";
+}

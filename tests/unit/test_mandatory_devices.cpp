@@ -209,3 +209,41 @@ TEST(MandatoryDevices, ReportOnlyStopsNothing) {
   line.boot_passes(line.puller_);
   EXPECT_TRUE(line.seen(0x01, kPuller));
 }
+
+// A line's stop kept from before the bridge restarted (HoldKeeper::restore, then kept_stop, before
+// the loop runs): the puller's boot puts it back in stopped even once the mandatory saw passed,
+// the gate does not start it, diagnostics say the hold is from before the restart, and an
+// operator's start releases it.
+TEST(MandatoryDevices, ALinesStopKeptFromBeforeTheRestartHoldsUntilAnOperatorStarts) {
+  Line line(MandatoryDevices::Policy::stop_others);
+  // Before the loop runs, as the wiring does (the loop has started in Line: the same on its thread).
+  line.on_loop([&] {
+    line.mandatory_.kept_stop(1, {lb::gateways::KeptHold::Holder::line_stop, 1700000000,
+                                  "mandatory device saw1 its heartbeat was lost"});
+  });
+  EXPECT_EQ(line.on_loop([&] { return line.puller_.operator_hold(); }), co::NmtCommand::stop);
+  ASSERT_NO_FATAL_FAILURE(line.beat_until_both_online());
+  line.boot_passes(line.saw_);
+  ASSERT_TRUE(line.seen(0x01, kSaw));
+  line.boot_passes(line.puller_);
+  EXPECT_TRUE(line.seen(0x02, kPuller)) << "the puller's boot did not put it back in stopped";
+  EXPECT_FALSE(line.seen(0x01, kPuller, 500ms)) << "the puller held since before the restart was started";
+  const auto hold = line.on_loop([&] { return line.mandatory_.hold_of(1); });
+  EXPECT_EQ(hold,
+            "stopped: mandatory device saw1 its heartbeat was lost (kept from before the bridge restarted; held since "
+            "2023-11-14 22:13:20 UTC); an operator's nmt start releases it");
+  EXPECT_EQ(line.on_loop([&] { return line.mandatory_.line_hold(1).kind; }),
+            lb::gateways::HoldKeeper::LineHold::Kind::stopped);
+  EXPECT_NE(line.on_loop([&] { return line.mandatory_.state(); }).find("puller1 (since before the bridge restarted)"),
+            std::string::npos);
+
+  line.on_loop([&] {
+    (void)line.puller_.command(co::NmtCommand::start);
+    line.puller_.release_hold();
+    line.mandatory_.operator_command(1, co::NmtCommand::start);
+  });
+  EXPECT_TRUE(line.seen(0x01, kPuller));
+  EXPECT_TRUE(line.on_loop([&] { return line.mandatory_.hold_of(1).empty() && line.mandatory_.state().empty(); }));
+  EXPECT_EQ(line.on_loop([&] { return line.mandatory_.line_hold(1).kind; }),
+            lb::gateways::HoldKeeper::LineHold::Kind::none);
+}

@@ -145,6 +145,11 @@ void DiagnosticsGateway::snapshot(std::size_t i) {
         n.boot_state(n.line_hold());
       }
     }
+    // Who holds it and since when, and whether that hold comes from before the bridge restarted
+    // (the line's own hold says so in line_hold).
+    if (d.hold != nullptr && (bus.mandatory == nullptr || bus.mandatory->held_as(d.index).empty())) {
+      if (const auto note = d.hold->note(); !note.empty()) n.boot_state(n.boot_state() + "; " + note);
+    }
     n.set_values_at_start(d.node->set_values_at_start());
     if (const auto& e = d.services->boot_report().error) n.boot_error(to_msg(*e));
     const auto counters = d.services->boot_counters();

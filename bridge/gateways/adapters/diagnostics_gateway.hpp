@@ -17,6 +17,7 @@
 #include "dds/participant.hpp"
 #include "gateways/adapters/device_services.hpp"
 #include "gateways/node/mandatory_devices.hpp"
+#include "gateways/persistence/hold_keeper.hpp"
 #include "msgs/commonPubSubTypes.h"
 #include "profiles/line_config.hpp"
 
@@ -28,7 +29,8 @@ class DiagnosticsGateway {
     const profiles::DeviceConfig* config;
     const canopen::RemoteNode* node;
     const DeviceServices* services;
-    std::size_t index = 0;  // its place among the devices of its bus (MandatoryDevices' member)
+    std::size_t index = 0;             // its place among the devices of its bus (MandatoryDevices' member)
+    const HoldKeeper* hold = nullptr;  // master role, when holds are kept: its hold, from before a restart or not
   };
   struct Bus {
     const profiles::BusConfig* config;

@@ -65,9 +65,10 @@ void MandatoryDevices::starting(std::size_t i, const canopen::StartFacts& facts)
   const std::string failed = policy_ == Policy::stop_others ? names_failed(i) : std::string();
   if (!failed.empty() && (st.started || facts.found_operational)) {
     // It ran (or runs) while a mandatory device is gone: the line does not run without it.
-    node.hold(canopen::NmtCommand::stop);
     st.hold = Hold::stopped;
     st.hold_why = "mandatory device " + failed + " lost or failed its boot";
+    st.kept_since_s = 0;
+    node.hold(canopen::NmtCommand::stop);
     spdlog::warn(
         "{}: {} (node {}) is kept stopped: {} (when_mandatory_fails: stop_others); an operator's nmt start releases it",
         bus_, m.name, node.node_id(), st.hold_why);
@@ -85,9 +86,9 @@ void MandatoryDevices::starting(std::size_t i, const canopen::StartFacts& facts)
                    node.node_id(), missing);
       return;
     }
-    node.hold(canopen::NmtCommand::enter_pre_operational);
     st.hold = Hold::waiting;
     st.hold_why = "waiting for mandatory device " + missing;
+    node.hold(canopen::NmtCommand::enter_pre_operational);
     spdlog::info("{}: {} (node {}) configured, kept pre-operational: waiting for mandatory device {} (CiA 302-2: "
                  "no device is started before the mandatory ones passed their boot)",
                  bus_, m.name, node.node_id(), missing);
@@ -141,9 +142,10 @@ void MandatoryDevices::stop_others(std::size_t failed) {
     auto& node = *members_[j].node;
     // Never started (it waits), already held by the line, or stopped by an operator: nothing to do.
     if (j == failed || !st.started || st.hold != Hold::none || node.operator_hold()) continue;
-    node.hold(canopen::NmtCommand::stop);
     st.hold = Hold::stopped;
     st.hold_why = "mandatory device " + f.name + " " + status_[failed].why;
+    st.kept_since_s = 0;
+    node.hold(canopen::NmtCommand::stop);
     // A boot under way keeps asking it by SDO, which a stopped device does not answer: held only,
     // its boot ends by stopping it. One that is gone gets it at its next boot the same way.
     // (Configured: its last boot ended, whatever its heartbeat says yet.)
@@ -197,12 +199,32 @@ void MandatoryDevices::open_gate() {
   }
 }
 
+void MandatoryDevices::kept_stop(std::size_t i, const KeptHold& hold) {
+  auto& st = status_[i];
+  st.hold = Hold::stopped;
+  st.hold_why = hold.reason.empty() ? std::string("stopped by the line") : hold.reason;
+  st.kept_since_s = hold.since_s;
+  // HoldKeeper::restore put it on the node and logged it; held here too, whoever restored it.
+  if (members_[i].node->operator_hold() != canopen::NmtCommand::stop) members_[i].node->hold(canopen::NmtCommand::stop);
+}
+
+HoldKeeper::LineHold MandatoryDevices::line_hold(std::size_t i) const {
+  const auto& st = status_[i];
+  switch (st.hold) {
+    case Hold::none: return {};
+    case Hold::waiting: return {HoldKeeper::LineHold::Kind::waiting, st.hold_why};
+    case Hold::stopped: return {HoldKeeper::LineHold::Kind::stopped, st.hold_why};
+  }
+  return {};
+}
+
 void MandatoryDevices::operator_command(std::size_t i, canopen::NmtCommand command) {
   auto& st = status_[i];
   // The hold on the node is the operator's from now on (a stop, pre-operational), or released by
   // them (a start, a reset: its next boot decides anew).
   st.hold = Hold::none;
   st.hold_why.clear();
+  st.kept_since_s = 0;
   if (command != canopen::NmtCommand::start) return;
   st.started = true;
   if (const auto missing = names_missing(i); !missing.empty()) {
@@ -221,7 +243,8 @@ std::vector<std::string> MandatoryDevices::missing() const {
 std::string MandatoryDevices::state() const {
   std::string held;
   for (std::size_t j = 0; j < members_.size(); ++j) {
-    if (status_[j].hold == Hold::stopped) add_name(held, members_[j].name);
+    if (status_[j].hold == Hold::stopped)
+      add_name(held, members_[j].name + (status_[j].kept_since_s != 0 ? " (since before the bridge restarted)" : ""));
   }
   const auto kept = held.empty() ? std::string() : "; kept stopped until an operator starts them: " + held;
   std::string failed;
@@ -258,7 +281,12 @@ std::string MandatoryDevices::hold_of(std::size_t i) const {
   switch (st.hold) {
     case Hold::none: return {};
     case Hold::waiting: return st.hold_why + " (configured, kept pre-operational; started when it passes its boot)";
-    case Hold::stopped: return "stopped: " + st.hold_why + "; an operator's nmt start releases it";
+    case Hold::stopped:
+      return "stopped: " + st.hold_why +
+             (st.kept_since_s != 0
+                  ? " (kept from before the bridge restarted; held since " + utc_text(st.kept_since_s) + ")"
+                  : std::string()) +
+             "; an operator's nmt start releases it";
   }
   return {};
 }

@@ -13,6 +13,8 @@
 //     boots put it back in stopped, and nothing restarts it by itself when the mandatory device
 //     comes back; an operator's nmt start (or reset) releases it. With report_only: log and
 //     diagnostics only (and the start-up wait applies only until the mandatory devices first passed).
+//     That stop outlives the bridge (HoldKeeper keeps it in the state directory): a restarted
+//     bridge puts it back before its loop starts (kept_stop), and it is held as before.
 // A held device still takes every stopping command: NMT stop, pre-operational and reset are the
 // operator's as for any device, and set values that enable nothing are accepted (the device is
 // stopped, so its RPDOs wait for an operator's start).
@@ -33,6 +35,8 @@
 #include "canopen/bus_loop.hpp"
 #include "canopen/node_driver.hpp"
 #include "canopen/remote_node.hpp"
+#include "gateways/persistence/hold_keeper.hpp"
+#include "gateways/persistence/kept_holds.hpp"
 #include "profiles/line_config.hpp"
 
 namespace lb::gateways {
@@ -57,6 +61,12 @@ class MandatoryDevices {
   // Loop thread, from the device services: an operator's NMT command was sent to member i. From
   // then on its state is the operator's (a start releases what this class held).
   void operator_command(std::size_t i, canopen::NmtCommand command);
+  // Before the loop starts: member i's stop by the line, kept from before the bridge restarted
+  // (HoldKeeper::restore). Held as any stop of the line: only an operator's start or reset
+  // releases it, whatever the mandatory devices do meanwhile.
+  void kept_stop(std::size_t i, const KeptHold& hold);
+  // Loop thread: what the line holds member i in (HoldKeeper's line view).
+  HoldKeeper::LineHold line_hold(std::size_t i) const;
 
   // Loop thread, for diagnostics.
   std::vector<std::string> missing() const;  // mandatory devices that have not passed their boot (now)
@@ -73,9 +83,10 @@ class MandatoryDevices {
   struct Status {
     Presence presence = Presence::booting;
     Hold hold = Hold::none;
-    bool started = false;  // the bridge started it (a boot, the gate, an operator) in this run
-    std::string why;       // of a lost or failed mandatory member
-    std::string hold_why;  // why this class holds it
+    bool started = false;           // the bridge started it (a boot, the gate, an operator) in this run
+    std::string why;                // of a lost or failed mandatory member
+    std::string hold_why;           // why this class holds it
+    std::int64_t kept_since_s = 0;  // a stop kept from before the bridge restarted: since when (Unix s)
   };
 
   // What the line hears of member i through its node.

@@ -138,6 +138,41 @@ Result<std::map<SetValueStore::Key, SetValueStore::Entry>> read_file(const std::
   return restored;
 }
 
+std::string values_text(const std::map<SetValueStore::Key, SetValueStore::Entry>& values) {
+  std::string text =
+      fmt::format("# linebridge: the set values in force, one RPDO a line:\n"
+                  "# bus node-ID profile identity(1018h sub 1:2:3:4) held-in-force(Unix s) pdo mapping payload(hex)\n"
+                  "format {}\n",
+                  SetValueStore::kFormat);
+  for (const auto& [k, e] : values) {
+    std::string mapping;
+    for (auto m : e.mapping) mapping += fmt::format("{}{:08X}", mapping.empty() ? "" : ",", m);
+    text += fmt::format("{} {} {} {:08X}:{:08X}:{:08X}:{:08X} {} {} {} {}\n", k.bus, k.node_id, k.profile,
+                        e.identity[0], e.identity[1], e.identity[2], e.identity[3], e.held_at_s, k.pdo, mapping,
+                        hex_bytes(e.payload));
+  }
+  return text;
+}
+
+// The holds file: never a reason to refuse the store; what cannot be read restores no hold and
+// says why (the line runs; the file is replaced at the first change).
+std::map<KeptHold::Key, KeptHold> read_holds(const std::string& path, std::string& why) {
+  struct stat st {};
+  if (::lstat(path.c_str(), &st) != 0) {
+    if (errno != ENOENT) why = path + ": " + errno_text(errno) + ": no hold restored";
+    return {};
+  }
+  if (S_ISLNK(st.st_mode)) {
+    why = path + ": a symbolic link (holds are kept only in a regular file): no hold restored";
+  } else if (auto text = profiles::read_config_file(path, "hold file", SetValueStore::kMaxFileBytes); !text) {
+    why = text.error().message + ": no hold restored";
+  } else {
+    return parse_holds(*text, path, why);
+  }
+  spdlog::error("{}; devices held before the restart are booted and started as if never held", why);
+  return {};
+}
+
 }  // namespace
 
 Result<std::unique_ptr<SetValueStore>> SetValueStore::open(const std::string& state_dir, const std::string& line,
@@ -161,11 +196,23 @@ Result<std::unique_ptr<SetValueStore>> SetValueStore::open(const std::string& st
     // The file must still be ours to replace: refuse a link or a non-file now, not at the first write.
     if (::lstat(path.c_str(), &st) == 0 && !S_ISREG(st.st_mode)) return make_error(path + ": not a regular file");
   }
-  return std::make_unique<SetValueStore>(path, std::move(restored));
+  const std::string holds_path = state_dir + "/" + line + ".holds";
+  std::string holds_problem;
+  auto holds = read_holds(holds_path, holds_problem);
+  if (!holds.empty()) spdlog::info("{}: {} hold(s) kept from before the restart", holds_path, holds.size());
+  return std::make_unique<SetValueStore>(path, std::move(restored), holds_path, std::move(holds),
+                                         std::move(holds_problem));
 }
 
-SetValueStore::SetValueStore(std::string path, std::map<Key, Entry> restored)
-    : path_(std::move(path)), restored_(std::move(restored)), current_(restored_) {
+SetValueStore::SetValueStore(std::string path, std::map<Key, Entry> restored, std::string holds_path,
+                             std::map<KeptHold::Key, KeptHold> restored_holds, std::string holds_problem)
+    : path_(std::move(path)),
+      restored_(std::move(restored)),
+      holds_path_(holds_path.empty() ? path_.substr(0, path_.rfind('.')) + ".holds" : std::move(holds_path)),
+      restored_holds_(std::move(restored_holds)),
+      holds_problem_(std::move(holds_problem)),
+      current_(restored_),
+      holds_(restored_holds_) {
   thread_ = std::thread([this] { run(); });
 }
 
@@ -197,6 +244,22 @@ void SetValueStore::save(const Key& key, Entry entry) {
   cv_.notify_all();
 }
 
+void SetValueStore::save_hold(const KeptHold::Key& key, std::optional<KeptHold> hold) {
+  {
+    std::lock_guard lock(mutex_);
+    const auto it = holds_.find(key);
+    if (!hold) {
+      if (it == holds_.end()) return;
+      holds_.erase(it);
+    } else {
+      if (it != holds_.end() && it->second == *hold) return;
+      holds_[key] = std::move(*hold);
+    }
+    holds_dirty_ = true;
+  }
+  cv_.notify_all();
+}
+
 std::uint64_t SetValueStore::write_failures() const {
   std::lock_guard lock(mutex_);
   return write_failures_;
@@ -204,14 +267,15 @@ std::uint64_t SetValueStore::write_failures() const {
 
 std::string SetValueStore::problem() const {
   std::lock_guard lock(mutex_);
-  return problem_;
+  if (holds_write_problem_.empty()) return problem_;
+  return problem_.empty() ? holds_write_problem_ : problem_ + "; " + holds_write_problem_;
 }
 
 void SetValueStore::run() {
   std::unique_lock lock(mutex_);
   auto refresh_due = std::chrono::steady_clock::now() + kRefreshInterval;
   for (;;) {
-    cv_.wait_until(lock, refresh_due, [this] { return dirty_ || stopping_; });
+    cv_.wait_until(lock, refresh_due, [this] { return dirty_ || holds_dirty_ || stopping_; });
     const auto now = std::chrono::steady_clock::now();
     const bool refresh = now >= refresh_due;
     if (refresh) refresh_due = now + kRefreshInterval;
@@ -225,7 +289,7 @@ void SetValueStore::run() {
       const auto values = current_;
       lock.unlock();
       std::string why;
-      const bool ok = write_file(values, why);
+      const bool ok = write_file(path_, values_text(values), why);
       lock.lock();
       if (ok) {
         if (!problem_.empty()) spdlog::info("{}: the set values in force are kept again", path_);
@@ -236,26 +300,31 @@ void SetValueStore::run() {
         dirty_ = !stopping_;  // tried again at the next interval
       }
     }
+    // Holds change seldom (an operator's stop, the line's reaction): written when they do.
+    if (holds_dirty_) {
+      holds_dirty_ = false;
+      const auto holds = holds_;
+      lock.unlock();
+      std::string why;
+      const bool ok = write_file(holds_path_, holds_text(holds), why);
+      lock.lock();
+      if (ok) {
+        if (!holds_write_problem_.empty()) spdlog::info("{}: the holds are kept again", holds_path_);
+        holds_write_problem_.clear();
+      } else {
+        ++write_failures_;
+        holds_write_problem_ = why;
+        holds_dirty_ = !stopping_;
+      }
+    }
     if (stopping_) return;
     // Coalesce: set values change in bursts (a ramp, a pulse); one write per interval is enough.
     cv_.wait_for(lock, kWriteInterval, [this] { return stopping_; });
   }
 }
 
-bool SetValueStore::write_file(const std::map<Key, Entry>& values, std::string& why) {
-  std::string text =
-      fmt::format("# linebridge: the set values in force, one RPDO a line:\n"
-                  "# bus node-ID profile identity(1018h sub 1:2:3:4) held-in-force(Unix s) pdo mapping payload(hex)\n"
-                  "format {}\n",
-                  kFormat);
-  for (const auto& [k, e] : values) {
-    std::string mapping;
-    for (auto m : e.mapping) mapping += fmt::format("{}{:08X}", mapping.empty() ? "" : ",", m);
-    text += fmt::format("{} {} {} {:08X}:{:08X}:{:08X}:{:08X} {} {} {} {}\n", k.bus, k.node_id, k.profile,
-                        e.identity[0], e.identity[1], e.identity[2], e.identity[3], e.held_at_s, k.pdo, mapping,
-                        hex_bytes(e.payload));
-  }
-  const std::string tmp = path_ + ".tmp";
+bool SetValueStore::write_file(const std::string& path, const std::string& text, std::string& why) {
+  const std::string tmp = path + ".tmp";
   const auto fail = [&](const char* what, const std::string& file) {
     why = fmt::format("{} {}: {}", what, file, errno_text(errno));
     static_cast<void>(::unlink(tmp.c_str()));
@@ -263,8 +332,8 @@ bool SetValueStore::write_file(const std::map<Key, Entry>& values, std::string& 
     if (failure_logged_ == std::chrono::steady_clock::time_point{} ||
         now - failure_logged_ >= std::chrono::minutes(1)) {
       failure_logged_ = now;
-      spdlog::error("{}: the set values in force could not be kept: {} (tried again; logged once a minute)", path_,
-                    why);
+      spdlog::error("{}: {} could not be kept: {} (tried again; logged once a minute)", path,
+                    path == holds_path_ ? "the holds" : "the set values in force", why);
     }
     return false;
   };
@@ -284,10 +353,10 @@ bool SetValueStore::write_file(const std::map<Key, Entry>& values, std::string& 
   }
   if (::fsync(fd.get()) != 0) return fail("fsync", tmp);
   fd = can::UniqueFd();
-  if (::rename(tmp.c_str(), path_.c_str()) != 0) return fail("rename to", path_);
+  if (::rename(tmp.c_str(), path.c_str()) != 0) return fail("rename to", path);
   // The rename is durable only once the directory is: without this a power cut can lose the file.
-  const auto slash = path_.rfind('/');
-  const std::string dir = slash == std::string::npos ? "." : path_.substr(0, slash);
+  const auto slash = path.rfind('/');
+  const std::string dir = slash == std::string::npos ? "." : path.substr(0, slash);
   can::UniqueFd dfd(::open(dir.c_str(), O_RDONLY | O_DIRECTORY | O_CLOEXEC));
   if (!dfd || ::fsync(dfd.get()) != 0) return fail("fsync the directory", dir);
   failure_logged_ = {};

@@ -12,6 +12,11 @@
 // own at most every kWriteInterval and at least every kRefreshInterval (the held-in-force stamps),
 // so no bus loop ever waits for the disk; a crash loses at most the last interval's changes.
 // A store that cannot be used is reported (problem(): diagnostics, --check), never silent.
+//
+// Beside them, the holds on the line's devices (gateways/persistence/kept_holds.hpp:
+// <state_dir>/<line>.holds), written the same atomic way by the same thread whenever one is set,
+// changed or released. A holds file that cannot be read restores no hold (holds_problem(): the
+// line runs, diagnostics say why) and is replaced at the first change.
 
 #include <array>
 #include <chrono>
@@ -27,6 +32,7 @@
 #include <vector>
 
 #include "base/result.hpp"
+#include "gateways/persistence/kept_holds.hpp"
 
 namespace lb::gateways {
 
@@ -56,10 +62,13 @@ class SetValueStore {
   // Checks that <state_dir> is a directory the bridge can write, then reads the file when
   // `restore` (a missing file is an empty store). Refused: a directory that cannot be used, a
   // file that is a link, not a regular file, over kMaxFileBytes or unreadable. Lines it cannot
-  // parse are skipped and counted (a few logged, then one summary).
+  // parse are skipped and counted (a few logged, then one summary). The holds file is read
+  // whatever `restore` says (a stop is no value that could start a machine); one that cannot be
+  // used restores no hold and says why (holds_problem), it does not refuse the store.
   static Result<std::unique_ptr<SetValueStore>> open(const std::string& state_dir, const std::string& line,
                                                      bool restore);
-  SetValueStore(std::string path, std::map<Key, Entry> restored);
+  SetValueStore(std::string path, std::map<Key, Entry> restored, std::string holds_path = {},
+                std::map<KeptHold::Key, KeptHold> restored_holds = {}, std::string holds_problem = {});
   ~SetValueStore();  // writes what is pending, then stops
   SetValueStore(const SetValueStore&) = delete;
   SetValueStore& operator=(const SetValueStore&) = delete;
@@ -74,20 +83,36 @@ class SetValueStore {
   // Empty while the last write succeeded; else why the file is not being kept up to date.
   std::string problem() const;
 
+  const std::string& holds_path() const { return holds_path_; }
+  // The holds the file kept at start-up.
+  const std::map<KeptHold::Key, KeptHold>& restored_holds() const { return restored_holds_; }
+  // Why the holds file restored nothing or not all of it (empty: it restored all it held, or
+  // there was none).
+  const std::string& holds_problem() const { return holds_problem_; }
+  // Any thread, never blocks on the disk: a device's hold set or changed, or released (nullopt);
+  // written soon.
+  void save_hold(const KeptHold::Key& key, std::optional<KeptHold> hold);
+
  private:
   void run();
-  bool write_file(const std::map<Key, Entry>& values, std::string& why);
+  bool write_file(const std::string& path, const std::string& text, std::string& why);
 
   std::string path_;
   const std::map<Key, Entry> restored_;
+  const std::string holds_path_;
+  const std::map<KeptHold::Key, KeptHold> restored_holds_;
+  const std::string holds_problem_;
   mutable std::mutex mutex_;
   std::condition_variable cv_;
-  std::map<Key, Entry> current_;      // guarded by mutex_
-  std::set<Key> live_;                // guarded by mutex_: saved in this run, stamped at every write
-  bool dirty_ = false;                // guarded by mutex_
-  bool stopping_ = false;             // guarded by mutex_
-  std::uint64_t write_failures_ = 0;  // guarded by mutex_
-  std::string problem_;               // guarded by mutex_
+  std::map<Key, Entry> current_;             // guarded by mutex_
+  std::set<Key> live_;                       // guarded by mutex_: saved in this run, stamped at every write
+  bool dirty_ = false;                       // guarded by mutex_
+  bool stopping_ = false;                    // guarded by mutex_
+  std::map<KeptHold::Key, KeptHold> holds_;  // guarded by mutex_
+  bool holds_dirty_ = false;                 // guarded by mutex_
+  std::uint64_t write_failures_ = 0;         // guarded by mutex_
+  std::string problem_;                      // guarded by mutex_: of the set-value file
+  std::string holds_write_problem_;          // guarded by mutex_: of the holds file
   std::chrono::steady_clock::time_point
       failure_logged_{};  // the writer thread's: a failing disk is logged once a minute
   std::thread thread_;

@@ -106,9 +106,11 @@ void ManagementServices::command(const srv::Command_Request& request,
 bool ManagementServices::stops(const srv::Nmt_Request& request) {
   switch (request.command()) {
     case srv::NMT_STOP:
-    case srv::NMT_ENTER_PRE_OPERATIONAL:
+    case srv::NMT_ENTER_PRE_OPERATIONAL: return true;
+    // A reset releases the operator's or the line's hold and its boot ends in NMT start: a repeat
+    // of one asked of an earlier run would undo a stop made since. Ordinary, as start is.
     case srv::NMT_RESET_NODE:
-    case srv::NMT_RESET_COMMUNICATION: return true;
+    case srv::NMT_RESET_COMMUNICATION:
     default: return false;  // start, or a value the enum lacks (refused by its handler, not run)
   }
 }

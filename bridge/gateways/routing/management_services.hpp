@@ -62,8 +62,9 @@ class ManagementServices {
                      ddsl::Respond<linebridge_msgs::srv::SetParameter_Response> respond) const;
 
   // Whether a request stops its device: it then runs whatever run of the bridge it names
-  // (ddsl::ServiceServer's Stops). Every NMT command but start (stop, pre-operational and the
-  // resets all end operational); a momentary command the profile marks `stopping`.
+  // (ddsl::ServiceServer's Stops). NMT stop and enter pre-operational (both end operational); a
+  // momentary command the profile marks `stopping`. Not the resets: a reset releases any hold and
+  // its boot ends in NMT start, so one naming another run is refused unrun, as a start is.
   static bool stops(const linebridge_msgs::srv::Nmt_Request& request);
   bool stops(const linebridge_msgs::srv::Command_Request& request) const;
 
