@@ -227,7 +227,7 @@ dds:
     permissions: $abs/bridge/permissions.p7s
     identity_crl: $abs/ca/identity_crl.pem
 EOF
-    echo "pki.sh: the CA keys are in $cadir: take that folder offline (issue, sign and revoke need it)" >&2
+    echo "pki.sh: the CA keys are in $cadir: take that folder offline (issue, list, sign and revoke need it)" >&2
     ;;
   issue)
     [ -n "$config" ] || die "--config LINE.yaml is required"

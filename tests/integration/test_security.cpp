@@ -3,16 +3,24 @@
 // with the identities of each role, and a bus spy that sees what really reaches CAN.
 // Runs inside launch_scripts/netns-run.sh (CTest does that). Secured matching can take ~1.1 s
 // (the handshake's resend timer), so nothing here assumes sub-second discovery.
+#include <arpa/inet.h>
 #include <gtest/gtest.h>
+#include <linux/if_ether.h>
+#include <linux/if_packet.h>
+#include <net/if.h>
+#include <poll.h>
+#include <sys/socket.h>
 #include <unistd.h>
 
 #include <fastdds/dds/domain/DomainParticipantFactory.hpp>
 #include <fastdds/dds/publisher/Publisher.hpp>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <mutex>
@@ -62,6 +70,91 @@ msg::SawSetpoint saw_setpoint(std::uint64_t id, double percent, double length_m)
   sp.sync_speed_percent(percent);
   sp.product_length_m(length_m);
   return sp;
+}
+
+// Every UDP datagram on the loopback of the test's network namespace (AF_PACKET, the root of the
+// namespace may), recorded on a thread of its own until stop(): what a capture on the plant
+// network would see of the line's DDS traffic.
+class LoopbackCapture {
+ public:
+  LoopbackCapture() : fd_(::socket(AF_PACKET, SOCK_DGRAM | SOCK_CLOEXEC, htons(ETH_P_IP))) {
+    if (fd_ < 0) {
+      error_ = std::string("AF_PACKET socket: ") + std::strerror(errno);
+      return;
+    }
+    const int room = 16 << 20;  // bursts of discovery and handshakes: nothing may be dropped
+    if (::setsockopt(fd_, SOL_SOCKET, SO_RCVBUFFORCE, &room, sizeof(room)) != 0)
+      ::setsockopt(fd_, SOL_SOCKET, SO_RCVBUF, &room, sizeof(room));
+    sockaddr_ll at{};
+    at.sll_family = AF_PACKET;
+    at.sll_protocol = htons(ETH_P_IP);
+    at.sll_ifindex = static_cast<int>(::if_nametoindex("lo"));
+    if (::bind(fd_, reinterpret_cast<sockaddr*>(&at), sizeof(at)) != 0) {
+      error_ = std::string("bind to lo: ") + std::strerror(errno);
+      return;
+    }
+    thread_ = std::thread([this] { run(); });
+  }
+  ~LoopbackCapture() {
+    stop();
+    if (fd_ >= 0) ::close(fd_);
+  }
+  LoopbackCapture(const LoopbackCapture&) = delete;
+  LoopbackCapture& operator=(const LoopbackCapture&) = delete;
+
+  const std::string& error() const { return error_; }
+  // The UDP payloads seen (each twice: loopback shows a packet going out and coming in), and how
+  // many packets the kernel dropped for want of room.
+  std::vector<std::vector<std::uint8_t>> stop(unsigned* dropped = nullptr) {
+    stop_ = true;
+    if (thread_.joinable()) thread_.join();
+    if (dropped != nullptr) {
+      tpacket_stats st{};
+      socklen_t len = sizeof(st);
+      ::getsockopt(fd_, SOL_PACKET, PACKET_STATISTICS, &st, &len);
+      *dropped = st.tp_drops;
+    }
+    return std::move(datagrams_);
+  }
+
+ private:
+  void run() {
+    std::vector<std::uint8_t> packet(70000);
+    while (!stop_) {
+      pollfd p{fd_, POLLIN, 0};
+      if (::poll(&p, 1, 100) != 1) continue;
+      const auto n = ::recv(fd_, packet.data(), packet.size(), 0);
+      if (n < 28) continue;
+      const std::size_t ip_header = static_cast<std::size_t>(packet[0] & 0x0F) * 4;
+      if ((packet[0] >> 4) != 4 || packet[9] != 17 || static_cast<std::size_t>(n) < ip_header + 8) continue;  // UDP
+      datagrams_.emplace_back(packet.begin() + static_cast<std::ptrdiff_t>(ip_header + 8), packet.begin() + n);
+    }
+  }
+
+  int fd_;
+  std::string error_;
+  std::atomic<bool> stop_{false};
+  std::vector<std::vector<std::uint8_t>> datagrams_;  // the capture thread's until stop()
+  std::thread thread_;
+};
+
+bool carries(const std::vector<std::uint8_t>& datagram, const std::string& text) {
+  return std::search(datagram.begin(), datagram.end(), text.begin(), text.end()) != datagram.end();
+}
+bool carries(const std::vector<std::uint8_t>& datagram, const std::vector<std::uint8_t>& bytes) {
+  return std::search(datagram.begin(), datagram.end(), bytes.begin(), bytes.end()) != datagram.end();
+}
+// An RTPS message with a SEC_BODY submessage (0x30): submessages protected by the crypto plugin.
+bool has_sec_body(const std::vector<std::uint8_t>& d) {
+  if (d.size() < 20 || !carries({d.begin(), d.begin() + 4}, "RTPS")) return false;
+  for (std::size_t at = 20; at + 4 <= d.size();) {
+    const bool little = (d[at + 1] & 0x01) != 0;
+    const std::size_t length = little ? d[at + 2] | (d[at + 3] << 8) : (d[at + 2] << 8) | d[at + 3];
+    if (d[at] == 0x30) return true;
+    if (length == 0) return false;  // the last submessage runs to the end
+    at += 4 + length;
+  }
+  return false;
 }
 
 struct CliRun {
@@ -328,6 +421,55 @@ TEST_F(SecuredLine, ObserverCannotPublishASetValueOnEitherSide) {
   ASSERT_TRUE(lb::test::wait_frames_after(*spy_, kRpdo1Saw1, lb::test::bus_now_ns(), 5)) << logs();
   EXPECT_EQ(w->matched(), 0) << "the bridge matched a writer its permissions do not allow";
   EXPECT_EQ(payloads(*spy_, kRpdo1Saw1), (std::set<std::array<std::uint8_t, 8>>{{}})) << "RPDO1 of saw1 changed";
+}
+
+// Issue 41: docs/security.md said discovery is encrypted. What a capture of the secured line holds
+// in clear: each participant's announcement (SPDP: the participant's name, which for the bridge is
+// "linebridge/<line>", its certificate's subject and the two CAs' names) and the authentication
+// handshake (certificates and whole permissions documents: every topic and partition of a grant).
+// Everything after it (endpoint discovery with topic and type names, liveliness, keys, samples) is
+// in SEC_BODY submessages, unreadable.
+TEST_F(SecuredLine, OnlyAnnouncementsAndHandshakesCarrySubjectsAndGrantsInClear) {
+  LoopbackCapture capture;
+  ASSERT_EQ(capture.error(), "") << "this test captures the namespace's loopback as its root";
+  ASSERT_NO_FATAL_FAILURE(start_line());
+  const auto op = pki_->issue("op1", "operator", "saw1");
+  spy_->clear();
+  const auto set = cli(op, {"set", "saw1", "--program", "on", "--sync-speed-percent", "50", "--product-length-m",
+                            "1.2345"});
+  ASSERT_EQ(set.exit_code, 0) << set.output << logs();
+  ASSERT_TRUE(eventually(2s, [&] { return payloads(*spy_, kRpdo1Saw1).size() > 1; }))
+      << "the set value never reached CAN";
+  unsigned dropped = 0;
+  const auto datagrams = capture.stop(&dropped);
+  EXPECT_EQ(dropped, 0u) << "the capture missed packets: what it did not see is not judged";
+
+  const auto handshake = [](const std::vector<std::uint8_t>& d) { return carries(d, "DDS:Auth:PKI-DH:1.0+"); };
+  double length = 1.2345;  // the set value as its CDR carries it (little-endian double)
+  std::vector<std::uint8_t> length_bytes(sizeof(length));
+  std::memcpy(length_bytes.data(), &length, sizeof(length));
+  std::size_t announcements = 0, handshakes_with_grant = 0, protected_messages = 0;
+  for (const auto& d : datagrams) {
+    if (!handshake(d) && carries(d, "linebridge/sec") && carries(d, "/O=linebridge/CN=bridge") &&
+        carries(d, "/O=linebridge/CN=identity CA") && carries(d, "/O=linebridge/CN=permissions CA")) {
+      ++announcements;
+    }
+    if (handshake(d) && carries(d, "<grant name=\"sec_operator\">") && carries(d, "rt/sec/saw1/setpoint") &&
+        carries(d, "<subject_name>CN=op1,O=linebridge</subject_name>")) {
+      ++handshakes_with_grant;
+    }
+    if (has_sec_body(d)) ++protected_messages;
+    // Topic names only inside a grant of a handshake; type names and samples nowhere.
+    EXPECT_TRUE(!carries(d, "rt/sec/") || handshake(d)) << "a topic name in clear outside the handshake";
+    EXPECT_FALSE(carries(d, "SawSetpoint")) << "a type name in clear (endpoint discovery)";
+    EXPECT_FALSE(carries(d, length_bytes)) << "the set value's product length in clear";
+  }
+  std::printf("captured %zu datagrams: %zu announcements with the line's name, the bridge's subject and both CAs, "
+              "%zu handshake messages with op1's grant, %zu with protected submessages\n",
+              datagrams.size(), announcements, handshakes_with_grant, protected_messages);
+  EXPECT_GT(announcements, 0u) << "the bridge's announcement was not seen in clear";
+  EXPECT_GT(handshakes_with_grant, 0u) << "op1's grant was not seen in clear in the handshake";
+  EXPECT_GT(protected_messages, 0u) << "no protected traffic was captured: the negative checks saw nothing";
 }
 
 TEST_F(SecuredLine, UnauthenticatedAndForeignParticipantsReceiveNothingAndChangeNothing) {
