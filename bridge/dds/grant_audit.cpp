@@ -8,9 +8,13 @@
 #include <tinyxml2.h>
 
 #include <algorithm>
+#include <cstring>
+#include <ctime>
+#include <iomanip>
 #include <memory>
 #include <optional>
 #include <set>
+#include <sstream>
 
 #include "base/bounded_file.hpp"
 #include "dds/openssl_ptr.hpp"
@@ -18,7 +22,6 @@
 #include "dds/security_files.hpp"
 #include "dds/security_policy.hpp"
 #include "dds/topic_names.hpp"
-#include "dds/xml_rules.hpp"
 
 namespace lb::ddsl {
 namespace {
@@ -39,56 +42,253 @@ struct ParsedGrant {
   bool default_allow = false;
   std::set<Right> publish;
   std::set<Right> subscribe;
+  std::set<Right> relay;           // readers matched "relay only": the samples reach them, payloads encrypted
+  std::vector<std::string> notes;  // what Fast DDS reads but ignores (warnings)
 };
 
-using xml::covers;
-using xml::trimmed_text;
+// ---------------------------------------------------------------------------------------------
+// The permissions document as Fast DDS 2.9.1 reads it (PermissionsParser.cpp, CommonParser.cpp,
+// Permissions.cpp of v2.9.1), step by step, so that what the audit judges is what Fast DDS
+// enforces:
+//  - every <topics> and every <partitions> of a <publish>, <subscribe> or <relay> counts, and
+//    within one rule a topic of any of its <publish> elements may be written in a partition of
+//    any of them (Fast DDS looks the topic up in all the rule's <publish> elements, then each of
+//    the writer's partitions in all of them);
+//  - a <publish> without <partitions> is the default partition ("");
+//  - texts are taken as they are, blanks included (GetText, no trimming);
+//  - a rule counts on a domain as Permissions.cpp's is_domain_in_set says: an <id_range> whose
+//    <max> is missing or 0 is its <min> alone;
+//  - what follows <default> is never read.
+// A document the parser refuses is refused here with the reason: Fast DDS would give it nothing
+// (its participant does not start, its peers do not authenticate it) and say only "Malformed
+// permissions file", so nothing in it can be judged.
 
-std::vector<std::string> texts(const XMLElement* list, const char* item) {
-  std::vector<std::string> out;
-  for (const XMLElement* e = list ? list->FirstChildElement(item) : nullptr; e != nullptr;
-       e = e->NextSiblingElement(item)) {
-    out.push_back(trimmed_text(e));
-  }
-  return out;
+// Why Fast DDS refuses the document, with the line of the element.
+struct Refusal {
+  std::string why;
+};
+using Refused = std::optional<Refusal>;
+
+Refusal refusal(const XMLElement* at, const std::string& why) {
+  return {why + " (line " + std::to_string(at->GetLineNum()) + ")"};
 }
 
-// Each <publish>/<subscribe> of the allow rules on `domain` as (topic, partition) pairs. Deny
-// rules only take rights away: they are not needed to judge what a grant may at most do.
-void add_rights(const XMLElement* block, std::set<Right>& rights) {
-  auto partitions = texts(block->FirstChildElement("partitions"), "partition");
-  if (partitions.empty()) partitions.emplace_back();
-  for (const auto& topic : texts(block->FirstChildElement("topics"), "topic")) {
-    for (const auto& partition : partitions) rights.insert({topic, partition});
+bool named(const XMLElement* e, const char* name) { return std::strcmp(e->Name(), name) == 0; }
+
+std::string element(const XMLElement* e) { return "<" + std::string(e->Name()) + ">"; }
+
+// <domains>: <id>N</id> and <id_range><min>a</min><max>b</max></id_range>, as (first, second)
+// pairs where second 0 means "first alone" (CommonParser.cpp parse_domain_id_set).
+Refused read_domains(const XMLElement* domains, std::vector<std::pair<std::uint32_t, std::uint32_t>>& out) {
+  const XMLElement* e = domains->FirstChildElement();
+  if (e == nullptr) return refusal(domains, "<domains> without an <id> or <id_range>");
+  for (; e != nullptr; e = e->NextSiblingElement()) {
+    if (named(e, "id")) {
+      std::uint32_t id = 0;
+      if (e->QueryUnsignedText(&id) != tinyxml2::XML_SUCCESS) return refusal(e, "<id> is not a domain number");
+      out.emplace_back(id, 0);
+    } else if (named(e, "id_range")) {
+      const XMLElement* sub = e->FirstChildElement();
+      std::uint32_t lo = 0;
+      std::uint32_t hi = 0;
+      if (sub == nullptr) return refusal(e, "<id_range> without <min> or <max>");
+      if (named(sub, "min")) {
+        if (sub->QueryUnsignedText(&lo) != tinyxml2::XML_SUCCESS) return refusal(sub, "<min> is not a domain number");
+        const XMLElement* next = sub->NextSiblingElement();
+        if (next != nullptr && named(next, "max") && next->QueryUnsignedText(&hi) != tinyxml2::XML_SUCCESS) {
+          return refusal(next, "<max> is not a domain number");
+        }
+      } else if (named(sub, "max")) {
+        if (sub->QueryUnsignedText(&hi) != tinyxml2::XML_SUCCESS) return refusal(sub, "<max> is not a domain number");
+      } else {
+        return refusal(sub, element(sub) + " in <id_range>: Fast DDS takes <min> and <max>");
+      }
+      out.emplace_back(lo, hi);
+    } else {
+      return refusal(e, element(e) + " in <domains>: Fast DDS takes <id> and <id_range>");
+    }
+  }
+  return std::nullopt;
+}
+
+bool ranges_cover(const std::vector<std::pair<std::uint32_t, std::uint32_t>>& ranges, std::uint32_t domain) {
+  return std::any_of(ranges.begin(), ranges.end(), [domain](const auto& r) {
+    return r.second == 0 ? domain == r.first : domain >= r.first && domain <= r.second;
+  });
+}
+
+// The topics and partitions of a <publish>, <subscribe> or <relay> (parse_criteria).
+struct Criteria {
+  std::vector<std::string> topics;
+  std::vector<std::string> partitions;
+};
+
+Refused read_list(const XMLElement* list, const char* item, bool empty_allowed, std::vector<std::string>& out) {
+  const XMLElement* e = list->FirstChildElement();
+  if (e == nullptr) return refusal(list, element(list) + " without a <" + item + ">");
+  for (; e != nullptr; e = e->NextSiblingElement()) {
+    if (!named(e, item))
+      return refusal(e, element(e) + " in " + element(list) + ": Fast DDS takes <" + item + "> only");
+    if (e->GetText() != nullptr) {
+      out.emplace_back(e->GetText());
+    } else if (empty_allowed && e->NoChildren()) {
+      out.emplace_back();  // <partition/>: the default partition
+    } else {
+      return refusal(e, "<" + std::string(item) + "> without a name");
+    }
+  }
+  return std::nullopt;
+}
+
+Refused read_criteria(const XMLElement* block, Criteria& c, std::vector<std::string>& notes) {
+  for (const XMLElement* e = block->FirstChildElement(); e != nullptr; e = e->NextSiblingElement()) {
+    if (named(e, "topics")) {
+      if (auto r = read_list(e, "topic", false, c.topics)) return r;
+    } else if (named(e, "partitions")) {
+      if (auto r = read_list(e, "partition", true, c.partitions)) return r;
+    } else if (named(e, "data_tags")) {
+      notes.push_back("<data_tags> (line " + std::to_string(e->GetLineNum()) +
+                      ") is not enforced by Fast DDS 2.9.1: the rule is not limited to those tags");
+    } else {
+      return refusal(e,
+                     element(e) + " in " + element(block) + ": Fast DDS takes <topics>, <partitions> and <data_tags>");
+    }
+  }
+  if (c.partitions.empty()) c.partitions.emplace_back();
+  return std::nullopt;
+}
+
+// Every topic of the rule's blocks of one kind with every partition of them.
+void add_rights(const std::vector<Criteria>& blocks, std::set<Right>& rights) {
+  std::set<std::string> topics;
+  std::set<std::string> partitions;
+  for (const auto& c : blocks) {
+    topics.insert(c.topics.begin(), c.topics.end());
+    partitions.insert(c.partitions.begin(), c.partitions.end());
+  }
+  for (const auto& t : topics) {
+    for (const auto& p : partitions) rights.insert({t, p});
   }
 }
 
-std::optional<std::vector<ParsedGrant>> parse_grants(const std::string& xml, std::uint32_t domain) {
+// An <allow_rule> or <deny_rule> (parse_rule). Deny rules only take rights away, and only where
+// they come first: what a grant may at most do is judged from the allow rules.
+Refused read_rule(const XMLElement* rule, std::uint32_t domain, ParsedGrant& grant) {
+  const XMLElement* domains = rule->FirstChildElement();
+  if (domains == nullptr || !named(domains, "domains")) {
+    return refusal(domains ? domains : rule, element(rule) + " must begin with <domains>");
+  }
+  std::vector<std::pair<std::uint32_t, std::uint32_t>> ranges;
+  if (auto r = read_domains(domains, ranges)) return r;
+  std::vector<Criteria> publish;
+  std::vector<Criteria> subscribe;
+  std::vector<Criteria> relay;
+  for (const XMLElement* e = domains->NextSiblingElement(); e != nullptr; e = e->NextSiblingElement()) {
+    std::vector<Criteria>* blocks = named(e, "publish")     ? &publish
+                                    : named(e, "subscribe") ? &subscribe
+                                    : named(e, "relay")     ? &relay
+                                                            : nullptr;
+    if (blocks == nullptr) {
+      return refusal(e, element(e) + " in " + element(rule) + ": Fast DDS takes <publish>, <subscribe> and <relay>");
+    }
+    if (auto r = read_criteria(e, blocks->emplace_back(), grant.notes)) return r;
+  }
+  if (named(rule, "allow_rule") && ranges_cover(ranges, domain)) {
+    add_rights(publish, grant.publish);
+    add_rights(subscribe, grant.subscribe);
+    add_rights(relay, grant.relay);
+  }
+  return std::nullopt;
+}
+
+// Fast DDS reads grant times with std::get_time "%Y-%m-%dT%T" (parse_validity).
+bool readable_time(const XMLElement* e) {
+  if (e == nullptr || e->GetText() == nullptr) return false;
+  std::tm time{};
+  std::istringstream stream(e->GetText());
+  stream >> std::get_time(&time, "%Y-%m-%dT%T");
+  return !stream.fail();
+}
+
+Refused read_validity(const XMLElement* validity) {
+  const XMLElement* nb = validity->FirstChildElement();
+  if (nb == nullptr || !named(nb, "not_before"))
+    return refusal(nb ? nb : validity, "<validity> must begin with <not_before>");
+  if (!readable_time(nb)) return refusal(nb, "<not_before> is not a time as YYYY-MM-DDThh:mm:ss");
+  const XMLElement* na = nb->NextSiblingElement();
+  if (na == nullptr || !named(na, "not_after"))
+    return refusal(na ? na : nb, "<not_before> must be followed by <not_after>");
+  if (!readable_time(na)) return refusal(na, "<not_after> is not a time as YYYY-MM-DDThh:mm:ss");
+  return std::nullopt;
+}
+
+// <grant name=...>: <subject_name>, <validity>, rules, <default> (parse_grant).
+Refused read_grant(const XMLElement* g, std::uint32_t domain, ParsedGrant& grant) {
+  if (g->Attribute("name") == nullptr) return refusal(g, "a <grant> without a name attribute");
+  grant.name = g->Attribute("name");
+  const XMLElement* subject = g->FirstChildElement();
+  if (subject == nullptr || !named(subject, "subject_name")) {
+    return refusal(subject ? subject : g, "<grant> must begin with <subject_name>");
+  }
+  if (subject->GetText() == nullptr) return refusal(subject, "<subject_name> without a name");
+  grant.subject = subject->GetText();
+  const XMLElement* validity = subject->NextSiblingElement();
+  if (validity == nullptr || !named(validity, "validity")) {
+    return refusal(validity ? validity : subject, "<subject_name> must be followed by <validity>");
+  }
+  if (auto r = read_validity(validity)) return r;
+  const XMLElement* e = validity->NextSiblingElement();
+  if (e == nullptr) return refusal(validity, "<validity> must be followed by <allow_rule>, <deny_rule> or <default>");
+  for (; e != nullptr && (named(e, "allow_rule") || named(e, "deny_rule")); e = e->NextSiblingElement()) {
+    if (auto r = read_rule(e, domain, grant)) return r;
+  }
+  if (e == nullptr || !named(e, "default")) {
+    return refusal(e ? e : g, (e ? element(e) : std::string("the end of the grant")) +
+                                  " where <default> must be (after the rules)");
+  }
+  if (e->GetText() == nullptr || (std::strcmp(e->GetText(), "ALLOW") != 0 && std::strcmp(e->GetText(), "DENY") != 0)) {
+    return refusal(e, "<default> must be ALLOW or DENY");
+  }
+  grant.default_allow = std::strcmp(e->GetText(), "ALLOW") == 0;
+  for (const XMLElement* rest = e->NextSiblingElement(); rest != nullptr; rest = rest->NextSiblingElement()) {
+    grant.notes.push_back(element(rest) + " after <default> (line " + std::to_string(rest->GetLineNum()) +
+                          ") is never read by Fast DDS 2.9.1: it grants nothing");
+  }
+  return std::nullopt;
+}
+
+struct ParsedDocument {
+  std::vector<ParsedGrant> grants;
+  std::optional<Refusal> refused;
+};
+
+// nullopt: not XML, or no <dds><permissions> (check_permissions reports that itself).
+std::optional<ParsedDocument> parse_grants(const std::string& xml, std::uint32_t domain) {
   tinyxml2::XMLDocument doc;
   if (doc.Parse(xml.c_str(), xml.size()) != tinyxml2::XML_SUCCESS) return std::nullopt;
-  const XMLElement* dds = doc.FirstChildElement("dds");
-  const XMLElement* perms = dds ? dds->FirstChildElement("permissions") : nullptr;
-  if (perms == nullptr) return std::nullopt;
-  std::vector<ParsedGrant> grants;
-  for (const XMLElement* g = perms->FirstChildElement("grant"); g != nullptr; g = g->NextSiblingElement("grant")) {
-    ParsedGrant grant;
-    grant.name = g->Attribute("name") ? g->Attribute("name") : "";
-    grant.subject = trimmed_text(g->FirstChildElement("subject_name"));
-    grant.default_allow = trimmed_text(g->FirstChildElement("default")) == "ALLOW";
-    for (const XMLElement* r = g->FirstChildElement("allow_rule"); r != nullptr;
-         r = r->NextSiblingElement("allow_rule")) {
-      if (!covers(r->FirstChildElement("domains"), domain)) continue;
-      for (const XMLElement* b = r->FirstChildElement("publish"); b != nullptr; b = b->NextSiblingElement("publish")) {
-        add_rights(b, grant.publish);
-      }
-      for (const XMLElement* b = r->FirstChildElement("subscribe"); b != nullptr;
-           b = b->NextSiblingElement("subscribe")) {
-        add_rights(b, grant.subscribe);
-      }
-    }
-    grants.push_back(std::move(grant));
+  const XMLElement* root = doc.RootElement();
+  ParsedDocument out;
+  if (root != nullptr && !named(root, "dds") && doc.FirstChildElement("dds") != nullptr) {
+    out.refused = refusal(root, element(root) + " where <dds> must be (the document's first element)");
+    return out;
   }
-  return grants;
+  const XMLElement* perms = root && named(root, "dds") ? root->FirstChildElement("permissions") : nullptr;
+  if (perms == nullptr) return std::nullopt;
+  if (root->FirstChildElement() != perms) {
+    out.refused = refusal(root->FirstChildElement(), element(root->FirstChildElement()) +
+                                                         " where <permissions> must be (the first element in <dds>)");
+    return out;
+  }
+  const XMLElement* g = perms->FirstChildElement();
+  if (g == nullptr) out.refused = refusal(perms, "<permissions> without a <grant>");
+  for (; g != nullptr && !out.refused; g = g->NextSiblingElement()) {
+    if (!named(g, "grant")) {
+      out.refused = refusal(g, element(g) + " in <permissions>: Fast DDS takes <grant> only");
+    } else {
+      out.refused = read_grant(g, domain, out.grants.emplace_back());
+    }
+  }
+  return out;
 }
 
 // What `linebridge-security permissions` writes for a role: the very same generator, parsed back.
@@ -108,9 +308,10 @@ void add_generated(Reference& ref, const GrantPolicy& policy, std::uint32_t doma
   g.not_before = "2000-01-01T00:00:00";
   g.not_after = "2000-01-02T00:00:00";
   auto parsed = parse_grants(permissions_xml(g), domain);
-  if (!parsed || parsed->empty()) return;
-  ref.publish.insert(parsed->front().publish.begin(), parsed->front().publish.end());
-  ref.subscribe.insert(parsed->front().subscribe.begin(), parsed->front().subscribe.end());
+  if (!parsed || parsed->refused || parsed->grants.empty()) return;
+  const ParsedGrant& generated = parsed->grants.front();
+  ref.publish.insert(generated.publish.begin(), generated.publish.end());
+  ref.subscribe.insert(generated.subscribe.begin(), generated.subscribe.end());
 }
 
 // The widest grant pki.sh issues for the role: every device of the line, and for an engineer
@@ -146,7 +347,7 @@ std::optional<std::string> bridge_topic_published(const ParsedGrant& g, const Gr
   bridge_only.push_back(reply_topic(line_service_path(policy.line, "command")));
   for (const auto& r : g.publish) {
     for (const auto& t : bridge_only) {
-      if (::fnmatch(r.topic.c_str(), t.c_str(), 0) == 0) return r.topic;
+      if (::fnmatch(r.topic.c_str(), t.c_str(), FNM_NOESCAPE) == 0) return r.topic;  // as Fast DDS matches
     }
   }
   return std::nullopt;
@@ -158,6 +359,20 @@ std::optional<Role> role_by_name(const ParsedGrant& g, const std::string& line) 
   return role_from_string(g.name.substr(prefix.size()));
 }
 
+// Subjects compared as Fast DDS compares a grant's with a certificate's (rfc2253_string_compare):
+// part by part between commas, blanks around each part ignored.
+std::vector<std::string> subject_parts(const std::string& subject) {
+  std::vector<std::string> out;
+  std::istringstream in(subject);
+  for (std::string part; std::getline(in, part, ',');) {
+    const auto lo = part.find_first_not_of(' ');
+    out.push_back(lo == std::string::npos ? std::string() : part.substr(lo, part.find_last_not_of(' ') - lo + 1));
+  }
+  return out;
+}
+
+bool same_subject(const std::string& a, const std::string& b) { return subject_parts(a) == subject_parts(b); }
+
 bool within(const std::set<Right>& rights, const std::set<Right>& allowed) {
   return std::includes(allowed.begin(), allowed.end(), rights.begin(), rights.end());
 }
@@ -167,7 +382,8 @@ void audit_grant(const ParsedGrant& g, const GrantPolicy& policy, std::uint32_t 
   if (g.default_allow) {
     out.errors.push_back(who + ": <default>ALLOW</default> allows every topic no rule names: pki.sh writes DENY");
   }
-  const bool is_bridge = !policy.bridge_subject.empty() && g.subject == policy.bridge_subject;
+  for (const auto& n : g.notes) out.warnings.push_back(who + ": " + n);
+  const bool is_bridge = !policy.bridge_subject.empty() && same_subject(g.subject, policy.bridge_subject);
   if (!is_bridge) {
     const auto named = role_by_name(g, policy.line);
     if (auto topic = bridge_topic_published(g, policy); topic || named == Role::bridge) {
@@ -200,6 +416,9 @@ void audit_grant(const ParsedGrant& g, const GrantPolicy& policy, std::uint32_t 
   std::string extra;
   for (const auto& r : g.subscribe) {
     if (ref.subscribe.count(r) == 0) extra += (extra.empty() ? "" : ", ") + right_text(r);
+  }
+  for (const auto& r : g.relay) {  // matched, given the samples but not the payload key: at most a read
+    if (ref.subscribe.count(r) == 0) extra += (extra.empty() ? "" : ", ") + right_text(r) + " (<relay>)";
   }
   if (!extra.empty()) {
     out.warnings.push_back(who + " (role " + std::string(to_string(*role)) + ") may read more than " + as_role +
@@ -240,9 +459,15 @@ std::optional<std::string> smime_text(const std::string& path) {
 
 GrantFindings audit_grants(const std::string& permissions_xml, const GrantPolicy& policy, std::uint32_t domain) {
   GrantFindings out;
-  auto grants = parse_grants(permissions_xml, domain);
-  if (!grants) return out;  // malformed: the permissions check reports it
-  for (const auto& g : *grants) audit_grant(g, policy, domain, out);
+  auto parsed = parse_grants(permissions_xml, domain);
+  if (!parsed) return out;  // malformed: the permissions check reports it
+  if (parsed->refused) {
+    out.errors.push_back(
+        "Fast DDS 2.9.1 refuses this permissions document (\"Malformed permissions file\"): " + parsed->refused->why +
+        "; a participant with it does not start and its peers do not authenticate it");
+    return out;
+  }
+  for (const auto& g : parsed->grants) audit_grant(g, policy, domain, out);
   return out;
 }
 

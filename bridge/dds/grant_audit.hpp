@@ -19,6 +19,16 @@
 // grants already read with wildcards (`rt/<line>/*/status`), so a monitoring tool given wider
 // read rights is a decision to see, not a set-up that endangers the line; a warning names it.
 //
+// Refused too: a document Fast DDS 2.9.1's parser refuses (an element it does not take, a rule
+// without <domains>, a <grant> without <default>, ...), with the reason and the line: Fast DDS
+// itself says only "Malformed permissions file". Warned: what Fast DDS reads but does not enforce
+// (<data_tags>) or never reads (anything after <default>).
+//
+// The rights are read as Fast DDS reads them (grant_audit.cpp says how): every <topics> and
+// <partitions>, every <publish>, <subscribe> and <relay> of a rule together, texts as written, a
+// rule's domains as Fast DDS matches them. Deny rules are not credited: they only take rights
+// away, and only where they come first.
+//
 // The role is the one the grant's name gives (pki.sh names grants <line>_<role>); a grant named
 // otherwise is judged against the smallest client role that has all its publish rights, or
 // against the engineer's (the widest client role) when none has.

@@ -6,6 +6,7 @@
 #include <sys/socket.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <chrono>
 #include <cstring>
@@ -16,7 +17,9 @@
 namespace lb::link {
 namespace {
 constexpr auto kPingEvery = std::chrono::seconds(1);
-}
+// What a Unix datagram socket's send buffer holds beyond the datagram (af_unix.c: len > sndbuf - 32).
+constexpr int kUnixDatagramOverhead = 32;
+}  // namespace
 
 Result<std::unique_ptr<BusChannel>> BusChannel::open(Options options) {
   auto listener = listen_channel(options.path);
@@ -141,9 +144,9 @@ void BusChannel::stop() {
   spdlog::info("channel {}: {} sample(s) sent to {} DDS side(s), {} received ({} on lanes); {} state sample(s) "
                "replaced by a newer "
                "one before they were sent; dropped: {} with no DDS side, {} beyond the queue; {} from a replaced DDS "
-               "side on a lane, {} undecodable",
+               "side on a lane, {} undecodable; {} too large for the channel",
                options_.path, c.samples_sent, c.connects, c.samples_received, c.samples_on_lanes, c.states_superseded,
-               c.dropped_no_peer, c.dropped_queue_full, c.stale_lane_samples, c.bad_messages);
+               c.dropped_no_peer, c.dropped_queue_full, c.stale_lane_samples, c.bad_messages, c.samples_too_large);
 }
 
 void BusChannel::wake() {
@@ -152,6 +155,8 @@ void BusChannel::wake() {
 }
 
 void BusChannel::publish(std::uint32_t id, std::vector<std::uint8_t> payload, const Identity& related) {
+  std::string refused;  // logged after the lock (see accept_peer)
+  bool pending = false;
   {
     std::lock_guard lock(mutex_);
     if (id >= endpoints_.size()) return;
@@ -160,31 +165,52 @@ void BusChannel::publish(std::uint32_t id, std::vector<std::uint8_t> payload, co
     sample.related = related;
     sample.payload = std::move(payload);
     auto datagram = encode(sample);
-    // Nothing waits before it: sent from here (never blocking: MSG_DONTWAIT), which spares the
-    // channel thread's wake-up; a full socket leaves it to the channel thread.
-    const bool direct = counters_.connected && peer_ && !unsent_ && backlog_.empty() && queue_.empty() &&
-                        dirty_.empty() &&
-                        ::send(peer_.get(), datagram.data(), datagram.size(), MSG_DONTWAIT | MSG_NOSIGNAL) ==
-                            static_cast<ssize_t>(datagram.size());
-    if (direct) ++counters_.samples_sent;
-    if (endpoints_[id].latest) {
-      // Kept while no DDS side is there: the next one's snapshot starts from it.
-      latest_[id] = std::move(datagram);
-      if (counters_.connected && !direct && !dirty_.insert(id).second) ++counters_.states_superseded;
-      if (direct) return;
-    } else if (direct) {
-      return;
-    } else if (!counters_.connected) {
-      ++counters_.dropped_no_peer;
-      return;
-    } else if (queue_.size() >= options_.queue_limit) {
-      ++counters_.dropped_queue_full;
-      return;
+    // Sent, it would break the connection; kept as a state, every next DDS side's snapshot too.
+    if (datagram.size() > kMaxMessage) {
+      refused = too_large(fmt::format("a sample of {} ({} bytes) is larger than the channel carries ({} bytes): not "
+                                      "sent, counted{}",
+                                      endpoints_[id].declaration.topic, datagram.size(), kMaxMessage,
+                                      endpoints_[id].latest ? "; DDS keeps the topic's previous sample" : ""));
     } else {
-      queue_.push_back(std::move(datagram));
+      pending = enqueue(id, std::move(datagram));
     }
   }
-  wake();
+  if (!refused.empty()) spdlog::warn("channel {}: {}", options_.path, refused);
+  if (pending) wake();
+}
+
+bool BusChannel::enqueue(std::uint32_t id, Datagram datagram) {
+  // Nothing waits before it: sent from here (never blocking: MSG_DONTWAIT), which spares the
+  // channel thread's wake-up; a full socket leaves it to the channel thread.
+  const bool direct = counters_.connected && peer_ && !unsent_ && backlog_.empty() && queue_.empty() &&
+                      dirty_.empty() &&
+                      ::send(peer_.get(), datagram.data(), datagram.size(), MSG_DONTWAIT | MSG_NOSIGNAL) ==
+                          static_cast<ssize_t>(datagram.size());
+  if (direct) ++counters_.samples_sent;
+  if (endpoints_[id].latest) {
+    // Kept while no DDS side is there: the next one's snapshot starts from it.
+    latest_[id] = std::move(datagram);
+    if (counters_.connected && !direct && !dirty_.insert(id).second) ++counters_.states_superseded;
+    return !direct;
+  }
+  if (direct) return false;
+  if (!counters_.connected) {
+    ++counters_.dropped_no_peer;
+    return false;
+  }
+  if (queue_.size() >= options_.queue_limit) {
+    ++counters_.dropped_queue_full;
+    return false;
+  }
+  queue_.push_back(std::move(datagram));
+  return true;
+}
+
+std::string BusChannel::too_large(const std::string& text) {
+  ++counters_.samples_too_large;
+  if (!too_large_log_.allow()) return {};
+  const auto held = too_large_log_.held_back();
+  return held == 0 ? text : fmt::format("{} ({} more since the last one logged)", text, held);
 }
 
 BusChannel::Counters BusChannel::counters() const {
@@ -257,6 +283,16 @@ void BusChannel::accept_peer() {
     return;
   }
   if (peer_) drop_peer("another DDS side connected (pid " + std::to_string(peer->pid) + ")");
+  // Room for a datagram of kMaxMessage bytes: Linux takes a Unix datagram up to the socket's send
+  // buffer less 32 bytes, and the default buffer (net.core.wmem_default, 212992) is smaller. The
+  // kernel doubles what is asked, up to net.core.wmem_max (212992 by default: room enough).
+  const int asked = static_cast<int>(kMaxMessage);
+  int sndbuf = 0;
+  socklen_t len = sizeof(sndbuf);
+  ::setsockopt(peer->fd.get(), SOL_SOCKET, SO_SNDBUF, &asked, sizeof(asked));
+  ::getsockopt(peer->fd.get(), SOL_SOCKET, SO_SNDBUF, &sndbuf, &len);
+  const std::size_t max_datagram = std::min(kMaxMessage,
+                                            static_cast<std::size_t>(std::max(sndbuf - kUnixDatagramOverhead, 0)));
   // Logged after the lock: a realtime bus loop may wait on mutex_, and the log's queue has a
   // plain mutex of its own (no priority inheritance through it).
   std::size_t endpoints = 0, samples = 0;
@@ -265,6 +301,7 @@ void BusChannel::accept_peer() {
   {
     std::lock_guard lock(mutex_);
     peer_ = std::move(peer->fd);
+    max_datagram_ = max_datagram;
     unsent_.reset();
     ++counters_.connects;
     counters_.connected = true;
@@ -301,6 +338,11 @@ void BusChannel::accept_peer() {
     samples = latest_.size();
   }
   if (!hello_sent) return drop_peer(std::string("its Hello could not be sent: ") + std::strerror(hello_errno));
+  if (max_datagram < kMaxMessage) {
+    spdlog::warn("channel {}: the DDS side's socket takes datagrams up to {} bytes only (send buffer {}, capped by "
+                 "net.core.wmem_max): larger samples are not sent, and counted",
+                 options_.path, max_datagram, sndbuf);
+  }
   spdlog::info("channel {}: DDS side connected (pid {}); {} endpoints and {} state samples sent, {} lane(s)",
                options_.path, peer->pid, endpoints, samples, lanes_.size());
 }
@@ -356,15 +398,36 @@ void BusChannel::read_peer() {
 // batches of 8 non-blocking sends, so a publisher waits a few microseconds at most.
 bool BusChannel::flush() {
   for (int batch = 0; batch < 32; ++batch) {
-    std::lock_guard lock(mutex_);
-    for (int i = 0; i < 8; ++i) {
-      if (!unsent_) unsent_ = next_datagram();
-      if (!unsent_) return true;
-      const auto n = ::send(peer_.get(), unsent_->data(), unsent_->size(), MSG_DONTWAIT | MSG_NOSIGNAL);
-      // Full (EAGAIN): POLLOUT tells when to go on; any other error ends the connection.
-      if (n < 0) return errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR;
-      unsent_.reset();
+    std::string refused;  // logged after the lock (see accept_peer)
+    bool more = true;
+    bool alive = true;
+    {
+      std::lock_guard lock(mutex_);
+      for (int i = 0; i < 8 && more; ++i) {
+        if (!unsent_) unsent_ = next_datagram();
+        if (!unsent_) {
+          more = false;
+          break;
+        }
+        const auto n = ::send(peer_.get(), unsent_->data(), unsent_->size(), MSG_DONTWAIT | MSG_NOSIGNAL);
+        if (n < 0 && errno == EMSGSIZE) {
+          // Larger than this socket takes (its send buffer capped below kMaxMessage, see
+          // accept_peer): that datagram is dropped, not the connection.
+          auto text = too_large(fmt::format("a datagram of {} bytes is larger than this DDS side's socket takes ({} "
+                                            "bytes): not sent, counted",
+                                            unsent_->size(), max_datagram_));
+          if (refused.empty()) refused = std::move(text);
+        } else if (n < 0) {
+          // Full (EAGAIN): POLLOUT tells when to go on; any other error ends the connection.
+          alive = errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR;
+          more = false;
+          break;
+        }
+        unsent_.reset();
+      }
     }
+    if (!refused.empty()) spdlog::warn("channel {}: {}", options_.path, refused);
+    if (!more) return alive;
   }
   return true;
 }

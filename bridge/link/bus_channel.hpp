@@ -6,7 +6,16 @@
 //
 // Never blocks its callers, which are bus loops: publish() copies and returns. A state endpoint
 // keeps only its latest sample (a slow DDS side sees fewer, never older ones); other samples wait
-// in one bounded queue, and what does not fit, or finds no DDS side, is dropped and counted. One
+// in one bounded queue, and what does not fit, or finds no DDS side, is dropped and counted.
+//
+// Sizes: every datagram up to kMaxMessage goes through (each DDS side's socket gets a send buffer
+// that holds one). A sample whose datagram would be larger is refused at publish(): counted
+// (samples_too_large), logged, and a state endpoint keeps its previous sample. Not at declaration:
+// the largest size a type declares (Declare::max_size, Fast DDS's m_typeSize) is a nominal one
+// for unbounded sequences and strings (100 elements, 255 characters: 3,071,028 bytes for
+// Diagnostics, 689,076 for FeederStatus), so it would refuse topics the line publishes every
+// second. Not split either: that needs the DDS side to reassemble (a new channel version), for
+// samples over 256 KiB that no topic of the contract is meant to reach. One
 // thread of its own does all socket work and runs the handlers of samples from the DDS side (it
 // plays the role Fast DDS's listener threads had: handlers post to bus loops and never block).
 //
@@ -29,6 +38,7 @@
 #include <thread>
 #include <vector>
 
+#include "base/log_rate.hpp"
 #include "base/result.hpp"
 #include "link/channel_message.hpp"
 #include "link/channel_socket.hpp"
@@ -56,6 +66,7 @@ class BusChannel {
     std::uint64_t states_superseded = 0;   // a state's sample replaced by a newer one before it was sent
     std::uint64_t bad_messages = 0;        // from the DDS side, not decodable (or on the wrong lane)
     std::uint64_t stale_lane_samples = 0;  // on a lane from an earlier connection
+    std::uint64_t samples_too_large = 0;   // refused: their datagram would exceed kMaxMessage (or the socket's)
     DdsStats dds;                          // the DDS side's last report
   };
   using SampleHandler = std::function<void(const Sample&)>;
@@ -120,6 +131,12 @@ class BusChannel {
   void take_sample(const Sample& sample, std::uint32_t lane);
   void read_peer();
   bool flush();  // false when the peer is gone
+  // Under mutex_: a sample's datagram, sent at once when nothing waits before it, else kept (a
+  // state) or queued; true when the channel's thread is to send it.
+  bool enqueue(std::uint32_t id, std::vector<std::uint8_t> datagram);
+  // Under mutex_: a datagram too large for the channel, counted; the text to log (outside the lock),
+  // or "" when the rate of such lines is exceeded.
+  std::string too_large(const std::string& text);
   void drop_peer(const std::string& why);
   void wake();
   std::optional<Datagram> next_datagram();  // under mutex_
@@ -137,8 +154,10 @@ class BusChannel {
   std::deque<Datagram> backlog_;              // a new peer's declarations and snapshot, first
   Counters counters_;
   std::optional<Datagram> unsent_;            // a datagram the socket refused (full): sent first
+  std::size_t max_datagram_ = kMaxMessage;    // what the connected DDS side's socket takes
   std::vector<std::unique_ptr<Lane>> lanes_;  // fixed once started
   DatagramBuffer buffer_;                     // channel thread: receiving
+  LogRate too_large_log_;                     // under mutex_
 
   std::atomic<bool> stop_{false};
   std::atomic<bool> stopping_{false};

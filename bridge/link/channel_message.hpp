@@ -19,8 +19,10 @@ namespace lb::link {
 
 // A change of any message's layout is a new version; the sides refuse each other's otherwise.
 inline constexpr std::uint16_t kChannelVersion = 2;
-// The largest datagram either side sends or accepts (a sample's CDR is far smaller: SDO uploads,
-// the largest payloads of the contract, are at most 64 KiB).
+// The largest datagram either side sends or accepts. The bus side refuses (counts, logs) a sample
+// whose datagram would be larger, and gives each DDS side's socket a send buffer that holds one
+// this large (BusChannel). SDO uploads, the largest bounded payloads of the contract, are at most
+// 64 KiB; the line's diagnostics grow with its devices.
 inline constexpr std::size_t kMaxMessage = 256 * 1024;
 
 // A DDS sample identity (writer GUID, sequence number) without Fast DDS's type.

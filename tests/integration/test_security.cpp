@@ -3,16 +3,24 @@
 // with the identities of each role, and a bus spy that sees what really reaches CAN.
 // Runs inside launch_scripts/netns-run.sh (CTest does that). Secured matching can take ~1.1 s
 // (the handshake's resend timer), so nothing here assumes sub-second discovery.
+#include <arpa/inet.h>
 #include <gtest/gtest.h>
+#include <linux/if_ether.h>
+#include <linux/if_packet.h>
+#include <net/if.h>
+#include <poll.h>
+#include <sys/socket.h>
 #include <unistd.h>
 
 #include <fastdds/dds/domain/DomainParticipantFactory.hpp>
 #include <fastdds/dds/publisher/Publisher.hpp>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
 #include <cstdio>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <mutex>
@@ -62,6 +70,91 @@ msg::SawSetpoint saw_setpoint(std::uint64_t id, double percent, double length_m)
   sp.sync_speed_percent(percent);
   sp.product_length_m(length_m);
   return sp;
+}
+
+// Every UDP datagram on the loopback of the test's network namespace (AF_PACKET, the root of the
+// namespace may), recorded on a thread of its own until stop(): what a capture on the plant
+// network would see of the line's DDS traffic.
+class LoopbackCapture {
+ public:
+  LoopbackCapture() : fd_(::socket(AF_PACKET, SOCK_DGRAM | SOCK_CLOEXEC, htons(ETH_P_IP))) {
+    if (fd_ < 0) {
+      error_ = std::string("AF_PACKET socket: ") + std::strerror(errno);
+      return;
+    }
+    const int room = 16 << 20;  // bursts of discovery and handshakes: nothing may be dropped
+    if (::setsockopt(fd_, SOL_SOCKET, SO_RCVBUFFORCE, &room, sizeof(room)) != 0)
+      ::setsockopt(fd_, SOL_SOCKET, SO_RCVBUF, &room, sizeof(room));
+    sockaddr_ll at{};
+    at.sll_family = AF_PACKET;
+    at.sll_protocol = htons(ETH_P_IP);
+    at.sll_ifindex = static_cast<int>(::if_nametoindex("lo"));
+    if (::bind(fd_, reinterpret_cast<sockaddr*>(&at), sizeof(at)) != 0) {
+      error_ = std::string("bind to lo: ") + std::strerror(errno);
+      return;
+    }
+    thread_ = std::thread([this] { run(); });
+  }
+  ~LoopbackCapture() {
+    stop();
+    if (fd_ >= 0) ::close(fd_);
+  }
+  LoopbackCapture(const LoopbackCapture&) = delete;
+  LoopbackCapture& operator=(const LoopbackCapture&) = delete;
+
+  const std::string& error() const { return error_; }
+  // The UDP payloads seen (each twice: loopback shows a packet going out and coming in), and how
+  // many packets the kernel dropped for want of room.
+  std::vector<std::vector<std::uint8_t>> stop(unsigned* dropped = nullptr) {
+    stop_ = true;
+    if (thread_.joinable()) thread_.join();
+    if (dropped != nullptr) {
+      tpacket_stats st{};
+      socklen_t len = sizeof(st);
+      ::getsockopt(fd_, SOL_PACKET, PACKET_STATISTICS, &st, &len);
+      *dropped = st.tp_drops;
+    }
+    return std::move(datagrams_);
+  }
+
+ private:
+  void run() {
+    std::vector<std::uint8_t> packet(70000);
+    while (!stop_) {
+      pollfd p{fd_, POLLIN, 0};
+      if (::poll(&p, 1, 100) != 1) continue;
+      const auto n = ::recv(fd_, packet.data(), packet.size(), 0);
+      if (n < 28) continue;
+      const std::size_t ip_header = static_cast<std::size_t>(packet[0] & 0x0F) * 4;
+      if ((packet[0] >> 4) != 4 || packet[9] != 17 || static_cast<std::size_t>(n) < ip_header + 8) continue;  // UDP
+      datagrams_.emplace_back(packet.begin() + static_cast<std::ptrdiff_t>(ip_header + 8), packet.begin() + n);
+    }
+  }
+
+  int fd_;
+  std::string error_;
+  std::atomic<bool> stop_{false};
+  std::vector<std::vector<std::uint8_t>> datagrams_;  // the capture thread's until stop()
+  std::thread thread_;
+};
+
+bool carries(const std::vector<std::uint8_t>& datagram, const std::string& text) {
+  return std::search(datagram.begin(), datagram.end(), text.begin(), text.end()) != datagram.end();
+}
+bool carries(const std::vector<std::uint8_t>& datagram, const std::vector<std::uint8_t>& bytes) {
+  return std::search(datagram.begin(), datagram.end(), bytes.begin(), bytes.end()) != datagram.end();
+}
+// An RTPS message with a SEC_BODY submessage (0x30): submessages protected by the crypto plugin.
+bool has_sec_body(const std::vector<std::uint8_t>& d) {
+  if (d.size() < 20 || !carries({d.begin(), d.begin() + 4}, "RTPS")) return false;
+  for (std::size_t at = 20; at + 4 <= d.size();) {
+    const bool little = (d[at + 1] & 0x01) != 0;
+    const std::size_t length = little ? d[at + 2] | (d[at + 3] << 8) : (d[at + 2] << 8) | d[at + 3];
+    if (d[at] == 0x30) return true;
+    if (length == 0) return false;  // the last submessage runs to the end
+    at += 4 + length;
+  }
+  return false;
 }
 
 struct CliRun {
@@ -145,6 +238,45 @@ class SecuredLine : public ::testing::Test {
     eventually(30s, [&] { return !p.running(); });
     const int status = p.stop();
     return {WIFEXITED(status) ? WEXITSTATUS(status) : -1, p.log()};
+  }
+
+  // `linebridge-cli set saw1` with this line file and identity: its exit code and output.
+  CliRun set_saw1(const std::string& config, const std::string& identity, const char* percent, const char* timeout) {
+    lb::test::ChildProcess p({LB_BIN_CLI, "--config", config, "--identity", identity, "set", "saw1", "--program", "on",
+                              "--sync-speed-percent", percent, "--product-length-m", "1.0", "--timeout", timeout},
+                             dir_ + "/cli_" + std::to_string(++cli_runs_) + ".log");
+    eventually(60s, [&] { return !p.running(); });
+    const int status = p.stop();
+    return CliRun{WIFEXITED(status) ? WEXITSTATUS(status) : -1, p.log()};
+  }
+  // A (re)started bridge refuses set values until the saw passed its boot: asked again until then.
+  CliRun set_saw1_after_boot(const std::string& config, const std::string& identity, const char* percent) {
+    const auto end = Clock::now() + 60s;
+    CliRun r = set_saw1(config, identity, percent, "20");
+    while (r.output.find("has not passed its boot") != std::string::npos && Clock::now() < end) {
+      std::this_thread::sleep_for(200ms);  // between two attempts, not a window anything is counted in
+      r = set_saw1(config, identity, percent, "20");
+    }
+    return r;
+  }
+  bool rpdo1_saw1_changed() {
+    return eventually(3s, [&] { return payloads(*spy_, kRpdo1Saw1).size() > 1; });
+  }
+  // The line file without its identity_crl, as a revoked client that wants in would use.
+  std::string line_file_without_crl() {
+    const std::string path = dir_ + "/line_without_crl.yaml";
+    std::string sec = pki_->security_yaml();
+    sec.erase(sec.find("    identity_crl:"));
+    std::ofstream(path) << line_yaml(sec);
+    return path;
+  }
+  // The documented step after a revocation: the bridge restarted (it reads the CRL at start).
+  void restart_bridge(const std::string& log_name) {
+    ASSERT_EQ(bridge_->stop(), 0) << logs();
+    bridge_ = std::make_unique<lb::test::ChildProcess>(std::vector<std::string>{LB_BIN_BRIDGE, "--config",
+                                                                                config_path_},
+                                                       dir_ + "/" + log_name);
+    ASSERT_TRUE(bridge_->started());
   }
 
   std::string logs() const {
@@ -289,6 +421,55 @@ TEST_F(SecuredLine, ObserverCannotPublishASetValueOnEitherSide) {
   ASSERT_TRUE(lb::test::wait_frames_after(*spy_, kRpdo1Saw1, lb::test::bus_now_ns(), 5)) << logs();
   EXPECT_EQ(w->matched(), 0) << "the bridge matched a writer its permissions do not allow";
   EXPECT_EQ(payloads(*spy_, kRpdo1Saw1), (std::set<std::array<std::uint8_t, 8>>{{}})) << "RPDO1 of saw1 changed";
+}
+
+// Issue 41: docs/security.md said discovery is encrypted. What a capture of the secured line holds
+// in clear: each participant's announcement (SPDP: the participant's name, which for the bridge is
+// "linebridge/<line>", its certificate's subject and the two CAs' names) and the authentication
+// handshake (certificates and whole permissions documents: every topic and partition of a grant).
+// Everything after it (endpoint discovery with topic and type names, liveliness, keys, samples) is
+// in SEC_BODY submessages, unreadable.
+TEST_F(SecuredLine, OnlyAnnouncementsAndHandshakesCarrySubjectsAndGrantsInClear) {
+  LoopbackCapture capture;
+  ASSERT_EQ(capture.error(), "") << "this test captures the namespace's loopback as its root";
+  ASSERT_NO_FATAL_FAILURE(start_line());
+  const auto op = pki_->issue("op1", "operator", "saw1");
+  spy_->clear();
+  const auto set = cli(op, {"set", "saw1", "--program", "on", "--sync-speed-percent", "50", "--product-length-m",
+                            "1.2345"});
+  ASSERT_EQ(set.exit_code, 0) << set.output << logs();
+  ASSERT_TRUE(eventually(2s, [&] { return payloads(*spy_, kRpdo1Saw1).size() > 1; }))
+      << "the set value never reached CAN";
+  unsigned dropped = 0;
+  const auto datagrams = capture.stop(&dropped);
+  EXPECT_EQ(dropped, 0u) << "the capture missed packets: what it did not see is not judged";
+
+  const auto handshake = [](const std::vector<std::uint8_t>& d) { return carries(d, "DDS:Auth:PKI-DH:1.0+"); };
+  double length = 1.2345;  // the set value as its CDR carries it (little-endian double)
+  std::vector<std::uint8_t> length_bytes(sizeof(length));
+  std::memcpy(length_bytes.data(), &length, sizeof(length));
+  std::size_t announcements = 0, handshakes_with_grant = 0, protected_messages = 0;
+  for (const auto& d : datagrams) {
+    if (!handshake(d) && carries(d, "linebridge/sec") && carries(d, "/O=linebridge/CN=bridge") &&
+        carries(d, "/O=linebridge/CN=identity CA") && carries(d, "/O=linebridge/CN=permissions CA")) {
+      ++announcements;
+    }
+    if (handshake(d) && carries(d, "<grant name=\"sec_operator\">") && carries(d, "rt/sec/saw1/setpoint") &&
+        carries(d, "<subject_name>CN=op1,O=linebridge</subject_name>")) {
+      ++handshakes_with_grant;
+    }
+    if (has_sec_body(d)) ++protected_messages;
+    // Topic names only inside a grant of a handshake; type names and samples nowhere.
+    EXPECT_TRUE(!carries(d, "rt/sec/") || handshake(d)) << "a topic name in clear outside the handshake";
+    EXPECT_FALSE(carries(d, "SawSetpoint")) << "a type name in clear (endpoint discovery)";
+    EXPECT_FALSE(carries(d, length_bytes)) << "the set value's product length in clear";
+  }
+  std::printf("captured %zu datagrams: %zu announcements with the line's name, the bridge's subject and both CAs, "
+              "%zu handshake messages with op1's grant, %zu with protected submessages\n",
+              datagrams.size(), announcements, handshakes_with_grant, protected_messages);
+  EXPECT_GT(announcements, 0u) << "the bridge's announcement was not seen in clear";
+  EXPECT_GT(handshakes_with_grant, 0u) << "op1's grant was not seen in clear in the handshake";
+  EXPECT_GT(protected_messages, 0u) << "no protected traffic was captured: the negative checks saw nothing";
 }
 
 TEST_F(SecuredLine, UnauthenticatedAndForeignParticipantsReceiveNothingAndChangeNothing) {
@@ -523,57 +704,29 @@ TEST_F(SecuredLine, ARevokedOperatorIsRefusedOnceTheBridgeRestartsAndTheOthersKe
   const auto op1 = pki_->issue("op1", "operator", "saw1");
   const auto op2 = pki_->issue("op2", "operator", "saw1");
   // The revoked operator's own line file names no CRL: a client cannot be trusted to refuse itself.
-  const std::string no_crl = dir_ + "/line_without_crl.yaml";
-  {
-    std::string sec = pki_->security_yaml();
-    sec.erase(sec.find("    identity_crl:"));
-    std::ofstream(no_crl) << line_yaml(sec);
-  }
-  const auto set = [&](const std::string& config, const std::string& identity, const char* percent,
-                       const char* timeout) {
-    lb::test::ChildProcess p({LB_BIN_CLI, "--config", config, "--identity", identity, "set", "saw1", "--program", "on",
-                              "--sync-speed-percent", percent, "--product-length-m", "1.0", "--timeout", timeout},
-                             dir_ + "/cli_" + std::to_string(++cli_runs_) + ".log");
-    eventually(60s, [&] { return !p.running(); });
-    const int status = p.stop();
-    return CliRun{WIFEXITED(status) ? WEXITSTATUS(status) : -1, p.log()};
-  };
-  // A (re)started bridge refuses set values until the saw passed its boot: asked again until then.
-  const auto set_after_boot = [&](const std::string& config, const std::string& identity, const char* percent) {
-    const auto end = Clock::now() + 60s;
-    CliRun r = set(config, identity, percent, "20");
-    while (r.output.find("has not passed its boot") != std::string::npos && Clock::now() < end) {
-      std::this_thread::sleep_for(200ms);  // between two attempts, not a window anything is counted in
-      r = set(config, identity, percent, "20");
-    }
-    return r;
-  };
-  const auto rpdo_changed = [&] { return eventually(3s, [&] { return payloads(*spy_, kRpdo1Saw1).size() > 1; }); };
+  const std::string no_crl = line_file_without_crl();
 
   spy_->clear();
-  auto r = set_after_boot(no_crl, op1, "40");
+  auto r = set_saw1_after_boot(no_crl, op1, "40");
   ASSERT_EQ(r.exit_code, 0) << "op1 before its revocation\n" << r.output << logs();
-  ASSERT_TRUE(rpdo_changed()) << "op1's set value never reached CAN";
+  ASSERT_TRUE(rpdo1_saw1_changed()) << "op1's set value never reached CAN";
 
   pki_->revoke("op1");
   // Measured, not assumed: does the running bridge re-read the CRL file? (Fast DDS 2.9.1 reads it
   // when the participant is created.) The README's "takes effect when the bridge restarts" rests
   // on this.
   spy_->clear();
-  r = set(no_crl, op1, "45", "10");
+  r = set_saw1(no_crl, op1, "45", "10");
   std::printf("after pki.sh revoke, the running bridge (not restarted) %s op1: exit %d\n",
               r.exit_code == 0 ? "still accepts" : "refuses", r.exit_code);
   EXPECT_EQ(r.exit_code, 0) << "the running bridge refused op1 before its restart: the README says otherwise\n"
                             << r.output;
 
   // The documented step: restart the bridge. It reads the new CRL.
-  ASSERT_EQ(bridge_->stop(), 0) << logs();
-  bridge_ = std::make_unique<lb::test::ChildProcess>(std::vector<std::string>{LB_BIN_BRIDGE, "--config", config_path_},
-                                                     dir_ + "/bridge_restarted.log");
-  ASSERT_TRUE(bridge_->started());
+  ASSERT_NO_FATAL_FAILURE(restart_bridge("bridge_restarted.log"));
   // Another operator first: the restarted bridge is up and answers secured operators.
   spy_->clear();
-  r = set_after_boot(config_path_, op2, "50");
+  r = set_saw1_after_boot(config_path_, op2, "50");
   ASSERT_EQ(r.exit_code, 0) << "op2 after the restart\n" << r.output << logs();
   // (Its RPDO may be the first the restarted bridge sends: no change to see. The value in force is
   // what RPDO1 carries a few SYNCs after the answer.)
@@ -584,26 +737,84 @@ TEST_F(SecuredLine, ARevokedOperatorIsRefusedOnceTheBridgeRestartsAndTheOthersKe
 
   // op1, with a line file without the CRL (its own side does not refuse it): nothing matches it.
   spy_->clear();
-  r = set(no_crl, op1, "60", "8");
+  r = set_saw1(no_crl, op1, "60", "8");
   EXPECT_EQ(r.exit_code, 3) << "the revoked op1 was answered\n" << r.output << logs();
   EXPECT_NE(r.output.find("no online status"), std::string::npos) << r.output;
   EXPECT_EQ(payloads(*spy_, kRpdo1Saw1), (std::set<std::array<std::uint8_t, 8>>{in_force}))
       << "RPDO1 of saw1 changed after op1 was revoked";
   // op1 with the line's own file: refused on its own side before anything is sent, with the reason.
-  r = set(config_path_, op1, "60", "8");
+  r = set_saw1(config_path_, op1, "60", "8");
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_NE(r.output.find("it revokes this participant's own certificate " + op1 + "/cert.pem"), std::string::npos)
       << r.output;
 
   // The control after the refusal: op2 still sets saw1, the observer still sees both saws.
   spy_->clear();
-  r = set(config_path_, op2, "55", "10");
+  r = set_saw1(config_path_, op2, "55", "10");
   EXPECT_EQ(r.exit_code, 0) << r.output << logs();
-  EXPECT_TRUE(rpdo_changed()) << "op2's second set value never reached CAN";
+  EXPECT_TRUE(rpdo1_saw1_changed()) << "op2's second set value never reached CAN";
   EXPECT_TRUE(eventually(10s, [this] {
     std::lock_guard lock(m_);
     return online_["saw1"] && online_["saw2"];
   })) << "the observer lost the saws";
+}
+
+// Issue 41: `pki.sh revoke --name op1` after op1 was issued again revoked only the new
+// certificate; the old one kept setting saw1's values after the restart. pki.sh now records every
+// certificate it issues and revokes every one of the name.
+TEST_F(SecuredLine, RevocationByNameRefusesAReissuedOperatorsOldCertificateAfterTheRestart) {
+  ASSERT_NO_FATAL_FAILURE(start_line());
+  const auto op2 = pki_->issue("op2", "operator", "saw1");
+  const auto op1 = pki_->issue("op1", "operator", "saw1");
+  // The first op1 (a lost laptop): its folder kept as its holder keeps it.
+  const std::string old_op1 = dir_ + "/op1_first";
+  std::filesystem::create_directories(old_op1);
+  for (const char* f : {"cert.pem", "key.pem", "permissions.p7s"})
+    std::filesystem::copy_file(op1 + "/" + f, old_op1 + "/" + f);
+  const std::string old_cert = lb::test::read_text(old_op1 + "/cert.pem");
+  pki_->issue("op1", "operator", "saw1");  // op1 again: DIR/op1 now holds another certificate
+  ASSERT_NE(lb::test::read_text(op1 + "/cert.pem"), old_cert);
+  EXPECT_NE(lb::test::read_text(pki_->dir() + "/pki.log")
+                .find("op1 was issued before and its earlier certificate(s) "
+                      "stay valid until revoked"),
+            std::string::npos)
+      << "the re-issue gave no warning\n"
+      << logs();
+  const std::string no_crl = line_file_without_crl();
+
+  // Before the revocation both op1 certificates set saw1 (the old one is the control: it can).
+  spy_->clear();
+  auto r = set_saw1_after_boot(no_crl, old_op1, "40");
+  ASSERT_EQ(r.exit_code, 0) << "the first op1 certificate before the revocation\n" << r.output << logs();
+  ASSERT_TRUE(rpdo1_saw1_changed()) << "the first op1's set value never reached CAN";
+
+  pki_->revoke("op1");
+  EXPECT_NE(lb::test::read_text(pki_->dir() + "/pki.log").find("revoked 2 certificate(s) of op1"), std::string::npos)
+      << logs();
+  ASSERT_NO_FATAL_FAILURE(restart_bridge("bridge_restarted.log"));
+  // The control after the restart: op2 sets saw1. Then the value in force, a few SYNCs on.
+  spy_->clear();
+  r = set_saw1_after_boot(config_path_, op2, "50");
+  ASSERT_EQ(r.exit_code, 0) << "op2 after the restart\n" << r.output << logs();
+  const std::size_t answered_at = spy_->frames(kRpdo1Saw1).size();
+  ASSERT_TRUE(eventually(3s, [&] { return spy_->frames(kRpdo1Saw1).size() >= answered_at + 5; }))
+      << "no RPDO1 of saw1 after the restart";
+  const auto in_force = spy_->frames(kRpdo1Saw1).back().data;
+
+  // The old certificate (what issue 41 saw keep working) and the new one: neither is answered.
+  spy_->clear();
+  for (const auto& identity : {old_op1, op1}) {
+    r = set_saw1(no_crl, identity, "60", "8");
+    EXPECT_EQ(r.exit_code, 3) << identity << " was answered after revoke --name op1\n" << r.output << logs();
+    EXPECT_NE(r.output.find("no online status"), std::string::npos) << r.output;
+  }
+  EXPECT_EQ(payloads(*spy_, kRpdo1Saw1), (std::set<std::array<std::uint8_t, 8>>{in_force}))
+      << "RPDO1 of saw1 changed after every op1 certificate was revoked";
+  // Revoked are certificates, not the name: op1 issued once more is answered, by the same bridge.
+  pki_->issue("op1", "operator", "saw1");
+  r = set_saw1(config_path_, op1, "65", "20");
+  EXPECT_EQ(r.exit_code, 0) << "op1 issued after the revocation\n" << r.output << logs();
+  EXPECT_TRUE(rpdo1_saw1_changed()) << "the newly issued op1's set value never reached CAN";
 }
 
 // ------------------------------------------------------------------------------------------------

@@ -268,6 +268,56 @@ TEST(BusChannel, WithNoDdsSideEventsAreDroppedAndCounted) {
   EXPECT_EQ(bus.counters().dropped_no_peer, 2u);
 }
 
+// Issue 41: a state sample larger than the socket's send buffer failed every send, the bus side
+// dropped the DDS side, and the next one's snapshot carried the same sample: a restart loop. The
+// channel now carries every datagram up to kMaxMessage (the socket's send buffer is made to hold
+// one: a Unix socket's default, net.core.wmem_default 212992, takes 212960-byte datagrams only)
+// and refuses a larger sample at publish: counted, logged, the connection kept.
+TEST(BusChannel, ASampleTheChannelCannotCarryIsRefusedAndTheDdsSideStaysConnected) {
+  const auto path = socket_path("oversize");
+  auto opened = BusChannel::open({path, "l", 1});
+  ASSERT_TRUE(opened) << opened.error().message;
+  auto& bus = **opened;
+  const auto diagnostics = bus.declare(state_topic("rt/l/bridge/diagnostics"), true);
+  const auto cuts = bus.declare(state_topic("rt/l/saw1/cut"), false);
+  bus.start();
+  auto dds = DdsChannel::connect(path, 1000);
+  ASSERT_TRUE(dds) << dds.error().message;
+  skip_to<Ready>(**dds);
+
+  // The largest sample the channel carries: its datagram is exactly kMaxMessage bytes.
+  Sample probe;
+  probe.id = diagnostics;
+  const std::size_t header = encode(probe).size();
+  const std::vector<std::uint8_t> largest(kMaxMessage - header, 0x11);
+  bus.publish(diagnostics, largest);
+  const auto got = next<Sample>(**dds);
+  EXPECT_EQ(got.id, diagnostics);
+  EXPECT_EQ(got.payload, largest);
+
+  // One byte more: refused and counted; the DDS side stays connected and gets what follows.
+  bus.publish(diagnostics, std::vector<std::uint8_t>(largest.size() + 1, 0x22));
+  bus.publish(cuts, {0, 1, 0, 0, 9});
+  const auto after = next<Sample>(**dds);
+  EXPECT_EQ(after.id, cuts) << "the refused sample was sent, or something came before the next one";
+  auto c = bus.counters();
+  EXPECT_EQ(c.samples_too_large, 1u);
+  EXPECT_EQ(c.connects, 1u);
+  EXPECT_TRUE(c.connected);
+
+  // A new DDS side: its snapshot carries the newest sample that fitted, not the refused one.
+  dds->reset();
+  auto second = DdsChannel::connect(path, 1000);
+  ASSERT_TRUE(second) << second.error().message;
+  EXPECT_EQ(next<Declare>(**second).id, diagnostics);
+  EXPECT_EQ(next<Sample>(**second).payload, largest);
+  EXPECT_EQ(next<Declare>(**second).id, cuts);
+  EXPECT_EQ(next<Ready>(**second).endpoints, 2u);
+  c = bus.counters();
+  EXPECT_EQ(c.connects, 2u) << "the first DDS side was dropped and came back";
+  EXPECT_TRUE(c.connected);
+}
+
 namespace {
 
 // What a bus loop does with its lane: waits (20 s at most) until something is there, then reads.

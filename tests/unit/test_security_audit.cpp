@@ -8,6 +8,7 @@
 
 #include <fastdds/dds/domain/DomainParticipantFactory.hpp>
 #include <fastdds/dds/domain/DomainParticipantListener.hpp>
+#include <fastdds/dds/publisher/Publisher.hpp>
 
 #include <chrono>
 #include <cstdio>
@@ -15,12 +16,14 @@
 #include <fstream>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <thread>
 
 #include "app/line_check.hpp"
 #include "dds/grant_audit.hpp"
 #include "dds/participant.hpp"
 #include "dds/security_files.hpp"
+#include "msgs/sawPubSubTypes.h"
 #include "support/test_pki.hpp"
 #include "support/unit_secured_line.hpp"
 
@@ -268,6 +271,158 @@ TEST_F(SecurityAudit, BridgePermissionsWithASecondBridgeGrantAreRefusedAtCheckAn
   ASSERT_FALSE(p);
   EXPECT_TRUE(p.error().configuration);
   EXPECT_NE(p.error().message.find("CN=app,O=linebridge"), std::string::npos) << p.error().message;
+}
+
+// ---------------------------------------------------------------------------------------------
+// Grants read as Fast DDS 2.9.1 reads them (issue 41): every <topics> and <partitions>, every
+// block of a rule together, a rule's domains as Fast DDS matches them, and a document Fast DDS's
+// parser refuses. The multi-element grants are hand-edited, signed with pki.sh sign, and given to
+// a real Fast DDS participant made without the project's checks: what it lets the identity do is
+// what the audit must see.
+
+// Whether Fast DDS itself lets the identity create a writer on `topic` in `partition` ("" = the
+// default partition): a participant made straight from the factory with the identity's files.
+// nullopt: Fast DDS does not create the participant at all.
+std::optional<bool> fast_dds_lets_write(const lb::test::TestPki& pki, const std::string& identity,
+                                        const std::string& topic, const std::string& partition) {
+  auto* factory = fdds::DomainParticipantFactory::get_instance();
+  auto* raw = factory->create_participant(kDomain, lb::ddsl::participant_qos(pki.options(kDomain, identity, "raw")));
+  if (raw == nullptr) return std::nullopt;
+  fdds::TypeSupport type(new linebridge_msgs::msg::SawSetpointPubSubType());  // TypeSupport owns it
+  type.register_type(raw);
+  auto* t = raw->create_topic(topic, type.get_type_name(), fdds::TOPIC_QOS_DEFAULT);
+  fdds::PublisherQos pq = fdds::PUBLISHER_QOS_DEFAULT;
+  if (!partition.empty()) pq.partition().push_back(partition.c_str());
+  auto* pub = t ? raw->create_publisher(pq) : nullptr;
+  const bool created = pub && pub->create_datawriter(t, fdds::DATAWRITER_QOS_DEFAULT) != nullptr;
+  raw->delete_contained_entities();
+  factory->delete_participant(raw);
+  return created;
+}
+
+TEST_F(SecurityAudit, MultiElementGrantsAreReadAsFastDdsReadsThemAndRefused) {
+  ASSERT_TRUE(std::getenv("LINEBRIDGE_NETNS") != nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
+  const auto op = pki_->issue("op1", "operator", "saw1");
+  const std::string original = lb::test::read_text(op + "/permissions.xml");
+  const std::string setpoint_saw1 = "<topic>rt/sec/saw1/setpoint</topic>";
+  ASSERT_NE(original.find(setpoint_saw1), std::string::npos) << original;
+  struct Edit {
+    std::string what, xml;
+    std::string topic, partition;  // what Fast DDS lets op1 write with it and not without
+    std::string expected;          // the audit's refusal
+  };
+  const std::vector<Edit> edits{
+      {"a second <topics> with a wildcard",
+       replaced(original, setpoint_saw1, setpoint_saw1 + "</topics><topics><topic>rt/sec/*/setpoint</topic>"),
+       "rt/sec/saw2/setpoint", "", "may publish 'rt/sec/*/setpoint': a wildcard"},
+      {"a second <partitions> with a wildcard",
+       replaced(original, "<partition>saw1</partition>",
+                "<partition>saw1</partition></partitions><partitions><partition>*</partition>"),
+       "rq/sec/bridge/commandRequest", "saw2", "may publish 'rq/sec/bridge/commandRequest' in partition '*'"},
+      // Within one rule Fast DDS looks a writer's topic up in every <publish>, then its partitions in
+      // every <publish>: the set values' block gives the commands the default partition.
+      {"a second <publish> in the commands' rule",
+       replaced(original, "          </partitions>\n        </publish>",
+                "          </partitions>\n        </publish>\n        <publish><topics>" + setpoint_saw1 +
+                    "</topics></publish>"),
+       "rq/sec/bridge/commandRequest", "", "may publish 'rq/sec/bridge/commandRequest': a right"},
+  };
+  // The control: the grant pki.sh issued passes, and Fast DDS refuses each of those writers.
+  EXPECT_EQ(errors_of(files(op)), "");
+  for (const auto& e : edits) {
+    EXPECT_EQ(fast_dds_lets_write(*pki_, op, e.topic, e.partition), std::optional<bool>(false))
+        << e.topic << " in '" << e.partition << "' with the grant pki.sh issued";
+  }
+  for (const auto& e : edits) {
+    resign(op, e.xml);
+    EXPECT_EQ(fast_dds_lets_write(*pki_, op, e.topic, e.partition), std::optional<bool>(true))
+        << e.what << ": Fast DDS 2.9.1 was expected to honour it";
+    const std::string errors = errors_of(files(op));
+    EXPECT_NE(errors.find(e.expected), std::string::npos) << e.what << " gave: '" << errors << "'";
+    EXPECT_NE(errors.find("CN=op1,O=linebridge"), std::string::npos) << errors;
+    // The real CLI an integrator runs said "ok" to the first two before (issue 41).
+    const auto r = security_check(op);
+    EXPECT_EQ(r.exit_code, 2) << e.what << ": " << r.output;
+    EXPECT_NE(r.output.find(e.expected), std::string::npos) << r.output;
+  }
+}
+
+TEST_F(SecurityAudit, ARuleOnADomainRangeIsJudgedWhereFastDdsAppliesIt) {
+  const auto op = pki_->issue("op1", "operator", "saw1");
+  const std::string original = lb::test::read_text(op + "/permissions.xml");
+  const std::string domains = "<domains><id>" + std::to_string(kDomain) + "</id></domains>";
+  const std::string nmt = "<topic>rq/sec/bridge/commandRequest</topic><topic>rq/sec/bridge/nmtRequest</topic>";
+  const std::string with_nmt = replaced(original, "<topic>rq/sec/bridge/commandRequest</topic>", nmt);
+  const std::string d = std::to_string(kDomain);
+  // Fast DDS (CommonParser.cpp, Permissions.cpp is_domain_in_set): an <id_range> whose <max> is
+  // missing or 0 is its <min> alone; <max> first is 0..max.
+  for (const std::string& range :
+       {"<id_range><min>" + d + "</min><max>0</max></id_range>", "<id_range><min>" + d + "</min></id_range>",
+        "<id_range><max>" + d + "</max></id_range>", "<id>99</id><id>" + d + "</id>"}) {
+    resign(op, replaced(with_nmt, domains, "<domains>" + range + "</domains>"));
+    EXPECT_NE(errors_of(files(op)).find("may publish 'rq/sec/bridge/nmtRequest' in partition 'saw1'"),
+              std::string::npos)
+        << range << ": '" << errors_of(files(op)) << "'";
+  }
+  // Ranges that do not reach the line's domain: the rule is another domain's business.
+  for (const std::string& range : {"<id_range><min>" + std::to_string(kDomain + 1) + "</min></id_range>",
+                                   "<id_range><min>1</min><max>" + std::to_string(kDomain - 1) + "</max></id_range>"}) {
+    resign(op, replaced(with_nmt, domains, "<domains>" + range + "</domains>"));
+    EXPECT_EQ(errors_of(files(op)).find("nmtRequest"), std::string::npos) << range << ": " << errors_of(files(op));
+  }
+}
+
+TEST_F(SecurityAudit, ADocumentFastDdsRefusesIsRefusedWithTheElementAndItsLine) {
+  ASSERT_TRUE(std::getenv("LINEBRIDGE_NETNS") != nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
+  const auto op = pki_->issue("op1", "operator", "saw1");
+  const std::string original = lb::test::read_text(op + "/permissions.xml");
+  struct Edit {
+    std::string from, to, expected;
+  };
+  const std::vector<Edit> edits{
+      {"<publish>", "<publish><data_tagz/>", "<data_tagz> in <publish>"},
+      {"<topic>rt/sec/saw1/setpoint</topic>", "<topics>rt/sec/saw1/setpoint</topics>", "<topics> in <topics>"},
+      {"<partition>saw1</partition>", "<partition><!-- saw1 --></partition>", "<partition> without a name"},
+      {"<default>DENY</default>", "<default>deny</default>", "<default> must be ALLOW or DENY"},
+      {"<default>DENY</default>", "", "where <default> must be"},
+      {"<allow_rule>\n        <domains>", "<allow_rule>\n        <publish/><domains>", "must begin with <domains>"},
+  };
+  for (const auto& e : edits) {
+    resign(op, replaced(original, e.from, e.to));
+    // Fast DDS itself: no participant with this document.
+    EXPECT_EQ(fast_dds_lets_write(*pki_, op, "rt/sec/saw1/setpoint", ""), std::nullopt) << e.to;
+    const std::string errors = errors_of(files(op));
+    EXPECT_NE(errors.find("Fast DDS 2.9.1 refuses this permissions document"), std::string::npos)
+        << e.to << ": '" << errors << "'";
+    EXPECT_NE(errors.find(e.expected), std::string::npos) << e.to << ": '" << errors << "'";
+    EXPECT_NE(errors.find("(line "), std::string::npos) << errors;
+  }
+}
+
+TEST_F(SecurityAudit, WhatFastDdsIgnoresOrReadsAsAReadIsWarned) {
+  const auto obs = pki_->issue("obs1", "observer");
+  const std::string original = lb::test::read_text(obs + "/permissions.xml");
+  // <relay>: Fast DDS matches a remote reader on it ("relay only": the samples, not the payload key).
+  resign(obs, with_rule(original, "        <relay><topics><topic>rt/sec/*/setpoint</topic></topics></relay>\n"));
+  EXPECT_EQ(errors_of(files(obs)), "");
+  auto warnings = lb::ddsl::grant_warnings(files(obs), kDomain);
+  ASSERT_EQ(warnings.size(), 1U);
+  EXPECT_NE(warnings[0].find("may read more than"), std::string::npos) << warnings[0];
+  EXPECT_NE(warnings[0].find("'rt/sec/*/setpoint' (<relay>)"), std::string::npos) << warnings[0];
+  // A rule after <default>: never read, so it grants nothing, and the audit says so.
+  resign(obs, replaced(original, "<default>DENY</default>",
+                       "<default>DENY</default>\n      <allow_rule><domains><id>" + std::to_string(kDomain) +
+                           "</id></domains><publish><topics><topic>*</topic></topics></publish></allow_rule>"));
+  EXPECT_EQ(errors_of(files(obs)), "");
+  warnings = lb::ddsl::grant_warnings(files(obs), kDomain);
+  ASSERT_EQ(warnings.size(), 1U);
+  EXPECT_NE(warnings[0].find("<allow_rule> after <default>"), std::string::npos) << warnings[0];
+  // <data_tags>: Fast DDS 2.9.1 parses it and enforces nothing of it.
+  resign(obs, replaced(original, "<subscribe>", "<subscribe><data_tags><tag><name>a</name></tag></data_tags>"));
+  EXPECT_EQ(errors_of(files(obs)), "");
+  warnings = lb::ddsl::grant_warnings(files(obs), kDomain);
+  ASSERT_EQ(warnings.size(), 1U);
+  EXPECT_NE(warnings[0].find("<data_tags>"), std::string::npos) << warnings[0];
 }
 
 // ---------------------------------------------------------------------------------------------

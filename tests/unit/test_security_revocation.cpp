@@ -7,6 +7,7 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <cctype>
 #include <ctime>
 #include <filesystem>
 #include <fstream>
@@ -49,6 +50,27 @@ std::time_t crl_time(const std::string& crl, const char* field, const std::strin
                       "' | cut -d= -f2)\" +%s > '" + out + "'",
                   log);
   return static_cast<std::time_t>(std::stoll(lb::test::read_text(out)));
+}
+
+// A certificate's serial as openssl prints it (upper-case hex).
+std::string serial_of(const std::string& cert, const std::string& log) {
+  const std::string out = log + ".serial";
+  lb::test::shell("openssl x509 -noout -serial -in '" + cert + "' | cut -d= -f2 > '" + out + "'", log);
+  std::string s = lb::test::read_text(out);
+  while (!s.empty() && (s.back() == '\n' || s.back() == '\r')) s.pop_back();
+  return s;
+}
+
+std::string lower(std::string s) {
+  for (auto& c : s) c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+  return s;
+}
+
+// An identity folder's files copied aside, as the holder of a certificate keeps them.
+std::string kept_copy(const std::string& identity, const std::string& to) {
+  fs::create_directories(to);
+  for (const char* f : {"cert.pem", "key.pem", "permissions.p7s"}) fs::copy_file(identity + "/" + f, to + "/" + f);
+  return to;
 }
 
 class Revocation : public ::testing::Test {
@@ -125,6 +147,76 @@ TEST(RevocationConfig, IdentityCrlIsAFileKeyAndNotAProperty) {
   ASSERT_FALSE(prop);
   EXPECT_TRUE(contains(prop.error().message, "names a file: give it with its own dds.security key"))
       << prop.error().message;
+}
+
+// ------------------------------------------------------------------------------------------------
+// pki.sh's records: revocation by certificate, not by name (issue 41).
+
+TEST_F(Revocation, AReissueWarnsAndRevokeBySerialRevokesThatCertificateOnly) {
+  const auto op1 = pki_->issue("op1", "operator", "saw1");
+  const std::string first = kept_copy(op1, dir_ + "/op1_first");
+  const std::string first_serial = serial_of(first + "/cert.pem", dir_ + "/openssl.log");
+  ASSERT_FALSE(first_serial.empty());
+  pki_->issue("op1", "operator", "saw1");
+  const std::string second_serial = serial_of(op1 + "/cert.pem", dir_ + "/openssl.log");
+  ASSERT_NE(first_serial, second_serial);
+  EXPECT_TRUE(contains(pki_log(), "warning: op1 was issued before and its earlier certificate(s) stay valid until "
+                                  "revoked: serial " +
+                                      first_serial))
+      << pki_log();
+  ASSERT_EQ(pki("list --name op1"), 0) << pki_log();
+  EXPECT_TRUE(contains(pki_log(), "valid\t" + first_serial + "\t")) << pki_log();
+  EXPECT_TRUE(contains(pki_log(), "valid\t" + second_serial + "\t")) << pki_log();
+  // Both are valid until one is revoked: the re-issue alone withdrew nothing.
+  EXPECT_EQ(check(files(first)), "");
+  EXPECT_EQ(check(files(op1)), "");
+
+  // --serial, written as a person copies it (lower case): the first certificate only.
+  ASSERT_EQ(pki("revoke --serial " + lower(first_serial)), 0) << pki_log();
+  EXPECT_TRUE(contains(check(files(first)), "it revokes this participant's own certificate")) << check(files(first));
+  EXPECT_EQ(check(files(op1)), "") << "the certificate in use must keep working";
+  // A serial not in the records, and one revoked already: refused, the CRL untouched.
+  const std::string crl_before = lb::test::read_text(crl_);
+  EXPECT_EQ(pki("revoke --serial 0123ABCD"), 2);
+  EXPECT_TRUE(contains(pki_log(), "revoke: no certificate with serial 0123ABCD in the records")) << pki_log();
+  EXPECT_EQ(pki("revoke --serial " + first_serial), 2);
+  EXPECT_TRUE(contains(pki_log(), "revoke: serial " + first_serial + " is revoked already")) << pki_log();
+  EXPECT_EQ(lb::test::read_text(crl_), crl_before);
+
+  // --name: every certificate of the name not revoked yet (here the second), counted.
+  ASSERT_EQ(pki("revoke --name op1"), 0) << pki_log();
+  EXPECT_TRUE(contains(pki_log(), "revoked 1 certificate(s) of op1")) << pki_log();
+  EXPECT_TRUE(contains(check(files(op1)), "it revokes this participant's own certificate")) << check(files(op1));
+  EXPECT_EQ(check(files()), "") << "the bridge must keep working";
+}
+
+// A PKI an older pki.sh made signed with `openssl x509 -req` and kept no record: its certificate
+// in DIR/NAME/ is recorded before a re-issue replaces it, so revoke --name finds it.
+TEST_F(Revocation, ACertificateAnOlderPkiShIssuedIsRecordedBeforeItIsReplaced) {
+  const auto op1 = pki_->issue("op1", "operator", "saw1");
+  // op1's certificate replaced by one signed as the older pki.sh signed it (same subject, so its
+  // grant still applies), not in the records.
+  pki_->openssl("req -new -newkey ec -pkeyopt ec_paramgen_curve:prime256v1 -nodes -sha256 -keyout op1/key.pem "
+                "-out op1.csr -subj /O=linebridge/CN=op1");
+  pki_->openssl("x509 -req -in op1.csr -CA ca/identity_ca.pem -CAkey ca-private/identity_ca.key "
+                "-CAserial ca-private/older.srl -CAcreateserial -days 30 -sha256 -out op1/cert.pem");
+  fs::permissions(op1 + "/key.pem", fs::perms::owner_read | fs::perms::owner_write);
+  const std::string older = kept_copy(op1, dir_ + "/op1_older");
+  const std::string older_serial = serial_of(older + "/cert.pem", dir_ + "/openssl.log");
+  EXPECT_EQ(check(files(older)), "");
+  ASSERT_EQ(pki("list --name op1"), 0) << pki_log();
+  EXPECT_FALSE(contains(pki_log(), older_serial)) << "the test's premise: not in the records\n" << pki_log();
+
+  pki_->issue("op1", "operator", "saw1");
+  EXPECT_TRUE(contains(pki_log(), "recorded " + pki_->dir() + "/op1/cert.pem (serial " + older_serial +
+                                      "), issued before pki.sh kept records"))
+      << pki_log();
+  EXPECT_TRUE(contains(pki_log(), "earlier certificate(s) stay valid until revoked")) << pki_log();
+  // Three of op1 now: the first pki.sh issued, the older one, the new one.
+  ASSERT_EQ(pki("revoke --name op1"), 0) << pki_log();
+  EXPECT_TRUE(contains(pki_log(), "revoked 3 certificate(s) of op1")) << pki_log();
+  EXPECT_TRUE(contains(check(files(older)), "it revokes this participant's own certificate")) << check(files(older));
+  EXPECT_TRUE(contains(check(files(op1)), "it revokes this participant's own certificate")) << check(files(op1));
 }
 
 // ------------------------------------------------------------------------------------------------

@@ -18,6 +18,7 @@
 #include "gateways/adapters/device_services.hpp"
 #include "gateways/node/mandatory_devices.hpp"
 #include "gateways/persistence/hold_keeper.hpp"
+#include "link/pi_mutex.hpp"
 #include "msgs/commonPubSubTypes.h"
 #include "profiles/line_config.hpp"
 
@@ -67,8 +68,12 @@ class DiagnosticsGateway {
   ddsl::Writer<linebridge_msgs::msg::DiagnosticsPubSubType> writer_;
   std::vector<Previous> previous_;  // per bus, loop thread of that bus
 
-  std::mutex mutex_;
-  std::condition_variable cv_;
+  // Taken by every bus loop (snapshot, realtime under SCHED_FIFO) and by the publishing thread
+  // (normal priority) while it copies the snapshots: with priority inheritance, a publisher
+  // preempted while holding it runs at the waiting loop's priority until it unlocks, instead of
+  // holding the loop (and its SYNC) for as long as other normal-priority work runs.
+  link::PiMutex mutex_;
+  std::condition_variable_any cv_;  // waited on by the publishing thread only; the loops never notify
   bool stopping_ = false;
   std::vector<linebridge_msgs::msg::BusDiagnostics> bus_snapshots_;
   std::vector<std::vector<linebridge_msgs::msg::NodeDiagnostics>> node_snapshots_;
