@@ -200,7 +200,8 @@ class DeviceOutput final : public canopen::NodeDriver {
   void flush() {
     if (stop_mode_ && ctx_.loop.transmission_held()) {
       for (auto& r : rpdos_) {
-        if (r.valid_on_device) static_cast<void>(r.transmitter->send_now());
+        if (r.valid_on_device && !r.silent && (told_any_ || !options_.silent_until_told) && !carries_enabling())
+          static_cast<void>(r.transmitter->send_now());
       }
     } else {
       for (auto& r : rpdos_) r.transmitter->on_data();
