@@ -129,7 +129,7 @@ class SetValueWriter {
 // The line-wide momentary command (CiA 420 types): the profile's stopping command.
 class LineCommand {
  public:
-  LineCommand(const PanelContext& ctx)
+  explicit LineCommand(const PanelContext& ctx)
       : device_(ctx.device.name),
         client_(make_client<CommandClient>(ctx.dds, ddsl::line_service_path(ctx.line, "command"), ctx.line)) {}
   OperatorRequest press(const std::string& name) {
