@@ -30,6 +30,7 @@ class BusSpy {
           auto r = bus_->receive();
           if (!r || !r->has_value()) break;
           frames_.push_back(**r);
+          if (watcher_) watcher_(frames_.back());
         }
       }
     });
@@ -68,6 +69,13 @@ class BusSpy {
     std::lock_guard lock(m_);
     frames_.clear();
   }
+  // Called on the spy's thread with every frame as it is recorded, for a test that must act within
+  // a frame's time of something on the bus (stall a device at the first request of a boot); the
+  // watcher must not call back into the spy. Replaces the previous one; an empty one removes it.
+  void watch(std::function<void(const lb::can::CanFrame&)> watcher) {
+    std::lock_guard lock(m_);
+    watcher_ = std::move(watcher);
+  }
   lb::Result<void> send(const lb::can::CanFrame& f) {
     std::lock_guard lock(m_);
     return bus_->send(f);
@@ -77,6 +85,7 @@ class BusSpy {
   std::unique_ptr<lb::can::Bus> bus_;
   std::mutex m_;
   std::vector<lb::can::CanFrame> frames_;
+  std::function<void(const lb::can::CanFrame&)> watcher_;
   std::atomic<bool> stop_{false};
   std::thread thread_;
 };

@@ -1,0 +1,150 @@
+// The safety table's judge (support/safety_judge.hpp) on timelines written by hand, so that a row
+// that passes does so because the bus was right, not because the judge cannot fail: each
+// invariant is shown a timeline that breaks it and one that keeps it. The column is the 3.1 saw
+// at node 5 (RPDO1 205h, 6020h bits 0-1 enabling, bit 5 stop_immediately).
+#include <gtest/gtest.h>
+
+#include <algorithm>
+#include <string>
+#include <vector>
+
+#include "support/safety_judge.hpp"
+
+namespace lb::test::safety {
+namespace {
+
+constexpr std::int64_t kMs = 1'000'000;
+constexpr std::int64_t kT0 = 1'700'000'000'000'000'000;
+
+class Timeline {
+ public:
+  Timeline& at(std::int64_t ms, std::uint32_t id, std::initializer_list<std::uint8_t> bytes) {
+    auto f = lb::can::make_frame(id, bytes);
+    f.timestamp_ns = kT0 + ms * kMs;
+    frames.push_back(f);
+    return *this;
+  }
+  // The saw from power-on: its boot-up, the bridge's NMT start, then its heartbeat and TPDO2 every
+  // 100 ms until `until_ms` (the RPDOs are the test's).
+  Timeline& running(std::int64_t until_ms) {
+    at(0, 0x705, {0x00}).at(50, 0x000, {0x01, 0x05});
+    for (std::int64_t t = 100; t <= until_ms; t += 100) at(t, 0x705, {0x05}).at(t, 0x285, {0, 0, 0, 0, 0, 0, 0, 0});
+    return *this;
+  }
+  // RPDO1 with this control word every 20 ms in [from_ms, to_ms].
+  Timeline& rpdo(std::int64_t from_ms, std::int64_t to_ms, std::uint8_t word) {
+    for (std::int64_t t = from_ms; t <= to_ms; t += 20) at(t, 0x205, {word, 0x00, 0x88, 0x13, 0xE0, 0x2E, 0x00, 0x00});
+    return *this;
+  }
+  Timeline& request(OperatorRequest::Kind kind, std::int64_t written_ms, bool accepted, std::string reason = "") {
+    OperatorRequest r;
+    r.kind = kind;
+    r.what = "request at " + std::to_string(written_ms) + " ms";
+    r.written_ns = kT0 + written_ms * kMs;
+    r.answered_ns = r.written_ns + kMs;
+    r.accepted = accepted;
+    r.reason = std::move(reason);
+    if (kind == OperatorRequest::Kind::enabling_off) r.proofs = saw31().off_frames;
+    if (kind == OperatorRequest::Kind::stopping) r.proofs = {saw31().stop_frame};
+    requests.push_back(r);
+    return *this;
+  }
+  std::vector<std::string> verdict(const std::string& invariant) const {
+    auto sorted = frames;  // in bus order, as the spy records them
+    std::stable_sort(sorted.begin(), sorted.end(),
+                     [](const auto& a, const auto& b) { return a.timestamp_ns < b.timestamp_ns; });
+    std::vector<std::string> out;
+    for (const auto& v : SafetyJudge(saw31(), 400, kT0).judge(sorted, requests)) {
+      if (v.invariant == invariant) out.push_back(v.text);
+    }
+    return out;
+  }
+
+  std::vector<lb::can::CanFrame> frames;
+  std::vector<OperatorRequest> requests;
+};
+
+using Kind = OperatorRequest::Kind;
+
+TEST(SafetyJudge, AnEnablingLevelAfterABootUpNeedsTheOperatorsSetValueAfterIt) {
+  Timeline bad;  // program on from the first RPDO: nobody set it
+  bad.running(1000).rpdo(100, 1000, 0x01);
+  EXPECT_EQ(bad.verdict("I1").size(), 1u);
+
+  Timeline good;
+  good.running(1000).rpdo(100, 480, 0x00).request(Kind::enabling_on, 500, true).rpdo(520, 1000, 0x01);
+  EXPECT_TRUE(good.verdict("I1").empty()) << good.verdict("I1").front();
+
+  Timeline refused;  // a refused set value enables nothing
+  refused.running(1000).rpdo(100, 480, 0x00).request(Kind::enabling_on, 500, false, "no").rpdo(520, 1000, 0x01);
+  EXPECT_EQ(refused.verdict("I1").size(), 1u);
+
+  Timeline again = good;  // set before the device's second boot-up: that start needs a new one
+  again.at(1010, 0x705, {0x00}).at(1050, 0x000, {0x01, 0x05}).rpdo(1100, 1300, 0x01);
+  EXPECT_EQ(again.verdict("I1").size(), 1u);
+}
+
+TEST(SafetyJudge, ADeviceFoundRunningKeepsWhatItHadAndOnePausedAndStartedDoesNot) {
+  Timeline found;  // a restarted bridge's NMT start to the operational device is no start
+  found.running(1600).rpdo(100, 480, 0x00).request(Kind::enabling_on, 500, true).rpdo(520, 1400, 0x01);
+  found.at(1100, 0x000, {0x01, 0x05});
+  EXPECT_TRUE(found.verdict("I1").empty()) << found.verdict("I1").front();
+
+  Timeline paused = found;  // pre-operational to write PDO parameters, then started: a start
+  paused.at(1410, 0x000, {0x80, 0x05}).at(1450, 0x000, {0x01, 0x05}).rpdo(1460, 1600, 0x01);
+  EXPECT_EQ(paused.verdict("I1").size(), 1u);
+}
+
+TEST(SafetyJudge, AStopIsOnTheBusWithin100MsOrRefusedWithAReasonWhileNotHeard) {
+  const auto line = [] {
+    Timeline t;
+    t.running(1000).rpdo(100, 480, 0x00).request(Kind::enabling_on, 490, true).rpdo(500, 1000, 0x01);
+    return t;
+  };
+  auto good = line();
+  good.request(Kind::stopping, 500, true).at(515, 0x205, {0x21, 0, 0, 0, 0, 0, 0, 0});
+  EXPECT_TRUE(good.verdict("I2").empty()) << good.verdict("I2").front();
+
+  auto late = line();
+  late.request(Kind::stopping, 500, true).at(620, 0x205, {0x21, 0, 0, 0, 0, 0, 0, 0});
+  ASSERT_EQ(late.verdict("I2").size(), 1u);
+  EXPECT_NE(late.verdict("I2").front().find("over 100 ms"), std::string::npos) << late.verdict("I2").front();
+
+  auto missing = line();  // accepted, and no RPDO1 with bit 5 ever
+  missing.request(Kind::stopping, 500, true);
+  ASSERT_EQ(missing.verdict("I2").size(), 1u);
+  EXPECT_NE(missing.verdict("I2").front().find("never on the bus"), std::string::npos);
+
+  auto heard = line();  // refused while its heartbeat and TPDO came 10 ms before
+  heard.request(Kind::enabling_off, 510, false, "offline");
+  ASSERT_EQ(heard.verdict("I2").size(), 1u);
+  EXPECT_NE(heard.verdict("I2").front().find("while the device is heard"), std::string::npos);
+
+  auto gone = line();  // refused with a reason, nothing of the device for over its timeout (400 ms)
+  gone.request(Kind::enabling_off, 1500, false, "offline");
+  EXPECT_TRUE(gone.verdict("I2").empty()) << gone.verdict("I2").front();
+
+  auto mute = line();
+  mute.request(Kind::enabling_off, 1500, false, "");
+  EXPECT_EQ(mute.verdict("I2").size(), 1u);
+
+  auto unanswered = line();
+  unanswered.request(Kind::nmt_stop, 500, false);
+  unanswered.requests.back().answered_ns = 0;
+  EXPECT_EQ(unanswered.verdict("I2").size(), 1u);
+}
+
+TEST(SafetyJudge, ALevelSwitchedOffStaysOffUntilTheOperatorSwitchesItOn) {
+  Timeline undone;  // program off accepted and sent, then program on again from a kept value
+  undone.running(800).rpdo(100, 480, 0x00).request(Kind::enabling_on, 490, true).rpdo(500, 600, 0x01);
+  undone.request(Kind::enabling_off, 610, true).rpdo(620, 700, 0x00).rpdo(720, 800, 0x01);
+  ASSERT_EQ(undone.verdict("I3").size(), 1u);
+  EXPECT_TRUE(undone.verdict("I2").empty()) << undone.verdict("I2").front();
+
+  Timeline again = undone;  // the operator switched it on again in between
+  again.request(Kind::enabling_on, 710, true);
+  EXPECT_TRUE(again.verdict("I3").empty()) << again.verdict("I3").front();
+}
+
+}  // namespace
+}  // namespace lb::test::safety
