@@ -31,6 +31,7 @@ struct Request {
   SdoClient::Bytes data;              // download: the value to send
   std::optional<std::size_t> expect;  // upload: the size of the type read, when the caller knows it
   std::size_t max_waiting = 0;        // limited (a service call): refused when this many wait; 0 = not limited
+  bool stops = false;                 // a stop: sent while another master holds the bus
   SdoClient::UploadDone on_upload;
   SdoClient::DownloadDone on_download;
 };
@@ -290,7 +291,8 @@ class SdoClient::Core {
   // Sends the next step of node's transfer and starts its timeout; completes it when the bus
   // refuses the frame (then there is nothing to wait for).
   void send(std::uint8_t node, const Payload& p) {
-    if (auto sent = loop_.send(frame(node, p)); !sent) {
+    const auto f = frame(node, p);
+    if (auto sent = nodes_[node].active->request.stops ? loop_.send_stop(f) : loop_.send(f); !sent) {
       return fail(node, sdo_abort::general_error, SdoErrorOrigin::local, "bus send failed: " + sent.error().message);
     }
     nodes_[node].active->deadline = Clock::now() + timeout_;
@@ -523,6 +525,7 @@ void SdoClient::download(std::uint8_t node, std::uint16_t index, std::uint8_t su
   r.upload = false;
   r.data = std::move(data);
   r.max_waiting = limit ? std::max<std::size_t>(limit->max_waiting, 1) : 0;
+  r.stops = limit && limit->stops;
   r.on_download = std::move(done);
   std::optional<SdoError> refusal;
   if (node < 1 || node > kMaxNode) {

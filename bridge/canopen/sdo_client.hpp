@@ -53,6 +53,9 @@ class SdoClient {
   // never sent (queue full, cancel_waiting) carry abort code 0: nothing was aborted on the bus.
   struct Limit {
     std::size_t max_waiting = 8;
+    // The request stops a machine (the feeder box's 600Eh stop modes): its frames go out while
+    // another master holds the bus (BusLoop::send_stop).
+    bool stops = false;
   };
 
   // Registers on 581h..5FFh and creates one timer: before the loop starts or on the loop thread.

@@ -278,11 +278,13 @@ void FeederGateway::when_sdo_possible(const WriteReply& reply, std::function<voi
 
 void FeederGateway::write(const FeederCodec::Write& w, const WriteReply& reply, std::function<void()> then, bool stop) {
   when_sdo_possible(
-      reply, [this, w, reply, then = std::move(then)] { write_now(w, reply, then); }, stop);
+      reply, [this, w, reply, then = std::move(then), stop] { write_now(w, reply, then, stop); }, stop);
 }
 
-void FeederGateway::write_now(const FeederCodec::Write& w, WriteReply reply, std::function<void()> then) {
+void FeederGateway::write_now(const FeederCodec::Write& w, WriteReply reply, std::function<void()> then, bool stop) {
   const auto* obj = w.object;
+  auto limit = kServiceSdoLimit;
+  limit.stops = stop;
   ctx_.sdo->write(
       ctx_.device.node_id, obj->index, obj->sub, obj->type, canopen::ObjectValue{w.raw},
       [this, obj, raw = w.raw, reply = std::move(reply),
@@ -300,7 +302,7 @@ void FeederGateway::write_now(const FeederCodec::Write& w, WriteReply reply, std
         }
         reply(resp);
       },
-      kServiceSdoLimit);
+      limit);
 }
 
 template <class RequestPS>

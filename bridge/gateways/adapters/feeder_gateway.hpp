@@ -20,8 +20,8 @@
 #include "canopen/pdo_transmitter.hpp"
 #include "gateways/adapters/gateway.hpp"
 #include "gateways/codecs/feeder_codec.hpp"
-#include "gateways/node/pdo_burst.hpp"
 #include "gateways/node/device_output.hpp"
+#include "gateways/node/pdo_burst.hpp"
 #include "msgs/commonPubSubTypes.h"
 #include "msgs/feederPubSubTypes.h"
 
@@ -66,7 +66,7 @@ class FeederGateway : public Gateway {
   // when it succeeded (a second write follows). write_now: already admitted.
   // stop: a command that takes a feeder out of operation, sent whenever the box is heard.
   void write(const FeederCodec::Write& w, const WriteReply& reply, std::function<void()> then = {}, bool stop = false);
-  void write_now(const FeederCodec::Write& w, WriteReply reply, std::function<void()> then = {});
+  void write_now(const FeederCodec::Write& w, WriteReply reply, std::function<void()> then = {}, bool stop = false);
   void when_sdo_possible(const WriteReply& reply, std::function<void()> send, bool stop = false);
   void read(std::uint16_t index, std::uint8_t sub, canopen::SdoClient::ReadDone done,
             std::optional<canopen::SdoClient::Limit> limit = std::nullopt);

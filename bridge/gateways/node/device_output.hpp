@@ -183,7 +183,13 @@ class DeviceOutput final : public canopen::NodeDriver {
                      fmt::join(off, ", "));
       }
     }
-    pulses_->press(c.bit, std::move(done));
+    // Until this pulse is over its frames go out while the device is heard, whatever its state is
+    // believed to be meanwhile: the stop carries the image the device runs with, plus the stop.
+    ++stop_pulses_;
+    pulses_->press(c.bit, [this, done = std::move(done)](const MomentaryCommands::Outcome& o) {
+      --stop_pulses_;
+      if (done) done(o);
+    });
     quiet_ = false;
     for (auto& r : rpdos_) {
       if (r.valid_on_device && carries_control_word(r)) {
@@ -241,6 +247,9 @@ class DeviceOutput final : public canopen::NodeDriver {
                  .not_sent =
                      [this, k](Transmitter::Refusal why) {
                        if (!pulses_ || !carries_control_word(rpdos_[k])) return;
+                       // Held back while another master holds the bus, not refused: a stop's own
+                       // frames go out at once (flush), a timer releases its pulse.
+                       if (ctx_.loop.transmission_held() && stop_mode_) return;
                        pulses_->frame_not_sent(why == Transmitter::Refusal::bus
                                                    ? std::string("the bus refused the frame (diagnostics: tx_dropped)")
                                                    : why_not(k));
@@ -601,6 +610,8 @@ class DeviceOutput final : public canopen::NodeDriver {
     const auto& r = rpdos_[k];
     if (!r.valid_on_device || r.silent) return false;
     if (options_.silent_until_told && !told_any_) return false;
+    if (ctx_.loop.transmission_held()) return false;  // another master's bus: only stops, at once
+    if (stop_pulses_ > 0 && ctx_.node.heard()) return true;
     if (ctx_.node.ready_for_pdos()) return true;
     // An operator's stop for a device the bridge does not control just now: its RPDOs go out while
     // it is heard and carry nothing that enables (never by themselves: a restarted bridge whose
@@ -615,6 +626,7 @@ class DeviceOutput final : public canopen::NodeDriver {
     const auto& r = rpdos_[k];
     if (!r.valid_on_device) return fmt::format("{} has {} disabled (COB-ID bit 31)", name, def(r).name);
     if (r.silent) return name + ": " + r.silent_why;
+    if (ctx_.loop.transmission_held()) return ctx_.another_master("the frame held back");
     if (options_.silent_until_told && !told_any_)
       return name + ": its RPDOs stay silent until an operator's first change";
     if (!node.online()) return name + " is offline (no heartbeat)";
@@ -666,6 +678,7 @@ class DeviceOutput final : public canopen::NodeDriver {
   bool told_any_ = false;      // an operator changed the image in this run
   bool stop_mode_ = false;     // an operator's stop for a device the bridge does not control just now
   bool quiet_ = false;         // a press sends its own first frame
+  unsigned stop_pulses_ = 0;   // stopping commands being pressed now
   std::uint64_t start_generation_ = 0;
   std::array<std::uint32_t, 4> identity_{};  // 1018h of the device as its last boot read it
 };
