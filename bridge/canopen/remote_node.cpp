@@ -139,10 +139,12 @@ RemoteNode::Judgement RemoteNode::judge(NmtState state, bool came_online) {
 // to a spoofed (or faulty) boot-up message. Unless the master itself commanded it after it
 // reported such a state (a boot under way started it): then the boot-up stands.
 RemoteNode::Judgement RemoteNode::judge_boot_up(NmtState state, std::int64_t timestamp_ns) {
-  if (boot_up_then_commanded_ || (state != NmtState::operational && evidence(state, timestamp_ns))) {
-    return {state, true};
+  if (boot_up_then_commanded_) return {state, true};
+  if (state != NmtState::operational) {
+    // The boot-up message opens the evidence: a state reported since, a producer period after it.
+    if (!candidate_) candidate_ = Candidate{state, boot_up_ns_};
+    return evidence(state, timestamp_ns) ? Judgement{state, true} : Judgement{believed_};
   }
-  if (state != NmtState::operational) return {believed_};
   boot_up_pending_ = false;
   boot_up_then_commanded_ = false;
   candidate_.reset();
@@ -163,6 +165,7 @@ RemoteNode::Judgement RemoteNode::judge_boot_up(NmtState state, std::int64_t tim
 void RemoteNode::boot_up_seen(bool came_online) {
   ++stats_.boot_ups;
   candidate_.reset();
+  boot_up_ns_ = heartbeat_.last_heartbeat_ns();
   const NmtState before = believed_;
   const bool at_once = !may_transmit_ || believe_every_boot_up_;
   if (came_online || at_once) believed_ = NmtState::boot_up;

@@ -12,10 +12,11 @@
 // reports it, and so is the first heartbeat after the device was offline. Any other new state,
 // and a boot-up, is believed only when the device's heartbeat reports it consistently: two
 // heartbeats of that state at least one producer period apart (1017h as its last boot read it;
-// half the heartbeat timeout when unknown), and no heartbeat of another state in between. A real
-// device reports its state every period, so it is believed after two or three beats; a spoofed
-// frame next to a running device is contradicted by the device's own heartbeat within a period,
-// and changes nothing. state() is the believed state. A boot-up followed by silence is believed
+// half the heartbeat timeout when unknown), and no heartbeat of another state in between; for a
+// boot-up, the boot-up message and a just-booted state reported since, at least a period after
+// it. A real device reports its state every period, so it is believed after one to three beats;
+// a spoofed frame next to a running device is contradicted by the device's own heartbeat within a
+// period, and changes nothing. state() is the believed state. A boot-up followed by silence is believed
 // (a device whose heartbeat is off at power-on); a boot-up followed by "operational" is not,
 // unless the device starts itself (believe_every_boot_up). The monitor role believes every frame
 // at once: it only watches.
@@ -215,6 +216,7 @@ class RemoteNode {
   // While a boot-up was pending, the device reported a state a device that has just booted is in,
   // uncontradicted, and then the master commanded it: what it reports next follows the command.
   bool boot_up_then_commanded_ = false;
+  std::int64_t boot_up_ns_ = 0;         // the pending boot-up message (bus time)
   std::optional<Candidate> candidate_;  // a new state, reported but not (yet) believed
   std::optional<std::chrono::milliseconds> producer_period_;
   std::function<void()> heartbeat_check_;
