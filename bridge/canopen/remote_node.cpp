@@ -74,7 +74,9 @@ Result<void> RemoteNode::command(NmtCommand cmd) {
   if (!may_transmit_) return make_error("the bus is in the monitor role: the bridge sends no NMT commands there");
   if (auto r = loop_.send(make_nmt_command(cmd, node_id())); !r) return r;
   commanded_ = state_after(cmd);
-  if (boot_up_pending_ && candidate_) boot_up_then_commanded_ = true;
+  // What it reports next follows this command, not its boot-up: the boot-up stands (a boot under
+  // way may have started the device while it rebooted, and then it runs on power-on values).
+  if (boot_up_pending_) boot_up_then_commanded_ = true;
   if (cmd == NmtCommand::reset_node || cmd == NmtCommand::reset_communication) configured_ = false;
   confirmed_ = false;
   commanded_at_ = std::chrono::steady_clock::now();
@@ -136,8 +138,8 @@ RemoteNode::Judgement RemoteNode::judge(NmtState state, bool came_online) {
 
 // A device that has just booted is pre-operational (or stopped), never operational unless it
 // starts itself: "operational" right after a boot-up is the running device's own heartbeat next
-// to a spoofed (or faulty) boot-up message. Unless the master itself commanded it after it
-// reported such a state (a boot under way started it): then the boot-up stands.
+// to a spoofed (or faulty) boot-up message. Unless the master itself commanded it after the
+// boot-up (a boot under way started it): then the boot-up stands.
 RemoteNode::Judgement RemoteNode::judge_boot_up(NmtState state, std::int64_t timestamp_ns) {
   if (boot_up_then_commanded_) return {state, true};
   if (state != NmtState::operational) {

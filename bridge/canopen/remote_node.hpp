@@ -213,8 +213,8 @@ class RemoteNode {
   std::optional<NmtCommand> hold_;  // an operator's stop or pre-operational, kept
   NmtState believed_ = NmtState::unknown;
   bool boot_up_pending_ = false;  // a boot-up frame, not yet confirmed by the state that follows
-  // While a boot-up was pending, the device reported a state a device that has just booted is in,
-  // uncontradicted, and then the master commanded it: what it reports next follows the command.
+  // The master commanded the device while a boot-up was pending: what it reports next follows the
+  // command, and the boot-up stands.
   bool boot_up_then_commanded_ = false;
   std::int64_t boot_up_ns_ = 0;         // the pending boot-up message (bus time)
   std::optional<Candidate> candidate_;  // a new state, reported but not (yet) believed

@@ -73,8 +73,8 @@ class HeartbeatJudgement : public lb::test::LoopOnOwnBus {
   void start_heartbeats() {
     beating_ = std::jthread([this](std::stop_token stop) {
       while (!stop.stop_requested()) {
+        last_beat_ = Clock::now().time_since_epoch().count();  // before: the master's timer starts later
         (void)spy_->send(lb::can::make_frame(0x700 + kNode, {kOperational}));
-        last_beat_ = Clock::now().time_since_epoch().count();
         std::this_thread::sleep_for(50ms);
       }
     });
