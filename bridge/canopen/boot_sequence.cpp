@@ -378,6 +378,8 @@ void BootSequence::verify_configuration() {
     if (!hb.absent) {
       const auto producer = static_cast<std::uint16_t>(unsigned_value(hb));
       report_.heartbeat_producer_ms = producer;
+      // The period a new state must be reported over to be believed (RemoteNode).
+      node_.set_heartbeat_producer(std::chrono::milliseconds(producer));
       if (settings_.heartbeat_producer_ms && producer != *settings_.heartbeat_producer_ms) {
         return fail(
             {'J', "configuration", 0x1017, 0, std::to_string(*settings_.heartbeat_producer_ms),
@@ -441,7 +443,8 @@ void BootSequence::start() {
   // this attempt put in pre-operational to write its PDOs was running when the boot began.
   report_.was_operational = paused_running_ || node_.state() == NmtState::operational;
   const auto& id = report_.identity;
-  node_.starting({report_.was_operational, paused_running_,
+  node_.starting({report_.was_operational,
+                  paused_running_,
                   {id.vendor_id, id.product_code, id.revision_number, id.serial_number}});
   if (const auto hold = node_.operator_hold()) {
     if (auto r = node_.command(*hold); !r) {
@@ -450,6 +453,7 @@ void BootSequence::start() {
                                r.error().message)});
     }
     node_.set_configured(true);
+    producer_left_ = report_.heartbeat_producer_ms;
     running_ = false;
     report_.held_by_operator = true;
     set_step(fmt::format("configured; kept {} by the operator (nmt start releases it)",
@@ -464,6 +468,7 @@ void BootSequence::start() {
                  fmt::format("node {}: NMT start could not be sent: {}", node_.node_id(), r.error().message)});
   }
   node_.set_configured(true);
+  producer_left_ = report_.heartbeat_producer_ms;
   report_.started = true;
   set_step("started");
   std::size_t writes = settings_.writes.size() + (settings_.heartbeat_producer_ms ? 1 : 0);
@@ -471,6 +476,42 @@ void BootSequence::start() {
                loop_.bus().uri(), node_.node_id(), planned_pdos_.size(), writes,
                report_.was_operational ? " (it was already operational)" : "");
   read_names();
+}
+
+// A heartbeat that stops while the device is still heard: one SDO download to 1017h (a service
+// tool, a spoofed frame, a device fault) is enough to silence it, and a device the master then
+// takes for lost is no longer supervised. What the last boot left there is written back; the
+// device's configuration is otherwise untouched (it runs on: no NMT command, no other write).
+void BootSequence::check_heartbeat_producer(std::function<void(const ProducerCheck&)> done) {
+  ProducerCheck check;
+  check.expected = settings_.heartbeat_producer_ms ? settings_.heartbeat_producer_ms : producer_left_;
+  if (!check.expected || *check.expected == 0) return done(check);  // nothing known to compare with
+  batch({SdoRequest::read(0x1017, 0, DataType::unsigned16)}, [this, check, done = std::move(done)](Replies r) mutable {
+    const std::uint8_t node = node_.node_id();
+    if (r.back().error) {
+      spdlog::warn("{}: node {}: no heartbeat, and its heartbeat producer time 1017h cannot be read: {}",
+                   loop_.bus().uri(), node, r.back().error->message);
+      return done(check);
+    }
+    check.found = static_cast<std::uint16_t>(unsigned_value(r[0]));
+    if (*check.found == *check.expected) return done(check);
+    const auto expected = *check.expected;
+    batch({SdoRequest::write(0x1017, 0, DataType::unsigned16, std::uint64_t{expected}),
+           SdoRequest::read(0x1017, 0, DataType::unsigned16)},
+          [this, check, expected, node, done = std::move(done)](Replies w) mutable {
+            const bool ok = w.size() == 2 && !w.back().error && unsigned_value(w[1]) == expected;
+            check.written_back = ok;
+            if (ok) node_.set_heartbeat_producer(std::chrono::milliseconds(expected));
+            spdlog::error(
+                "{}: node {}: its heartbeat producer time 1017h is {} ms, its last boot left {} ms there: changed "
+                "under the bridge (a service tool, a spoofed SDO write or a device fault); {}",
+                loop_.bus().uri(), node, *check.found, expected,
+                ok ? fmt::format("written back to {} ms", expected)
+                   : fmt::format("writing it back failed ({})",
+                                 w.back().error ? w.back().error->message : std::string("it reads back otherwise")));
+            done(check);
+          });
+  });
 }
 
 void BootSequence::read_names() {

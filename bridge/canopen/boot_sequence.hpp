@@ -116,6 +116,20 @@ class BootSequence {
   bool running() const { return running_; }
   const std::string& step() const { return step_; }
   const BootReport& report() const { return report_; }
+  // What check_heartbeat_producer found.
+  struct ProducerCheck {
+    std::optional<std::uint16_t> expected;  // what the last boot that passed left in 1017h
+    std::optional<std::uint16_t> found;     // what the device holds (nullopt: not read)
+    bool written_back = false;              // it differed and now holds `expected` again
+  };
+  // Loop thread, between boots (the device configured): reads 1017h; when it differs from what
+  // the last boot that passed left there (Settings::heartbeat_producer_ms, or the value that boot
+  // read), writes that back, reads it back, and reports it (log error: both values). `done`
+  // follows once, unless a boot begins meanwhile (the check is then abandoned silently).
+  void check_heartbeat_producer(std::function<void(const ProducerCheck&)> done);
+  // What the last boot that passed left in 1017h, as it read it (nullopt: not known).
+  std::optional<std::uint16_t> heartbeat_producer_left() const { return producer_left_; }
+
   // Loop thread, told by the node state machine: a heartbeat (not a boot-up) arrived; the attempt
   // goes on if it waits for one. The heartbeat the boot waits for is one that follows the
   // configuration: a state, never the boot-up message (a device without a heartbeat producer
@@ -162,7 +176,8 @@ class BootSequence {
   std::string step_ = "waiting";
   BootReport report_;
   std::vector<PdoInUse> planned_pdos_;
-  RepeatLog fail_log_;  // the same failure again (an absent device) once a minute
+  std::optional<std::uint16_t> producer_left_;  // 1017h as the last boot that passed read it
+  RepeatLog fail_log_;                          // the same failure again (an absent device) once a minute
 };
 
 }  // namespace lb::canopen

@@ -1,6 +1,7 @@
 #include "canopen/bus_loop.hpp"
 
 #include <fmt/ranges.h>
+#include <poll.h>
 #include <pthread.h>
 #include <sched.h>
 #include <spdlog/spdlog.h>
@@ -9,6 +10,7 @@
 #include <sys/timerfd.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <cstring>
 #include <stdexcept>
@@ -399,7 +401,14 @@ void BusLoop::run_posted() {
   for (auto& task : batch) guarded(task, nullptr, "posted task", 0);
 }
 
+bool BusLoop::input_pending() const {
+  if (in_burst_ || backlog_) return true;
+  pollfd p{bus_->fd(), POLLIN, 0};
+  return ::poll(&p, 1, 0) > 0 && (p.revents & POLLIN) != 0;
+}
+
 void BusLoop::dispatch(const can::CanFrame& frame) {
+  last_frame_ns_ = std::max(last_frame_ns_, frame.timestamp_ns);
   if (!frame.extended && !frame.rtr && !frame.error && frame.id < cob::kStandardIdCount) {
     auto& handlers = handlers_[frame.id];
     if (handlers.empty()) ++frames_unclaimed_;

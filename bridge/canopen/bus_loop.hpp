@@ -128,6 +128,17 @@ class BusLoop {
   std::uint64_t handler_failures() const { return handler_failures_; }
   // Frames nobody on this bus handles (nodes the line does not have, identifiers no service uses).
   std::uint64_t frames_unclaimed() const { return frames_unclaimed_; }
+
+  // The bus's own time, for what is judged by it (a heartbeat timeout): a timer that fires after
+  // the loop was held up (the process stopped, a slow handler) fires before the frames that came
+  // meanwhile are read, so it must not take the loop's clock for the bus's.
+  // Loop thread: the newest timestamp (realtime ns, as the bus stamps frames) of a frame
+  // dispatched so far; 0 before the first.
+  std::int64_t last_frame_ns() const { return last_frame_ns_; }
+  // Loop thread: frames may wait to be dispatched: a burst is being dispatched (a timer run
+  // between two of its frames), one wake-up stopped at kFramesPerWake, or the bus has something
+  // to read. False means every frame that reached this member so far was dispatched.
+  bool input_pending() const;
   // Frame handlers and timers that reached kMaxHandlerFailures: at most 1, and then the loop has
   // ended (kept for the diagnostics contract; nothing is switched off any more).
   std::uint64_t handlers_disabled() const { return handlers_disabled_; }
@@ -183,13 +194,14 @@ class BusLoop {
   std::vector<FlushId> requested_flushes_;
   bool in_burst_ = false;
   bool posted_here_ = false;  // a task was posted on the loop thread: run before the next wait
-  bool backlog_ = false;  // drain_bus() stopped at kFramesPerWake with frames possibly left
+  bool backlog_ = false;      // drain_bus() stopped at kFramesPerWake with frames possibly left
   bool held_ = false;
   std::uint64_t frames_held_ = 0;
   std::uint64_t stops_sent_while_held_ = 0;
   std::uint64_t error_frames_logged_ = 0;
   std::uint64_t handler_failures_ = 0;
   std::uint64_t frames_unclaimed_ = 0;
+  std::int64_t last_frame_ns_ = 0;
   can::BusState last_state_ = can::BusState::unknown;
   std::uint64_t last_reopens_ = 0;
   std::uint64_t handlers_disabled_ = 0;

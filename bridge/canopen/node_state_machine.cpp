@@ -26,6 +26,7 @@ NodeStateMachine::NodeStateMachine(BusLoop& loop, RemoteNode& node, SdoClient& s
                                    Settings settings)
     : loop_(loop), node_(node), boot_(loop, node, sdo, std::move(boot)), settings_(settings) {
   node_.attach(*this);
+  node_.on_heartbeat_missing([this] { check_heartbeat_producer(); });
   timer_ = loop_.create_timer([this] {
     const std::string why = waiting_;
     waiting_.clear();
@@ -99,7 +100,9 @@ Result<void> NodeStateMachine::operator_command(NmtCommand command) {
 // reset_bound (a lost boot-up), a boot begins anyway; the device is never taken for started
 // meanwhile.
 void NodeStateMachine::reset_sent(bool by_operator) {
+  abandon_heartbeat_check();
   boot_.cancel();
+  reset_unconfirmed_ = true;
   loop_.disarm_timer(timer_);
   if (by_operator) {
     recent_.clear();
@@ -112,6 +115,11 @@ void NodeStateMachine::reset_sent(bool by_operator) {
 
 std::string NodeStateMachine::detail() const {
   if (!waiting_.empty()) return waiting_;
+  if (checking_heartbeat_producer_) {
+    return "no heartbeat within its timeout, but heard by other frames of its own: checking its heartbeat producer "
+           "time 1017h";
+  }
+  if (node_.heartbeat_missing()) return "its heartbeat producer time 1017h was written back: waiting for its heartbeat";
   // The boot's last step ("started") is history once an operator's stop or pre-operational took
   // the node out of operational: what holds it now is said instead.
   if (const auto& hold = node_.operator_hold(); hold && state_ == NodeState::stopped_by_operator) {
@@ -122,7 +130,10 @@ std::string NodeStateMachine::detail() const {
 }
 
 void NodeStateMachine::on_heartbeat(NmtState state) noexcept {
-  boot_.heard(state);
+  // After a boot-up not judged yet the device may have just lost what a boot under way wrote: that
+  // boot must not take this heartbeat for the one that follows its configuration and start it
+  // (the boot-up, once believed, boots it again).
+  if (!node_.boot_up_pending()) boot_.heard(state);
   // Started (or released by an operator) and now heard operational: the condition for RPDOs.
   if ((state_ == NodeState::booting || state_ == NodeState::stopped_by_operator) && node_.ready_for_pdos()) {
     enter(NodeState::operational, "started, heard operational");
@@ -158,8 +169,11 @@ void NodeStateMachine::on_event(NodeEvent event) noexcept {
       if (!boot_under_way() && waiting_.empty()) boot_now("heartbeat lost");
       return;
     case NodeEvent::returned:
+      // Back after the silence of a reset: its boot-up (believed on evidence) or the bound on
+      // waiting for it boots it.
+      if (state_ == NodeState::resetting) return;
       if (boot_under_way()) {  // a boot under way goes on (it hears the heartbeat itself)
-        if (state_ != NodeState::resetting) enter(NodeState::booting, "heard while its boot probes it");
+        enter(NodeState::booting, "heard while its boot probes it");
         return;
       }
       if (node_.configured()) return;
@@ -174,7 +188,13 @@ void NodeStateMachine::on_event(NodeEvent event) noexcept {
 }
 
 void NodeStateMachine::recover(const char* why) {
-  if (settings_.on_state_unknown == RecoveryAction::reset_node) {
+  if (settings_.on_state_unknown == RecoveryAction::reset_node && reset_unconfirmed_) {
+    // One reset per incident: a device whose reset outlasts its heartbeat timeout comes back
+    // unknown once more, and resetting it again would loop.
+    ++counters_.resets_spared;
+    spdlog::warn("{}: node {}: {}: an NMT reset was sent and no boot has passed since: booted, not reset again",
+                 loop_.bus().uri(), node_.node_id(), why);
+  } else if (settings_.on_state_unknown == RecoveryAction::reset_node) {
     spdlog::warn("{}: node {}: {}: its configuration may be gone, NMT reset node", loop_.bus().uri(), node_.node_id(),
                  why);
     boot_.cancel();
@@ -184,6 +204,7 @@ void NodeStateMachine::recover(const char* why) {
 }
 
 void NodeStateMachine::boot_now(const std::string& why) {
+  abandon_heartbeat_check();
   loop_.disarm_timer(timer_);
   loop_.disarm_timer(reset_timer_);
   waiting_.clear();
@@ -196,6 +217,7 @@ void NodeStateMachine::boot_now(const std::string& why) {
 }
 
 void NodeStateMachine::boot_after(std::chrono::milliseconds delay, const std::string& why) {
+  abandon_heartbeat_check();
   boot_.cancel();
   waiting_ = why;
   loop_.arm_timer(timer_, delay);
@@ -225,6 +247,7 @@ void NodeStateMachine::finished(const BootReport& report) {
     last_failure_ = report.error;
   } else if (report.started || report.held_by_operator) {
     last_failure_.reset();
+    reset_unconfirmed_ = false;  // the incident is over: the next one may reset it again
   }
   if (report.started) {
     ++counters_.boots_started;  // operational once heard so (on_heartbeat), which may be before this
@@ -247,6 +270,25 @@ void NodeStateMachine::finished(const BootReport& report) {
     boot_after(settings_.retry, boot_.step() + fmt::format("; next try in {} ms", settings_.retry.count()));
   }
   node_.tell([&report](NodeDriver& d) { d.on_boot(report); });
+}
+
+// Its heartbeat stopped while it is heard: only a configured device whose boot is not under way
+// is checked (a boot reads and writes 1017h itself).
+void NodeStateMachine::check_heartbeat_producer() {
+  using Check = RemoteNode::HeartbeatCheck;
+  if (boot_.running() || state_ == NodeState::resetting) return node_.heartbeat_check_done(Check::not_the_cause);
+  checking_heartbeat_producer_ = true;
+  boot_.check_heartbeat_producer([this](const BootSequence::ProducerCheck& c) {
+    checking_heartbeat_producer_ = false;
+    if (c.written_back) ++counters_.heartbeat_producer_rewrites;
+    node_.heartbeat_check_done(c.written_back ? Check::written_back : Check::not_the_cause);
+  });
+}
+
+void NodeStateMachine::abandon_heartbeat_check() {
+  if (!checking_heartbeat_producer_) return;
+  checking_heartbeat_producer_ = false;
+  node_.heartbeat_check_done(RemoteNode::HeartbeatCheck::abandoned);
 }
 
 }  // namespace lb::canopen

@@ -10,9 +10,18 @@
 // reports a state it was not told to take (it may have been reset without its boot-up reaching
 // the master, e.g. during a bus-off). Never a bare NMT start of such a device: it is booted again
 // (CiA 302-2 "boot slave"), or reset so that its boot-up starts the boot, as the line configures.
-// A reset always leads to a boot (bounded wait for the boot-up). A device that fails its boot is
-// tried again after the retry interval, unless it runs (then it is left running and reported);
-// one that keeps booting (a boot-up storm) is reported and backed off.
+// A reset always leads to a boot (bounded wait for the boot-up), and one reset is all an incident
+// gets: until the boot after a reset has passed, a further state-unknown event (the device back
+// after the silence of a slow reset, a state not commanded) boots it instead of resetting it
+// again, so a device whose reset outlasts its heartbeat timeout is not reset in a loop. A device
+// that fails its boot is tried again after the retry interval, unless it runs (then it is left
+// running and reported); one that keeps booting (a boot-up storm) is reported and backed off.
+//
+// A device whose heartbeat stops while it is still heard by other frames of its own (RemoteNode::
+// on_heartbeat_missing) keeps its state here (it is not lost: it runs, and it takes a stop) while
+// its heartbeat producer time 1017h is read and, if it changed under the bridge, written back
+// (BootSequence::check_heartbeat_producer; counted in heartbeat_producer_rewrites). Without its
+// heartbeat one timeout after that, or when 1017h was not the cause, it is lost as any other.
 //
 //   unknown ──heard──▶ booting ──passed, heard operational──▶ operational
 //      │                 │  ▲ └──failed──▶ boot failed ──retry──┘ │      │
@@ -60,6 +69,11 @@ class NodeStateMachine final : public NodeDriver {
     std::uint32_t state_unknown = 0;  // lost-and-back and unexpected states
     std::uint32_t storms = 0;         // times a storm began
     std::uint32_t transitions = 0;    // changes of state()
+    // Its heartbeat producer time 1017h was found changed under the bridge (its heartbeat stopped
+    // while it was heard) and written back.
+    std::uint32_t heartbeat_producer_rewrites = 0;
+    // A state-unknown event while the boot after a reset had not passed: booted, not reset again.
+    std::uint32_t resets_spared = 0;
   };
 
   // Before the loop starts: attaches itself to the node (as its first driver, so that it acts on
@@ -98,6 +112,8 @@ class NodeStateMachine final : public NodeDriver {
   // Records a boot-up or lost state; true (and the delay armed) when it makes a storm.
   bool storm();
   void finished(const BootReport& report);
+  void check_heartbeat_producer();  // RemoteNode::on_heartbeat_missing
+  void abandon_heartbeat_check();   // a boot or a reset begins
 
   BusLoop& loop_;
   RemoteNode& node_;
@@ -114,6 +130,10 @@ class NodeStateMachine final : public NodeDriver {
   // not started (an NMT start refused during it names it).
   std::optional<BootError> last_failure_;
   RepeatLog boot_log_;  // an absent device is tried every retry interval: the same line once a minute
+  // An NMT reset was sent (recovery or operator) and no boot has passed since: a further
+  // state-unknown event boots the device instead of resetting it again.
+  bool reset_unconfirmed_ = false;
+  bool checking_heartbeat_producer_ = false;
   Counters counters_;
 };
 

@@ -3,6 +3,8 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include <algorithm>
+
 #include "canopen/cob_id.hpp"
 
 namespace lb::canopen {
@@ -38,24 +40,33 @@ void OtherMasterWatch::seen(const can::CanFrame& frame, const char* what) {
   }
 }
 
+std::chrono::nanoseconds OtherMasterWatch::max_gap() const {
+  return std::max<std::chrono::nanoseconds>(kEvidenceGap, 3 * own_period_);
+}
+
 void OtherMasterWatch::sync_seen(const can::CanFrame& frame) {
-  const auto now = std::chrono::steady_clock::now();
-  if (run_syncs_ == 0 || now - last_sync_ > kEvidenceGap) {  // a new run begins
-    run_start_ = now;
+  const std::int64_t now = frame.timestamp_ns;
+  const bool continues = run_syncs_ != 0 && now >= last_sync_ns_ && now - last_sync_ns_ <= max_gap().count();
+  if (!continues) {  // a new run begins: whatever the last one gave is gone
+    run_start_ns_ = now;
     run_syncs_ = 0;
   }
-  last_sync_ = now;
+  last_sync_ns_ = now;
   ++run_syncs_;
-  const bool evidence = run_syncs_ >= kEvidence && now - run_start_ >= kEvidenceSpan;
+  const auto span = std::chrono::nanoseconds(now - run_start_ns_);
+  const bool evidence = run_syncs_ >= kEvidence && span >= kEvidenceSpan;
   if (policy_ == Policy::yield && evidence && !yielding_) {
     yielding_ = true;
+    ++yields_;
     loop_.hold_transmission(true);
-    spdlog::error("{}: another master's SYNC runs on this bus ({} SYNCs in {} ms): the bridge transmits nothing here, "
-                  "and refuses set values and commands, until it has been silent for {} s",
-                  loop_.bus().uri(), run_syncs_,
-                  std::chrono::duration_cast<std::chrono::milliseconds>(now - run_start_).count(), kQuiet.count());
+    spdlog::error("{}: another master's SYNC runs on this bus ({} SYNCs in {} ms, none more than {} ms apart): the "
+                  "bridge transmits nothing here but stops, and refuses set values and commands, until it has been "
+                  "silent for {} s",
+                  loop_.bus().uri(), run_syncs_, std::chrono::duration_cast<std::chrono::milliseconds>(span).count(),
+                  std::chrono::duration_cast<std::chrono::milliseconds>(max_gap()).count(), kQuiet.count());
   }
-  if (yielding_) loop_.arm_timer(quiet_timer_, kQuiet);
+  // Only the producer that made the evidence keeps the yield: a stray SYNC later is no run.
+  if (yielding_ && evidence) loop_.arm_timer(quiet_timer_, kQuiet);
   seen(frame, "a SYNC from another producer");
 }
 

@@ -5,11 +5,34 @@
 // machine) what it hears, including what makes the device's state unknown to the master (a
 // boot-up, a lost heartbeat, a state it was not told to take); what to do about it is the node
 // state machine's business (canopen/node_state_machine.hpp).
+//
+// Beliefs need evidence (master role; docs/canopen-master.md "What the master believes, and on
+// what evidence"). Anyone on the bus can send a frame on 700h + node-ID, so one frame there
+// proves nothing. A state the device was told to take is believed from its first heartbeat that
+// reports it, and so is the first heartbeat after the device was offline. Any other new state,
+// and a boot-up, is believed only when the device's heartbeat reports it consistently: two
+// heartbeats of that state at least one producer period apart (1017h as its last boot read it;
+// half the heartbeat timeout when unknown), and no heartbeat of another state in between; for a
+// boot-up, the boot-up message and a just-booted state reported since, at least a period after
+// it. A real device reports its state every period, so it is believed after one to three beats;
+// a spoofed frame next to a running device is contradicted by the device's own heartbeat within a
+// period, and changes nothing. state() is the believed state. A boot-up followed by silence is believed
+// (a device whose heartbeat is off at power-on); a boot-up followed by "operational" is not,
+// unless the device starts itself (believe_every_boot_up). The monitor role believes every frame
+// at once: it only watches.
+//
+// A heartbeat that stops while the device is still heard by frames of its own (TPDOs, EMCY, SDO
+// answers) is not taken for a lost device: its heartbeat producer time may have been changed
+// under the bridge. The node stays online (and what it is to the node state machine stays as it
+// was) while the check its master registered (on_heartbeat_missing: read 1017h, write back what
+// its last boot left there) runs, and one heartbeat timeout after a write-back; then, without a
+// heartbeat, it is lost as any silent device.
 
 #include <algorithm>
 #include <array>
 #include <chrono>
 #include <cstdint>
+#include <functional>
 #include <optional>
 #include <span>
 #include <string>
@@ -37,10 +60,21 @@ class RemoteNode {
     std::uint64_t range_warnings = 0;
     std::uint64_t malformed_emergencies = 0;  // EMCYs not 8 bytes long (ignored)
     std::uint64_t malformed_heartbeats = 0;   // heartbeats without a state byte (ignored)
-    std::uint32_t boot_ups_not_believed = 0;  // a boot-up, then a heartbeat saying operational
+    // A boot-up that the heartbeats after it contradicted (one saying operational, of a device that
+    // does not start itself).
+    std::uint32_t boot_ups_not_believed = 0;
+    // A state reported (not the believed one, not the one commanded) that the next heartbeats
+    // contradicted before it was reported consistently over a producer period.
+    std::uint32_t states_not_believed = 0;
+    // Its heartbeat timed out while it was heard by other frames of its own: kept online while its
+    // 1017h was checked (NodeStateMachine::Counters::heartbeat_producer_rewrites: written back).
+    std::uint32_t heartbeats_missing_while_heard = 0;
   };
   using Event = NodeEvent;
   using StartFacts = canopen::StartFacts;
+  // How long a device heard without a heartbeat stays online while its heartbeat producer is
+  // checked, at most (the check's SDO exchanges end sooner by their own timeouts).
+  static constexpr std::chrono::seconds kHeartbeatCheckBound{10};
 
   // may_transmit = false for the monitor role: the node is observed, never commanded.
   RemoteNode(BusLoop& loop, std::uint8_t node_id, std::chrono::milliseconds heartbeat_timeout, bool may_transmit);
@@ -91,8 +125,32 @@ class RemoteNode {
   void note_set_values_at_start(std::string note) { set_values_at_start_ = std::move(note); }
 
   std::uint8_t node_id() const { return heartbeat_.node_id(); }
-  NmtState state() const { return heartbeat_.state(); }
+  // The state the master believes (see the top of this file); reported_state() is the last
+  // heartbeat's, believed or not.
+  NmtState state() const { return believed_; }
+  NmtState reported_state() const { return heartbeat_.state(); }
   bool online() const { return heartbeat_.online(); }
+  // Loop thread, by the boot: the heartbeat producer time (1017h) as the device has it, the period
+  // a new state must be reported over to be believed; nullopt or 0: unknown (half the timeout).
+  void set_heartbeat_producer(std::optional<std::chrono::milliseconds> period) { producer_period_ = period; }
+  // The period a new state must be reported over.
+  std::chrono::nanoseconds evidence_period() const;
+  // Before the loop starts, by the node's master (NodeStateMachine): what checks a device whose
+  // heartbeat stopped while it is still heard by other frames of its own; it ends by calling
+  // heartbeat_check_done. Without one such a device is lost as any other.
+  void on_heartbeat_missing(std::function<void()> check) { heartbeat_check_ = std::move(check); }
+  // Loop thread: how the check ended. written_back: it found the heartbeat producer changed and
+  // wrote it back (the heartbeat is waited for one more timeout); not_the_cause (1017h holds what
+  // the last boot left, or cannot be read or written): the device is lost now; abandoned (a boot
+  // or a reset began meanwhile): lost at the next timeout unless its heartbeat comes.
+  enum class HeartbeatCheck { written_back, not_the_cause, abandoned };
+  void heartbeat_check_done(HeartbeatCheck result);
+  // Loop thread: a boot-up message came and is not judged yet (the heartbeats that follow decide).
+  bool boot_up_pending() const { return boot_up_pending_; }
+  // Loop thread: its heartbeat timed out while it is heard: online while the check runs.
+  bool heartbeat_missing() const { return missing_; }
+  // Heartbeat timeouts that waited for frames queued on the bus (HeartbeatConsumer).
+  std::uint64_t heartbeat_judgements_deferred() const { return heartbeat_.judgements_deferred(); }
   // Loop thread: the device sent a frame of its own (heartbeat or boot-up, EMCY, SDO answer, a
   // TPDO reported through heard_frame) within its heartbeat timeout. What the stop path asks:
   // a device that is heard takes a stop, whatever the master believes about its state.
@@ -122,11 +180,25 @@ class RemoteNode {
   const Stats& stats() const { return stats_; }
 
  private:
-  void boot_up_seen();
-  void booted();
-  void changed(NmtState state, bool online);
-  void heartbeat(NmtState state);
-  void check_state(NmtState state);
+  struct Candidate {
+    NmtState state;
+    std::int64_t since_ns;  // its first heartbeat reporting it (bus time)
+  };
+  // What a heartbeat makes the master believe: the state, and whether the pending boot-up stands.
+  struct Judgement {
+    NmtState believed;
+    bool boot_up = false;
+  };
+  void heartbeat(NmtState state, bool came_online);
+  Judgement judge(NmtState state, bool came_online);
+  Judgement judge_boot_up(NmtState state, std::int64_t timestamp_ns);
+  void boot_up_seen(bool came_online);
+  bool evidence(NmtState state, std::int64_t timestamp_ns);
+  void not_believed(const Candidate& candidate, NmtState contradicted_by);
+  void booted(NmtState state);
+  bool missing();
+  void went_offline();
+  void check_commanded(NmtState state);
   void emit(Event event);
   void on_emcy_frame(const can::CanFrame& frame);
 
@@ -137,10 +209,20 @@ class RemoteNode {
   NmtState commanded_ = NmtState::unknown;  // unknown: not commanded since its last boot-up
   bool confirmed_ = false;                  // a heartbeat reported the commanded state since
   std::chrono::steady_clock::time_point commanded_at_{};
-  bool was_online_ = false;
   bool believe_every_boot_up_ = false;
   std::optional<NmtCommand> hold_;  // an operator's stop or pre-operational, kept
-  bool boot_up_pending_ = false;    // a boot-up frame, not yet confirmed by the state that follows
+  NmtState believed_ = NmtState::unknown;
+  bool boot_up_pending_ = false;  // a boot-up frame, not yet confirmed by the state that follows
+  // The master commanded the device while a boot-up was pending: what it reports next follows the
+  // command, and the boot-up stands.
+  bool boot_up_then_commanded_ = false;
+  std::int64_t boot_up_ns_ = 0;         // the pending boot-up message (bus time)
+  std::optional<Candidate> candidate_;  // a new state, reported but not (yet) believed
+  std::optional<std::chrono::milliseconds> producer_period_;
+  std::function<void()> heartbeat_check_;
+  bool missing_ = false;   // its heartbeat timed out while it is heard: online while checked
+  bool checking_ = false;  // the check runs
+  std::chrono::steady_clock::time_point missing_since_{};
   Stats stats_;
   ActiveErrors errors_;
   std::vector<PdoInUse> pdos_;

@@ -294,7 +294,7 @@ SimulationConfig parse_simulation(const YamlSource& src, const YAML::Node& n, co
   src.check_keys(n, "simulation",
                  {"max_speed_m_per_min", "acceleration_m_per_min_s", "scaling_pulses_per_m", "heartbeat_period_ms",
                   "controller_values", "identity", "pdos", "ignore_writes", "pre_defined_error_field",
-                  "boot_up_after_nmt_reset"});
+                  "boot_up_after_nmt_reset", "reset_time_ms"});
   SimulationConfig sim;
   sim.max_speed_m_per_min = positive(src, n, "max_speed_m_per_min", sim.max_speed_m_per_min);
   sim.acceleration_m_per_min_s = positive(src, n, "acceleration_m_per_min_s", sim.acceleration_m_per_min_s);
@@ -305,6 +305,7 @@ SimulationConfig parse_simulation(const YamlSource& src, const YAML::Node& n, co
       bounded<int>(src, n, "heartbeat_period_ms", 100, 0, 65535, "simulation"));
   sim.pre_defined_error_field = src.optional<bool>(n, "pre_defined_error_field").value_or(true);
   sim.boot_up_after_nmt_reset = src.optional<bool>(n, "boot_up_after_nmt_reset").value_or(true);
+  sim.reset_time = std::chrono::milliseconds(bounded<int>(src, n, "reset_time_ms", 0, 0, 60000, "simulation"));
   if (n["identity"]) sim.identity = parse_identity(src, n["identity"], "simulation identity");
   if (n["pdos"]) sim.pdos = parse_simulated_pdos(src, n["pdos"], profile);
   if (const auto ignore = n["ignore_writes"]) {

@@ -111,6 +111,9 @@ struct SimulationConfig {
   // false: the boot-up message after an NMT reset is lost (a fault to test a master with; the
   // power-on boot-up is still sent).
   bool boot_up_after_nmt_reset = true;
+  // How long an NMT reset node / reset communication takes before the boot-up; the device is
+  // silent meanwhile (a real device may take seconds to restart).
+  std::chrono::milliseconds reset_time{0};
 };
 
 // One SDO write of a device's boot configuration (written in this order before NMT start).

@@ -5,6 +5,7 @@
 #include <chrono>
 #include <cstdint>
 #include <functional>
+#include <optional>
 
 #include "canopen/bus_loop.hpp"
 #include "canopen/nmt.hpp"
@@ -29,6 +30,11 @@ class NmtSlave {
   void reset(Reset kind, bool announce = true);
   // false: resets by NMT command send no boot-up message (simulation: boot_up_after_nmt_reset).
   void announce_nmt_resets(bool announce) { announce_nmt_resets_ = announce; }
+  // How long a reset by NMT command takes before the device is back (simulation: reset_time_ms):
+  // meanwhile it is initialising and silent (no heartbeat, no SDO answer, no PDO) and takes no
+  // NMT command; then it resets and sends its boot-up. Zero: at once.
+  void set_reset_time(std::chrono::milliseconds time) { reset_time_ = time; }
+  bool resetting() const { return pending_reset_.has_value(); }
   // 1017h: a period of 0 stops the heartbeat (CiA 301); the next one comes a period from now.
   void set_heartbeat_period(std::chrono::milliseconds period);
   canopen::NmtState state() const { return state_; }
@@ -36,6 +42,7 @@ class NmtSlave {
 
  private:
   void on_command(const can::CanFrame& frame);
+  void begin_reset(Reset kind);
   void enter(canopen::NmtState state);
   void send_heartbeat();
 
@@ -43,6 +50,9 @@ class NmtSlave {
   std::uint8_t node_id_;
   Hooks hooks_;
   canopen::BusLoop::TimerId heartbeat_timer_;
+  canopen::BusLoop::TimerId reset_timer_;
+  std::chrono::milliseconds reset_time_{0};
+  std::optional<Reset> pending_reset_;  // an NMT reset under way (reset_time_)
   std::chrono::milliseconds heartbeat_period_{0};
   canopen::NmtState state_ = canopen::NmtState::boot_up;
   bool announce_nmt_resets_ = true;

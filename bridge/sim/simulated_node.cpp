@@ -51,8 +51,9 @@ SimulatedNode::SimulatedNode(canopen::BusLoop& loop, const profiles::DeviceConfi
                on_short_rpdo(pdo, length, needed);
              }},
             app_.event_tpdos) {
-  // No SDO answer at all in NMT stopped: a master's request times out (CiA 301).
-  sdo_.set_gate([this] { return nmt_.state() != NmtState::stopped; });
+  // No SDO answer at all in NMT stopped (CiA 301), nor while a reset takes its time
+  // (simulation.reset_time_ms): a master's request times out.
+  sdo_.set_gate([this] { return nmt_.state() != NmtState::stopped && !nmt_.resetting(); });
   link_image_objects();
   link_communication_objects();
   link_error_objects();
@@ -129,6 +130,7 @@ void SimulatedNode::link_communication_objects() {
 
 void SimulatedNode::boot() {
   nmt_.announce_nmt_resets(device_.simulation.boot_up_after_nmt_reset);
+  nmt_.set_reset_time(device_.simulation.reset_time);
   // The faults name any object, the application's too: they exist by now.
   for (const auto key : device_.simulation.ignore_writes) {
     const auto index = static_cast<std::uint16_t>(key >> 8);

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <functional>
@@ -302,4 +303,42 @@ TEST_F(Loop, WorkPostedOnTheLoopRunsInOrderAndARepostingTaskStarvesNothing) {
   stop_reposting = true;
   // None left to run after this test's variables are gone.
   EXPECT_TRUE(eventually([&] { return reposting_done.load(); }, 20s));
+}
+
+// The bus's own time (what a heartbeat timeout is judged on): while a handler holds the loop up,
+// the frames that come meanwhile are pending input, and the newest timestamp dispatched is the
+// frame being handled, not the loop's clock; once they are read, nothing is pending and the
+// newest timestamp is the last frame's.
+TEST_F(Loop, TheBussTimeIsTheNewestFrameDispatchedAndQueuedFramesArePending) {
+  std::promise<void> holding;
+  std::promise<void> release;
+  auto released = release.get_future().share();
+  std::vector<std::int64_t> stamps;  // loop thread only
+  std::atomic<bool> pending_while_held{false};
+  std::atomic<std::int64_t> newest_while_held{0};
+  loop_->on_frame(0x185, [&, released](const lb::can::CanFrame& f) {
+    stamps.push_back(f.timestamp_ns);
+    if (stamps.size() != 1) return;
+    holding.set_value();
+    released.wait();  // the other frames arrive meanwhile
+    pending_while_held = loop_->input_pending();
+    newest_while_held = loop_->last_frame_ns();
+  });
+  loop_->start();
+  EXPECT_EQ(on_loop([&] { return loop_->last_frame_ns(); }), 0) << "a timestamp before any frame";
+  ASSERT_TRUE(spy_->send(lb::can::make_frame(0x185, {0})));
+  ASSERT_EQ(holding.get_future().wait_for(5s), std::future_status::ready);
+  for (std::uint8_t i = 1; i <= 5; ++i) {
+    std::this_thread::sleep_for(2ms);  // distinct stamps
+    ASSERT_TRUE(spy_->send(lb::can::make_frame(0x185, {i})));
+  }
+  std::this_thread::sleep_for(100ms);  // stays: lets the frames reach the loop's socket while it is held
+  release.set_value();
+  ASSERT_TRUE(eventually([&] { return on_loop([&] { return stamps.size(); }) == 6; }));
+  EXPECT_TRUE(pending_while_held) << "frames waited while the loop was held, and none was pending";
+  const auto seen = on_loop([&] { return stamps; });
+  EXPECT_EQ(newest_while_held, seen.front()) << "the bus's time ran ahead of the frames dispatched";
+  EXPECT_EQ(on_loop([&] { return loop_->last_frame_ns(); }), *std::max_element(seen.begin(), seen.end()));
+  EXPECT_GT(seen.back(), seen.front());
+  EXPECT_FALSE(on_loop([&] { return loop_->input_pending(); })) << "pending input after every frame was read";
 }
