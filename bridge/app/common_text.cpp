@@ -143,10 +143,11 @@ std::string to_text(const msg::Diagnostics& d) {
                     b.name(), b.handler_failures(), b.handlers_disabled(), b.frames_unclaimed(), b.requests_refused(),
                     b.requests_refused() != 0 ? " (loop overloaded)" : "");
     out += fmt::format(
-        "  bus {:<12} other-master-frames {} yielding-to-other-master {} frames-held {} other-master-last {}{}\n",
-        b.name(), b.other_master_frames(), b.yielding_to_other_master() ? "YES" : "no", b.frames_held(),
-        or_dash(b.other_master_last()),
-        b.yielding_to_other_master() ? " (YIELDING: transmits nothing, refuses set values and commands)" : "");
+        "  bus {:<12} other-master-frames {} yielding-to-other-master {} other-master-yields {} frames-held {} "
+        "stops-sent-while-held {} other-master-last {}{}\n",
+        b.name(), b.other_master_frames(), b.yielding_to_other_master() ? "YES" : "no", b.other_master_yields(),
+        b.frames_held(), b.stops_sent_while_held(), or_dash(b.other_master_last()),
+        b.yielding_to_other_master() ? " (YIELDING: transmits only stops, refuses other set values and commands)" : "");
     out += fmt::format("  bus {:<12} mandatory-missing {} mandatory-state {}\n", b.name(),
                        b.mandatory_missing().empty() ? std::string("none")
                                                      : fmt::format("{}", fmt::join(b.mandatory_missing(), ", ")),
@@ -165,6 +166,10 @@ std::string to_text(const msg::Diagnostics& d) {
                        n.boot_ups(), n.boots(), n.boot_failures(), n.state_unknown(), n.boot_ups_not_believed(),
                        n.pdos_received(), n.pdos_sent(), n.pdo_length_errors(), n.emergencies(), n.range_warnings(),
                        n.malformed_emergencies(), n.malformed_heartbeats());
+    out += fmt::format("  {:<12} states-not-believed {} heartbeats-missing-while-heard {} "
+                       "heartbeat-producer-rewrites {} heartbeat-judgements-deferred {} resets-spared {}\n",
+                       "", n.states_not_believed(), n.heartbeats_missing_while_heard(), n.heartbeat_producer_rewrites(),
+                       n.heartbeat_judgements_deferred(), n.resets_spared());
     out += fmt::format("  {:<12} mandatory {} line-hold {} boot-error {}\n", "", yes_no(n.mandatory()),
                        or_dash(n.line_hold()), or_dash(to_text(n.boot_error())));
     out += fmt::format("  {:<12} set-values-at-start {}\n", "", or_dash(n.set_values_at_start()));

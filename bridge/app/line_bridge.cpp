@@ -111,6 +111,8 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
                                                                       ? canopen::OtherMasterWatch::Policy::yield
                                                                       : canopen::OtherMasterWatch::Policy::warn,
                                                                   rt.config->master_node_id);
+    // A foreign producer's SYNCs are judged against the bus's own period (the gap that ends a run).
+    if (rt.sync) rt.other_master->own_sync_period(rt.config->sync_period);
     for (const auto& dev : config.devices) {
       if (dev.bus != rt.config->name) continue;
       for (const auto& p : dev.pdos) {

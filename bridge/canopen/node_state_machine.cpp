@@ -249,6 +249,7 @@ void NodeStateMachine::finished(const BootReport& report) {
     last_failure_.reset();
     reset_unconfirmed_ = false;  // the incident is over: the next one may reset it again
   }
+  if (report.error) keep_hold();
   if (report.started) {
     ++counters_.boots_started;  // operational once heard so (on_heartbeat), which may be before this
   } else if (report.held_by_operator) {
@@ -270,6 +271,25 @@ void NodeStateMachine::finished(const BootReport& report) {
     boot_after(settings_.retry, boot_.step() + fmt::format("; next try in {} ms", settings_.retry.count()));
   }
   node_.tell([&report](NodeDriver& d) { d.on_boot(report); });
+}
+
+// A device an operator (or the line) holds stopped or pre-operational stays so when its boot fails:
+// the boot would have put it back in that state, and a failed boot (its identity, a configuration
+// it refuses, pdo_change_when_running: keep_running) must not leave it running. The hold's command
+// is a stop: it goes out whenever the device is heard.
+void NodeStateMachine::keep_hold() {
+  const auto& hold = node_.operator_hold();
+  if (!hold || !node_.heard()) return;
+  const auto held_in = *hold == NmtCommand::stop ? NmtState::stopped : NmtState::pre_operational;
+  if (node_.state() == held_in) return;
+  if (auto r = node_.command(*hold); !r) {
+    spdlog::warn("{}: node {}: held {} but its boot failed, and the command could not be sent: {}", loop_.bus().uri(),
+                 node_.node_id(), to_string(held_in), r.error().message);
+    return;
+  }
+  spdlog::warn("{}: node {}: held {} (an operator's or the line's hold) and its boot failed: NMT {} sent all the same",
+               loop_.bus().uri(), node_.node_id(), to_string(held_in),
+               *hold == NmtCommand::stop ? "stop" : "enter pre-operational");
 }
 
 // Its heartbeat stopped while it is heard: only a configured device whose boot is not under way

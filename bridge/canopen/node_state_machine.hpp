@@ -112,6 +112,7 @@ class NodeStateMachine final : public NodeDriver {
   // Records a boot-up or lost state; true (and the delay armed) when it makes a storm.
   bool storm();
   void finished(const BootReport& report);
+  void keep_hold();                 // a failed boot of a held device: the hold's NMT command all the same
   void check_heartbeat_producer();  // RemoteNode::on_heartbeat_missing
   void abandon_heartbeat_check();   // a boot or a reset begins
 

@@ -108,7 +108,9 @@ void DiagnosticsGateway::snapshot(std::size_t i) {
   b.frames_unclaimed(bus.loop->frames_unclaimed());
   b.requests_refused(bus.loop->posts_refused());
   b.frames_held(bus.loop->frames_held());
+  b.stops_sent_while_held(bus.loop->stops_sent_while_held());
   if (bus.other_master != nullptr) {
+    b.other_master_yields(static_cast<std::uint32_t>(bus.other_master->yields()));
     b.other_master_frames(bus.other_master->frames());
     b.yielding_to_other_master(bus.other_master->yielding());
     b.other_master_last(bus.other_master->last());
@@ -156,6 +158,8 @@ void DiagnosticsGateway::snapshot(std::size_t i) {
     n.boots(counters.boots);
     n.boot_failures(counters.boot_failures);
     n.state_unknown(counters.state_unknown);
+    n.heartbeat_producer_rewrites(counters.heartbeat_producer_rewrites);
+    n.resets_spared(counters.resets_spared);
     const auto last = d.node->last_heartbeat_ns();
     n.last_heartbeat_age_s(last == 0 ? -1.0 : static_cast<double>(now_ns - last) / 1e9);
     const auto& s = d.node->stats();
@@ -168,6 +172,9 @@ void DiagnosticsGateway::snapshot(std::size_t i) {
     n.malformed_emergencies(s.malformed_emergencies);
     n.malformed_heartbeats(s.malformed_heartbeats);
     n.boot_ups_not_believed(s.boot_ups_not_believed);
+    n.states_not_believed(s.states_not_believed);
+    n.heartbeats_missing_while_heard(s.heartbeats_missing_while_heard);
+    n.heartbeat_judgements_deferred(d.node->heartbeat_judgements_deferred());
     nodes.push_back(std::move(n));
   }
   std::lock_guard lock(mutex_);

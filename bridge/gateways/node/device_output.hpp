@@ -250,6 +250,7 @@ class DeviceOutput final : public canopen::NodeDriver {
                        // Held back while another master holds the bus, not refused: a stop's own
                        // frames go out at once (flush), a timer releases its pulse.
                        if (ctx_.loop.transmission_held() && stop_mode_) return;
+                       if (ctx_.node.boot_up_pending()) return;  // held back until it is judged
                        pulses_->frame_not_sent(why == Transmitter::Refusal::bus
                                                    ? std::string("the bus refused the frame (diagnostics: tx_dropped)")
                                                    : why_not(k));
@@ -611,6 +612,10 @@ class DeviceOutput final : public canopen::NodeDriver {
     if (!r.valid_on_device || r.silent) return false;
     if (options_.silent_until_told && !told_any_) return false;
     if (ctx_.loop.transmission_held()) return false;  // another master's bus: only stops, at once
+    // A boot-up is being judged: the device may have just rebooted (it takes no PDO until it is
+    // started again, and must get nothing that enables then) or the frame was spoofed (it keeps
+    // what it last received for one heartbeat period). Held back, not refused; stops go all the same.
+    if (ctx_.node.boot_up_pending()) return false;
     if (stop_pulses_ > 0 && ctx_.node.heard()) return true;
     if (ctx_.node.ready_for_pdos()) return true;
     // An operator's stop for a device the bridge does not control just now: its RPDOs go out while
@@ -627,6 +632,7 @@ class DeviceOutput final : public canopen::NodeDriver {
     if (!r.valid_on_device) return fmt::format("{} has {} disabled (COB-ID bit 31)", name, def(r).name);
     if (r.silent) return name + ": " + r.silent_why;
     if (ctx_.loop.transmission_held()) return ctx_.another_master("the frame held back");
+    if (node.boot_up_pending()) return name + " sent a boot-up that is being judged: its RPDOs wait";
     if (options_.silent_until_told && !told_any_)
       return name + ": its RPDOs stay silent until an operator's first change";
     if (!node.online()) return name + " is offline (no heartbeat)";
