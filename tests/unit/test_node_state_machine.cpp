@@ -177,7 +177,10 @@ class NodeStateMachineTest : public ::testing::Test {
 
   // The master side: heartbeat timeout 300 ms, retry 300 ms, reset bound 600 ms, a storm is 3
   // boot-ups within 10 s.
-  void start_master(std::uint8_t device_state, std::optional<std::uint32_t> vendor = 0x1234, bool silent = false) {
+  // hold: an operator's or the line's hold the node has before its first boot (kept from before a
+  // restart of the bridge).
+  void start_master(std::uint8_t device_state, std::optional<std::uint32_t> vendor = 0x1234, bool silent = false,
+                    std::optional<co::NmtCommand> hold = std::nullopt) {
     spy_ = std::make_unique<lb::test::BusSpy>(uri_);
     device_ = std::make_unique<ScriptedDevice>(uri_, device_state, silent);
     master_ = std::make_unique<co::BusLoop>(lb::can::open_bus(uri_).value());
@@ -194,6 +197,7 @@ class NodeStateMachineTest : public ::testing::Test {
     settings.max_backoff = 60s;
     machine_ = std::make_unique<co::NodeStateMachine>(*master_, *node_, *sdo_, boot, settings);
     node_->attach(recorder_);
+    if (hold) node_->hold(*hold);
     master_->start();
     master_->post([this] { machine_->start(); });
   }
@@ -376,6 +380,16 @@ TEST_F(NodeStateMachineTest, ARunningWrongDeviceIsLeftRunningUnmanaged) {
   ASSERT_TRUE(reaches(NodeState::lost));
   device_->silence(false);
   ASSERT_TRUE(reaches(NodeState::running_unmanaged));
+}
+
+// A device held stopped (an operator's stop kept from before a restart) that runs, and whose boot
+// fails (not the device the line configures here: vendor-ID 1234h where 9999h is expected), is
+// stopped all the same: a failed boot never leaves a held device running. It is never started.
+TEST_F(NodeStateMachineTest, AHeldDeviceWhoseBootFailsIsStoppedAllTheSame) {
+  start_master(kOperational, 0x9999, false, co::NmtCommand::stop);
+  ASSERT_TRUE(nmt_seen(kStop, 1)) << "the held device runs on after its failed boot";
+  EXPECT_TRUE(eventually([&] { return device_->state() == kStopped; }));
+  EXPECT_EQ(nmt_count(kStart), 0u) << "a held device whose boot failed was started";
 }
 
 // operational → lost → booting → operational: a device back after a loss is booted again (SDO
