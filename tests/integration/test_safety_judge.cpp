@@ -49,12 +49,17 @@ class Timeline {
     requests.push_back(r);
     return *this;
   }
+  // The bridge's bus process ran over [from_ms, to_ms) (to_ms 0: still runs); none: all along.
+  Timeline& bus_process(std::int64_t from_ms, std::int64_t to_ms = 0) {
+    runs.push_back({kT0 + from_ms * kMs, to_ms == 0 ? 0 : kT0 + to_ms * kMs});
+    return *this;
+  }
   std::vector<std::string> verdict(const std::string& invariant) const {
     auto sorted = frames;  // in bus order, as the spy records them
     std::stable_sort(sorted.begin(), sorted.end(),
                      [](const auto& a, const auto& b) { return a.timestamp_ns < b.timestamp_ns; });
     std::vector<std::string> out;
-    for (const auto& v : SafetyJudge(saw31(), 400, kT0).judge(sorted, requests)) {
+    for (const auto& v : SafetyJudge(saw31(), 400, kT0, runs).judge(sorted, requests)) {
       if (v.invariant == invariant) out.push_back(v.text);
     }
     return out;
@@ -62,6 +67,7 @@ class Timeline {
 
   std::vector<lb::can::CanFrame> frames;
   std::vector<OperatorRequest> requests;
+  std::vector<BusProcessRun> runs;
 };
 
 using Kind = OperatorRequest::Kind;
@@ -132,6 +138,46 @@ TEST(SafetyJudge, AStopIsOnTheBusWithin100MsOrRefusedWithAReasonWhileNotHeard) {
   unanswered.request(Kind::nmt_stop, 500, false);
   unanswered.requests.back().answered_ns = 0;
   EXPECT_EQ(unanswered.verdict("I2").size(), 1u);
+}
+
+TEST(SafetyJudge, HeardMeansByTheBusProcessThatRunsAndUntilTheAnswer) {
+  const auto line = [] {
+    Timeline t;  // the saw's heartbeat and TPDO2 every 100 ms until 1000 ms
+    t.running(1000);
+    return t;
+  };
+  // A bridge restarted at 1002 ms: the refusal at 1005 ms comes from a process that has heard
+  // nothing of the saw yet (its frame at 1000 ms came before it started).
+  auto fresh = line();
+  fresh.bus_process(0, 990).bus_process(1002).request(Kind::stopping, 1005, false, "not heard");
+  EXPECT_TRUE(fresh.verdict("I2").empty()) << fresh.verdict("I2").front();
+  auto all_along = line();  // the same refusal with one process all along: the saw was heard
+  all_along.request(Kind::stopping, 1005, false, "not heard");
+  EXPECT_EQ(all_along.verdict("I2").size(), 1u);
+  auto later = line();  // the new process has heard the saw (its frame at 900 ms) by 950 ms
+  later.bus_process(0, 790).bus_process(802).request(Kind::stopping, 950, false, "not heard");
+  EXPECT_EQ(later.verdict("I2").size(), 1u);
+  auto none = line();  // no bus process runs: nothing is heard
+  none.bus_process(0, 700).request(Kind::enabling_off, 750, false, "no bus process");
+  EXPECT_TRUE(none.verdict("I2").empty()) << none.verdict("I2").front();
+
+  // The saw falls silent after 1000 ms; a stop written at 1350 ms (350 ms after its last frame)
+  // and refused at 1450 ms was decided somewhere in between, maybe after its 400 ms timeout.
+  auto fell_silent = line();
+  fell_silent.request(Kind::enabling_off, 1350, false, "not heard");
+  fell_silent.requests.back().answered_ns = kT0 + 1450 * kMs;
+  EXPECT_TRUE(fell_silent.verdict("I2").empty()) << fell_silent.verdict("I2").front();
+  // Refused as slowly while the saw was heard all the way to the answer: a violation.
+  auto slow = line();
+  slow.request(Kind::enabling_off, 500, false, "not heard");
+  slow.requests.back().answered_ns = kT0 + 900 * kMs;
+  EXPECT_EQ(slow.verdict("I2").size(), 1u);
+  // Written at 950 ms while heard (its frame at 1000 ms comes within the stop's 100 ms), held back
+  // and refused once the saw was lost (1800 ms): refused while heard.
+  auto held = line();
+  held.request(Kind::stopping, 950, false, "went offline");
+  held.requests.back().answered_ns = kT0 + 1800 * kMs;
+  EXPECT_EQ(held.verdict("I2").size(), 1u);
 }
 
 TEST(SafetyJudge, ALevelSwitchedOffStaysOffUntilTheOperatorSwitchesItOn) {

@@ -12,15 +12,21 @@
 //     "After that start": after the moment the device left operational (or booted up) before it.
 // I2  Every stop the operator sends (the enabling level off, the profile's stopping command, NMT
 //     stop) is answered; accepted, its frame is on the bus within 100 ms of the moment the request
-//     was written; refused, with a reason, and only while the device is not heard (no frame of its
-//     own, CiA 301 heartbeat, EMCY, SDO answer or TPDO, within its heartbeat timeout): a device that
-//     is heard gets its stop (design rule 4).
+//     was written; refused, with a reason, and only while the device is not heard: a device that
+//     is heard gets its stop (design rule 4). Heard, as the bridge's bus process can know it: a
+//     frame of the device's own (CiA 301 heartbeat, EMCY, SDO answer or TPDO) within its heartbeat
+//     timeout, sent while that process ran (a frame from before it started never reached it), at
+//     every moment from the request's writing until 100 ms later or its answer, if sooner. A stop
+//     the bridge can send is on the bus within those 100 ms, so it decides within them; a device
+//     that fell silent meanwhile may rightly be refused, one heard all along may not (however late
+//     the refusal comes: a stop held back until the device is lost is refused while heard).
 // I3  An enabling level an operator switched off (accepted) stays off on the bus from the frame
 //     that showed it until an operator switches it on again: a value accepted is never replaced.
 
 #include <algorithm>
 #include <cstdint>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <fmt/format.h>
@@ -38,10 +44,23 @@ struct Violation {
   std::string text;
 };
 
+// One run of the bridge's bus process, as the harness started and ended it (realtime, the clock
+// the bus stamps frames with): it hears only the frames sent while it runs.
+struct BusProcessRun {
+  std::int64_t started_ns = 0;
+  std::int64_t ended_ns = 0;  // 0: still running
+  bool covers(std::int64_t ns) const { return started_ns <= ns && (ended_ns == 0 || ns < ended_ns); }
+};
+
 class SafetyJudge {
  public:
-  SafetyJudge(const SafetyDevice& device, int heartbeat_timeout_ms, std::int64_t t0_ns)
-      : d_(device), heartbeat_timeout_ns_(std::int64_t{heartbeat_timeout_ms} * 1'000'000), t0_(t0_ns) {}
+  // `runs`: the bus process's runs; none given, one that ran all along (a timeline written by hand).
+  SafetyJudge(const SafetyDevice& device, int heartbeat_timeout_ms, std::int64_t t0_ns,
+              std::vector<BusProcessRun> runs = {})
+      : d_(device),
+        heartbeat_timeout_ns_(std::int64_t{heartbeat_timeout_ms} * 1'000'000),
+        t0_(t0_ns),
+        runs_(std::move(runs)) {}
 
   std::vector<Violation> judge(const std::vector<lb::can::CanFrame>& frames,
                                const std::vector<OperatorRequest>& requests) const {
@@ -70,6 +89,35 @@ class SafetyJudge {
       out += "\n";
     }
     return out;
+  }
+
+  // The device heard by the bus process at every moment of [from, to]: the newest frame of its
+  // own at or before `from`, sent while the process that runs at `from` ran, within its heartbeat
+  // timeout, and no silence longer than that timeout until `to`. Returns that newest frame, or
+  // nullptr when the device was not heard throughout (or no bus process ran).
+  const lb::can::CanFrame* heard(const std::vector<lb::can::CanFrame>& frames, std::int64_t from,
+                                 std::int64_t to) const {
+    std::int64_t since = 0;
+    if (!runs_.empty()) {
+      const auto run = std::find_if(runs_.begin(), runs_.end(), [&](const auto& r) { return r.covers(from); });
+      if (run == runs_.end() || !run->covers(to)) return nullptr;
+      since = run->started_ns;
+    }
+    const lb::can::CanFrame* before = nullptr;
+    std::int64_t last = 0;
+    for (const auto& f : frames) {
+      if (f.timestamp_ns > to) break;
+      if (f.timestamp_ns < since || !d_.own(f)) continue;
+      if (f.timestamp_ns <= from) {
+        before = &f;
+      } else if (before == nullptr || f.timestamp_ns - last > heartbeat_timeout_ns_) {
+        return nullptr;  // silent for longer than its timeout after the request was written
+      }
+      last = f.timestamp_ns;
+    }
+    if (before == nullptr || from - before->timestamp_ns > heartbeat_timeout_ns_ || to - last > heartbeat_timeout_ns_)
+      return nullptr;
+    return before;
   }
 
   std::string at(std::int64_t ns) const { return fmt::format("+{:.3f} s", static_cast<double>(ns - t0_) / 1e9); }
@@ -174,17 +222,11 @@ class SafetyJudge {
         out.push_back({"I2", "a stop was never answered: " + request(r)});
         continue;
       }
-      const lb::can::CanFrame* last_own = nullptr;
-      for (const auto& f : frames) {
-        if (f.timestamp_ns > r.written_ns) break;
-        if (d_.own(f)) last_own = &f;
-      }
-      const bool heard = last_own != nullptr && r.written_ns - last_own->timestamp_ns <= heartbeat_timeout_ns_;
       if (!r.accepted) {
         if (r.reason.empty()) out.push_back({"I2", "a stop refused without a reason: " + request(r)});
-        if (heard) {
+        if (const auto* last_own = heard(frames, r.written_ns, std::min(r.answered_ns, r.written_ns + kStopWithinNs))) {
           out.push_back({"I2", fmt::format("a stop refused while the device is heard (its frame {}, {:.0f} ms "
-                                           "before; heartbeat timeout {} ms): {}",
+                                           "before, and heard for 100 ms after; heartbeat timeout {} ms): {}",
                                            frame(*last_own), (r.written_ns - last_own->timestamp_ns) / 1e6,
                                            heartbeat_timeout_ns_ / 1'000'000, request(r))});
         }
@@ -234,6 +276,7 @@ class SafetyJudge {
   const SafetyDevice& d_;
   std::int64_t heartbeat_timeout_ns_;
   std::int64_t t0_;
+  std::vector<BusProcessRun> runs_;
 };
 
 }  // namespace lb::test::safety

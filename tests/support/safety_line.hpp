@@ -35,6 +35,7 @@
 #include "support/eventually.hpp"
 #include "support/line_views.hpp"
 #include "support/safety_device.hpp"
+#include "support/safety_judge.hpp"
 #include "support/safety_operator.hpp"
 #include "support/scratch_files.hpp"
 #include "support/spy_waits.hpp"
@@ -128,10 +129,16 @@ class SafetyLine {
   }
   void start_bridge() {
     logs_.push_back(dir_ + "/bridge_" + std::to_string(logs_.size()) + ".log");
+    bridge_runs_.push_back({bus_now_ns()});
     bridge_ = std::make_unique<ChildProcess>(std::vector<std::string>{LB_BIN_BRIDGE, "--config", bridge_config()},
                                              logs_.back());
   }
-  void kill_bridge() { kill_hard(bridge_); }
+  void kill_bridge() {
+    if (!bridge_runs_.empty() && bridge_runs_.back().ended_ns == 0) bridge_runs_.back().ended_ns = bus_now_ns();
+    kill_hard(bridge_);
+  }
+  // The bridge's bus process runs so far: what it could hear (the judge's "heard").
+  const std::vector<BusProcessRun>& bridge_runs() const { return bridge_runs_; }
   void start_device() {
     logs_.push_back(dir_ + "/sim_" + std::to_string(logs_.size()) + ".log");
     sim_ = std::make_unique<ChildProcess>(std::vector<std::string>{LB_BIN_SIM, "--config", sim_config(), "--device",
@@ -347,6 +354,7 @@ class SafetyLine {
   std::unique_ptr<OperatorPanel> panel_;
   std::vector<OperatorRequest> requests_;
   std::vector<Spoofed> spoofed_;
+  std::vector<BusProcessRun> bridge_runs_;
 };
 
 // Spoofed frames sent on a thread of their own at their offsets from construction (the sleeps
