@@ -6,6 +6,7 @@
 
 #include <algorithm>
 #include <string>
+#include <tuple>
 #include <vector>
 
 #include "support/safety_judge.hpp"
@@ -36,12 +37,13 @@ class Timeline {
     for (std::int64_t t = from_ms; t <= to_ms; t += 20) at(t, 0x205, {word, 0x00, 0x88, 0x13, 0xE0, 0x2E, 0x00, 0x00});
     return *this;
   }
+  // Answered 1 ms after its writing; an accepted stop 150 ms after (once its frames are on the bus).
   Timeline& request(OperatorRequest::Kind kind, std::int64_t written_ms, bool accepted, std::string reason = "") {
     OperatorRequest r;
     r.kind = kind;
     r.what = "request at " + std::to_string(written_ms) + " ms";
     r.written_ns = kT0 + written_ms * kMs;
-    r.answered_ns = r.written_ns + kMs;
+    r.answered_ns = r.written_ns + (accepted && kind != OperatorRequest::Kind::enabling_on ? 150 : 1) * kMs;
     r.accepted = accepted;
     r.reason = std::move(reason);
     if (kind == OperatorRequest::Kind::enabling_off) r.proofs = saw31().off_frames;
@@ -59,7 +61,7 @@ class Timeline {
     std::stable_sort(sorted.begin(), sorted.end(),
                      [](const auto& a, const auto& b) { return a.timestamp_ns < b.timestamp_ns; });
     std::vector<std::string> out;
-    for (const auto& v : SafetyJudge(saw31(), 400, kT0, runs).judge(sorted, requests)) {
+    for (const auto& v : SafetyJudge(saw31(), 400, kT0, {runs, outages}).judge(sorted, requests)) {
       if (v.invariant == invariant) out.push_back(v.text);
     }
     return out;
@@ -68,6 +70,7 @@ class Timeline {
   std::vector<lb::can::CanFrame> frames;
   std::vector<OperatorRequest> requests;
   std::vector<BusProcessRun> runs;
+  std::vector<Outage> outages;
 };
 
 using Kind = OperatorRequest::Kind;
@@ -130,6 +133,13 @@ TEST(SafetyJudge, AStopIsOnTheBusWithin100MsOrRefusedWithAReasonWhileNotHeard) {
   gone.request(Kind::enabling_off, 1500, false, "offline");
   EXPECT_TRUE(gone.verdict("I2").empty()) << gone.verdict("I2").front();
 
+  auto stopped = line();  // refused while heard, its own heartbeat saying stopped (NMT stop in force)
+  stopped.at(505, 0x705, {0x04}).request(Kind::stopping, 510, false, "stopped (NMT): answers no SDO");
+  EXPECT_TRUE(stopped.verdict("I2").empty()) << stopped.verdict("I2").front();
+  auto running_again = stopped;  // the same refusal once it says operational again: a violation
+  running_again.at(600, 0x705, {0x05}).request(Kind::stopping, 650, false, "stopped (NMT): answers no SDO");
+  EXPECT_EQ(running_again.verdict("I2").size(), 1u);
+
   auto mute = line();
   mute.request(Kind::enabling_off, 1500, false, "");
   EXPECT_EQ(mute.verdict("I2").size(), 1u);
@@ -138,6 +148,57 @@ TEST(SafetyJudge, AStopIsOnTheBusWithin100MsOrRefusedWithAReasonWhileNotHeard) {
   unanswered.request(Kind::nmt_stop, 500, false);
   unanswered.requests.back().answered_ns = 0;
   EXPECT_EQ(unanswered.verdict("I2").size(), 1u);
+
+  // The bridge's DDS process killed 300 ms after the request was written (it was in flight), or
+  // down when it was written: nothing could answer it. One that ended 3 s before explains nothing,
+  // nor one that began 3 s after.
+  for (const auto& [from_ms, back_ms, violations] :
+       {std::tuple{800, 1200, 0u}, {300, 700, 0u}, {-3000, -2500, 1u}, {3500, 4000, 1u}}) {
+    auto down = line();
+    down.request(Kind::nmt_stop, 500, false);
+    down.requests.back().answered_ns = 0;
+    down.outages.push_back({kT0 + from_ms * kMs, kT0 + back_ms * kMs, "DDS process killed"});
+    EXPECT_EQ(down.verdict("I2").size(), violations) << "outage " << from_ms << ".." << back_ms << " ms";
+  }
+
+  // Accepted and answered before its frame was on the bus: accepted only once on the bus.
+  auto early = line();
+  early.request(Kind::stopping, 500, true).at(530, 0x205, {0x21, 0, 0, 0, 0, 0, 0, 0});
+  early.requests.back().answered_ns = kT0 + 510 * kMs;
+  ASSERT_EQ(early.verdict("I2").size(), 1u);
+  EXPECT_NE(early.verdict("I2").front().find("before it was on the bus"), std::string::npos);
+}
+
+TEST(SafetyJudge, AStopInFlightAcrossAnOutageIsJudgedFromTheBridgeThatCameBack) {
+  // The saw runs until 3000 ms; the bridge is down from 900 ms until 1900 ms (its new bus process
+  // started at 1500 ms); the operator's stop written at 1000 ms is taken by the bridge that came
+  // back and answered at 1950 ms.
+  const auto line = [] {
+    Timeline t;
+    t.running(3000).rpdo(100, 480, 0x00).request(Kind::enabling_on, 490, true).rpdo(500, 900, 0x01);
+    t.bus_process(0, 900).bus_process(1500);
+    t.outages.push_back({kT0 + 900 * kMs, kT0 + 1900 * kMs, "the bus process killed"});
+    return t;
+  };
+  auto taken = line();  // its frame at 1940 ms, before its answer: no violation, though 940 ms late
+  taken.request(Kind::stopping, 1000, true).at(1940, 0x205, {0x21, 0, 0, 0, 0, 0, 0, 0});
+  taken.requests.back().answered_ns = kT0 + 1950 * kMs;
+  EXPECT_TRUE(taken.verdict("I2").empty()) << taken.verdict("I2").front();
+  auto early = line();  // answered before its frame: a violation still
+  early.request(Kind::stopping, 1000, true).at(1990, 0x205, {0x21, 0, 0, 0, 0, 0, 0, 0});
+  early.requests.back().answered_ns = kT0 + 1950 * kMs;
+  EXPECT_EQ(early.verdict("I2").size(), 1u);
+  auto refused = line();  // refused by the bridge that came back though it heard the saw since 1500 ms
+  refused.request(Kind::stopping, 1000, false, "not heard");
+  refused.requests.back().answered_ns = kT0 + 1950 * kMs;
+  EXPECT_EQ(refused.verdict("I2").size(), 1u);
+  auto gone = line();  // the same refusal, the saw silent from 1800 ms: not heard when it was decided
+  gone.frames.erase(std::remove_if(gone.frames.begin(), gone.frames.end(),
+                                   [](const auto& f) { return f.timestamp_ns > kT0 + 1800 * kMs; }),
+                    gone.frames.end());
+  gone.request(Kind::stopping, 1000, false, "not heard");
+  gone.requests.back().answered_ns = kT0 + 2300 * kMs;
+  EXPECT_TRUE(gone.verdict("I2").empty()) << gone.verdict("I2").front();
 }
 
 TEST(SafetyJudge, HeardMeansByTheBusProcessThatRunsAndUntilTheAnswer) {

@@ -67,8 +67,8 @@ void SafetyOnTheBus::settle() { ASSERT_TRUE(line_->bus_past(bus_now_ns() + 1'000
 
 bool SafetyOnTheBus::heard_at(std::int64_t ns) {
   // As the judge counts it: by the bridge's bus process running then, from frames it could hear.
-  const SafetyJudge judge(device(), line_->options().heartbeat_timeout_ms, line_->t0(), line_->bridge_runs());
-  return judge.heard(line_->spy().frames(), ns, ns) != nullptr;
+  const SafetyJudge judge(device(), line_->options().heartbeat_timeout_ms, line_->t0(), {line_->bridge_runs(), {}});
+  return judge.heard(by_stamp(line_->spy().frames()), ns, ns) != nullptr;
 }
 
 void SafetyOnTheBus::operator_stops() {
@@ -87,8 +87,8 @@ void SafetyOnTheBus::operator_stops() {
 void SafetyOnTheBus::judge() {
   // Everything sent up to now is recorded once a frame stamped later is.
   ASSERT_TRUE(line_->bus_past(bus_now_ns() + 300'000'000)) << "the bus went quiet";
-  const SafetyJudge judge(device(), line_->options().heartbeat_timeout_ms, line_->t0(), line_->bridge_runs());
-  const auto frames = line_->spy().frames();
+  const SafetyJudge judge(device(), line_->options().heartbeat_timeout_ms, line_->t0(), {line_->bridge_runs(), {}});
+  const auto frames = by_stamp(line_->spy().frames());
   const auto violations = judge.judge(frames, line_->requests());
   std::cout << "[ safety   ] " << device().column << ", the operator's stops:\n"
             << judge.stop_times(frames, line_->requests());

@@ -194,34 +194,7 @@ class SafetyLine {
 
   OperatorRequest set_enabling(bool on) { return log(panel_->set_enabling(on)); }
   OperatorRequest press_stop() { return log(panel_->press_stop()); }
-  OperatorRequest nmt(linebridge_msgs::srv::NmtCommand command) {
-    OperatorRequest r;
-    const auto node = static_cast<std::uint8_t>(device_.node);
-    switch (command) {
-      case linebridge_msgs::srv::NMT_STOP:
-        r.kind = OperatorRequest::Kind::nmt_stop;
-        r.what = "NMT stop";
-        r.proofs = {{fmt::format("000#02{:02X} (NMT stop)", node), [node](const lb::can::CanFrame& f) {
-                       return f.id == 0 && f.len == 2 && f.data[0] == 0x02 && f.data[1] == node;
-                     }}};
-        break;
-      case linebridge_msgs::srv::NMT_RESET_NODE: r.what = "NMT reset node"; break;
-      default: r.what = "NMT command"; break;
-    }
-    linebridge_msgs::srv::Nmt_Request req;
-    req.device(device_.name);
-    req.command(command);
-    r.written_ns = bus_now_ns();
-    auto a = nmt_->call(req, kAnswerDeadline);
-    if (a) {
-      r.answered_ns = bus_now_ns();
-      r.accepted = a->success();
-      r.reason = a->message();
-    } else {
-      r.reason = "(no answer: " + a.error().message + ")";
-    }
-    return log(std::move(r));
-  }
+  OperatorRequest nmt(linebridge_msgs::srv::NmtCommand command) { return log(nmt_request(*nmt_, device_, command)); }
   const std::vector<OperatorRequest>& requests() const { return requests_; }
 
   // ---- the bus ----
