@@ -29,6 +29,13 @@ struct Executed {
   bool done = true;  // false: it could not be (no DDS process to kill: the bridge was down)
 };
 
+// The first frame stamped at or after `ns` (frames in the order of their stamps).
+inline std::vector<lb::can::CanFrame>::const_iterator from_stamp(const std::vector<lb::can::CanFrame>& frames,
+                                                                 std::int64_t ns) {
+  return std::partition_point(frames.begin(), frames.end(),
+                              [ns](const lb::can::CanFrame& f) { return f.timestamp_ns < ns; });
+}
+
 struct StopFigures {
   struct Kind {
     std::size_t sent = 0, on_bus = 0, across_outage = 0, refused_not_heard = 0, refused_nmt_stopped = 0,
@@ -89,9 +96,12 @@ struct StopFigures {
     for (const auto& s : o.shown) {
       if (s.frame == nullptr) continue;
       const lb::can::CanFrame* before = nullptr;
-      for (const auto& f : frames) {
-        if (f.timestamp_ns >= r.written_ns) break;
-        if (f.id == s.frame->id) before = &f;
+      for (auto it = from_stamp(frames, r.written_ns); it != frames.begin();) {
+        --it;
+        if (it->id == s.frame->id) {
+          before = &*it;
+          break;
+        }
       }
       if (before == nullptr || !s.proof->match(*before) || s.frame->id == 0 || (s.frame->id & 0x780) == 0x600)
         return true;
@@ -151,9 +161,8 @@ inline std::string device_frames(const safety::SafetyJudge& judge, const SafetyD
     if (same[id] > 0) out += fmt::format("        ({} more {:03X}h the same)\n", same[id], id);
     same[id] = 0;
   };
-  for (const auto& f : frames) {
-    if (f.timestamp_ns < from) continue;
-    if (f.timestamp_ns > to) break;
+  for (auto it = from_stamp(frames, from); it != frames.end() && it->timestamp_ns <= to; ++it) {
+    const auto& f = *it;
     if (!related(f)) continue;
     auto& l = last[f.id];
     if (l != nullptr && l->len == f.len && std::equal(f.data.begin(), f.data.begin() + f.len, l->data.begin())) {
