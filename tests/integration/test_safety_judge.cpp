@@ -104,6 +104,38 @@ TEST(SafetyJudge, ADeviceFoundRunningKeepsWhatItHadAndOnePausedAndStartedDoesNot
   EXPECT_EQ(paused.verdict("I1").size(), 1u);
 }
 
+TEST(SafetyJudge, AnOperatorsStartAfterTheOperatorsStopResumesTheSetValuesInForce) {
+  // The saw runs with its program on (set at 490 ms); NMT stop at 700 ms, stopped heartbeats,
+  // NMT start at 900 ms, the program on again in RPDO1 from 920 ms.
+  const auto line = [] {
+    Timeline t;
+    t.at(0, 0x705, {0x00}).at(50, 0x000, {0x01, 0x05});
+    for (std::int64_t ms = 100; ms <= 600; ms += 100) t.at(ms, 0x705, {0x05});
+    t.at(700, 0x000, {0x02, 0x05}).at(800, 0x705, {0x04}).at(900, 0x000, {0x01, 0x05}).at(1000, 0x705, {0x05});
+    t.rpdo(100, 480, 0x00).request(Kind::enabling_on, 490, true).rpdo(500, 680, 0x01).rpdo(920, 1200, 0x01);
+    return t;
+  };
+  const auto nmt = [](Timeline& t, Kind kind, std::int64_t written_ms) {
+    t.request(kind, written_ms, true);
+    t.requests.back().answered_ns = t.requests.back().written_ns + 10 * kMs;
+  };
+  auto resumed = line();  // both the operator's: the set values in force resume
+  nmt(resumed, Kind::nmt_stop, 695);
+  nmt(resumed, Kind::nmt_start, 895);
+  EXPECT_TRUE(resumed.verdict("I1").empty()) << resumed.verdict("I1").front();
+  auto started_by_itself = line();  // the operator's stop, but a start nobody asked for: a start
+  nmt(started_by_itself, Kind::nmt_stop, 695);
+  EXPECT_EQ(started_by_itself.verdict("I1").size(), 1u);
+  auto not_the_operators_stop = line();  // stopped by someone else (the line), started by the operator
+  nmt(not_the_operators_stop, Kind::nmt_start, 895);
+  EXPECT_EQ(not_the_operators_stop.verdict("I1").size(), 1u);
+  auto booted_meanwhile = line();  // a boot-up while stopped: the start needs the operator again
+  nmt(booted_meanwhile, Kind::nmt_stop, 695);
+  nmt(booted_meanwhile, Kind::nmt_start, 895);
+  booted_meanwhile.at(850, 0x705, {0x00});
+  EXPECT_EQ(booted_meanwhile.verdict("I1").size(), 1u);
+}
+
 TEST(SafetyJudge, AStopIsOnTheBusWithin100MsOrRefusedWithAReasonWhileNotHeard) {
   const auto line = [] {
     Timeline t;

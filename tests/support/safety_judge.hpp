@@ -8,7 +8,12 @@
 //     the device was is followed from the frames alone: a boot-up makes it pre-operational, NMT
 //     stop / enter pre-operational / reset take it out of operational, NMT start into it, its own
 //     heartbeat says what it is. A device the restarted bridge finds running is not started (it
-//     keeps what it had); one the bridge pauses to write PDO parameters and starts again is.
+//     keeps what it had); one the bridge pauses to write PDO parameters and starts again is. An
+//     operator's NMT start of a device the operator's NMT stop took out of operational (both
+//     accepted, each frame sent between its request and the answer) is no start either: it
+//     resumes the set values in force, as docs/canopen-master.md says of a device held stopped
+//     ("that start resumes the set values in force, as after an operator's stop"); a boot-up in
+//     between makes it one again.
 //     "After that start": after the moment the device left operational (or booted up) before it.
 // I2  Every stop the operator sends (the enabling level off, the profile's stopping command, NMT
 //     stop) is answered; accepted, its frame is on the bus within 100 ms of the moment the request
@@ -132,7 +137,7 @@ class SafetyJudge {
   std::vector<Violation> judge(const Frames& frames, const std::vector<OperatorRequest>& requests) const {
     std::vector<Violation> out;
     const auto on = enabling_times(requests);
-    starts(frames, on, out);
+    starts(frames, requests, on, out);
     stops(frames, requests, out);
     kept_off(frames, requests, on, out);
     return out;
@@ -266,7 +271,17 @@ class SafetyJudge {
     return "its boot-up";
   }
 
-  void starts(const Frames& frames, const std::vector<std::int64_t>& on, std::vector<Violation>& out) const {
+  // An accepted operator's request of this kind whose frame `f` is (sent between its writing and
+  // its answer).
+  static bool requested(const std::vector<OperatorRequest>& requests, OperatorRequest::Kind kind,
+                        const lb::can::CanFrame& f) {
+    return std::any_of(requests.begin(), requests.end(), [&](const OperatorRequest& r) {
+      return r.kind == kind && r.accepted && r.written_ns <= f.timestamp_ns && f.timestamp_ns <= r.answered_ns;
+    });
+  }
+
+  void starts(const Frames& frames, const std::vector<OperatorRequest>& requests, const std::vector<std::int64_t>& on,
+              std::vector<Violation>& out) const {
     enum class State { unknown, pre_operational, operational, stopped };
     State state = State::unknown;
     const lb::can::CanFrame* left = nullptr;  // its boot-up or the frame that took it out of operational
@@ -300,7 +315,11 @@ class SafetyJudge {
         switch (f.data[0]) {
           case 0x01:
             if (state != State::operational) {
-              if (left == nullptr) {
+              if (left != nullptr && left->id == 0 && left->data[0] == 0x02 &&
+                  requested(requests, OperatorRequest::Kind::nmt_stop, *left) &&
+                  requested(requests, OperatorRequest::Kind::nmt_start, f)) {
+                // The operator's start after the operator's stop: the set values in force resume.
+              } else if (left == nullptr) {
                 starts.push_back({0, "NMT start " + frame(f), "after an NMT start"});
               } else {
                 starts.push_back({left->timestamp_ns,

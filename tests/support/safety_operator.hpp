@@ -323,7 +323,10 @@ inline OperatorRequest nmt_request(NmtClient& client, const SafetyDevice& device
                      return f.id == 0 && f.len == 2 && f.data[0] == 0x02 && f.data[1] == node;
                    }}};
       break;
-    case linebridge_msgs::srv::NMT_START: r.what = "NMT start"; break;
+    case linebridge_msgs::srv::NMT_START:
+      r.kind = OperatorRequest::Kind::nmt_start;
+      r.what = "NMT start";
+      break;
     case linebridge_msgs::srv::NMT_RESET_NODE: r.what = "NMT reset node"; break;
     default: r.what = "NMT command"; break;
   }
