@@ -31,6 +31,7 @@
 
 #include <fmt/format.h>
 
+#include "app/run_until_signal.hpp"
 #include "campaign/campaign_judge.hpp"
 #include "campaign/campaign_line.hpp"
 #include "campaign/campaign_operator.hpp"
@@ -111,9 +112,81 @@ class Watcher {
   std::thread thread_;
 };
 
+// SIGINT / SIGTERM end the campaign early, cleanly: every fault under way is undone (devices
+// powered and resumed, the bridge started, clients resumed), the operators stop, and the verdict
+// is given on what ran. Signals are blocked in every thread and taken by a thread of their own
+// (app/run_until_signal.hpp, as the bridge, the simulator and the CLI do: the processes started
+// here inherit the blocked mask, and block and wait for those signals themselves anyway).
+class Interrupt {
+ public:
+  Interrupt() {
+    lb::app::block_stop_signals();
+    thread_ = std::thread([this] {
+      const int sig = lb::app::run_until_signal(std::chrono::milliseconds(0));
+      std::lock_guard lock(m_);
+      if (!closing_) signal_ = sig;
+      cv_.notify_all();
+    });
+  }
+  ~Interrupt() {
+    {
+      std::lock_guard lock(m_);
+      closing_ = true;
+    }
+    lb::app::request_stop();  // SIGUSR1: the thread's wait ends
+    thread_.join();
+  }
+  Interrupt(const Interrupt&) = delete;
+  Interrupt& operator=(const Interrupt&) = delete;
+
+  // Until `when`; false at once when a signal came.
+  bool wait_until(std::chrono::steady_clock::time_point when) {
+    std::unique_lock lock(m_);
+    return !cv_.wait_until(lock, when, [this] { return signal_ != 0; });
+  }
+  int signal() {
+    std::lock_guard lock(m_);
+    return signal_;
+  }
+
+ private:
+  std::mutex m_;
+  std::condition_variable cv_;
+  int signal_ = 0;
+  bool closing_ = false;
+  std::thread thread_;
+};
+
+// One step of the schedule, carried out on the line. False when it could not be (no DDS process
+// to kill: the bridge was down).
+bool carry_out(campaign::CampaignLine& line, const campaign::FaultSchedule& schedule, const campaign::FaultStep& step) {
+  const auto& f = schedule.faults[step.fault];
+  switch (f.kind) {
+    case campaign::FaultKind::power_cycle:
+      step.step == 0 ? line.power_off(f.target) : line.power_on(f.target);
+      return true;
+    case campaign::FaultKind::device_stall:
+      step.step == 0 ? line.stall_device(f.target) : line.resume_device(f.target);
+      return true;
+    case campaign::FaultKind::kill_bus_process:
+      step.step == 0 ? line.kill_bus_process() : line.start_bus_process();
+      return true;
+    case campaign::FaultKind::kill_dds_process: return line.kill_dds_process();
+    case campaign::FaultKind::bridge_restart: line.restart_bridge(); return true;
+    case campaign::FaultKind::spoofed_heartbeats:
+    case campaign::FaultKind::spoofed_sdo: line.spoof(line.devices()[f.target].bus, *step.frame); return true;
+    case campaign::FaultKind::spoofed_syncs: line.spoof(line.buses()[f.target], *step.frame); return true;
+    case campaign::FaultKind::stalled_client:
+      step.step == 0 ? line.stall_client(f.target) : line.resume_client(f.target);
+      return true;
+  }
+  return false;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
+  Interrupt interrupt;  // first: every thread started after it has the stop signals blocked
   CLI::App cli{"fault-campaign: a line of every device type under a seeded schedule of faults, judged from the bus"};
   double minutes = 30;
   std::uint64_t seed = 0;
@@ -185,8 +258,20 @@ int main(int argc, char** argv) {
   {
     Watcher watcher(judge, line, std::chrono::seconds(judge_every_s));
     bool bus_process_down = false;  // killed by the campaign, not started again yet
-    for (const auto& step : schedule.steps) {
-      std::this_thread::sleep_until(start + std::chrono::milliseconds(step.at_ms));
+    for (std::size_t k = 0; k < schedule.steps.size(); ++k) {
+      const auto& step = schedule.steps[k];
+      if (!interrupt.wait_until(start + std::chrono::milliseconds(step.at_ms))) {
+        // Ended early: every fault under way is undone now (its ending steps), nothing new begins.
+        std::vector<bool> begun(schedule.faults.size(), false);
+        for (const auto& e : executed) begun[e.fault] = begun[e.fault] || e.step == 0;
+        for (std::size_t rest = k; rest < schedule.steps.size(); ++rest) {
+          const auto& end = schedule.steps[rest];
+          if (end.step == 1 && !end.frame && begun[end.fault]) {
+            executed.push_back({lb::test::bus_now_ns(), end.fault, end.step, carry_out(line, schedule, end)});
+          }
+        }
+        break;
+      }
       if (!bus_process_down && !line.bridge_running()) {
         // Not the campaign's doing: a failure to report; started again, as the service manager would.
         ++ended_by_itself;
@@ -194,33 +279,8 @@ int main(int argc, char** argv) {
                         Watcher::at(line, lb::test::bus_now_ns())));
         line.start_bus_process();
       }
-      const auto& f = schedule.faults[step.fault];
-      bool done = true;
-      switch (f.kind) {
-        case campaign::FaultKind::power_cycle:
-          step.step == 0 ? line.power_off(f.target) : line.power_on(f.target);
-          break;
-        case campaign::FaultKind::device_stall:
-          step.step == 0 ? line.stall_device(f.target) : line.resume_device(f.target);
-          break;
-        case campaign::FaultKind::kill_bus_process:
-          if (step.step == 0) {
-            line.kill_bus_process();
-            bus_process_down = true;
-          } else {
-            line.start_bus_process();
-            bus_process_down = false;
-          }
-          break;
-        case campaign::FaultKind::kill_dds_process: done = line.kill_dds_process(); break;
-        case campaign::FaultKind::bridge_restart: line.restart_bridge(); break;
-        case campaign::FaultKind::spoofed_heartbeats:
-        case campaign::FaultKind::spoofed_sdo: line.spoof(line.devices()[f.target].bus, *step.frame); break;
-        case campaign::FaultKind::spoofed_syncs: line.spoof(line.buses()[f.target], *step.frame); break;
-        case campaign::FaultKind::stalled_client:
-          step.step == 0 ? line.stall_client(f.target) : line.resume_client(f.target);
-          break;
-      }
+      const bool done = carry_out(line, schedule, step);
+      if (schedule.faults[step.fault].kind == campaign::FaultKind::kill_bus_process) bus_process_down = step.step == 0;
       const auto now = lb::test::bus_now_ns();
       executed.push_back({now, step.fault, step.step, done});
       if (step.step == 0) {
@@ -228,7 +288,11 @@ int main(int argc, char** argv) {
                         campaign::fault_text(schedule, step.fault), done ? "" : " (not done: no such process)"));
       }
     }
-    std::this_thread::sleep_until(start + std::chrono::milliseconds(duration_ms));
+    (void)interrupt.wait_until(start + std::chrono::milliseconds(duration_ms));
+    if (interrupt.signal() != 0) {
+      say(fmt::format("[{}] signal {}: the campaign ends early; the verdict is on what ran\n",
+                      Watcher::at(line, lb::test::bus_now_ns()), interrupt.signal()));
+    }
     for (auto& op : operators) op->stop();
     max_load = std::max(max_load, watcher.max_load());
     if (!line.bridge_running()) {
@@ -256,7 +320,8 @@ int main(int argc, char** argv) {
     }
   }
 
-  std::string out = fmt::format("\n== fault campaign: seed {}, {} min ==\n", seed, minutes);
+  std::string out = fmt::format("\n== fault campaign: seed {}, {} min{} ==\n", seed, minutes,
+                                interrupt.signal() == 0 ? "" : " (ended early by a signal)");
   out += "faults injected, by kind:\n";
   std::map<campaign::FaultKind, std::pair<std::size_t, std::size_t>> kinds;  // done, not done
   std::map<std::string, std::size_t> variants;
