@@ -21,8 +21,9 @@
 #   --nice N         run the whole campaign at this niceness (default 0)
 #
 # Exit status: 0 no violation; 1 violations (or a bridge process that ended by itself); 2 the
-# campaign could not run. Not in CI's time budget; CI runs a 2.5-minute seeded run
-# (ctest -R FaultCampaign).
+# campaign could not run its course (the line never came up, the recorder lost frames, or Ctrl-C /
+# SIGTERM ended it early: faults under way are undone and the verdict is on what ran). Not in CI's
+# time budget; CI runs a 2.5-minute seeded run (ctest -R FaultCampaign).
 set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 repo=$(cd "$here/.." && pwd)
@@ -48,7 +49,7 @@ while [ $# -gt 0 ]; do
       shift 2
       ;;
     -h | --help)
-      sed -n '2,25p' "$0" | sed 's/^# \{0,1\}//'
+      sed -n '2,26p' "$0" | sed 's/^# \{0,1\}//'
       exit 0
       ;;
     *)
