@@ -224,6 +224,12 @@ TEST(SafetyJudge, AStopInFlightAcrossAnOutageIsJudgedFromTheBridgeThatCameBack) 
   refused.request(Kind::stopping, 1000, false, "not heard");
   refused.requests.back().answered_ns = kT0 + 1950 * kMs;
   EXPECT_EQ(refused.verdict("I2").size(), 1u);
+  auto stopped = line();  // the same refusal, the saw stopped by NMT since before the outage's end
+  std::erase_if(stopped.frames, [](const auto& f) { return f.id == 0x705 && f.timestamp_ns >= kT0 + 1800 * kMs; });
+  for (std::int64_t ms = 1800; ms <= 3000; ms += 100) stopped.at(ms, 0x705, {0x04});
+  stopped.request(Kind::stopping, 1000, false, "stopped (NMT)");
+  stopped.requests.back().answered_ns = kT0 + 1950 * kMs;
+  EXPECT_TRUE(stopped.verdict("I2").empty()) << stopped.verdict("I2").front();
   auto gone = line();  // the same refusal, the saw silent from 1800 ms: not heard when it was decided
   gone.frames.erase(std::remove_if(gone.frames.begin(), gone.frames.end(),
                                    [](const auto& f) { return f.timestamp_ns > kT0 + 1800 * kMs; }),

@@ -152,15 +152,22 @@ class SafetyJudge {
     if (r.answered_ns == 0) return o;
     if (r.accepted) {
       for (const auto& p : r.proofs) o.shown.push_back({&p, first(frames, r.written_ns, p.match)});
-    } else if (o.outage == nullptr) {
-      o.heard = heard(frames, r.written_ns, std::min(r.answered_ns, r.written_ns + kStopWithinNs));
-    } else if (o.outage->back_ns != 0 && o.outage->back_ns < r.answered_ns) {
-      o.heard = heard(frames, std::max(r.written_ns, o.outage->back_ns), r.answered_ns);
+      return o;
     }
+    // When the bridge decided: within the stop's 100 ms (or until its answer), or, across an
+    // outage, from the outage's end to the answer.
+    std::int64_t from = r.written_ns, to = std::min(r.answered_ns, r.written_ns + kStopWithinNs);
+    if (o.outage != nullptr) {
+      if (o.outage->back_ns == 0 || o.outage->back_ns >= r.answered_ns) return o;
+      from = std::max(r.written_ns, o.outage->back_ns);
+      to = r.answered_ns;
+    }
+    o.heard = heard(frames, from, to);
     if (o.heard != nullptr) {
+      // Its own newest heartbeat by the end of that time says what state it was in.
       const lb::can::CanFrame* beat = nullptr;
-      for (auto it = from_stamp(frames, o.heard->timestamp_ns - heartbeat_timeout_ns_);
-           it != frames.end() && it->timestamp_ns <= r.written_ns; ++it) {
+      for (auto it = from_stamp(frames, from - heartbeat_timeout_ns_); it != frames.end() && it->timestamp_ns <= to;
+           ++it) {
         if (it->id == d_.heartbeat_id() && it->len >= 1) beat = &*it;
       }
       if (beat != nullptr && (beat->data[0] & 0x7F) == 0x04) o.nmt_stopped = beat;
