@@ -35,6 +35,7 @@
 #include "support/eventually.hpp"
 #include "support/line_views.hpp"
 #include "support/safety_device.hpp"
+#include "support/safety_judge.hpp"
 #include "support/safety_operator.hpp"
 #include "support/scratch_files.hpp"
 #include "support/spy_waits.hpp"
@@ -128,10 +129,16 @@ class SafetyLine {
   }
   void start_bridge() {
     logs_.push_back(dir_ + "/bridge_" + std::to_string(logs_.size()) + ".log");
+    bridge_runs_.push_back({bus_now_ns()});
     bridge_ = std::make_unique<ChildProcess>(std::vector<std::string>{LB_BIN_BRIDGE, "--config", bridge_config()},
                                              logs_.back());
   }
-  void kill_bridge() { kill_hard(bridge_); }
+  void kill_bridge() {
+    if (!bridge_runs_.empty() && bridge_runs_.back().ended_ns == 0) bridge_runs_.back().ended_ns = bus_now_ns();
+    kill_hard(bridge_);
+  }
+  // The bridge's bus process runs so far: what it could hear (the judge's "heard").
+  const std::vector<BusProcessRun>& bridge_runs() const { return bridge_runs_; }
   void start_device() {
     logs_.push_back(dir_ + "/sim_" + std::to_string(logs_.size()) + ".log");
     sim_ = std::make_unique<ChildProcess>(std::vector<std::string>{LB_BIN_SIM, "--config", sim_config(), "--device",
@@ -187,34 +194,7 @@ class SafetyLine {
 
   OperatorRequest set_enabling(bool on) { return log(panel_->set_enabling(on)); }
   OperatorRequest press_stop() { return log(panel_->press_stop()); }
-  OperatorRequest nmt(linebridge_msgs::srv::NmtCommand command) {
-    OperatorRequest r;
-    const auto node = static_cast<std::uint8_t>(device_.node);
-    switch (command) {
-      case linebridge_msgs::srv::NMT_STOP:
-        r.kind = OperatorRequest::Kind::nmt_stop;
-        r.what = "NMT stop";
-        r.proofs = {{fmt::format("000#02{:02X} (NMT stop)", node), [node](const lb::can::CanFrame& f) {
-                       return f.id == 0 && f.len == 2 && f.data[0] == 0x02 && f.data[1] == node;
-                     }}};
-        break;
-      case linebridge_msgs::srv::NMT_RESET_NODE: r.what = "NMT reset node"; break;
-      default: r.what = "NMT command"; break;
-    }
-    linebridge_msgs::srv::Nmt_Request req;
-    req.device(device_.name);
-    req.command(command);
-    r.written_ns = bus_now_ns();
-    auto a = nmt_->call(req, kAnswerDeadline);
-    if (a) {
-      r.answered_ns = bus_now_ns();
-      r.accepted = a->success();
-      r.reason = a->message();
-    } else {
-      r.reason = "(no answer: " + a.error().message + ")";
-    }
-    return log(std::move(r));
-  }
+  OperatorRequest nmt(linebridge_msgs::srv::NmtCommand command) { return log(nmt_request(*nmt_, device_, command)); }
   const std::vector<OperatorRequest>& requests() const { return requests_; }
 
   // ---- the bus ----
@@ -347,6 +327,7 @@ class SafetyLine {
   std::unique_ptr<OperatorPanel> panel_;
   std::vector<OperatorRequest> requests_;
   std::vector<Spoofed> spoofed_;
+  std::vector<BusProcessRun> bridge_runs_;
 };
 
 // Spoofed frames sent on a thread of their own at their offsets from construction (the sleeps

@@ -11,6 +11,8 @@
 #include <string>
 #include <vector>
 
+#include <fmt/format.h>
+
 #include "dds/participant.hpp"
 #include "dds/service.hpp"
 #include "dds/topic_names.hpp"
@@ -306,6 +308,42 @@ class LoomPanel final : public OperatorPanel {
 };
 
 }  // namespace detail
+
+// An NMT command for the device (the line-wide nmt service), written and answered or not; NMT
+// stop is a stop, shown by its frame 000#02XX.
+inline OperatorRequest nmt_request(NmtClient& client, const SafetyDevice& device,
+                                   linebridge_msgs::srv::NmtCommand command) {
+  OperatorRequest r;
+  const auto node = static_cast<std::uint8_t>(device.node);
+  switch (command) {
+    case linebridge_msgs::srv::NMT_STOP:
+      r.kind = OperatorRequest::Kind::nmt_stop;
+      r.what = "NMT stop";
+      r.proofs = {{fmt::format("000#02{:02X} (NMT stop)", node), [node](const lb::can::CanFrame& f) {
+                     return f.id == 0 && f.len == 2 && f.data[0] == 0x02 && f.data[1] == node;
+                   }}};
+      break;
+    case linebridge_msgs::srv::NMT_START:
+      r.kind = OperatorRequest::Kind::nmt_start;
+      r.what = "NMT start";
+      break;
+    case linebridge_msgs::srv::NMT_RESET_NODE: r.what = "NMT reset node"; break;
+    default: r.what = "NMT command"; break;
+  }
+  linebridge_msgs::srv::Nmt_Request req;
+  req.device(device.name);
+  req.command(command);
+  r.written_ns = bus_now_ns();
+  auto a = client.call(req, kAnswerDeadline);
+  if (a) {
+    r.answered_ns = bus_now_ns();
+    r.accepted = a->success();
+    r.reason = a->message();
+  } else {
+    r.reason = "(no answer: " + a.error().message + ")";
+  }
+  return r;
+}
 
 inline std::unique_ptr<OperatorPanel> make_panel(const PanelContext& ctx) {
   switch (ctx.device.set_values) {

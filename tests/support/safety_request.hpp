@@ -17,6 +17,7 @@ struct OperatorRequest {
     enabling_off,  // a set value with every enabling level off: a stop
     stopping,      // the profile's stopping command (or the feeder's stop_mode): a stop
     nmt_stop,      // NMT stop: a stop
+    nmt_start,     // NMT start: releases an operator's stop, resumes the set values in force
     other,         // anything else (an NMT reset, ...)
   };
   Kind kind = Kind::other;
