@@ -22,6 +22,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <charconv>
 #include <cstdlib>
 #include <cstring>
 
@@ -55,7 +56,10 @@ class PrivateDir {
 // --dds-user: a user name or a numeric uid.
 std::optional<uid_t> user_id(const std::string& user) {
   if (!user.empty() && user.find_first_not_of("0123456789") == std::string::npos) {
-    return static_cast<uid_t>(std::stoul(user));
+    uid_t uid = 0;
+    const auto [end, ec] = std::from_chars(user.data(), user.data() + user.size(), uid);
+    if (ec != std::errc{} || end != user.data() + user.size()) return std::nullopt;
+    return uid;
   }
   passwd pw{};
   passwd* found = nullptr;
@@ -132,6 +136,10 @@ int main(int argc, char** argv) {
   }
   if (!dds_user.empty() && part != "bus") {
     spdlog::error("--dds-user is for --part bus (under --part both the DDS process is this process's child)");
+    return app::kExitUsage;
+  }
+  if (cli.get_option("--dds-absent-alarm")->count() > 0 && part != "bus" && part != "both") {
+    spdlog::error("--dds-absent-alarm is for --part bus or both (the bus process raises it)");
     return app::kExitUsage;
   }
   if (!pace_starts.empty() && part != "dds") {

@@ -668,3 +668,29 @@ TEST_F(ChannelAttacks, TheDdsSidesUserCannotSignalTheBusProcess) {
   EXPECT_EQ(setting(dds, "AmbientCapabilities"), "");
   EXPECT_EQ(setting(dds, "NoNewPrivileges"), "yes");
 }
+
+// The options of issue 41 belong to one part each; given to another, or naming no user, they are
+// refused before anything starts (exit 2, the reason said).
+TEST(BusIsolationOptions, EachPartsOwnOptionsAreRefusedElsewhere) {
+  ASSERT_NE(std::getenv("LINEBRIDGE_NETNS"), nullptr) << "run through launch_scripts/netns-run.sh (ctest does)";
+  const auto channel = ::testing::TempDir() + "/lb_iso_options.sock";
+  const struct {
+    std::vector<std::string> args;
+    std::string says;
+  } cases[] = {
+      {{"--part", "both", "--dds-user", "root"}, "--dds-user is for --part bus"},
+      {{"--part", "bus", "--channel", channel, "--dds-user", "lb-no-such-user"}, "no such user"},
+      {{"--part", "bus", "--channel", channel, "--dds-user", "99999999999"}, "no such user"},
+      {{"--part", "dds", "--channel", channel, "--dds-absent-alarm", "5"},
+       "--dds-absent-alarm is for --part bus or both"},
+      {{"--part", "bus", "--channel", channel, "--pace-starts", "/tmp/x"}, "--pace-starts is for --part dds"},
+      {{"--part", "bus", "--channel", channel, "--dds-absent-alarm", "-1"}, "--dds-absent-alarm"},
+  };
+  for (const auto& c : cases) {
+    std::vector<std::string> argv{LB_BIN_BRIDGE};
+    argv.insert(argv.end(), c.args.begin(), c.args.end());
+    const auto r = lb::test::run_command(argv, 20s);
+    EXPECT_EQ(r.exit_code, 2) << c.args.back() << "\n" << r.output;
+    EXPECT_NE(r.output.find(c.says), std::string::npos) << r.output;
+  }
+}
