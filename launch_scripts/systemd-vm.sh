@@ -8,7 +8,12 @@
 # unit's main process: systemd restarts it (Restart=on-failure), the other units' main PIDs and,
 # when the bus unit is not the one killed, its SYNC (no gap > 3 periods) untouched; kill -STOP of
 # each: the watchdog fires within WatchdogSec, systemd kills and restarts it (journal, NRestarts,
-# MainPID). Prints the guest's log and a summary with the measured times. Slow (minutes): not in CI.
+# MainPID); the units' users differ and the DDS unit's cannot signal the bus process, another user
+# of the bus unit's group and a second process of the DDS unit's user are refused on the channel;
+# the DDS unit's main process killed each time it is active for --sustain seconds: the unit never
+# gives up, the bus unit's main PID never changes, SYNC never gaps over --sustain-gap-periods.
+# Prints the guest's log and a summary with the measured times. Slow (minutes): not in CI.
+#   launch_scripts/systemd-vm.sh --sustain 180     # the 3-minute run of issue 41
 #   launch_scripts/systemd-vm.sh [OPTIONS]
 # Options:
 #   --units "A.service B.service"  the units under test, in start order (default linebridge-bus.service linebridge-dds.service;
@@ -16,6 +21,9 @@
 #   --margin S         slack over WatchdogSec + RestartSec for a restart under TCG (default 20)
 #   --gap-periods N    largest SYNC gap while a non-bus unit is killed, in periods (default 3)
 #   --no-sim           no linebridge-sim for the line's device (the bus then has only SYNC and NMT)
+#   --sustain S        seconds of the DDS unit's main process killed each time it is active (default 40; 0: none)
+#   --sustain-gap-periods N  largest SYNC gap allowed meanwhile, in periods (default 2)
+#   --alarm S          the bus unit's alarm without a DDS side (LINEBRIDGE_DDS_ABSENT_ALARM_S, default 5)
 #   --build DIR        build directory for package.sh (default build)
 #   --deb FILE         use this .deb instead of running package.sh
 #   --timeout S        stop the VM after S seconds (default 900)
@@ -37,6 +45,9 @@ build=${LINEBRIDGE_BUILD_DIR:-build}
 deb=""
 timeout_s=900
 image_only=0
+sustain=40
+sustain_gap=2
+alarm=5
 
 die() { echo "systemd-vm: $*" >&2; exit 125; }
 say() { echo "systemd-vm: $*" >&2; }
@@ -48,6 +59,9 @@ while [ $# -gt 0 ]; do
     --margin) margin=${2:?}; shift 2 ;;
     --gap-periods) gap_periods=${2:?}; shift 2 ;;
     --no-sim) sim=0; shift ;;
+    --sustain) sustain=${2:?}; shift 2 ;;
+    --sustain-gap-periods) sustain_gap=${2:?}; shift 2 ;;
+    --alarm) alarm=${2:?}; shift 2 ;;
     --build) build=${2:?}; shift 2 ;;
     --deb) deb=${2:?}; shift 2 ;;
     --timeout) timeout_s=${2:?}; shift 2 ;;
@@ -179,8 +193,8 @@ flock -u 9
 # --- the run --------------------------------------------------------------------------------------
 job=$(mktemp -d "${TMPDIR:-/tmp}/systemd-vm.XXXXXX")
 trap 'rm -rf "$job"' EXIT
-printf 'UNITS=%q\nBUS_UNIT=%q\nMARGIN_S=%q\nGAP_PERIODS=%q\nSIM=%q\n' \
-  "$units" "$bus_unit" "$margin" "$gap_periods" "$sim" >"$job/check.conf"
+printf 'UNITS=%q\nBUS_UNIT=%q\nMARGIN_S=%q\nGAP_PERIODS=%q\nSIM=%q\nSUSTAIN_S=%q\nSUSTAIN_GAP_PERIODS=%q\nALARM_S=%q\n' \
+  "$units" "$bus_unit" "$margin" "$gap_periods" "$sim" "$sustain" "$sustain_gap" "$alarm" >"$job/check.conf"
 khz=$(awk -F: '/^cpu MHz/ { printf "%d", $2 * 1000; exit }' /proc/cpuinfo)
 [ -n "$khz" ] || khz=2000000
 # shellcheck disable=SC2054  # qemu's options are comma-separated by design

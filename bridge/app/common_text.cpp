@@ -124,6 +124,9 @@ std::string to_text(const msg::Diagnostics& d) {
       yes_no(side.connected()), side.connects(), side.samples_dropped(), side.samples_not_forwarded(),
       side.samples_on_lanes(), side.remote_participants(), side.remote_participants_refused(),
       side.connects() != 0 && !side.connected() ? "  (the DDS process is NOT CONNECTED)" : "");
+  out += fmt::format("  dds-side: peers-refused {} absent-s {:.1f} absent-alarm {} absent-alarms {} last-end {}\n",
+                     side.peers_refused(), side.absent_s(), side.absent_alarm() ? "YES" : "no", side.absent_alarms(),
+                     or_dash(side.last_end()));
   for (const auto& b : d.buses()) {
     out += fmt::format("  bus {:<12} {:<28} {:<7} {:<13} frames-in {:>9} ({:7.1f}/s) frames-out {:>9} ({:7.1f}/s) "
                        "load {} error-frames {} tx-dropped {}\n",

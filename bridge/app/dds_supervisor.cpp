@@ -12,6 +12,8 @@
 #include <cstring>
 #include <string>
 
+#include <fmt/format.h>
+
 #include "app/arguments.hpp"
 #include "app/run_until_signal.hpp"
 
@@ -19,8 +21,8 @@ extern char** environ;
 
 namespace lb::app {
 namespace {
-constexpr std::chrono::milliseconds kFirstPause{100};
-constexpr std::chrono::milliseconds kLongestPause{5000};
+constexpr std::chrono::milliseconds kFirstUnservedPause{100};
+constexpr std::chrono::milliseconds kLongestUnservedPause{5000};
 
 struct SpawnAttributes {
   SpawnAttributes() { posix_spawnattr_init(&value); }
@@ -31,8 +33,9 @@ struct SpawnAttributes {
 };
 }  // namespace
 
-DdsSupervisor::DdsSupervisor(std::vector<std::string> argv, std::function<std::uint64_t()> served)
-    : argv_(std::move(argv)), served_(std::move(served)) {
+DdsSupervisor::DdsSupervisor(std::vector<std::string> argv, std::function<std::uint64_t()> served, Report report,
+                             RestartPacing pacing)
+    : argv_(std::move(argv)), served_(std::move(served)), report_(std::move(report)), pacer_(pacing) {
   for (char** e = environ; *e != nullptr; ++e) {
     const std::string v(*e);
     // The parent is the service: a child that spoke to systemd would be refused (NotifyAccess=main)
@@ -87,11 +90,24 @@ pid_t DdsSupervisor::spawn() {
   return pid;
 }
 
+namespace {
+
+std::string exit_text(int status) {
+  if (WIFSIGNALED(status)) return "was killed by signal " + std::to_string(WTERMSIG(status));
+  const int code = WEXITSTATUS(status);
+  if (code == kExitUsage) return "exited with 2 (it refused the configuration: its log says why)";
+  return "exited with " + std::to_string(code);
+}
+
+}  // namespace
+
 void DdsSupervisor::run() {
-  auto pause = kFirstPause;
+  auto unserved_pause = kFirstUnservedPause;
   while (true) {
     const auto served_before = served_();
+    pacer_.started(RestartPacer::Clock::now());
     const pid_t pid = spawn();
+    int status = 0;
     if (pid < 0) {
       spdlog::error("cannot start the DDS process: {}", std::strerror(errno));
     } else {
@@ -101,32 +117,55 @@ void DdsSupervisor::run() {
         if (stop_) ::kill(pid, SIGTERM);  // the destructor came before it knew this child
       }
       spdlog::info("DDS process started (pid {})", pid);
-      int status = 0;
       while (::waitpid(pid, &status, 0) < 0 && errno == EINTR) {
       }
       std::lock_guard lock(mutex_);
       child_ = 0;
       cv_.notify_all();
       if (stop_) return;
-      if (WIFEXITED(status) && WEXITSTATUS(status) == kExitUsage) {
-        spdlog::critical("the DDS process refused the configuration (exit 2): not restarted");
-        refused_ = true;
-        request_stop();
-        return;
+    }
+    const bool served = pid > 0 && served_() > served_before;
+    const bool refused = pid > 0 && WIFEXITED(status) && WEXITSTATUS(status) == kExitUsage;
+    if (refused && served_() == 0) {
+      // Never served: the line file or a security file is wrong from the start, as --check says.
+      spdlog::critical("the DDS process refused the configuration (exit 2) before any DDS process served: not "
+                       "restarted, the bridge stops");
+      if (report_) report_(pid, exit_text(status) + "; not restarted, the bridge stops");
+      refused_ = true;
+      request_stop();
+      return;
+    }
+    // A crash loop must not cost the bus side its CPU, and must not end the DDS side for good
+    // either: the back-off, and at least the start-up pause for one that never got served or
+    // refused (starting again at once helps neither).
+    auto pause = pacer_.next_pause(RestartPacer::Clock::now());
+    if (served && !refused) {
+      unserved_pause = kFirstUnservedPause;
+    } else {
+      pause = std::max<std::chrono::milliseconds>(pause, unserved_pause);
+      unserved_pause = std::min<std::chrono::milliseconds>(unserved_pause * 2, kLongestUnservedPause);
+    }
+    const auto next = pause.count() == 0
+                          ? std::string("a new DDS process starts")
+                          : fmt::format("the next starts in {:.1f} s", std::chrono::duration<double>(pause).count());
+    if (pid > 0) {
+      const auto text = exit_text(status);
+      if (refused) {
+        // It served before: a certificate, grant or CRL that expired since, found at this start.
+        spdlog::critical("DDS process (pid {}) {}; the bus runs on without DDS, {} (back-off up to {} s)", pid, text,
+                         next, std::chrono::duration_cast<std::chrono::seconds>(pacer_.pacing().longest_pause).count());
+      } else {
+        spdlog::warn("DDS process (pid {}) {}; the bus runs on, {}{}", pid, text, next,
+                     pacer_.step() > 0
+                         ? fmt::format(" ({} starts in the last {} s: back-off)",
+                                       pacer_.starts_within(RestartPacer::Clock::now()), pacer_.pacing().window.count())
+                         : std::string());
       }
-      spdlog::warn("DDS process (pid {}) {} {}; the bus runs on, a new DDS process starts", pid,
-                   WIFSIGNALED(status) ? "killed by signal" : "exited with",
-                   WIFSIGNALED(status) ? WTERMSIG(status) : WEXITSTATUS(status));
+      if (report_) report_(pid, text + "; " + next);
     }
-    // One that served is replaced at once; one that keeps ending at start-up waits, so a crash loop
-    // does not cost the bus side its CPU.
-    if (pid > 0 && served_() > served_before) {
-      pause = kFirstPause;
-      continue;
-    }
+    if (pause.count() == 0) continue;
     std::unique_lock lock(mutex_);
     if (cv_.wait_for(lock, pause, [this] { return stop_; })) return;
-    pause = std::min<std::chrono::milliseconds>(pause * 2, kLongestPause);
   }
 }
 

@@ -237,6 +237,11 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
             side.samples_on_lanes(c.samples_on_lanes);
             side.remote_participants(c.dds.remote_participants);
             side.remote_participants_refused(c.dds.remote_participants_refused);
+            side.peers_refused(c.peers_refused + c.second_peers_refused);
+            side.absent_s(std::chrono::duration<double>(c.absent).count());
+            side.absent_alarm(c.absent_alarm);
+            side.absent_alarms(c.absent_alarms);
+            side.last_end(channel->last_end());
           }
         });
   } catch (const std::runtime_error& e) {

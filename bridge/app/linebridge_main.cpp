@@ -10,20 +10,25 @@
 #include "app/line_bridge.hpp"
 #include "app/line_check.hpp"
 #include "app/line_config_source.hpp"
+#include "app/restart_pacing.hpp"
 #include "app/run_until_signal.hpp"
 #include "app/service_notifier.hpp"
 #include "dds/fastdds_log.hpp"
 #include "dds/security_files.hpp"
 #include "link/bus_channel.hpp"
 
+#include <pwd.h>
 #include <sys/mman.h>
 #include <unistd.h>
 
 #include <cerrno>
+#include <charconv>
 #include <cstdlib>
 #include <cstring>
 
 #include <filesystem>
+#include <optional>
+#include <vector>
 
 namespace {
 
@@ -48,6 +53,22 @@ class PrivateDir {
   std::string path_;
 };
 
+// --dds-user: a user name or a numeric uid.
+std::optional<uid_t> user_id(const std::string& user) {
+  if (!user.empty() && user.find_first_not_of("0123456789") == std::string::npos) {
+    uid_t uid = 0;
+    const auto [end, ec] = std::from_chars(user.data(), user.data() + user.size(), uid);
+    if (ec != std::errc{} || end != user.data() + user.size()) return std::nullopt;
+    return uid;
+  }
+  passwd pw{};
+  passwd* found = nullptr;
+  std::vector<char> buffer(16384);
+  if (::getpwnam_r(user.c_str(), &pw, buffer.data(), buffer.size(), &found) != 0 || found == nullptr)
+    return std::nullopt;
+  return found->pw_uid;
+}
+
 std::string own_executable() {
   std::error_code ec;
   auto p = std::filesystem::read_symlink("/proc/self/exe", ec);
@@ -67,6 +88,9 @@ int main(int argc, char** argv) {
   std::string part = "both";
   std::string channel_path;
   bool lock_memory = false;
+  std::string dds_user;
+  double absent_alarm_s = 30;
+  std::string pace_starts;
   lb::app::add_config_option(cli, config_path);
   cli.add_option("--check", check_path,
                  "check a line configuration (and its profile, DDS profile and security files) as start-up would, "
@@ -84,6 +108,18 @@ int main(int argc, char** argv) {
                  "the channel between the bus and DDS processes (a socket path); --part bus and dds need it, both "
                  "makes a private one")
       ->check(app::non_empty_path());
+  cli.add_option("--dds-user", dds_user,
+                 "--part bus: the user (name or uid) whose process alone may be the DDS side on the channel (default: "
+                 "this process's own; the package's units: linebridge-dds)");
+  cli.add_option("--dds-absent-alarm", absent_alarm_s,
+                 "--part bus or both: with no DDS side for this many seconds, an alarm in the log and the line's "
+                 "diagnostics (0: never)")
+      ->check(CLI::Range(0.0, 86400.0))
+      ->capture_default_str();
+  cli.add_option("--pace-starts", pace_starts,
+                 "--part dds under a service manager that restarts it: keep the record of this process's starts in "
+                 "this file and wait before starting when they come too often (a back-off: 20 restarts a minute at "
+                 "once, then 1 s doubling to 30 s)");
   cli.add_flag("--lock-memory", lock_memory,
                "the bus process locks its memory (mlockall): its loops never wait for a page from swap (needs "
                "LimitMEMLOCK or CAP_IPC_LOCK; refused: a warning, the bus runs on)");
@@ -98,6 +134,28 @@ int main(int argc, char** argv) {
     spdlog::error("--part {} needs --channel PATH", part);
     return app::kExitUsage;
   }
+  if (!dds_user.empty() && part != "bus") {
+    spdlog::error("--dds-user is for --part bus (under --part both the DDS process is this process's child)");
+    return app::kExitUsage;
+  }
+  if (cli.get_option("--dds-absent-alarm")->count() > 0 && part != "bus" && part != "both") {
+    spdlog::error("--dds-absent-alarm is for --part bus or both (the bus process raises it)");
+    return app::kExitUsage;
+  }
+  if (!pace_starts.empty() && part != "dds") {
+    spdlog::error("--pace-starts is for --part dds (--part both paces its DDS processes itself)");
+    return app::kExitUsage;
+  }
+  lb::link::PeerRule peer_rule;  // this process's user; --part both: its own child only
+  peer_rule.own_child_only = part == "both";
+  if (!dds_user.empty()) {
+    const auto uid = user_id(dds_user);
+    if (!uid) {
+      spdlog::error("--dds-user {}: no such user", dds_user);
+      return app::kExitUsage;
+    }
+    peer_rule.uid = *uid;
+  }
 
   const auto registry = lb::profiles::ProfileRegistry::builtin();
   if (!check_path.empty()) {
@@ -108,6 +166,12 @@ int main(int argc, char** argv) {
   // From here on no bus loop waits for the log.
   const app::AsyncLog async_log(pattern, part == "dds" ? app::AsyncLog::kDdsQueue : app::AsyncLog::kBusQueue);
   app::block_stop_signals();
+  // Before anything costly (the line file, the participant): a DDS process restarted again and
+  // again waits here, as its record of starts says. Supervised (--part both), its parent paces it.
+  if (part == "dds" && !pace_starts.empty() && std::getenv(app::kBusPidEnv) == nullptr &&
+      !app::pace_start(pace_starts)) {
+    return app::kExitOk;  // stopped while it waited
+  }
   auto config = app::load_config(config_path, registry);
   if (!config) {
     spdlog::error("{}", config.error().message);
@@ -153,7 +217,10 @@ int main(int argc, char** argv) {
       }
       channel_path = private_dir->path() + "/channel.sock";
     }
-    auto opened = lb::link::BusChannel::open({channel_path, config->line, lb::ddsl::draw_incarnation()});
+    lb::link::BusChannel::Options channel_options{channel_path, config->line, lb::ddsl::draw_incarnation()};
+    channel_options.peer = peer_rule;
+    channel_options.absent_alarm = std::chrono::milliseconds(static_cast<std::int64_t>(absent_alarm_s * 1000));
+    auto opened = lb::link::BusChannel::open(std::move(channel_options));
     if (!opened) {
       spdlog::error("{}", opened.error().message);
       return app::kExitFailure;
@@ -170,7 +237,9 @@ int main(int argc, char** argv) {
                                       channel_path,     "--log-level", log_level};
     if (!config_path.empty())
       dds_argv.insert(dds_argv.end(), {"--config", std::filesystem::absolute(config_path).string()});
-    supervisor.emplace(std::move(dds_argv), [c = channel.get()] { return c->counters().connects; });
+    supervisor.emplace(
+        std::move(dds_argv), [c = channel.get()] { return c->counters().connects; },
+        [c = channel.get()](pid_t pid, std::string why) { c->report_end(pid, std::move(why)); });
   }
   auto bridge = app::LineBridge::create(*config, std::move(dds));
   if (lock_memory && bridge) {

@@ -2,6 +2,7 @@
 
 #include <poll.h>
 #include <spdlog/spdlog.h>
+#include <sys/epoll.h>
 #include <sys/eventfd.h>
 #include <sys/socket.h>
 #include <unistd.h>
@@ -59,22 +60,37 @@ std::uint32_t BusChannel::add_endpoint(Endpoint endpoint) {
 
 std::uint32_t BusChannel::add_lane() {
   if (thread_.joinable()) throw std::logic_error("BusChannel::add_lane after start()");
-  auto pair = make_lane();
-  if (!pair) throw std::runtime_error("channel " + options_.path + ": " + pair.error().message);
+  UniqueFd ready(::epoll_create1(EPOLL_CLOEXEC));
+  if (!ready) throw std::runtime_error("channel " + options_.path + ": lane epoll: " + std::strerror(errno));
   auto lane = std::make_unique<Lane>();
-  lane->bus = std::move(pair->bus);
-  lane->dds = std::move(pair->dds);
+  lane->ready = std::move(ready);
   lanes_.push_back(std::move(lane));
   return static_cast<std::uint32_t>(lanes_.size());
 }
 
-int BusChannel::lane_fd(std::uint32_t lane) const { return lanes_.at(lane - 1)->bus.get(); }
+int BusChannel::lane_fd(std::uint32_t lane) const { return lanes_.at(lane - 1)->ready.get(); }
 
 void BusChannel::read_lane(std::uint32_t lane) {
   auto& l = *lanes_.at(lane - 1);
+  std::shared_ptr<const UniqueFd> socket;
+  {
+    std::lock_guard lock(mutex_);
+    socket = l.current;
+  }
+  if (!socket) return;  // the connection ended since the loop was woken
   const auto room = l.buffer.room();
-  const auto n = ::recv(l.bus.get(), room.data(), room.size(), MSG_DONTWAIT);
-  if (n <= 0) return;  // empty (the DDS end stays open here: never end of file)
+  const auto n = ::recv(socket->get(), room.data(), room.size(), MSG_DONTWAIT);
+  if (n < 0 && (errno == EAGAIN || errno == EWOULDBLOCK || errno == EINTR)) return;
+  if (n <= 0) {
+    // The DDS side closed its end (it ended, or closed this lane alone): out of the loop's set, or
+    // the loop would find it readable at every turn until the channel's thread replaced it.
+    std::lock_guard lock(mutex_);
+    if (l.current == socket) {
+      ::epoll_ctl(l.ready.get(), EPOLL_CTL_DEL, socket->get(), nullptr);
+      l.current.reset();
+    }
+    return;
+  }
   auto message = decode(l.buffer.first(static_cast<std::size_t>(n)));
   auto* sample = message ? std::get_if<Sample>(&*message) : nullptr;
   if (sample == nullptr) {
@@ -89,13 +105,27 @@ void BusChannel::read_lane(std::uint32_t lane) {
   take_sample(*sample, lane);
 }
 
+void BusChannel::replace_lanes(std::vector<UniqueFd> next) {
+  for (std::size_t i = 0; i < lanes_.size(); ++i) {
+    auto& l = *lanes_[i];
+    if (l.current) ::epoll_ctl(l.ready.get(), EPOLL_CTL_DEL, l.current->get(), nullptr);
+    // Closed here, or by a loop that still reads it, when it is done: never reused under it.
+    l.current.reset();
+    if (i >= next.size() || !next[i]) continue;
+    epoll_event ev{};
+    ev.events = EPOLLIN;
+    if (::epoll_ctl(l.ready.get(), EPOLL_CTL_ADD, next[i].get(), &ev) == 0)
+      l.current = std::make_shared<const UniqueFd>(std::move(next[i]));
+  }
+}
+
 void BusChannel::take_sample(const Sample& sample, std::uint32_t lane) {
   std::shared_ptr<const SampleHandler> handler;
   bool wrong_lane = false;
   {
     std::lock_guard lock(mutex_);
-    // On a lane, a sample of any connection but the current one is from a DDS side that was
-    // replaced (it still holds the lane's other end): not the line's.
+    // A lane serves one connection and is closed with it, so a sample of another connection can
+    // only be one read just before the channel's thread noticed the end: not the line's either.
     if (lane != 0 && (!counters_.connected || sample.connection != counters_.connects)) {
       ++counters_.stale_lane_samples;
       return;
@@ -124,6 +154,10 @@ void BusChannel::take_sample(const Sample& sample, std::uint32_t lane) {
 
 void BusChannel::start() {
   if (thread_.joinable()) return;
+  {
+    std::lock_guard lock(mutex_);
+    absent_since_ = std::chrono::steady_clock::now();
+  }
   thread_ = std::thread([this] { run(); });
 }
 
@@ -137,6 +171,7 @@ void BusChannel::stop() {
     // The DDS side sees the channel end now, not when this object goes.
     std::lock_guard lock(mutex_);
     peer_.reset();
+    replace_lanes({});
     counters_.connected = false;
     c = counters_;
   }
@@ -144,9 +179,11 @@ void BusChannel::stop() {
   spdlog::info("channel {}: {} sample(s) sent to {} DDS side(s), {} received ({} on lanes); {} state sample(s) "
                "replaced by a newer "
                "one before they were sent; dropped: {} with no DDS side, {} beyond the queue; {} from a replaced DDS "
-               "side on a lane, {} undecodable; {} too large for the channel",
+               "side on a lane, {} undecodable; {} too large for the channel; connections refused: {} not the DDS "
+               "side, {} while one was connected",
                options_.path, c.samples_sent, c.connects, c.samples_received, c.samples_on_lanes, c.states_superseded,
-               c.dropped_no_peer, c.dropped_queue_full, c.stale_lane_samples, c.bad_messages, c.samples_too_large);
+               c.dropped_no_peer, c.dropped_queue_full, c.stale_lane_samples, c.bad_messages, c.samples_too_large,
+               c.peers_refused, c.second_peers_refused);
 }
 
 void BusChannel::wake() {
@@ -215,7 +252,28 @@ std::string BusChannel::too_large(const std::string& text) {
 
 BusChannel::Counters BusChannel::counters() const {
   std::lock_guard lock(mutex_);
-  return counters_;
+  auto c = counters_;
+  if (!c.connected && absent_since_ != std::chrono::steady_clock::time_point{}) {
+    c.absent = std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now() - absent_since_);
+  }
+  return c;
+}
+
+void BusChannel::report_end(pid_t pid, std::string why) {
+  std::lock_guard lock(end_mutex_);
+  exited_ = {pid, std::move(why), std::chrono::steady_clock::now()};
+}
+
+std::string BusChannel::last_end() const {
+  std::lock_guard lock(end_mutex_);
+  // The two views of one process come in either order (the exit is seen by waitpid, the closed
+  // socket by this channel): both when they name the same pid, else the newer.
+  if (exited_.pid != 0 && exited_.pid == dropped_.pid)
+    return "DDS process pid " + std::to_string(exited_.pid) + " " + exited_.why + " (" + dropped_.why + ")";
+  if (exited_.pid != 0 && exited_.at >= dropped_.at)
+    return "DDS process pid " + std::to_string(exited_.pid) + " " + exited_.why;
+  if (dropped_.pid != 0) return "DDS side pid " + std::to_string(dropped_.pid) + ": " + dropped_.why;
+  return {};
 }
 
 std::optional<BusChannel::Datagram> BusChannel::next_datagram() {
@@ -261,8 +319,10 @@ void BusChannel::run() {
       std::uint64_t v;
       [[maybe_unused]] const auto r = ::read(wake_fd_.get(), &v, sizeof(v));
     }
-    if (fds[0].revents & POLLIN) accept_peer();
+    // The DDS side's end first: one that ended is gone before a next one is looked at.
     if (peer_ && (fds[2].revents & (POLLIN | POLLHUP | POLLERR))) read_peer();
+    if (fds[0].revents & POLLIN) accept_peer();
+    check_absence();
     if (std::chrono::steady_clock::now() >= next_ping) {
       next_ping = std::chrono::steady_clock::now() + kPingEvery;
       std::lock_guard lock(mutex_);
@@ -275,14 +335,50 @@ void BusChannel::run() {
 void BusChannel::accept_peer() {
   auto peer = accept_channel(listener_.get());
   if (!peer) {
-    {
-      std::lock_guard lock(mutex_);
-      ++counters_.peers_refused;
-    }
-    spdlog::warn("channel {}: {}", options_.path, peer.error().message);
+    if (refused_log_.allow())
+      spdlog::warn("channel {}: {}{}", options_.path, peer.error().message, held_back_note(refused_log_));
     return;
   }
-  if (peer_) drop_peer("another DDS side connected (pid " + std::to_string(peer->pid) + ")");
+  // A DDS side that ended has closed its socket: read to its end (and dropped) before the next is
+  // looked at, so that a replacement is never refused for its predecessor.
+  while (peer_) {
+    pollfd p{peer_.get(), POLLIN, 0};
+    if (::poll(&p, 1, 0) != 1 || (p.revents & (POLLHUP | POLLERR)) == 0) break;
+    read_peer();
+  }
+  std::string refused = refusal(*peer, options_.peer);
+  const bool second = refused.empty() && peer_;
+  if (second) {
+    std::int32_t live = 0;
+    {
+      std::lock_guard lock(mutex_);
+      live = counters_.peer_pid;
+    }
+    refused = "pid " + std::to_string(peer->pid) + " connected while the DDS side (pid " + std::to_string(live) +
+              ") is: one at a time";
+  }
+  if (!refused.empty()) {
+    {
+      std::lock_guard lock(mutex_);
+      ++(second ? counters_.second_peers_refused : counters_.peers_refused);
+    }
+    if (refused_log_.allow()) {
+      spdlog::warn("channel {}: connection refused: {}{}", options_.path, refused, held_back_note(refused_log_));
+    }
+    return;  // its socket closes: the peer reads the end of the channel, never a Hello
+  }
+  // This connection's lanes: new sockets, so what an earlier DDS side was handed is dead.
+  std::vector<UniqueFd> bus_ends;
+  std::vector<UniqueFd> dds_ends;
+  for (std::size_t i = 0; i < lanes_.size(); ++i) {
+    auto pair = make_lane();
+    if (!pair) {
+      spdlog::error("channel {}: DDS side pid {} not served: {}", options_.path, peer->pid, pair.error().message);
+      return;
+    }
+    bus_ends.push_back(std::move(pair->bus));
+    dds_ends.push_back(std::move(pair->dds));
+  }
   // Room for a datagram of kMaxMessage bytes: Linux takes a Unix datagram up to the socket's send
   // buffer less 32 bytes, and the default buffer (net.core.wmem_default, 212992) is smaller. The
   // kernel doubles what is asked, up to net.core.wmem_max (212992 by default: room enough).
@@ -298,6 +394,7 @@ void BusChannel::accept_peer() {
   std::size_t endpoints = 0, samples = 0;
   bool hello_sent = false;
   int hello_errno = 0;
+  std::chrono::milliseconds was_absent{0};
   {
     std::lock_guard lock(mutex_);
     peer_ = std::move(peer->fd);
@@ -305,6 +402,10 @@ void BusChannel::accept_peer() {
     unsent_.reset();
     ++counters_.connects;
     counters_.connected = true;
+    counters_.peer_pid = peer->pid;
+    counters_.absent_alarm = false;
+    was_absent = std::chrono::duration_cast<std::chrono::milliseconds>(std::chrono::steady_clock::now() -
+                                                                       absent_since_);
     // A new DDS side knows nothing. It creates the endpoints one at a time (a line of 8 x 30 devices
     // has about 1,500, seconds of work) and publishes a sample as soon as its writer exists: so the
     // state endpoints come first, each followed at once by its newest sample, then every other
@@ -313,10 +414,11 @@ void BusChannel::accept_peer() {
     backlog_.clear();
     queue_.clear();
     dirty_.clear();
+    replace_lanes(std::move(bus_ends));
     // The Hello goes first and at once, with the lanes' DDS ends: the socket is new and empty.
     std::vector<int> lane_fds;
-    lane_fds.reserve(lanes_.size());
-    for (const auto& l : lanes_) lane_fds.push_back(l->dds.get());
+    lane_fds.reserve(dds_ends.size());
+    for (const auto& fd : dds_ends) lane_fds.push_back(fd.get());
     const auto hello = encode(Hello{kChannelVersion, options_.line, options_.incarnation,
                                     static_cast<std::int32_t>(::getpid()), counters_.connects,
                                     static_cast<std::uint32_t>(lanes_.size())});
@@ -337,25 +439,72 @@ void BusChannel::accept_peer() {
     endpoints = endpoints_.size();
     samples = latest_.size();
   }
+  dds_ends.clear();  // the DDS side holds them now (SCM_RIGHTS): this process keeps none
   if (!hello_sent) return drop_peer(std::string("its Hello could not be sent: ") + std::strerror(hello_errno));
   if (max_datagram < kMaxMessage) {
     spdlog::warn("channel {}: the DDS side's socket takes datagrams up to {} bytes only (send buffer {}, capped by "
                  "net.core.wmem_max): larger samples are not sent, and counted",
                  options_.path, max_datagram, sndbuf);
   }
-  spdlog::info("channel {}: DDS side connected (pid {}); {} endpoints and {} state samples sent, {} lane(s)",
-               options_.path, peer->pid, endpoints, samples, lanes_.size());
+  spdlog::info("channel {}: DDS side connected (pid {}, uid {}); {} endpoints and {} state samples sent, {} lane(s)",
+               options_.path, peer->pid, peer->uid, endpoints, samples, lanes_.size());
+  if (alarmed_) {
+    alarmed_ = false;
+    spdlog::warn("channel {}: a DDS side again, after {:.1f} s without one", options_.path,
+                 std::chrono::duration<double>(was_absent).count());
+  }
+}
+
+void BusChannel::check_absence() {
+  using namespace std::chrono;
+  if (options_.absent_alarm <= milliseconds::zero()) return;
+  const auto now = steady_clock::now();
+  steady_clock::time_point since;
+  {
+    std::lock_guard lock(mutex_);
+    if (counters_.connected) return;
+    since = absent_since_;
+  }
+  const auto absent = duration<double>(now - since).count();
+  if (now - since < options_.absent_alarm) return;
+  constexpr auto kRepeat = minutes(5);
+  if (alarmed_ && now - alarm_said_ < kRepeat) return;
+  auto last = last_end();
+  if (last.empty()) last = "no DDS side has connected since the bus process started";
+  if (!alarmed_) {
+    alarmed_ = true;
+    {
+      std::lock_guard lock(mutex_);
+      counters_.absent_alarm = true;
+      ++counters_.absent_alarms;
+    }
+    spdlog::error("channel {}: no DDS side for {:.1f} s (alarm after {:.1f} s): the line runs on, but no set value, "
+                  "command or stop reaches it over DDS and nothing of it is published; last: {}",
+                  options_.path, absent, duration<double>(options_.absent_alarm).count(), last);
+  } else {
+    spdlog::error("channel {}: still no DDS side, for {:.0f} s; last: {}", options_.path, absent, last);
+  }
+  alarm_said_ = now;
 }
 
 void BusChannel::drop_peer(const std::string& why) {
+  std::int32_t pid = 0;
   {
     std::lock_guard lock(mutex_);  // logged after it (see accept_peer)
     peer_.reset();
     unsent_.reset();
+    pid = counters_.peer_pid;
     counters_.connected = false;
+    counters_.peer_pid = 0;
+    absent_since_ = std::chrono::steady_clock::now();
+    replace_lanes({});
     backlog_.clear();
     queue_.clear();
     dirty_.clear();
+  }
+  {
+    std::lock_guard lock(end_mutex_);
+    dropped_ = {pid, why, std::chrono::steady_clock::now()};
   }
   if (stopping_) {
     spdlog::info("channel {}: DDS side stopped ({})", options_.path, why);

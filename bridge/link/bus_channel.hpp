@@ -21,11 +21,21 @@
 //
 // Lanes: a reader declared on a lane gets its samples from the DDS side on that lane's own socket
 // pair, which the lane's bus loop reads itself (read_lane), so a set value reaches its bus loop in
-// one hop instead of two (channel thread, then the loop). The pairs are made once; every DDS side
-// gets their DDS ends with its Hello, and stamps its lane samples with its connection's number, so
-// that a replaced DDS side's late samples are dropped.
+// one hop instead of two (channel thread, then the loop). The pairs are made anew for every
+// connection and closed when it ends: a DDS side that went (or anything it handed its descriptors
+// to) holds sockets nobody reads. The loop watches one descriptor per lane that stays (an epoll
+// set holding the current connection's socket).
+//
+// Who connects: exactly the DDS side's user (Options::peer), one at a time. A connection while a
+// DDS side is connected is refused, not taken for a replacement: a DDS process that ends closes its
+// socket, and the bus side sees that before it accepts the next.
+//
+// Absence: with no DDS side for Options::absent_alarm, the line runs on and nothing reaches it
+// from DDS (no HMI can stop it from there): said in the log (an error, repeated every 5 minutes)
+// and in the counters the line's diagnostics publish once a DDS side is back.
 
 #include <atomic>
+#include <chrono>
 #include <cstdint>
 #include <deque>
 #include <functional>
@@ -52,12 +62,19 @@ class BusChannel {
     std::string path;
     std::string line;
     std::uint64_t incarnation = 0;
-    std::size_t queue_limit = 4096;  // samples of non-state endpoints waiting for the DDS side
+    std::size_t queue_limit = 4096;             // samples of non-state endpoints waiting for the DDS side
+    PeerRule peer{};                            // who may be the DDS side
+    std::chrono::milliseconds absent_alarm{0};  // with no DDS side this long: an alarm (0: never)
   };
   struct Counters {
     bool connected = false;
-    std::uint64_t connects = 0;       // DDS sides accepted since start
-    std::uint64_t peers_refused = 0;  // connections refused (credentials)
+    std::uint64_t connects = 0;              // DDS sides accepted since start
+    std::uint64_t peers_refused = 0;         // connections refused: not the DDS side (PeerRule)
+    std::uint64_t second_peers_refused = 0;  // connections refused: a DDS side was connected
+    std::int32_t peer_pid = 0;               // the connected DDS side's (0: none)
+    std::chrono::milliseconds absent{0};     // without a DDS side since (0 while one is connected)
+    bool absent_alarm = false;               // absent for Options::absent_alarm or longer
+    std::uint64_t absent_alarms = 0;         // how often that happened since start
     std::uint64_t samples_sent = 0;
     std::uint64_t samples_received = 0;
     std::uint64_t samples_on_lanes = 0;  // of samples_received: handed to their reader on its lane
@@ -86,9 +103,9 @@ class BusChannel {
   // declaration on a lane (Declare::lane, from add_lane()), on the thread that reads the lane.
   std::uint32_t declare_reader(Declare declaration, SampleHandler handler);
 
-  // Before start(): a new lane, numbered from 1. Its bus end (lane_fd) is read by read_lane(lane)
-  // on one thread (a bus loop, when lane_fd is readable); the handlers of the readers declared on
-  // it run there.
+  // Before start(): a new lane, numbered from 1. lane_fd is readable when the lane's socket of the
+  // current connection is; read_lane(lane) reads it on one thread (a bus loop); the handlers of the
+  // readers declared on it run there.
   std::uint32_t add_lane();
   int lane_fd(std::uint32_t lane) const;
   // Reads one datagram of the lane, if one waits, and runs its sample's handler; never blocks. One,
@@ -107,6 +124,11 @@ class BusChannel {
   void publish(std::uint32_t id, std::vector<std::uint8_t> payload, const Identity& related = {});
 
   Counters counters() const;
+  // Why the last DDS side went, as best known: the channel's view ("it closed the channel") and,
+  // when the process that started it reports it (report_end), its exit status. Any thread; not
+  // taken by bus loops.
+  void report_end(pid_t pid, std::string why);
+  std::string last_end() const;
   const std::string& path() const { return options_.path; }
   std::uint64_t incarnation() const { return options_.incarnation; }
 
@@ -118,8 +140,10 @@ class BusChannel {
     std::shared_ptr<const SampleHandler> handler;  // shared: run outside the lock without a copy
   };
   struct Lane {
-    UniqueFd bus;
-    UniqueFd dds;           // handed to every DDS side
+    UniqueFd ready;  // epoll over `current`: what the lane's loop watches (lane_fd)
+    // This connection's bus end (null: none). Shared: the loop reads it outside the lock while the
+    // channel's thread may replace it; the descriptor closes when neither holds it.
+    std::shared_ptr<const UniqueFd> current;
     DatagramBuffer buffer;  // its reader's thread
   };
   using Datagram = std::vector<std::uint8_t>;
@@ -138,6 +162,9 @@ class BusChannel {
   // or "" when the rate of such lines is exceeded.
   std::string too_large(const std::string& text);
   void drop_peer(const std::string& why);
+  // Under mutex_: this connection's lanes replaced by `next` (nothing: none); the old ones closed.
+  void replace_lanes(std::vector<UniqueFd> next);
+  void check_absence();  // channel thread: the alarm and its log lines
   void wake();
   std::optional<Datagram> next_datagram();  // under mutex_
 
@@ -153,11 +180,23 @@ class BusChannel {
   std::deque<Datagram> queue_;                // other samples, in order
   std::deque<Datagram> backlog_;              // a new peer's declarations and snapshot, first
   Counters counters_;
-  std::optional<Datagram> unsent_;            // a datagram the socket refused (full): sent first
-  std::size_t max_datagram_ = kMaxMessage;    // what the connected DDS side's socket takes
-  std::vector<std::unique_ptr<Lane>> lanes_;  // fixed once started
-  DatagramBuffer buffer_;                     // channel thread: receiving
-  LogRate too_large_log_;                     // under mutex_
+  std::optional<Datagram> unsent_;                        // a datagram the socket refused (full): sent first
+  std::size_t max_datagram_ = kMaxMessage;                // what the connected DDS side's socket takes
+  std::vector<std::unique_ptr<Lane>> lanes_;              // fixed once started
+  DatagramBuffer buffer_;                                 // channel thread: receiving
+  LogRate too_large_log_;                                 // under mutex_
+  LogRate refused_log_;                                   // channel thread
+  std::chrono::steady_clock::time_point absent_since_{};  // under mutex_: no DDS side since (start() on)
+  std::chrono::steady_clock::time_point alarm_said_{};    // channel thread: when the alarm was last logged
+  bool alarmed_ = false;
+  struct End {
+    pid_t pid = 0;
+    std::string why;
+    std::chrono::steady_clock::time_point at{};
+  };
+  mutable std::mutex end_mutex_;  // not the loops' lock: strings are copied under it
+  End dropped_;                   // the channel's view of the last DDS side that went
+  End exited_;                    // its supervisor's (report_end)
 
   std::atomic<bool> stop_{false};
   std::atomic<bool> stopping_{false};

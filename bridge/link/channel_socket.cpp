@@ -9,6 +9,8 @@
 #include <algorithm>
 #include <cerrno>
 #include <cstring>
+#include <fstream>
+#include <sstream>
 
 namespace lb::link {
 namespace {
@@ -60,11 +62,32 @@ Result<Peer> accept_channel(int listener) {
   peer.pid = cred.pid;
   peer.uid = cred.uid;
   peer.gid = cred.gid;
-  if (cred.uid != 0 && cred.uid != ::geteuid() && cred.gid != ::getegid()) {
-    return make_error("channel peer pid " + std::to_string(cred.pid) + " (uid " + std::to_string(cred.uid) + ", gid " +
-                      std::to_string(cred.gid) + ") is neither this service's user nor its group: refused");
-  }
   return peer;
+}
+
+std::string refusal(const Peer& peer, const PeerRule& rule) {
+  const auto who = "pid " + std::to_string(peer.pid) + " (uid " + std::to_string(peer.uid) + ", gid " +
+                   std::to_string(peer.gid) + ")";
+  if (peer.uid != rule.uid) return who + " is not the DDS side's user (uid " + std::to_string(rule.uid) + ")";
+  // The pid is the connecting process's at connect; a child of this process is the DDS process it
+  // started (it starts no other), and stays its child until it ends.
+  if (rule.own_child_only && parent_of(peer.pid) != ::getpid())
+    return who + " is not the DDS process this process started";
+  return {};
+}
+
+pid_t parent_of(pid_t pid) {
+  std::ifstream in("/proc/" + std::to_string(pid) + "/stat");
+  std::string stat;
+  if (!std::getline(in, stat)) return 0;
+  // "pid (comm) state ppid ...": comm may hold spaces and parentheses; the last ')' ends it.
+  const auto end = stat.rfind(')');
+  if (end == std::string::npos) return 0;
+  std::istringstream rest(stat.substr(end + 1));
+  char state = 0;
+  pid_t ppid = 0;
+  if (!(rest >> state >> ppid)) return 0;
+  return ppid;
 }
 
 Result<UniqueFd> connect_channel(const std::string& path, int timeout_ms) {

@@ -1,11 +1,13 @@
 #pragma once
 // The channel's socket: a Unix SOCK_SEQPACKET socket on a file path (message boundaries kept,
-// connection-oriented, so a dead peer is noticed at once). Only the service's own user and group
-// reach it: the file is mode 0660 (its directory should be the service's, e.g. /run/linebridge),
-// and each connecting peer's credentials (SO_PEERCRED) must name the listener's user, its group,
-// or root.
+// connection-oriented, so a dead peer is noticed at once). The file is mode 0660 (its directory
+// should be the service's, e.g. /run/linebridge): the kernel lets the service's user and group
+// connect. Who of them is the DDS side is the bus side's to decide from each peer's credentials
+// (SO_PEERCRED, taken by the kernel at connect, not claimed by the peer): exactly one user, and,
+// when the bus process starts its DDS process itself, only that child (PeerRule).
 
 #include <sys/types.h>
+#include <unistd.h>
 
 #include <cstdint>
 #include <memory>
@@ -36,8 +38,8 @@ class DatagramBuffer {
 // else there is an error), non-blocking.
 Result<UniqueFd> listen_channel(const std::string& path);
 
-// A peer accepted from a listening socket (non-blocking), or why it was not: its credentials are
-// checked against this process's user and group.
+// A peer accepted from a listening socket (non-blocking), with its credentials as the kernel took
+// them at connect.
 struct Peer {
   UniqueFd fd;
   pid_t pid = 0;
@@ -46,11 +48,23 @@ struct Peer {
 };
 Result<Peer> accept_channel(int listener);
 
+// Who may be the DDS side. Not a group: a group's members are whoever an administrator adds to it
+// (to read the line file, say), and a process of any user whose primary group is the service's
+// would pass. Not root either: a root process does not need the channel to reach the bus.
+struct PeerRule {
+  uid_t uid = ::geteuid();      // the DDS side's user (systemd: linebridge-dds; else this process's)
+  bool own_child_only = false;  // --part both: only a child of this process (the DDS process it started)
+};
+// Why the peer is not the DDS side; empty when it is.
+std::string refusal(const Peer& peer, const PeerRule& rule);
+// The parent of a process (/proc/PID/stat); 0 when it cannot be read (gone, hidden).
+pid_t parent_of(pid_t pid);
+
 // Connects to a listening channel (blocking socket, with send and receive timeouts).
 Result<UniqueFd> connect_channel(const std::string& path, int timeout_ms);
 
 // A lane (docs/bus-isolation.md): a connected pair of SOCK_SEQPACKET sockets, made by the bus
-// process once; `bus` non-blocking, `dds` handed to every DDS side.
+// process for each connection of a DDS side; `bus` non-blocking, `dds` handed to that DDS side.
 struct LanePair {
   UniqueFd bus;
   UniqueFd dds;

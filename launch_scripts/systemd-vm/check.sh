@@ -13,10 +13,19 @@
 #   MARGIN_S     slack on top of WatchdogSec + RestartSec for a restart to complete (TCG is slow)
 #   GAP_PERIODS  largest SYNC gap allowed while a non-bus unit is killed, in SYNC periods
 #   SIM          1: run linebridge-sim for the line's devices (a transient unit) so the line boots
+#   SUSTAIN_S    seconds of a DDS process killed again and again (kill -9 of the DDS unit's main
+#                process each time it is active, after 0-0.5 s): the DDS unit keeps coming back,
+#                the bus unit's main PID never changes, SYNC never gaps over SUSTAIN_GAP_PERIODS
+#                (0: no such phase)
+#   SUSTAIN_GAP_PERIODS  largest SYNC gap allowed in that phase, in SYNC periods
+#   ALARM_S      the bus unit's LINEBRIDGE_DDS_ABSENT_ALARM_S here (its alarm without a DDS side)
 set -uo pipefail
 job=/lbjob
 # shellcheck source=/dev/null
 . "$job/check.conf"
+SUSTAIN_S=${SUSTAIN_S:-0}
+SUSTAIN_GAP_PERIODS=${SUSTAIN_GAP_PERIODS:-2}
+ALARM_S=${ALARM_S:-5}
 exec > >(tee "$job/check.log") 2>&1
 tee_pid=$!
 
@@ -67,6 +76,15 @@ sync_stats() {
                   p = t; n++ }
     END { if (n > 1) printf "%d %.1f %.2f %.2f\n", n, max, (p - first) * 1000 / (n - 1), p - first
           else printf "%d 0 0 0\n", n }' /run/lbvm/candump.log
+}
+# How many SYNC gaps between two times are wider than $3 ms.
+gaps_over() {
+  awk -v a="$1" -v b="$2" -v lim="$3" '
+    $3 == "080" { t = substr($1, 2, length($1) - 2) + 0
+                  if (t < a || t > b) next
+                  if (n && (t - p) * 1000 > lim) c++
+                  p = t; n++ }
+    END { print c + 0 }' /run/lbvm/candump.log
 }
 # Waits (up to $3 s) for a SYNC frame stamped after $1; prints its stamp or nothing.
 first_sync_after() {
@@ -125,6 +143,7 @@ cat >/etc/default/linebridge <<CONF
 CAN_IF=
 LINEBRIDGE_CONFIG=$line
 LINEBRIDGE_LOG_LEVEL=info
+LINEBRIDGE_DDS_ABSENT_ALARM_S=$ALARM_S
 CONF
 info "line file: /etc/linebridge/line.yaml on vcan0, SYNC period ${period_ms} ms, device node $node"
 if ! /usr/bin/linebridge --check "$line" >/run/lbvm/check-config.log 2>&1; then
@@ -273,6 +292,180 @@ event() {
 rev=$(echo "$UNITS" | tr ' ' '\n' | tac | tr '\n' ' ')
 for u in $rev; do event "$u" KILL; done
 for u in $rev; do event "$u" STOP; done
+
+# --- 4. the DDS side as its own user; only it on the channel; it cannot signal the bus process ----
+# The units of a line: the bus unit and the other one (the DDS unit).
+dds_unit=""
+for u in $UNITS; do [ "$u" = "$BUS_UNIT" ] || dds_unit=$u; done
+bus_journal_since() { journal_since "$BUS_UNIT" "$1"; }
+# Waits until the DDS unit is active and the bus unit's journal says its main process connected.
+dds_connected() {
+  local limit=$1 i pid
+  for ((i = 0; i < limit * 10; i++)); do
+    pid=$(prop "$dds_unit" MainPID)
+    if [ "$(prop "$dds_unit" ActiveState)" = active ] && [ "$pid" != 0 ] &&
+        journalctl -u "$BUS_UNIT" -o cat --no-pager | grep -q "DDS side connected (pid $pid[,)]"; then
+      echo "$pid"; return 0
+    fi
+    sleep 0.1
+  done
+  return 1
+}
+if [ -n "$dds_unit" ]; then
+  bus_user=$(prop "$BUS_UNIT" User)
+  dds_user=$(prop "$dds_unit" User)
+  bus_pid=$(prop "$BUS_UNIT" MainPID)
+  if ! dds_pid=$(dds_connected 60); then
+    failed "$dds_unit: not connected to the bus process within 60 s"
+  else
+    bus_uid=$(ps -o uid= -p "$bus_pid" | tr -d ' ')
+    dds_uid=$(ps -o uid= -p "$dds_pid" | tr -d ' ')
+    if [ "$bus_uid" != "$dds_uid" ]; then
+      pass "users: $BUS_UNIT runs as $bus_user (uid $bus_uid), $dds_unit as $dds_user (uid $dds_uid, groups $(ps -o supgrp= -p "$dds_pid" | tr -d ' '))"
+    else
+      failed "users: $BUS_UNIT and $dds_unit both run as uid $bus_uid"
+    fi
+    # A process of the DDS unit's user with what of the unit's settings bears on signals: its
+    # user and groups, no capability, no new privileges. (The seccomp filter is not replayed:
+    # @system-service allows kill either way.)
+    dds_groups=$(prop "$dds_unit" SupplementaryGroups | tr ' ' ',')
+    groups_opt=(--clear-groups)
+    [ -n "$dds_groups" ] && groups_opt=(--groups="$dds_groups")
+    t_sig=$(now)
+    for sig in STOP KILL; do
+      out=$(setpriv --reuid="$dds_user" --regid="$(prop "$dds_unit" Group)" "${groups_opt[@]}" --inh-caps=-all \
+        --bounding-set=-all --no-new-privs /bin/kill -s "$sig" "$bus_pid" 2>&1)
+      rc=$?
+      sleep 0.5
+      state=$(awk '{ print $3 }' "/proc/$bus_pid/stat" 2>/dev/null)
+      if [ "$rc" != 0 ] && grep -q 'not permitted' <<<"$out" && [ "$state" != T ] &&
+          [ "$(prop "$BUS_UNIT" MainPID)" = "$bus_pid" ]; then
+        pass "signal: kill -$sig of the bus process ($bus_pid) by $dds_user (groups ${dds_groups:-none}, no capability) refused: $(tail -n 1 <<<"$out"); it runs on (state $state)"
+      else
+        failed "signal: kill -$sig of the bus process ($bus_pid) by $dds_user: exit $rc '$(tail -n 1 <<<"$out")', bus process state '${state:-gone}', MainPID now $(prop "$BUS_UNIT" MainPID)"
+        kill -CONT "$bus_pid" 2>/dev/null
+      fi
+    done
+    sleep 1
+    read -r n gap mean span <<<"$(sync_stats "$t_sig" "$(now)")"
+    info "SYNC while the DDS user signalled: $n frames in $span s, largest gap $gap ms"
+    # Connections to the channel: a user whose primary group is the bus unit's, then a second
+    # process of the DDS unit's user while its DDS side is connected. Each runs linebridge --part
+    # dds as the DDS side would.
+    id lbvm-intruder >/dev/null 2>&1 || useradd --system --no-create-home --shell /usr/sbin/nologin \
+      --gid "$(prop "$BUS_UNIT" Group)" lbvm-intruder
+    attempt() {  # name, then the setpriv options of the process
+      local name=$1 t out
+      shift
+      t=$(now)
+      out=$(timeout 60 setpriv "$@" /usr/bin/linebridge --part dds --channel /run/linebridge/channel.sock \
+        --config "$line" --log-level warn 2>&1 | tail -n 1)
+      sleep 1
+      local refused pid_now
+      refused=$(bus_journal_since "$t" | grep -m1 'connection refused' | sed 's/^[0-9.]* [^ ]* //')
+      pid_now=$(prop "$dds_unit" MainPID)
+      if [ -n "$refused" ] && [ "$pid_now" = "$dds_pid" ] && ! bus_journal_since "$t" | grep -q 'DDS side gone'; then
+        pass "channel: $name refused; $dds_unit's main PID $dds_pid unchanged and connected. Bus journal: $refused"
+      else
+        failed "channel: $name: refused '${refused:-no}', $dds_unit's main PID $dds_pid -> $pid_now; the attempt said: $out"
+        bus_journal_since "$t" | tail -n 5
+      fi
+    }
+    attempt "a process of user lbvm-intruder (primary group $(prop "$BUS_UNIT" Group))" \
+      --reuid=lbvm-intruder --regid="$(prop "$BUS_UNIT" Group)" --clear-groups
+    attempt "a second process of $dds_user while its DDS side is connected" \
+      --reuid="$dds_user" --regid="$(prop "$dds_unit" Group)" --groups="$(prop "$BUS_UNIT" Group)"
+  fi
+fi
+
+# --- 5. a DDS process killed again and again: the unit never gives up, the bus never notices ------
+if [ -n "$dds_unit" ] && [ "$SUSTAIN_S" -gt 0 ]; then
+  dds_connected 60 >/dev/null || failed "$dds_unit: not connected before the sustained phase"
+  bus_pid=$(prop "$BUS_UNIT" MainPID)
+  allowed=$((SUSTAIN_GAP_PERIODS * period_ms))
+  # The same guest with nothing killed, for comparison: what the emulator alone costs SYNC.
+  quiet=$((SUSTAIN_S < 60 ? SUSTAIN_S : 60))
+  tq=$(now)
+  sleep "$quiet"
+  read -r n gap mean span <<<"$(sync_stats "$tq" "$(now)")"
+  info "SYNC with nothing killed (the emulator's own jitter), $quiet s: $n frames, mean period $mean ms, largest gap $gap ms, $(gaps_over "$tq" "$(now)" "$allowed") gap(s) over $allowed ms"
+  n0=$(prop "$dds_unit" NRestarts)
+  say "$dds_unit: killed each time it is active, for $SUSTAIN_S s (NRestarts $n0)"
+  # The bus unit's journal as it comes: which DDS process connected, and when. Read from a file
+  # (cheap) rather than asking systemd at every turn: under the emulator, a systemctl call every
+  # 100 ms costs the guest more than the DDS processes do.
+  journalctl -f -n 200 -o short-unix -u "$BUS_UNIT" >/run/lbvm/bus-journal.log 2>&1 &
+  jpid=$!
+  sleep 1
+  t0=$(now)
+  t_end=$(awk -v a="$t0" -v d="$SUSTAIN_S" 'BEGIN { printf "%.3f", a + d }')
+  kills=0 last=0 gave_up="" turn=0 kill_times=()
+  while awk -v n="$(now)" -v e="$t_end" 'BEGIN { exit !(n < e) }'; do
+    turn=$((turn + 1))
+    if [ $((turn % 10)) = 0 ] && systemctl is-failed --quiet "$dds_unit"; then
+      gave_up="$(prop "$dds_unit" ActiveState)/$(prop "$dds_unit" Result)"
+      break
+    fi
+    pid=$(grep -o 'DDS side connected (pid [0-9]*' /run/lbvm/bus-journal.log | tail -n 1 | awk '{ print $NF }')
+    if [ -n "$pid" ] && [ "$pid" != "$last" ]; then
+      sleep "0.$((RANDOM % 5))"
+      if kill -9 "$pid" 2>/dev/null; then
+        kills=$((kills + 1))
+        kill_times+=("$(now)")
+      fi
+      last=$pid
+    fi
+    sleep 0.2
+  done
+  t1=$(now)
+  t_last_kill=${kill_times[-1]:-$t1}
+  if [ -n "$gave_up" ]; then
+    failed "$dds_unit gave up after $kills kill(s) in $(fmt "$t0" "$t1") s: $gave_up"
+    systemctl reset-failed "$dds_unit"; systemctl start "$dds_unit"
+  elif [ "$kills" -lt 3 ]; then
+    failed "$dds_unit: only $kills kill(s) in $(fmt "$t0" "$t1") s: no DDS process connected to kill"
+  else
+    pass "$dds_unit: $kills kill(s) of a connected DDS process in $(fmt "$t0" "$t1") s, never failed (no start limit), NRestarts $n0 -> $(prop "$dds_unit" NRestarts)"
+  fi
+  # After the last kill: back within the longest pause (30 s) and a start.
+  limit=$(awk -v m="$MARGIN_S" 'BEGIN { print 30 + m }')
+  if back_pid=$(dds_connected "${limit%.*}"); then
+    pass "$dds_unit: serving again (main PID $back_pid connected) $(fmt "$t_last_kill" "$(now)") s after the last kill (limit $limit s)"
+    sleep 0.5
+  else
+    failed "$dds_unit: not serving within $limit s of the last kill (state $(prop "$dds_unit" ActiveState)/$(prop "$dds_unit" SubState))"
+  fi
+  if [ "$(prop "$BUS_UNIT" MainPID)" = "$bus_pid" ]; then
+    pass "$BUS_UNIT: main PID $bus_pid unchanged through the sustained kills"
+  else
+    failed "$BUS_UNIT: main PID $bus_pid -> $(prop "$BUS_UNIT" MainPID) during the sustained kills"
+  fi
+  read -r n gap mean span <<<"$(sync_stats "$t0" "$(now)")"
+  over=$(gaps_over "$t0" "$(now)" "$allowed")
+  if awk -v g="$gap" -v a="$allowed" 'BEGIN { exit !(g <= a) }'; then
+    pass "SYNC through the sustained kills: $n frames in $span s, mean period $mean ms, largest gap $gap ms <= $SUSTAIN_GAP_PERIODS periods ($allowed ms)"
+  else
+    failed "SYNC through the sustained kills: largest gap $gap ms > $SUSTAIN_GAP_PERIODS periods ($allowed ms); $over gap(s) over it ($n frames in $span s, mean period $mean ms)"
+  fi
+  kill "$jpid" 2>/dev/null
+  # From each kill to the next DDS process connected (the bus unit's journal).
+  back=$(printf '%s\n' "${kill_times[@]}" | awk '
+    NR == FNR { k[NR] = $1; nk = NR; next }
+    /DDS side connected/ { c[++nc] = $1 + 0 }
+    END { j = 1; for (i = 1; i <= nk; i++) { while (j <= nc && c[j] <= k[i]) j++; if (j <= nc) printf "%.1f ", c[j] - k[i] } }' \
+    - <(journal_since "$BUS_UNIT" "$t0"))
+  info "$dds_unit: from each kill to the next DDS process connected (s): $back"
+  # What the journals say of it: the DDS process's back-off, the bus process's alarm.
+  dj=$(journal_since "$dds_unit" "$t0")
+  bj=$(journal_since "$BUS_UNIT" "$t0")
+  waits=$(grep -o 'waits [0-9.]* s before it starts' <<<"$dj" | awk '{ print $2 }' | tr '\n' ' ')
+  info "$dds_unit: pauses before starting (back-off, s): ${waits:-none}"
+  info "$BUS_UNIT: alarm lines 'no DDS side for': $(grep -c 'no DDS side for' <<<"$bj"); 'a DDS side again': $(grep -c 'a DDS side again' <<<"$bj"); 'DDS side connected': $(grep -c 'DDS side connected' <<<"$bj")"
+  # Per 30 s of the phase, as systemd logged them: restarts it scheduled, and times the unit
+  # became active (READY=1).
+  per30() { awk -v a="$t0" -v p="$1" '$0 ~ p { i = int(($1 - a) / 30); if (i < 0) next; c[i]++; if (i > m) m = i } END { for (i = 0; i <= m; i++) printf "%d ", c[i] }' <<<"$dj"; }
+  info "$dds_unit: per 30 s, restarts scheduled: $(per30 'Scheduled restart job'); became active: $(per30 'Started linebridge')"
+fi
 
 # --- the end state ------------------------------------------------------------------------------
 for u in $UNITS; do

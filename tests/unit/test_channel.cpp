@@ -1,13 +1,21 @@
 // The channel between a line's bus process and its DDS process, on real Unix sockets: its
-// messages, who may connect, what a (re)connecting DDS side is sent, and that the bus side's
-// publish never waits for a DDS side that does not read.
+// messages, who may connect (tests that need other users fork a child that becomes one: root
+// only), what a (re)connecting DDS side is sent, lanes that die with their connection, the alarm
+// without a DDS side, and that the bus side's publish never waits for a DDS side that does not read.
+#include <grp.h>
 #include <gtest/gtest.h>
 #include <poll.h>
+#include <sys/socket.h>
 #include <sys/stat.h>
+#include <sys/un.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
+#include <cerrno>
 #include <chrono>
 #include <condition_variable>
+#include <cstring>
 #include <filesystem>
 #include <fstream>
 #include <mutex>
@@ -416,32 +424,47 @@ TEST(BusChannel, ALaneCarriesItsReadersSamplesToTheThreadThatReadsIt) {
   EXPECT_EQ(c.samples_received, 3u) << "the stray counts as received, then as a bad message";
 }
 
-// A DDS side that was replaced still holds its lanes: what it sends there after the next one
-// connected is dropped (counted), and the new one's samples are taken.
-TEST(BusChannel, ALanesSamplesFromAReplacedDdsSideAreDropped) {
+// Issue 41: a DDS side that went kept its lane's descriptor, and what it sent there stamped with
+// the next (predictable) connection number was taken while the next DDS side was connected. Every
+// connection now gets lanes of its own, closed when it ends: the old descriptor is a dead socket.
+TEST(BusChannel, ALaneOfAConnectionThatEndedIsDead) {
   OneLane line("lane_stale");
   auto& bus = line.bus();
-  const auto path = line.path();
   const auto lane = line.lane;
   auto& taken = line.taken;
-  const auto reader = line.reader;
   bus.start();
-  auto first = DdsChannel::connect(path, 1000);
+  // The first DDS side as an attacker holds it: the raw descriptors that came with the Hello.
+  auto first = connect_channel(line.path(), 1000);
   ASSERT_TRUE(first) << first.error().message;
-  auto second = DdsChannel::connect(path, 1000);
-  ASSERT_TRUE(second) << second.error().message;
-  EXPECT_EQ((*second)->hello().connection, (*first)->hello().connection + 1);
-  // The bus side counts a connection before it sends its Hello: nothing to wait for.
-  ASSERT_EQ(bus.counters().connects, 2u);
+  DatagramBuffer buffer;
+  auto got = receive_with_fds(first->get(), buffer.room(), 4);
+  ASSERT_TRUE(got) << got.error().message;
+  ASSERT_EQ(got->fds.size(), 1u);
+  auto hello = decode(buffer.first(got->size));
+  ASSERT_TRUE(hello && std::holds_alternative<Hello>(*hello));
+  const auto first_connection = std::get<Hello>(*hello).connection;
+  const UniqueFd kept_lane = std::move(got->fds[0]);
+  first->reset();  // the channel ends; the lane's descriptor stays here
+  const auto gone_deadline = std::chrono::steady_clock::now() + 20s;
+  while (bus.counters().connected && std::chrono::steady_clock::now() < gone_deadline)
+    std::this_thread::sleep_for(10ms);
+  ASSERT_FALSE(bus.counters().connected);
 
+  auto second = DdsChannel::connect(line.path(), 1000);
+  ASSERT_TRUE(second) << second.error().message;
+  ASSERT_EQ((*second)->hello().connection, first_connection + 1);
   Sample late;
-  late.id = reader;
+  late.id = line.reader;
+  late.connection = (*second)->hello().connection;  // what the next DDS side stamps: predictable
   late.payload = {0, 1, 0, 0, 1};
-  ASSERT_TRUE((*first)->send(lane, late));
-  ASSERT_TRUE(read_lane_when_ready(bus, lane));
-  EXPECT_EQ(taken.size(), 0u) << "the replaced DDS side's sample was taken";
-  EXPECT_EQ(bus.counters().stale_lane_samples, 1u);
-  EXPECT_EQ(bus.counters().samples_on_lanes, 0u);
+  const auto datagram = encode(Message(late));
+  errno = 0;
+  EXPECT_LT(::send(kept_lane.get(), datagram.data(), datagram.size(), MSG_NOSIGNAL | MSG_DONTWAIT), 0)
+      << "the ended connection's lane still takes datagrams";
+  EXPECT_TRUE(errno == EPIPE || errno == ECONNRESET || errno == ECONNREFUSED || errno == ENOTCONN)
+      << std::strerror(errno);
+  pollfd p{bus.lane_fd(lane), POLLIN, 0};
+  EXPECT_EQ(::poll(&p, 1, 200), 0) << "the bus loop would be woken by the dead lane";
 
   Sample fresh = late;
   fresh.payload = {0, 1, 0, 0, 2};
@@ -449,5 +472,180 @@ TEST(BusChannel, ALanesSamplesFromAReplacedDdsSideAreDropped) {
   ASSERT_TRUE(read_lane_when_ready(bus, lane));
   ASSERT_EQ(taken.size(), 1u);
   EXPECT_EQ(taken.samples[0].first.payload, fresh.payload);
-  EXPECT_EQ(bus.counters().samples_on_lanes, 1u);
+  const auto c = bus.counters();
+  EXPECT_EQ(c.samples_on_lanes, 1u);
+  EXPECT_EQ(c.stale_lane_samples, 0u);
+}
+
+// A DDS side that closes its lane alone (and keeps the channel) costs it that lane: the bus loop
+// is not woken again and again by the lane's end.
+TEST(BusChannel, ALaneItsDdsSideClosedNoLongerWakesTheLoop) {
+  OneLane line("lane_closed");
+  auto& bus = line.bus();
+  bus.start();
+  auto fd = connect_channel(line.path(), 1000);
+  ASSERT_TRUE(fd) << fd.error().message;
+  DatagramBuffer buffer;
+  auto got = receive_with_fds(fd->get(), buffer.room(), 4);
+  ASSERT_TRUE(got) << got.error().message;
+  ASSERT_EQ(got->fds.size(), 1u);
+  got->fds.clear();  // the lane's only other end
+  ASSERT_TRUE(read_lane_when_ready(bus, line.lane)) << "the end of the lane is not seen";
+  pollfd p{bus.lane_fd(line.lane), POLLIN, 0};
+  EXPECT_EQ(::poll(&p, 1, 200), 0) << "the lane's end wakes its loop again";
+  EXPECT_TRUE(bus.counters().connected) << "the channel itself stays";
+}
+
+namespace {
+
+// Connects to `path` as another process (a child: fork, then system calls only) of `uid`:`gid`
+// with no supplementary group: 0 a Hello came (accepted), 3 the bus side closed the connection
+// (refused), 4 the kernel refused the connect (the file's mode), 10 the child could not become
+// that user (not root), 1 anything else.
+int connect_as(const std::string& path, uid_t uid, gid_t gid) {
+  sockaddr_un addr{};
+  addr.sun_family = AF_UNIX;
+  std::memcpy(addr.sun_path, path.c_str(), std::min(path.size(), sizeof(addr.sun_path) - 1));
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    if (::setgroups(0, nullptr) != 0 || ::setresgid(gid, gid, gid) != 0 || ::setresuid(uid, uid, uid) != 0) _exit(10);
+    const int fd = ::socket(AF_UNIX, SOCK_SEQPACKET | SOCK_CLOEXEC, 0);
+    if (::connect(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof(addr)) != 0) _exit(errno == EACCES ? 4 : 1);
+    pollfd p{fd, POLLIN, 0};
+    if (::poll(&p, 1, 10'000) != 1) _exit(1);
+    char buf[1024];
+    const auto n = ::recv(fd, buf, sizeof(buf), 0);
+    _exit(n > 0 ? 0 : n == 0 ? 3 : 1);
+  }
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+// Other users exist for a test only where it runs as the real root (not in a user namespace).
+bool can_be_another_user() { return ::geteuid() == 0 && connect_as("/nonexistent", 61099, 61099) != 10; }
+
+}  // namespace
+
+// Issue 41: any process whose user or group was the service's was accepted, and replaced the live
+// DDS side. Only the DDS side's user is: a process of another user whose primary group is the
+// service's (it can open the socket file) is refused, and so is root.
+TEST(BusChannel, OnlyTheDdsSidesUserIsTakenNotItsGroupNorRoot) {
+  if (!can_be_another_user()) GTEST_SKIP() << "needs root outside a user namespace (another uid)";
+  const auto path = socket_path("peer_uid");
+  constexpr uid_t kDds = 61002;
+  BusChannel::Options options{path, "l", 1};
+  options.peer.uid = kDds;
+  auto opened = BusChannel::open(options);
+  ASSERT_TRUE(opened) << opened.error().message;
+  auto& bus = **opened;
+  bus.start();
+  // The socket file is this process's (root), mode 0660: its group's members reach it.
+  EXPECT_EQ(connect_as(path, 61003, ::getegid()), 3) << "a member of the service's group was accepted";
+  EXPECT_EQ(connect_as(path, 61004, 61004), 4) << "the file's mode let another user connect";
+  auto as_root = DdsChannel::connect(path, 1000);
+  EXPECT_FALSE(as_root) << "root was accepted";
+  auto c = bus.counters();
+  EXPECT_EQ(c.peers_refused, 2u);
+  EXPECT_EQ(c.connects, 0u);
+  // The DDS side's user, in the service's group (the units: SupplementaryGroups=linebridge).
+  const pid_t pid = ::fork();
+  if (pid == 0) {
+    const gid_t groups[] = {::getegid()};
+    if (::setgroups(1, groups) != 0 || ::setresgid(kDds, kDds, kDds) != 0 || ::setresuid(kDds, kDds, kDds) != 0)
+      _exit(10);
+    const int fd = ::socket(AF_UNIX, SOCK_SEQPACKET | SOCK_CLOEXEC, 0);
+    sockaddr_un addr{};
+    addr.sun_family = AF_UNIX;
+    std::memcpy(addr.sun_path, path.c_str(), std::min(path.size(), sizeof(addr.sun_path) - 1));
+    if (::connect(fd, reinterpret_cast<const sockaddr*>(&addr), sizeof(addr)) != 0) _exit(4);
+    pollfd p{fd, POLLIN, 0};
+    char buf[1024];
+    _exit(::poll(&p, 1, 10'000) == 1 && ::recv(fd, buf, sizeof(buf), 0) > 0 ? 0 : 3);
+  }
+  int status = 0;
+  ::waitpid(pid, &status, 0);
+  EXPECT_TRUE(WIFEXITED(status) && WEXITSTATUS(status) == 0) << "the DDS side's user was refused";
+  c = bus.counters();
+  EXPECT_EQ(c.connects, 1u);
+  EXPECT_EQ(c.peers_refused, 2u);
+}
+
+// Under linebridge --part both the DDS side is the bus process's own child: another process of the
+// same user (this test, connecting itself) is refused; a child of this process is taken.
+TEST(BusChannel, UnderPartBothOnlyTheOwnChildIsTaken) {
+  const auto path = socket_path("peer_child");
+  BusChannel::Options options{path, "l", 1};
+  options.peer.own_child_only = true;
+  auto opened = BusChannel::open(options);
+  ASSERT_TRUE(opened) << opened.error().message;
+  auto& bus = **opened;
+  bus.start();
+  auto not_a_child = DdsChannel::connect(path, 1000);
+  EXPECT_FALSE(not_a_child) << "a process that is not this process's child was taken";
+  EXPECT_EQ(bus.counters().peers_refused, 1u);
+  EXPECT_EQ(connect_as(path, ::geteuid(), ::getegid()), 0) << "this process's child was refused";
+  EXPECT_EQ(bus.counters().connects, 1u);
+}
+
+// Issue 41: a second connection replaced the live DDS side (20 connections in 4 s ended 8 DDS
+// processes). One at a time now: the second is refused, the first keeps being served.
+TEST(BusChannel, ASecondDdsSideWhileOneIsConnectedIsRefused) {
+  const auto path = socket_path("second");
+  auto opened = BusChannel::open({path, "l", 1});
+  ASSERT_TRUE(opened) << opened.error().message;
+  auto& bus = **opened;
+  const auto cuts = bus.declare(state_topic("rt/l/saw1/cut"), false);
+  bus.start();
+  auto first = DdsChannel::connect(path, 1000);
+  ASSERT_TRUE(first) << first.error().message;
+  skip_to<Ready>(**first);
+  for (int i = 0; i < 3; ++i) {
+    auto second = DdsChannel::connect(path, 1000);
+    EXPECT_FALSE(second) << "a second DDS side was taken";
+  }
+  const auto c = bus.counters();
+  EXPECT_EQ(c.second_peers_refused, 3u);
+  EXPECT_EQ(c.connects, 1u);
+  EXPECT_TRUE(c.connected);
+  bus.publish(cuts, {0, 1, 0, 0, 5});
+  EXPECT_EQ(next<Sample>(**first).payload, (std::vector<std::uint8_t>{0, 1, 0, 0, 5}))
+      << "the first DDS side is no longer served";
+}
+
+// With no DDS side for the alarm time the channel says so (its counters, which the line's
+// diagnostics publish, and the log); a DDS side that connects ends the alarm.
+TEST(BusChannel, NoDdsSideForTheAlarmTimeRaisesTheAlarmAndOneThatConnectsEndsIt) {
+  const auto path = socket_path("absent");
+  BusChannel::Options options{path, "l", 1};
+  options.absent_alarm = 300ms;
+  auto opened = BusChannel::open(options);
+  ASSERT_TRUE(opened) << opened.error().message;
+  auto& bus = **opened;
+  bus.start();
+  const auto wait_alarm = [&](bool on) {
+    const auto deadline = std::chrono::steady_clock::now() + 20s;
+    while (bus.counters().absent_alarm != on && std::chrono::steady_clock::now() < deadline)
+      std::this_thread::sleep_for(10ms);
+    return bus.counters().absent_alarm == on;
+  };
+  ASSERT_TRUE(wait_alarm(true)) << "no alarm without a DDS side since the start";
+  auto c = bus.counters();
+  EXPECT_GE(c.absent, 300ms);
+  EXPECT_EQ(c.absent_alarms, 1u);
+  EXPECT_EQ(bus.last_end(), "");
+  {
+    auto dds = DdsChannel::connect(path, 1000);
+    ASSERT_TRUE(dds) << dds.error().message;
+    ASSERT_TRUE(wait_alarm(false));
+    c = bus.counters();
+    EXPECT_EQ(c.absent, 0ms);
+    EXPECT_EQ(c.absent_alarms, 1u);
+  }
+  ASSERT_TRUE(wait_alarm(true)) << "no alarm after the DDS side went";
+  EXPECT_EQ(bus.counters().absent_alarms, 2u);
+  // The connection's end as the channel saw it (this process was the DDS side).
+  EXPECT_EQ(bus.last_end().rfind("DDS side pid " + std::to_string(::getpid()) + ": ", 0), 0u) << bus.last_end();
+  bus.report_end(12345, "exited with 2");
+  EXPECT_NE(bus.last_end().find("pid 12345 exited with 2"), std::string::npos) << bus.last_end();
 }
