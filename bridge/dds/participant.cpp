@@ -16,6 +16,7 @@
 #include <filesystem>
 #include <sstream>
 
+#include "dds/gate_transport.hpp"
 #include "dds/security_proof.hpp"
 #include "dds/site_profiles.hpp"
 #include "dds/site_qos.hpp"
@@ -36,8 +37,32 @@ const eprosima::fastrtps::Duration_t kHeartbeatPeriod{0, 100'000'000};
 // 200 in 4 s of an EMCY burst). A reader more than this many behind loses the oldest.
 constexpr int kEventDepth = 1000;
 
+// Every transport of the participant but shared memory behind the gate (gate_transport.hpp).
+// Shared memory stays as it is: only processes of this machine (and its user) reach it, and Fast
+// DDS recognises that transport by its descriptor's type.
+void gate_transports(fdds::DomainParticipantQos& qos, const std::shared_ptr<DiscoveryGate>& gate,
+                     std::vector<std::string>& notes) {
+  auto& transports = qos.transport();
+  if (transports.use_builtin_transports) {
+    // A site profile that adds transports to Fast DDS's built-in ones: UDPv4 is made explicitly,
+    // so that it sits behind the gate too (Fast DDS's built-in shared memory is left out, as
+    // dds.shared_memory: false does for the bridge's own transports).
+    transports.use_builtin_transports = false;
+    transports.user_transports.push_back(std::make_shared<eprosima::fastdds::rtps::UDPv4TransportDescriptor>());
+    notes.emplace_back(
+        "the site profile's built-in transports are replaced by UDPv4 behind the discovery gate (set dds.shared_memory "
+        "for shared memory)");
+  }
+  for (auto& t : transports.user_transports) {
+    if (std::dynamic_pointer_cast<eprosima::fastdds::rtps::SharedMemTransportDescriptor>(t)) continue;
+    if (std::dynamic_pointer_cast<GateTransportDescriptor>(t)) continue;
+    t = std::make_shared<GateTransportDescriptor>(t, gate);
+  }
+}
+
 // The site's participant QoS (XML profiles) with the bridge's choices where the site says nothing.
-Result<fdds::DomainParticipantQos> base_qos(const ParticipantOptions& options, std::vector<std::string>& notes) {
+Result<fdds::DomainParticipantQos> base_qos(const ParticipantOptions& options, std::vector<std::string>& notes,
+                                            const std::shared_ptr<DiscoveryGate>& gate) {
   auto* factory = fdds::DomainParticipantFactory::get_instance();
   fdds::DomainParticipantQos qos = fdds::PARTICIPANT_QOS_DEFAULT;
   auto site = load_site_profiles(options.profiles_file);
@@ -71,13 +96,6 @@ Result<fdds::DomainParticipantQos> base_qos(const ParticipantOptions& options, s
   if (discovery.initial_announcements == fast.initial_announcements) {
     discovery.initial_announcements.count = 5;
     discovery.initial_announcements.period = eprosima::fastrtps::Duration_t(0, 50'000'000);
-  }
-  // Remote participants, bounded (ParticipantOptions::max_remote_participants says why). The
-  // limit counts this participant's own entry too. A site profile's own limit wins.
-  if (options.max_remote_participants > 0 && qos.allocation().participants == pristine.allocation().participants) {
-    const auto remote = static_cast<std::size_t>(
-        std::min(options.max_remote_participants, ParticipantOptions::kMaxRemoteParticipantsLimit));
-    qos.allocation().participants = eprosima::fastrtps::ResourceLimitedContainerConfig{2, remote + 1, 4};
   }
   // Transports. UDP only unless the line asks for shared memory: Fast DDS 2.9's shared-memory
   // transport carries nothing between processes of different users (measured: a bridge running as
@@ -131,6 +149,15 @@ Result<fdds::DomainParticipantQos> base_qos(const ParticipantOptions& options, s
       IPLocator::setPhysicalPort(locator, server.port);
       remote.metatrafficUnicastLocatorList.push_back(locator);
       discovery.m_DiscoveryServers.push_back(remote);
+    }
+  }
+  if (gate) {
+    if (discovery.discoveryProtocol == eprosima::fastrtps::rtps::DiscoveryProtocol_t::SIMPLE) {
+      gate_transports(qos, gate, notes);
+    } else if (options.discovery_servers.empty()) {
+      notes.emplace_back(
+          "the site profile's discovery protocol is not simple discovery: no discovery gate (a discovery server's "
+          "client takes announcements from its servers only)");
     }
   }
   return qos;
@@ -260,12 +287,19 @@ struct RemoteTally {
 
 namespace {
 
-// Discovery callbacks of a participant: the remote participants' tally, the secured bridge's
-// partition bookkeeping (it must run before matching), then a tool's observer.
+GuidPrefix prefix_of(const eprosima::fastrtps::rtps::GuidPrefix_t& p) {
+  GuidPrefix out{};
+  std::copy(std::begin(p.value), std::end(p.value), out.begin());
+  return out;
+}
+
+// Discovery callbacks of a participant: the remote participants' tally, the discovery gate (which
+// participants authenticated, failed to, or left), the secured bridge's partition bookkeeping (it
+// must run before matching), then a tool's observer.
 class Listener : public fdds::DomainParticipantListener {
  public:
-  Listener(RemoteTally& tally, WriterPartitions* partitions, DiscoveryObserver observer)
-      : tally_(tally), partitions_(partitions), observer_(std::move(observer)) {}
+  Listener(RemoteTally& tally, WriterPartitions* partitions, DiscoveryObserver observer, DiscoveryGate* gate)
+      : tally_(tally), partitions_(partitions), observer_(std::move(observer)), gate_(gate) {}
 
   void on_participant_discovery(fdds::DomainParticipant*,
                                 eprosima::fastrtps::rtps::ParticipantDiscoveryInfo&& info) override {
@@ -275,6 +309,7 @@ class Listener : public fdds::DomainParticipantListener {
     if (removed) {
       --tally_.known;
       ++tally_.departed;
+      if (gate_ != nullptr) gate_->departed(prefix_of(info.info.m_guid.guidPrefix));
     }
     if (!observer_) return;
     observer_({DiscoveryEvent::Kind::participant,
@@ -287,8 +322,12 @@ class Listener : public fdds::DomainParticipantListener {
   }
   void onParticipantAuthentication(fdds::DomainParticipant*,
                                    eprosima::fastrtps::rtps::ParticipantAuthenticationInfo&& info) override {
-    if (info.status == eprosima::fastrtps::rtps::ParticipantAuthenticationInfo::UNAUTHORIZED_PARTICIPANT)
-      ++tally_.refused;
+    using A = eprosima::fastrtps::rtps::ParticipantAuthenticationInfo;
+    if (info.status == A::UNAUTHORIZED_PARTICIPANT) ++tally_.refused;
+    if (gate_ == nullptr) return;
+    const auto prefix = prefix_of(info.guid.guidPrefix);
+    if (info.status == A::AUTHORIZED_PARTICIPANT) gate_->authenticated(prefix, DiscoveryGate::Clock::now());
+    if (info.status == A::UNAUTHORIZED_PARTICIPANT) gate_->refused(prefix, DiscoveryGate::Clock::now());
   }
   void on_publisher_discovery(fdds::DomainParticipant* participant,
                               eprosima::fastrtps::rtps::WriterDiscoveryInfo&& info) override {
@@ -313,13 +352,15 @@ class Listener : public fdds::DomainParticipantListener {
   RemoteTally& tally_;
   WriterPartitions* partitions_;
   DiscoveryObserver observer_;
+  DiscoveryGate* gate_;
 };
 
 }  // namespace
 
-Result<fdds::DomainParticipantQos> participant_qos(const ParticipantOptions& options, std::vector<std::string>* notes) {
+Result<fdds::DomainParticipantQos> participant_qos(const ParticipantOptions& options, std::vector<std::string>* notes,
+                                                   const std::shared_ptr<DiscoveryGate>& gate) {
   std::vector<std::string> ignored;
-  auto qos = base_qos(options, notes != nullptr ? *notes : ignored);
+  auto qos = base_qos(options, notes != nullptr ? *notes : ignored, gate);
   if (!qos) return qos.error();
   if (options.security) add_security(*qos, *options.security);
   // Fast DDS 2.9 announces the host name, the user and the process id in every participant's
@@ -361,10 +402,20 @@ Result<std::unique_ptr<Participant>, CreateError> Participant::create_checked(co
     for (auto& w : grant_warnings(*options.security, options.domain)) p->site_notes_.push_back(std::move(w));
     p->writer_partitions_ = std::make_unique<WriterPartitions>();
   }
-  auto qos = participant_qos(options, &p->site_notes_);
+  if (options.discovery_servers.empty()) {
+    p->discovery_gate_ = std::make_shared<DiscoveryGate>(options.security ? DiscoveryGate::Proof::authentication
+                                                                          : DiscoveryGate::Proof::traffic,
+                                                         options.gate);
+  }
+  auto qos = participant_qos(options, &p->site_notes_, p->discovery_gate_);
   if (!qos) return CreateError{qos.error().message, true};
+  // A site profile's discovery protocol may leave the gate out (its transports were not wrapped).
+  if (qos->wire_protocol().builtin.discovery_config.discoveryProtocol !=
+      eprosima::fastrtps::rtps::DiscoveryProtocol_t::SIMPLE)
+    p->discovery_gate_.reset();
   p->remote_tally_ = std::make_shared<RemoteTally>();
-  p->listener_ = std::make_unique<Listener>(*p->remote_tally_, p->writer_partitions_.get(), options.on_discovery);
+  p->listener_ = std::make_unique<Listener>(*p->remote_tally_, p->writer_partitions_.get(), options.on_discovery,
+                                            p->discovery_gate_.get());
   auto* factory = fdds::DomainParticipantFactory::get_instance();
   p->participant_ = factory->create_participant(options.domain, *qos, p->listener_.get(), fdds::StatusMask::none());
   if (p->participant_ == nullptr) {
@@ -375,6 +426,7 @@ Result<std::unique_ptr<Participant>, CreateError> Participant::create_checked(co
                            "given in dds.security.properties?)",
                        true};
   }
+  if (p->discovery_gate_) p->discovery_gate_->set_local(prefix_of(p->participant_->guid().guidPrefix));
   if (options.security) {
     if (auto proof = prove_security_active(*p->participant_); !proof) return CreateError{proof.error().message, true};
     p->secured_ = true;

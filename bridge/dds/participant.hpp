@@ -28,6 +28,7 @@
 #include "base/result.hpp"
 #include "dds/cdr.hpp"
 #include "dds/channel_identity.hpp"
+#include "dds/discovery_gate.hpp"
 #include "dds/incarnation.hpp"
 #include "dds/lost_samples.hpp"
 #include "dds/security_files.hpp"
@@ -91,18 +92,11 @@ struct ParticipantOptions {
   // Fast DDS's shared-memory transport besides UDP. Off by default: in Fast DDS 2.9 it silently
   // carries nothing between processes of different users (the service's and an operator's).
   bool shared_memory = false;
-  // Remote participants this one keeps at most, authenticated or not (Fast DDS's
-  // allocation().participants; 0: Fast DDS's unbounded default). Past it, announcements of new
-  // participants are dropped until one leaves. Why a bound at all: with Fast DDS 2.9.1 every
-  // participant announced to a secured participant starts a handshake whose message waits in a
-  // 100-entry history; forged announcements fill it and the next real handshake aborts the
-  // process (SecurityManager.cpp:1498, issue 25; BENCHMARKS.md "Forged discovery flood"). The
-  // bridge's DDS process runs unbounded and ends itself past this number instead (dds_side.cpp):
-  // forged participants kept the bound's slots after a flood, locking real clients out.
-  int max_remote_participants = kDefaultMaxRemoteParticipants;
-  static constexpr int kDefaultMaxRemoteParticipants = 32;
-  // Below Fast DDS 2.9.1's 100 pending handshake messages, whatever a line file asks.
-  static constexpr int kMaxRemoteParticipantsLimit = 90;
+  // The discovery gate in front of the transports (discovery_gate.hpp): what remote participants
+  // that have not proven themselves (authenticated, on a secured participant) may make this one
+  // hold. Simple discovery only: a discovery server's client takes announcements from its servers
+  // alone already.
+  GateLimits gate = {};
 };
 
 // Remote participants as this participant's discovery reported them.
@@ -132,7 +126,9 @@ struct CreateError {
 // The QoS Participant::create gives Fast DDS, site profiles and security properties included,
 // without the checks and the proof: for tests that must drive Fast DDS directly (a client that
 // bypasses its own checks). Site notes: what a profile set that was not applied, and why.
-Result<fdds::DomainParticipantQos> participant_qos(const ParticipantOptions& options, std::vector<std::string>* notes);
+// With `gate`, every transport but shared memory sits behind it (simple discovery only).
+Result<fdds::DomainParticipantQos> participant_qos(const ParticipantOptions& options, std::vector<std::string>* notes,
+                                                   const std::shared_ptr<DiscoveryGate>& gate = nullptr);
 inline fdds::DomainParticipantQos participant_qos(const ParticipantOptions& options) {
   auto qos = participant_qos(options, nullptr);
   return qos ? *qos : fdds::PARTICIPANT_QOS_DEFAULT;
@@ -350,10 +346,16 @@ class Participant {
   // Set values and requests clients wrote that never reached a callback (dds/lost_samples.hpp).
   std::uint64_t commands_lost() const { return lost_commands_->lost(); }
 
-  // Remote participants now and since start (discovery callbacks). Announcements dropped at
-  // max_remote_participants are not counted: Fast DDS 2.9.1 reports them only as its warning
-  // "Maximum number of participant proxies ... reached" in the log.
+  // Remote participants now and since start (discovery callbacks): only those the discovery gate
+  // let through reach Fast DDS and these counts.
   RemoteCounts remote_counts() const;
+  // What the discovery gate did and holds (all zero without a gate: planning, over the channel,
+  // with discovery servers), and what is new since the last call, for a rate-limited log.
+  GateCounts gate_counts() const { return discovery_gate_ ? discovery_gate_->counts() : GateCounts{}; }
+  std::vector<std::string> gate_news() {
+    return discovery_gate_ ? discovery_gate_->take_news() : std::vector<std::string>{};
+  }
+  bool gated() const { return discovery_gate_ != nullptr; }
 
   // Created with DDS Security (and proven to be in force).
   bool secured() const { return secured_; }
@@ -486,6 +488,7 @@ class Participant {
   std::unique_ptr<WriterPartitions> writer_partitions_;
   std::unique_ptr<fdds::DomainParticipantListener> listener_;
   std::shared_ptr<RemoteTally> remote_tally_;
+  std::shared_ptr<DiscoveryGate> discovery_gate_;  // shared with the transports Fast DDS made (gate_transport.hpp)
   bool secured_ = false;
   bool planning_ = false;
   Incarnation incarnation_ = draw_incarnation();

@@ -153,7 +153,7 @@ std::vector<DdsDiscoveryServer> parse_discovery_servers(const YamlSource& src, c
 DdsConfig parse_dds(const YamlSource& src, const YAML::Node& n) {
   src.check_keys(n, "dds",
                  {"domain", "localhost_only", "security", "profiles_file", "participant_profile", "discovery_servers",
-                  "shared_memory", "max_remote_participants"});
+                  "shared_memory", "max_pending_participants", "max_remote_participants"});
   DdsConfig dds;
   dds.domain = bounded<std::uint32_t>(src, n, "domain", 0, 0, 232, "dds");  // DDS/RTPS port mapping limit
   dds.localhost_only = src.optional<bool>(n, "localhost_only").value_or(true);
@@ -168,9 +168,10 @@ DdsConfig parse_dds(const YamlSource& src, const YAML::Node& n) {
   if (n["participant_profile"] && dds.participant_profile.empty())
     src.fail(n["participant_profile"], "participant_profile is empty");
   dds.shared_memory = src.optional<bool>(n, "shared_memory").value_or(false);
-  // At most 90: Fast DDS 2.9.1 keeps each pending handshake's message in a history of 100, and a
-  // full one aborts the process at the next handshake (BENCHMARKS.md "Forged discovery flood").
-  dds.max_remote_participants = bounded<int>(src, n, "max_remote_participants", 32, 1, 90, "dds");
+  // At most 64: on a secured line each pending participant holds a handshake message in Fast DDS
+  // 2.9.1's history of 100, and a full one aborts the process at the next handshake (the gate
+  // keeps room for the authenticated ones: dds/discovery_gate.hpp).
+  dds.max_pending_participants = bounded<int>(src, n, "max_pending_participants", 32, 1, 64, "dds");
   if (n["discovery_servers"])
     dds.discovery_servers = parse_discovery_servers(src, n["discovery_servers"], dds.localhost_only);
   return dds;
@@ -809,7 +810,16 @@ Result<LineConfig> parse_line_config(const std::string& yaml_text, const std::st
                                "allows that only where it cannot cause a hazard");
       }
     }
-    if (root["dds"]) cfg.dds = parse_dds(src, root["dds"]);
+    if (root["dds"]) {
+      cfg.dds = parse_dds(src, root["dds"]);
+      // Older line files bound every remote participant so (the DDS process ended past it).
+      if (const auto old = root["dds"]["max_remote_participants"]) {
+        cfg.warnings.push_back(src.where(old) +
+                               ": dds.max_remote_participants is no longer used and is ignored: the DDS process no "
+                               "longer ends past a number of participants; what unauthenticated participants may make "
+                               "it hold is bounded by dds.max_pending_participants (docs/site-dds.md)");
+      }
+    }
     if (cfg.dds.security && !cfg.dds.discovery_servers.empty()) {
       // Measured with Fast DDS 2.9.1: through an unsecured fast-discovery-server secured
       // participants fail endpoint matching; a secured server's GUID prefix is replaced by one

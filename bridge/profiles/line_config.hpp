@@ -47,9 +47,9 @@ struct DdsConfig {
   std::string participant_profile;                    // a participant profile of it by name; "" = its default one
   std::vector<DdsDiscoveryServer> discovery_servers;  // none: simple (multicast) discovery
   bool shared_memory = false;                         // Fast DDS's shared-memory transport besides UDP (one user only)
-  // Remote participants kept at most (authenticated or pending); more announcements are dropped
-  // until one leaves. Bounds what forged announcements can hold (issue 25).
-  int max_remote_participants = 32;
+  // Remote participants let in at once that have not proven themselves yet (authenticated, on a
+  // secured line): what forged announcements can make the DDS process hold (dds/discovery_gate.hpp).
+  int max_pending_participants = 32;
 };
 
 struct BusConfig {
