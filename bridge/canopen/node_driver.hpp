@@ -22,7 +22,7 @@ struct BootReport;
 // What a boot found, told right before it sends NMT start (the last moment to decide what the
 // device's first RPDO carries).
 struct StartFacts {
-  bool found_operational = false;           // it reported operational when the boot began
+  bool found_operational = false;  // it reported operational when the boot began
   // The boot put it, found operational, in pre-operational to write its PDO parameters
   // (pdo_change_when_running: pre_operational): a pause, after which no enabling level comes back
   // by itself.
