@@ -95,7 +95,8 @@ void PdoTransmitter::send() {
   // the send returns: what this frame starts or ends (a momentary command's hold, the inhibit
   // time) is measured from frame to frame on the bus.
   const auto at = std::chrono::steady_clock::now();
-  if (!loop_.send(f)) return refused(Refusal::bus);  // counted by the bus
+  const bool sent = (hooks_.stopping && hooks_.stopping() ? loop_.send_stop(f) : loop_.send(f)).has_value();
+  if (!sent) return refused(Refusal::bus);  // counted by the bus
   last_ = f;
   have_last_ = true;
   last_sent_ = at;

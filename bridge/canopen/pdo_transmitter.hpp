@@ -46,6 +46,9 @@ class PdoTransmitter {
     std::function<void(const can::CanFrame& frame, std::chrono::steady_clock::time_point at)> sent = {};
     // A trigger came (SYNC, data change, event timer, inhibit time over) but nothing went out.
     std::function<void(Refusal why)> not_sent = {};
+    // The frame about to go out carries a stop: it goes out as one (BusLoop::send_stop), through
+    // another master's hold, so that a stop is held as long as it must be.
+    std::function<bool()> stopping = {};
   };
 
   // Before the loop starts or on the loop thread.

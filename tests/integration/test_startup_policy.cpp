@@ -306,6 +306,55 @@ TEST_F(StartupPolicy, ARunningSawWhoseKeptValuesAreRefusedKeepsWhatItHolds) {
   EXPECT_NE(last_note("saw1").find("over set_values_max_age_s"), std::string::npos) << last_note("saw1");
 }
 
+// A restarted bridge takes a running saw's set values from the saw, not from a file that may lag
+// the last change (the store writes after the answer: the fault campaign killed a bus process
+// within 200 ms of an operator's program-off and the restarted one sent the program on again).
+// Saw 420-4 1.0 maps 6002h, write-only in 1.0, in its RPDO1 beside 6020h and 6005h (both rw): the
+// control word and the speed are read back, only the length comes from the kept values. Here the
+// program was switched off behind the file (an SDO write by a service tool while no bridge ran):
+// the file says on (0005h), the saw holds off (0004h).
+TEST_F(StartupPolicy, ARestartedBridgeTakesARunningSawsControlWordFromTheSawNotTheFile) {
+  const auto dir = state_dir("readback10");
+  lb::test::LineHarness line("startup", 72);
+  line.start(device("saw1", 5, "cia420-4", "1.0"), "", "", "state_dir: " + dir + "\n");
+  ASSERT_TRUE(saw_status.subscribe(line.dds(), line.topic("saw1", "status"), QosKind::state));
+  ASSERT_TRUE(diag.subscribe(line.dds(), line.topic("bridge", "diagnostics"), QosKind::state));
+  ASSERT_TRUE(results.subscribe(line.dds(), line.topic("saw1", "setpoint_result"), QosKind::reply));
+  auto saw = line.dds().writer<msg::SawSetpointPubSubType>(line.topic("saw1", "setpoint"), QosKind::command);
+  ASSERT_TRUE(saw);
+  saw_writer = *saw;
+  ASSERT_TRUE(saw_status.wait_last(30s, operational)) << line.logs();
+  ASSERT_TRUE(wait_matched(*saw)) << "the setpoint writer never matched the bridge";
+  ASSERT_TRUE(answered_until(results, 1, [&] { set_saw(true, 1); })) << line.logs();
+  // 0005h: program on, the first length change toggled (bit 2); 5000 = 50.00 %; 12000 x 0.1 mm.
+  const auto file = dir + "/startup.set_values";
+  ASSERT_TRUE(lb::test::eventually(30s,
+                                   [&file] {
+                                     return read_text(file).find(
+                                                " rpdo1 60200010,60050010,60020020 05008813E02E0000") !=
+                                            std::string::npos;
+                                   }))
+      << "the set values in force never reached " << file << ":\n"
+      << read_text(file) << line.logs();
+  ASSERT_EQ(line.bridge().stop(), 0) << line.logs();
+  // A service tool writes 6020h := 0004h (program off, the toggle as it was); the saw confirms.
+  // One SYNC first: the saw takes the last synchronous RPDO the bridge sent at the next SYNC (CiA
+  // 301), which would otherwise overwrite the tool's value at the restarted bridge's first SYNC.
+  line.spy().clear();
+  ASSERT_TRUE(line.spy().send(lb::can::make_frame(0x080, {})));
+  ASSERT_TRUE(line.spy().send(lb::can::make_frame(0x605, {0x2B, 0x20, 0x60, 0x00, 0x04, 0x00, 0x00, 0x00})));
+  ASSERT_TRUE(frame_seen(line, 0x585, [](const lb::can::CanFrame& f) {
+    return f.data[0] == 0x60 && f.data[1] == 0x20 && f.data[2] == 0x60;
+  })) << "the saw did not confirm the write of 6020h";
+  line.spy().clear();
+  line.start_bridge();
+  const auto sent = line.spy().wait_count(0x205, 25);
+  ASSERT_GE(sent.size(), 25u) << line.logs();
+  for (const auto& f : sent) EXPECT_EQ(hex(f), "04008813E02E0000") << "the running saw was sent other values";
+  ASSERT_TRUE(start_note("saw1", "rpdo1 read back from the device (its write-only objects restored)"))
+      << last_note("saw1") << line.logs();
+}
+
 // A stop an operator sends while a restarted bridge boots a running saw is not undone by the
 // values kept at the bridge's last stop. The saw's heartbeat comes every 5 s here (its TPDOs every
 // SYNC), so the boot waits up to 5 s for a heartbeat after the configuration: the program-off

@@ -254,7 +254,8 @@ class DeviceOutput final : public canopen::NodeDriver {
                        pulses_->frame_not_sent(why == Transmitter::Refusal::bus
                                                    ? std::string("the bus refused the frame (diagnostics: tx_dropped)")
                                                    : why_not(k));
-                     }}),
+                     },
+                 .stopping = [this, k] { return stopping(k); }}),
          true,
          false,
          false,
@@ -484,13 +485,24 @@ class DeviceOutput final : public canopen::NodeDriver {
     if (const auto why = refuse_kept(r, *kept)) return make_error(*why);
     return kept->payload;
   }
-  bool readable(const Rpdo& r) const {
+  // Per mapping entry: whether the device can be asked for it (dummies need no asking).
+  std::vector<bool> readable_entries(const Rpdo& r) const {
+    std::vector<bool> out;
     for (const auto& e : mapping(r).entries()) {
-      if (e.is_dummy()) continue;
-      const auto* obj = ctx_.profile.object(e.index, e.sub);
-      if (obj == nullptr || !obj->readable()) return false;
+      const auto* obj = e.is_dummy() ? nullptr : ctx_.profile.object(e.index, e.sub);
+      out.push_back(e.is_dummy() || (obj != nullptr && obj->readable()));
     }
-    return true;
+    return out;
+  }
+  bool readable(const Rpdo& r) const {
+    const auto v = readable_entries(r);
+    return std::ranges::all_of(v, [](bool b) { return b; });
+  }
+  bool partly_readable(const Rpdo& r) const {
+    return std::ranges::any_of(mapping(r).entries(), [this](const auto& e) {
+      const auto* obj = e.is_dummy() ? nullptr : ctx_.profile.object(e.index, e.sub);
+      return obj != nullptr && obj->readable();
+    });
   }
 
   // The start-up policy, right before the device's NMT start, at every start. What its RPDOs carry:
@@ -511,6 +523,7 @@ class DeviceOutput final : public canopen::NodeDriver {
     std::vector<std::string> notes;
     std::vector<std::string> cleared;
     std::vector<std::size_t> read_back;
+    std::vector<std::vector<std::uint8_t>> read_base;  // per read_back: the kept values of write-only objects
     for (std::size_t k = 0; k < rpdos_.size(); ++k) {
       auto& r = rpdos_[k];
       const auto& name = def(r).name;
@@ -518,10 +531,15 @@ class DeviceOutput final : public canopen::NodeDriver {
       if (first && !r.told) {
         auto kept = kept_payload(r);
         if (scope == RestoreScope::all) {
-          if (ctx_.sdo != nullptr && readable(r)) {
+          // What the device holds beats any file: the file may lag the last change (it is written
+          // after the answer; a kill -9 right after an operator's program-off loses it). Objects
+          // the profile makes write-only come from the kept values, when there are any.
+          const bool all_readable = readable(r);
+          if (ctx_.sdo != nullptr && (all_readable || (kept && partly_readable(r)))) {
             r.silent = true;
             r.silent_why = name + " is being read back from the device (the bridge restarted while it ran)";
             read_back.push_back(k);
+            read_base.push_back(all_readable ? std::vector<std::uint8_t>{} : *kept);
             if (!kept) notes.push_back(fmt::format("{}: kept values not used ({})", name, kept.error().message));
             continue;
           }
@@ -562,7 +580,7 @@ class DeviceOutput final : public canopen::NodeDriver {
       spdlog::info("{}: {}", ctx_.device.name, note);
     ctx_.node.note_set_values_at_start(note);
     keep();
-    for (const auto k : read_back) start_read_back(k, note);
+    for (std::size_t i = 0; i < read_back.size(); ++i) start_read_back(read_back[i], note, read_base[i]);
   }
 
   void keep_silent(Rpdo& r, std::string why) {
@@ -571,10 +589,11 @@ class DeviceOutput final : public canopen::NodeDriver {
   }
 
   // A running device's RPDO as it holds it; if it cannot be read, the kept values, else silence.
-  void start_read_back(std::size_t k, const std::string& note) {
+  void start_read_back(std::size_t k, const std::string& note, const std::vector<std::uint8_t>& base) {
     const auto gen = start_generation_;
-    read_back_rpdo(*ctx_.sdo, ctx_.device.node_id, mapping(rpdos_[k]),
-                   [this, gen, k, note](Result<std::vector<std::uint8_t>> got) {
+    const bool partly = !base.empty();
+    read_back_rpdo(*ctx_.sdo, ctx_.device.node_id, mapping(rpdos_[k]), readable_entries(rpdos_[k]), base,
+                   [this, gen, k, note, partly](Result<std::vector<std::uint8_t>> got) {
                      // Off the loop thread only while the bridge shuts down (its SDO client completes what waits).
                      if (!ctx_.loop.on_loop_thread() || gen != start_generation_) return;
                      auto& r = rpdos_[k];
@@ -584,7 +603,8 @@ class DeviceOutput final : public canopen::NodeDriver {
                      if (got) {
                        static_cast<void>(codec_.receive(r.pdo, *got));
                        r.silent = false;
-                       result = name + " read back from the device";
+                       result = name + (partly ? " read back from the device (its write-only objects restored)"
+                                               : " read back from the device");
                      } else if (auto kept = kept_payload(r)) {
                        static_cast<void>(codec_.receive(r.pdo, *kept));
                        r.silent = false;
@@ -607,10 +627,18 @@ class DeviceOutput final : public canopen::NodeDriver {
                    });
   }
 
+  // The RPDO carries a stopping command being pressed now, to a device that is heard.
+  bool stopping(std::size_t k) const {
+    return stop_pulses_ > 0 && carries_control_word(rpdos_[k]) && ctx_.node.heard();
+  }
+
   bool may_send(std::size_t k) const {
     const auto& r = rpdos_[k];
     if (!r.valid_on_device || r.silent) return false;
     if (options_.silent_until_told && !told_any_) return false;
+    // A stop being pressed goes on for as long as it must be held, whatever is believed meanwhile
+    // (another master's SYNCs, a boot-up being judged): the device is heard.
+    if (stopping(k)) return true;
     if (ctx_.loop.transmission_held()) return false;  // another master's bus: only stops, at once
     // A boot-up is being judged: the device may have just rebooted (it takes no PDO until it is
     // started again, and must get nothing that enables then) or the frame was spoofed (it keeps

@@ -13,13 +13,14 @@ struct ReadBack {
   canopen::SdoClient& sdo;
   std::uint8_t node;
   canopen::PdoMapping mapping;
+  std::vector<bool> read;
   canopen::PdoMapping::Values values{};
   ReadBackDone done;
 };
 
 void next(const std::shared_ptr<ReadBack>& rb, std::size_t i) {
   const auto entries = rb->mapping.entries();
-  while (i < entries.size() && entries[i].is_dummy()) ++i;
+  while (i < entries.size() && (entries[i].is_dummy() || (i < rb->read.size() && !rb->read[i]))) ++i;
   if (i == entries.size()) {
     std::array<std::uint8_t, 8> out{};
     const auto n = rb->mapping.pack(std::span<const std::uint64_t>(rb->values.data(), entries.size()), out);
@@ -44,8 +45,16 @@ void next(const std::shared_ptr<ReadBack>& rb, std::size_t i) {
 
 }  // namespace
 
-void read_back_rpdo(canopen::SdoClient& sdo, std::uint8_t node, const canopen::PdoMapping& mapping, ReadBackDone done) {
-  next(std::make_shared<ReadBack>(ReadBack{sdo, node, mapping, {}, std::move(done)}), 0);
+void read_back_rpdo(canopen::SdoClient& sdo, std::uint8_t node, const canopen::PdoMapping& mapping,
+                    std::vector<bool> read, std::span<const std::uint8_t> base, ReadBackDone done) {
+  auto rb = std::make_shared<ReadBack>(ReadBack{sdo, node, mapping, std::move(read), {}, std::move(done)});
+  if (!base.empty()) {
+    if (auto ok = mapping.unpack(base, rb->values); !ok) {
+      return rb->done(
+          make_error("the values kept for its write-only objects do not fit its mapping: " + ok.error().message));
+    }
+  }
+  next(rb, 0);
 }
 
 }  // namespace lb::gateways
