@@ -23,6 +23,9 @@ using Completion = std::function<void()>;
 
 constexpr std::uint8_t kMaxNode = 127;
 constexpr std::uint64_t kMaxSdoSize = 0xFFFF'FFFF;  // the size field of an initiate frame
+// A stop that got no answer is sent again this many times (see the header): a device that was
+// just reset boots up within some 100 ms and answers SDO in pre-operational.
+constexpr int kStopRetries = 2;
 
 struct Request {
   std::uint16_t index = 0;
@@ -31,7 +34,8 @@ struct Request {
   SdoClient::Bytes data;              // download: the value to send
   std::optional<std::size_t> expect;  // upload: the size of the type read, when the caller knows it
   std::size_t max_waiting = 0;        // limited (a service call): refused when this many wait; 0 = not limited
-  bool stops = false;                 // a stop: sent while another master holds the bus
+  bool stops = false;                 // a stop: sent while another master holds the bus, ahead of non-stops
+  int retries_left = 0;               // a stop: attempts still allowed after a timeout
   SdoClient::UploadDone on_upload;
   SdoClient::DownloadDone on_download;
 };
@@ -115,10 +119,11 @@ class SdoClient::Core {
                                 "client destroyed"))();
       return;
     }
-    if (!refusal && r.max_waiting > 0) {
+    // A stop is never refused for the requests waiting: it goes ahead of them.
+    if (!refusal && r.max_waiting > 0 && !r.stops) {
       const auto& queue = nodes_[node].queue;
       const auto waiting = static_cast<std::size_t>(
-          std::count_if(queue.begin(), queue.end(), [](const Request& q) { return q.max_waiting > 0; }));
+          std::count_if(queue.begin(), queue.end(), [](const Request& q) { return q.max_waiting > 0 && !q.stops; }));
       if (waiting >= r.max_waiting) {
         refusal =
             SdoError{0, fmt::format("SDO node {} {:04X}h:{:02X}: refused, not sent: {} requests already wait for this "
@@ -128,6 +133,12 @@ class SdoClient::Core {
     }
     if (refusal) {
       ready_.push_back(failure(r, std::move(*refusal)));
+    } else if (r.stops) {
+      // Behind earlier stops, ahead of every non-stop; start_next() preempts a non-stop in flight.
+      auto& queue = nodes_[node].queue;
+      const auto first_other = std::find_if(queue.begin(), queue.end(), [](const Request& q) { return !q.stops; });
+      r.retries_left = kStopRetries;
+      queue.insert(first_other, std::move(r));
     } else {
       nodes_[node].queue.push_back(std::move(r));
     }
@@ -139,7 +150,8 @@ class SdoClient::Core {
     if (closed_) return;
     auto& queue = nodes_[node].queue;
     for (auto it = queue.begin(); it != queue.end();) {
-      if (it->max_waiting == 0) {
+      // A stop stays: it goes while the device is heard, whatever its heartbeat says.
+      if (it->max_waiting == 0 || it->stops) {
         ++it;
         continue;
       }
@@ -190,7 +202,11 @@ class SdoClient::Core {
       for (std::uint8_t node = 1; node <= kMaxNode; ++node) {
         auto& active = nodes_[node].active;
         if (!active || active->deadline > now) continue;
-        abort(node, sdo_abort::timed_out, fmt::format("no response within {} ms", timeout_.count()));
+        if (active->request.stops && active->request.retries_left > 0) {
+          retry_stop(node);
+        } else {
+          abort(node, sdo_abort::timed_out, fmt::format("no response within {} ms", timeout_.count()));
+        }
         start_next(node);
       }
       rearm();
@@ -284,8 +300,50 @@ class SdoClient::Core {
 
   // The client gives up on the transfer and tells the server (CiA 301: either side may abort).
   void abort(std::uint8_t node, std::uint32_t code, std::string_view detail) {
-    (void)loop_.send(frame(node, abort_payload(nodes_[node].active->request, code)));
+    send_abort(node, code);
     fail(node, code, SdoErrorOrigin::client, detail);
+  }
+
+  // The abort frame for node's transfer in flight; a stop's goes out as a stop does (its abort
+  // clears the way for its next attempt). A failed send is counted and logged by the loop.
+  void send_abort(std::uint8_t node, std::uint32_t code) {
+    const Request& r = nodes_[node].active->request;
+    const auto f = frame(node, abort_payload(r, code));
+    (void)(r.stops ? loop_.send_stop(f) : loop_.send(f));
+  }
+
+  // A stop's attempt got no answer in time: aborted on the bus (05040000h, as any timeout) and
+  // sent again from its first step, while attempts are left. A device that was just reset (an
+  // operator's burst: reset, then stop) misses the first attempt and answers a later one.
+  void retry_stop(std::uint8_t node) {
+    auto& active = nodes_[node].active;
+    send_abort(node, sdo_abort::timed_out);
+    Request r = std::move(active->request);
+    --r.retries_left;
+    spdlog::warn("{}: SDO stop to node {} {:04X}h:{:02X}h: no response within {} ms, sent again ({} more attempts)",
+                 loop_.bus().uri(), node, r.index, r.sub, timeout_.count(), r.retries_left);
+    active.emplace();
+    active->request = std::move(r);
+    begin(node);  // may complete at once (send failed)
+  }
+
+  // A stop waits behind no transfer that is not a stop: the one in flight is aborted on the bus
+  // and goes back to the queue, right behind the stops, to be restarted from its first step (with
+  // a fresh timeout); its requester sees only its later answer. Abort code 08000000h (general
+  // error): CiA 301 has no code for "the client gives up this transfer for a more urgent one", and
+  // 05040000h would claim a timeout that did not happen.
+  void preempt_for_stop(std::uint8_t node) {
+    auto& ns = nodes_[node];
+    Request r = std::move(ns.active->request);
+    spdlog::info("{}: SDO {:04X}h:{:02X}h of node {} aborted for a stop; restarted after it", loop_.bus().uri(),
+                 r.index, r.sub, node);
+    {
+      const auto f = frame(node, abort_payload(r, sdo_abort::general_error));
+      (void)loop_.send_stop(f);  // part of the stop: it clears the server for the stop's frame
+    }
+    ns.active.reset();
+    const auto first_other = std::find_if(ns.queue.begin(), ns.queue.end(), [](const Request& q) { return !q.stops; });
+    ns.queue.insert(first_other, std::move(r));
   }
 
   // Sends the next step of node's transfer and starts its timeout; completes it when the bus
@@ -300,6 +358,9 @@ class SdoClient::Core {
 
   void start_next(std::uint8_t node) {
     auto& ns = nodes_[node];
+    if (ns.active && !ns.active->request.stops && !ns.queue.empty() && ns.queue.front().stops) {
+      preempt_for_stop(node);
+    }
     while (!ns.active && !ns.queue.empty()) {
       ns.active.emplace();
       ns.active->request = std::move(ns.queue.front());
@@ -343,6 +404,17 @@ class SdoClient::Core {
     abort(node, sdo_abort::invalid_command_specifier, fmt::format("unexpected response {:02X}h", cmd));
   }
 
+  // Whether a server command specifier (not an abort) may answer the step.
+  static bool fits_step(Step step, std::uint8_t cmd) {
+    switch (step) {
+      case Step::upload_initiate: return (cmd & 0xE0) == 0x40;
+      case Step::upload_segment: return (cmd & 0xE0) == 0x00;
+      case Step::download_initiate: return (cmd & 0xE0) == 0x60;
+      case Step::download_segment: return (cmd & 0xE0) == 0x20;
+    }
+    return false;
+  }
+
   void handle_response(std::uint8_t node, const can::CanFrame& f) {
     auto& ns = nodes_[node];
     if (!ns.active) {
@@ -372,6 +444,15 @@ class SdoClient::Core {
       return;
     }
     if (cmd == 0x80) return fail(node, get_u32(d), SdoErrorOrigin::server);
+    // A stop may have preempted a transfer of the same object, or one in its segments (whose
+    // answers name no object): an answer of the wrong kind for the stop's step is that transfer's
+    // late answer, not the stop's. Ignored rather than taken as a protocol error that would abort
+    // the stop: it goes on waiting for its own answer.
+    if (t.request.stops && !fits_step(t.step, cmd)) {
+      spdlog::debug("{}: SDO answer {:02X}h of node {} ignored: not an answer to the stop {:04X}h:{:02X}h in flight",
+                    loop_.bus().uri(), cmd, node, t.request.index, t.request.sub);
+      return;
+    }
     switch (t.step) {
       case Step::upload_initiate: {
         if ((cmd & 0xE0) != 0x40) return unexpected(node, cmd);

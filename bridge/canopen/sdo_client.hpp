@@ -10,6 +10,13 @@
 //     on the bus), or with the client's own abort code when the server broke the protocol;
 //   - with 08000000h (general error, origin local) when the frame could not be sent or the client
 //     is destroyed first.
+// A stop (Limit::stops) waits behind no other transfer: it is queued behind earlier stops only,
+// and a transfer in flight that is not a stop is aborted on the bus (08000000h) for it and
+// restarted from its first step after it (its requester sees only that later answer). A stop
+// that times out is sent again, up to 2 more attempts of `timeout` each (a device that was just
+// reset answers a later one); only then it completes with 05040000h. While a stop is in flight an
+// answer of the wrong kind for its step (a late answer to the transfer it preempted) is ignored.
+// A stop is never refused for the queue limit nor cancelled by cancel_waiting.
 // Callbacks run on the loop thread, except on destruction: requests still pending then complete on
 // the destroying thread before ~SdoClient returns, and no callback runs after it returned.
 
@@ -54,7 +61,8 @@ class SdoClient {
   struct Limit {
     std::size_t max_waiting = 8;
     // The request stops a machine (the feeder box's 600Eh stop modes): its frames go out while
-    // another master holds the bus (BusLoop::send_stop).
+    // another master holds the bus (BusLoop::send_stop), ahead of every other transfer to the
+    // node, and it is retried after a timeout (see the top of this file).
     bool stops = false;
   };
 
@@ -80,7 +88,7 @@ class SdoClient {
             std::optional<Limit> limit = std::nullopt);
   void write(std::uint8_t node, std::uint16_t index, std::uint8_t sub, DataType type, const ObjectValue& value,
              DownloadDone done, std::optional<Limit> limit = std::nullopt);
-  // Any thread: every limited request still waiting for node (not the one in flight) fails at once
+  // Any thread: every limited request but a stop still waiting for node (not the one in flight) fails at once
   // with `reason` (a device that went offline: they could only time out one after another).
   void cancel_waiting(std::uint8_t node, const std::string& reason);
 

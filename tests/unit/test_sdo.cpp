@@ -786,6 +786,109 @@ TEST_F(Sdo, ALateAnswerToAnEarlierTransferDoesNotAbortTheNext) {
   expect_quiet(*tap_);  // the client aborted nothing
 }
 
+// ---- stops (Limit::stops, the feeder box's 600Eh): never behind another transfer -----------------
+
+// A stop as FeederGateway::write_now sends it, its answer as a future.
+std::future<SdoClient::DownloadResult> stop_async(SdoClient& client, std::uint8_t node, std::uint16_t index,
+                                                  std::uint8_t sub, Bytes data) {
+  auto p = std::make_shared<std::promise<SdoClient::DownloadResult>>();
+  auto f = p->get_future();
+  client.download(
+      node, index, sub, std::move(data), [p](SdoClient::DownloadResult r) { p->set_value(std::move(r)); },
+      SdoClient::Limit{.max_waiting = 8, .stops = true});
+  return f;
+}
+
+// The fault campaign's case: a boot read in flight to a device that does not answer held the
+// operator's stop back until the read's timeout (up to 1 s). Now the read is aborted on the bus
+// (08000000h), the stop goes out at once, and the read is restarted after it, ahead of what waited.
+TEST_F(Sdo, AStopPreemptsAReadWaitingForASilentServer) {
+  SdoClient& client = make_client();  // 1000 ms
+  start();
+  auto read = client.upload_async(7, 0x1000, 0);
+  auto waiting = client.upload_async(7, 0x1018, 1);
+  expect_traffic(*tap_, {{0x607, {0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0}}});
+  const auto t0 = Clock::now();
+  auto stop = stop_async(client, 7, 0x600E, 0, Bytes{0x01});
+  expect_traffic(*tap_, {{0x607, {0x80, 0x00, 0x10, 0x00, 0x00, 0x00, 0x00, 0x08}},
+                         {0x607, {0x2F, 0x0E, 0x60, 0x00, 0x01, 0, 0, 0}}});
+  EXPECT_LT(Clock::now() - t0, 100ms) << "a stop accepted must be on the bus within 100 ms";
+  ASSERT_TRUE(tap_->send(sdo_frame(0x587, {0x60, 0x0E, 0x60, 0x00, 0, 0, 0, 0})));
+  auto rs = wait(stop);
+  ASSERT_TRUE(rs) << rs.error().message;
+  EXPECT_EQ(read.wait_for(0ms), std::future_status::timeout) << "the preempted read completed";
+  // The read again from its first step, then the request that waited behind it.
+  expect_traffic(*tap_, {{0x607, {0x40, 0x00, 0x10, 0x00, 0, 0, 0, 0}}});
+  ASSERT_TRUE(tap_->send(sdo_frame(0x587, {0x43, 0x00, 0x10, 0x00, 0xA4, 0x01, 0x00, 0x00})));
+  auto rr = wait(read);
+  ASSERT_TRUE(rr) << rr.error().message;
+  EXPECT_EQ(hex(*rr), "A4 01 00 00");
+  expect_traffic(*tap_, {{0x607, {0x40, 0x18, 0x10, 0x01, 0, 0, 0, 0}}});
+  ASSERT_TRUE(tap_->send(sdo_frame(0x587, {0x43, 0x18, 0x10, 0x01, 0x00, 0x00, 0x42, 0x4C})));
+  auto rw = wait(waiting);
+  ASSERT_TRUE(rw) << rw.error().message;
+  expect_quiet(*tap_);
+}
+
+// The server's answer to the preempted read crosses the client's abort. It names the very object
+// the stop writes (only its kind tells it apart), and an older late answer names another object:
+// neither completes nor aborts the stop, which takes its own answer.
+TEST_F(Sdo, ALateAnswerToThePreemptedReadDoesNotCompleteTheStop) {
+  SdoClient& client = make_client();
+  start();
+  auto read = client.upload_async(7, 0x600E, 0);
+  expect_traffic(*tap_, {{0x607, {0x40, 0x0E, 0x60, 0x00, 0, 0, 0, 0}}});
+  auto stop = stop_async(client, 7, 0x600E, 0, Bytes{0x01});
+  expect_traffic(*tap_, {{0x607, {0x80, 0x0E, 0x60, 0x00, 0x00, 0x00, 0x00, 0x08}},
+                         {0x607, {0x2F, 0x0E, 0x60, 0x00, 0x01, 0, 0, 0}}});
+  ASSERT_TRUE(tap_->send(sdo_frame(0x587, {0x4F, 0x0E, 0x60, 0x00, 0x00, 0, 0, 0})));
+  ASSERT_TRUE(tap_->send(sdo_frame(0x587, {0x43, 0x00, 0x10, 0x00, 0xA4, 0x01, 0x00, 0x00})));
+  expect_quiet(*tap_, 200ms);  // nothing aborted
+  EXPECT_EQ(stop.wait_for(0ms), std::future_status::timeout) << "a late answer completed the stop";
+  EXPECT_EQ(read.wait_for(0ms), std::future_status::timeout);
+  ASSERT_TRUE(tap_->send(sdo_frame(0x587, {0x60, 0x0E, 0x60, 0x00, 0, 0, 0, 0})));
+  auto rs = wait(stop);
+  ASSERT_TRUE(rs) << rs.error().message;
+  expect_traffic(*tap_, {{0x607, {0x40, 0x0E, 0x60, 0x00, 0, 0, 0, 0}}});
+  ASSERT_TRUE(tap_->send(sdo_frame(0x587, {0x4F, 0x0E, 0x60, 0x00, 0x01, 0, 0, 0})));
+  auto rr = wait(read);
+  ASSERT_TRUE(rr) << rr.error().message;
+  EXPECT_EQ(hex(*rr), "01");
+  expect_quiet(*tap_);
+}
+
+// An operator's burst: NMT reset, then the stop. The resetting device misses the first attempt;
+// the client sends the stop again and the device, booted, answers it: accepted.
+TEST_F(Sdo, AStopWithoutAnswerIsSentAgain) {
+  SdoClient& client = make_client(200ms);
+  start();
+  auto stop = stop_async(client, 7, 0x600E, 0, Bytes{0x01});
+  expect_traffic(*tap_, {{0x607, {0x2F, 0x0E, 0x60, 0x00, 0x01, 0, 0, 0}},
+                         {0x607, {0x80, 0x0E, 0x60, 0x00, 0x00, 0x00, 0x04, 0x05}},
+                         {0x607, {0x2F, 0x0E, 0x60, 0x00, 0x01, 0, 0, 0}}});
+  ASSERT_TRUE(tap_->send(sdo_frame(0x587, {0x60, 0x0E, 0x60, 0x00, 0, 0, 0, 0})));
+  auto r = wait(stop);
+  ASSERT_TRUE(r) << r.error().message;
+  expect_quiet(*tap_, 300ms);
+}
+
+// Three attempts, then the timeout: refused with 05040000h, as any request.
+TEST_F(Sdo, AStopNeverAnsweredTimesOutAfterThreeAttempts) {
+  SdoClient& client = make_client(100ms);
+  start();
+  const auto t0 = Clock::now();
+  auto stop = stop_async(client, 7, 0x600E, 0, Bytes{0x01});
+  auto r = wait(stop);
+  EXPECT_GE(Clock::now() - t0, 300ms);
+  ASSERT_FALSE(r);
+  EXPECT_EQ(r.error().abort_code, sdo_abort::timed_out);
+  for (int i = 0; i < 3; ++i) {
+    expect_traffic(*tap_, {{0x607, {0x2F, 0x0E, 0x60, 0x00, 0x01, 0, 0, 0}},
+                           {0x607, {0x80, 0x0E, 0x60, 0x00, 0x00, 0x00, 0x04, 0x05}}});
+  }
+  expect_quiet(*tap_);
+}
+
 // ---- the server against raw frames ---------------------------------------------------------------
 
 TEST_F(Sdo, ServerRefusesBadCommandSpecifiersAndToggles) {
