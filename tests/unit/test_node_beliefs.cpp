@@ -17,6 +17,7 @@
 //    reset_time_ms), heartbeat timeout 400 ms: one state not commanded (a service tool's NMT
 //    enter pre-operational) gets exactly one NMT reset node, and the saw is operational again.
 #include <gtest/gtest.h>
+#include <spdlog/spdlog.h>
 #include <unistd.h>
 
 #include <algorithm>
@@ -124,6 +125,9 @@ class NodeBeliefs : public ::testing::Test {
     sync_->start();
     device_loop_ = std::make_unique<co::BusLoop>(lb::can::open_bus(bus).value());
     device_ = lb::sim::make_simulator(*device_loop_, config_.devices.at(0));
+    // spdlog's registry is made at its first use; made here, before the loops' threads log
+    // (uninstrumented libspdlog: ThreadSanitizer cannot see its static's guard).
+    static_cast<void>(spdlog::default_logger());
     master_->start();
     master_->post([this] { machine_->start(); });
     device_->start();  // power-on: its boot-up

@@ -317,7 +317,11 @@ void SetValueStore::run() {
         holds_dirty_ = !stopping_;
       }
     }
-    if (stopping_) return;
+    // What changed while the last write ran (the lock is released for it) is written before the end.
+    if (stopping_) {
+      if (!dirty_ && !holds_dirty_) return;
+      continue;
+    }
     // Coalesce: set values change in bursts (a ramp, a pulse); one write per interval is enough.
     cv_.wait_for(lock, kWriteInterval, [this] { return stopping_; });
   }
