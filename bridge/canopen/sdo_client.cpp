@@ -26,6 +26,9 @@ constexpr std::uint64_t kMaxSdoSize = 0xFFFF'FFFF;  // the size field of an init
 // A stop that got no answer is sent again this many times (see the header): a device that was
 // just reset boots up within some 100 ms and answers SDO in pre-operational.
 constexpr int kStopRetries = 2;
+// A stop's attempt waits at most this long for its answer, whatever the line's SDO timeout (a slow
+// device's long reads): its caller learns within a few seconds what became of the stop.
+constexpr std::chrono::milliseconds kStopAttemptTimeout{1000};
 
 struct Request {
   std::uint16_t index = 0;
@@ -205,7 +208,8 @@ class SdoClient::Core {
         if (active->request.stops && active->request.retries_left > 0) {
           retry_stop(node);
         } else {
-          abort(node, sdo_abort::timed_out, fmt::format("no response within {} ms", timeout_.count()));
+          const auto waited = active->request.stops ? std::min(timeout_, kStopAttemptTimeout) : timeout_;
+          abort(node, sdo_abort::timed_out, fmt::format("no response within {} ms", waited.count()));
         }
         start_next(node);
       }
@@ -321,7 +325,8 @@ class SdoClient::Core {
     Request r = std::move(active->request);
     --r.retries_left;
     spdlog::warn("{}: SDO stop to node {} {:04X}h:{:02X}h: no response within {} ms, sent again ({} more attempts)",
-                 loop_.bus().uri(), node, r.index, r.sub, timeout_.count(), r.retries_left);
+                 loop_.bus().uri(), node, r.index, r.sub, std::min(timeout_, kStopAttemptTimeout).count(),
+                 r.retries_left);
     active.emplace();
     active->request = std::move(r);
     begin(node);  // may complete at once (send failed)
@@ -353,7 +358,8 @@ class SdoClient::Core {
     if (auto sent = nodes_[node].active->request.stops ? loop_.send_stop(f) : loop_.send(f); !sent) {
       return fail(node, sdo_abort::general_error, SdoErrorOrigin::local, "bus send failed: " + sent.error().message);
     }
-    nodes_[node].active->deadline = Clock::now() + timeout_;
+    auto& active = nodes_[node].active;
+    active->deadline = Clock::now() + (active->request.stops ? std::min(timeout_, kStopAttemptTimeout) : timeout_);
   }
 
   void start_next(std::uint8_t node) {

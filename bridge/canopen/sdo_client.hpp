@@ -13,7 +13,7 @@
 // A stop (Limit::stops) waits behind no other transfer: it is queued behind earlier stops only,
 // and a transfer in flight that is not a stop is aborted on the bus (08000000h) for it and
 // restarted from its first step after it (its requester sees only that later answer). A stop
-// that times out is sent again, up to 2 more attempts of `timeout` each (a device that was just
+// that times out is sent again, up to 2 more attempts of `timeout` each, at most 1 s (a device just
 // reset answers a later one); only then it completes with 05040000h. While a stop is in flight an
 // answer of the wrong kind for its step (a late answer to the transfer it preempted) is ignored.
 // A stop is never refused for the queue limit nor cancelled by cancel_waiting.

@@ -287,13 +287,22 @@ void FeederGateway::write_now(const FeederCodec::Write& w, WriteReply reply, std
   limit.stops = stop;
   ctx_.sdo->write(
       ctx_.device.node_id, obj->index, obj->sub, obj->type, canopen::ObjectValue{w.raw},
-      [this, obj, raw = w.raw, reply = std::move(reply),
-       then = std::move(then)](const canopen::SdoClient::DownloadResult& r) {
+      [this, obj, raw = w.raw, reply = std::move(reply), then = std::move(then),
+       stop](const canopen::SdoClient::DownloadResult& r) {
         if (r && then) return then();
         srv::FeederWrite_Response resp;
         resp.success(r.has_value());
         resp.raw(raw);
-        if (!r) {
+        // A stop is accepted once it is on the bus, as a stop by PDO is (canopen-master.md, the
+        // stop path): a heard device that answers none of its attempts (stalled, busy resetting)
+        // did get the frames; only its own abort or a frame never sent refuses it.
+        if (!r && stop && r.error().abort_code == canopen::sdo_abort::timed_out) {
+          resp.success(true);
+          resp.abort_code(r.error().abort_code);
+          resp.message(obj->name + ": on the bus, not confirmed: " + r.error().message);
+          spdlog::warn("{}: {} = {:X}h sent, not confirmed by the device: {}", ctx_.device.name, obj->name, raw,
+                       r.error().message);
+        } else if (!r) {
           resp.abort_code(r.error().abort_code);
           resp.message(obj->name + ": " + r.error().message);
           spdlog::warn("{}: {} = {:X}h refused by the device: {}", ctx_.device.name, obj->name, raw, r.error().message);

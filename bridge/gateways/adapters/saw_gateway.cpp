@@ -37,8 +37,8 @@ SawGateway::SawGateway(DeviceContext context)
            .state_pdo = {}},
           [this] { publish_status(ddsl::now_ns()); }),
       command_service_(context, saw_commands(codec_),
-                       [this](const CommandBit& c, const auto& refuse, MomentaryCommands::Done done) {
-                         output_.press(c, refuse, std::move(done));
+                       [this](const CommandBit& c, const auto& refuse, const MomentaryCommands::Done& done) {
+                         output_.press(c, refuse, done);
                        }) {
   const std::string& dev = ctx_.device.name;
   const std::string& line = ctx_.line;

@@ -583,9 +583,9 @@ class DeviceOutput final : public canopen::NodeDriver {
     for (std::size_t i = 0; i < read_back.size(); ++i) start_read_back(read_back[i], note, read_base[i]);
   }
 
-  void keep_silent(Rpdo& r, std::string why) {
+  void keep_silent(Rpdo& r, const std::string& why) {
     r.silent = true;
-    r.silent_why = std::move(why);
+    r.silent_why = why;
   }
 
   // A running device's RPDO as it holds it; if it cannot be read, the kept values, else silence.

@@ -29,7 +29,14 @@ inline std::string sdo_refusal(const DeviceContext& ctx, bool answered_boot = fa
   }
   if (!stop && !ctx.node.online() && !answered_boot)
     return ctx.device.name + " is offline (no heartbeat): SDO request not sent";
-  if (ctx.node.state() == canopen::NmtState::stopped) {
+  // A stop is refused as stopped only when everything agrees: the bridge itself may just have
+  // started the device (an operator's NMT start) and its first operational heartbeat may be under
+  // way; a stop sent to a stopped device costs a timeout, one refused to a running one a machine.
+  const bool stopped = stop ? ctx.node.state() == canopen::NmtState::stopped &&
+                                  ctx.node.reported_state() == canopen::NmtState::stopped &&
+                                  ctx.node.commanded_state() == canopen::NmtState::stopped
+                            : ctx.node.state() == canopen::NmtState::stopped;
+  if (stopped) {
     return ctx.device.name + " is stopped (NMT): a stopped device answers no SDO (CiA 301); SDO request not sent";
   }
   return {};
