@@ -134,6 +134,19 @@ TEST(SafetyJudge, AnOperatorsStartAfterTheOperatorsStopResumesTheSetValuesInForc
   nmt(booted_meanwhile, Kind::nmt_start, 895);
   booted_meanwhile.at(850, 0x705, {0x00});
   EXPECT_EQ(booted_meanwhile.verdict("I1").size(), 1u);
+  // The stopped heartbeat that answers the operator's NMT stop stamped 1 ms before it (two
+  // senders' stamps; seen in the fault campaign): still the operator's stop.
+  auto answer_stamped_first = line();
+  answer_stamped_first.at(699, 0x705, {0x04});
+  nmt(answer_stamped_first, Kind::nmt_stop, 695);
+  nmt(answer_stamped_first, Kind::nmt_start, 895);
+  EXPECT_TRUE(answer_stamped_first.verdict("I1").empty()) << answer_stamped_first.verdict("I1").front();
+  // Stopped 50 ms before the operator's NMT stop (by someone else): the operator's start is a start.
+  auto stopped_before = line();
+  stopped_before.at(650, 0x705, {0x04});
+  nmt(stopped_before, Kind::nmt_stop, 695);
+  nmt(stopped_before, Kind::nmt_start, 895);
+  EXPECT_EQ(stopped_before.verdict("I1").size(), 1u);
 }
 
 TEST(SafetyJudge, AStopIsOnTheBusWithin100MsOrRefusedWithAReasonWhileNotHeard) {

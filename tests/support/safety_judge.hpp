@@ -55,6 +55,9 @@
 namespace lb::test::safety {
 
 inline constexpr std::int64_t kStopWithinNs = 100'000'000;
+// How much earlier than the NMT command it answers a device's heartbeat may be stamped (two
+// senders' stamps; the fault campaign saw the answer first, within the same millisecond).
+inline constexpr std::int64_t kAnswerStampSkewNs = 2'000'000;
 // An unanswered request is put down to an outage of the bridge when one began or lasted within this
 // time of the request's writing (a request in flight when a process is killed is lost with it).
 inline constexpr std::int64_t kOutageReachNs = 2'000'000'000;
@@ -304,6 +307,15 @@ class SafetyJudge {
       if (state == State::operational || state == State::unknown) left = &f;
       state = to;
     };
+    // The device's heartbeat that answers an NMT command may carry a stamp a little before the
+    // command's: two senders stamp their own frames, and the device answers within microseconds.
+    // Such a heartbeat left operational because of that command, not by itself.
+    const auto caused = [&](const lb::can::CanFrame& command, std::uint8_t answer) {
+      if (left != nullptr && left->id == d_.heartbeat_id() && (left->data[0] & 0x7F) == answer &&
+          command.timestamp_ns - left->timestamp_ns <= kAnswerStampSkewNs) {
+        left = &command;
+      }
+    };
     for (const auto& f : frames) {
       if (f.id == d_.heartbeat_id() && f.len >= 1) {
         const auto s = f.data[0] & 0x7F;
@@ -337,8 +349,14 @@ class SafetyJudge {
               state = State::operational;
             }
             break;
-          case 0x02: leave(f, State::stopped); break;
+          case 0x02:
+            caused(f, 0x04);
+            leave(f, State::stopped);
+            break;
           case 0x80:
+            caused(f, 0x7F);
+            leave(f, State::pre_operational);
+            break;
           case 0x81:
           case 0x82: leave(f, State::pre_operational); break;
           default: break;
