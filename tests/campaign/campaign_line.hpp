@@ -269,21 +269,6 @@ class CampaignLine {
     ::kill(p->pid(), SIGKILL);
     eventually(std::chrono::seconds(10), [&] { return !p->running(); });
   }
-  // The children of a process, from every one of its threads' lists (the supervisor thread forks).
-  static std::vector<pid_t> children_of(pid_t pid) {
-    std::vector<pid_t> out;
-    const std::string tasks = "/proc/" + std::to_string(pid) + "/task";
-    DIR* dir = ::opendir(tasks.c_str());
-    if (dir == nullptr) return out;
-    while (auto* e = ::readdir(dir)) {
-      if (e->d_name[0] == '.') continue;
-      std::ifstream f(tasks + "/" + e->d_name + "/children");
-      pid_t child = 0;
-      while (f >> child) out.push_back(child);
-    }
-    ::closedir(dir);
-    return out;
-  }
 
   // The bus process ends now (the kill or stop is sent next): what it hears ends, an outage begins.
   void ended(const std::string& what) {

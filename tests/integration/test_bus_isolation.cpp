@@ -64,21 +64,7 @@ constexpr std::int64_t kWidestSyncGapNs = kSanitized ? 250'000'000 : 2 * kSyncPe
 // p50 90 ms, max 985 ms), so the bound is 2 s and the distribution is printed.
 constexpr double kBackWithinMs = kSanitized ? 10'000.0 : 2'000.0;
 
-// The children of a process, from every one of its threads' lists (the supervisor thread forks).
-std::vector<pid_t> children_of(pid_t pid) {
-  std::vector<pid_t> out;
-  const std::string tasks = "/proc/" + std::to_string(pid) + "/task";
-  DIR* dir = ::opendir(tasks.c_str());
-  if (dir == nullptr) return out;
-  while (auto* e = ::readdir(dir)) {
-    if (e->d_name[0] == '.') continue;
-    std::ifstream f(tasks + "/" + e->d_name + "/children");
-    pid_t child = 0;
-    while (f >> child) out.push_back(child);
-  }
-  ::closedir(dir);
-  return out;
-}
+using lb::test::children_of;
 
 struct Seen {
   std::mutex m;

@@ -2,6 +2,7 @@
 // A real executable started by a test, with its output in a log file, stopped with SIGTERM (then
 // SIGKILL) when the test ends, so a failing test never leaves processes behind.
 
+#include <dirent.h>
 #include <fcntl.h>
 #include <signal.h>
 #include <spawn.h>
@@ -79,5 +80,22 @@ class ChildProcess {
   pid_t pid_ = -1;
   int exit_status_ = 0;
 };
+
+// The children of a process, from every one of its threads' lists (a thread that forks, e.g. the
+// bridge's DDS supervisor, lists its children under its own task).
+inline std::vector<pid_t> children_of(pid_t pid) {
+  std::vector<pid_t> out;
+  const std::string tasks = "/proc/" + std::to_string(pid) + "/task";
+  DIR* dir = ::opendir(tasks.c_str());
+  if (dir == nullptr) return out;
+  while (auto* e = ::readdir(dir)) {
+    if (e->d_name[0] == '.') continue;
+    std::ifstream f(tasks + "/" + e->d_name + "/children");
+    pid_t child = 0;
+    while (f >> child) out.push_back(child);
+  }
+  ::closedir(dir);
+  return out;
+}
 
 }  // namespace lb::test

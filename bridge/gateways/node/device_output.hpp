@@ -494,15 +494,14 @@ class DeviceOutput final : public canopen::NodeDriver {
     }
     return out;
   }
-  bool readable(const Rpdo& r) const {
-    const auto v = readable_entries(r);
-    return std::ranges::all_of(v, [](bool b) { return b; });
-  }
+  // Some mapped object (not a dummy) the device can be asked for.
   bool partly_readable(const Rpdo& r) const {
-    return std::ranges::any_of(mapping(r).entries(), [this](const auto& e) {
-      const auto* obj = e.is_dummy() ? nullptr : ctx_.profile.object(e.index, e.sub);
-      return obj != nullptr && obj->readable();
-    });
+    const auto entries = mapping(r).entries();
+    const auto read = readable_entries(r);
+    for (std::size_t i = 0; i < read.size(); ++i) {
+      if (read[i] && !entries[i].is_dummy()) return true;
+    }
+    return false;
   }
 
   // The start-up policy, right before the device's NMT start, at every start. What its RPDOs carry:
@@ -534,7 +533,8 @@ class DeviceOutput final : public canopen::NodeDriver {
           // What the device holds beats any file: the file may lag the last change (it is written
           // after the answer; a kill -9 right after an operator's program-off loses it). Objects
           // the profile makes write-only come from the kept values, when there are any.
-          const bool all_readable = readable(r);
+          const auto read = readable_entries(r);
+          const bool all_readable = std::ranges::all_of(read, [](bool b) { return b; });
           if (ctx_.sdo != nullptr && (all_readable || (kept && partly_readable(r)))) {
             r.silent = true;
             r.silent_why = name + " is being read back from the device (the bridge restarted while it ran)";
