@@ -141,6 +141,23 @@ TEST(SafetyJudge, AnOperatorsStartAfterTheOperatorsStopResumesTheSetValuesInForc
   nmt(answer_stamped_first, Kind::nmt_stop, 695);
   nmt(answer_stamped_first, Kind::nmt_start, 895);
   EXPECT_TRUE(answer_stamped_first.verdict("I1").empty()) << answer_stamped_first.verdict("I1").front();
+  // Under load the two stamps drift further apart (the campaign beside CI: 1 ms after the
+  // request's writing, before the command's frame): after the operator's request was written, the
+  // stopped heartbeat answers it.
+  auto answer_stamped_far_first = line();
+  answer_stamped_far_first.at(696, 0x705, {0x04});
+  nmt(answer_stamped_far_first, Kind::nmt_stop, 695);
+  nmt(answer_stamped_far_first, Kind::nmt_start, 895);
+  EXPECT_TRUE(answer_stamped_far_first.verdict("I1").empty()) << answer_stamped_far_first.verdict("I1").front();
+  // Stopped 5 ms before the operator wrote the stop (by someone else, the command 10 ms later): a
+  // start, and the violation names the operator's request near the heartbeat.
+  auto stopped_just_before = line();
+  stopped_just_before.at(690, 0x705, {0x04});
+  nmt(stopped_just_before, Kind::nmt_stop, 695);
+  nmt(stopped_just_before, Kind::nmt_start, 895);
+  ASSERT_EQ(stopped_just_before.verdict("I1").size(), 1u);
+  EXPECT_NE(stopped_just_before.verdict("I1").front().find("near it: 'request at 695 ms'"), std::string::npos)
+      << stopped_just_before.verdict("I1").front();
   // Stopped 50 ms before the operator's NMT stop (by someone else): the operator's start is a start.
   auto stopped_before = line();
   stopped_before.at(650, 0x705, {0x04});

@@ -281,13 +281,30 @@ class SafetyJudge {
     return "its boot-up";
   }
 
-  // An accepted operator's request of this kind whose frame `f` is (sent between its writing and
-  // its answer).
-  static bool requested(const std::vector<OperatorRequest>& requests, OperatorRequest::Kind kind,
-                        const lb::can::CanFrame& f) {
-    return std::any_of(requests.begin(), requests.end(), [&](const OperatorRequest& r) {
+  // The accepted operator's request of this kind whose frame `f` is (sent between its writing and
+  // its answer), or nullptr.
+  static const OperatorRequest* request_of(const std::vector<OperatorRequest>& requests, OperatorRequest::Kind kind,
+                                           const lb::can::CanFrame& f) {
+    const auto it = std::find_if(requests.begin(), requests.end(), [&](const OperatorRequest& r) {
       return r.kind == kind && r.accepted && r.written_ns <= f.timestamp_ns && f.timestamp_ns <= r.answered_ns;
     });
+    return it == requests.end() ? nullptr : &*it;
+  }
+  static bool requested(const std::vector<OperatorRequest>& requests, OperatorRequest::Kind kind,
+                        const lb::can::CanFrame& f) {
+    return request_of(requests, kind, f) != nullptr;
+  }
+  // The operator's requests written within 200 ms of `f`, with their answers: what a reader of a
+  // violation needs to tell a device's own act from the answer to a request.
+  std::string requests_near(const std::vector<OperatorRequest>& requests, const lb::can::CanFrame& f) const {
+    constexpr std::int64_t kNearNs = 200'000'000;
+    std::string out;
+    for (const auto& r : requests) {
+      if (r.written_ns >= f.timestamp_ns - kNearNs && r.written_ns <= f.timestamp_ns + kNearNs) {
+        out += "; near it: " + request(r);
+      }
+    }
+    return out.empty() ? "; no operator's request written within 200 ms of it" : out;
   }
 
   void starts(const Frames& frames, const std::vector<OperatorRequest>& requests, const std::vector<std::int64_t>& on,
@@ -301,18 +318,23 @@ class SafetyJudge {
       std::string kind;
       std::size_t enabled = 0;  // enabling RPDOs after it without an operator's set value
       const lb::can::CanFrame* first = nullptr;
+      const lb::can::CanFrame* left = nullptr;  // what took the device out of operational before it
     };
     std::vector<Start> starts;
     const auto leave = [&](const lb::can::CanFrame& f, State to) {
       if (state == State::operational || state == State::unknown) left = &f;
       state = to;
     };
-    // The device's heartbeat that answers an NMT command may carry a stamp a little before the
-    // command's: two senders stamp their own frames, and the device answers within microseconds.
-    // Such a heartbeat left operational because of that command, not by itself.
-    const auto caused = [&](const lb::can::CanFrame& command, std::uint8_t answer) {
-      if (left != nullptr && left->id == d_.heartbeat_id() && (left->data[0] & 0x7F) == answer &&
-          command.timestamp_ns - left->timestamp_ns <= kAnswerStampSkewNs) {
+    // The device's heartbeat that answers an NMT command may carry a stamp before the command's:
+    // two senders stamp their own frames, and the device answers within microseconds. Such a
+    // heartbeat left operational because of that command, not by itself: when it is stamped
+    // within kAnswerStampSkewNs of the command, or, for the operator's accepted request whose frame
+    // the command is, after that request was written (under load the two stamps drift further
+    // apart: the fault campaign's run beside CI, feeders +1568.265 s).
+    const auto caused = [&](const lb::can::CanFrame& command, std::uint8_t answer, const OperatorRequest* by) {
+      if (left == nullptr || left->id != d_.heartbeat_id() || (left->data[0] & 0x7F) != answer) return;
+      if (command.timestamp_ns - left->timestamp_ns <= kAnswerStampSkewNs ||
+          (by != nullptr && left->timestamp_ns >= by->written_ns)) {
         left = &command;
       }
     };
@@ -344,17 +366,17 @@ class SafetyJudge {
                 starts.push_back({left->timestamp_ns,
                                   fmt::format("NMT start {} (it had left operational by {} {})", frame(f),
                                               left_by(*left), frame(*left)),
-                                  "after an NMT start, out of operational by " + left_by(*left)});
+                                  "after an NMT start, out of operational by " + left_by(*left), 0, nullptr, left});
               }
               state = State::operational;
             }
             break;
           case 0x02:
-            caused(f, 0x04);
+            caused(f, 0x04, request_of(requests, OperatorRequest::Kind::nmt_stop, f));
             leave(f, State::stopped);
             break;
           case 0x80:
-            caused(f, 0x7F);
+            caused(f, 0x7F, nullptr);
             leave(f, State::pre_operational);
             break;
           case 0x81:
@@ -371,7 +393,8 @@ class SafetyJudge {
       out.push_back({"I1",
                      fmt::format("after {} ({} start counted from {}), {} RPDO(s) carried an enabling level "
                                  "with no operator's enabling set value accepted since; the first: {}",
-                                 s.how, d_.name, at(s.from), s.enabled, frame(*s.first)),
+                                 s.how, d_.name, at(s.from), s.enabled, frame(*s.first)) +
+                         (s.left == nullptr ? "" : requests_near(requests, *s.left)),
                      s.first->timestamp_ns, s.kind});
     }
   }
