@@ -149,6 +149,14 @@ TEST(SafetyJudge, AnOperatorsStartAfterTheOperatorsStopResumesTheSetValuesInForc
   nmt(answer_stamped_far_first, Kind::nmt_stop, 695);
   nmt(answer_stamped_far_first, Kind::nmt_start, 895);
   EXPECT_TRUE(answer_stamped_far_first.verdict("I1").empty()) << answer_stamped_far_first.verdict("I1").front();
+  // The command's frame stamped after the operator's answer (the recorder's stamp), the device's
+  // stopped heartbeat 4 ms after the request's writing: the heartbeat answers the operator's stop.
+  auto command_stamped_late = line();
+  command_stamped_late.at(699, 0x705, {0x04});
+  nmt(command_stamped_late, Kind::nmt_stop, 695);
+  command_stamped_late.requests.back().answered_ns = kT0 + 698 * kMs;
+  nmt(command_stamped_late, Kind::nmt_start, 895);
+  EXPECT_TRUE(command_stamped_late.verdict("I1").empty()) << command_stamped_late.verdict("I1").front();
   // Stopped 5 ms before the operator wrote the stop (by someone else, the command 10 ms later): a
   // start, and the violation names the operator's request near the heartbeat.
   auto stopped_just_before = line();

@@ -10,7 +10,8 @@
 //     heartbeat says what it is. A device the restarted bridge finds running is not started (it
 //     keeps what it had); one the bridge pauses to write PDO parameters and starts again is. An
 //     operator's NMT start of a device the operator's NMT stop took out of operational (both
-//     accepted, each frame sent between its request and the answer) is no start either: it
+//     accepted, each frame sent between its request and the answer, or the device's stopped
+//     heartbeat within 100 ms after the stop's writing: it answers the stop) is no start either: it
 //     resumes the set values in force, as docs/canopen-master.md says of a device held stopped
 //     ("that start resumes the set values in force, as after an operator's stop"); a boot-up in
 //     between makes it one again.
@@ -290,6 +291,16 @@ class SafetyJudge {
     });
     return it == requests.end() ? nullptr : &*it;
   }
+  // The device's stopped heartbeat `hb` answers an operator's accepted NMT stop written at most
+  // 100 ms before it: the device stops within microseconds of the command, and the command's own
+  // frame may carry a stamp after the answer's (two senders' stamps; under load, the campaign saw
+  // the heartbeat first by over 2 ms: corrugator +1208.833 s, feeders +1568.265 s).
+  static bool stop_answered(const std::vector<OperatorRequest>& requests, const lb::can::CanFrame& hb) {
+    return std::any_of(requests.begin(), requests.end(), [&](const OperatorRequest& r) {
+      return r.kind == OperatorRequest::Kind::nmt_stop && r.accepted && r.written_ns <= hb.timestamp_ns &&
+             hb.timestamp_ns - r.written_ns <= kStopWithinNs;
+    });
+  }
   static bool requested(const std::vector<OperatorRequest>& requests, OperatorRequest::Kind kind,
                         const lb::can::CanFrame& f) {
     return request_of(requests, kind, f) != nullptr;
@@ -321,8 +332,14 @@ class SafetyJudge {
       const lb::can::CanFrame* left = nullptr;  // what took the device out of operational before it
     };
     std::vector<Start> starts;
-    const auto leave = [&](const lb::can::CanFrame& f, State to) {
-      if (state == State::operational || state == State::unknown) left = &f;
+    // What took it out of operational was the operator's NMT stop: its frame, or the device's
+    // stopped heartbeat that answers it (see stop_answered).
+    bool left_by_operator = false;
+    const auto leave = [&](const lb::can::CanFrame& f, State to, bool by_operator) {
+      if (state == State::operational || state == State::unknown) {
+        left = &f;
+        left_by_operator = by_operator;
+      }
       state = to;
     };
     // The device's heartbeat that answers an NMT command may carry a stamp before the command's:
@@ -336,6 +353,7 @@ class SafetyJudge {
       if (command.timestamp_ns - left->timestamp_ns <= kAnswerStampSkewNs ||
           (by != nullptr && left->timestamp_ns >= by->written_ns)) {
         left = &command;
+        left_by_operator = left_by_operator || by != nullptr;
       }
     };
     for (const auto& f : frames) {
@@ -344,21 +362,20 @@ class SafetyJudge {
         if (s == 0x00) {
           state = State::pre_operational;
           left = &f;
+          left_by_operator = false;
           starts.push_back({f.timestamp_ns, "its boot-up " + frame(f), "after a boot-up"});
         } else if (s == 0x05) {
           state = State::operational;  // it says so (its start, if any, was seen as the NMT start)
         } else if (s == 0x7F && state == State::operational) {
-          leave(f, State::pre_operational);
+          leave(f, State::pre_operational, false);
         } else if (s == 0x04 && state == State::operational) {
-          leave(f, State::stopped);
+          leave(f, State::stopped, stop_answered(requests, f));
         }
       } else if (nmt_to_device(f)) {
         switch (f.data[0]) {
           case 0x01:
             if (state != State::operational) {
-              if (left != nullptr && left->id == 0 && left->data[0] == 0x02 &&
-                  requested(requests, OperatorRequest::Kind::nmt_stop, *left) &&
-                  requested(requests, OperatorRequest::Kind::nmt_start, f)) {
+              if (left != nullptr && left_by_operator && requested(requests, OperatorRequest::Kind::nmt_start, f)) {
                 // The operator's start after the operator's stop: the set values in force resume.
               } else if (left == nullptr) {
                 starts.push_back({0, "NMT start " + frame(f), "after an NMT start"});
@@ -373,14 +390,14 @@ class SafetyJudge {
             break;
           case 0x02:
             caused(f, 0x04, request_of(requests, OperatorRequest::Kind::nmt_stop, f));
-            leave(f, State::stopped);
+            leave(f, State::stopped, requested(requests, OperatorRequest::Kind::nmt_stop, f));
             break;
           case 0x80:
             caused(f, 0x7F, nullptr);
-            leave(f, State::pre_operational);
+            leave(f, State::pre_operational, false);
             break;
           case 0x81:
-          case 0x82: leave(f, State::pre_operational); break;
+          case 0x82: leave(f, State::pre_operational, false); break;
           default: break;
         }
       } else if (d_.enabled(f) && !starts.empty()) {
