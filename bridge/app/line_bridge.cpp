@@ -16,7 +16,7 @@
 namespace lb::app {
 
 Result<std::unique_ptr<can::Bus>> open_configured_bus(const profiles::BusConfig& bus_cfg) {
-  const bool master = bus_cfg.role == profiles::BusRole::master;
+  const bool master = profiles::masters(bus_cfg.role);
   auto bus = can::open_bus(bus_cfg.interface, master ? can::BusAccess::read_write : can::BusAccess::listen_only);
   if (!bus || bus_cfg.record.empty()) return bus;
   // Outermost, so it records what this bridge really sent (a monitor sends nothing).
@@ -37,7 +37,7 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
   const auto rpdos_from = std::chrono::steady_clock::now() + gateways::MomentaryCommands::kHold;
 
   for (const auto& bus_cfg : config.buses) {
-    const bool master = bus_cfg.role == profiles::BusRole::master;
+    const bool master = profiles::masters(bus_cfg.role);
     auto bus = open_bus(bus_cfg);
     if (!bus) return make_error("bus " + bus_cfg.name + ": " + bus.error().message);
     BusRuntime rt{};
@@ -103,9 +103,10 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
     spdlog::info("set values in force and holds are not kept across restarts (no state_dir)");
   }
 
-  // Master buses: another master there is noticed and, by default, yielded to.
+  // Master buses: another master there is noticed and, by default, yielded to (a standby once it
+  // masters the bus: until then the master's frames are what it keeps).
   for (auto& rt : bridge->buses_) {
-    if (rt.config->role != profiles::BusRole::master) continue;
+    if (!profiles::masters(rt.config->role)) continue;
     rt.other_master = std::make_unique<canopen::OtherMasterWatch>(*rt.loop,
                                                                   rt.config->yield_to_other_master
                                                                       ? canopen::OtherMasterWatch::Policy::yield
@@ -113,6 +114,13 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
                                                                   rt.config->master_node_id);
     // A foreign producer's SYNCs are judged against the bus's own period (the gap that ends a run).
     if (rt.sync) rt.other_master->own_sync_period(rt.config->sync_period);
+    if (rt.config->role == profiles::BusRole::standby) {
+      rt.other_master->stand_by(true);
+      rt.loop->hold_transmission(true);  // a standby sends nothing a device acts on
+      rt.standby = std::make_unique<canopen::ActiveMasterWatch>(
+          *rt.loop, rt.config->master_node_id, rt.config->takeover_after,
+          [b = bridge.get(), r = &rt](const canopen::ActiveMasterWatch::Takeover& t) { b->take_over(*r, t); });
+    }
     for (const auto& dev : config.devices) {
       if (dev.bus != rt.config->name) continue;
       for (const auto& p : dev.pdos) {
@@ -125,7 +133,7 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
   for (const auto& dev : config.devices) {
     auto& rt = *std::find_if(bridge->buses_.begin(), bridge->buses_.end(),
                              [&](const BusRuntime& b) { return b.config->name == dev.bus; });
-    const bool master = rt.config->role == profiles::BusRole::master;
+    const bool master = profiles::masters(rt.config->role);
     rt.nodes.push_back(std::make_unique<canopen::RemoteNode>(*rt.loop, dev.node_id, dev.heartbeat_timeout, master));
     rt.nodes.back()->believe_every_boot_up(dev.starts_itself);
     if (rt.sync) {  // the bus's SYNC reaches the node's drivers (NodeDriver::on_sync)
@@ -173,8 +181,10 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
   // stop_others): one keeper per device of a master bus, attached after every other driver of its
   // node, and the holds kept from before put back on their nodes now, before any loop runs, so
   // that the first boot of each held device puts it back in its held state instead of starting it.
+  // A standby's holds come from the bus at its takeover (what the master before held), not from a
+  // file of its own that the other master's run made stale: they are kept from then on.
   for (auto& rt : bridge->buses_) {
-    if (rt.config->role != profiles::BusRole::master || !bridge->set_values_) continue;
+    if (!profiles::masters(rt.config->role) || !bridge->set_values_) continue;
     std::size_t i = 0;
     for (const auto& dev : config.devices) {
       if (dev.bus != rt.config->name) continue;
@@ -184,7 +194,7 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
                                                            dev.name);
       if (rt.mandatory) keeper->set_line_view([m = rt.mandatory.get(), i] { return m->line_hold(i); });
       rt.services[i]->on_operator_nmt([k = keeper.get()](canopen::NmtCommand c) { k->operator_command(c); });
-      const auto kept = keeper->restore();
+      const auto kept = rt.standby ? std::nullopt : keeper->restore();
       if (kept && kept->holder == gateways::KeptHold::Holder::line_stop && rt.mandatory)
         rt.mandatory->kept_stop(i, *kept);
       rt.holds.push_back(std::move(keeper));
@@ -199,7 +209,8 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
 
   std::vector<gateways::DiagnosticsGateway::Bus> diag;
   for (const auto& rt : bridge->buses_) {
-    gateways::DiagnosticsGateway::Bus b{rt.config, rt.loop.get(), rt.other_master.get(), {}, rt.mandatory.get()};
+    gateways::DiagnosticsGateway::Bus b{rt.config, rt.loop.get(),      rt.other_master.get(),
+                                        {},        rt.mandatory.get(), rt.standby.get()};
     for (std::size_t i = 0; i < rt.nodes.size(); ++i) {
       for (const auto& dev : config.devices) {
         if (dev.bus == rt.config->name && dev.node_id == rt.nodes[i]->node_id()) {
@@ -264,16 +275,60 @@ LineBridge::~LineBridge() {
 
 void LineBridge::start() {
   diagnostics_->start();  // arms its timers before the loops run
+  bool standing_by = false;
   for (auto& rt : buses_) {
     rt.loop->start();
-    rt.loop->post([&rt] {
-      if (rt.heartbeat) rt.heartbeat->start();
-      for (auto& services : rt.services) services->start();
-      if (rt.sync) rt.sync->start();
-    });
+    if (rt.standby) {
+      standing_by = true;
+      rt.loop->post([&rt] { rt.standby->start(); });
+    } else {
+      rt.loop->post([&rt] {
+        if (rt.heartbeat) rt.heartbeat->start();
+        for (auto& services : rt.services) services->start();
+        if (rt.sync) rt.sync->start();
+      });
+    }
     spdlog::info("bus {} on {} started as {}", rt.config->name, rt.config->interface,
                  profiles::to_string(rt.config->role));
   }
+  if (!standing_by) mastering();
+}
+
+void LineBridge::mastering() {
+  std::call_once(mastering_once_, [this] {
+    if (on_mastering_) on_mastering_();
+  });
+}
+
+// Loop thread of the bus: the standby masters it from now on. After a master that ran: its SYNC
+// and heartbeat continue (the first SYNC a period after its last), every device it ran is adopted
+// as it runs and gets its RPDOs as they were last on the bus; after none heard since the start:
+// an ordinary start of a master.
+void LineBridge::take_over(BusRuntime& rt, const canopen::ActiveMasterWatch::Takeover& t) {
+  rt.loop->hold_transmission(false);
+  rt.other_master->stand_by(false);
+  if (!t.master_heard) {
+    if (rt.heartbeat) rt.heartbeat->start();
+    for (auto& services : rt.services) services->start();
+    rt.sync->start();
+    spdlog::info("bus {}: mastered from the start (no other master heard)", rt.config->name);
+    return mastering();
+  }
+  const auto period = std::chrono::nanoseconds(rt.sync->period());
+  auto first = period;
+  if (t.last_sync_ns != 0)
+    first = std::max(std::chrono::nanoseconds(0), period - std::chrono::nanoseconds(t.at_ns - t.last_sync_ns));
+  if (rt.heartbeat) rt.heartbeat->resume();
+  for (std::size_t i = 0; i < rt.services.size(); ++i) {
+    rt.services[i]->take_over(rt.standby->last_command(rt.nodes[i]->node_id()));
+  }
+  rt.sync->resume(first);
+  spdlog::warn("bus {}: took the bus over from the master (node {}): its last heartbeat {} ms ago, its last SYNC {} "
+               "ms ago, the first SYNC in {} ms",
+               rt.config->name, rt.config->master_node_id, (t.at_ns - t.last_heartbeat_ns) / 1'000'000,
+               t.last_sync_ns == 0 ? -1 : (t.at_ns - t.last_sync_ns) / 1'000'000,
+               std::chrono::duration_cast<std::chrono::milliseconds>(first).count());
+  mastering();
 }
 
 std::optional<std::string> LineBridge::failure() const {

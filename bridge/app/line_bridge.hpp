@@ -11,6 +11,7 @@
 #include <vector>
 
 #include "app/service_notifier.hpp"
+#include "canopen/active_master_watch.hpp"
 #include "canopen/bus_loop.hpp"
 #include "canopen/heartbeat_producer.hpp"
 #include "canopen/other_master.hpp"
@@ -47,6 +48,10 @@ class LineBridge {
   LineBridge(const LineBridge&) = delete;
   LineBridge& operator=(const LineBridge&) = delete;
 
+  // Before start(): called once, on a bus loop's thread, when the first standby bus takes over
+  // (docs/redundancy.md); at once in start() when no bus stands by. The DDS side serves from then on.
+  void on_mastering(std::function<void()> callback) { on_mastering_ = std::move(callback); }
+
   void start();
   void stop();  // idempotent
   // A bus loop failed for good (the process should end with an error and be restarted): its why.
@@ -67,6 +72,8 @@ class LineBridge {
     std::unique_ptr<canopen::HeartbeatProducer> heartbeat;
     std::unique_ptr<canopen::SdoClient> sdo;
     std::unique_ptr<canopen::OtherMasterWatch> other_master;
+    // Standby role: the watch on the master's heartbeat, and what the bus continues at a takeover.
+    std::unique_ptr<canopen::ActiveMasterWatch> standby;
     std::vector<std::unique_ptr<canopen::RemoteNode>> nodes;
     std::vector<std::unique_ptr<gateways::DeviceServices>> services;
     std::vector<std::unique_ptr<gateways::Gateway>> gateways;
@@ -86,6 +93,11 @@ class LineBridge {
   // and the participant (reset first in the destructor) stops calling them before anything goes.
   std::unique_ptr<gateways::ManagementServices> management_;
   std::unique_ptr<gateways::DiagnosticsGateway> diagnostics_;
+  void take_over(BusRuntime& rt, const canopen::ActiveMasterWatch::Takeover& t);
+  void mastering();  // a bus masters: the first time, on_mastering_
+
+  std::function<void()> on_mastering_;
+  std::once_flag mastering_once_;
   mutable std::mutex failure_mutex_;
   std::optional<std::string> failure_;
 };

@@ -134,10 +134,14 @@ void print_summary(const profiles::LineConfig& line, const std::vector<ddsl::Pla
   if (!line.profiles_dir.empty()) fmt::print(out, "profiles_dir {}\n", line.profiles_dir);
   for (const auto& b : line.buses) {
     fmt::print(out, "bus {} on {}: {}", b.name, b.interface, profiles::to_string(b.role));
-    if (b.role == profiles::BusRole::master) {
+    if (profiles::masters(b.role)) {
       fmt::print(out, ", SYNC every {} ms, SDO timeout {} ms", b.sync_period.count() / 1000, b.sdo_timeout.count());
       if (b.master_node_id != 0)
         fmt::print(out, ", own heartbeat node {} every {} ms", b.master_node_id, b.master_heartbeat_period.count());
+      if (b.role == profiles::BusRole::standby) {
+        fmt::print(out, "; takes over when the master's heartbeat (node {}) is silent for {} ms", b.master_node_id,
+                   b.takeover_after.count());
+      }
     }
     if (!b.record.empty()) fmt::print(out, ", recording to {}", b.record);
     if (b.realtime_priority != 0) fmt::print(out, ", loop at realtime priority {} (SCHED_FIFO)", b.realtime_priority);

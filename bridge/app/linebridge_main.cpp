@@ -21,6 +21,7 @@
 #include <sys/mman.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cerrno>
 #include <charconv>
 #include <cstdlib>
@@ -187,6 +188,13 @@ int main(int argc, char** argv) {
   }
   if (part == "dds") return app::run_dds_side(dds_options, config->line, channel_path, app::duration_ms(duration_s));
 
+  // A standby's DDS side serves only once it masters a bus (docs/redundancy.md): the split's channel
+  // holds it back; in one process nothing would.
+  if (part == "single" && std::any_of(config->buses.begin(), config->buses.end(),
+                                      [](const auto& b) { return b.role == lb::profiles::BusRole::standby; })) {
+    spdlog::error("a bus in the standby role needs the bus and DDS sides apart (--part both, or bus and dds)");
+    return app::kExitUsage;
+  }
   std::unique_ptr<lb::link::BusChannel> channel;
   std::unique_ptr<lb::ddsl::Participant> dds;
   std::optional<PrivateDir> private_dir;
@@ -259,8 +267,10 @@ int main(int argc, char** argv) {
     return app::kExitFailure;
   }
   for (const auto& note : (*bridge)->dds().site_notes()) spdlog::warn("DDS profiles: {}", note);
+  // The DDS side serves once this bridge masters a bus: at once, or when a standby takes over
+  // (until then it waits in the channel's backlog, its participant ready; docs/redundancy.md).
+  if (channel) (*bridge)->on_mastering([c = channel.get()] { c->start(); });
   (*bridge)->start();
-  if (channel) channel->start();
   spdlog::info("line {}: {} bus(es), {} device(s), DDS domain {}{}{}{}", config->line, config->buses.size(),
                config->devices.size(), config->dds.domain, config->dds.localhost_only ? " (localhost only)" : "",
                config->dds.discovery_servers.empty() ? "" : ", through discovery servers",

@@ -217,6 +217,12 @@ void BootSequence::read_pdos(const std::vector<PdoSpec>& specs, std::function<vo
   });
 }
 
+std::vector<PdoInUse> BootSequence::line_pdos() const {
+  std::vector<PdoInUse> pdos;
+  for (const auto& spec : settings_.pdos) pdos.push_back({spec.name, spec.wanted, false});
+  return pdos;
+}
+
 void BootSequence::configure_pdos(std::vector<DevicePdo> devices) {
   std::vector<SdoRequest> writes;
   std::vector<PdoSpec> written;

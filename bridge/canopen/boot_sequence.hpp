@@ -114,6 +114,10 @@ class BootSequence {
   void run(Done done);
   void cancel();  // abandons the running attempt silently
   bool running() const { return running_; }
+  // The PDOs as the line configures them, as a boot that changed nothing leaves them in use: what a
+  // standby that takes the bus over adopts a running device with (it verified their identifiers by
+  // listening; it reads nothing from the device).
+  std::vector<PdoInUse> line_pdos() const;
   const std::string& step() const { return step_; }
   const BootReport& report() const { return report_; }
   // What check_heartbeat_producer found.

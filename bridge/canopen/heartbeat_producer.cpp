@@ -14,4 +14,9 @@ void HeartbeatProducer::start() {
   loop_.arm_timer(timer_, period_, period_);
 }
 
+void HeartbeatProducer::resume() {
+  (void)loop_.send(make_heartbeat(node_id_, NmtState::operational));
+  loop_.arm_timer(timer_, period_, period_);
+}
+
 }  // namespace lb::canopen

@@ -13,6 +13,9 @@ class HeartbeatProducer {
  public:
   HeartbeatProducer(BusLoop& loop, std::uint8_t node_id, std::chrono::milliseconds period);
   void start();  // loop thread or before the loop starts
+  // Loop thread: a standby that takes the bus over continues the master's heartbeat: operational
+  // at once, no boot-up (the master did not boot, it changed hands).
+  void resume();
 
  private:
   BusLoop& loop_;

@@ -28,6 +28,9 @@ struct StartFacts {
   // by itself.
   bool paused_by_boot = false;
   std::array<std::uint32_t, 4> identity{};  // 1018h sub 1..4 as read (0 where absent)
+  // A standby took the bus over and adopted the device as it runs (no boot, no NMT, no SDO): its
+  // RPDOs carry what the master before put on the bus last, nothing else (docs/redundancy.md).
+  bool adopted = false;
 };
 
 // What makes the master lose track of a device's object dictionary (master role only).

@@ -63,6 +63,36 @@ void NodeStateMachine::start() {
   boot_now("start-up");
 }
 
+void NodeStateMachine::take_over(std::optional<NmtCommand> last_command) {
+  started_ = true;
+  const auto reported = node_.state();
+  std::optional<NmtState> held_in;
+  if (last_command == NmtCommand::stop) held_in = NmtState::stopped;
+  if (last_command == NmtCommand::enter_pre_operational) held_in = NmtState::pre_operational;
+  const bool held = held_in && reported == *held_in;
+  const bool runs = reported == NmtState::operational && (!last_command || *last_command == NmtCommand::start);
+  if (!node_.online() || node_.boot_up_pending() || !(runs || held)) {
+    return boot_now(fmt::format("taking the bus over: it is not heard operational ({}{})", to_string(reported),
+                                node_.online() ? "" : ", not heard"));
+  }
+  if (auto r = node_.use_pdos(boot_.line_pdos()); !r) {
+    return boot_now("taking the bus over: its PDOs as the line configures them were refused: " + r.error().message);
+  }
+  ++counters_.adopted;
+  if (held) {
+    node_.hold(*last_command);
+    node_.adopt(reported);  // before its drivers start: what they send at once may go out
+    node_.starting({true, false, {}, true});
+    spdlog::info("{}: node {}: adopted {} as the master before held it (no NMT, no SDO)", loop_.bus().uri(),
+                 node_.node_id(), to_string(reported));
+    return enter(NodeState::stopped_by_operator, "adopted at a takeover, held as the master before left it");
+  }
+  node_.adopt(NmtState::operational);
+  node_.starting({true, false, {}, true});
+  spdlog::info("{}: node {}: adopted as it runs (no NMT, no SDO)", loop_.bus().uri(), node_.node_id());
+  enter(NodeState::operational, "adopted as it ran at a takeover");
+}
+
 Result<void> NodeStateMachine::operator_command(NmtCommand command) {
   // A device whose boot did not pass (or whose state became unknown since) may have lost its
   // configuration: starting it would hand it RPDOs it may misread. Its boot starts it.
@@ -296,7 +326,9 @@ void NodeStateMachine::keep_hold() {
 // is checked (a boot reads and writes 1017h itself).
 void NodeStateMachine::check_heartbeat_producer() {
   using Check = RemoteNode::HeartbeatCheck;
-  if (boot_.running() || state_ == NodeState::resetting) return node_.heartbeat_check_done(Check::not_the_cause);
+  // A standby (not started) sends nothing a device acts on: its master checks.
+  if (!started_ || boot_.running() || state_ == NodeState::resetting)
+    return node_.heartbeat_check_done(Check::not_the_cause);
   checking_heartbeat_producer_ = true;
   boot_.check_heartbeat_producer([this](const BootSequence::ProducerCheck& c) {
     checking_heartbeat_producer_ = false;

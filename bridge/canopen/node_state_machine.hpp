@@ -74,6 +74,7 @@ class NodeStateMachine final : public NodeDriver {
     std::uint32_t heartbeat_producer_rewrites = 0;
     // A state-unknown event while the boot after a reset had not passed: booted, not reset again.
     std::uint32_t resets_spared = 0;
+    std::uint32_t adopted = 0;  // adopted as it ran when a standby took the bus over
   };
 
   // Before the loop starts: attaches itself to the node (as its first driver, so that it acts on
@@ -83,6 +84,11 @@ class NodeStateMachine final : public NodeDriver {
   NodeStateMachine& operator=(const NodeStateMachine&) = delete;
 
   void start();  // loop thread: the first boot
+  // Loop thread, instead of start() on a standby that took the bus over (docs/redundancy.md): a
+  // device heard operational is adopted as it runs, without a frame (no NMT, no SDO); one the
+  // master before held stopped or pre-operational (its last NMT command, and the device reports
+  // that state) is adopted held so; any other gets the normal boot.
+  void take_over(std::optional<NmtCommand> last_command);
 
   // Loop thread: an operator's NMT command. Start is refused for a device whose boot has not
   // passed (its boot starts it); a stop or pre-operational is kept until an operator starts or

@@ -29,6 +29,7 @@ void OtherMasterWatch::watch_rpdo(std::uint32_t can_id, bool extended) {
 }
 
 void OtherMasterWatch::seen(const can::CanFrame& frame, const char* what) {
+  if (standing_by_) return;
   ++frames_;
   last_ = fmt::format("{} ({:03X}h)", what, frame.id);
   if (log_.allow()) {
@@ -45,6 +46,7 @@ std::chrono::nanoseconds OtherMasterWatch::max_gap() const {
 }
 
 void OtherMasterWatch::sync_seen(const can::CanFrame& frame) {
+  if (standing_by_) return;
   const std::int64_t now = frame.timestamp_ns;
   const bool continues = run_syncs_ != 0 && now >= last_sync_ns_ && now - last_sync_ns_ <= max_gap().count();
   if (!continues) {  // a new run begins: whatever the last one gave is gone

@@ -44,6 +44,9 @@ class OtherMasterWatch {
   // Before the loop starts: the period of the bus's own SYNC (zero: it produces none), so that a
   // slower other producer still makes a run.
   void own_sync_period(std::chrono::microseconds period) { own_period_ = period; }
+  // Loop thread (or before the loop starts): a standby (docs/redundancy.md) expects the master's
+  // frames while it stands by, and watches only once it masters the bus.
+  void stand_by(bool on) { standing_by_ = on; }
   // The longest gap within a run of foreign SYNCs.
   std::chrono::nanoseconds max_gap() const;
 
@@ -69,6 +72,7 @@ class OtherMasterWatch {
   std::uint64_t frames_ = 0;
   std::uint64_t yields_ = 0;
   bool yielding_ = false;
+  bool standing_by_ = false;
   std::string last_;
   LogRate log_{2};
 };

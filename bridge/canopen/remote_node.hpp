@@ -109,6 +109,15 @@ class RemoteNode {
     configured_ = configured;
     if (!configured) commanded_ = NmtState::unknown;
   }
+  // Loop thread: a standby that took the bus over adopts the device in the state the master before
+  // left it (operational, or held stopped / pre-operational): configured, and that state taken for
+  // commanded, without a frame.
+  void adopt(NmtState commanded) {
+    configured_ = true;
+    commanded_ = commanded;
+    confirmed_ = state() == commanded;
+    commanded_at_ = std::chrono::steady_clock::now();
+  }
   // Loop thread, by the boot: the PDOs from now on; the first driver's refusal is returned.
   Result<void> use_pdos(std::span<const PdoInUse> pdos);
   // Loop thread, by the boot, right before NMT start.

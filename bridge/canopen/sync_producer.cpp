@@ -10,6 +10,14 @@ SyncProducer::SyncProducer(BusLoop& loop, std::chrono::microseconds period) : lo
 
 void SyncProducer::start() { loop_.arm_timer(timer_, period_, period_); }
 
+void SyncProducer::resume(std::chrono::nanoseconds first) {
+  if (first < std::chrono::microseconds(1)) {
+    tick();
+    first = period_;
+  }
+  loop_.arm_timer(timer_, first, period_);
+}
+
 void SyncProducer::tick() {
   can::CanFrame sync;
   sync.id = cob::sync;

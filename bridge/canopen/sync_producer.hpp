@@ -17,6 +17,11 @@ class SyncProducer {
   // Before the loop starts.
   void on_sync(std::function<void()> subscriber) { subscribers_.push_back(std::move(subscriber)); }
   void start();  // loop thread or before the loop starts
+  // Loop thread: a standby that takes the bus over continues the master's SYNC: the first one
+  // `first` from now (a period after the master's last, or at once when that is past), then every
+  // period.
+  void resume(std::chrono::nanoseconds first);
+  std::chrono::microseconds period() const { return period_; }
 
  private:
   void tick();

@@ -153,7 +153,9 @@ void BusChannel::take_sample(const Sample& sample, std::uint32_t lane) {
 }
 
 void BusChannel::start() {
-  if (thread_.joinable()) return;
+  // Any thread (a standby starts it from its bus loop when it takes over): never after stop().
+  std::lock_guard start_lock(start_mutex_);
+  if (thread_.joinable() || stop_) return;
   {
     std::lock_guard lock(mutex_);
     absent_since_ = std::chrono::steady_clock::now();
@@ -162,6 +164,7 @@ void BusChannel::start() {
 }
 
 void BusChannel::stop() {
+  std::lock_guard start_lock(start_mutex_);
   stop_ = true;
   wake();
   if (!thread_.joinable()) return;

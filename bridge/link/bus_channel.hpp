@@ -200,6 +200,7 @@ class BusChannel {
 
   std::atomic<bool> stop_{false};
   std::atomic<bool> stopping_{false};
+  std::mutex start_mutex_;  // start() and stop() from different threads
   std::thread thread_;
 };
 

@@ -205,7 +205,7 @@ std::shared_ptr<const ProfileRegistry> load_profiles_dir(const YamlSource& src, 
 BusConfig parse_bus(const YamlSource& src, const YAML::Node& n) {
   src.check_keys(n, "bus",
                  {"name", "interface", "role", "sync_period_ms", "bitrate", "master_node_id", "master_heartbeat_ms",
-                  "sdo_timeout_ms", "record", "other_master", "realtime_priority"});
+                  "sdo_timeout_ms", "record", "other_master", "realtime_priority", "takeover_after_ms"});
   BusConfig bus;
   bus.name = src.required<std::string>(n, "name", "bus");
   check_name(src, n["name"], bus.name);
@@ -214,14 +214,15 @@ BusConfig parse_bus(const YamlSource& src, const YAML::Node& n) {
   if (auto ok = can::check_bus_uri(bus.interface); !ok) src.fail(n["interface"], ok.error().message);
   // A replayed recording cannot take frames: it only makes sense as a monitor, which is its default.
   const auto role = src.optional<std::string>(n, "role").value_or(replay ? "monitor" : "master");
-  if (role != "master" && role != "monitor") src.fail(n["role"], "role must be master or monitor, not '" + role + "'");
+  if (role != "master" && role != "monitor" && role != "standby")
+    src.fail(n["role"], "role must be master, standby or monitor, not '" + role + "'");
   if (replay && role != "monitor") {
     src.fail(n["role"],
              "bus " + bus.name + ": a log: bus replays a recording and cannot transmit, so its role is monitor");
   }
   bus.record = src.optional<std::string>(n, "record").value_or("");
   if (n["record"] && bus.record.empty()) src.fail(n["record"], "record: the file path is empty");
-  bus.role = role == "master" ? BusRole::master : BusRole::monitor;
+  bus.role = role == "master" ? BusRole::master : role == "standby" ? BusRole::standby : BusRole::monitor;
   bus.sync_period = std::chrono::milliseconds(bounded<int>(src, n, "sync_period_ms", 20, 1, 10'000, "bus " + bus.name));
   bus.bitrate = bounded<std::uint32_t>(src, n, "bitrate", bus.bitrate, 10'000, 1'000'000, "bus " + bus.name);
   bus.master_node_id = bounded<std::uint8_t>(src, n, "master_node_id", 0, 0, 127, "bus " + bus.name);
@@ -237,11 +238,30 @@ BusConfig parse_bus(const YamlSource& src, const YAML::Node& n) {
                    "'");
     }
     if (bus.role == BusRole::monitor)
-      src.fail(n["other_master"], "bus " + bus.name + ": other_master is for the master role");
+      src.fail(n["other_master"], "bus " + bus.name + ": other_master is for the master and standby roles");
     bus.yield_to_other_master = *policy == "yield";
   }
   if (bus.master_node_id != 0 && bus.role == BusRole::monitor) {
     src.fail(n["master_node_id"], "bus " + bus.name + ": a monitor bus never transmits, so it has no master_node_id");
+  }
+  if (bus.role == BusRole::standby) {
+    if (bus.master_node_id == 0) {
+      src.fail(n["role"], "bus " + bus.name +
+                              ": a standby watches the master's heartbeat and takes it over: it needs master_node_id "
+                              "(the same in both bridges' line files)");
+    }
+    // Default: two of the master's heartbeat periods and a half (a heartbeat late by a period is no loss).
+    bus.takeover_after = std::chrono::milliseconds(
+        bounded<int>(src, n, "takeover_after_ms", static_cast<int>(bus.master_heartbeat_period.count() * 5 / 2), 10,
+                     60'000, "bus " + bus.name));
+    if (bus.takeover_after <= bus.master_heartbeat_period) {
+      src.fail(n["takeover_after_ms"],
+               fmt::format("bus {}: takeover_after_ms {} must be longer than the master's "
+                           "heartbeat period master_heartbeat_ms {}",
+                           bus.name, bus.takeover_after.count(), bus.master_heartbeat_period.count()));
+    }
+  } else if (n["takeover_after_ms"]) {
+    src.fail(n["takeover_after_ms"], "bus " + bus.name + ": takeover_after_ms is for the standby role");
   }
   return bus;
 }
@@ -661,6 +681,12 @@ DeviceConfig parse_device(const YamlSource& src, const YAML::Node& n, const Line
     src.fail(n["mandatory"], "device " + dev.name + ": mandatory is for a master bus: bus " + dev.bus +
                                  " is in the monitor role, where the bridge never starts or stops a device");
   }
+  if (dev.mandatory && line.bus(dev.bus)->role == BusRole::standby) {
+    src.fail(n["mandatory"], "device " + dev.name + ": mandatory is not supported on a standby bus yet (bus " +
+                                 dev.bus +
+                                 "): its line-level stop would need the takeover to carry the line's "
+                                 "state; use role: master");
+  }
   if (n["heartbeat_producer_ms"]) {
     const auto producer = bounded<int>(src, n, "heartbeat_producer_ms", 0, 1, 65535, "device " + dev.name);
     dev.heartbeat_producer = std::chrono::milliseconds(producer);
@@ -727,7 +753,14 @@ std::vector<DevicePdo> default_pdos(const Profile& profile, std::uint8_t node_id
   return pdos;
 }
 
-std::string_view to_string(BusRole role) { return role == BusRole::master ? "master" : "monitor"; }
+std::string_view to_string(BusRole role) {
+  switch (role) {
+    case BusRole::master: return "master";
+    case BusRole::standby: return "standby";
+    case BusRole::monitor: break;
+  }
+  return "monitor";
+}
 std::string_view to_string(PdoConfigMode mode) { return mode == PdoConfigMode::configure ? "configure" : "adopt"; }
 std::string_view to_string(StartupPolicy::WhenMandatoryFails policy) {
   return policy == StartupPolicy::WhenMandatoryFails::stop_others ? "stop_others" : "report_only";
@@ -757,7 +790,7 @@ namespace {
 // master buses' devices that only 1000h bits 0..15 tell apart are named.
 void warn_identity_by_profile_number_alone(LineConfig& cfg) {
   for (const auto& bus : cfg.buses) {
-    if (bus.role != BusRole::master) continue;
+    if (!masters(bus.role)) continue;
     std::map<std::uint32_t, std::vector<const DeviceConfig*>> by_number;
     for (const auto& d : cfg.devices) {
       if (d.bus == bus.name) by_number[d.resolved_profile->device_type & 0xFFFF].push_back(&d);
@@ -843,7 +876,7 @@ Result<LineConfig> parse_line_config(const std::string& yaml_text, const std::st
       if (cfg.bus(bus.name) != nullptr) src.fail(b["name"], "bus name '" + bus.name + "' is used twice");
       // Two masters on one network hear each other's SYNC and NMT: one line, one master per bus.
       for (const auto& other : cfg.buses) {
-        if (other.interface == bus.interface && other.role == BusRole::master && bus.role == BusRole::master) {
+        if (other.interface == bus.interface && masters(other.role) && masters(bus.role)) {
           src.fail(b["interface"],
                    "bus " + bus.name + ": " + bus.interface + " is already bus " + other.name +
                        ", and both are masters: a CAN network has one NMT master and one SYNC producer");

@@ -16,8 +16,13 @@
 
 namespace lb::profiles {
 
-enum class BusRole { master, monitor };
+// master: the NMT master and SYNC producer. standby: a redundant master (docs/redundancy.md) that
+// listens while another master's heartbeat (master_node_id) is heard and takes the bus over,
+// without a reset, when it stops. monitor: listen-only.
+enum class BusRole { master, monitor, standby };
 std::string_view to_string(BusRole role);
+// The roles that master the bus (a standby once it took over): they hold a device's output.
+constexpr bool masters(BusRole role) { return role != BusRole::monitor; }
 
 // dds.security: the files of the bridge's own identity (paths made absolute, relative ones taken
 // from the line file's folder) and extra Fast DDS security properties.
@@ -61,6 +66,9 @@ struct BusConfig {
   std::uint32_t bitrate = 500'000;                // bit/s, for the bus load in diagnostics
   std::uint8_t master_node_id = 0;                // the bridge's own heartbeat (master role); 0 = none
   std::chrono::milliseconds master_heartbeat_period{1000};
+  // Standby role: the master's heartbeat (master_node_id) silent this long, the standby takes over.
+  // Each bridge of a pair has its own, so that two started together end with one master.
+  std::chrono::milliseconds takeover_after{0};
   std::chrono::milliseconds sdo_timeout{1000};
   // Master role: another master heard on the bus (canopen/other_master.hpp): yield = transmit
   // nothing while it is there; warn = report and go on.

@@ -100,7 +100,7 @@ TEST(LineConfig, OtherMistakes) {
   EXPECT_NE(error_of(replace(kGood, "node_id: 3", "node_id: three")).find("'node_id' has a value of the wrong type"),
             std::string::npos);
   EXPECT_NE(error_of(replace(kGood, "bus: ext", "bus: nowhere")).find("no bus named 'nowhere'"), std::string::npos);
-  EXPECT_NE(error_of(replace(kGood, "role: monitor", "role: slave")).find("role must be master or monitor"),
+  EXPECT_NE(error_of(replace(kGood, "role: monitor", "role: slave")).find("role must be master, standby or monitor"),
             std::string::npos);
   EXPECT_NE(error_of(replace(kGood, "virtual:x", "udp:x"))
                 .find("interface must be socketcan:<ifname>, virtual:<name> or log:<file>"),
@@ -751,4 +751,41 @@ TEST(LineConfig, DevicesToldApartByTheProfileNumberAloneAreNamed) {
   auto single = parse_line_config(kGood, "line.yaml", registry);
   ASSERT_TRUE(single);
   EXPECT_TRUE(single->warnings.empty());
+}
+
+// A standby (docs/redundancy.md) watches the master's heartbeat on master_node_id and takes over
+// after takeover_after_ms of silence: default 2.5 heartbeat periods, longer than one period, for
+// the standby role only; a mandatory device is refused there for now.
+TEST(LineConfig, StandbyRoleKeys) {
+  const auto registry = ProfileRegistry::builtin();
+  const auto standby = replace(kGood, "    role: master\n",
+                               "    role: standby\n    master_node_id: 1\n    master_heartbeat_ms: 40\n");
+  auto r = parse_line_config(standby, "line.yaml", registry);
+  ASSERT_TRUE(r) << r.error().message;
+  EXPECT_EQ(r->buses[0].role, lb::profiles::BusRole::standby);
+  EXPECT_EQ(r->buses[0].takeover_after, std::chrono::milliseconds(100));
+  EXPECT_TRUE(lb::profiles::masters(r->buses[0].role));
+  r = parse_line_config(replace(standby, "master_heartbeat_ms: 40\n",
+                                "master_heartbeat_ms: 40\n    takeover_after_ms: 300\n"),
+                        "line.yaml", registry);
+  ASSERT_TRUE(r) << r.error().message;
+  EXPECT_EQ(r->buses[0].takeover_after, std::chrono::milliseconds(300));
+
+  auto e = error_of(replace(kGood, "    role: master\n", "    role: standby\n"));
+  EXPECT_NE(e.find("a standby watches the master's heartbeat and takes it over: it needs master_node_id"),
+            std::string::npos)
+      << e;
+  e = error_of(replace(standby, "master_heartbeat_ms: 40\n", "master_heartbeat_ms: 40\n    takeover_after_ms: 40\n"));
+  EXPECT_NE(e.find("takeover_after_ms 40 must be longer than the master's heartbeat period master_heartbeat_ms 40"),
+            std::string::npos)
+      << e;
+  e = error_of(replace(kGood, "    role: master\n", "    role: master\n    takeover_after_ms: 300\n"));
+  EXPECT_NE(e.find("takeover_after_ms is for the standby role"), std::string::npos) << e;
+  e = error_of(
+      replace(standby, "    heartbeat_timeout_ms: 300\n", "    heartbeat_timeout_ms: 300\n    mandatory: true\n"));
+  EXPECT_NE(e.find("mandatory is not supported on a standby bus yet"), std::string::npos) << e;
+  // A standby and a master on one interface in one line file: two masters.
+  e = error_of(replace(standby, "    interface: socketcan:can1\n    role: monitor\n",
+                       "    interface: virtual:x\n    role: master\n"));
+  EXPECT_NE(e.find("both are masters"), std::string::npos) << e;
 }

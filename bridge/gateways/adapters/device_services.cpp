@@ -234,6 +234,10 @@ void DeviceServices::start() {
   if (machine_) machine_->start();
 }
 
+void DeviceServices::take_over(std::optional<canopen::NmtCommand> last_command) {
+  if (machine_) machine_->take_over(last_command);
+}
+
 void DeviceServices::sdo_read(const srv::SdoRead_Request& req, const ddsl::Respond<srv::SdoRead_Response>& respond) {
   const auto refuse = refuser(respond);
   const auto type = canopen::parse_data_type(req.data_type());

@@ -34,6 +34,8 @@ class DeviceServices final : public canopen::NodeDriver {
 
   // Loop thread: the first boot (master role).
   void start();
+  // Loop thread, instead of start() on a standby that took the bus over (NodeStateMachine::take_over).
+  void take_over(std::optional<canopen::NmtCommand> last_command);
   // Before the loop starts: told (loop thread) every NMT command an operator's request sent (the
   // line-level mandatory-device policy listens).
   void on_operator_nmt(std::function<void(canopen::NmtCommand)> listener) {

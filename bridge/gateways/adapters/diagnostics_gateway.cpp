@@ -78,7 +78,10 @@ void DiagnosticsGateway::snapshot(std::size_t i) {
   msg::BusDiagnostics b;
   b.name(bus.config->name);
   b.interface_uri(bus.config->interface);
-  b.role(std::string(profiles::to_string(bus.config->role)));
+  // A standby says whether it took the bus over (it masters it) or still stands by.
+  b.role(bus.standby == nullptr  ? std::string(profiles::to_string(bus.config->role))
+         : bus.standby->active() ? "standby, mastering (took over)"
+                                 : "standby");
   b.state(std::string(can::to_string(stats.state)));
   b.frames_in(stats.frames_in);
   b.frames_out(stats.frames_out);

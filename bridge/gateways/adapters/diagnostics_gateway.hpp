@@ -11,6 +11,7 @@
 #include <thread>
 #include <vector>
 
+#include "canopen/active_master_watch.hpp"
 #include "canopen/bus_loop.hpp"
 #include "canopen/other_master.hpp"
 #include "canopen/remote_node.hpp"
@@ -38,7 +39,8 @@ class DiagnosticsGateway {
     canopen::BusLoop* loop;
     const canopen::OtherMasterWatch* other_master;  // master role only
     std::vector<Device> devices;
-    const MandatoryDevices* mandatory = nullptr;  // master role, when a device of the bus is mandatory
+    const MandatoryDevices* mandatory = nullptr;          // master role, when a device of the bus is mandatory
+    const canopen::ActiveMasterWatch* standby = nullptr;  // standby role
   };
 
   // The process's own fields (the set-value store, the log), filled on the publishing thread.

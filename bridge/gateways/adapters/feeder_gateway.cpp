@@ -164,7 +164,8 @@ void FeederGateway::publish_error_event(unsigned feeder, bool in_error, std::uin
 }
 
 void FeederGateway::poll() {
-  if (polling_ || !ctx_.node.online()) return;
+  // While another master holds the bus (or this bridge stands by) its SDO requests would be held back.
+  if (polling_ || !ctx_.node.online() || ctx_.loop.transmission_held()) return;
   polling_ = true;
   auto reads = std::make_shared<std::vector<Read>>();
   reads->push_back({kControlBoxError, 0, [this](std::optional<std::uint64_t> v, std::vector<Read>&) {

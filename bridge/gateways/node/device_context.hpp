@@ -32,7 +32,7 @@ struct DeviceContext {
   // press it began must stay on the bus for its 100 ms: the first RPDO of this run ends it.
   std::chrono::steady_clock::time_point rpdos_from{};
 
-  bool is_master() const { return bus.role == profiles::BusRole::master; }
+  bool is_master() const { return profiles::masters(bus.role); }
   // The answer to a request (not a stop) while the bridge yields to another master on this bus.
   std::string another_master(std::string_view what) const {
     return "another master's SYNC runs on bus " + bus.name +

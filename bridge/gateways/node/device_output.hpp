@@ -76,6 +76,8 @@ class DeviceOutput final : public canopen::NodeDriver {
     bool told = false;    // an operator wrote it in this run: no kept value ever replaces it
     bool silent = false;  // a restarted bridge does not know what the device holds: not sent until told
     std::string silent_why;
+    bool seen = false;          // standby: the master's frame of it was seen on the bus (its image holds it)
+    bool seen_refused = false;  // standby: a frame of it the codec refused was reported
   };
 
   // Before the loop starts. changed: the image changed (the gateway publishes its status).
@@ -98,6 +100,16 @@ class DeviceOutput final : public canopen::NodeDriver {
         continue;
       }
       add_rpdo(i, pdo);
+      // A standby keeps what the master puts on the bus, as the device got it: the image a
+      // takeover goes on sending (docs/redundancy.md).
+      if (observing_) {
+        const auto k = rpdos_.size() - 1;
+        const auto seen = [this, k](const can::CanFrame& f) { observe(k, f); };
+        if (pdo.extended)
+          ctx_.loop.on_extended_frame(pdo.can_id, seen);
+        else
+          ctx_.loop.on_frame(pdo.can_id, seen);
+      }
     }
     if constexpr (requires(Codec & c) { c.set_control_bit(0U, false); }) {
       if (!options_.commands.empty()) {
@@ -512,6 +524,8 @@ class DeviceOutput final : public canopen::NodeDriver {
   // from the image in force or, at the first start, the kept values. An RPDO an operator wrote in
   // this run keeps what they wrote; only the enabling levels follow the policy.
   void starting(const canopen::StartFacts& facts) {
+    observing_ = false;  // from its first start on, this bridge masters the bus: the image is its own
+    if (facts.adopted) return adopting();
     identity_ = facts.identity;
     stop_mode_ = false;
     ++start_generation_;
@@ -581,6 +595,57 @@ class DeviceOutput final : public canopen::NodeDriver {
     ctx_.node.note_set_values_at_start(note);
     keep();
     for (std::size_t i = 0; i < read_back.size(); ++i) start_read_back(read_back[i], note, read_base[i]);
+  }
+
+  // A standby's frame of the master's: the device got this payload; the image takes it as it is.
+  void observe(std::size_t k, const can::CanFrame& f) {
+    if (!observing_) return;
+    auto& r = rpdos_[k];
+    if (auto ok = codec_.receive(r.pdo, std::span<const std::uint8_t>(f.data.data(), f.len)); !ok) {
+      if (!r.seen_refused) {
+        spdlog::warn("{}: {} on the bus not taken by the standby: {}", ctx_.device.name, def(r).name,
+                     ok.error().message);
+      }
+      r.seen_refused = true;
+      return;
+    }
+    r.seen = true;
+    r.told = true;  // in force on the device: a start after a takeover (a boot) takes it, not a file's value
+  }
+
+  // The start of a standby that took the bus over, for a device it adopts as it runs: each RPDO
+  // goes on with what the master before put on the bus last (the set values in force, as the
+  // device has them), momentary commands released, never pressed again; an RPDO not seen on the
+  // bus stays silent (the device keeps what it last received). Nothing from a file.
+  void adopting() {
+    ++start_generation_;
+    stop_mode_ = false;
+    started_once_ = true;
+    identity_ = {};  // not read: the kept values of this run name no device (a later restart reads back)
+    std::vector<std::string> seen;
+    std::vector<std::string> unseen;
+    for (auto& r : rpdos_) {
+      if (r.seen) {
+        r.told = true;
+        r.silent = false;
+        told_any_ = true;
+        seen.push_back(def(r).name);
+      } else {
+        keep_silent(r, def(r).name + " was not seen on the bus before the takeover");
+        unseen.push_back(def(r).name);
+      }
+    }
+    clear_momentary();
+    std::string note = "adopted at a takeover: ";
+    note += seen.empty() ? "no RPDO seen on the bus" : fmt::format("{} as last on the bus", fmt::join(seen, ", "));
+    if (!unseen.empty()) note += fmt::format("; {} not seen: kept silent", fmt::join(unseen, ", "));
+    spdlog::info("{}: {}", ctx_.device.name, note);
+    ctx_.node.note_set_values_at_start(note);
+    keep();
+    for (auto& r : rpdos_) {
+      if (!r.silent) r.transmitter->resend();
+    }
+    if (changed_) changed_();
   }
 
   void keep_silent(Rpdo& r, const std::string& why) {
@@ -712,7 +777,9 @@ class DeviceOutput final : public canopen::NodeDriver {
   bool told_any_ = false;      // an operator changed the image in this run
   bool stop_mode_ = false;     // an operator's stop for a device the bridge does not control just now
   bool quiet_ = false;         // a press sends its own first frame
-  unsigned stop_pulses_ = 0;   // stopping commands being pressed now
+  // A standby before its first start: the master's RPDO frames on the bus write the image.
+  bool observing_ = ctx_.bus.role == profiles::BusRole::standby;
+  unsigned stop_pulses_ = 0;  // stopping commands being pressed now
   std::uint64_t start_generation_ = 0;
   std::array<std::uint32_t, 4> identity_{};  // 1018h of the device as its last boot read it
 };

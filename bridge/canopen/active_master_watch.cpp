@@ -1,0 +1,72 @@
+#include "canopen/active_master_watch.hpp"
+
+#include <spdlog/spdlog.h>
+
+#include "can/detail.hpp"
+
+namespace lb::canopen {
+
+ActiveMasterWatch::ActiveMasterWatch(BusLoop& loop, std::uint8_t master_node_id,
+                                     std::chrono::milliseconds takeover_after,
+                                     std::function<void(const Takeover&)> on_takeover)
+    : loop_(loop),
+      master_node_id_(master_node_id),
+      takeover_after_(takeover_after),
+      on_takeover_(std::move(on_takeover)) {
+  timer_ = loop_.create_timer([this] { judge(); });
+  loop_.on_frame(cob::heartbeat_base + master_node_id_, [this](const can::CanFrame& f) { heartbeat(f); });
+  loop_.on_frame(cob::sync, [this](const can::CanFrame& f) {
+    if (!taken_over_) last_sync_ns_ = f.timestamp_ns;
+  });
+  loop_.on_frame(cob::nmt, [this](const can::CanFrame& f) {
+    if (taken_over_ || f.len != 2) return;
+    const auto node = f.data[1];
+    if (node >= commands_.size()) return;
+    if (node == 0) {
+      commands_.fill(f.data[0]);
+    } else {
+      commands_[node] = f.data[0];
+    }
+  });
+}
+
+void ActiveMasterWatch::start() {
+  started_ = true;
+  started_ns_ = can::detail::realtime_ns();
+  loop_.arm_timer(timer_, takeover_after_);
+}
+
+std::optional<NmtCommand> ActiveMasterWatch::last_command(std::uint8_t node_id) const {
+  if (node_id == 0 || node_id >= commands_.size() || commands_[node_id] == 0) return std::nullopt;
+  return static_cast<NmtCommand>(commands_[node_id]);
+}
+
+void ActiveMasterWatch::heartbeat(const can::CanFrame& frame) {
+  if (taken_over_ || frame.len < 1) return;
+  last_heartbeat_ns_ = std::max(last_heartbeat_ns_, frame.timestamp_ns);
+  if (started_) loop_.arm_timer(timer_, takeover_after_);
+}
+
+// The master is silent when no heartbeat of it is stamped within takeover_after of now. A timer
+// that fired after the loop was held up (this process stopped, a slow handler) fires before the
+// frames that came meanwhile are read: those are read first.
+void ActiveMasterWatch::judge() {
+  if (taken_over_) return;
+  if (loop_.input_pending()) return loop_.arm_timer(timer_, std::chrono::milliseconds(1));
+  const auto now = can::detail::realtime_ns();
+  const auto since = last_heartbeat_ns_ != 0 ? last_heartbeat_ns_ : started_ns_;
+  const auto wait = std::chrono::nanoseconds(takeover_after_) - std::chrono::nanoseconds(now - since);
+  if (wait > std::chrono::nanoseconds(0)) return loop_.arm_timer(timer_, wait);
+  taken_over_ = true;
+  const Takeover t{last_heartbeat_ns_ != 0, last_heartbeat_ns_, last_sync_ns_, now};
+  if (t.master_heard) {
+    spdlog::warn("{}: the master's heartbeat (node {}) silent for {} ms: taking the bus over", loop_.bus().uri(),
+                 master_node_id_, (now - last_heartbeat_ns_) / 1'000'000);
+  } else {
+    spdlog::info("{}: no master's heartbeat (node {}) within {} ms of the start: mastering the bus", loop_.bus().uri(),
+                 master_node_id_, takeover_after_.count());
+  }
+  on_takeover_(t);
+}
+
+}  // namespace lb::canopen

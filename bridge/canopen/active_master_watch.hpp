@@ -1,0 +1,67 @@
+#pragma once
+// The standby's watch on the active master (docs/redundancy.md): the master's heartbeat on the
+// line's master node-ID, which both bridges of a pair produce when they master the bus. Silent for
+// takeover_after (judged on bus time, once the frames queued meanwhile were read), the standby takes
+// over: once, by calling on_takeover on the loop thread. A standby that starts and hears no master
+// within takeover_after takes over too (the line started with one PC, or this one waits less than
+// its peer: each bridge of a pair has its own takeover_after, so two started together end with one
+// master).
+//
+// It also keeps, from the bus alone, what a takeover continues: when the last SYNC was (so the
+// first SYNC of the new master comes one period after it, not before) and the last NMT command
+// the master sent each node (a device it held stopped or pre-operational stays so).
+
+#include <array>
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <functional>
+#include <optional>
+
+#include "canopen/bus_loop.hpp"
+#include "canopen/nmt.hpp"
+
+namespace lb::canopen {
+
+class ActiveMasterWatch {
+ public:
+  struct Takeover {
+    bool master_heard = false;           // a master's heartbeat was heard while this bridge stood by
+    std::int64_t last_heartbeat_ns = 0;  // the master's last heartbeat (bus time), 0: none
+    std::int64_t last_sync_ns = 0;       // the last SYNC on the bus (bus time), 0: none
+    std::int64_t at_ns = 0;              // when the silence was judged (realtime)
+  };
+
+  // Before the loop starts.
+  ActiveMasterWatch(BusLoop& loop, std::uint8_t master_node_id, std::chrono::milliseconds takeover_after,
+                    std::function<void(const Takeover&)> on_takeover);
+  ActiveMasterWatch(const ActiveMasterWatch&) = delete;
+  ActiveMasterWatch& operator=(const ActiveMasterWatch&) = delete;
+
+  void start();  // loop thread: the wait for the first heartbeat begins
+
+  bool active() const { return taken_over_.load(std::memory_order_relaxed); }  // any thread
+  // Loop thread. The last NMT command the master sent to this node (to it alone, or to all), if any since this
+  // bridge stood by.
+  std::optional<NmtCommand> last_command(std::uint8_t node_id) const;
+  std::int64_t last_sync_ns() const { return last_sync_ns_; }
+
+ private:
+  void heartbeat(const can::CanFrame& frame);
+  void judge();
+
+  BusLoop& loop_;
+  std::uint8_t master_node_id_;
+  std::chrono::milliseconds takeover_after_;
+  std::function<void(const Takeover&)> on_takeover_;
+  BusLoop::TimerId timer_;
+  bool started_ = false;
+  std::atomic<bool> taken_over_{false};
+  std::int64_t started_ns_ = 0;
+  std::int64_t last_heartbeat_ns_ = 0;
+  std::int64_t last_sync_ns_ = 0;
+  // Per node-ID (index 0 unused): the last NMT command byte seen for it, 0: none.
+  std::array<std::uint8_t, 128> commands_{};
+};
+
+}  // namespace lb::canopen
