@@ -322,7 +322,7 @@ void LineBridge::take_over(BusRuntime& rt, const canopen::ActiveMasterWatch::Tak
   for (std::size_t i = 0; i < rt.services.size(); ++i) {
     rt.services[i]->take_over(rt.standby->last_command(rt.nodes[i]->node_id()));
   }
-  rt.sync->resume(first);
+  rt.sync->resume(first, [w = rt.standby.get()](std::int64_t at_ns) { w->first_sync_sent(at_ns); });
   spdlog::warn("bus {}: took the bus over from the master (node {}): its last heartbeat {} ms ago, its last SYNC {} "
                "ms ago, the first SYNC in {} ms",
                rt.config->name, rt.config->master_node_id, (t.at_ns - t.last_heartbeat_ns) / 1'000'000,

@@ -226,4 +226,93 @@ int check_line(const std::string& path, const profiles::ProfileRegistry& registr
   return kExitOk;
 }
 
+namespace {
+
+// What makes the pair not one line with a standby (errors), and what is likely a mistake (warnings).
+void compare_pair(const profiles::LineConfig& a, const profiles::LineConfig& b, std::vector<std::string>& errors,
+                  std::vector<std::string>& warnings) {
+  if (a.line != b.line)
+    errors.push_back(fmt::format("line '{}' and line '{}': one line needs one name", a.line, b.line));
+  if (a.dds.domain != b.dds.domain) {
+    errors.push_back(fmt::format("DDS domain {} and {}: clients of the line would see one bridge or the other",
+                                 a.dds.domain, b.dds.domain));
+  }
+  for (const auto& x : a.buses) {
+    const auto* y = b.bus(x.name);
+    if (y == nullptr) {
+      errors.push_back("bus " + x.name + " is not in the peer's file");
+      continue;
+    }
+    for (const auto* c : {&x, y}) {
+      if (c->role != profiles::BusRole::standby) {
+        (c->role == profiles::BusRole::master ? warnings : errors)
+            .push_back(fmt::format("bus {}: role {} in {} file: give both bridges role standby (a master restarted "
+                                   "beside the one that took over would master the bus too)",
+                                   x.name, profiles::to_string(c->role), c == &x ? "the first" : "the peer's"));
+      }
+    }
+    if (x.master_node_id != y->master_node_id) {
+      errors.push_back(fmt::format("bus {}: master_node_id {} and {}: the devices consume one master heartbeat", x.name,
+                                   x.master_node_id, y->master_node_id));
+    }
+    if (x.sync_period != y->sync_period) {
+      errors.push_back(fmt::format("bus {}: sync_period_ms {} and {}: a takeover would change the devices' SYNC",
+                                   x.name, x.sync_period.count() / 1000, y->sync_period.count() / 1000));
+    }
+    if (x.master_heartbeat_period != y->master_heartbeat_period) {
+      warnings.push_back(fmt::format("bus {}: master_heartbeat_ms {} and {}", x.name, x.master_heartbeat_period.count(),
+                                     y->master_heartbeat_period.count()));
+    }
+    if (x.role == profiles::BusRole::standby && y->role == profiles::BusRole::standby &&
+        x.takeover_after == y->takeover_after) {
+      errors.push_back(fmt::format("bus {}: both take over after {} ms: two standbys started together would take "
+                                   "over at the same moment; give each its own takeover_after_ms",
+                                   x.name, x.takeover_after.count()));
+    }
+  }
+  for (const auto& y : b.buses) {
+    if (a.bus(y.name) == nullptr) errors.push_back("bus " + y.name + " is only in the peer's file");
+  }
+  for (const auto& d : a.devices) {
+    const auto it = std::find_if(b.devices.begin(), b.devices.end(), [&](const auto& e) { return e.name == d.name; });
+    if (it == b.devices.end()) {
+      errors.push_back("device " + d.name + " is not in the peer's file");
+      continue;
+    }
+    if (it->bus != d.bus || it->node_id != d.node_id || it->resolved_profile->key() != d.resolved_profile->key()) {
+      errors.push_back(fmt::format("device {}: bus {} node {} {} here, bus {} node {} {} in the peer's file", d.name,
+                                   d.bus, d.node_id, d.resolved_profile->key(), it->bus, it->node_id,
+                                   it->resolved_profile->key()));
+    }
+    if (it->heartbeat_timeout != d.heartbeat_timeout) {
+      warnings.push_back(fmt::format("device {}: heartbeat_timeout_ms {} and {}", d.name, d.heartbeat_timeout.count(),
+                                     it->heartbeat_timeout.count()));
+    }
+  }
+  for (const auto& e : b.devices) {
+    if (std::none_of(a.devices.begin(), a.devices.end(), [&](const auto& d) { return d.name == e.name; }))
+      errors.push_back("device " + e.name + " is only in the peer's file");
+  }
+}
+
+}  // namespace
+
+int check_pair(const std::string& path, const std::string& peer, const profiles::ProfileRegistry& registry,
+               std::FILE* out, std::FILE* err) {
+  const int first = check_line(path, registry, out, err);
+  const int second = check_line(peer, registry, out, err);
+  if (first != kExitOk || second != kExitOk) return kExitUsage;
+  const auto a = load_config(path, registry);
+  const auto b = load_config(peer, registry);
+  if (!a || !b) return kExitUsage;  // reported by check_line
+  std::vector<std::string> errors;
+  std::vector<std::string> warnings;
+  compare_pair(*a, *b, errors, warnings);
+  for (const auto& w : warnings) fmt::print(out, "warning: pair: {}\n", w);
+  for (const auto& e : errors) fmt::print(err, "error: pair: {}\n", e);
+  if (!errors.empty()) return kExitUsage;
+  fmt::print(out, "{} and {}: ok as one line with a standby ({} warning(s))\n", path, peer, warnings.size());
+  return kExitOk;
+}
+
 }  // namespace lb::app

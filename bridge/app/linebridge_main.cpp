@@ -84,6 +84,7 @@ int main(int argc, char** argv) {
   app::add_conventions(cli, "linebridge", app::kBridgeExitCodes);
   std::string config_path;
   std::string check_path;
+  std::string peer_path;
   double duration_s = 0;
   std::string log_level = "info";
   std::string part = "both";
@@ -96,6 +97,11 @@ int main(int argc, char** argv) {
   cli.add_option("--check", check_path,
                  "check a line configuration (and its profile, DDS profile and security files) as start-up would, "
                  "print its buses, devices and DDS topics, and exit (0 valid, 2 not); touches neither CAN nor DDS")
+      ->check(app::non_empty_path());
+  cli.add_option("--peer", peer_path,
+                 "with --check: the line file of the other bridge of a redundant pair (docs/redundancy.md): both "
+                 "checked, then the pair (the same line, buses and devices, both standby, different "
+                 "takeover_after_ms)")
       ->check(app::non_empty_path());
   cli.add_option("-d,--duration", duration_s, "stop after this many seconds (default 0: run until SIGINT/SIGTERM)")
       ->check(app::duration_seconds());
@@ -159,8 +165,13 @@ int main(int argc, char** argv) {
   }
 
   const auto registry = lb::profiles::ProfileRegistry::builtin();
+  if (!peer_path.empty() && check_path.empty()) {
+    spdlog::error("--peer is for --check (linebridge --check FILE --peer FILE)");
+    return app::kExitUsage;
+  }
   if (!check_path.empty()) {
     spdlog::set_level(spdlog::level::warn);  // the summary says it all; the gateways' start-up lines would not
+    if (!peer_path.empty()) return app::check_pair(check_path, peer_path, registry, stdout, stderr);
     return app::check_line(check_path, registry, stdout, stderr);
   }
 

@@ -1,6 +1,10 @@
 #include "canopen/active_master_watch.hpp"
 
+#include <fmt/chrono.h>
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
+
+#include <ctime>
 
 #include "can/detail.hpp"
 
@@ -59,6 +63,7 @@ void ActiveMasterWatch::judge() {
   if (wait > std::chrono::nanoseconds(0)) return loop_.arm_timer(timer_, wait);
   taken_over_ = true;
   const Takeover t{last_heartbeat_ns_ != 0, last_heartbeat_ns_, last_sync_ns_, now};
+  takeover_ = t;
   if (t.master_heard) {
     spdlog::warn("{}: the master's heartbeat (node {}) silent for {} ms: taking the bus over", loop_.bus().uri(),
                  master_node_id_, (now - last_heartbeat_ns_) / 1'000'000);
@@ -67,6 +72,23 @@ void ActiveMasterWatch::judge() {
                  master_node_id_, takeover_after_.count());
   }
   on_takeover_(t);
+}
+
+std::string ActiveMasterWatch::describe() const {
+  if (!takeover_) return {};
+  const auto& t = *takeover_;
+  const auto utc = fmt::format("{:%Y-%m-%d %H:%M:%S} UTC",
+                               fmt::gmtime(static_cast<std::time_t>(t.at_ns / 1'000'000'000)));
+  if (!t.master_heard) return "mastered from its start at " + utc + " (no master heard)";
+  std::string gap = "first SYNC not sent yet";
+  if (first_sync_ns_ != 0 && t.last_sync_ns != 0) {
+    gap = fmt::format("SYNC gap {:.1f} ms (the master's last SYNC to this bridge's first)",
+                      static_cast<double>(first_sync_ns_ - t.last_sync_ns) / 1e6);
+  } else if (first_sync_ns_ != 0) {
+    gap = "no SYNC of the master's was seen";
+  }
+  return fmt::format("took the bus over at {} from the master (node {}), its heartbeat silent for {} ms; {}", utc,
+                     master_node_id_, (t.at_ns - t.last_heartbeat_ns) / 1'000'000, gap);
 }
 
 }  // namespace lb::canopen

@@ -17,6 +17,7 @@
 #include <cstdint>
 #include <functional>
 #include <optional>
+#include <string>
 
 #include "canopen/bus_loop.hpp"
 #include "canopen/nmt.hpp"
@@ -45,6 +46,13 @@ class ActiveMasterWatch {
   // bridge stood by.
   std::optional<NmtCommand> last_command(std::uint8_t node_id) const;
   std::int64_t last_sync_ns() const { return last_sync_ns_; }
+  // Loop thread: the takeover of this run, if any, and when this bridge's first SYNC after it went
+  // out (realtime, 0: not yet), told by whoever sends it.
+  const std::optional<Takeover>& takeover() const { return takeover_; }
+  void first_sync_sent(std::int64_t at_ns) { first_sync_ns_ = at_ns; }
+  std::int64_t first_sync_ns() const { return first_sync_ns_; }
+  // The takeover in words, with its SYNC gap as measured (diagnostics); empty: none.
+  std::string describe() const;
 
  private:
   void heartbeat(const can::CanFrame& frame);
@@ -57,6 +65,8 @@ class ActiveMasterWatch {
   BusLoop::TimerId timer_;
   bool started_ = false;
   std::atomic<bool> taken_over_{false};
+  std::optional<Takeover> takeover_;
+  std::int64_t first_sync_ns_ = 0;
   std::int64_t started_ns_ = 0;
   std::int64_t last_heartbeat_ns_ = 0;
   std::int64_t last_sync_ns_ = 0;

@@ -1,5 +1,6 @@
 #include "canopen/sync_producer.hpp"
 
+#include "can/detail.hpp"
 #include "canopen/cob_id.hpp"
 
 namespace lb::canopen {
@@ -10,7 +11,8 @@ SyncProducer::SyncProducer(BusLoop& loop, std::chrono::microseconds period) : lo
 
 void SyncProducer::start() { loop_.arm_timer(timer_, period_, period_); }
 
-void SyncProducer::resume(std::chrono::nanoseconds first) {
+void SyncProducer::resume(std::chrono::nanoseconds first, std::function<void(std::int64_t)> sent) {
+  first_sent_ = std::move(sent);
   if (first < std::chrono::microseconds(1)) {
     tick();
     first = period_;
@@ -21,7 +23,11 @@ void SyncProducer::resume(std::chrono::nanoseconds first) {
 void SyncProducer::tick() {
   can::CanFrame sync;
   sync.id = cob::sync;
-  (void)loop_.send(sync);  // a failed SYNC is counted by the bus; the next period tries again
+  const auto ok = loop_.send(sync);  // a failed SYNC is counted by the bus; the next period tries again
+  if (ok && first_sent_) {
+    first_sent_(can::detail::realtime_ns());
+    first_sent_ = nullptr;
+  }
   for (const auto& s : subscribers_) s();
 }
 

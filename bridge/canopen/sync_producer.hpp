@@ -20,7 +20,8 @@ class SyncProducer {
   // Loop thread: a standby that takes the bus over continues the master's SYNC: the first one
   // `first` from now (a period after the master's last, or at once when that is past), then every
   // period.
-  void resume(std::chrono::nanoseconds first);
+  // sent: called once with the realtime stamp of that first SYNC (the takeover's measured gap).
+  void resume(std::chrono::nanoseconds first, std::function<void(std::int64_t)> sent = {});
   std::chrono::microseconds period() const { return period_; }
 
  private:
@@ -30,6 +31,7 @@ class SyncProducer {
   std::chrono::microseconds period_;
   BusLoop::TimerId timer_;
   std::vector<std::function<void()>> subscribers_;
+  std::function<void(std::int64_t)> first_sent_;  // after resume(): the first SYNC's stamp
 };
 
 }  // namespace lb::canopen

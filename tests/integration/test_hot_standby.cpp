@@ -26,6 +26,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -39,10 +40,12 @@
 
 #include "dds/participant.hpp"
 #include "dds/topic_names.hpp"
+#include "msgs/commonPubSubTypes.h"
 #include "msgs/sawPubSubTypes.h"
 #include "support/bus_spy.hpp"
 #include "support/child_process.hpp"
 #include "support/eventually.hpp"
+#include "support/run_command.hpp"
 #include "support/safety_device.hpp"
 #include "support/safety_operator.hpp"
 
@@ -68,9 +71,18 @@ constexpr bool kSanitized = false;
 #else
 constexpr bool kSanitized = false;
 #endif
-// The target (takeover_after + one period) and 100 ms for a loaded 2-core CI machine; sanitized,
-// only that SYNC comes back.
-constexpr std::int64_t kWidestGapMs = kSanitized ? 2000 : kTakeoverAfterMs + kSyncPeriodMs + 100;
+// Built a second time for real SocketCAN (tests/socketcan: vcan0, natively or in the VM, whose
+// software emulation runs every process several times slower): 3 takeovers by default there.
+#ifdef LB_STANDBY_ON_VCAN
+constexpr bool kOnVcan = true;
+#else
+constexpr bool kOnVcan = false;
+#endif
+// Beyond the target (the new master's takeover_after + one period): 100 ms for a loaded 2-core CI machine, 500 ms in
+// the emulated VM; sanitized, only that SYNC comes back.
+constexpr std::int64_t kMarginMs = kSanitized ? 2000 : kOnVcan ? 500 : 100;
+// SYNC gaps shorter than half a period allowed in a judged window (see HotStandby::sync_gaps).
+constexpr std::size_t kTwoProducers = 3;
 
 std::int64_t bus_now_ns() {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch())
@@ -108,7 +120,7 @@ class HotStandby : public ::testing::Test {
     std::filesystem::remove_all(dir_);
     std::filesystem::create_directories(dir_ + "/state_a");
     std::filesystem::create_directories(dir_ + "/state_b");
-    bus_ = "virtual:standby-" + tag_;
+    bus_ = kOnVcan ? "socketcan:vcan0" : "virtual:standby-" + tag_;
     spy_ = std::make_unique<lb::test::BusSpy>(bus_);  // first member: the hub lives in this process
   }
   void TearDown() override {
@@ -205,18 +217,26 @@ class HotStandby : public ::testing::Test {
                  std::count_if(s.begin(), s.end(), [&](const auto& f) { return f.timestamp_ns > from_ns; })) >= n;
     });
   }
-  // The widest gap between two SYNCs stamped in [from_ns, to_ns], and the narrowest.
-  std::pair<std::int64_t, std::int64_t> sync_gaps(std::int64_t from_ns, std::int64_t to_ns) {
-    std::int64_t widest = 0, narrowest = INT64_MAX, last = 0;
+  // The widest gap between two SYNCs stamped in [from_ns, to_ns], and how many were shorter than
+  // half a period. Two producers of one period make every other gap at most half a period (their
+  // phases differ); one SYNC late by a loaded machine makes one short gap after it, so a few are
+  // allowed (kTwoProducers).
+  struct Gaps {
+    std::int64_t widest = 0;
+    std::size_t short_ones = 0;
+  };
+  Gaps sync_gaps(std::int64_t from_ns, std::int64_t to_ns) {
+    Gaps g;
+    std::int64_t last = 0;
     for (const auto& f : spy_->frames(0x080)) {
       if (f.timestamp_ns < from_ns || f.timestamp_ns > to_ns) continue;
       if (last != 0) {
-        widest = std::max(widest, f.timestamp_ns - last);
-        narrowest = std::min(narrowest, f.timestamp_ns - last);
+        g.widest = std::max(g.widest, f.timestamp_ns - last);
+        if (f.timestamp_ns - last < kSyncPeriodMs * kMs / 2) ++g.short_ones;
       }
       last = f.timestamp_ns;
     }
-    return {widest, narrowest};
+    return g;
   }
 
   std::string tag_, dir_, bus_;
@@ -266,7 +286,7 @@ TEST_F(HotStandby, TwentyTimesTheMastersPcDiesAndTheStandbyTakesTheRunningLineOv
     for (int n = 1; n <= 4; ++n) rpdo_ids.insert(d->rpdo(n));
   }
 
-  const int kills = std::getenv("LB_TAKEOVERS") != nullptr ? std::atoi(std::getenv("LB_TAKEOVERS")) : 20;
+  const int kills = std::getenv("LB_TAKEOVERS") != nullptr ? std::atoi(std::getenv("LB_TAKEOVERS")) : kOnVcan ? 3 : 20;
   std::mt19937 random(42);
   std::vector<Takeover> seen;
   int active = 0;
@@ -288,12 +308,10 @@ TEST_F(HotStandby, TwentyTimesTheMastersPcDiesAndTheStandbyTakesTheRunningLineOv
     for (const auto& f : spy_->frames()) {
       if (f.timestamp_ns < kill_ns && rpdo_ids.contains(f.id)) before[f.id] = f;
     }
-    t.sync_gap_ns = sync_gaps(kill_ns - 1000 * kMs, end_ns).first;
-    EXPECT_LE(t.sync_gap_ns, (kSanitized ? 2000 : waits[standby] + kSyncPeriodMs + 100) * kMs) << "kill " << k << "\n"
-                                                                                               << logs();
-    EXPECT_GE(sync_gaps(kill_ns - 1000 * kMs, end_ns).second, kSyncPeriodMs * kMs / 2)
-        << "two SYNC producers at once, kill " << k << "\n"
-        << logs();
+    const auto gaps = sync_gaps(kill_ns - 1000 * kMs, end_ns);
+    t.sync_gap_ns = gaps.widest;
+    EXPECT_LE(t.sync_gap_ns, (waits[standby] + kSyncPeriodMs + kMarginMs) * kMs) << "kill " << k << "\n" << logs();
+    EXPECT_LE(gaps.short_ones, kTwoProducers) << "two SYNC producers at once, kill " << k << "\n" << logs();
     for (const auto& f : frames_since(kill_ns + 5 * kMs)) {
       if (f.timestamp_ns > end_ns) break;
       EXPECT_NE(f.id, 0x000u) << "an NMT command after kill " << k << ": " << payload(f) << "\n" << logs();
@@ -377,25 +395,92 @@ TEST_F(HotStandby, TwentyTimesTheMastersPcDiesAndTheStandbyTakesTheRunningLineOv
                                    }))
       << "the stop never reached the bus from the new master\n"
       << logs();
+  // Its diagnostics name its role and the takeover with the SYNC gap it measured.
+  std::mutex diag_mutex;
+  std::string role, takeover;
+  ASSERT_TRUE(dds_->subscribe<linebridge_msgs::msg::DiagnosticsPubSubType>(
+      lb::ddsl::topic_name("hs", lb::ddsl::kBridgeNamespace, "diagnostics"), lb::ddsl::QosKind::state,
+      [&](const linebridge_msgs::msg::Diagnostics& d, const eprosima::fastdds::dds::SampleInfo&) {
+        if (d.buses().empty()) return;
+        std::lock_guard lock(diag_mutex);
+        role = d.buses().front().role();
+        takeover = d.buses().front().takeover();
+      }));
+  EXPECT_TRUE(lb::test::eventually(30s,
+                                   [&] {
+                                     std::lock_guard lock(diag_mutex);
+                                     return role == "standby, mastering (took over)" &&
+                                            takeover.find("took the bus over at ") == 0 &&
+                                            takeover.find("SYNC gap ") != std::string::npos;
+                                   }))
+      << "role '" << role << "', takeover '" << takeover << "'\n"
+      << logs();
+  std::printf("diagnostics of the master now: role '%s', takeover '%s'\n", role.c_str(), takeover.c_str());
   EXPECT_TRUE(a_->running()) << logs();
   EXPECT_TRUE(b_->running()) << logs();
 }
 
+// Started at the same moment, 20 times (3 on vcan): one masters the bus (the one that waits less,
+// as a rule), the other stands by; never two SYNC producers, never two masters.
 TEST_F(HotStandby, TwoStandbysStartedTogetherEndWithOneMaster) {
   start_sim();
   const auto a = write_line("a", "standby", kTakeoverAfterMs, dir_ + "/state_a", false);
   const auto b = write_line("b", "standby", 2 * kTakeoverAfterMs, dir_ + "/state_b", false);
-  const auto from_ns = bus_now_ns();
-  a_ = bridge(a, "a");
-  b_ = bridge(b, "b");
-  ASSERT_TRUE(syncs_after(from_ns, 150, 60s)) << logs();
-  const auto [widest, narrowest] = sync_gaps(from_ns, bus_now_ns());
-  EXPECT_GE(narrowest, kSyncPeriodMs * kMs / 2) << "two SYNC producers at once\n" << logs();
-  // Exactly one of them says it masters the bus.
-  const bool a_masters = a_->log().find("mastered from the start") != std::string::npos;
-  const bool b_masters = b_->log().find("mastered from the start") != std::string::npos;
-  EXPECT_NE(a_masters, b_masters) << logs();
+  const int starts = kOnVcan ? 3 : 20;
+  for (int i = 0; i < starts; ++i) {
+    const auto from_ns = bus_now_ns();
+    a_ = bridge(a, "together-a-" + std::to_string(i));
+    b_ = bridge(b, "together-b-" + std::to_string(i));
+    ASSERT_TRUE(syncs_after(from_ns, 100, 60s)) << "start " << i << "\n" << logs();
+    EXPECT_LE(sync_gaps(from_ns, bus_now_ns()).short_ones, kTwoProducers)
+        << "two SYNC producers at once, start " << i << "\n"
+        << logs();
+    const bool a_masters = a_->log().find("mastered from the start") != std::string::npos;
+    const bool b_masters = b_->log().find("mastered from the start") != std::string::npos;
+    // Exactly one: the one that waits less, unless its process came up over 150 ms later.
+    EXPECT_NE(a_masters, b_masters) << "start " << i << "\n" << logs();
+    if (::testing::Test::HasFailure()) break;
+    EXPECT_EQ(b_->stop(), 0) << logs();
+    EXPECT_EQ(a_->stop(), 0) << logs();
+  }
   EXPECT_TRUE(lb::test::eventually(60s, [&] { return all_operational(); })) << logs();
+}
+
+// linebridge --check A --peer B: the pair as one line with a standby (docs/redundancy.md).
+TEST_F(HotStandby, CheckOfAPairOfLineFiles) {
+  const auto a = write_line("pair_a", "standby", 150, "", false);
+  const auto b = write_line("pair_b", "standby", 300, "", false);
+  const auto check = [](const std::string& x, const std::string& y) {
+    return lb::test::run_command({LB_BIN_BRIDGE, "--check", x, "--peer", y}, 60s);
+  };
+  auto r = check(a, b);
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("ok as one line with a standby"), std::string::npos) << r.output;
+
+  r = check(a, write_line("pair_same_wait", "standby", 150, "", false));
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("error: pair: bus b: both take over after 150 ms"), std::string::npos) << r.output;
+
+  r = check(a, write_line("pair_master", "master", 0, "", false));
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("warning: pair: bus b: role master in the peer's file: give both bridges role standby"),
+            std::string::npos)
+      << r.output;
+
+  // A device at another node-ID in the peer's file.
+  std::ifstream in(b);
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  text.replace(text.find("node_id: 5"), 10, "node_id: 8");
+  const auto moved = dir_ + "/pair_moved.yaml";
+  std::ofstream(moved) << text;
+  r = check(a, moved);
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("error: pair: device saw31: bus b node 5 cia420-4@3.1 here, bus b node 8"), std::string::npos)
+      << r.output;
+
+  r = lb::test::run_command({LB_BIN_BRIDGE, "--peer", b}, 60s);
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("--peer is for --check"), std::string::npos) << r.output;
 }
 
 }  // namespace

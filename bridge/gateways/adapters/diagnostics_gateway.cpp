@@ -83,6 +83,7 @@ void DiagnosticsGateway::snapshot(std::size_t i) {
          : bus.standby->active() ? "standby, mastering (took over)"
                                  : "standby");
   b.state(std::string(can::to_string(stats.state)));
+  if (bus.standby != nullptr) b.takeover(bus.standby->describe());
   b.frames_in(stats.frames_in);
   b.frames_out(stats.frames_out);
   b.error_frames(stats.error_frames);
