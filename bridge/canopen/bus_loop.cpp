@@ -401,6 +401,12 @@ void BusLoop::run_posted() {
   for (auto& task : batch) guarded(task, nullptr, "posted task", 0);
 }
 
+bool BusLoop::catch_up() {
+  if (in_burst_ || !input_pending()) return false;
+  drain_bus();
+  return true;
+}
+
 bool BusLoop::input_pending() const {
   if (in_burst_ || backlog_) return true;
   pollfd p{bus_->fd(), POLLIN, 0};

@@ -139,6 +139,11 @@ class BusLoop {
   // between two of its frames), one wake-up stopped at kFramesPerWake, or the bus has something
   // to read. False means every frame that reached this member so far was dispatched.
   bool input_pending() const;
+  // Loop thread, outside frame dispatch: reads and dispatches the frames waiting on the bus now
+  // (one wake-up's worth), so that a decision taken next on what the bus said (a stop refused as
+  // "not heard") counts every frame that reached the bus before it. False when none waited, or
+  // when called during dispatch (the frames then are being read).
+  bool catch_up();
   // Frame handlers and timers that reached kMaxHandlerFailures: at most 1, and then the loop has
   // ended (kept for the diagnostics contract; nothing is switched off any more).
   std::uint64_t handlers_disabled() const { return handlers_disabled_; }

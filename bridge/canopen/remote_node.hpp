@@ -164,6 +164,14 @@ class RemoteNode {
   // TPDO reported through heard_frame) within its heartbeat timeout. What the stop path asks:
   // a device that is heard takes a stop, whatever the master believes about its state.
   bool heard() const;
+  // Loop thread: heard(), counting the frames that wait on the bus too (BusLoop::catch_up): what
+  // refuses a stop asks this. A request and the device's first frame after a silence may arrive
+  // in the same instant (the fault campaign: a restarted bridge, the feeder box's heartbeat every
+  // 5 s, its stop request in the same millisecond as that heartbeat, refused as not heard).
+  bool heard_now() {
+    if (heard()) return true;
+    return loop_.catch_up() && heard();
+  }
   std::int64_t last_heard_ns() const { return last_heard_ns_; }
   // Loop thread: a frame only the device sends (its TPDOs, as the gateway decodes them).
   void heard_frame(std::int64_t timestamp_ns) { last_heard_ns_ = std::max(last_heard_ns_, timestamp_ns); }

@@ -184,7 +184,7 @@ class DeviceOutput final : public canopen::NodeDriver {
       if (const auto why = silent_reason(); !why.empty()) return refuse(why + ": " + c.name + " not sent");
       return pulses_->press(c.bit, std::move(done));
     }
-    if (!ctx_.node.heard()) return refuse(not_heard(c.name));
+    if (!ctx_.node.heard_now()) return refuse(not_heard(c.name));
     if (!carrier()) return refuse(name + ": no RPDO in use carries the control word: " + c.name + " not sent");
     quiet_ = true;  // the press's own frame goes out below, once
     if (!ctx_.node.ready_for_pdos() || ctx_.loop.transmission_held() || carrier()->silent) {
@@ -367,7 +367,7 @@ class DeviceOutput final : public canopen::NodeDriver {
   template <class Apply>
   void take_stop(Apply& apply, const Change& change, const Taken& taken, std::span<const std::size_t> resend) {
     const auto& name = ctx_.device.name;
-    if (!ctx_.node.heard()) return taken(false, not_heard("set value"));
+    if (!ctx_.node.heard_now()) return taken(false, not_heard("set value"));
     fill_undecided();
     write(apply, change, resend);
     if (!ctx_.node.ready_for_pdos() || ctx_.loop.transmission_held()) stop_mode_ = true;

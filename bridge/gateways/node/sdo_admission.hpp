@@ -23,7 +23,7 @@ inline constexpr canopen::SdoClient::Limit kServiceSdoLimit{8};
 // stop: the request stops a machine (the feeder's 600Eh stop modes): it goes whenever the device
 // is heard (RemoteNode::heard), whatever its heartbeat supervision believes.
 inline std::string sdo_refusal(const DeviceContext& ctx, bool answered_boot = false, bool stop = false) {
-  if (stop && !ctx.node.heard()) {
+  if (stop && !ctx.node.heard_now()) {
     return ctx.device.name + " is not heard (no frame of its own within its heartbeat timeout): the stop cannot reach "
                              "it; SDO request not sent";
   }
