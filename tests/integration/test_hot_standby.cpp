@@ -240,6 +240,10 @@ class HotStandby : public ::testing::Test {
   }
 
   std::string tag_, dir_, bus_;
+  // What this test's DDS readers saw (their callbacks may run until TearDown resets dds_).
+  std::mutex seen_mutex_;
+  std::vector<std::int64_t> status_at_;  // realtime ns of each status sample of the saw
+  std::string role_, takeover_;          // the newest diagnostics of the bus
   std::unique_ptr<lb::test::BusSpy> spy_;
   std::unique_ptr<lb::test::ChildProcess> sim_, a_, b_;
   std::unique_ptr<lb::ddsl::Participant> dds_;
@@ -273,13 +277,11 @@ TEST_F(HotStandby, TwentyTimesTheMastersPcDiesAndTheStandbyTakesTheRunningLineOv
   b_ = bridge(files[1], "b-0");
   ASSERT_TRUE(b_->wait_log("started as standby", 30000ms)) << logs();
   ASSERT_NO_FATAL_FAILURE(put_set_values_in_force());
-  std::mutex status_mutex;
-  std::vector<std::int64_t> status_at;  // realtime ns of each status sample of the saw
   ASSERT_TRUE(dds_->subscribe<linebridge_msgs::msg::SawStatusPubSubType>(
       lb::ddsl::topic_name("hs", devices()[0]->name, "status"), lb::ddsl::QosKind::state,
       [&](const linebridge_msgs::msg::SawStatus&, const eprosima::fastdds::dds::SampleInfo&) {
-        std::lock_guard lock(status_mutex);
-        status_at.push_back(bus_now_ns());
+        std::lock_guard lock(seen_mutex_);
+        status_at_.push_back(bus_now_ns());
       }));
   std::set<std::uint32_t> rpdo_ids;
   for (const auto* d : devices()) {
@@ -347,12 +349,12 @@ TEST_F(HotStandby, TwentyTimesTheMastersPcDiesAndTheStandbyTakesTheRunningLineOv
     // The client's status: the gap from the last sample before the kill to the first after it.
     {
       const auto got = lb::test::eventually(30s, [&] {
-        std::lock_guard lock(status_mutex);
-        return !status_at.empty() && status_at.back() > kill_ns;
+        std::lock_guard lock(seen_mutex_);
+        return !status_at_.empty() && status_at_.back() > kill_ns;
       });
-      std::lock_guard lock(status_mutex);
-      const auto after = std::upper_bound(status_at.begin(), status_at.end(), kill_ns);
-      if (got && after != status_at.begin() && after != status_at.end()) t.status_gap_ns = *after - *(after - 1);
+      std::lock_guard lock(seen_mutex_);
+      const auto after = std::upper_bound(status_at_.begin(), status_at_.end(), kill_ns);
+      if (got && after != status_at_.begin() && after != status_at_.end()) t.status_gap_ns = *after - *(after - 1);
     }
     EXPECT_GE(t.status_gap_ns, 0) << "no status of the saw from the new master after kill " << k << "\n" << logs();
     seen.push_back(t);
@@ -396,26 +398,27 @@ TEST_F(HotStandby, TwentyTimesTheMastersPcDiesAndTheStandbyTakesTheRunningLineOv
       << "the stop never reached the bus from the new master\n"
       << logs();
   // Its diagnostics name its role and the takeover with the SYNC gap it measured.
-  std::mutex diag_mutex;
-  std::string role, takeover;
   ASSERT_TRUE(dds_->subscribe<linebridge_msgs::msg::DiagnosticsPubSubType>(
       lb::ddsl::topic_name("hs", lb::ddsl::kBridgeNamespace, "diagnostics"), lb::ddsl::QosKind::state,
       [&](const linebridge_msgs::msg::Diagnostics& d, const eprosima::fastdds::dds::SampleInfo&) {
         if (d.buses().empty()) return;
-        std::lock_guard lock(diag_mutex);
-        role = d.buses().front().role();
-        takeover = d.buses().front().takeover();
+        std::lock_guard lock(seen_mutex_);
+        role_ = d.buses().front().role();
+        takeover_ = d.buses().front().takeover();
       }));
   EXPECT_TRUE(lb::test::eventually(30s,
                                    [&] {
-                                     std::lock_guard lock(diag_mutex);
-                                     return role == "standby, mastering (took over)" &&
-                                            takeover.find("took the bus over at ") == 0 &&
-                                            takeover.find("SYNC gap ") != std::string::npos;
+                                     std::lock_guard lock(seen_mutex_);
+                                     return role_ == "standby, mastering (took over)" &&
+                                            takeover_.find("took the bus over at ") == 0 &&
+                                            takeover_.find("SYNC gap ") != std::string::npos;
                                    }))
-      << "role '" << role << "', takeover '" << takeover << "'\n"
+      << "role '" << role_ << "', takeover '" << takeover_ << "'\n"
       << logs();
-  std::printf("diagnostics of the master now: role '%s', takeover '%s'\n", role.c_str(), takeover.c_str());
+  {
+    std::lock_guard lock(seen_mutex_);
+    std::printf("diagnostics of the master now: role '%s', takeover '%s'\n", role_.c_str(), takeover_.c_str());
+  }
   EXPECT_TRUE(a_->running()) << logs();
   EXPECT_TRUE(b_->running()) << logs();
 }
