@@ -151,7 +151,7 @@ std::string to_text(const msg::Diagnostics& d) {
         b.name(), b.other_master_frames(), b.yielding_to_other_master() ? "YES" : "no", b.other_master_yields(),
         b.frames_held(), b.stops_sent_while_held(), or_dash(b.other_master_last()),
         b.yielding_to_other_master() ? " (YIELDING: transmits only stops, refuses other set values and commands)" : "");
-    if (!b.takeover().empty()) out += fmt::format("  bus {:<12} takeover: {}\n", b.name(), b.takeover());
+    out += fmt::format("  bus {:<12} takeover {}\n", b.name(), or_dash(b.takeover()));
     out += fmt::format("  bus {:<12} mandatory-missing {} mandatory-state {}\n", b.name(),
                        b.mandatory_missing().empty() ? std::string("none")
                                                      : fmt::format("{}", fmt::join(b.mandatory_missing(), ", ")),

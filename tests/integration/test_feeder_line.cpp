@@ -194,6 +194,8 @@ TEST(FeederLine, StatusFaultEventsCommandsAndLoomPlay) {
   const auto reset = command(**commands, 2, "reset");
   EXPECT_TRUE(reset.success()) << reset.message();
   EXPECT_EQ(reset.raw(), 0x04u);
+  // This test's recorder reads the bus on a thread of its own: wait for the download it shows.
+  EXPECT_TRUE(lb::test::eventually(10s, [&] { return sdo_downloads(spy, 0x600E) >= 1u; }));
   EXPECT_EQ(sdo_downloads(spy, 0x600E), 1u);
   ASSERT_TRUE(errors.wait(10s, [](const auto& v) { return v.size() >= 2; })) << logs();
   {
@@ -392,6 +394,9 @@ TEST(FeederLine, AStopModeNamingAnEarlierBridgeRunRunsAndOtherCommandsAreRefused
   EXPECT_TRUE(stopped->reply.success()) << "the stop was refused: " << stopped->reply.message();
   EXPECT_FALSE(stopped->bridge_restarted());
   EXPECT_EQ(stopped->reply.raw(), 0x03u) << "CiA 414-2 600Eh: stop mode is 03h";
+  // The answer came once the download was on the bus; this test's recorder reads it on a thread of
+  // its own, which a loaded machine may run a little later.
+  EXPECT_TRUE(lb::test::eventually(10s, [&] { return sdo_downloads(spy, 0x600E) >= 1u; }));
   EXPECT_EQ(sdo_downloads(spy, 0x600E), 1u);
   EXPECT_TRUE(status.wait_last(10s,
                                [](const msg::FeederStatus& s) {
