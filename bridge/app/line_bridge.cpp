@@ -282,16 +282,20 @@ void LineBridge::start() {
       standing_by = true;
       rt.loop->post([&rt] { rt.standby->start(); });
     } else {
-      rt.loop->post([&rt] {
-        if (rt.heartbeat) rt.heartbeat->start();
-        for (auto& services : rt.services) services->start();
-        if (rt.sync) rt.sync->start();
-      });
+      rt.loop->post([&rt] { start_master(rt); });
     }
     spdlog::info("bus {} on {} started as {}", rt.config->name, rt.config->interface,
                  profiles::to_string(rt.config->role));
   }
   if (!standing_by) mastering();
+}
+
+// Loop thread: a master bus starts its heartbeat, its devices' boots and its SYNC (a monitor bus
+// has none of them).
+void LineBridge::start_master(BusRuntime& rt) {
+  if (rt.heartbeat) rt.heartbeat->start();
+  for (auto& services : rt.services) services->start();
+  if (rt.sync) rt.sync->start();
 }
 
 void LineBridge::mastering() {
@@ -308,9 +312,7 @@ void LineBridge::take_over(BusRuntime& rt, const canopen::ActiveMasterWatch::Tak
   rt.loop->hold_transmission(false);
   rt.other_master->stand_by(false);
   if (!t.master_heard) {
-    if (rt.heartbeat) rt.heartbeat->start();
-    for (auto& services : rt.services) services->start();
-    rt.sync->start();
+    start_master(rt);
     spdlog::info("bus {}: mastered from the start (no other master heard)", rt.config->name);
     return mastering();
   }

@@ -93,6 +93,7 @@ class LineBridge {
   // and the participant (reset first in the destructor) stops calling them before anything goes.
   std::unique_ptr<gateways::ManagementServices> management_;
   std::unique_ptr<gateways::DiagnosticsGateway> diagnostics_;
+  static void start_master(BusRuntime& rt);
   void take_over(BusRuntime& rt, const canopen::ActiveMasterWatch::Takeover& t);
   void mastering();  // a bus masters: the first time, on_mastering_
 

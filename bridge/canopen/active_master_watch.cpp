@@ -20,10 +20,10 @@ ActiveMasterWatch::ActiveMasterWatch(BusLoop& loop, std::uint8_t master_node_id,
   timer_ = loop_.create_timer([this] { judge(); });
   loop_.on_frame(cob::heartbeat_base + master_node_id_, [this](const can::CanFrame& f) { heartbeat(f); });
   loop_.on_frame(cob::sync, [this](const can::CanFrame& f) {
-    if (!taken_over_) last_sync_ns_ = f.timestamp_ns;
+    if (!active()) last_sync_ns_ = f.timestamp_ns;
   });
   loop_.on_frame(cob::nmt, [this](const can::CanFrame& f) {
-    if (taken_over_ || f.len != 2) return;
+    if (active() || f.len != 2) return;
     const auto node = f.data[1];
     if (node >= commands_.size()) return;
     if (node == 0) {
@@ -46,7 +46,7 @@ std::optional<NmtCommand> ActiveMasterWatch::last_command(std::uint8_t node_id) 
 }
 
 void ActiveMasterWatch::heartbeat(const can::CanFrame& frame) {
-  if (taken_over_ || frame.len < 1) return;
+  if (active() || frame.len < 1) return;
   last_heartbeat_ns_ = std::max(last_heartbeat_ns_, frame.timestamp_ns);
   if (started_) loop_.arm_timer(timer_, takeover_after_);
 }
@@ -55,15 +55,14 @@ void ActiveMasterWatch::heartbeat(const can::CanFrame& frame) {
 // that fired after the loop was held up (this process stopped, a slow handler) fires before the
 // frames that came meanwhile are read: those are read first.
 void ActiveMasterWatch::judge() {
-  if (taken_over_) return;
+  if (active()) return;
   if (loop_.input_pending()) return loop_.arm_timer(timer_, std::chrono::milliseconds(1));
   const auto now = can::detail::realtime_ns();
   const auto since = last_heartbeat_ns_ != 0 ? last_heartbeat_ns_ : started_ns_;
   const auto wait = std::chrono::nanoseconds(takeover_after_) - std::chrono::nanoseconds(now - since);
   if (wait > std::chrono::nanoseconds(0)) return loop_.arm_timer(timer_, wait);
-  taken_over_ = true;
-  const Takeover t{last_heartbeat_ns_ != 0, last_heartbeat_ns_, last_sync_ns_, now};
-  takeover_ = t;
+  takeover_ = Takeover{last_heartbeat_ns_ != 0, last_heartbeat_ns_, last_sync_ns_, now};
+  const auto& t = *takeover_;
   if (t.master_heard) {
     spdlog::warn("{}: the master's heartbeat (node {}) silent for {} ms: taking the bus over", loop_.bus().uri(),
                  master_node_id_, (now - last_heartbeat_ns_) / 1'000'000);

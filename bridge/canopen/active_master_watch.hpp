@@ -12,7 +12,6 @@
 // the master sent each node (a device it held stopped or pre-operational stays so).
 
 #include <array>
-#include <atomic>
 #include <chrono>
 #include <cstdint>
 #include <functional>
@@ -41,16 +40,13 @@ class ActiveMasterWatch {
 
   void start();  // loop thread: the wait for the first heartbeat begins
 
-  bool active() const { return taken_over_.load(std::memory_order_relaxed); }  // any thread
-  // Loop thread. The last NMT command the master sent to this node (to it alone, or to all), if any since this
+  // Loop thread from here on. It took the bus over (once per run).
+  bool active() const { return takeover_.has_value(); }
+  // The last NMT command the master sent to this node (to it alone, or to all), if any since this
   // bridge stood by.
   std::optional<NmtCommand> last_command(std::uint8_t node_id) const;
-  std::int64_t last_sync_ns() const { return last_sync_ns_; }
-  // Loop thread: the takeover of this run, if any, and when this bridge's first SYNC after it went
-  // out (realtime, 0: not yet), told by whoever sends it.
-  const std::optional<Takeover>& takeover() const { return takeover_; }
+  // When this bridge's first SYNC after the takeover went out (realtime), told by whoever sends it.
   void first_sync_sent(std::int64_t at_ns) { first_sync_ns_ = at_ns; }
-  std::int64_t first_sync_ns() const { return first_sync_ns_; }
   // The takeover in words, with its SYNC gap as measured (diagnostics); empty: none.
   std::string describe() const;
 
@@ -64,7 +60,6 @@ class ActiveMasterWatch {
   std::function<void(const Takeover&)> on_takeover_;
   BusLoop::TimerId timer_;
   bool started_ = false;
-  std::atomic<bool> taken_over_{false};
   std::optional<Takeover> takeover_;
   std::int64_t first_sync_ns_ = 0;
   std::int64_t started_ns_ = 0;

@@ -79,18 +79,13 @@ void NodeStateMachine::take_over(std::optional<NmtCommand> last_command) {
     return boot_now("taking the bus over: its PDOs as the line configures them were refused: " + r.error().message);
   }
   ++counters_.adopted;
-  if (held) {
-    node_.hold(*last_command);
-    node_.adopt(reported);  // before its drivers start: what they send at once may go out
-    node_.starting({true, false, {}, true});
-    spdlog::info("{}: node {}: adopted {} as the master before held it (no NMT, no SDO)", loop_.bus().uri(),
-                 node_.node_id(), to_string(reported));
-    return enter(NodeState::stopped_by_operator, "adopted at a takeover, held as the master before left it");
-  }
-  node_.adopt(NmtState::operational);
+  if (held) node_.hold(*last_command);
+  node_.adopt(reported);  // before its drivers start: what they send at once may go out
   node_.starting({true, false, {}, true});
-  spdlog::info("{}: node {}: adopted as it runs (no NMT, no SDO)", loop_.bus().uri(), node_.node_id());
-  enter(NodeState::operational, "adopted as it ran at a takeover");
+  spdlog::info("{}: node {}: adopted {}{} (no NMT, no SDO)", loop_.bus().uri(), node_.node_id(), to_string(reported),
+               held ? " as the master before held it" : ", as it runs");
+  enter(held ? NodeState::stopped_by_operator : NodeState::operational,
+        held ? "adopted at a takeover, held as the master before left it" : "adopted as it ran at a takeover");
 }
 
 Result<void> NodeStateMachine::operator_command(NmtCommand command) {

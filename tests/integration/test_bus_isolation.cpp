@@ -29,6 +29,7 @@
 #include "support/child_process.hpp"
 #include "support/line_harness.hpp"
 #include "support/run_command.hpp"
+#include "support/sanitized.hpp"
 #include "support/saw_setpoints.hpp"
 #include "support/simulated_saw.hpp"
 
@@ -45,17 +46,7 @@ constexpr std::int64_t kSyncPeriodNs = 20'000'000;
 // Under the sanitizers (test.sh's stages 1 and 3) every process of the line runs several times
 // slower: there the test asks that SYNC never stops and the DDS process comes back, not the
 // figures of issue 25, which the normal build (stage 4) holds to.
-#if defined(__SANITIZE_THREAD__) || defined(__SANITIZE_ADDRESS__)
-constexpr bool kSanitized = true;
-#elif defined(__has_feature)
-#if __has_feature(thread_sanitizer) || __has_feature(address_sanitizer)
-constexpr bool kSanitized = true;
-#else
-constexpr bool kSanitized = false;
-#endif
-#else
-constexpr bool kSanitized = false;
-#endif
+using lb::test::kSanitized;
 // No SYNC missed: a gap of two periods is one missing (sanitized: no stop, 250 ms).
 constexpr std::int64_t kWidestSyncGapNs = kSanitized ? 250'000'000 : 2 * kSyncPeriodNs;
 // A new DDS process's first status sample at this test's subscriber after each kill (sanitized:

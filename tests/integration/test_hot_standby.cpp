@@ -48,6 +48,8 @@
 #include "support/run_command.hpp"
 #include "support/safety_device.hpp"
 #include "support/safety_operator.hpp"
+#include "support/sanitized.hpp"
+#include "support/spy_waits.hpp"
 
 using namespace std::chrono_literals;
 namespace safety = lb::test::safety;
@@ -60,17 +62,7 @@ constexpr std::int64_t kSyncPeriodMs = 20;
 constexpr std::int64_t kTakeoverAfterMs = 150;  // bridge B's, in its line file below
 constexpr std::uint32_t kMasterHeartbeat = 0x701;
 
-#if defined(__SANITIZE_THREAD__) || defined(__SANITIZE_ADDRESS__)
-constexpr bool kSanitized = true;
-#elif defined(__has_feature)
-#if __has_feature(thread_sanitizer) || __has_feature(address_sanitizer)
-constexpr bool kSanitized = true;
-#else
-constexpr bool kSanitized = false;
-#endif
-#else
-constexpr bool kSanitized = false;
-#endif
+using lb::test::kSanitized;
 // Built a second time for real SocketCAN (tests/socketcan: vcan0, natively or in the VM, whose
 // software emulation runs every process several times slower): 3 takeovers by default there.
 #ifdef LB_STANDBY_ON_VCAN
@@ -84,10 +76,7 @@ constexpr std::int64_t kMarginMs = kSanitized ? 2000 : kOnVcan ? 500 : 100;
 // SYNC gaps shorter than half a period allowed in a judged window (see HotStandby::sync_gaps).
 constexpr std::size_t kTwoProducers = 3;
 
-std::int64_t bus_now_ns() {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(std::chrono::system_clock::now().time_since_epoch())
-      .count();
-}
+using lb::test::bus_now_ns;
 
 std::string payload(const lb::can::CanFrame& f) {
   std::string s;

@@ -56,8 +56,8 @@
 namespace lb::test::safety {
 
 inline constexpr std::int64_t kStopWithinNs = 100'000'000;
-// How much earlier than the NMT command it answers a device's heartbeat may be stamped (two
-// senders' stamps; the fault campaign saw the answer first, within the same millisecond).
+// How much earlier than the NMT command it answers a device's heartbeat may be stamped for the
+// report to name the command (two senders' stamps, within the same millisecond as a rule).
 inline constexpr std::int64_t kAnswerStampSkewNs = 2'000'000;
 // An unanswered request is put down to an outage of the bridge when one began or lasted within this
 // time of the request's writing (a request in flight when a process is killed is lost with it).
@@ -282,15 +282,6 @@ class SafetyJudge {
     return "its boot-up";
   }
 
-  // The accepted operator's request of this kind whose frame `f` is (sent between its writing and
-  // its answer), or nullptr.
-  static const OperatorRequest* request_of(const std::vector<OperatorRequest>& requests, OperatorRequest::Kind kind,
-                                           const lb::can::CanFrame& f) {
-    const auto it = std::find_if(requests.begin(), requests.end(), [&](const OperatorRequest& r) {
-      return r.kind == kind && r.accepted && r.written_ns <= f.timestamp_ns && f.timestamp_ns <= r.answered_ns;
-    });
-    return it == requests.end() ? nullptr : &*it;
-  }
   // The device's stopped heartbeat `hb` answers an operator's accepted NMT stop written at most
   // 100 ms before it: the device stops within microseconds of the command, and the command's own
   // frame may carry a stamp after the answer's (two senders' stamps; under load, the campaign saw
@@ -301,9 +292,13 @@ class SafetyJudge {
              hb.timestamp_ns - r.written_ns <= kStopWithinNs;
     });
   }
+  // An accepted operator's request of this kind whose frame `f` is (sent between its writing and
+  // its answer).
   static bool requested(const std::vector<OperatorRequest>& requests, OperatorRequest::Kind kind,
                         const lb::can::CanFrame& f) {
-    return request_of(requests, kind, f) != nullptr;
+    return std::any_of(requests.begin(), requests.end(), [&](const OperatorRequest& r) {
+      return r.kind == kind && r.accepted && r.written_ns <= f.timestamp_ns && f.timestamp_ns <= r.answered_ns;
+    });
   }
   // The operator's requests written within 200 ms of `f`, with their answers: what a reader of a
   // violation needs to tell a device's own act from the answer to a request.
@@ -342,19 +337,13 @@ class SafetyJudge {
       }
       state = to;
     };
-    // The device's heartbeat that answers an NMT command may carry a stamp before the command's:
-    // two senders stamp their own frames, and the device answers within microseconds. Such a
-    // heartbeat left operational because of that command, not by itself: when it is stamped
-    // within kAnswerStampSkewNs of the command, or, for the operator's accepted request whose frame
-    // the command is, after that request was written (under load the two stamps drift further
-    // apart: the fault campaign's run beside CI, feeders +1568.265 s).
-    const auto caused = [&](const lb::can::CanFrame& command, std::uint8_t answer, const OperatorRequest* by) {
+    // The device's heartbeat that answers an NMT command may carry a stamp a little before the
+    // command's (two senders stamp their own frames, and the device answers within microseconds):
+    // such a heartbeat left operational because of that command, which the report then names.
+    // Whether that was the operator's stop is stop_answered's to say.
+    const auto caused = [&](const lb::can::CanFrame& command, std::uint8_t answer) {
       if (left == nullptr || left->id != d_.heartbeat_id() || (left->data[0] & 0x7F) != answer) return;
-      if (command.timestamp_ns - left->timestamp_ns <= kAnswerStampSkewNs ||
-          (by != nullptr && left->timestamp_ns >= by->written_ns)) {
-        left = &command;
-        left_by_operator = left_by_operator || by != nullptr;
-      }
+      if (command.timestamp_ns - left->timestamp_ns <= kAnswerStampSkewNs) left = &command;
     };
     for (const auto& f : frames) {
       if (f.id == d_.heartbeat_id() && f.len >= 1) {
@@ -389,11 +378,11 @@ class SafetyJudge {
             }
             break;
           case 0x02:
-            caused(f, 0x04, request_of(requests, OperatorRequest::Kind::nmt_stop, f));
+            caused(f, 0x04);
             leave(f, State::stopped, requested(requests, OperatorRequest::Kind::nmt_stop, f));
             break;
           case 0x80:
-            caused(f, 0x7F, nullptr);
+            caused(f, 0x7F);
             leave(f, State::pre_operational, false);
             break;
           case 0x81:
