@@ -9,6 +9,7 @@
 #include <stdexcept>
 
 #include "app/async_log.hpp"
+#include "app/master_dictionary.hpp"
 #include "app/run_until_signal.hpp"
 #include "can/recording_bus.hpp"
 #include "gateways/node/momentary_commands.hpp"
@@ -120,6 +121,22 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
       rt.standby = std::make_unique<canopen::ActiveMasterWatch>(
           *rt.loop, rt.config->master_node_id, rt.config->takeover_after,
           [b = bridge.get(), r = &rt](const canopen::ActiveMasterWatch::Takeover& t) { b->take_over(*r, t); });
+      const auto& f = rt.config->flying;
+      canopen::FlyingMaster::Settings settings{
+          rt.config->master_node_id, f.priority,    f.detect_timeout, f.negotiation_delay,
+          f.priority_slot,           f.device_slot, f.detect_cycle,   2 * rt.config->master_heartbeat_period};
+      rt.loop->guard_stalls(settings.stall);
+      rt.flying = std::make_unique<canopen::FlyingMaster>(
+          *rt.loop, settings, rt.other_master.get(),
+          canopen::FlyingMaster::Callbacks{[r = &rt] { r->standby->claim(); },
+                                           [r = &rt](std::uint8_t node) { r->standby->stand_by(node); },
+                                           [b = bridge.get(), r = &rt](const std::string& why) {
+                                             b->step_back(*r, why);
+                                           }});
+    }
+    if (rt.config->master_node_id != 0) {
+      rt.own_dictionary = std::make_unique<canopen::SdoServer>(*rt.loop, rt.config->master_node_id,
+                                                               master_dictionary(*rt.config));
     }
     for (const auto& dev : config.devices) {
       if (dev.bus != rt.config->name) continue;
@@ -209,8 +226,8 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
 
   std::vector<gateways::DiagnosticsGateway::Bus> diag;
   for (const auto& rt : bridge->buses_) {
-    gateways::DiagnosticsGateway::Bus b{rt.config, rt.loop.get(),      rt.other_master.get(),
-                                        {},        rt.mandatory.get(), rt.standby.get()};
+    gateways::DiagnosticsGateway::Bus b{rt.config,          rt.loop.get(),    rt.other_master.get(), {},
+                                        rt.mandatory.get(), rt.standby.get(), rt.flying.get()};
     for (std::size_t i = 0; i < rt.nodes.size(); ++i) {
       for (const auto& dev : config.devices) {
         if (dev.bus == rt.config->name && dev.node_id == rt.nodes[i]->node_id()) {
@@ -278,9 +295,9 @@ void LineBridge::start() {
   bool standing_by = false;
   for (auto& rt : buses_) {
     rt.loop->start();
-    if (rt.standby) {
+    if (rt.flying) {
       standing_by = true;
-      rt.loop->post([&rt] { rt.standby->start(); });
+      rt.loop->post([&rt] { rt.flying->start(); });
     } else {
       rt.loop->post([&rt] { start_master(rt); });
     }
@@ -311,6 +328,7 @@ void LineBridge::mastering() {
 void LineBridge::take_over(BusRuntime& rt, const canopen::ActiveMasterWatch::Takeover& t) {
   rt.loop->hold_transmission(false);
   rt.other_master->stand_by(false);
+  rt.flying->mastering();
   if (!t.master_heard) {
     start_master(rt);
     spdlog::info("bus {}: mastered from the start (no other master heard)", rt.config->name);
@@ -331,6 +349,16 @@ void LineBridge::take_over(BusRuntime& rt, const canopen::ActiveMasterWatch::Tak
                t.last_sync_ns == 0 ? -1 : (t.at_ns - t.last_sync_ns) / 1'000'000,
                std::chrono::duration_cast<std::chrono::milliseconds>(first).count());
   mastering();
+}
+
+// Loop thread of the bus: another master won it. Nothing but stops goes out from now on, and the
+// process ends so that it starts again as the standby it is configured to be: one that learns the
+// winner's set values from the bus, where this one's may be stale.
+void LineBridge::step_back(BusRuntime& rt, const std::string& why) {
+  rt.loop->hold_transmission(true);
+  spdlog::warn("bus {}: {}: the bridge restarts as a standby", rt.config->name, why);
+  stepped_back_ = true;
+  request_stop();
 }
 
 std::optional<std::string> LineBridge::failure() const {

@@ -3,6 +3,7 @@
 // in the master role), one gateway per device, the line-wide device-management services, one DDS
 // participant for all of them.
 
+#include <atomic>
 #include <functional>
 #include <memory>
 #include <mutex>
@@ -13,10 +14,12 @@
 #include "app/service_notifier.hpp"
 #include "canopen/active_master_watch.hpp"
 #include "canopen/bus_loop.hpp"
+#include "canopen/flying_master.hpp"
 #include "canopen/heartbeat_producer.hpp"
 #include "canopen/other_master.hpp"
 #include "canopen/remote_node.hpp"
 #include "canopen/sdo_client.hpp"
+#include "canopen/sdo_server.hpp"
 #include "canopen/sync_producer.hpp"
 #include "dds/participant.hpp"
 #include "gateways/adapters/device_services.hpp"
@@ -56,6 +59,9 @@ class LineBridge {
   void stop();  // idempotent
   // A bus loop failed for good (the process should end with an error and be restarted): its why.
   std::optional<std::string> failure() const;
+  // A bus of this bridge lost a negotiation to another master (CiA 302-2) and asked the process to
+  // stop: the caller restarts it as the standby it is configured to be (docs/redundancy.md).
+  bool stepped_back() const { return stepped_back_.load(); }
   // Why the set values in force are not kept across restarts; empty when they are.
   const std::string& set_value_store_problem() const { return store_problem_; }
 
@@ -74,6 +80,10 @@ class LineBridge {
     std::unique_ptr<canopen::OtherMasterWatch> other_master;
     // Standby role: the watch on the master's heartbeat, and what the bus continues at a takeover.
     std::unique_ptr<canopen::ActiveMasterWatch> standby;
+    // Standby role: the CiA 302-2 negotiation of who masters the bus.
+    std::unique_ptr<canopen::FlyingMaster> flying;
+    // The bridge's own object dictionary (1F80h, 1F90h...), served on master_node_id while it masters.
+    std::unique_ptr<canopen::SdoServer> own_dictionary;
     std::vector<std::unique_ptr<canopen::RemoteNode>> nodes;
     std::vector<std::unique_ptr<gateways::DeviceServices>> services;
     std::vector<std::unique_ptr<gateways::Gateway>> gateways;
@@ -95,12 +105,14 @@ class LineBridge {
   std::unique_ptr<gateways::DiagnosticsGateway> diagnostics_;
   static void start_master(BusRuntime& rt);
   void take_over(BusRuntime& rt, const canopen::ActiveMasterWatch::Takeover& t);
+  void step_back(BusRuntime& rt, const std::string& why);
   void mastering();  // a bus masters: the first time, on_mastering_
 
   std::function<void()> on_mastering_;
   std::once_flag mastering_once_;
   mutable std::mutex failure_mutex_;
   std::optional<std::string> failure_;
+  std::atomic<bool> stepped_back_{false};
 };
 
 }  // namespace lb::app

@@ -139,8 +139,10 @@ void print_summary(const profiles::LineConfig& line, const std::vector<ddsl::Pla
       if (b.master_node_id != 0)
         fmt::print(out, ", own heartbeat node {} every {} ms", b.master_node_id, b.master_heartbeat_period.count());
       if (b.role == profiles::BusRole::standby) {
-        fmt::print(out, "; takes over when the master's heartbeat (node {}) is silent for {} ms", b.master_node_id,
-                   b.takeover_after.count());
+        fmt::print(out,
+                   "; negotiates with flying-master priority {} (CiA 302-2), takes over when the master's heartbeat "
+                   "is silent for {} ms",
+                   b.flying.priority, b.takeover_after.count());
       }
     }
     if (!b.record.empty()) fmt::print(out, ", recording to {}", b.record);
@@ -264,10 +266,10 @@ void compare_pair(const profiles::LineConfig& a, const profiles::LineConfig& b, 
                                      y->master_heartbeat_period.count()));
     }
     if (x.role == profiles::BusRole::standby && y->role == profiles::BusRole::standby &&
-        x.takeover_after == y->takeover_after) {
-      errors.push_back(fmt::format("bus {}: both take over after {} ms: two standbys started together would take "
-                                   "over at the same moment; give each its own takeover_after_ms",
-                                   x.name, x.takeover_after.count()));
+        x.flying.priority == y->flying.priority) {
+      errors.push_back(fmt::format("bus {}: both have flying-master priority {}: with one master node-ID the "
+                                   "negotiation cannot tell them apart; give each its own flying_master priority",
+                                   x.name, x.flying.priority));
     }
   }
   for (const auto& y : b.buses) {

@@ -18,8 +18,8 @@ int check_line(const std::string& path, const profiles::ProfileRegistry& registr
 // linebridge --check CONFIG --peer PEER: each file as above, then the pair as two bridges of one
 // line, one the other's standby (docs/redundancy.md): the same line, DDS domain, buses and devices
 // (names, node-IDs, profiles), on each bus the same master_node_id, SYNC period and master heartbeat
-// period, both in the standby role, and different takeover_after_ms (two standbys started together
-// must not take over at the same moment). Returns 0 or 2.
+// period, both in the standby role, and different flying-master priorities (the negotiation tells
+// them apart by priority: they share the master node-ID). Returns 0 or 2.
 int check_pair(const std::string& path, const std::string& peer, const profiles::ProfileRegistry& registry,
                std::FILE* out, std::FILE* err);
 

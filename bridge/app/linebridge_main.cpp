@@ -17,6 +17,7 @@
 #include "dds/security_files.hpp"
 #include "link/bus_channel.hpp"
 
+#include <linux/close_range.h>
 #include <pwd.h>
 #include <sys/mman.h>
 #include <unistd.h>
@@ -24,6 +25,7 @@
 #include <algorithm>
 #include <cerrno>
 #include <charconv>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 
@@ -76,9 +78,28 @@ std::string own_executable() {
   return ec ? std::string("/proc/self/exe") : p.string();
 }
 
+// run()'s answer when a standby bus lost a negotiation (LineBridge::stepped_back): start again.
+constexpr int kRunAgain = -1;
+
+int run(int argc, char** argv);
+
 }  // namespace
 
+// A bridge that stepped back starts again as the standby it is configured to be, in the same
+// process (a service manager sees no exit, its watchdog no gap): once everything of this run is
+// gone (its DDS process, channel, buses), the executable replaces itself with its own arguments.
 int main(int argc, char** argv) {
+  const int code = run(argc, argv);
+  if (code != kRunAgain) return code;
+  ::close_range(3, ~0U, CLOSE_RANGE_CLOEXEC);  // nothing of this run reaches the next
+  ::execv("/proc/self/exe", argv);
+  std::fprintf(stderr, "linebridge: cannot start again as a standby: %s\n", std::strerror(errno));
+  return lb::app::kExitLoopFailed;
+}
+
+namespace {
+
+int run(int argc, char** argv) {
   namespace app = lb::app;
   CLI::App cli{"linebridge: CANopen extrusion-line devices on DDS"};
   app::add_conventions(cli, "linebridge", app::kBridgeExitCodes);
@@ -101,7 +122,7 @@ int main(int argc, char** argv) {
   cli.add_option("--peer", peer_path,
                  "with --check: the line file of the other bridge of a redundant pair (docs/redundancy.md): both "
                  "checked, then the pair (the same line, buses and devices, both standby, different "
-                 "takeover_after_ms)")
+                 "flying-master priorities)")
       ->check(app::non_empty_path());
   cli.add_option("-d,--duration", duration_s, "stop after this many seconds (default 0: run until SIGINT/SIGTERM)")
       ->check(app::duration_seconds());
@@ -300,6 +321,11 @@ int main(int argc, char** argv) {
     (*bridge)->stop();
     return app::kExitUsage;
   }
+  if ((*bridge)->stepped_back()) {
+    spdlog::warn("stopping: another master won the bus: starting again as a standby");
+    (*bridge)->stop();
+    return kRunAgain;
+  }
   if (const auto failure = (*bridge)->failure()) {
     // Exit non-zero so the service manager restarts the bridge rather than keep a line without its loop.
     spdlog::critical("stopping: {}", *failure);
@@ -310,3 +336,5 @@ int main(int argc, char** argv) {
   (*bridge)->stop();
   return app::kExitOk;
 }
+
+}  // namespace

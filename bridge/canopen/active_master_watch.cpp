@@ -18,6 +18,7 @@ ActiveMasterWatch::ActiveMasterWatch(BusLoop& loop, std::uint8_t master_node_id,
       takeover_after_(takeover_after),
       on_takeover_(std::move(on_takeover)) {
   timer_ = loop_.create_timer([this] { judge(); });
+  registered_[master_node_id_] = true;
   loop_.on_frame(cob::heartbeat_base + master_node_id_, [this](const can::CanFrame& f) { heartbeat(f); });
   loop_.on_frame(cob::sync, [this](const can::CanFrame& f) {
     if (!active()) last_sync_ns_ = f.timestamp_ns;
@@ -34,10 +35,23 @@ ActiveMasterWatch::ActiveMasterWatch(BusLoop& loop, std::uint8_t master_node_id,
   });
 }
 
-void ActiveMasterWatch::start() {
-  started_ = true;
+void ActiveMasterWatch::stand_by(std::uint8_t master_node_id) {
+  if (active() || master_node_id == 0 || master_node_id >= registered_.size()) return;
+  if (master_node_id != master_node_id_) last_heartbeat_ns_ = 0;  // another master's silence begins now
+  master_node_id_ = master_node_id;
+  if (!registered_[master_node_id]) {
+    registered_[master_node_id] = true;
+    loop_.on_frame(cob::heartbeat_base + master_node_id, [this](const can::CanFrame& f) { heartbeat(f); });
+  }
+  watching_ = true;
   started_ns_ = can::detail::realtime_ns();
   loop_.arm_timer(timer_, takeover_after_);
+}
+
+void ActiveMasterWatch::claim() {
+  if (active()) return;
+  loop_.disarm_timer(timer_);
+  take_over(can::detail::realtime_ns());
 }
 
 std::optional<NmtCommand> ActiveMasterWatch::last_command(std::uint8_t node_id) const {
@@ -46,29 +60,33 @@ std::optional<NmtCommand> ActiveMasterWatch::last_command(std::uint8_t node_id) 
 }
 
 void ActiveMasterWatch::heartbeat(const can::CanFrame& frame) {
-  if (active() || frame.len < 1) return;
+  if (active() || frame.len < 1 || frame.id != cob::heartbeat_base + master_node_id_) return;
   last_heartbeat_ns_ = std::max(last_heartbeat_ns_, frame.timestamp_ns);
-  if (started_) loop_.arm_timer(timer_, takeover_after_);
+  if (watching_) loop_.arm_timer(timer_, takeover_after_);
 }
 
 // The master is silent when no heartbeat of it is stamped within takeover_after of now. A timer
 // that fired after the loop was held up (this process stopped, a slow handler) fires before the
 // frames that came meanwhile are read: those are read first.
 void ActiveMasterWatch::judge() {
-  if (active()) return;
+  if (active() || !watching_) return;
   if (loop_.input_pending()) return loop_.arm_timer(timer_, std::chrono::milliseconds(1));
   const auto now = can::detail::realtime_ns();
   const auto since = last_heartbeat_ns_ != 0 ? last_heartbeat_ns_ : started_ns_;
   const auto wait = std::chrono::nanoseconds(takeover_after_) - std::chrono::nanoseconds(now - since);
   if (wait > std::chrono::nanoseconds(0)) return loop_.arm_timer(timer_, wait);
+  take_over(now);
+}
+
+void ActiveMasterWatch::take_over(std::int64_t now) {
   takeover_ = Takeover{last_heartbeat_ns_ != 0, last_heartbeat_ns_, last_sync_ns_, now};
   const auto& t = *takeover_;
-  if (t.master_heard) {
+  if (t.master_heard && watching_) {
     spdlog::warn("{}: the master's heartbeat (node {}) silent for {} ms: taking the bus over", loop_.bus().uri(),
                  master_node_id_, (now - last_heartbeat_ns_) / 1'000'000);
-  } else {
-    spdlog::info("{}: no master's heartbeat (node {}) within {} ms of the start: mastering the bus", loop_.bus().uri(),
-                 master_node_id_, takeover_after_.count());
+  } else if (watching_) {
+    spdlog::warn("{}: the active master (node {}) never sent a heartbeat within {} ms: mastering the bus",
+                 loop_.bus().uri(), master_node_id_, takeover_after_.count());
   }
   on_takeover_(t);
 }

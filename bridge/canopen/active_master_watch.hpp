@@ -1,11 +1,9 @@
 #pragma once
-// The standby's watch on the active master (docs/redundancy.md): the master's heartbeat on the
-// line's master node-ID, which both bridges of a pair produce when they master the bus. Silent for
-// takeover_after (judged on bus time, once the frames queued meanwhile were read), the standby takes
-// over: once, by calling on_takeover on the loop thread. A standby that starts and hears no master
-// within takeover_after takes over too (the line started with one PC, or this one waits less than
-// its peer: each bridge of a pair has its own takeover_after, so two started together end with one
-// master).
+// The standby's watch on the active master (docs/redundancy.md): the master's heartbeat, on the
+// line's master node-ID (which both bridges of a pair produce when they master the bus) or on the
+// node-ID the active master gave in the negotiation (FlyingMaster). Silent for takeover_after
+// (judged on bus time, once the frames queued meanwhile were read), the standby takes over: once, by
+// calling on_takeover on the loop thread. A negotiation won (no master active) takes over too.
 //
 // It also keeps, from the bus alone, what a takeover continues: when the last SYNC was (so the
 // first SYNC of the new master comes one period after it, not before) and the last NMT command
@@ -38,7 +36,11 @@ class ActiveMasterWatch {
   ActiveMasterWatch(const ActiveMasterWatch&) = delete;
   ActiveMasterWatch& operator=(const ActiveMasterWatch&) = delete;
 
-  void start();  // loop thread: the wait for the first heartbeat begins
+  // Loop thread: watch this master's heartbeat from now on (its silence counted from now if none of
+  // it was heard yet).
+  void stand_by(std::uint8_t master_node_id);
+  // Loop thread: master the bus now (a negotiation won): on_takeover, with what was heard so far.
+  void claim();
 
   // Loop thread from here on. It took the bus over (once per run).
   bool active() const { return takeover_.has_value(); }
@@ -53,13 +55,15 @@ class ActiveMasterWatch {
  private:
   void heartbeat(const can::CanFrame& frame);
   void judge();
+  void take_over(std::int64_t now);
 
   BusLoop& loop_;
-  std::uint8_t master_node_id_;
+  std::uint8_t master_node_id_;         // the one watched now
+  std::array<bool, 128> registered_{};  // heartbeat handlers registered, per node-ID
   std::chrono::milliseconds takeover_after_;
   std::function<void(const Takeover&)> on_takeover_;
   BusLoop::TimerId timer_;
-  bool started_ = false;
+  bool watching_ = false;
   std::optional<Takeover> takeover_;
   std::int64_t first_sync_ns_ = 0;
   std::int64_t started_ns_ = 0;

@@ -179,6 +179,13 @@ Result<void> BusLoop::send(const can::CanFrame& frame) {
     ++frames_held_;
     return make_error(bus_->uri() + ": transmission held: another master is on this bus");
   }
+  if (catching_up_) {
+    if (input_pending()) {
+      ++frames_held_;
+      return make_error(bus_->uri() + ": the loop was stalled: the frames of meanwhile are read first");
+    }
+    catching_up_ = false;
+  }
   auto r = bus_->send(frame);
   if (r) bits_out_ += frame_bits(frame);
   if (!r) spdlog::debug("{}: send {:03X} failed: {}", bus_->uri(), frame.id, r.error().message);
@@ -192,6 +199,15 @@ Result<void> BusLoop::send_stop(const can::CanFrame& frame) {
     if (held_) ++stops_sent_while_held_;
   }
   if (!r) spdlog::debug("{}: stop {:03X} failed: {}", bus_->uri(), frame.id, r.error().message);
+  return r;
+}
+
+Result<void> BusLoop::send_negotiation(const can::CanFrame& frame) {
+  if (frame.id < cob::flying_master_first || frame.id > cob::flying_master_last || frame.extended)
+    throw std::invalid_argument("send_negotiation sends the flying-master services 71h-76h only");
+  auto r = bus_->send(frame);
+  if (r) bits_out_ += frame_bits(frame);
+  if (!r) spdlog::debug("{}: negotiation {:03X} failed: {}", bus_->uri(), frame.id, r.error().message);
   return r;
 }
 
@@ -257,6 +273,14 @@ void BusLoop::loop() {
     run_posted_here();
     const int n = ::epoll_wait(epoll_fd_, events.data(), static_cast<int>(events.size()), posted_here_ ? 0 : -1);
     iterations_.fetch_add(1, std::memory_order_relaxed);
+    if (stall_guard_.count() > 0) {
+      const auto now = std::chrono::steady_clock::now();
+      if (last_wake_ != std::chrono::steady_clock::time_point{} && now - last_wake_ > stall_guard_ && !catching_up_) {
+        catching_up_ = true;
+        ++stalls_;
+      }
+      last_wake_ = now;
+    }
     if (n < 0) {
       if (errno == EINTR) continue;
       throw std::runtime_error(std::string("epoll_wait failed: ") + std::strerror(errno));

@@ -95,6 +95,15 @@ class BusLoop {
   // master; only the bus itself can refuse it.
   Result<void> send_stop(const can::CanFrame& frame);
   std::uint64_t stops_sent_while_held() const { return stops_sent_while_held_; }
+  // Loop thread: a CiA 302-2 flying-master service (71h-76h), which no device acts on: sent whether
+  // or not transmission is held, since a standby negotiates mastership before it has any.
+  Result<void> send_negotiation(const can::CanFrame& frame);
+  // Before start(): a loop whose wake-ups were more than `after` apart (its process was stopped or
+  // starved, and another master may have taken the bus over meanwhile) transmits nothing but stops
+  // and negotiation until it has read the frames that came meanwhile: what it would send now (a
+  // SYNC's RPDOs) may no longer be what the bus's master says. Zero: no guard.
+  void guard_stalls(std::chrono::nanoseconds after) { stall_guard_ = after; }
+  std::uint64_t stalls() const { return stalls_; }  // loop thread: wake-ups the guard held back
   // Loop thread: hold every transmission but stops (another master owns the bus) or release it.
   void hold_transmission(bool held) { held_ = held; }
   bool transmission_held() const { return held_; }
@@ -201,6 +210,10 @@ class BusLoop {
   bool posted_here_ = false;  // a task was posted on the loop thread: run before the next wait
   bool backlog_ = false;      // drain_bus() stopped at kFramesPerWake with frames possibly left
   bool held_ = false;
+  std::chrono::nanoseconds stall_guard_{0};
+  std::chrono::steady_clock::time_point last_wake_{};
+  bool catching_up_ = false;  // a stall: the frames of meanwhile are read before anything is sent
+  std::uint64_t stalls_ = 0;
   std::uint64_t frames_held_ = 0;
   std::uint64_t stops_sent_while_held_ = 0;
   std::uint64_t error_frames_logged_ = 0;

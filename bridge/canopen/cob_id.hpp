@@ -14,6 +14,13 @@ inline constexpr std::uint32_t rpdo1_base = 0x200;
 inline constexpr std::uint32_t sdo_tx_base = 0x580;  // server -> client
 inline constexpr std::uint32_t sdo_rx_base = 0x600;  // client -> server
 inline constexpr std::uint32_t heartbeat_base = 0x700;
+// CiA 302-2 flying-master services.
+inline constexpr std::uint32_t active_master_answer = 0x071;  // [priority, node-ID]
+inline constexpr std::uint32_t negotiation_request = 0x072;
+inline constexpr std::uint32_t active_master_request = 0x073;
+inline constexpr std::uint32_t force_negotiation = 0x076;
+inline constexpr std::uint32_t flying_master_first = 0x071;
+inline constexpr std::uint32_t flying_master_last = 0x076;
 
 // Number of 11-bit identifiers: the size of the flat dispatch table.
 inline constexpr std::uint32_t kStandardIdCount = 0x800;

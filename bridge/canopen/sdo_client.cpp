@@ -56,7 +56,7 @@ struct Transfer {
   Clock::time_point deadline;       // for the server's answer to the last frame sent
 };
 
-struct NodeState {
+struct NodeTransfers {
   std::deque<Request> queue;
   std::optional<Transfer> active;
 };
@@ -548,7 +548,7 @@ class SdoClient::Core {
   std::condition_variable idle_;
   bool closed_ = false;
   int callbacks_running_ = 0;
-  std::array<NodeState, kMaxNode + 1> nodes_;  // by node-ID; 0 unused
+  std::array<NodeTransfers, kMaxNode + 1> nodes_;  // by node-ID; 0 unused
   std::deque<Completion> ready_;               // answered, callback not yet run
 };
 

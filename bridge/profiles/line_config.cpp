@@ -202,10 +202,38 @@ std::shared_ptr<const ProfileRegistry> load_profiles_dir(const YamlSource& src, 
   return registry;
 }
 
+// CiA 302-2 1F90h, by its sub-indexes' meanings; the priority has no default: a pair needs two.
+BusConfig::FlyingMaster parse_flying_master(const YamlSource& src, const YAML::Node& bus, const std::string& what) {
+  const auto n = bus["flying_master"];
+  if (!n) {
+    src.fail(bus["role"],
+             what + ": a standby negotiates mastership (CiA 302-2): it needs flying_master: {priority: N} (0..255, "
+                    "lower wins; each bridge of a pair its own)");
+  }
+  src.expect_map(n, what + " flying_master");
+  src.check_keys(n, what + " flying_master",
+                 {"priority", "detect_timeout_ms", "negotiation_delay_ms", "priority_slot_ms", "device_slot_ms",
+                  "detect_cycle_ms"});
+  BusConfig::FlyingMaster f;
+  if (!n["priority"]) src.fail(n, what + ": flying_master needs priority (0..255, lower wins)");
+  const auto where = what + " flying_master";
+  f.priority = bounded<std::uint8_t>(src, n, "priority", 0, 0, 255, where);
+  const auto ms = [&](const char* key, std::chrono::milliseconds fallback) {
+    return std::chrono::milliseconds(bounded<int>(src, n, key, static_cast<int>(fallback.count()), 1, 65535, where));
+  };
+  f.detect_timeout = ms("detect_timeout_ms", f.detect_timeout);
+  f.negotiation_delay = ms("negotiation_delay_ms", f.negotiation_delay);
+  f.priority_slot = ms("priority_slot_ms", f.priority_slot);
+  f.device_slot = ms("device_slot_ms", f.device_slot);
+  f.detect_cycle = ms("detect_cycle_ms", f.detect_cycle);
+  return f;
+}
+
 BusConfig parse_bus(const YamlSource& src, const YAML::Node& n) {
   src.check_keys(n, "bus",
                  {"name", "interface", "role", "sync_period_ms", "bitrate", "master_node_id", "master_heartbeat_ms",
-                  "sdo_timeout_ms", "record", "other_master", "realtime_priority", "takeover_after_ms"});
+                  "sdo_timeout_ms", "record", "other_master", "realtime_priority", "takeover_after_ms",
+                  "flying_master"});
   BusConfig bus;
   bus.name = src.required<std::string>(n, "name", "bus");
   check_name(src, n["name"], bus.name);
@@ -260,8 +288,14 @@ BusConfig parse_bus(const YamlSource& src, const YAML::Node& n) {
                            "heartbeat period master_heartbeat_ms {}",
                            bus.name, bus.takeover_after.count(), bus.master_heartbeat_period.count()));
     }
-  } else if (n["takeover_after_ms"]) {
-    src.fail(n["takeover_after_ms"], "bus " + bus.name + ": takeover_after_ms is for the standby role");
+    bus.flying = parse_flying_master(src, n, "bus " + bus.name);
+  } else {
+    if (n["takeover_after_ms"])
+      src.fail(n["takeover_after_ms"], "bus " + bus.name + ": takeover_after_ms is for the standby role");
+    if (n["flying_master"]) {
+      src.fail(n["flying_master"],
+               "bus " + bus.name + ": flying_master is for the standby role (a master bus does not negotiate)");
+    }
   }
   return bus;
 }

@@ -69,6 +69,17 @@ struct BusConfig {
   // Standby role: the master's heartbeat (master_node_id) silent this long, the standby takes over.
   // Each bridge of a pair has its own, so that two started together end with one master.
   std::chrono::milliseconds takeover_after{0};
+  // Standby role: CiA 302-2 flying-master negotiation (1F90h; docs/redundancy.md). The bridge's node-ID
+  // in it is master_node_id, which both bridges of a pair share: their priorities must differ.
+  struct FlyingMaster {
+    std::uint8_t priority = 0;                         // sub 3: lower wins (71h carries one byte)
+    std::chrono::milliseconds detect_timeout{100};     // sub 1: the wait for a 71h after 73h
+    std::chrono::milliseconds negotiation_delay{500};  // sub 2: listening before 73h at power-up
+    std::chrono::milliseconds priority_slot{1500};     // sub 4
+    std::chrono::milliseconds device_slot{10};         // sub 5
+    std::chrono::milliseconds detect_cycle{4000};      // sub 6: the active master's 76h
+  };
+  FlyingMaster flying;
   std::chrono::milliseconds sdo_timeout{1000};
   // Master role: another master heard on the bus (canopen/other_master.hpp): yield = transmit
   // nothing while it is there; warn = report and go on.

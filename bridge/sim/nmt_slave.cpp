@@ -62,6 +62,10 @@ void NmtSlave::begin_reset(Reset kind) {
                kind == Reset::node ? "node" : "communication", reset_time_.count());
 }
 
+void NmtSlave::communication_error() {
+  if (state_ == canopen::NmtState::operational) enter(canopen::NmtState::pre_operational);
+}
+
 void NmtSlave::on_command(const can::CanFrame& frame) {
   if (frame.len != 2 || (frame.data[1] != 0 && frame.data[1] != node_id_)) return;
   if (pending_reset_) return;  // initialising: it takes no NMT command until it is back

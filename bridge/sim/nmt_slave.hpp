@@ -37,6 +37,9 @@ class NmtSlave {
   bool resetting() const { return pending_reset_.has_value(); }
   // 1017h: a period of 0 stops the heartbeat (CiA 301); the next one comes a period from now.
   void set_heartbeat_period(std::chrono::milliseconds period);
+  // A communication error (a consumed heartbeat missing): 1029h sub 1's default 0 (CiA 301), an
+  // operational device goes pre-operational; in any other state nothing changes.
+  void communication_error();
   canopen::NmtState state() const { return state_; }
   std::uint8_t node_id() const { return node_id_; }
 

@@ -21,6 +21,8 @@ constexpr double kMaxStep = 0.1;  // s: a stalled loop must not make the simulat
 constexpr auto kShortRpdoEmcyGap = std::chrono::seconds(1);
 constexpr std::uint16_t kEmcyPdoLength = 0x8210;  // PDO not processed due to length error
 
+constexpr std::uint16_t kHeartbeatError = 0x8130;  // CiA 301: life guard or heartbeat error
+
 canopen::ObjectDictionary::Bytes bytes_of(std::uint64_t raw, std::size_t size) {
   canopen::ObjectDictionary::Bytes out(size);
   for (std::size_t i = 0; i < size; ++i) out[i] = static_cast<std::uint8_t>(raw >> (8 * i));
@@ -50,7 +52,14 @@ SimulatedNode::SimulatedNode(canopen::BusLoop& loop, const profiles::DeviceConfi
              [this](const profiles::PdoDef& pdo, std::size_t length, std::size_t needed) {
                on_short_rpdo(pdo, length, needed);
              }},
-            app_.event_tpdos) {
+            app_.event_tpdos),
+      consumer_(
+          loop, sdo_.dictionary(),
+          [this] {
+            raise_error(kHeartbeatError);
+            nmt_.communication_error();
+          },
+          [this] { clear_error(kHeartbeatError); }) {
   // No SDO answer at all in NMT stopped (CiA 301), nor while a reset takes its time
   // (simulation.reset_time_ms): a master's request times out.
   sdo_.set_gate([this] { return nmt_.state() != NmtState::stopped && !nmt_.resetting(); });
@@ -165,6 +174,7 @@ void SimulatedNode::on_reset(Reset kind) {
   }
   pdos_.reset();
   sdo_.reset();
+  consumer_.reset();
   sync_id_ = canopen::cob::sync;  // a communication object: back to its power-on value
   heartbeat_period_ = device_.simulation.heartbeat_period;
   nmt_.set_heartbeat_period(heartbeat_period_);

@@ -22,6 +22,10 @@
 //    The write is confirmed first; the device is then pre-operational with its power-on values
 //    and sends heartbeats if its power-on 1017h is not 0.
 //  - `simulation.ignore_writes`: those objects confirm an SDO write and keep their value.
+//  - 1016h heartbeat consumer, one entry (sim/heartbeat_consumer.hpp): a consumed heartbeat
+//    missing raises EMCY 8130h and takes an operational device to pre-operational (1029h sub 1
+//    default); its return clears the error (the device stays pre-operational until a master
+//    starts it).
 //  - Errors (CiA 301): the device keeps its active errors; 1001h is the error register (bit 0
 //    generic whenever one is active, plus the family's bit: current, voltage, temperature,
 //    communication). raise_error() sends the code's EMCY; clear_error() sends EMCY 0000h with the
@@ -53,6 +57,7 @@
 #include "canopen/sdo_server.hpp"
 #include "profiles/line_config.hpp"
 #include "sim/device_pdos.hpp"
+#include "sim/heartbeat_consumer.hpp"
 #include "sim/nmt_slave.hpp"
 
 namespace lb::sim {
@@ -135,6 +140,7 @@ class SimulatedNode {
   NmtSlave nmt_;
   canopen::SdoServer sdo_;
   DevicePdos pdos_;
+  HeartbeatConsumer consumer_;                     // 1016h
   std::optional<std::size_t> second_status_word_;  // 2110h, where a TPDO has a manufacturer entry
   std::chrono::milliseconds heartbeat_period_{0};  // 1017h
   std::uint8_t error_register_ = 0;                // 1001h

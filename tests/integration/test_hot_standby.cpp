@@ -1,17 +1,18 @@
 // Issue 42: two bridges on one bus, both in the standby role (docs/redundancy.md): the one that
-// waits less masters the line from the start, the other stands by and takes the bus over, without
-// a reset, when the master's PC dies. A line of every device type (linebridge-sim) runs with set
-// values in force from the operator's panels (each device's enabling levels on, over DDS); 20 times
-// at a random moment the master's PC dies (SIGKILL to both its processes), the standby takes over,
-// and the dead PC comes back as the standby. Judged from the bus alone (every frame with its
-// stamp, BusSpy), expected values by hand from CiA 301 and this test's line files, each time:
+// wins the CiA 302-2 negotiation (priority 1) masters the line from the start, the other stands by and takes the bus
+// over, without a reset, when the master's PC dies. A line of every device type (linebridge-sim) runs with set values
+// in force from the operator's panels (each device's enabling levels on, over DDS); 20 times at a random moment the
+// master's PC dies (SIGKILL to both its processes), the standby takes over, and the dead PC comes back as the standby.
+// Judged from the bus alone (every frame with its stamp, BusSpy), expected values by hand from CiA 301 and this test's
+// line files, each time:
 //   - the SYNC gap across the takeover is at most the new master's takeover_after_ms + one SYNC
 //     period (plus 100 ms for 2 loaded CI cores), and never two SYNC producers at once;
 //   - after the kill no NMT command (000h), no SDO download (600h + node, ccs 0 or 1): the devices
 //     are adopted as they run; none leaves operational (its heartbeats 05h throughout);
 //   - every RPDO carries after the takeover exactly the payload it carried last before it (no
 //     momentary command was pressed, so no bit is released);
-//   - the master's heartbeat (701h) continues, operational (never a boot-up);
+//   - the master's heartbeat (701h) continues, operational (never a boot-up), and no device, each
+//     consuming it (1016h, written by the bridge's boot), raises a heartbeat error (EMCY 8130h);
 //   - the saw's status reaches a client again from the new master (the gap is printed).
 // At the end a stop from the operator's panel is taken and put on the bus by the master of the
 // moment. A second test starts both bridges as standbys at the same moment: one master.
@@ -61,6 +62,11 @@ constexpr std::int64_t kMs = 1'000'000;
 constexpr std::int64_t kSyncPeriodMs = 20;
 constexpr std::int64_t kTakeoverAfterMs = 150;  // bridge B's, in its line file below
 constexpr std::uint32_t kMasterHeartbeat = 0x701;
+// CiA 302-2 timing of both bridges (1F90h), shorter than the defaults so that a power-up takes
+// 0.2 s of listening and a negotiation 0.2 s per priority level.
+constexpr const char* kNegotiation =
+    ", negotiation_delay_ms: 100, detect_timeout_ms: 100, priority_slot_ms: 200, device_slot_ms: 1, "
+    "detect_cycle_ms: 1000";
 
 using lb::test::kSanitized;
 // Built a second time for real SocketCAN (tests/socketcan: vcan0, natively or in the VM, whose
@@ -73,6 +79,10 @@ constexpr bool kOnVcan = false;
 // Beyond the target (the new master's takeover_after + one period): 100 ms for a loaded 2-core CI machine, 500 ms in
 // the emulated VM; sanitized, only that SYNC comes back.
 constexpr std::int64_t kMarginMs = kSanitized ? 2000 : kOnVcan ? 500 : 100;
+// The devices' consumer time of the master's heartbeat (1016h): the longest wait (300 ms), one
+// heartbeat period and the margin; a takeover that left the heartbeat silent longer would make
+// every device raise EMCY 8130h and leave operational (the simulator's 1016h, CiA 301).
+constexpr int kConsumerMs = static_cast<int>(2 * kTakeoverAfterMs + 50 + kMarginMs);
 // SYNC gaps shorter than half a period allowed in a judged window (see HotStandby::sync_gaps).
 constexpr std::size_t kTwoProducers = 3;
 
@@ -124,18 +134,26 @@ class HotStandby : public ::testing::Test {
   // A line file: the bus in `role` (master or standby) with the master's heartbeat on node 1 every
   // 50 ms; `takeover_after_ms` for a standby.
   std::string write_line(const std::string& name, const std::string& role, int takeover_after_ms,
-                         const std::string& state_dir, bool simulation) const {
+                         const std::string& state_dir, bool simulation, int priority = 1) const {
     const auto path = dir_ + "/" + name + ".yaml";
     std::ofstream f(path);
     f << "line: hs\n";
     if (!state_dir.empty()) f << "state_dir: " << state_dir << "\n";
     f << "dds:\n  domain: " << kDomain << "\nbuses:\n  - {name: b, interface: '" << bus_ << "', role: " << role
       << ", sync_period_ms: " << kSyncPeriodMs << ", master_node_id: 1, master_heartbeat_ms: 50"
-      << (role == "standby" ? ", takeover_after_ms: " + std::to_string(takeover_after_ms) : "") << "}\ndevices:\n";
+      << (role == "standby" ? ", takeover_after_ms: " + std::to_string(takeover_after_ms) +
+                                  ",\n     flying_master: {priority: " + std::to_string(priority) + kNegotiation + "}"
+                            : "")
+      << "}\ndevices:\n";
     for (const auto* d : devices()) {
       f << "  - name: " << d->name << "\n    bus: b\n    node_id: " << d->node << "\n    profile: " << d->profile
         << "\n    version: '" << d->version << "'\n    heartbeat_timeout_ms: 400\n";
       if (simulation) f << "    simulation: {heartbeat_period_ms: 100}\n";
+      // Every device consumes the master's heartbeat (CiA 301 1016h sub 1: node 1, kConsumerMs),
+      // as the bridge that boots it configures it.
+      if (!simulation)
+        f << "    configure:\n      - {index: 0x1016, sub: 1, type: UNSIGNED32, value: " << ((1 << 16) | kConsumerMs)
+          << "}\n";
     }
     return path;
   }
@@ -246,6 +264,7 @@ struct Takeover {
   std::size_t rpdo_changes = 0;
   std::size_t left_operational = 0;
   std::size_t rpdo_frames_after = 0;
+  std::size_t consumer_errors = 0;  // EMCY 8130h (heartbeat error) of any device
 };
 
 std::int64_t percentile(std::vector<std::int64_t> v, double p) {
@@ -256,10 +275,11 @@ std::int64_t percentile(std::vector<std::int64_t> v, double p) {
 
 TEST_F(HotStandby, TwentyTimesTheMastersPcDiesAndTheStandbyTakesTheRunningLineOverWithoutAReset) {
   start_sim();
-  // Both PCs in the standby role, as docs/redundancy.md says; A waits less, so it masters first.
+  // Both PCs in the standby role, as docs/redundancy.md says; A starts first and wins the
+  // negotiation alone; B's power-up asks (73h) and A answers (71h): B stands by.
   const std::array<int, 2> waits{static_cast<int>(kTakeoverAfterMs), static_cast<int>(2 * kTakeoverAfterMs)};
   const std::array<std::string, 2> files{write_line("a", "standby", waits[0], dir_ + "/state_a", false),
-                                         write_line("b", "standby", waits[1], dir_ + "/state_b", false)};
+                                         write_line("b", "standby", waits[1], dir_ + "/state_b", false, 2)};
   std::array<std::unique_ptr<lb::test::ChildProcess>*, 2> pcs{&a_, &b_};
   a_ = bridge(files[0], "a-0");
   ASSERT_TRUE(lb::test::eventually(30s, [&] { return !spy_->frames(kMasterHeartbeat).empty(); })) << logs();
@@ -275,6 +295,18 @@ TEST_F(HotStandby, TwentyTimesTheMastersPcDiesAndTheStandbyTakesTheRunningLineOv
   std::set<std::uint32_t> rpdo_ids;
   for (const auto* d : devices()) {
     for (int n = 1; n <= 4; ++n) rpdo_ids.insert(d->rpdo(n));
+  }
+
+  // Each device's 1016h was written by A's boot: CiA 301 expedited download of 4 bytes to 1016h sub 1.
+  for (const auto* d : devices()) {
+    const auto sdo = spy_->frames(0x600u + static_cast<std::uint32_t>(d->node));
+    EXPECT_TRUE(std::any_of(sdo.begin(), sdo.end(),
+                            [](const auto& f) {
+                              return f.len == 8 && f.data[0] == 0x23 && f.data[1] == 0x16 && f.data[2] == 0x10 &&
+                                     f.data[3] == 0x01 && f.data[6] == 0x01;
+                            }))
+        << d->name << ": 1016h never written\n"
+        << logs();
   }
 
   const int kills = std::getenv("LB_TAKEOVERS") != nullptr ? std::atoi(std::getenv("LB_TAKEOVERS")) : kOnVcan ? 3 : 20;
@@ -315,6 +347,11 @@ TEST_F(HotStandby, TwentyTimesTheMastersPcDiesAndTheStandbyTakesTheRunningLineOv
                                        << logs();
         }
         if (f.id == d->heartbeat_id() && payload(f) != "05") ++t.left_operational;
+        if (f.id == 0x080u + static_cast<std::uint32_t>(d->node) && f.len == 8 && f.data[0] == 0x30 &&
+            f.data[1] == 0x81) {
+          ++t.consumer_errors;
+          ADD_FAILURE() << d->name << " lost the master's heartbeat (EMCY 8130h) at kill " << k;
+        }
       }
       if (f.id == kMasterHeartbeat) {
         EXPECT_EQ(payload(f), "05") << "the master's heartbeat after kill " << k;
@@ -347,16 +384,17 @@ TEST_F(HotStandby, TwentyTimesTheMastersPcDiesAndTheStandbyTakesTheRunningLineOv
     }
     EXPECT_GE(t.status_gap_ns, 0) << "no status of the saw from the new master after kill " << k << "\n" << logs();
     seen.push_back(t);
-    if (::testing::Test::HasFatalFailure() || t.rpdo_changes != 0 || t.left_operational != 0) break;
+    if (::testing::Test::HasFatalFailure() || t.rpdo_changes != 0 || t.left_operational != 0 || t.consumer_errors != 0)
+      break;
 
-    // The dead PC comes back, as a standby.
+    // The dead PC comes back, as a standby: its power-up asks (73h), the new master answers (71h).
     *pcs[active] = bridge(files[active], std::string(active == 0 ? "a-" : "b-") + std::to_string(k + 1));
-    ASSERT_TRUE((*pcs[active])->wait_log("started as standby", 30000ms)) << logs();
+    ASSERT_TRUE((*pcs[active])->wait_log("standing by the active master (node 1)", 30000ms)) << logs();
     active = standby;
   }
 
   std::vector<std::int64_t> sync_gaps_ns, status_gaps_ns;
-  std::size_t changes = 0, left = 0;
+  std::size_t changes = 0, left = 0, consumer_errors = 0;
   std::string each;  // per takeover: SYNC gap / status gap (ms)
   for (const auto& t : seen) {
     each += fmt::format("{}{:.0f}/{:.0f}", each.empty() ? "" : ", ", t.sync_gap_ns / 1e6, t.status_gap_ns / 1e6);
@@ -364,13 +402,15 @@ TEST_F(HotStandby, TwentyTimesTheMastersPcDiesAndTheStandbyTakesTheRunningLineOv
     if (t.status_gap_ns >= 0) status_gaps_ns.push_back(t.status_gap_ns);
     changes += t.rpdo_changes;
     left += t.left_operational;
+    consumer_errors += t.consumer_errors;
   }
   std::printf("takeovers: %zu; SYNC gap p50 %.1f ms, max %.1f ms (targets %lld / %lld ms + one period %lld); "
-              "devices leaving operational %zu; RPDO payload changes %zu; the saw's status at a client: gap p50 "
-              "%.1f ms, max %.1f ms\n",
+              "devices leaving operational %zu; RPDO payload changes %zu; heartbeat-consumer errors (EMCY 8130h, "
+              "consumer time %d ms) %zu; the saw's status at a client: gap p50 %.1f ms, max %.1f ms\n",
               seen.size(), percentile(sync_gaps_ns, 0.5) / 1e6, percentile(sync_gaps_ns, 1.0) / 1e6,
               static_cast<long long>(waits[0]), static_cast<long long>(waits[1]), static_cast<long long>(kSyncPeriodMs),
-              left, changes, percentile(status_gaps_ns, 0.5) / 1e6, percentile(status_gaps_ns, 1.0) / 1e6);
+              left, changes, kConsumerMs, consumer_errors, percentile(status_gaps_ns, 0.5) / 1e6,
+              percentile(status_gaps_ns, 1.0) / 1e6);
   std::printf("per takeover, SYNC gap / status gap (ms; the new master waits %lld, %lld, %lld, ...): %s\n",
               static_cast<long long>(waits[1]), static_cast<long long>(waits[0]), static_cast<long long>(waits[1]),
               each.c_str());
@@ -412,12 +452,13 @@ TEST_F(HotStandby, TwentyTimesTheMastersPcDiesAndTheStandbyTakesTheRunningLineOv
   EXPECT_TRUE(b_->running()) << logs();
 }
 
-// Started at the same moment, 20 times (3 on vcan): one masters the bus (the one that waits less,
-// as a rule), the other stands by; never two SYNC producers, never two masters.
+// Started at the same moment, 20 times (3 on vcan): one masters the bus (priority 1 wins the
+// negotiation, unless B's process came up a negotiation earlier), the other stands by; never two SYNC producers, never
+// two masters.
 TEST_F(HotStandby, TwoStandbysStartedTogetherEndWithOneMaster) {
   start_sim();
   const auto a = write_line("a", "standby", kTakeoverAfterMs, dir_ + "/state_a", false);
-  const auto b = write_line("b", "standby", 2 * kTakeoverAfterMs, dir_ + "/state_b", false);
+  const auto b = write_line("b", "standby", 2 * kTakeoverAfterMs, dir_ + "/state_b", false, 2);
   const int starts = kOnVcan ? 3 : 20;
   for (int i = 0; i < starts; ++i) {
     const auto from_ns = bus_now_ns();
@@ -429,8 +470,13 @@ TEST_F(HotStandby, TwoStandbysStartedTogetherEndWithOneMaster) {
         << logs();
     const bool a_masters = a_->log().find("mastered from the start") != std::string::npos;
     const bool b_masters = b_->log().find("mastered from the start") != std::string::npos;
-    // Exactly one: the one that waits less, unless its process came up over 150 ms later.
+    // Exactly one, and on the wire one winner: every 71h since the start names one priority.
     EXPECT_NE(a_masters, b_masters) << "start " << i << "\n" << logs();
+    std::set<int> winners;
+    for (const auto& f : frames_since(from_ns)) {
+      if (f.id == 0x071 && f.len == 2) winners.insert(f.data[0]);
+    }
+    EXPECT_EQ(winners.size(), 1u) << "start " << i << "\n" << logs();
     if (::testing::Test::HasFailure()) break;
     EXPECT_EQ(b_->stop(), 0) << logs();
     EXPECT_EQ(a_->stop(), 0) << logs();
@@ -441,7 +487,7 @@ TEST_F(HotStandby, TwoStandbysStartedTogetherEndWithOneMaster) {
 // linebridge --check A --peer B: the pair as one line with a standby (docs/redundancy.md).
 TEST_F(HotStandby, CheckOfAPairOfLineFiles) {
   const auto a = write_line("pair_a", "standby", 150, "", false);
-  const auto b = write_line("pair_b", "standby", 300, "", false);
+  const auto b = write_line("pair_b", "standby", 300, "", false, 2);
   const auto check = [](const std::string& x, const std::string& y) {
     return lb::test::run_command({LB_BIN_BRIDGE, "--check", x, "--peer", y}, 60s);
   };
@@ -449,9 +495,9 @@ TEST_F(HotStandby, CheckOfAPairOfLineFiles) {
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_NE(r.output.find("ok as one line with a standby"), std::string::npos) << r.output;
 
-  r = check(a, write_line("pair_same_wait", "standby", 150, "", false));
+  r = check(a, write_line("pair_same_priority", "standby", 300, "", false, 1));
   EXPECT_EQ(r.exit_code, 2) << r.output;
-  EXPECT_NE(r.output.find("error: pair: bus b: both take over after 150 ms"), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("error: pair: bus b: both have flying-master priority 1"), std::string::npos) << r.output;
 
   r = check(a, write_line("pair_master", "master", 0, "", false));
   EXPECT_EQ(r.exit_code, 0) << r.output;

@@ -3,7 +3,9 @@
 // master's node-ID keeps the standby standing by; silent for takeover_after, the standby takes
 // over once, knowing whether a master was heard, when its last heartbeat and SYNC were, and the
 // last NMT command it sent each node (to the node, or to all). A loop held up while the master's
-// heartbeats came (its thread stopped) reads them before it judges: no takeover.
+// heartbeats came (its thread stopped) reads them before it judges: no takeover. The watch stands by
+// the master the negotiation named (FlyingMaster): another node-ID's heartbeat keeps it standing by
+// then; a negotiation won takes over at once (claim).
 #include <gtest/gtest.h>
 
 #include <chrono>
@@ -26,13 +28,13 @@ class ActiveMaster : public lb::test::LoopOnOwnBus {
  protected:
   ActiveMaster() : LoopOnOwnBus("amw") {}
 
-  void start(std::chrono::milliseconds after) {
+  void start(std::chrono::milliseconds after, std::uint8_t active = kMaster) {
     watch_ = std::make_unique<co::ActiveMasterWatch>(*loop_, kMaster, after, [this](const auto& t) {
       std::lock_guard lock(m_);
       takeovers_.push_back(t);
     });
     loop_->start();
-    loop_->post([this] { watch_->start(); });
+    loop_->post([this, active] { watch_->stand_by(active); });
   }
   template <class F>
   auto on_loop(F f) {
@@ -51,7 +53,7 @@ class ActiveMaster : public lb::test::LoopOnOwnBus {
   std::vector<co::ActiveMasterWatch::Takeover> takeovers_;
 };
 
-TEST_F(ActiveMaster, NoMasterHeardWithinItsWaitAfterTheStartMastersTheBus) {
+TEST_F(ActiveMaster, AnActiveMasterThatNeverBeatsIsTakenOverAfterTheWait) {
   const auto t0 = std::chrono::steady_clock::now();
   start(100ms);
   ASSERT_TRUE(lb::test::eventually(10s, [&] { return !takeovers().empty(); }));
@@ -59,6 +61,37 @@ TEST_F(ActiveMaster, NoMasterHeardWithinItsWaitAfterTheStartMastersTheBus) {
   EXPECT_FALSE(takeovers().front().master_heard);
   EXPECT_TRUE(on_loop([&] { return watch_->active(); }));
   EXPECT_NE(on_loop([&] { return watch_->describe(); }).find("mastered from its start"), std::string::npos);
+}
+
+TEST_F(ActiveMaster, ANegotiationWonTakesOverAtOnceAndOnlyOnce) {
+  start(10s);
+  on_loop([&] {
+    watch_->claim();
+    return 0;
+  });
+  ASSERT_EQ(takeovers().size(), 1u);
+  EXPECT_FALSE(takeovers().front().master_heard);
+  on_loop([&] {
+    watch_->claim();
+    return 0;
+  });
+  EXPECT_EQ(takeovers().size(), 1u);
+}
+
+TEST_F(ActiveMaster, TheMasterTheNegotiationNamedIsTheOneWatched) {
+  start(300ms, 9);  // a foreign flying master, node 9
+  for (int i = 0; i < 20; ++i) {
+    ASSERT_TRUE(spy_->send(lb::can::make_frame(0x709, {0x05})));
+    std::this_thread::sleep_for(50ms);  // stays: the master's heartbeat period
+  }
+  EXPECT_TRUE(takeovers().empty());
+  // The line's own master node-ID beating does not stand for node 9.
+  for (int i = 0; i < 20 && takeovers().empty(); ++i) {
+    beat();
+    std::this_thread::sleep_for(50ms);  // stays: the heartbeat period
+  }
+  ASSERT_TRUE(lb::test::eventually(10s, [&] { return !takeovers().empty(); }));
+  EXPECT_TRUE(takeovers().front().master_heard);
 }
 
 TEST_F(ActiveMaster, TheMastersHeartbeatKeepsItStandingByAndItsSilenceMakesOneTakeover) {

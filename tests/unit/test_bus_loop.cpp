@@ -342,3 +342,34 @@ TEST_F(Loop, TheBussTimeIsTheNewestFrameDispatchedAndQueuedFramesArePending) {
   EXPECT_GT(seen.back(), seen.front());
   EXPECT_FALSE(on_loop([&] { return loop_->input_pending(); })) << "pending input after every frame was read";
 }
+
+// A loop whose wake-ups were further apart than its stall guard (its process stopped) sends nothing
+// but stops until it has read the frames that came meanwhile: a master frozen while a standby took
+// the bus over must learn that before its next SYNC's RPDOs go out (docs/redundancy.md).
+TEST_F(Loop, AStalledLoopReadsTheFramesOfMeanwhileBeforeItTransmitsAgain) {
+  constexpr int kMeanwhile = 30;
+  loop_->guard_stalls(100ms);
+  int read = 0;                      // loop thread
+  std::atomic<bool> blocked{false};  // the stall is over
+  std::atomic<int> read_at_first_send{-1};
+  loop_->on_frame(0x200, [&](const lb::can::CanFrame&) { ++read; });
+  const auto tick = loop_->create_timer([&] {
+    const bool sent = loop_->send(lb::can::make_frame(0x181, {0})).has_value();
+    if (!blocked) return;
+    if (sent && read_at_first_send < 0) read_at_first_send = read;
+  });
+  loop_->arm_timer(tick, 10ms, 10ms);
+  loop_->start();
+  ASSERT_TRUE(eventually([&] { return spy_->frames(0x181).size() >= 3; }));
+  std::promise<void> holding;
+  loop_->post([&] {
+    holding.set_value();
+    std::this_thread::sleep_for(400ms);  // stays: the stall being tested
+    blocked = true;
+  });
+  ASSERT_EQ(holding.get_future().wait_for(5s), std::future_status::ready);
+  for (int i = 0; i < kMeanwhile; ++i) ASSERT_TRUE(spy_->send(lb::can::make_frame(0x200, {1})));
+  ASSERT_TRUE(eventually([&] { return read_at_first_send >= 0; }, 10s));
+  EXPECT_EQ(read_at_first_send, kMeanwhile) << "it transmitted before it had read the frames of its stall";
+  EXPECT_EQ(on_loop([&] { return loop_->stalls(); }), 1u);
+}

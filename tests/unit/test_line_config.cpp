@@ -759,11 +759,46 @@ TEST(LineConfig, DevicesToldApartByTheProfileNumberAloneAreNamed) {
 TEST(LineConfig, StandbyRoleKeys) {
   const auto registry = ProfileRegistry::builtin();
   const auto standby = replace(kGood, "    role: master\n",
-                               "    role: standby\n    master_node_id: 1\n    master_heartbeat_ms: 40\n");
+                               "    role: standby\n    master_node_id: 1\n    master_heartbeat_ms: 40\n"
+                               "    flying_master: {priority: 3}\n");
   auto r = parse_line_config(standby, "line.yaml", registry);
   ASSERT_TRUE(r) << r.error().message;
   EXPECT_EQ(r->buses[0].role, lb::profiles::BusRole::standby);
   EXPECT_EQ(r->buses[0].takeover_after, std::chrono::milliseconds(100));
+  // CiA 302-2 1F90h: the priority given, the rest its defaults (sub 1, 2, 4, 5, 6).
+  const auto& f = r->buses[0].flying;
+  EXPECT_EQ(f.priority, 3);
+  EXPECT_EQ(f.detect_timeout, std::chrono::milliseconds(100));
+  EXPECT_EQ(f.negotiation_delay, std::chrono::milliseconds(500));
+  EXPECT_EQ(f.priority_slot, std::chrono::milliseconds(1500));
+  EXPECT_EQ(f.device_slot, std::chrono::milliseconds(10));
+  EXPECT_EQ(f.detect_cycle, std::chrono::milliseconds(4000));
+  r = parse_line_config(replace(standby, "{priority: 3}",
+                                "{priority: 0, detect_timeout_ms: 7, negotiation_delay_ms: 8, priority_slot_ms: 9, "
+                                "device_slot_ms: 11, detect_cycle_ms: 12}"),
+                        "line.yaml", registry);
+  ASSERT_TRUE(r) << r.error().message;
+  EXPECT_EQ(r->buses[0].flying.priority, 0);
+  EXPECT_EQ(r->buses[0].flying.detect_timeout, std::chrono::milliseconds(7));
+  EXPECT_EQ(r->buses[0].flying.negotiation_delay, std::chrono::milliseconds(8));
+  EXPECT_EQ(r->buses[0].flying.priority_slot, std::chrono::milliseconds(9));
+  EXPECT_EQ(r->buses[0].flying.device_slot, std::chrono::milliseconds(11));
+  EXPECT_EQ(r->buses[0].flying.detect_cycle, std::chrono::milliseconds(12));
+  auto bad = error_of(replace(standby, "    flying_master: {priority: 3}\n", ""));
+  EXPECT_NE(bad.find("a standby negotiates mastership (CiA 302-2): it needs flying_master: {priority: N}"),
+            std::string::npos)
+      << bad;
+  bad = error_of(replace(standby, "{priority: 3}", "{detect_cycle_ms: 100}"));
+  EXPECT_NE(bad.find("flying_master needs priority"), std::string::npos) << bad;
+  bad = error_of(replace(standby, "{priority: 3}", "{priority: 256}"));
+  EXPECT_NE(bad.find("priority"), std::string::npos) << bad;
+  EXPECT_NE(bad.find("255"), std::string::npos) << bad;
+  bad = error_of(replace(standby, "{priority: 3}", "{priority: 3, slot_ms: 5}"));
+  EXPECT_NE(bad.find("slot_ms"), std::string::npos) << bad;
+  bad = error_of(replace(standby, "{priority: 3}", "{priority: 3, detect_cycle_ms: 0}"));
+  EXPECT_NE(bad.find("detect_cycle_ms"), std::string::npos) << bad;
+  bad = error_of(replace(kGood, "    role: master\n", "    role: master\n    flying_master: {priority: 1}\n"));
+  EXPECT_NE(bad.find("flying_master is for the standby role"), std::string::npos) << bad;
   EXPECT_TRUE(lb::profiles::masters(r->buses[0].role));
   r = parse_line_config(replace(standby, "master_heartbeat_ms: 40\n",
                                 "master_heartbeat_ms: 40\n    takeover_after_ms: 300\n"),

@@ -83,7 +83,11 @@ void DiagnosticsGateway::snapshot(std::size_t i) {
          : bus.standby->active() ? "standby, mastering (took over)"
                                  : "standby");
   b.state(std::string(can::to_string(stats.state)));
-  if (bus.standby != nullptr) b.takeover(bus.standby->describe());
+  if (bus.standby != nullptr) {
+    auto text = bus.standby->describe();
+    if (bus.flying != nullptr) text += (text.empty() ? "" : "; ") + ("negotiation: " + bus.flying->describe());
+    b.takeover(text);
+  }
   b.frames_in(stats.frames_in);
   b.frames_out(stats.frames_out);
   b.error_frames(stats.error_frames);

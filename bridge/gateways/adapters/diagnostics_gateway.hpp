@@ -13,6 +13,7 @@
 
 #include "canopen/active_master_watch.hpp"
 #include "canopen/bus_loop.hpp"
+#include "canopen/flying_master.hpp"
 #include "canopen/other_master.hpp"
 #include "canopen/remote_node.hpp"
 #include "dds/participant.hpp"
@@ -41,6 +42,7 @@ class DiagnosticsGateway {
     std::vector<Device> devices;
     const MandatoryDevices* mandatory = nullptr;          // master role, when a device of the bus is mandatory
     const canopen::ActiveMasterWatch* standby = nullptr;  // standby role
+    const canopen::FlyingMaster* flying = nullptr;        // standby role: its negotiation
   };
 
   // The process's own fields (the set-value store, the log), filled on the publishing thread.
