@@ -345,7 +345,7 @@ void LineBridge::take_over(BusRuntime& rt, const canopen::ActiveMasterWatch::Tak
   rt.sync->resume(first, [w = rt.standby.get()](std::int64_t at_ns) { w->first_sync_sent(at_ns); });
   spdlog::warn("bus {}: took the bus over from the master (node {}): its last heartbeat {} ms ago, its last SYNC {} "
                "ms ago, the first SYNC in {} ms",
-               rt.config->name, rt.config->master_node_id, (t.at_ns - t.last_heartbeat_ns) / 1'000'000,
+               rt.config->name, t.master_node_id, (t.at_ns - t.last_heartbeat_ns) / 1'000'000,
                t.last_sync_ns == 0 ? -1 : (t.at_ns - t.last_sync_ns) / 1'000'000,
                std::chrono::duration_cast<std::chrono::milliseconds>(first).count());
   mastering();

@@ -197,8 +197,10 @@ int run(int argc, char** argv) {
   }
 
   // From here on no bus loop waits for the log.
-  const app::AsyncLog async_log(pattern, part == "dds" ? app::AsyncLog::kDdsQueue : app::AsyncLog::kBusQueue);
+  // Before the log's thread: every thread blocks the stop signals, so that request_stop()'s SIGUSR1
+  // (a loop that failed, a bus that stepped back) ends the wait below instead of the process.
   app::block_stop_signals();
+  const app::AsyncLog async_log(pattern, part == "dds" ? app::AsyncLog::kDdsQueue : app::AsyncLog::kBusQueue);
   // Before anything costly (the line file, the participant): a DDS process restarted again and
   // again waits here, as its record of starts says. Supervised (--part both), its parent paces it.
   if (part == "dds" && !pace_starts.empty() && std::getenv(app::kBusPidEnv) == nullptr &&

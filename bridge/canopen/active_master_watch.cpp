@@ -79,7 +79,7 @@ void ActiveMasterWatch::judge() {
 }
 
 void ActiveMasterWatch::take_over(std::int64_t now) {
-  takeover_ = Takeover{last_heartbeat_ns_ != 0, last_heartbeat_ns_, last_sync_ns_, now};
+  takeover_ = Takeover{last_heartbeat_ns_ != 0, master_node_id_, last_heartbeat_ns_, last_sync_ns_, now};
   const auto& t = *takeover_;
   if (t.master_heard && watching_) {
     spdlog::warn("{}: the master's heartbeat (node {}) silent for {} ms: taking the bus over", loop_.bus().uri(),

@@ -25,6 +25,7 @@ class ActiveMasterWatch {
  public:
   struct Takeover {
     bool master_heard = false;           // a master's heartbeat was heard while this bridge stood by
+    std::uint8_t master_node_id = 0;     // the master watched (the line's, or the one a negotiation named)
     std::int64_t last_heartbeat_ns = 0;  // the master's last heartbeat (bus time), 0: none
     std::int64_t last_sync_ns = 0;       // the last SYNC on the bus (bus time), 0: none
     std::int64_t at_ns = 0;              // when the silence was judged (realtime)

@@ -102,7 +102,9 @@ bool BusLoop::guarded(Fn&& fn, std::uint32_t* failures, const char* what, std::u
 }
 
 void BusLoop::call(Handler& h, const can::CanFrame& frame, const char* what) {
+  in_handler_ = true;
   guarded([&] { h.fn(frame); }, &h.failures, what, frame.id);
+  in_handler_ = false;
 }
 
 BusLoop::TimerId BusLoop::create_timer(Task callback) {
@@ -179,7 +181,8 @@ Result<void> BusLoop::send(const can::CanFrame& frame) {
     ++frames_held_;
     return make_error(bus_->uri() + ": transmission held: another master is on this bus");
   }
-  if (catching_up_) {
+  // What answers a frame just read (an SDO transfer's next step) is news, not stale: it goes.
+  if (catching_up_ && !in_handler_) {
     if (input_pending()) {
       ++frames_held_;
       return make_error(bus_->uri() + ": the loop was stalled: the frames of meanwhile are read first");

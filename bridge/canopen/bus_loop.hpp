@@ -101,7 +101,8 @@ class BusLoop {
   // Before start(): a loop whose wake-ups were more than `after` apart (its process was stopped or
   // starved, and another master may have taken the bus over meanwhile) transmits nothing but stops
   // and negotiation until it has read the frames that came meanwhile: what it would send now (a
-  // SYNC's RPDOs) may no longer be what the bus's master says. Zero: no guard.
+  // SYNC's RPDOs) may no longer be what the bus's master says. What a frame handler sends in answer
+  // to a frame goes. Zero: no guard.
   void guard_stalls(std::chrono::nanoseconds after) { stall_guard_ = after; }
   std::uint64_t stalls() const { return stalls_; }  // loop thread: wake-ups the guard held back
   // Loop thread: hold every transmission but stops (another master owns the bus) or release it.
@@ -213,6 +214,7 @@ class BusLoop {
   std::chrono::nanoseconds stall_guard_{0};
   std::chrono::steady_clock::time_point last_wake_{};
   bool catching_up_ = false;  // a stall: the frames of meanwhile are read before anything is sent
+  bool in_handler_ = false;   // a frame handler runs
   std::uint64_t stalls_ = 0;
   std::uint64_t frames_held_ = 0;
   std::uint64_t stops_sent_while_held_ = 0;

@@ -549,7 +549,7 @@ class SdoClient::Core {
   bool closed_ = false;
   int callbacks_running_ = 0;
   std::array<NodeTransfers, kMaxNode + 1> nodes_;  // by node-ID; 0 unused
-  std::deque<Completion> ready_;               // answered, callback not yet run
+  std::deque<Completion> ready_;                   // answered, callback not yet run
 };
 
 // ---- SdoClient -----------------------------------------------------------------------------------

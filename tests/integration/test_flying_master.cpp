@@ -1,5 +1,5 @@
-// Issue 42, part 2: the bridge as a CiA 302-2 flying master on the wire (/work/notes/flying-spec.md,
-// the behaviour; docs/redundancy.md). Black box: one bridge (role standby, flying_master in its line
+// Issue 42, part 2: the bridge as a CiA 302-2 flying master on the wire (docs/redundancy.md: what
+// it does on the wire). Black box: one bridge (role standby, flying_master in its line
 // file), a line of every device type (linebridge-sim), and a FOREIGN flying master scripted here
 // after the two public implementations (canopen-rpi socketcanopen/node.py, emotas
 // co_flyingmaster.c; see ForeignMaster), each on its own member of a private virtual bus. Judged
@@ -113,8 +113,9 @@ bool device_frame(const CanFrame& f) {
 }
 
 // A foreign CiA 302-2 flying master, scripted after the two public implementations
-// (/work/notes/flying-master-research.md), on its own member of the bus, read and driven on its own
-// thread. It never sends SYNC, NMT or SDO: only the negotiation and its heartbeat.
+// (bggardner/canopen-rpi socketcanopen/node.py, emotas co_flyingmaster.c; docs/redundancy.md), on
+// its own member of the bus, read and driven on its own thread. It never sends SYNC, NMT or SDO: only the negotiation
+// and its heartbeat.
 //   - active: answers a 73h with 71h [priority, node] at once; its heartbeat 700h + node (05h) every
 //     50 ms; a 76h every detect cycle (500 ms, the first a cycle after it became active);
 //   - a 72h: starts its wait priority x 200 ms + node x 12 ms (no 72h of its own), and at its end,
@@ -304,7 +305,10 @@ class FlyingMaster : public ::testing::Test {
     f << "}\ndevices:\n";
     for (const auto* d : devices()) {
       f << "  - name: " << d->name << "\n    bus: b\n    node_id: " << d->node << "\n    profile: " << d->profile
-        << "\n    version: '" << d->version << "'\n    heartbeat_timeout_ms: 400\n";
+        << "\n    version: '"
+        << d->version
+        // 1 s: a loaded machine's stall (313 ms seen) must not pass for a lost device here.
+        << "'\n    heartbeat_timeout_ms: 1000\n";
       if (simulation) f << "    simulation: {heartbeat_period_ms: 100}\n";
     }
     return path;

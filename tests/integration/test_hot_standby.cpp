@@ -484,6 +484,82 @@ TEST_F(HotStandby, TwoStandbysStartedTogetherEndWithOneMaster) {
   EXPECT_TRUE(lb::test::eventually(60s, [&] { return all_operational(); })) << logs();
 }
 
+// A second active master: the master's PC freezes (both its processes stopped: SIGSTOP, as a hung
+// kernel or a paused VM) past the takeover, the standby takes the line over, and the operator stops
+// the saw through it. Then the frozen PC resumes, with its set values from before (the saw's
+// enabling on). It must read the bus before it sends anything (BusLoop::guard_stalls), find the
+// new master's frames stamped during its stall, and step back (it restarts as the standby, same
+// PID) without a negotiation: mastership never goes back by itself, and no stale enabling value
+// reaches the saw. Judged from the bus after the resume: the saw's enabling stays off, no NMT
+// command, no SDO download, every device operational, one SYNC producer; B masters on.
+TEST_F(HotStandby, AMasterFrozenPastTheTakeoverStepsBackWhenItResumesAndSendsNoStaleValue) {
+  start_sim();
+  a_ = bridge(write_line("a", "standby", kTakeoverAfterMs, dir_ + "/state_a", false), "frozen-a");
+  ASSERT_TRUE(lb::test::eventually(30s, [&] { return !spy_->frames(kMasterHeartbeat).empty(); })) << logs();
+  b_ = bridge(write_line("b", "standby", 2 * kTakeoverAfterMs, dir_ + "/state_b", false, 2), "frozen-b");
+  ASSERT_TRUE(b_->wait_log("standing by the active master (node 1)", 30000ms)) << logs();
+  ASSERT_NO_FATAL_FAILURE(put_set_values_in_force());
+  const auto& saw = *devices()[0];
+
+  const auto pids = [](pid_t pid) {
+    auto all = lb::test::children_of(pid);
+    all.push_back(pid);
+    return all;
+  };
+  const auto frozen = pids(a_->pid());
+  for (const auto p : frozen) ::kill(p, SIGSTOP);
+  ASSERT_TRUE(b_->wait_log("took the bus over", 30000ms)) << logs();
+  // The operator stops the saw through the new master.
+  ASSERT_TRUE(lb::test::eventually(60s, [&] { return panels_[0]->set_enabling(false).accepted; })) << logs();
+  ASSERT_TRUE(lb::test::eventually(10s,
+                                   [&] {
+                                     const auto f = spy_->frames(saw.enabling.front().cob_id);
+                                     return !f.empty() && !saw.enabled(f.back());
+                                   }))
+      << "the stop never reached the bus\n"
+      << logs();
+  ASSERT_TRUE(syncs_after(bus_now_ns(), 25, 30s)) << logs();
+
+  const auto resume_ns = bus_now_ns();
+  for (const auto p : frozen) ::kill(p, SIGCONT);
+  ASSERT_TRUE(a_->wait_log("stepping back to standby", 30000ms)) << logs();
+  // Started again (the same process, its image replaced) and standing by B.
+  ASSERT_TRUE(lb::test::eventually(60s, [&] {
+    const auto log = a_->log();
+    const auto back = log.find("stepping back to standby");
+    return back != std::string::npos && log.find("standing by the active master (node 1)", back) != std::string::npos;
+  })) << logs();
+  EXPECT_TRUE(a_->running()) << logs();
+  ASSERT_TRUE(syncs_after(bus_now_ns(), 50, 30s)) << logs();
+  const auto end_ns = bus_now_ns();
+
+  std::size_t enabling_frames = 0, stale = 0;
+  for (const auto& f : frames_since(resume_ns)) {
+    if (f.timestamp_ns > end_ns) break;
+    EXPECT_NE(f.id, 0x000u) << "an NMT command after the resume: " << payload(f) << "\n" << logs();
+    for (const auto* d : devices()) {
+      if (f.id == 0x600u + static_cast<std::uint32_t>(d->node) && f.len >= 1) {
+        EXPECT_GT(f.data[0] >> 5, 1) << "an SDO download to " << d->name << " after the resume: " << payload(f) << "\n"
+                                     << logs();
+      }
+      EXPECT_FALSE(f.id == d->heartbeat_id() && payload(f) != "05")
+          << d->name << " left operational after the resume: " << payload(f) << "\n"
+          << logs();
+    }
+    if (f.id == saw.enabling.front().cob_id) {
+      ++enabling_frames;
+      if (saw.enabled(f)) ++stale;
+      EXPECT_FALSE(saw.enabled(f)) << "a stale enabling value after the resume: " << payload(f) << "\n" << logs();
+    }
+  }
+  EXPECT_GT(enabling_frames, 0u) << "the saw's RPDO did not go on\n" << logs();
+  // After A stood by again: one SYNC producer.
+  EXPECT_LE(sync_gaps(end_ns - 500 * kMs, end_ns).short_ones, kTwoProducers) << logs();
+  EXPECT_EQ(b_->log().find("stepping back"), std::string::npos) << logs();
+  std::printf("frozen master: after the resume %zu frames of the saw's enabling RPDO, %zu of them enabling\n",
+              enabling_frames, stale);
+}
+
 // linebridge --check A --peer B: the pair as one line with a standby (docs/redundancy.md).
 TEST_F(HotStandby, CheckOfAPairOfLineFiles) {
   const auto a = write_line("pair_a", "standby", 150, "", false);
