@@ -88,27 +88,9 @@ constexpr std::size_t kTwoProducers = 3;
 
 using lb::test::bus_now_ns;
 
-std::string payload(const lb::can::CanFrame& f) {
-  std::string s;
-  for (unsigned i = 0; i < f.len; ++i) s += fmt::format("{:02X}", f.data[i]);
-  return s;
-}
+using safety::payload;
 
-// Every device type, each named by its column (the two saws share a name in the safety table's rows).
-const std::vector<const safety::SafetyDevice*>& devices() {
-  static const std::vector<safety::SafetyDevice> named = [] {
-    std::vector<safety::SafetyDevice> d{safety::saw31(),      safety::saw10(),  safety::puller(),
-                                        safety::corrugator(), safety::winder(), safety::feeder()};
-    for (auto& x : d) x.name = x.column;
-    return d;
-  }();
-  static const std::vector<const safety::SafetyDevice*> d = [] {
-    std::vector<const safety::SafetyDevice*> out;
-    for (const auto& x : named) out.push_back(&x);
-    return out;
-  }();
-  return d;
-}
+const std::vector<const safety::SafetyDevice*>& devices() { return safety::every_device_type(); }
 
 class HotStandby : public ::testing::Test {
  protected:

@@ -220,4 +220,27 @@ inline const SafetyDevice& feeder() {
   return d;
 }
 
+// Every device type, each named by its column (the two saws share a name in the safety table's rows):
+// the line of the redundancy tests (test_hot_standby.cpp, test_flying_master.cpp).
+inline const std::vector<const SafetyDevice*>& every_device_type() {
+  static const std::vector<SafetyDevice> named = [] {
+    std::vector<SafetyDevice> d{saw31(), saw10(), puller(), corrugator(), winder(), feeder()};
+    for (auto& x : d) x.name = x.column;
+    return d;
+  }();
+  static const std::vector<const SafetyDevice*> d = [] {
+    std::vector<const SafetyDevice*> out;
+    for (const auto& x : named) out.push_back(&x);
+    return out;
+  }();
+  return d;
+}
+
+// A frame's data in hex, as candump writes it ("07008813E02E0000").
+inline std::string payload(const lb::can::CanFrame& f) {
+  std::string s;
+  for (unsigned i = 0; i < f.len; ++i) s += fmt::format("{:02X}", f.data[i]);
+  return s;
+}
+
 }  // namespace lb::test::safety
