@@ -26,8 +26,6 @@ namespace {
 using namespace std::chrono_literals;
 using lb::can::make_frame;
 
-constexpr std::uint32_t kEntry = 0x0001'00C8;  // node 1, 200 ms
-
 class SimHeartbeatConsumer : public ::testing::Test {
  protected:
   void SetUp() override {
