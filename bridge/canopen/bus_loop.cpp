@@ -102,9 +102,7 @@ bool BusLoop::guarded(Fn&& fn, std::uint32_t* failures, const char* what, std::u
 }
 
 void BusLoop::call(Handler& h, const can::CanFrame& frame, const char* what) {
-  in_handler_ = true;
   guarded([&] { h.fn(frame); }, &h.failures, what, frame.id);
-  in_handler_ = false;
 }
 
 BusLoop::TimerId BusLoop::create_timer(Task callback) {
@@ -189,29 +187,27 @@ Result<void> BusLoop::send(const can::CanFrame& frame) {
     }
     catching_up_ = false;
   }
+  return transmit(frame, "send");
+}
+
+// What every way out shares: the bus, the bits counted for the load, a failure logged.
+Result<void> BusLoop::transmit(const can::CanFrame& frame, const char* what) {
   auto r = bus_->send(frame);
   if (r) bits_out_ += frame_bits(frame);
-  if (!r) spdlog::debug("{}: send {:03X} failed: {}", bus_->uri(), frame.id, r.error().message);
+  if (!r) spdlog::debug("{}: {} {:03X} failed: {}", bus_->uri(), what, frame.id, r.error().message);
   return r;
 }
 
 Result<void> BusLoop::send_stop(const can::CanFrame& frame) {
-  auto r = bus_->send(frame);
-  if (r) {
-    bits_out_ += frame_bits(frame);
-    if (held_) ++stops_sent_while_held_;
-  }
-  if (!r) spdlog::debug("{}: stop {:03X} failed: {}", bus_->uri(), frame.id, r.error().message);
+  auto r = transmit(frame, "stop");
+  if (r && held_) ++stops_sent_while_held_;
   return r;
 }
 
 Result<void> BusLoop::send_negotiation(const can::CanFrame& frame) {
   if (frame.id < cob::flying_master_first || frame.id > cob::flying_master_last || frame.extended)
     throw std::invalid_argument("send_negotiation sends the flying-master services 71h-76h only");
-  auto r = bus_->send(frame);
-  if (r) bits_out_ += frame_bits(frame);
-  if (!r) spdlog::debug("{}: negotiation {:03X} failed: {}", bus_->uri(), frame.id, r.error().message);
-  return r;
+  return transmit(frame, "negotiation");
 }
 
 void BusLoop::set_thread(std::string name, int realtime_priority) {
@@ -441,6 +437,14 @@ bool BusLoop::input_pending() const {
 }
 
 void BusLoop::dispatch(const can::CanFrame& frame) {
+  // Once per frame, not per handler: what the handlers send answers this frame (BusLoop::send).
+  struct InHandler {
+    bool& flag;
+    explicit InHandler(bool& f) : flag(f) { flag = true; }
+    ~InHandler() { flag = false; }
+    InHandler(const InHandler&) = delete;
+    InHandler& operator=(const InHandler&) = delete;
+  } in_handler{in_handler_};
   last_frame_ns_ = std::max(last_frame_ns_, frame.timestamp_ns);
   if (!frame.extended && !frame.rtr && !frame.error && frame.id < cob::kStandardIdCount) {
     auto& handlers = handlers_[frame.id];

@@ -182,6 +182,7 @@ class BusLoop {
   template <class Fn>
   bool guarded(Fn&& fn, std::uint32_t* failures, const char* what, std::uint32_t id);
   void call(Handler& h, const can::CanFrame& frame, const char* what);
+  Result<void> transmit(const can::CanFrame& frame, const char* what);
   void watch_link();  // logs the bus's state changes and re-opens
   void drain_bus();
   void run_timer(TimerId id);
@@ -214,7 +215,7 @@ class BusLoop {
   std::chrono::nanoseconds stall_guard_{0};
   std::chrono::steady_clock::time_point last_wake_{};
   bool catching_up_ = false;  // a stall: the frames of meanwhile are read before anything is sent
-  bool in_handler_ = false;   // a frame handler runs
+  bool in_handler_ = false;   // a frame is being dispatched to its handlers
   std::uint64_t stalls_ = 0;
   std::uint64_t frames_held_ = 0;
   std::uint64_t stops_sent_while_held_ = 0;
