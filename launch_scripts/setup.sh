@@ -2,6 +2,7 @@
 # Installs every build and run dependency of linebridge from Debian's packages.
 # Idempotent: installs only what is missing, so repeated runs cost a dpkg query. clang-format and
 # clang-tidy (14) are for the lint stage (launch_scripts/lint.sh).
+# gdb: a test that finds a thread stuck prints every thread's stack (tests/support/thread_stacks.hpp).
 #   launch_scripts/setup.sh [--clang] [--install-test]
 #     --clang: also clang and its sanitizer/libFuzzer runtime, for the AddressSanitizer + UBSan and
 #              fuzz stages (fuzz/)
@@ -19,6 +20,7 @@ packages=(
   openssl libssl-dev libtinyxml2-dev
   libsystemd-dev dpkg-dev fakeroot lintian
   clang-format clang-tidy
+  gdb
 )
 list=0
 for arg in "$@"; do

@@ -36,6 +36,7 @@
 #include "support/eventually.hpp"
 #include "support/line_harness.hpp"
 #include "support/test_pki.hpp"
+#include "support/thread_stacks.hpp"
 
 namespace srv = linebridge_msgs::srv;
 namespace msg = linebridge_msgs::msg;
@@ -197,6 +198,13 @@ class DiscoveryFlood : public ::testing::Test {
     return std::nullopt;
   }
 
+  // On a miss: whether the gate evicted them (then Fast DDS kept them) or never did.
+  static std::string gate_text(const lb::ddsl::GateCounts& c) {
+    return "admitted=" + std::to_string(c.admitted) + " proven=" + std::to_string(c.proven) +
+           " evicted=" + std::to_string(c.evicted) + " pending_now=" + std::to_string(c.pending_now) +
+           " waited=" + std::to_string(c.waited);
+  }
+
   static srv::SdoRead_Request read_request() {
     srv::SdoRead_Request req;
     req.device("saw1");
@@ -352,6 +360,7 @@ TEST_F(DiscoveryFlood, FortyHonestParticipantsAndAFloodRestartNothingAndEveryCli
       static_cast<long long>(
           std::chrono::duration_cast<std::chrono::milliseconds>(arrivals->widest_gap(flood_from, after_to)).count()),
       known_before, known_most);
+  std::printf("client gate after the flood: %s\n", gate_text(line_.dds().gate_counts()).c_str());
   EXPECT_TRUE(answered) << "the ServiceClient made before the flood got no answer within 5 s of its end\n"
                         << line_.logs();
   EXPECT_LT(arrivals->widest_gap(flood_from, after_to), kWidestStatusGap)
@@ -365,9 +374,13 @@ TEST_F(DiscoveryFlood, FortyHonestParticipantsAndAFloodRestartNothingAndEveryCli
   const lb::ddsl::GateLimits limits;
   EXPECT_GT(known_most, known_before) << "no forged participant reached the client: the test proves nothing";
   EXPECT_LE(known_most, known_before + limits.pending + limits.waiting);
-  EXPECT_TRUE(eventually(25s, [&] { return line_.dds().remote_counts().known <= known_before; }))
-      << "forged participants still known to the client: " << line_.dds().remote_counts().known << " (before "
-      << known_before << ")";
+  const bool forgotten = eventually(25s, [&] { return line_.dds().remote_counts().known <= known_before; });
+  // Seen once in CI (1 run in 10): 88 still known and the process hung afterwards, as if a Fast DDS
+  // thread that handles discovery had stopped; the stacks say where the next time.
+  EXPECT_TRUE(forgotten) << "forged participants still known to the client: " << line_.dds().remote_counts().known
+                         << " (before " << known_before << "); its gate: " << gate_text(line_.dds().gate_counts())
+                         << "\n"
+                         << (forgotten ? std::string() : lb::test::thread_stacks());
 }
 
 }  // namespace
