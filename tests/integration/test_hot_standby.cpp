@@ -39,6 +39,7 @@
 
 #include <fmt/format.h>
 
+#include "dds/incarnation.hpp"
 #include "dds/participant.hpp"
 #include "dds/topic_names.hpp"
 #include "msgs/commonPubSubTypes.h"
@@ -540,6 +541,67 @@ TEST_F(HotStandby, AMasterFrozenPastTheTakeoverStepsBackWhenItResumesAndSendsNoS
   EXPECT_EQ(b_->log().find("stepping back"), std::string::npos) << logs();
   std::printf("frozen master: after the resume %zu frames of the saw's enabling RPDO, %zu of them enabling\n",
               enabling_frames, stale);
+}
+
+// Issue 42 point 4, requests across a takeover: the master's bus process hangs (SIGSTOP: its DDS
+// process still takes requests, nothing reaches the bus), and the operator presses, on the saw,
+// manual_cut (a momentary command: run once or not at all) and stop_immediately (a stop: never
+// lost). Their requests name the master's run (dds/incarnation.hpp). The standby takes over; the
+// client asks again (dds/service.hpp) and the new master, another run, refuses the cut unrun, as a
+// restart, and runs the stop: it is on the bus. Then the hung PC dies (SIGKILL to both processes):
+// the cut never reaches the bus. Expected from docs/dds-contract.md's rules, judged on the bus.
+TEST_F(HotStandby, ARequestTheHungMasterTookIsRefusedUnrunByTheNewMasterAndAStopReachesTheBus) {
+  start_sim();
+  a_ = bridge(write_line("a", "standby", kTakeoverAfterMs, dir_ + "/state_a", false), "requests-a");
+  ASSERT_TRUE(lb::test::eventually(30s, [&] { return !spy_->frames(kMasterHeartbeat).empty(); })) << logs();
+  b_ = bridge(write_line("b", "standby", 2 * kTakeoverAfterMs, dir_ + "/state_b", false, 2), "requests-b");
+  ASSERT_TRUE(b_->wait_log("standing by the active master (node 1)", 30000ms)) << logs();
+  ASSERT_NO_FATAL_FAILURE(put_set_values_in_force());
+  const auto& saw = *devices()[0];
+  // The cut's own client, warm (it heard the master's run and reached its server).
+  safety::detail::LineCommand cut(safety::PanelContext{*dds_, "hs", saw});
+  ASSERT_TRUE(cut.warm()) << logs();
+  constexpr std::uint8_t kManualCut = 0x08;  // CiA 420-4 6020h bit 3, RPDO1 byte 0
+  const auto rpdo1 = saw.enabling.front().cob_id;
+
+  const auto hung_ns = bus_now_ns();
+  ASSERT_EQ(::kill(a_->pid(), SIGSTOP), 0);  // the bus process; its DDS process is its child
+  safety::OperatorRequest cut_answer, stop_answer;
+  std::thread cutting([&] { cut_answer = cut.press("manual_cut"); });
+  std::thread stopping([&] { stop_answer = panels_[0]->press_stop(); });
+  cutting.join();
+  stopping.join();
+  EXPECT_TRUE(b_->log().find("took the bus over") != std::string::npos) << logs();
+  EXPECT_FALSE(cut_answer.accepted) << cut_answer.reason << "\n" << logs();
+  EXPECT_NE(cut_answer.reason.find(lb::ddsl::kRestartedRefusal), std::string::npos)
+      << "the cut was not refused as a request of another run: '" << cut_answer.reason << "'\n"
+      << logs();
+  EXPECT_TRUE(stop_answer.accepted) << stop_answer.reason << "\n" << logs();
+  ASSERT_TRUE(lb::test::eventually(10s,
+                                   [&] {
+                                     for (const auto& f : frames_since(hung_ns))
+                                       if (saw.stop_frame.match(f)) return true;
+                                     return false;
+                                   }))
+      << "the stop never reached the bus: " << saw.stop_frame.what << "\n"
+      << logs();
+
+  // The hung PC dies; the new master runs on.
+  auto hung = lb::test::children_of(a_->pid());
+  hung.push_back(a_->pid());
+  for (const auto p : hung) ::kill(p, SIGKILL);
+  ASSERT_TRUE(syncs_after(bus_now_ns(), 50, 30s)) << logs();
+  std::size_t rpdo_frames = 0;
+  for (const auto& f : frames_since(hung_ns)) {
+    if (f.id != rpdo1 || f.len < 1) continue;
+    ++rpdo_frames;
+    EXPECT_EQ(f.data[0] & kManualCut, 0) << "manual_cut reached the bus after the master hung: " << payload(f) << "\n"
+                                         << logs();
+  }
+  EXPECT_GT(rpdo_frames, 0U) << "the saw's RPDO1 did not go on: the check above saw nothing\n" << logs();
+  std::printf("requests across a takeover: cut '%s', stop %s after %.0f ms\n", cut_answer.reason.c_str(),
+              stop_answer.accepted ? "accepted" : "refused",
+              static_cast<double>(stop_answer.answered_ns - stop_answer.written_ns) / 1e6);
 }
 
 // linebridge --check A --peer B: the pair as one line with a standby (docs/redundancy.md).
