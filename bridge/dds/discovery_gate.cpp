@@ -16,8 +16,9 @@ constexpr std::uint8_t kFlagLittle = 0x01, kFlagInlineQos = 0x02, kFlagData = 0x
 constexpr std::array<std::uint8_t, 4> kSpdpWriter{0x00, 0x01, 0x00, 0xc2};
 constexpr std::array<std::uint8_t, 4> kSpdpReader{0x00, 0x01, 0x00, 0xc7};
 constexpr std::array<std::uint8_t, 4> kParticipantEntity{0x00, 0x00, 0x01, 0xc1};
-constexpr std::uint16_t kPidSentinel = 0x0001, kPidParticipantGuid = 0x0050, kPidBuiltinEndpoints = 0x0058,
-                        kPidKeyHash = 0x0070, kPidStatusInfo = 0x0071, kPidIdentityToken = 0x1001;
+constexpr std::uint16_t kPidSentinel = 0x0001, kPidLeaseDuration = 0x0002, kPidParticipantGuid = 0x0050,
+                        kPidBuiltinEndpoints = 0x0058, kPidKeyHash = 0x0070, kPidStatusInfo = 0x0071,
+                        kPidIdentityToken = 0x1001;
 constexpr std::uint32_t kParticipantAnnouncer = 0x00000001;  // DISC_BUILTIN_ENDPOINT_PARTICIPANT_ANNOUNCER
 
 using Bytes = std::span<const std::uint8_t>;
@@ -61,6 +62,9 @@ struct Announcement {
   bool announcer = false;  // its announcement writer is among its built-in endpoints
   std::size_t sn_at = 0;   // the writerSN's offset in the message
   bool little = true;
+  std::size_t sub_at = 0, sub_end = 0;  // its DATA submessage in the message
+  std::size_t lease_at = 0;             // its lease's offset (Duration_t: seconds, fraction), 0: none
+  bool lease_little = true;
 };
 
 // The submessages of one source (the header's prefix, or an INFO_SRC's).
@@ -104,6 +108,8 @@ std::optional<std::vector<FromSource>> read_message(Bytes b) {
         Announcement a;
         a.sn_at = body + 12;
         a.little = little;
+        a.sub_at = at;
+        a.sub_end = end;
         std::size_t p = body + 4 + u16(b, body + 2, little);
         if (p > end) return std::nullopt;
         bool have_guid = false;
@@ -127,6 +133,10 @@ std::optional<std::vector<FromSource>> read_message(Bytes b) {
               have_guid = true;
             }
             if (pid == kPidIdentityToken) a.identity_token = true;
+            if (pid == kPidLeaseDuration && n >= 8) {
+              a.lease_at = v;
+              a.lease_little = payload_little;
+            }
             if (pid == kPidBuiltinEndpoints && n >= 4 && (u32(b, v, payload_little) & kParticipantAnnouncer) != 0)
               a.announcer = true;
           });
@@ -145,9 +155,25 @@ std::optional<std::vector<FromSource>> read_message(Bytes b) {
   return out;
 }
 
-// A writerSN's high word (RTPS SequenceNumber_t: high int32, then low uint32).
+// A writerSN's high word (RTPS SequenceNumber_t: high int32, then low uint32), or any 32-bit word.
 void write_high(std::vector<std::uint8_t>& m, std::size_t at, bool little, std::uint32_t high) {
   for (std::size_t i = 0; i < 4; ++i) m[at + (little ? i : 3 - i)] = static_cast<std::uint8_t>(high >> (8 * i));
+}
+
+// The announcement `a` of `source` as Fast DDS gets it (in the gate's `epoch`), alone in a message.
+std::shared_ptr<const DiscoveryGate::LastAnnouncement> last_announcement(Bytes message, const GuidPrefix& source,
+                                                                         const Announcement& a, std::uint32_t epoch) {
+  auto last = std::make_shared<DiscoveryGate::LastAnnouncement>();
+  auto& m = last->message;
+  m.assign(message.begin(), message.begin() + 8);  // "RTPS", protocol version, vendor
+  m.insert(m.end(), source.begin(), source.end());
+  m.insert(m.end(), message.begin() + static_cast<long>(a.sub_at), message.begin() + static_cast<long>(a.sub_end));
+  last->sn_at = kHeaderSize + (a.sn_at - a.sub_at);
+  last->sn_little = a.little;
+  if (a.lease_at != 0) last->lease_at = kHeaderSize + (a.lease_at - a.sub_at);
+  last->lease_little = a.lease_little;
+  write_high(m, last->sn_at, last->sn_little, epoch);
+  return last;
 }
 
 }  // namespace
@@ -223,18 +249,26 @@ DiscoveryGate::Verdict DiscoveryGate::inspect(std::span<const std::uint8_t> mess
       leave_nts(it);
       it = entries_.end();
     }
-    if (it != entries_.end() && it->second.state == State::proven) {
-      for (const auto& a : from.announcements) rewrites.push_back({a.sn_at, a.little, it->second.epoch});
-      for (const auto& [at, little] : from.fragments) rewrites.push_back({at, little, it->second.epoch});
-      continue;
-    }
-    if (it != entries_.end()) {       // pending
-      if (!from.fragments.empty()) {  // a pending participant's announcement fits a message
+    if (it != entries_.end()) {
+      const bool pending = it->second.state == State::pending;
+      if (pending && !from.fragments.empty()) {  // a pending participant's announcement fits a message
         pass = false;
         continue;
       }
-      for (const auto& a : from.announcements) rewrites.push_back({a.sn_at, a.little, it->second.epoch});
-      if (from.other_traffic) took_part_nts(it);
+      // Its own goodbye: its lease ends instead (the header says why), unless it never gave one.
+      const bool leaving = std::any_of(from.announcements.begin(), from.announcements.end(),
+                                       [](const Announcement& a) { return !a.alive; });
+      if (leaving && it->second.last && it->second.last->lease_at != 0) {
+        forget_nts(it->first, it->second.last);
+        pass = false;
+        continue;
+      }
+      for (const auto& a : from.announcements) {
+        rewrites.push_back({a.sn_at, a.little, it->second.epoch});
+        if (a.alive) it->second.last = last_announcement(message, from.source, a, it->second.epoch);
+      }
+      for (const auto& [at, little] : from.fragments) rewrites.push_back({at, little, it->second.epoch});
+      if (pending && from.other_traffic) took_part_nts(it);
       continue;
     }
     // Not let in yet: only its own announcement can open the gate.
@@ -246,6 +280,12 @@ DiscoveryGate::Verdict DiscoveryGate::inspect(std::span<const std::uint8_t> mess
     }
     if (proof_ == Proof::authentication && !alive->identity_token) {
       ++counts_.unsecured_ignored;
+      pass = false;
+      continue;
+    }
+    // A secured participant must be forgotten by its lease ending, never by a goodbye: no lease, no entry
+    // (Fast DDS always announces one).
+    if (proof_ == Proof::authentication && alive->lease_at == 0) {
       pass = false;
       continue;
     }
@@ -271,6 +311,7 @@ DiscoveryGate::Verdict DiscoveryGate::inspect(std::span<const std::uint8_t> mess
       seen_.erase(s);
     }
     e.epoch = ++sequence_;
+    e.last = last_announcement(message, from.source, *alive, e.epoch);
     const auto added = entries_.emplace(from.source, e).first;
     count_nts(added->second, +1);
     pending_order_.emplace_back(from.source, now);
@@ -292,7 +333,7 @@ DiscoveryGate::Verdict DiscoveryGate::inspect(std::span<const std::uint8_t> mess
   return v;
 }
 
-std::vector<DiscoveryGate::Eviction> DiscoveryGate::due(Clock::time_point now) {
+std::vector<std::vector<std::uint8_t>> DiscoveryGate::due(Clock::time_point now) {
   std::lock_guard lock(mutex_);
   if (now >= next_due_) {
     next_due_ = Clock::time_point::max();
@@ -315,8 +356,8 @@ std::vector<DiscoveryGate::Eviction> DiscoveryGate::due(Clock::time_point now) {
       pending_order_.pop_front();
     }
   }
-  std::vector<Eviction> out;
-  out.swap(to_evict_);
+  std::vector<std::vector<std::uint8_t>> out;
+  out.swap(to_hand_);
   return out;
 }
 
@@ -436,7 +477,7 @@ void DiscoveryGate::leave_nts(Iterator it) {
 
 void DiscoveryGate::evict_nts(std::unordered_map<GuidPrefix, Entry, PrefixHash>::iterator it, Clock::time_point now) {
   ++counts_.evicted;
-  to_evict_.push_back({it->first, ++sequence_});
+  forget_nts(it->first, it->second.last);
   if (!it->second.talked && !it->second.failed) {
     // It never answered: forged, or a real one its own gate kept waiting (a crowd starting at
     // once). Nothing is gained by keeping it out: a forger takes a new prefix anyway. Remembered,
@@ -453,6 +494,18 @@ void DiscoveryGate::evict_nts(std::unordered_map<GuidPrefix, Entry, PrefixHash>:
   it->second.until = now + limits_.refuse_for;
   count_nts(it->second, +1);
   refused_order_.push_back(it->first);
+}
+
+void DiscoveryGate::forget_nts(const GuidPrefix& prefix, const std::shared_ptr<const LastAnnouncement>& last) {
+  if (!last || last->lease_at == 0) {
+    to_hand_.push_back(goodbye(prefix, ++sequence_));
+    return;
+  }
+  auto m = last->message;
+  write_high(m, last->sn_at, last->sn_little, ++sequence_);
+  write_high(m, last->lease_at, last->lease_little, kLastLeaseS);
+  write_high(m, last->lease_at + 4, last->lease_little, 0);  // fraction
+  to_hand_.push_back(std::move(m));
 }
 
 bool DiscoveryGate::room_nts(const Entry& e, Clock::time_point now) {

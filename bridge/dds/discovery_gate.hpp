@@ -27,8 +27,8 @@
 //   `pending` in all. A pending one is evicted when its authentication failed, when this side
 //   sent it nothing and it sent nothing but announcements for `prove_within`, or else (a
 //   handshake under way: cutting one short can leave a real peer stuck, engaged()) after
-//   `talk_within`: Fast DDS is told it left (an unregister-dispose announcement in its name, the
-//   way a participant says goodbye, so Fast DDS frees everything it held for it). One that took
+//   `talk_within`: Fast DDS is told its lease ended (below), so Fast DDS frees everything it held
+//   for it. One that took
 //   part is then refused for `refuse_for` (no new handshake with a participant of another PKI
 //   every few seconds); a silent one may come in again (a forger takes new prefixes anyway). A
 //   newcomer finding its quota full takes the place of the longest pending one that neither side
@@ -39,11 +39,23 @@
 //   at most `handshake_slots` of them;
 // - on a secured participant an announcement without an identity token is dropped outright: its
 //   governance never lets an unauthenticated participant in, so Fast DDS would only keep it.
-// To make that eviction work whatever sequence number a forged announcement carries (Fast DDS takes
-// a goodbye only with a sequence number above the last announcement's), every announcement of a
-// participant let in reaches Fast DDS with the high word of its sequence number replaced by an
-// epoch of the gate's, drawn when it was let in (the low word, which orders its own announcements,
-// its updates and its own goodbye, stays), and the gate's goodbye carries a later epoch.
+// How Fast DDS is made to forget a participant: never by a goodbye (an unregister-dispose
+// announcement), because Fast DDS 2.9.1 can deadlock removing a participant on a receive thread
+// (caught twice by this project's flood test, 1 CI run in 10): SecurityManager::remove_participant
+// destroys the participant's handshake timer while it holds its mutex and waits for the event
+// thread, which may be waiting for that mutex (to encode an acknowledgement, or to remove a
+// participant whose lease ended). A participant whose lease ends is removed by the event thread
+// itself, which waits for nobody. So the gate keeps the last announcement of every participant it
+// let in and, to evict one, hands Fast DDS that announcement again with a lease of 1 s (Fast DDS
+// reschedules its lease check when a lease shrinks): the event thread drops it a second later.
+// A participant's own goodbye is turned into the same (it is dropped; its lease ends instead).
+// Only a participant let in with an announcement that carried no lease (not Fast DDS) is said
+// goodbye to (unsecured lines only: a secured gate lets no such announcement in).
+// To make that work whatever sequence number a forged announcement carries (Fast DDS takes an
+// update only with a sequence number above the last one's), every announcement of a participant
+// let in reaches Fast DDS with the high word of its sequence number replaced by an epoch of the
+// gate's, drawn when it was let in (the low word, which orders its own announcements and updates,
+// stays), and the gate's last word carries a later epoch.
 //
 // What an attacker without a certificate can then make the process hold: `pending` participants
 // with a handshake each and `waiting` without, for `prove_within` each (`talk_within` if it keeps
@@ -58,6 +70,7 @@
 #include <cstdint>
 #include <deque>
 #include <list>
+#include <memory>
 #include <mutex>
 #include <optional>
 #include <span>
@@ -126,14 +139,22 @@ class DiscoveryGate {
   };
   Verdict inspect(std::span<const std::uint8_t> message, std::vector<std::uint8_t>& rewritten, Clock::time_point now);
 
-  // Participants to evict now: for each, hand Fast DDS goodbye(prefix, epoch) on a discovery socket.
-  struct Eviction {
-    GuidPrefix prefix;
-    std::uint32_t epoch;
-  };
-  std::vector<Eviction> due(Clock::time_point now);
+  // What to hand Fast DDS now, on a discovery socket, for the participants evicted or gone: for
+  // each its last announcement with a lease of 1 s (or, without one, its goodbye).
+  std::vector<std::vector<std::uint8_t>> due(Clock::time_point now);
   // The unregister-dispose announcement of `prefix`, as its own participant would send it.
   static std::vector<std::uint8_t> goodbye(const GuidPrefix& prefix, std::uint32_t epoch);
+  // The lease Fast DDS is given for a participant it must forget.
+  static constexpr std::uint32_t kLastLeaseS = 1;
+  // A participant's last announcement as it reached Fast DDS (an RTPS header and the DATA
+  // submessage), to hand it again with its lease ended.
+  struct LastAnnouncement {
+    std::vector<std::uint8_t> message;
+    std::size_t sn_at = 0;
+    bool sn_little = true;
+    std::size_t lease_at = 0;  // 0: it carried no lease
+    bool lease_little = true;
+  };
 
   // From the participant's discovery callbacks.
   void authenticated(const GuidPrefix& remote, Clock::time_point now);
@@ -154,6 +175,7 @@ class DiscoveryGate {
     std::uint32_t epoch = 0;  // the high word of its announcements' sequence numbers in Fast DDS
     bool talked = false;      // pending: it sent more than announcements (a handshake message)
     bool failed = false;      // its authentication failed
+    std::shared_ptr<const LastAnnouncement> last;
   };
   struct PrefixHash {
     std::size_t operator()(const GuidPrefix& p) const noexcept;
@@ -170,6 +192,7 @@ class DiscoveryGate {
   void remember_nts(const GuidPrefix& prefix);
   bool seen_before_nts(const GuidPrefix& prefix);
   void evict_nts(Iterator it, Clock::time_point now);
+  void forget_nts(const GuidPrefix& prefix, const std::shared_ptr<const LastAnnouncement>& last);
   void trim_refused_nts(Clock::time_point now);
   bool room_nts(const Entry& e, Clock::time_point now);
 
@@ -181,7 +204,7 @@ class DiscoveryGate {
   // First sightings, oldest first (bounded by limits_.remember).
   std::list<GuidPrefix> seen_order_;
   std::unordered_map<GuidPrefix, std::list<GuidPrefix>::iterator, PrefixHash> seen_;
-  std::vector<Eviction> to_evict_;
+  std::vector<std::vector<std::uint8_t>> to_hand_;                      // lease ends and goodbyes for due()
   std::list<GuidPrefix> refused_order_;                                 // oldest refusal first
   std::deque<std::pair<GuidPrefix, Clock::time_point>> pending_order_;  // admission order (stale ones skipped)
   // Epochs, one series for every participant (RTPS's high word is an int32: at ten participants let

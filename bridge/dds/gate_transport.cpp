@@ -29,14 +29,12 @@ class GateTransport final : public rtps::ChainingTransport {
     thread_local std::vector<std::uint8_t> rewritten;
     const auto now = DiscoveryGate::Clock::now();
     const auto verdict = gate_->inspect({buffer, size}, rewritten, now);
-    // Only a socket that carries announcements reaches Fast DDS's announcement reader. Goodbyes
-    // first: a newcomer let in in place of an evicted participant then never adds to what Fast DDS
-    // holds, not even for a moment.
+    // Only a socket that carries announcements reaches Fast DDS's announcement reader. The
+    // evictions first (their leases end: Fast DDS's event thread drops them a second later).
     if (verdict.announcement) note_discovery_socket(local);
     if (is_discovery_socket(local)) {
-      for (const auto& e : gate_->due(now)) {
-        const auto goodbye = DiscoveryGate::goodbye(e.prefix, e.epoch);
-        next->OnDataReceived(goodbye.data(), static_cast<uint32_t>(goodbye.size()), local, remote);
+      for (const auto& m : gate_->due(now)) {
+        next->OnDataReceived(m.data(), static_cast<uint32_t>(m.size()), local, remote);
       }
     }
     if (!verdict.pass) return;

@@ -145,6 +145,43 @@ std::uint32_t word_at(const Bytes& m, std::size_t at) {
 std::uint32_t sn_high(const Bytes& m) { return word_at(m, 20 + 12 + 4 + 12); }
 std::uint32_t sn_low(const Bytes& m) { return word_at(m, 20 + 12 + 4 + 12 + 4); }
 
+// What the gate hands Fast DDS to make it forget a participant (DiscoveryGate::due): the
+// participant's last announcement alone in a message (header 20, then the DATA built above
+// without its INFO_TS), with a lease of 1 s.
+struct LeaseEnd {
+  GuidPrefix source{};
+  std::uint32_t sn_high = 0, sn_low = 0;
+  std::uint32_t lease_s = 0, lease_fraction = 0;
+};
+std::optional<LeaseEnd> lease_end(const Bytes& m) {
+  // DATA at 20: its writerSN at 20 + 4 + 12; payload at 20 + 24: encapsulation 4,
+  // PID_PARTICIPANT_GUID 4 + 16, PID_BUILTIN_ENDPOINT_SET 4 + 4, then the lease's header 4.
+  constexpr std::size_t kLeaseAt = 20 + 24 + 4 + 20 + 8 + 4;
+  if (m.size() < kLeaseAt + 8 || m[20] != 0x15 || m[20 + 1] != 0x05) return std::nullopt;
+  if (m[kLeaseAt - 4] != 0x02 || m[kLeaseAt - 3] != 0x00) return std::nullopt;
+  LeaseEnd e;
+  std::copy(m.begin() + 8, m.begin() + 20, e.source.begin());
+  e.sn_high = word_at(m, 20 + 16);
+  e.sn_low = word_at(m, 20 + 20);
+  e.lease_s = word_at(m, kLeaseAt);
+  e.lease_fraction = word_at(m, kLeaseAt + 4);
+  return e;
+}
+// The participants whose lease the handed messages end (1 s, fraction 0); a goodbye or anything
+// else fails the test.
+std::vector<GuidPrefix> forgotten(const std::vector<Bytes>& handed) {
+  std::vector<GuidPrefix> out;
+  for (const auto& m : handed) {
+    const auto e = lease_end(m);
+    EXPECT_TRUE(e.has_value()) << "not an announcement with its lease ended";
+    if (!e) continue;
+    EXPECT_EQ(e->lease_s, 1U);
+    EXPECT_EQ(e->lease_fraction, 0U);
+    out.push_back(e->source);
+  }
+  return out;
+}
+
 // Designated initializers without every member warn (-Wmissing-field-initializers): built so.
 template <class T, class Set>
 T with(Set set) {
@@ -261,9 +298,9 @@ TEST(DiscoveryGate, ANewcomerTakesThePlaceOfTheLongestPendingNeitherSideSentAnyt
   EXPECT_FALSE(f.offer(announcement(p(3)), f.t0 + 3s).pass);
   EXPECT_FALSE(f.offer(announcement(p(3)), f.t0 + 4s).pass) << "p1 had 3.5 s only";
   EXPECT_TRUE(f.offer(announcement(p(3)), f.t0 + 4600ms).pass) << "p1 had its 4 s, silent";
-  const auto due = f.gate.due(f.t0 + 4600ms);
+  const auto due = forgotten(f.gate.due(f.t0 + 4600ms));
   ASSERT_EQ(due.size(), 1U);
-  EXPECT_EQ(due[0].prefix, p(1)) << "the oldest, p0, is in its handshake: never replaced";
+  EXPECT_EQ(due[0], p(1)) << "the oldest, p0, is in its handshake: never replaced";
   EXPECT_EQ(f.gate.counts().pending_now, 3);
   EXPECT_FALSE(f.offer(heartbeat(p(1)), f.t0 + 5s).pass);
   EXPECT_TRUE(f.offer(heartbeat(p(0)), f.t0 + 5s).pass);
@@ -284,7 +321,7 @@ TEST(DiscoveryGate, ParticipantsThisSideStartedAHandshakeWithAreNeitherReplacedN
   EXPECT_FALSE(f.offer(announcement(prefix(0xb3)), f.t0 + 20s).pass);
   EXPECT_FALSE(f.offer(announcement(prefix(0xb3)), f.t0 + 20100ms).pass) << "no replacing: it waits";
   EXPECT_TRUE(f.gate.due(f.t0 + 30s).empty()) << "silent, yet its handshake is under way";
-  EXPECT_EQ(f.gate.due(f.t0 + 61s).size(), 2U);
+  EXPECT_EQ(forgotten(f.gate.due(f.t0 + 61s)).size(), 2U);
   EXPECT_TRUE(f.offer(announcement(prefix(0xb3)), f.t0 + 62s).pass);
 }
 
@@ -304,14 +341,14 @@ TEST(DiscoveryGate, AParticipantsAnnouncementsReachFastDdsInAnEpochOfTheGatesWha
   EXPECT_GT(sn_high(f.admit(prefix(0xb9), f.t0 + 2s)), epoch);
 }
 
-TEST(DiscoveryGate, AProvenParticipantsUpdatesAndOwnGoodbyeReachFastDdsInItsOrder) {
+TEST(DiscoveryGate, AProvenParticipantsUpdatesReachFastDdsInItsOrder) {
   Fixture f;
   const auto p = prefix(0xbb);
   const auto epoch = sn_high(f.admit(p, f.t0));
   f.gate.authenticated(p, f.t0 + 1s);
-  // Its periodic announcement, an update of its data, then its goodbye when it is deleted: the
-  // same epoch, its own numbers in order, so Fast DDS takes each (the goodbye removes it).
-  for (const auto& [a, low] : {std::pair{numbered(1), 1U}, {numbered(2), 2U}, {goodbye_numbered(3), 3U}}) {
+  // Its periodic announcement, then an update of its data: the same epoch, its own numbers in
+  // order, so Fast DDS takes each (its goodbye: AParticipantsOwnGoodbyeBecomesTheEndOfItsLease).
+  for (const auto& [a, low] : {std::pair{numbered(1), 1U}, {numbered(2), 2U}}) {
     const auto v = f.offer(announcement(p, a), f.t0 + 2s);
     ASSERT_TRUE(v.pass);
     ASSERT_TRUE(v.rewritten);
@@ -324,22 +361,66 @@ TEST(DiscoveryGate, AProvenParticipantsUpdatesAndOwnGoodbyeReachFastDdsInItsOrde
   EXPECT_GT(sn_high(f.admit(p, f.t0 + 3s)), epoch);
 }
 
-TEST(DiscoveryGate, ASilentPendingParticipantIsSaidGoodbyeToAfterTheDeadlineAndMayComeBackAsANewcomer) {
+// Never a goodbye (Fast DDS 2.9.1 can deadlock removing a participant on a receive thread,
+// discovery_gate.hpp): its own last announcement again, numbered above it, with a lease of 1 s, so
+// that Fast DDS's event thread drops it.
+TEST(DiscoveryGate, ASilentPendingParticipantsLeaseIsEndedAfterTheDeadlineAndItMayComeBackAsANewcomer) {
   Fixture f(DiscoveryGate::Proof::authentication, with<GateLimits>([](GateLimits& l) { l.prove_within = 10s; }));
   const auto p = prefix(0x85);  // below the local prefix: this side waits for its request, sends nothing
   const auto epoch = sn_high(f.admit(p, f.t0, numbered(0xffffffff)));
   EXPECT_TRUE(f.gate.due(f.t0 + 9s).empty());
   const auto due = f.gate.due(f.t0 + 10100ms);
-  ASSERT_EQ(due.size(), 1U);
-  EXPECT_EQ(due[0].prefix, p);
-  EXPECT_GT(due[0].epoch, epoch) << "Fast DDS takes a goodbye only above the last announcement's number";
+  ASSERT_EQ(forgotten(due), std::vector<GuidPrefix>{p});
+  const auto end = *lease_end(due[0]);
+  EXPECT_GT(end.sn_high, epoch) << "Fast DDS takes an update only above the last announcement's number";
+  EXPECT_EQ(end.sn_low, 0xffffffffU) << "its own announcement, as it was (the high word aside)";
   EXPECT_EQ(f.gate.counts().pending_now, 0);
   EXPECT_EQ(f.gate.counts().evicted, 1U);
-  // Its other messages are dropped; its next announcement lets it in again, numbered above the goodbye.
+  // Its other messages are dropped; its next announcement lets it in again, numbered above.
   EXPECT_FALSE(f.offer(heartbeat(p), f.t0 + 11s).pass);
   EXPECT_TRUE(f.offer(announcement(p), f.t0 + 12s).pass);
-  EXPECT_GT(sn_high(f.rewritten), due[0].epoch);
+  EXPECT_GT(sn_high(f.rewritten), end.sn_high);
   EXPECT_EQ(f.gate.counts().pending_now, 1);
+}
+
+TEST(DiscoveryGate, AParticipantsOwnGoodbyeBecomesTheEndOfItsLease) {
+  Fixture f;
+  const auto p = prefix(0xbd);
+  f.admit(p, f.t0, numbered(4));
+  f.gate.authenticated(p, f.t0 + 1s);
+  ASSERT_TRUE(f.offer(announcement(p, numbered(5)), f.t0 + 2s).pass);
+  // Its goodbye is not handed on: its last announcement (number 5) is, with a lease of 1 s.
+  EXPECT_FALSE(f.offer(announcement(p, goodbye_numbered(6)), f.t0 + 3s).pass);
+  const auto due = f.gate.due(f.t0 + 3s);
+  ASSERT_EQ(forgotten(due), std::vector<GuidPrefix>{p});
+  EXPECT_EQ(lease_end(due[0])->sn_low, 5U);
+  EXPECT_GT(lease_end(due[0])->sn_high, sn_high(f.rewritten));
+  // Pending, the same.
+  const auto q = prefix(0xbe);
+  f.admit(q, f.t0 + 4s);
+  EXPECT_FALSE(f.offer(announcement(q, goodbye_numbered(2)), f.t0 + 5s).pass);
+  EXPECT_EQ(forgotten(f.gate.due(f.t0 + 5s)), std::vector<GuidPrefix>{q});
+}
+
+TEST(DiscoveryGate, ASecuredGateLetsInNoAnnouncementWithoutALease) {
+  Fixture f;
+  auto m = announcement(prefix(0xbf));
+  // PID_PARTICIPANT_LEASE_DURATION (0x0002) made PID_PAD (0x0000): the same length, no lease.
+  constexpr std::size_t kLeasePid = 20 + 12 + 4 + 20 + 4 + 20 + 8;
+  ASSERT_EQ(m[kLeasePid], 0x02);
+  m[kLeasePid] = 0x00;
+  EXPECT_FALSE(f.offer(m, f.t0).pass);
+  EXPECT_FALSE(f.offer(m, f.t0 + 50ms).pass);
+  EXPECT_EQ(f.gate.counts().pending_now, 0);
+  // Unsecured, it is let in, and said goodbye to (no lease to end) when it proves nothing.
+  Fixture plain(DiscoveryGate::Proof::traffic, with<GateLimits>([](GateLimits& l) { l.prove_within = 10s; }));
+  auto u = announcement(prefix(0xbf), unsecured());
+  u[kLeasePid] = 0x00;
+  EXPECT_FALSE(plain.offer(u, plain.t0).pass);
+  EXPECT_TRUE(plain.offer(u, plain.t0 + 50ms).pass);
+  const auto due = plain.gate.due(plain.t0 + 11s);
+  ASSERT_EQ(due.size(), 1U);
+  EXPECT_EQ(due[0], DiscoveryGate::goodbye(prefix(0xbf), sn_high(plain.rewritten) + 1));
 }
 
 TEST(DiscoveryGate, AParticipantInItsHandshakeHasLongerAndIsRefusedForAWhileWhenItNeverAuthenticates) {
@@ -352,9 +433,7 @@ TEST(DiscoveryGate, AParticipantInItsHandshakeHasLongerAndIsRefusedForAWhileWhen
   f.admit(p, f.t0);
   EXPECT_TRUE(f.offer(heartbeat(p), f.t0 + 1s).pass);  // a handshake message, say
   EXPECT_TRUE(f.gate.due(f.t0 + 30s).empty()) << "a slow handshake is no reason to evict";
-  const auto due = f.gate.due(f.t0 + 61s);
-  ASSERT_EQ(due.size(), 1U);
-  EXPECT_EQ(due[0].prefix, p);
+  EXPECT_EQ(forgotten(f.gate.due(f.t0 + 61s)), std::vector<GuidPrefix>{p});
   // Refused for refuse_for: announcements too; then it may come in again (seen twice).
   EXPECT_FALSE(f.offer(announcement(p), f.t0 + 62s).pass);
   EXPECT_FALSE(f.offer(announcement(p), f.t0 + 90s).pass);
@@ -409,9 +488,7 @@ TEST(DiscoveryGate, AFailedAuthenticationEvictsAtOnceAndRefusesForAWhile) {
   const auto p = prefix(0xb8);
   f.admit(p, f.t0);
   f.gate.refused(p, f.t0 + 1s);
-  const auto due = f.gate.due(f.t0 + 1s);
-  ASSERT_EQ(due.size(), 1U);
-  EXPECT_EQ(due[0].prefix, p);
+  EXPECT_EQ(forgotten(f.gate.due(f.t0 + 1s)), std::vector<GuidPrefix>{p});
   for (int i = 2; i < 30; ++i) EXPECT_FALSE(f.offer(announcement(p), f.t0 + std::chrono::seconds(i)).pass);
 }
 
@@ -425,9 +502,7 @@ TEST(DiscoveryGate, OnAnUnsecuredLineAParticipantProvesItselfByTakingPartInDisco
   // A replayed announcement takes no part: evicted.
   const auto q = prefix(0xba);
   f.admit(q, f.t0, unsecured());
-  const auto due = f.gate.due(f.t0 + 30s);
-  ASSERT_EQ(due.size(), 1U);
-  EXPECT_EQ(due[0].prefix, q);
+  EXPECT_EQ(forgotten(f.gate.due(f.t0 + 30s)), std::vector<GuidPrefix>{q});
 }
 
 TEST(DiscoveryGate, AVendorSpecificSubmessageBesideAnAnnouncementIsNoProofNorTakingPart) {
@@ -437,7 +512,7 @@ TEST(DiscoveryGate, AVendorSpecificSubmessageBesideAnAnnouncementIsNoProofNorTak
   EXPECT_FALSE(plain.offer(with_vendor_submessage(announcement(p, unsecured())), plain.t0).pass);
   EXPECT_TRUE(plain.offer(with_vendor_submessage(announcement(p, unsecured())), plain.t0 + 50ms).pass);
   EXPECT_EQ(plain.gate.counts().proven_now, 0);
-  ASSERT_EQ(plain.gate.due(plain.t0 + 11s).size(), 1U);
+  ASSERT_EQ(forgotten(plain.gate.due(plain.t0 + 11s)).size(), 1U);
   // Secured: it does not earn the longer deadline of a participant in its handshake.
   Fixture f(DiscoveryGate::Proof::authentication, with<GateLimits>([](GateLimits& l) {
               l.prove_within = 10s;
@@ -447,7 +522,7 @@ TEST(DiscoveryGate, AVendorSpecificSubmessageBesideAnAnnouncementIsNoProofNorTak
   EXPECT_FALSE(f.offer(with_vendor_submessage(announcement(q)), f.t0).pass);
   EXPECT_TRUE(f.offer(with_vendor_submessage(announcement(q)), f.t0 + 50ms).pass);
   EXPECT_TRUE(f.offer(with_vendor_submessage(announcement(q)), f.t0 + 5s).pass);
-  ASSERT_EQ(f.gate.due(f.t0 + 11s).size(), 1U);
+  ASSERT_EQ(forgotten(f.gate.due(f.t0 + 11s)).size(), 1U);
 }
 
 TEST(DiscoveryGate, HandshakesThisSideKeepsAreBoundedBelowFastDdsHistory) {
