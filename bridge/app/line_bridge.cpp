@@ -171,10 +171,11 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
     managed.push_back({dev.name, dev.resolved_profile->device + ", " + dev.resolved_profile->key(),
                        rt.services.back().get(), rt.gateways.back()->commands()});
   }
-  // Mandatory devices (CiA 302-2 1F81h bit 3): one coordinator per master bus that has any, told
-  // the boots and operator commands of every device of the bus (in the bus's device order).
+  // Mandatory devices (CiA 302-2 1F81h bit 3): one coordinator per master or standby bus that has
+  // any, told the boots and operator commands of every device of the bus (in the bus's device
+  // order). A standby's judges nothing until it masters the bus (take_over).
   for (auto& rt : bridge->buses_) {
-    if (rt.config->role != profiles::BusRole::master) continue;
+    if (!profiles::masters(rt.config->role)) continue;
     std::vector<gateways::MandatoryDevices::Member> members;
     bool any = false;
     for (const auto& dev : config.devices) {
@@ -188,6 +189,7 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
     rt.mandatory = std::make_unique<gateways::MandatoryDevices>(*rt.loop, "bus " + rt.config->name,
                                                                 config.startup.when_mandatory_fails,
                                                                 std::move(members));
+    if (rt.standby) rt.mandatory->stand_by();
     for (std::size_t i = 0; i < rt.services.size(); ++i) {
       auto* m = rt.mandatory.get();
       rt.services[i]->on_operator_nmt([m, i](canopen::NmtCommand c) { m->operator_command(i, c); });
@@ -324,11 +326,13 @@ void LineBridge::mastering() {
 // Loop thread of the bus: the standby masters it from now on. After a master that ran: its SYNC
 // and heartbeat continue (the first SYNC a period after its last), every device it ran is adopted
 // as it runs and gets its RPDOs as they were last on the bus; after none heard since the start:
-// an ordinary start of a master.
+// an ordinary start of a master. The mandatory devices' rule holds from here on, before any device
+// is adopted or booted.
 void LineBridge::take_over(BusRuntime& rt, const canopen::ActiveMasterWatch::Takeover& t) {
   rt.loop->hold_transmission(false);
   rt.other_master->stand_by(false);
   rt.flying->mastering();
+  if (rt.mandatory) rt.mandatory->mastering();
   if (!t.master_heard) {
     start_master(rt);
     spdlog::info("bus {}: mastered from the start (no other master heard)", rt.config->name);
@@ -339,8 +343,13 @@ void LineBridge::take_over(BusRuntime& rt, const canopen::ActiveMasterWatch::Tak
   if (t.last_sync_ns != 0)
     first = std::max(std::chrono::nanoseconds(0), period - std::chrono::nanoseconds(t.at_ns - t.last_sync_ns));
   if (rt.heartbeat) rt.heartbeat->resume();
-  for (std::size_t i = 0; i < rt.services.size(); ++i) {
-    rt.services[i]->take_over(rt.standby->last_command(rt.nodes[i]->node_id()));
+  // The mandatory devices first: the others are adopted on what they showed (one adopted running
+  // has passed, and a device adopted after it is not left waiting for it).
+  for (const bool mandatory : {true, false}) {
+    for (std::size_t i = 0; i < rt.services.size(); ++i) {
+      if ((rt.mandatory && rt.mandatory->mandatory(i)) != mandatory) continue;
+      rt.services[i]->take_over(rt.standby->last_command(rt.nodes[i]->node_id()));
+    }
   }
   rt.sync->resume(first, [w = rt.standby.get()](std::int64_t at_ns) { w->first_sync_sent(at_ns); });
   spdlog::warn("bus {}: took the bus over from the master (node {}): its last heartbeat {} ms ago, its last SYNC {} "

@@ -87,7 +87,7 @@ class LineBridge {
     std::vector<std::unique_ptr<canopen::RemoteNode>> nodes;
     std::vector<std::unique_ptr<gateways::DeviceServices>> services;
     std::vector<std::unique_ptr<gateways::Gateway>> gateways;
-    // Master role, when a device of the bus is mandatory: the line-level policy for them.
+    // Master or standby role, when a device of the bus is mandatory: the line-level policy for them.
     std::unique_ptr<gateways::MandatoryDevices> mandatory;
     // Master role, when the state directory is usable: per device (bus order), its hold kept across restarts.
     std::vector<std::unique_ptr<gateways::HoldKeeper>> holds;

@@ -169,6 +169,14 @@ void print_summary(const profiles::LineConfig& line, const std::vector<ddsl::Pla
                       line.startup.when_mandatory_fails == profiles::StartupPolicy::WhenMandatoryFails::stop_others
                           ? "every other device the bridge started gets NMT stop, kept until an operator starts it"
                           : "log and diagnostics; the line runs on"));
+      if (b.role == profiles::BusRole::standby) {
+        fmt::print(out,
+                   "  on this standby bus: nothing while it stands by; at the takeover a mandatory device heard "
+                   "operational is adopted as passed, and the devices running are left running (a takeover stops "
+                   "nothing); a mandatory device not heard operational gets its boot, the devices not running wait "
+                   "for it, and if that boot fails: {}\n",
+                   profiles::to_string(line.startup.when_mandatory_fails));
+      }
     }
   }
   // One line per topic: which way the bridge uses it and with what QoS.
@@ -286,6 +294,12 @@ void compare_pair(const profiles::LineConfig& a, const profiles::LineConfig& b, 
                                    d.bus, d.node_id, d.resolved_profile->key(), it->bus, it->node_id,
                                    it->resolved_profile->key()));
     }
+    // The line's rule for its mandatory devices must not change with who masters it.
+    if (it->mandatory != d.mandatory) {
+      errors.push_back(fmt::format("device {}: mandatory {} here, {} in the peer's file: a takeover would change what "
+                                   "the line does without it",
+                                   d.name, d.mandatory, it->mandatory));
+    }
     if (it->heartbeat_timeout != d.heartbeat_timeout) {
       warnings.push_back(fmt::format("device {}: heartbeat_timeout_ms {} and {}", d.name, d.heartbeat_timeout.count(),
                                      it->heartbeat_timeout.count()));
@@ -294,6 +308,15 @@ void compare_pair(const profiles::LineConfig& a, const profiles::LineConfig& b, 
   for (const auto& e : b.devices) {
     if (std::none_of(a.devices.begin(), a.devices.end(), [&](const auto& d) { return d.name == e.name; }))
       errors.push_back("device " + e.name + " is only in the peer's file");
+  }
+  const auto any_mandatory = [](const profiles::LineConfig& c) {
+    return std::any_of(c.devices.begin(), c.devices.end(), [](const auto& d) { return d.mandatory; });
+  };
+  if ((any_mandatory(a) || any_mandatory(b)) && a.startup.when_mandatory_fails != b.startup.when_mandatory_fails) {
+    errors.push_back(fmt::format("when_mandatory_fails {} here, {} in the peer's file: a takeover would change what "
+                                 "the line does when a mandatory device fails",
+                                 profiles::to_string(a.startup.when_mandatory_fails),
+                                 profiles::to_string(b.startup.when_mandatory_fails)));
   }
 }
 

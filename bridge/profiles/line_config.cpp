@@ -712,14 +712,8 @@ DeviceConfig parse_device(const YamlSource& src, const YAML::Node& n, const Line
   dev.mandatory = src.optional<bool>(n, "mandatory").value_or(false);
   // Only a master starts and stops devices: on a monitor bus the key would promise what nobody does.
   if (dev.mandatory && line.bus(dev.bus)->role == BusRole::monitor) {
-    src.fail(n["mandatory"], "device " + dev.name + ": mandatory is for a master bus: bus " + dev.bus +
+    src.fail(n["mandatory"], "device " + dev.name + ": mandatory is for a master or standby bus: bus " + dev.bus +
                                  " is in the monitor role, where the bridge never starts or stops a device");
-  }
-  if (dev.mandatory && line.bus(dev.bus)->role == BusRole::standby) {
-    src.fail(n["mandatory"], "device " + dev.name + ": mandatory is not supported on a standby bus yet (bus " +
-                                 dev.bus +
-                                 "): its line-level stop would need the takeover to carry the line's "
-                                 "state; use role: master");
   }
   if (n["heartbeat_producer_ms"]) {
     const auto producer = bounded<int>(src, n, "heartbeat_producer_ms", 0, 1, 65535, "device " + dev.name);

@@ -63,6 +63,7 @@ constexpr std::int64_t kMs = 1'000'000;
 constexpr std::int64_t kSyncPeriodMs = 20;
 constexpr std::int64_t kTakeoverAfterMs = 150;  // bridge B's, in its line file below
 constexpr std::uint32_t kMasterHeartbeat = 0x701;
+constexpr int kSdoTimeoutMs = 1000;  // the mandatory line's (write_mandatory_line)
 // CiA 302-2 timing of both bridges (1F90h), shorter than the defaults so that a power-up takes
 // 0.2 s of listening and a negotiation 0.2 s per priority level.
 constexpr const char* kNegotiation =
@@ -112,6 +113,7 @@ class HotStandby : public ::testing::Test {
       if (*b) (*b)->stop();
     }
     if (sim_) sim_->stop();
+    if (saw_sim_) saw_sim_->stop();
   }
 
   // A line file: the bus in `role` (master or standby) with the master's heartbeat on node 1 every
@@ -154,7 +156,65 @@ class HotStandby : public ::testing::Test {
     for (const auto& [name, p] : {std::pair{"A", &a_}, std::pair{"B", &b_}}) {
       if (*p) s += std::string("--- bridge ") + name + " ---\n" + (*p)->log();
     }
-    return s + "--- sim ---\n" + (sim_ ? sim_->log() : "");
+    return s + "--- sim ---\n" + (sim_ ? sim_->log() : "") + (saw_sim_ ? "--- saw sim ---\n" + saw_sim_->log() : "");
+  }
+
+  // The mandatory line (docs/canopen-master.md "Mandatory devices"): saw1 (node 5, cia420-4 3.1)
+  // mandatory, puller1 and puller2 (nodes 3, 4) not; when_mandatory_fails: stop_others; each
+  // device lost 400 ms after its last heartbeat (the simulator beats every 100 ms); SDO timeout
+  // 1000 ms. Role standby (`takeover_after_ms`, `priority`) or, for the simulator, master.
+  std::string write_mandatory_line(const std::string& name, const std::string& role, int takeover_after_ms,
+                                   int priority = 1, bool saw_mandatory = true) const {
+    const auto path = dir_ + "/" + name + ".yaml";
+    std::ofstream f(path);
+    f << "line: hsm\nstartup: {when_mandatory_fails: stop_others}\ndds:\n  domain: " << kDomain
+      << "\nbuses:\n  - {name: b, interface: '" << bus_ << "', role: " << role << ", sync_period_ms: " << kSyncPeriodMs
+      << ", sdo_timeout_ms: " << kSdoTimeoutMs << ", master_node_id: 1, master_heartbeat_ms: 50"
+      << (role == "standby" ? ", takeover_after_ms: " + std::to_string(takeover_after_ms) +
+                                  ",\n     flying_master: {priority: " + std::to_string(priority) + kNegotiation + "}"
+                            : "")
+      << "}\ndevices:\n";
+    const auto device = [&](const char* dev, int node, const char* profile, const char* version, bool mandatory) {
+      f << "  - name: " << dev << "\n    bus: b\n    node_id: " << node << "\n    profile: " << profile
+        << "\n    version: '" << version << "'\n    heartbeat_timeout_ms: 400\n"
+        << (mandatory ? "    mandatory: true\n" : "") << "    simulation: {heartbeat_period_ms: 100}\n";
+    };
+    device("saw1", 5, "cia420-4", "3.1", saw_mandatory);
+    device("puller1", 3, "cia420-2", "1.0", false);
+    device("puller2", 4, "cia420-2", "1.0", false);
+    return path;
+  }
+  // The mandatory line's devices: the saw in a simulator of its own (so that it can lose power
+  // alone), the pullers in another. Returns when all three report operational (after A's start).
+  void start_mandatory_sims() {
+    const auto sim = write_mandatory_line("msim", "master", 0);
+    saw_sim_ = std::make_unique<lb::test::ChildProcess>(std::vector<std::string>{LB_BIN_SIM, "--config", sim,
+                                                                                 "--device", "saw1"},
+                                                        dir_ + "/saw-sim.log");
+    sim_ = std::make_unique<lb::test::ChildProcess>(std::vector<std::string>{LB_BIN_SIM, "--config", sim, "--device",
+                                                                             "puller1", "--device", "puller2"},
+                                                    dir_ + "/pullers-sim.log");
+  }
+  bool operational(std::uint32_t node) {
+    const auto hb = spy_->frames(0x700 + node);
+    return !hb.empty() && hb.back().len == 1 && hb.back().data[0] == 0x05;
+  }
+  // A masters the mandatory line (it boots all three: the saw, then the pullers that waited for
+  // it), B stands by it with `b_takeover_after_ms`.
+  void mandatory_line_with_a_standby(int b_takeover_after_ms) {
+    start_mandatory_sims();
+    a_ = bridge(write_mandatory_line("ma", "standby", static_cast<int>(kTakeoverAfterMs)), "mandatory-a");
+    ASSERT_TRUE(lb::test::eventually(60s, [&] { return operational(5) && operational(3) && operational(4); }))
+        << logs();
+    b_ = bridge(write_mandatory_line("mb", "standby", b_takeover_after_ms, 2), "mandatory-b");
+    ASSERT_TRUE(b_->wait_log("standing by the active master (node 1)", 30000ms)) << logs();
+    ASSERT_TRUE(syncs_after(bus_now_ns(), 25, 30s)) << logs();  // B has seen the line run
+  }
+  // The master's PC dies: both of A's processes get SIGKILL; returns when they are gone.
+  void kill_a() {
+    for (const auto child : lb::test::children_of(a_->pid())) ::kill(child, SIGKILL);
+    ::kill(a_->pid(), SIGKILL);
+    ASSERT_TRUE(lb::test::eventually(10s, [&] { return !a_->running(); }));
   }
 
   // Every device's newest heartbeat says operational.
@@ -235,7 +295,7 @@ class HotStandby : public ::testing::Test {
   std::vector<std::int64_t> status_at_;  // realtime ns of each status sample of the saw
   std::string role_, takeover_;          // the newest diagnostics of the bus
   std::unique_ptr<lb::test::BusSpy> spy_;
-  std::unique_ptr<lb::test::ChildProcess> sim_, a_, b_;
+  std::unique_ptr<lb::test::ChildProcess> sim_, a_, b_, saw_sim_;
   std::unique_ptr<lb::ddsl::Participant> dds_;
   std::vector<std::unique_ptr<safety::OperatorPanel>> panels_;
 };
@@ -602,6 +662,192 @@ TEST_F(HotStandby, ARequestTheHungMasterTookIsRefusedUnrunByTheNewMasterAndAStop
   std::printf("requests across a takeover: cut '%s', stop %s after %.0f ms\n", cut_answer.reason.c_str(),
               stop_answer.accepted ? "accepted" : "refused",
               static_cast<double>(stop_answer.answered_ns - stop_answer.written_ns) / 1e6);
+}
+
+// CiA 301 NMT (identifier 000h): byte 0 the command (01h start, 02h stop), byte 1 the node-ID.
+bool nmt(const lb::can::CanFrame& f, std::uint8_t command, std::uint8_t node) {
+  return f.id == 0x000 && f.len == 2 && f.data[0] == command && f.data[1] == node;
+}
+
+// Mandatory devices on a standby bus, the mandatory saw running at the takeover: B adopts the
+// three devices as they run. From the frames after the kill: no NMT command (000h), no SDO
+// download, every device operational throughout. Then the rule holds on the new master as on a
+// master bus: the saw loses power, and B stops both pullers (000#0203, 000#0204) after the saw's
+// heartbeat timeout.
+TEST_F(HotStandby, AMandatoryDeviceRunningAtTheTakeoverIsAdoptedAndTheLineRunsOn) {
+  ASSERT_NO_FATAL_FAILURE(mandatory_line_with_a_standby(300));
+  const auto kill_ns = bus_now_ns();
+  ASSERT_NO_FATAL_FAILURE(kill_a());
+  ASSERT_TRUE(b_->wait_log("took the bus over", 10000ms)) << logs();
+  ASSERT_TRUE(syncs_after(kill_ns + 5 * kMs, 50, 30s)) << logs();
+  const auto end_ns = bus_now_ns();
+  std::map<std::uint32_t, std::size_t> beats;  // operational heartbeats after the kill, per device
+  for (const auto& f : frames_since(kill_ns)) {
+    if (f.timestamp_ns > end_ns) break;
+    EXPECT_NE(f.id, 0x000u) << "an NMT command after the kill: " << payload(f) << "\n" << logs();
+    for (const std::uint32_t node : {5u, 3u, 4u}) {
+      if (f.id == 0x600 + node && f.len >= 1) {
+        EXPECT_GT(f.data[0] >> 5, 1) << "an SDO download to node " << node << ": " << payload(f) << "\n" << logs();
+      }
+      if (f.id == 0x700 + node) {
+        EXPECT_EQ(payload(f), "05") << "node " << node << " left operational\n" << logs();
+        ++beats[node];
+      }
+    }
+  }
+  for (const std::uint32_t node : {5u, 3u, 4u}) EXPECT_GT(beats[node], 0u) << "node " << node << " silent\n" << logs();
+
+  // The mandatory saw loses power under the new master: both pullers are stopped.
+  const auto loss_ns = bus_now_ns();
+  ::kill(saw_sim_->pid(), SIGKILL);
+  ASSERT_TRUE(lb::test::wait_frame(
+      *spy_, 0x000, [](const auto& f) { return nmt(f, 0x02, 3); }, 30s))
+      << "puller1 runs on without the mandatory saw under the new master\n"
+      << logs();
+  ASSERT_TRUE(lb::test::wait_frame(
+      *spy_, 0x000, [](const auto& f) { return nmt(f, 0x02, 4); }, 30s))
+      << "puller2 runs on without the mandatory saw under the new master\n"
+      << logs();
+  for (const auto& f : frames_since(loss_ns)) {
+    if (f.id == 0x000) {
+      EXPECT_TRUE(nmt(f, 0x02, 3) || nmt(f, 0x02, 4)) << payload(f);
+    }
+  }
+}
+
+// Mandatory devices on a standby bus, the mandatory saw without power at the takeover: the
+// master's PC dies, then the saw loses power; B waits 1500 ms for the takeover, so the saw (lost
+// 400 ms after its last heartbeat) is not heard then, and the pullers run. B adopts the pullers as
+// they run and boots the saw: its first step reads 1000h (SDO upload, 605h) and gets no answer;
+// after the SDO timeout B aborts it on the bus (605h, 80h, abort code 05040000h, CiA 301) and the
+// boot has failed. Expected from the frames: no NMT command from the kill until that abort (the
+// takeover stops nothing, and the pullers report operational meanwhile); then, when_mandatory_fails:
+// stop_others, NMT stop to puller1 and puller2 (000#0203, 000#0204), and nothing else on 000h;
+// both pullers report stopped (04h).
+TEST_F(HotStandby, AMandatoryDeviceSilentAtTheTakeoverStopsTheOthersOnlyWhenItsBootFails) {
+  constexpr int kLongWaitMs = 1500;
+  ASSERT_NO_FATAL_FAILURE(mandatory_line_with_a_standby(kLongWaitMs));
+  const auto kill_ns = bus_now_ns();
+  ASSERT_NO_FATAL_FAILURE(kill_a());
+  ::kill(saw_sim_->pid(), SIGKILL);
+  ASSERT_TRUE(b_->wait_log("took the bus over", 10000ms)) << logs();
+  ASSERT_TRUE(lb::test::wait_frame(
+      *spy_, 0x000, [](const auto& f) { return nmt(f, 0x02, 3); }, 30s))
+      << "puller1 runs on though the mandatory saw's boot failed\n"
+      << logs();
+  ASSERT_TRUE(lb::test::wait_frame(
+      *spy_, 0x000, [](const auto& f) { return nmt(f, 0x02, 4); }, 30s))
+      << "puller2 runs on though the mandatory saw's boot failed\n"
+      << logs();
+  ASSERT_TRUE(lb::test::eventually(10s,
+                                   [&] {
+                                     const auto p1 = spy_->frames(0x703), p2 = spy_->frames(0x704);
+                                     return !p1.empty() && !p2.empty() && payload(p1.back()) == "04" &&
+                                            payload(p2.back()) == "04";
+                                   }))
+      << "the pullers did not report stopped\n"
+      << logs();
+  const auto frames = frames_since(kill_ns);
+
+  // The takeover: B's first SYNC, the first after the gap the kill made (A's last ones may follow
+  // kill_ns). The saw was not heard then (its last heartbeat more than its 400 ms timeout before):
+  // the case this test is about.
+  const auto first_of = [&](const auto& pred) {
+    const auto it = std::find_if(frames.begin(), frames.end(), pred);
+    return it == frames.end() ? std::int64_t{0} : it->timestamp_ns;
+  };
+  std::int64_t takeover_ns = 0, previous_sync = 0;
+  for (const auto& f : spy_->frames(0x080)) {
+    if (f.timestamp_ns > kill_ns && previous_sync != 0 && f.timestamp_ns - previous_sync > kLongWaitMs / 2 * kMs) {
+      takeover_ns = f.timestamp_ns;
+      break;
+    }
+    previous_sync = f.timestamp_ns;
+  }
+  ASSERT_NE(takeover_ns, 0) << "no SYNC gap of the takeover\n" << logs();
+  std::int64_t saw_last = 0;
+  for (const auto& f : spy_->frames(0x705)) {
+    if (f.timestamp_ns < takeover_ns) saw_last = f.timestamp_ns;
+  }
+  ASSERT_GT(takeover_ns - saw_last, 400 * kMs) << "the saw was still heard at the takeover\n" << logs();
+  // Its boot: the read of 1000h (CiA 301 initiate upload 40h, 00 10 00), then the client's abort
+  // after the SDO timeout (80h, 00 10 00, 05040000h).
+  const auto probe_ns = first_of([](const auto& f) {
+    return f.id == 0x605 && f.len == 8 && f.data[0] == 0x40 && f.data[1] == 0x00 && f.data[2] == 0x10 && f.data[3] == 0;
+  });
+  const auto abort_ns = first_of([](const auto& f) {
+    return f.id == 0x605 && f.len == 8 && f.data[0] == 0x80 && f.data[1] == 0x00 && f.data[2] == 0x10 &&
+           f.data[4] == 0x00 && f.data[5] == 0x00 && f.data[6] == 0x04 && f.data[7] == 0x05;
+  });
+  ASSERT_NE(probe_ns, 0) << "the saw was never booted\n" << logs();
+  ASSERT_NE(abort_ns, 0) << "the saw's boot never timed out\n" << logs();
+  EXPECT_GE(probe_ns, takeover_ns - 50 * kMs) << logs();
+  EXPECT_GE(abort_ns - probe_ns, (kSdoTimeoutMs - 100) * kMs) << logs();
+
+  std::map<std::uint32_t, std::size_t> running;  // pullers' operational heartbeats from the takeover to the abort
+  std::size_t stops = 0;
+  for (const auto& f : frames) {
+    if (f.id == 0x000) {
+      EXPECT_GE(f.timestamp_ns, abort_ns) << "an NMT command before the saw's boot failed: " << payload(f) << "\n"
+                                          << logs();
+      EXPECT_TRUE(nmt(f, 0x02, 3) || nmt(f, 0x02, 4))
+          << "an NMT command other than the pullers' stop: " << payload(f) << "\n"
+          << logs();
+      ++stops;
+    }
+    for (const std::uint32_t node : {3u, 4u}) {
+      if (f.id == 0x600 + node && f.len >= 1) {
+        EXPECT_GT(f.data[0] >> 5, 1) << "an SDO download to node " << node << ": " << payload(f) << "\n" << logs();
+      }
+      if (f.id == 0x700 + node && f.timestamp_ns >= takeover_ns && f.timestamp_ns < abort_ns) {
+        EXPECT_EQ(payload(f), "05") << "node " << node << " left operational before the saw's boot failed\n" << logs();
+        ++running[node];
+      }
+    }
+  }
+  EXPECT_EQ(stops, 2u) << logs();
+  for (const std::uint32_t node : {3u, 4u}) EXPECT_GT(running[node], 0u) << "node " << node << "\n" << logs();
+  std::printf("mandatory saw silent at the takeover: the takeover %.0f ms after the saw's last heartbeat, its boot "
+              "failed %.0f ms after the takeover, the pullers stopped %.0f ms after that\n",
+              (takeover_ns - saw_last) / 1e6, (abort_ns - takeover_ns) / 1e6,
+              (first_of([](const auto& f) { return f.id == 0x000; }) - abort_ns) / 1e6);
+}
+
+// linebridge --check of a standby line with a mandatory device: accepted, and the behaviour on the
+// standby bus said; a pair whose files disagree on what is mandatory, or on when_mandatory_fails, is
+// refused.
+TEST_F(HotStandby, CheckOfAStandbyLineWithAMandatoryDevice) {
+  const auto a = write_mandatory_line("check_ma", "standby", 150);
+  auto r = lb::test::run_command({LB_BIN_BRIDGE, "--check", a}, 60s);
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_NE(r.output.find("saw1 node 5: "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("  mandatory devices: saw1: "), std::string::npos) << r.output;
+  EXPECT_NE(r.output.find("  on this standby bus: nothing while it stands by; at the takeover a mandatory device "
+                          "heard operational is adopted as passed, and the devices running are left running"),
+            std::string::npos)
+      << r.output;
+  EXPECT_NE(r.output.find("if that boot fails: stop_others"), std::string::npos) << r.output;
+  r = lb::test::run_command({LB_BIN_BRIDGE, "--check", a, "--peer",
+                             write_mandatory_line("check_mb", "standby", 300, 2)},
+                            60s);
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  r = lb::test::run_command({LB_BIN_BRIDGE, "--check", a, "--peer",
+                             write_mandatory_line("check_mc", "standby", 300, 2, false)},
+                            60s);
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("error: pair: device saw1: mandatory true here, false in the peer's file"), std::string::npos)
+      << r.output;
+  // The peer's reaction differs.
+  std::ifstream in(write_mandatory_line("check_md", "standby", 300, 2));
+  std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  text.replace(text.find("when_mandatory_fails: stop_others"), 33, "when_mandatory_fails: report_only");
+  const auto report_only = dir_ + "/check_md_report_only.yaml";
+  std::ofstream(report_only) << text;
+  r = lb::test::run_command({LB_BIN_BRIDGE, "--check", a, "--peer", report_only}, 60s);
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_NE(r.output.find("error: pair: when_mandatory_fails stop_others here, report_only in the peer's file"),
+            std::string::npos)
+      << r.output;
 }
 
 // linebridge --check A --peer B: the pair as one line with a standby (docs/redundancy.md).

@@ -652,7 +652,8 @@ TEST(LineConfig, MandatoryDevicesAndWhatTheLineDoesWhenOneFails) {
   const auto on_monitor = replace(mandatory, "    bus: ext\n", "    bus: mon\n");
   e = error_of(on_monitor);
   EXPECT_NE(e.find("line.yaml:"), std::string::npos) << e;
-  EXPECT_NE(e.find("device saw1: mandatory is for a master bus: bus mon is in the monitor role"), std::string::npos)
+  EXPECT_NE(e.find("device saw1: mandatory is for a master or standby bus: bus mon is in the monitor role"),
+            std::string::npos)
       << e;
   // mandatory: false is what a monitor bus's device is anyway.
   auto off = parse_line_config(replace(kGood, "    bus: ext\n    node_id: 3\n",
@@ -755,7 +756,7 @@ TEST(LineConfig, DevicesToldApartByTheProfileNumberAloneAreNamed) {
 
 // A standby (docs/redundancy.md) watches the master's heartbeat on master_node_id and takes over
 // after takeover_after_ms of silence: default 2.5 heartbeat periods, longer than one period, for
-// the standby role only; a mandatory device is refused there for now.
+// the standby role only; a mandatory device is taken there as on a master bus.
 TEST(LineConfig, StandbyRoleKeys) {
   const auto registry = ProfileRegistry::builtin();
   const auto standby = replace(kGood, "    role: master\n",
@@ -816,9 +817,16 @@ TEST(LineConfig, StandbyRoleKeys) {
       << e;
   e = error_of(replace(kGood, "    role: master\n", "    role: master\n    takeover_after_ms: 300\n"));
   EXPECT_NE(e.find("takeover_after_ms is for the standby role"), std::string::npos) << e;
-  e = error_of(
-      replace(standby, "    heartbeat_timeout_ms: 300\n", "    heartbeat_timeout_ms: 300\n    mandatory: true\n"));
-  EXPECT_NE(e.find("mandatory is not supported on a standby bus yet"), std::string::npos) << e;
+  // A mandatory device on a standby bus: taken as on a master bus (the takeover takes the line's
+  // state from the bus; MandatoryDevices judges from then on), without a warning.
+  r = parse_line_config(replace(standby, "    heartbeat_timeout_ms: 300\n",
+                                "    heartbeat_timeout_ms: 300\n    mandatory: true\n"),
+                        "line.yaml", registry);
+  ASSERT_TRUE(r) << r.error().message;
+  EXPECT_EQ(r->buses[0].role, lb::profiles::BusRole::standby);
+  EXPECT_EQ(r->devices[0].bus, r->buses[0].name);
+  EXPECT_TRUE(r->devices[0].mandatory);
+  EXPECT_TRUE(r->warnings.empty());
   // A standby and a master on one interface in one line file: two masters.
   e = error_of(replace(standby, "    interface: socketcan:can1\n    role: monitor\n",
                        "    interface: virtual:x\n    role: master\n"));

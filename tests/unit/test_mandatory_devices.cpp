@@ -76,7 +76,7 @@ class Line {
     ASSERT_TRUE(online(saw_));
   }
   std::uint8_t state(std::uint8_t node) {
-    std::uint8_t s = 0x7F;
+    std::uint8_t s = ran_before_ ? 0x05 : 0x7F;
     for (const auto& f : spy_.frames(0x000)) {
       if (f.len == 2 && f.data[1] == node) s = f.data[0] == 0x01 ? 0x05 : f.data[0] == 0x02 ? 0x04 : 0x7F;
     }
@@ -110,13 +110,35 @@ class Line {
     } while (std::chrono::steady_clock::now() < end);
     return false;
   }
-  bool online(co::RemoteNode& node) {
+  bool online(co::RemoteNode& node, bool online = true) {
     const auto end = std::chrono::steady_clock::now() + 3s;
-    while (!on_loop([&] { return node.online(); })) {
+    while (on_loop([&] { return node.online(); }) != online) {
       if (std::chrono::steady_clock::now() > end) return false;
       std::this_thread::sleep_for(10ms);
     }
     return true;
+  }
+  // Any NMT frame since mark() within the window (none is the expectation where it is used).
+  bool any_nmt(std::chrono::milliseconds window) {
+    std::this_thread::sleep_for(window);
+    return spy_.frames(0x000).size() > since_;
+  }
+  // What NodeStateMachine::take_over does for a device it hears operational (the master before
+  // started it): adopted as it runs, without a frame, and its drivers told so.
+  void adopt_running(co::RemoteNode& node) {
+    on_loop([&] {
+      node.adopt(co::NmtState::operational);
+      node.starting({true, false, {}, true});
+    });
+  }
+  // A boot attempt that ended failed, as BootSequence reports a device that does not answer
+  // (CiA 302-2 error B: no answer to 1000h).
+  void boot_fails(co::RemoteNode& node) {
+    on_loop([&] {
+      co::BootReport report;
+      report.error = co::BootError{'B', "device type", 0x1000, 0, "", "", 0, "no answer to the read of 1000h"};
+      node.tell([&](co::NodeDriver& d) { d.on_boot(report); });
+    });
   }
 
   std::string uri_;
@@ -125,6 +147,9 @@ class Line {
   co::RemoteNode saw_, puller_;
   MandatoryDevices mandatory_;
   std::atomic<bool> beating_saw_{true};
+  // Another master started both devices before this test's line looks at them (a standby's case):
+  // they report operational until this line commands otherwise.
+  std::atomic<bool> ran_before_{false};
   std::jthread heartbeats_;
   std::size_t since_ = 0;
 };
@@ -246,4 +271,96 @@ TEST(MandatoryDevices, ALinesStopKeptFromBeforeTheRestartHoldsUntilAnOperatorSta
   EXPECT_TRUE(line.on_loop([&] { return line.mandatory_.hold_of(1).empty() && line.mandatory_.state().empty(); }));
   EXPECT_EQ(line.on_loop([&] { return line.mandatory_.line_hold(1).kind; }),
             lb::gateways::HoldKeeper::LineHold::Kind::none);
+}
+
+// A standby (docs/redundancy.md) that takes over a line whose mandatory saw runs: while it stands
+// by, a loss of the saw changes nothing (the master of the moment judges the line); the saw comes
+// back and runs, and at the takeover both are adopted as they run (the saw first, as the takeover
+// does): not one NMT frame, nothing held, nothing missing. From then on the rule holds as on a
+// master bus: the saw's loss stops the puller.
+TEST(MandatoryDevices, AStandbyTakesARunningLineOverWithTheMandatoryDevicePassed) {
+  Line line(MandatoryDevices::Policy::stop_others);
+  line.on_loop([&] { line.mandatory_.stand_by(); });
+  line.ran_before_ = true;
+  ASSERT_NO_FATAL_FAILURE(line.beat_until_both_online());
+  line.beating_saw_ = false;  // lost while the other master runs the line
+  ASSERT_TRUE(line.online(line.saw_, false));
+  EXPECT_TRUE(line.on_loop([&] { return line.mandatory_.missing().empty(); }));
+  EXPECT_EQ(line.on_loop([&] { return line.mandatory_.state(); }).rfind("standing by", 0), 0u);
+  line.beating_saw_ = true;
+  ASSERT_TRUE(line.online(line.saw_));
+  EXPECT_FALSE(line.any_nmt(300ms)) << "a standby sent NMT";
+
+  line.on_loop([&] { line.mandatory_.mastering(); });
+  line.adopt_running(line.saw_);
+  line.adopt_running(line.puller_);
+  EXPECT_FALSE(line.any_nmt(500ms)) << "the takeover of a running line sent NMT";
+  EXPECT_TRUE(line.on_loop([&] { return line.mandatory_.missing().empty() && line.mandatory_.state().empty(); }));
+  EXPECT_FALSE(line.on_loop([&] { return line.puller_.operator_hold().has_value(); }));
+  EXPECT_TRUE(line.on_loop([&] { return line.mandatory_.hold_of(1).empty(); }));
+
+  line.beating_saw_ = false;  // lost under the new master
+  ASSERT_TRUE(line.seen(0x02, kPuller, 5s)) << "the puller runs on without the mandatory saw";
+  EXPECT_EQ(line.on_loop([&] { return line.puller_.operator_hold(); }), co::NmtCommand::stop);
+  EXPECT_NE(line.on_loop([&] { return line.mandatory_.state(); }).find("stop_others"), std::string::npos);
+}
+
+// The mandatory saw is silent at the takeover; the puller runs. The puller is adopted as it runs
+// and not stopped, nor held, by the takeover (the master before let it run); the saw gets its
+// boot and is missing meanwhile. Its boot fails: when_mandatory_fails: stop_others stops the
+// puller then, as on a master bus.
+TEST(MandatoryDevices, AtATakeoverASilentMandatoryDeviceStopsTheOthersOnlyWhenItsBootFails) {
+  Line line(MandatoryDevices::Policy::stop_others);
+  line.on_loop([&] { line.mandatory_.stand_by(); });
+  line.ran_before_ = true;
+  ASSERT_NO_FATAL_FAILURE(line.beat_until_both_online());
+  line.beating_saw_ = false;
+  ASSERT_TRUE(line.online(line.saw_, false));
+
+  line.on_loop([&] { line.mandatory_.mastering(); });  // the saw is not heard: it gets a boot
+  line.adopt_running(line.puller_);
+  EXPECT_FALSE(line.any_nmt(500ms)) << "the takeover sent NMT";
+  EXPECT_FALSE(line.on_loop([&] { return line.puller_.operator_hold().has_value(); })) << "held by the takeover";
+  EXPECT_TRUE(line.on_loop([&] { return line.mandatory_.hold_of(1).empty(); }));
+  EXPECT_EQ(line.on_loop([&] { return line.mandatory_.missing(); }), std::vector<std::string>{"saw1"});
+
+  line.boot_fails(line.saw_);
+  ASSERT_TRUE(line.seen(0x02, kPuller)) << "the puller runs on though the mandatory saw failed its boot";
+  EXPECT_EQ(line.on_loop([&] { return line.puller_.operator_hold(); }), co::NmtCommand::stop);
+  EXPECT_NE(line.on_loop([&] { return line.mandatory_.hold_of(1); }).find("mandatory device saw1 its boot failed"),
+            std::string::npos);
+  EXPECT_NE(line.on_loop([&] { return line.mandatory_.state(); }).find("stop_others"), std::string::npos);
+}
+
+// The same with report_only: the saw's failed boot is reported, the puller adopted running is not
+// stopped.
+TEST(MandatoryDevices, AtATakeoverReportOnlyStopsNothingWhenTheMandatoryBootFails) {
+  Line line(MandatoryDevices::Policy::report_only);
+  line.on_loop([&] { line.mandatory_.stand_by(); });
+  line.ran_before_ = true;
+  ASSERT_NO_FATAL_FAILURE(line.beat_until_both_online());
+  line.beating_saw_ = false;
+  ASSERT_TRUE(line.online(line.saw_, false));
+  line.on_loop([&] { line.mandatory_.mastering(); });
+  line.adopt_running(line.puller_);
+  line.boot_fails(line.saw_);
+  EXPECT_FALSE(line.any_nmt(500ms)) << "report_only stopped the puller";
+  EXPECT_NE(line.on_loop([&] { return line.mandatory_.state(); }).find("report_only"), std::string::npos);
+}
+
+// A device not running at the takeover (its boot follows, as for any device not heard operational)
+// waits for the mandatory saw, which is not heard then either: configured and kept
+// pre-operational, started only after the saw passed its boot.
+TEST(MandatoryDevices, AtATakeoverADeviceNotRunningWaitsForTheMandatoryBoot) {
+  Line line(MandatoryDevices::Policy::stop_others);
+  line.on_loop([&] { line.mandatory_.stand_by(); });
+  ASSERT_NO_FATAL_FAILURE(line.beat_until_both_online());  // both pre-operational: nothing runs
+  line.on_loop([&] { line.mandatory_.mastering(); });
+  line.boot_passes(line.puller_);
+  EXPECT_EQ(line.on_loop([&] { return line.puller_.operator_hold(); }), co::NmtCommand::enter_pre_operational);
+  EXPECT_FALSE(line.seen(0x01, kPuller, 300ms)) << "started before the mandatory saw passed";
+  line.boot_passes(line.saw_);
+  ASSERT_TRUE(line.seen(0x01, kSaw));
+  ASSERT_TRUE(line.seen(0x01, kPuller)) << "not started once the mandatory saw passed";
+  EXPECT_TRUE(line.on_loop([&] { return line.mandatory_.missing().empty() && line.mandatory_.state().empty(); }));
 }

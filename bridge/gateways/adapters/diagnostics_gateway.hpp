@@ -40,7 +40,7 @@ class DiagnosticsGateway {
     canopen::BusLoop* loop;
     const canopen::OtherMasterWatch* other_master;  // master role only
     std::vector<Device> devices;
-    const MandatoryDevices* mandatory = nullptr;          // master role, when a device of the bus is mandatory
+    const MandatoryDevices* mandatory = nullptr;  // master or standby role, when a device of the bus is mandatory
     const canopen::ActiveMasterWatch* standby = nullptr;  // standby role
     const canopen::FlyingMaster* flying = nullptr;        // standby role: its negotiation
   };

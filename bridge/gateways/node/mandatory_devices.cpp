@@ -77,13 +77,14 @@ void MandatoryDevices::starting(std::size_t i, const canopen::StartFacts& facts)
   if (waits(i)) {
     const auto missing = names_missing(i);
     if (facts.found_operational && failed.empty()) {
-      // Only the bridge restarted: the mandatory devices are most likely still being checked. A
-      // running line is not stopped for that; if one of them fails, it is stopped then.
+      // Only the bridge restarted, or a standby took the running line over: the mandatory devices
+      // are most likely still being checked. A running line is not stopped for that; if one of
+      // them fails, it is stopped then.
       if (st.hold == Hold::waiting) node.release_hold();
       st.hold = Hold::none;
       st.started = true;
-      spdlog::info("{}: {} (node {}) found running: left running while mandatory device {} is checked", bus_, m.name,
-                   node.node_id(), missing);
+      spdlog::info("{}: {} (node {}) {}: left running while mandatory device {} is checked", bus_, m.name,
+                   node.node_id(), facts.adopted ? "adopted running at the takeover" : "found running", missing);
       return;
     }
     st.hold = Hold::waiting;
@@ -99,8 +100,16 @@ void MandatoryDevices::starting(std::size_t i, const canopen::StartFacts& facts)
   st.started = true;
 }
 
+void MandatoryDevices::mastering() {
+  if (!standing_by_) return;
+  standing_by_ = false;
+  spdlog::info("{}: mastered from now on: the mandatory devices' state is taken from the bus (adopted running: "
+               "passed; any other: missing until its boot passes)",
+               bus_);
+}
+
 void MandatoryDevices::event(std::size_t i, canopen::NodeEvent e) {
-  if (!members_[i].mandatory) return;
+  if (standing_by_ || !members_[i].mandatory) return;
   switch (e) {
     case canopen::NodeEvent::lost: return gone(i, Presence::lost, "its heartbeat was lost");
     case canopen::NodeEvent::boot_up:
@@ -234,6 +243,7 @@ void MandatoryDevices::operator_command(std::size_t i, canopen::NmtCommand comma
 
 std::vector<std::string> MandatoryDevices::missing() const {
   std::vector<std::string> names;
+  if (standing_by_) return names;  // nothing is booted by this bridge yet: the master of the moment knows
   for (std::size_t j = 0; j < members_.size(); ++j) {
     if (members_[j].mandatory && status_[j].presence != Presence::passed) names.push_back(members_[j].name);
   }
@@ -241,6 +251,7 @@ std::vector<std::string> MandatoryDevices::missing() const {
 }
 
 std::string MandatoryDevices::state() const {
+  if (standing_by_) return "standing by: the mandatory devices are judged from the takeover on, as the bus shows them";
   std::string held;
   for (std::size_t j = 0; j < members_.size(); ++j) {
     if (status_[j].hold == Hold::stopped)

@@ -15,6 +15,12 @@
 //     diagnostics only (and the start-up wait applies only until the mandatory devices first passed).
 //     That stop outlives the bridge (HoldKeeper keeps it in the state directory): a restarted
 //     bridge puts it back before its loop starts (kept_stop), and it is held as before.
+//   - On a standby bus (docs/redundancy.md): nothing while it stands by (the master of the moment
+//     judges the line). From the takeover on the line's state is the bus's, told through the same
+//     hooks as a start-up: a mandatory device adopted as it runs has passed (the master before
+//     booted it), one that gets a boot is missing until it passes; a device adopted running is
+//     left running as one found operational at a restart (a takeover stops nothing), the others
+//     wait, and a mandatory boot that fails is handled by when_mandatory_fails as always.
 // A held device still takes every stopping command: NMT stop, pre-operational and reset are the
 // operator's as for any device, and set values that enable nothing are accepted (the device is
 // stopped, so its RPDOs wait for an operator's start).
@@ -57,6 +63,13 @@ class MandatoryDevices {
   MandatoryDevices(canopen::BusLoop& loop, std::string bus, Policy policy, std::vector<Member> members);
   MandatoryDevices(const MandatoryDevices&) = delete;
   MandatoryDevices& operator=(const MandatoryDevices&) = delete;
+
+  // Before the loop starts, on a standby bus: nothing the bus shows counts until mastering() (a
+  // mandatory device lost while another master runs the line is that master's to act on).
+  void stand_by() { standing_by_ = true; }
+  // Loop thread, on a standby bus that is mastered from now on (its takeover, or no master heard),
+  // before its devices are adopted or booted: the line is judged from here on, as after a start.
+  void mastering();
 
   // Loop thread, from the device services: an operator's NMT command was sent to member i. From
   // then on its state is the operator's (a start releases what this class held).
@@ -122,6 +135,7 @@ class MandatoryDevices {
   std::vector<std::unique_ptr<MemberDriver>> drivers_;
   bool passed_once_ = false;  // every mandatory member passed at least once (report_only: no more waiting)
   bool gate_check_posted_ = false;
+  bool standing_by_ = false;  // a standby bus not mastered yet
 };
 
 }  // namespace lb::gateways
