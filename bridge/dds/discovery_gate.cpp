@@ -200,7 +200,7 @@ void DiscoveryGate::set_local(const GuidPrefix& local) {
     seen_.erase(it);
   }
   // Which handshakes this side starts was assumed (all) until now.
-  pending_ = holding_ = proven_ = proven_initiators_ = refused_ = 0;
+  pending_ = leaving_ = holding_ = proven_ = proven_initiators_ = refused_ = 0;
   for (auto& [prefix, e] : entries_) {
     e.initiator = initiates(prefix);
     count_nts(e, +1);
@@ -241,6 +241,10 @@ DiscoveryGate::Verdict DiscoveryGate::inspect(std::span<const std::uint8_t> mess
       continue;
     }
     auto it = entries_.find(from.source);
+    if (it != entries_.end() && it->second.state == State::leaving) {
+      pass = false;
+      continue;
+    }
     if (it != entries_.end() && it->second.state == State::refused) {
       if (now < it->second.until) {
         pass = false;
@@ -338,15 +342,17 @@ std::vector<std::vector<std::uint8_t>> DiscoveryGate::due(Clock::time_point now)
   if (now >= next_due_) {
     next_due_ = Clock::time_point::max();
     std::vector<GuidPrefix> late;
+    std::vector<GuidPrefix> gone;  // leaving ones Fast DDS never reported dropped
     for (const auto& [prefix, e] : entries_) {
-      if (e.state != State::pending) continue;
+      if (e.state != State::pending && e.state != State::leaving) continue;
       if (e.until <= now) {
-        late.push_back(prefix);
+        (e.state == State::pending ? late : gone).push_back(prefix);
       } else {
         next_due_ = std::min(next_due_, e.until);
       }
     }
     for (const auto& prefix : late) evict_nts(entries_.find(prefix), now);
+    for (const auto& prefix : gone) left_nts(entries_.find(prefix), now);
     trim_refused_nts(now);
     while (!pending_order_.empty()) {
       const auto it = entries_.find(pending_order_.front().first);
@@ -417,11 +423,11 @@ void DiscoveryGate::refused(const GuidPrefix& remote, Clock::time_point now) {
   evict_nts(it, now);
 }
 
-void DiscoveryGate::departed(const GuidPrefix& remote) {
+void DiscoveryGate::departed(const GuidPrefix& remote, Clock::time_point now) {
   std::lock_guard lock(mutex_);
   auto it = entries_.find(remote);
-  // An evicted participant's departure is the gate's own goodbye: it stays refused.
   if (it == entries_.end() || it->second.state == State::refused) return;
+  if (it->second.state == State::leaving) return left_nts(it, now);
   leave_nts(it);
 }
 
@@ -436,6 +442,11 @@ void DiscoveryGate::count_nts(const Entry& e, int sign) {
       if (proof_ == Proof::authentication && e.initiator) proven_initiators_ += sign;
       break;
     case State::refused: refused_ += sign; break;
+    case State::leaving:
+      pending_ += sign;
+      leaving_ += sign;
+      if (holds_message(e)) holding_ += sign;
+      break;
   }
 }
 
@@ -478,6 +489,16 @@ void DiscoveryGate::leave_nts(Iterator it) {
 void DiscoveryGate::evict_nts(std::unordered_map<GuidPrefix, Entry, PrefixHash>::iterator it, Clock::time_point now) {
   ++counts_.evicted;
   forget_nts(it->first, it->second.last);
+  // Fast DDS drops it about a second from now (its lease); until then it keeps what it held for
+  // it, so it keeps its place in the quotas, and nothing of it passes (which would renew that lease).
+  count_nts(it->second, -1);
+  it->second.state = State::leaving;
+  it->second.until = now + kLeavingAtMost;
+  count_nts(it->second, +1);
+  next_due_ = std::min(next_due_, it->second.until);
+}
+
+void DiscoveryGate::left_nts(Iterator it, Clock::time_point now) {
   if (!it->second.talked && !it->second.failed) {
     // It never answered: forged, or a real one its own gate kept waiting (a crowd starting at
     // once). Nothing is gained by keeping it out: a forger takes a new prefix anyway. Remembered,
@@ -568,7 +589,7 @@ bool DiscoveryGate::seen_before_nts(const GuidPrefix& prefix) { return seen_.cou
 GateCounts DiscoveryGate::counts() const {
   std::lock_guard lock(mutex_);
   GateCounts c = counts_;
-  c.pending_now = pending_;
+  c.pending_now = pending_ - leaving_;
   c.proven_now = proven_;
   c.handshake_slots_now = proof_ == Proof::authentication ? holding_ + proven_initiators_ : 0;
   return c;

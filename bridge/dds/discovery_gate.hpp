@@ -146,6 +146,9 @@ class DiscoveryGate {
   static std::vector<std::uint8_t> goodbye(const GuidPrefix& prefix, std::uint32_t epoch);
   // The lease Fast DDS is given for a participant it must forget.
   static constexpr std::uint32_t kLastLeaseS = 1;
+  // How long an evicted participant is kept out, and counted, if Fast DDS never reports it dropped
+  // (it had no proxy for it): its lease of 1 s and Fast DDS's lease check, with room.
+  static constexpr std::chrono::seconds kLeavingAtMost{5};
   // A participant's last announcement as it reached Fast DDS (an RTPS header and the DATA
   // submessage), to hand it again with its lease ended.
   struct LastAnnouncement {
@@ -159,14 +162,17 @@ class DiscoveryGate {
   // From the participant's discovery callbacks.
   void authenticated(const GuidPrefix& remote, Clock::time_point now);
   void refused(const GuidPrefix& remote, Clock::time_point now);  // failed authentication: evicted at once
-  void departed(const GuidPrefix& remote);                        // Fast DDS forgot it (gone, lease)
+  // Fast DDS forgot it (gone, lease).
+  void departed(const GuidPrefix& remote, Clock::time_point now = Clock::now());
 
   GateCounts counts() const;
   // One line per new kind of event since the last call (evictions, waits), for a rate-limited log.
   std::vector<std::string> take_news();
 
  private:
-  enum class State { pending, proven, refused };
+  // leaving: evicted, its lease ended in Fast DDS, which drops it within about a second: it still
+  // counts in the quotas (Fast DDS still holds it, and its handshake message), nothing of it passes.
+  enum class State { pending, proven, refused, leaving };
   struct Entry {
     State state = State::pending;
     Clock::time_point admitted;
@@ -192,6 +198,7 @@ class DiscoveryGate {
   void remember_nts(const GuidPrefix& prefix);
   bool seen_before_nts(const GuidPrefix& prefix);
   void evict_nts(Iterator it, Clock::time_point now);
+  void left_nts(Iterator it, Clock::time_point now);  // a leaving one is gone from Fast DDS
   void forget_nts(const GuidPrefix& prefix, const std::shared_ptr<const LastAnnouncement>& last);
   void trim_refused_nts(Clock::time_point now);
   bool room_nts(const Entry& e, Clock::time_point now);
@@ -211,7 +218,8 @@ class DiscoveryGate {
   // in a second it lasts six years).
   std::uint32_t sequence_ = 0;
   Clock::time_point next_due_ = Clock::time_point::max();
-  int pending_ = 0;
+  int pending_ = 0;  // pending and leaving
+  int leaving_ = 0;
   int holding_ = 0;  // pending ones that hold a handshake message of this side (unsecured: all pending)
   int proven_ = 0;
   int proven_initiators_ = 0;

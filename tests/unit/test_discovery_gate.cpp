@@ -297,10 +297,14 @@ TEST(DiscoveryGate, ANewcomerTakesThePlaceOfTheLongestPendingNeitherSideSentAnyt
   f.admit(p(2), f.t0 + 1s);
   EXPECT_FALSE(f.offer(announcement(p(3)), f.t0 + 3s).pass);
   EXPECT_FALSE(f.offer(announcement(p(3)), f.t0 + 4s).pass) << "p1 had 3.5 s only";
-  EXPECT_TRUE(f.offer(announcement(p(3)), f.t0 + 4600ms).pass) << "p1 had its 4 s, silent";
+  // p1 had its 4 s, silent: its lease is ended, and p3 gets its place once Fast DDS dropped it.
+  EXPECT_FALSE(f.offer(announcement(p(3)), f.t0 + 4600ms).pass) << "p1 is still in Fast DDS";
   const auto due = forgotten(f.gate.due(f.t0 + 4600ms));
   ASSERT_EQ(due.size(), 1U);
   EXPECT_EQ(due[0], p(1)) << "the oldest, p0, is in its handshake: never replaced";
+  EXPECT_EQ(f.gate.counts().pending_now, 2);
+  f.gate.departed(p(1), f.t0 + 4700ms);
+  EXPECT_TRUE(f.offer(announcement(p(3)), f.t0 + 4800ms).pass);
   EXPECT_EQ(f.gate.counts().pending_now, 3);
   EXPECT_FALSE(f.offer(heartbeat(p(1)), f.t0 + 5s).pass);
   EXPECT_TRUE(f.offer(heartbeat(p(0)), f.t0 + 5s).pass);
@@ -322,7 +326,14 @@ TEST(DiscoveryGate, ParticipantsThisSideStartedAHandshakeWithAreNeitherReplacedN
   EXPECT_FALSE(f.offer(announcement(prefix(0xb3)), f.t0 + 20100ms).pass) << "no replacing: it waits";
   EXPECT_TRUE(f.gate.due(f.t0 + 30s).empty()) << "silent, yet its handshake is under way";
   EXPECT_EQ(forgotten(f.gate.due(f.t0 + 61s)).size(), 2U);
+  EXPECT_FALSE(f.offer(announcement(prefix(0xb3)), f.t0 + 61s + 500ms).pass) << "both are still in Fast DDS";
+  // Fast DDS never reports one dropped (it had no proxy for it): it goes all the same.
+  f.gate.departed(prefix(0xb1), f.t0 + 62s);
   EXPECT_TRUE(f.offer(announcement(prefix(0xb3)), f.t0 + 62s).pass);
+  EXPECT_FALSE(f.offer(announcement(prefix(0xb4)), f.t0 + 63s).pass);
+  EXPECT_FALSE(f.offer(announcement(prefix(0xb4)), f.t0 + 63s + 50ms).pass) << "b2 is still counted";
+  EXPECT_TRUE(f.gate.due(f.t0 + 66s + 100ms).empty());
+  EXPECT_TRUE(f.offer(announcement(prefix(0xb4)), f.t0 + 66s + 200ms).pass) << "b2 had its 5 s to go";
 }
 
 TEST(DiscoveryGate, AParticipantsAnnouncementsReachFastDdsInAnEpochOfTheGatesWhateverNumberTheyCarry) {
@@ -376,7 +387,10 @@ TEST(DiscoveryGate, ASilentPendingParticipantsLeaseIsEndedAfterTheDeadlineAndItM
   EXPECT_EQ(end.sn_low, 0xffffffffU) << "its own announcement, as it was (the high word aside)";
   EXPECT_EQ(f.gate.counts().pending_now, 0);
   EXPECT_EQ(f.gate.counts().evicted, 1U);
-  // Its other messages are dropped; its next announcement lets it in again, numbered above.
+  // Nothing of it passes until Fast DDS dropped it (nothing may renew its lease there); then its
+  // other messages are dropped and its next announcement lets it in again, numbered above.
+  EXPECT_FALSE(f.offer(announcement(p), f.t0 + 10500ms).pass);
+  f.gate.departed(p, f.t0 + 11s);
   EXPECT_FALSE(f.offer(heartbeat(p), f.t0 + 11s).pass);
   EXPECT_TRUE(f.offer(announcement(p), f.t0 + 12s).pass);
   EXPECT_GT(sn_high(f.rewritten), end.sn_high);
@@ -434,6 +448,8 @@ TEST(DiscoveryGate, AParticipantInItsHandshakeHasLongerAndIsRefusedForAWhileWhen
   EXPECT_TRUE(f.offer(heartbeat(p), f.t0 + 1s).pass);  // a handshake message, say
   EXPECT_TRUE(f.gate.due(f.t0 + 30s).empty()) << "a slow handshake is no reason to evict";
   EXPECT_EQ(forgotten(f.gate.due(f.t0 + 61s)), std::vector<GuidPrefix>{p});
+  EXPECT_FALSE(f.offer(announcement(p), f.t0 + 61500ms).pass);
+  f.gate.departed(p, f.t0 + 62s);
   // Refused for refuse_for: announcements too; then it may come in again (seen twice).
   EXPECT_FALSE(f.offer(announcement(p), f.t0 + 62s).pass);
   EXPECT_FALSE(f.offer(announcement(p), f.t0 + 90s).pass);
