@@ -46,6 +46,11 @@ struct BootReport {
   // Configured, then put back in the state an operator's NMT stop or pre-operational left it in,
   // not started (RemoteNode::hold).
   bool held_by_operator = false;
+  // Not a boot: a standby that took the bus over adopted the device as it ran and read what it says
+  // about itself by SDO uploads only (NodeStateMachine::take_over). `started` tells that it runs as
+  // the master before left it, `pdos` are the line's it adopted; an identity the line does not
+  // expect is in `warnings`, never in `error` (no boot failed: the device runs on).
+  bool adopted = false;
 };
 
 class BootSequence {
