@@ -595,7 +595,11 @@ TEST_F(HotStandby, AMasterFrozenPastTheTakeoverStepsBackWhenItResumesAndSendsNoS
   const auto frozen = pids(a_->pid());
   for (const auto p : frozen) ::kill(p, SIGSTOP);
   ASSERT_TRUE(b_->wait_log("took the bus over", 30000ms)) << logs();
-  // The operator stops the saw through the new master.
+  // The operator stops the saw through the new master, once its reader matched the panel's writer:
+  // a set value is volatile, and one written before would reach only the frozen master's reader
+  // (still matched) and go unanswered for the panel's 15 s, freezing A past the 10 s within which
+  // the virtual bus keeps a frame's own stamp (then its stall cannot be told from the frames).
+  ASSERT_TRUE(lb::test::eventually(30s, [&] { return panels_[0]->matches() >= 2; })) << logs();
   ASSERT_TRUE(lb::test::eventually(60s, [&] { return panels_[0]->set_enabling(false).accepted; })) << logs();
   ASSERT_TRUE(lb::test::eventually(10s,
                                    [&] {
