@@ -3,13 +3,9 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
-#include "canopen/sdo_abort.hpp"
-
 namespace lb::canopen {
 
 namespace {
-
-std::string hex32(std::uint32_t v) { return fmt::format("{:04X} {:04X}h", v >> 16, v & 0xFFFF); }
 
 DataType unsigned_type(unsigned bits) {
   return bits == 8 ? DataType::unsigned8 : bits == 16 ? DataType::unsigned16 : DataType::unsigned32;
@@ -20,28 +16,14 @@ std::int64_t now_ns() {
       .count();
 }
 
-// One identity value against its expectation (CiA 302-2: D vendor-ID, M product code, N revision,
-// O serial number); nullopt when it matches or is not checked.
-std::optional<BootError> compare_identity(char code, const char* what, const char* key, std::uint8_t sub,
-                                          std::optional<std::uint32_t> expected, std::uint32_t actual,
-                                          std::uint8_t node) {
-  if (!expected || *expected == actual) return std::nullopt;
-  return BootError{code,
-                   "identity",
-                   0x1018,
-                   sub,
-                   hex32(*expected),
-                   hex32(actual),
-                   0,
-                   fmt::format("node {}: {} (1018h sub {}) is {}, the line expects {} (identity.{}): this is not the "
-                               "device the line configures at this node-ID",
-                               node, what, sub, hex32(actual), hex32(*expected), key)};
-}
-
 }  // namespace
 
 BootSequence::BootSequence(BusLoop& loop, RemoteNode& node, SdoClient& sdo, Settings settings)
-    : loop_(loop), node_(node), sdo_(sdo), settings_(std::move(settings)) {
+    : loop_(loop),
+      node_(node),
+      sdo_(sdo),
+      settings_(std::move(settings)),
+      identity_(sdo, node.node_id(), settings_.identity) {
   heartbeat_timer_ = loop_.create_timer([this] {
     if (waiting_for_state_) {
       waiting_for_state_ = false;
@@ -74,11 +56,13 @@ void BootSequence::run(Done done) {
     (void)node_.command(NmtCommand::enter_pre_operational);
   }
   set_step("reading device type and identity");
-  batch({SdoRequest::read(0x1000, 0, DataType::unsigned32), SdoRequest::read(0x1018, 1, DataType::unsigned32),
-         SdoRequest::read(0x1018, 2, DataType::unsigned32, true),
-         SdoRequest::read(0x1018, 3, DataType::unsigned32, true),
-         SdoRequest::read(0x1018, 4, DataType::unsigned32, true)},
-        [this](const Replies& r) { check_identity(r); });
+  identity_.check(cancelled(), [this](IdentityReader::Check c) {
+    report_.identity = std::move(c.identity);
+    if (c.error) return fail(std::move(*c.error));
+    set_step("reading PDO parameters");
+    read_pdos({settings_.pdos.begin(), settings_.pdos.end()},
+              [this](std::vector<DevicePdo> devices) { configure_pdos(std::move(devices)); });
+  });
 }
 
 void BootSequence::cancel() {
@@ -89,67 +73,12 @@ void BootSequence::cancel() {
   loop_.disarm_timer(heartbeat_timer_);
 }
 
-void BootSequence::batch(std::vector<SdoRequest> requests, std::function<void(Replies)> then) {
-  const auto gen = generation_;
-  run_sdo_batch(
-      sdo_, node_.node_id(), std::move(requests), [this, gen] { return gen != generation_; }, std::move(then));
+std::function<bool()> BootSequence::cancelled() const {
+  return [this, gen = generation_] { return gen != generation_; };
 }
 
-void BootSequence::check_identity(const Replies& r) {
-  const std::uint8_t node = node_.node_id();
-  const auto& failed = r.back().error;
-  if (failed && r.size() == 1) {
-    return fail({'B', "device type", 0x1000, 0, "an answer", "none", failed->abort_code,
-                 fmt::format("node {} does not answer 1000h: {}", node, failed->message)});
-  }
-  const auto type = static_cast<std::uint32_t>(unsigned_value(r[0]));
-  auto& id = report_.identity;
-  id.device_type = type;
-  const auto& want = settings_.identity;
-  if ((type & 0xFFFF) != want.profile_number) {
-    return fail({'C', "device type", 0x1000, 0, fmt::format("profile {}", want.profile_number),
-                 fmt::format("{} (profile {})", hex32(type), type & 0xFFFF), 0,
-                 fmt::format("node {}: device type {} is profile {}, the line configures a profile {} device here",
-                             node, hex32(type), type & 0xFFFF, want.profile_number)});
-  }
-  if (want.device_type && *want.device_type != type) {
-    return fail({'C', "device type", 0x1000, 0, hex32(*want.device_type), hex32(type), 0,
-                 fmt::format("node {}: device type (1000h) is {}, the line expects {} (identity.device_type)", node,
-                             hex32(type), hex32(*want.device_type))});
-  }
-  if (failed) {
-    const std::uint8_t sub = static_cast<std::uint8_t>(r.size() - 1);
-    return fail({"DMNO"[sub - 1], "identity", 0x1018, sub, "an answer", "abort", failed->abort_code,
-                 fmt::format("node {}: identity 1018h sub {} cannot be read: {}", node, sub, failed->message)});
-  }
-  id.vendor_id = static_cast<std::uint32_t>(unsigned_value(r[1]));
-  id.product_code = static_cast<std::uint32_t>(unsigned_value(r[2]));
-  id.revision_number = static_cast<std::uint32_t>(unsigned_value(r[3]));
-  id.serial_number = static_cast<std::uint32_t>(unsigned_value(r[4]));
-  const std::pair<std::optional<std::uint32_t>, const char*> absent[] = {{want.product_code, "product code"},
-                                                                         {want.revision, "revision number"},
-                                                                         {want.serial_number, "serial number"}};
-  for (std::size_t i = 0; i < 3; ++i) {
-    if (!r[i + 2].absent) continue;
-    id.remarks += std::string(absent[i].second) + ": not implemented; ";
-    if (absent[i].first) {
-      const char code = "MNO"[i];
-      const auto sub = static_cast<std::uint8_t>(i + 2);
-      return fail({code, "identity", 0x1018, sub, hex32(*absent[i].first), "absent", sdo_abort::no_such_sub_index,
-                   fmt::format("node {}: the line expects {} {} but the device has no 1018h sub {}", node,
-                               absent[i].second, hex32(*absent[i].first), sub)});
-    }
-  }
-  for (auto e :
-       {compare_identity('D', "vendor-ID", "vendor_id", 1, want.vendor_id, id.vendor_id, node),
-        compare_identity('M', "product code", "product_code", 2, want.product_code, id.product_code, node),
-        compare_identity('N', "revision number", "revision", 3, want.revision, id.revision_number, node),
-        compare_identity('O', "serial number", "serial_number", 4, want.serial_number, id.serial_number, node)}) {
-    if (e) return fail(std::move(*e));
-  }
-  set_step("reading PDO parameters");
-  read_pdos({settings_.pdos.begin(), settings_.pdos.end()},
-            [this](std::vector<DevicePdo> devices) { configure_pdos(std::move(devices)); });
+void BootSequence::batch(std::vector<SdoRequest> requests, std::function<void(Replies)> then) {
+  run_sdo_batch(sdo_, node_.node_id(), std::move(requests), cancelled(), std::move(then));
 }
 
 // Two rounds: the communication parameters and each mapping's sub 0, then the entries sub 0 says
@@ -410,24 +339,29 @@ void BootSequence::use_pdos() {
 }
 
 void BootSequence::await_heartbeat() {
-  const auto timeout = node_.heartbeat_timeout().count();
-  if (const auto producer = report_.heartbeat_producer_ms) {
-    if (*producer == 0) {
-      report_.warnings.push_back(fmt::format(
-          "1017h is 0: the device sends no heartbeat, so the bridge cannot supervise it (set heartbeat_producer_ms)"));
-    } else if (timeout * 2 < *producer * 3) {
-      report_.warnings.push_back(fmt::format(
-          "heartbeat_timeout_ms {} does not fit the device's heartbeat of {} ms (1017h): a consumer time of at least "
-          "1.5 x the producer time ({} ms) tolerates a late beat",
-          timeout, *producer, (*producer * 3 + 1) / 2));
-    }
-  }
+  for (auto& w : heartbeat_warnings(report_.heartbeat_producer_ms)) report_.warnings.push_back(std::move(w));
   for (const auto& w : report_.warnings) spdlog::warn("{}: node {}: {}", loop_.bus().uri(), node_.node_id(), w);
   // Started only after a heartbeat that comes after the configuration (as a CiA 302-2 master
   // waits for it), however recently the last one came.
   set_step("waiting for its heartbeat");
   waiting_for_heartbeat_ = true;
   loop_.arm_timer(heartbeat_timer_, node_.heartbeat_timeout());
+}
+
+std::vector<std::string> BootSequence::heartbeat_warnings(std::optional<std::uint16_t> producer) const {
+  std::vector<std::string> warnings;
+  const auto timeout = node_.heartbeat_timeout().count();
+  if (!producer) return warnings;
+  if (*producer == 0) {
+    warnings.emplace_back(
+        "1017h is 0: the device sends no heartbeat, so the bridge cannot supervise it (set heartbeat_producer_ms)");
+  } else if (timeout * 2 < *producer * 3) {
+    warnings.push_back(fmt::format(
+        "heartbeat_timeout_ms {} does not fit the device's heartbeat of {} ms (1017h): a consumer time of at least "
+        "1.5 x the producer time ({} ms) tolerates a late beat",
+        timeout, *producer, (*producer * 3 + 1) / 2));
+  }
+  return warnings;
 }
 
 void BootSequence::heard(NmtState /*state*/) {
@@ -521,25 +455,11 @@ void BootSequence::check_heartbeat_producer(std::function<void(const ProducerChe
 }
 
 void BootSequence::read_names() {
-  batch({SdoRequest::read(0x1008, 0, DataType::visible_string, true),
-         SdoRequest::read(0x1009, 0, DataType::visible_string, true),
-         SdoRequest::read(0x100A, 0, DataType::visible_string, true)},
-        [this](Replies r) {
-          auto& id = report_.identity;
-          const char* names[] = {"device name", "hardware version", "software version"};
-          std::string* fields[] = {&id.device_name, &id.hardware_version, &id.software_version};
-          for (std::size_t i = 0; i < 3; ++i) {
-            if (i < r.size() && r[i].value) {
-              if (const auto* s = std::get_if<std::string>(&*r[i].value)) *fields[i] = *s;
-            } else {
-              id.remarks += std::string(names[i]) + ": " +
-                            (i < r.size() && r[i].error ? r[i].error->message : "not implemented") + "; ";
-            }
-          }
-          id.read_at_ns = now_ns();
-          running_ = false;
-          if (done_) done_(report_);
-        });
+  identity_.read_names(report_.identity, cancelled(), [this](DeviceIdentity identity) {
+    report_.identity = std::move(identity);
+    running_ = false;
+    if (done_) done_(report_);
+  });
 }
 
 void BootSequence::fail(BootError error) {

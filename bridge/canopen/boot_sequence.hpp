@@ -1,7 +1,7 @@
 #pragma once
 // Brings one device into service the CiA 302-2 way ("boot slave"), master role:
 //   1. device type 1000h (is anyone there, and of the right profile?);
-//   2. identity 1018h sub 1..4 against the expected values;
+//   2. identity 1018h sub 1..4 against the expected values (steps 1 and 2: IdentityReader);
 //   3. PDO configuration (then handed to the gateways): every PDO's communication and mapping parameters read and
 //   compared with
 //      what the master will decode and send; what differs is written in the CiA 301 order where
@@ -12,7 +12,7 @@
 //   4. the line's configuration writes, read back, then the heartbeat producer time 1017h;
 //   5. a heartbeat from the device;
 //   6. NMT start. Only now does the device count as configured and get RPDOs.
-// Then it reads 1008h/1009h/100Ah for the record. Each attempt ends with a report: started, or
+// Then it reads 1008h/1009h/100Ah for the record (IdentityReader). Each attempt ends with a report: started, or
 // failed with the CiA 302-2 error letter, the object, both values and the abort code. When to
 // boot (start-up, boot-up, lost state) is NodeStateMachine's decision. Every step is asynchronous on
 // the bus loop, so a device that does not answer delays nobody else.
@@ -26,6 +26,7 @@
 
 #include "base/repeat_log.hpp"
 #include "canopen/bus_loop.hpp"
+#include "canopen/identity_reader.hpp"
 #include "canopen/object_value.hpp"
 #include "canopen/pdo_parameters.hpp"
 #include "canopen/remote_node.hpp"
@@ -33,43 +34,6 @@
 #include "canopen/sdo_client.hpp"
 
 namespace lb::canopen {
-
-struct DeviceIdentity {
-  std::uint32_t device_type = 0;
-  std::uint32_t vendor_id = 0;
-  std::uint32_t product_code = 0;
-  std::uint32_t revision_number = 0;
-  std::uint32_t serial_number = 0;
-  std::string device_name;
-  std::string hardware_version;
-  std::string software_version;
-  std::string remarks;  // optional objects the device did not provide
-  std::int64_t read_at_ns = 0;
-};
-
-// What the device at a node-ID must be (CiA 302-2 1F84h..1F88h): 1000h bits 0..15 always, each
-// other value where it is given.
-struct ExpectedIdentity {
-  std::uint16_t profile_number = 0;
-  std::optional<std::uint32_t> device_type;
-  std::optional<std::uint32_t> vendor_id;
-  std::optional<std::uint32_t> product_code;
-  std::optional<std::uint32_t> revision;
-  std::optional<std::uint32_t> serial_number;
-};
-
-// Why a boot failed, in CiA 302-2 terms: B no answer to 1000h, C device type, D vendor-ID,
-// M product code, N revision, O serial number, J configuration download, K no heartbeat.
-struct BootError {
-  char code = 0;
-  std::string step;  // "device type", "identity", "PDO configuration", "configuration", "heartbeat"
-  std::uint16_t index = 0;
-  std::uint8_t sub = 0;
-  std::string expected;
-  std::string actual;
-  std::uint32_t abort_code = 0;
-  std::string message;  // the whole story in one line
-};
 
 struct BootReport {
   bool started = false;
@@ -82,6 +46,11 @@ struct BootReport {
   // Configured, then put back in the state an operator's NMT stop or pre-operational left it in,
   // not started (RemoteNode::hold).
   bool held_by_operator = false;
+  // Not a boot: a standby that took the bus over adopted the device as it ran and read what it says
+  // about itself by SDO uploads only (NodeStateMachine::take_over). `started` tells that it runs as
+  // the master before left it, `pdos` are the line's it adopted; an identity the line does not
+  // expect is in `warnings`, never in `error` (no boot failed: the device runs on).
+  bool adopted = false;
 };
 
 class BootSequence {
@@ -120,6 +89,11 @@ class BootSequence {
   std::vector<PdoInUse> line_pdos() const;
   const std::string& step() const { return step_; }
   const BootReport& report() const { return report_; }
+  // What the boot reads and judges of the device's identity; also what reads an adopted device's.
+  const IdentityReader& identity_reader() const { return identity_; }
+  // Warnings about a device's heartbeat producer time 1017h against the node's heartbeat timeout
+  // (no heartbeat at all, or a timeout too short for it), as a boot reports them.
+  std::vector<std::string> heartbeat_warnings(std::optional<std::uint16_t> producer_ms) const;
   // What check_heartbeat_producer found.
   struct ProducerCheck {
     std::optional<std::uint16_t> expected;  // what the last boot that passed left in 1017h
@@ -143,7 +117,7 @@ class BootSequence {
  private:
   using Replies = std::vector<SdoReply>;
   void batch(std::vector<SdoRequest> requests, std::function<void(Replies)> then);
-  void check_identity(const Replies& r);
+  std::function<bool()> cancelled() const;  // the attempt under way was abandoned
   void read_pdos(const std::vector<PdoSpec>& specs, std::function<void(std::vector<DevicePdo>)> then);
   void configure_pdos(std::vector<DevicePdo> devices);
   void write_pdos();  // pdo_writes_, once the device's state is known (or its heartbeat timed out)
@@ -161,6 +135,7 @@ class BootSequence {
   RemoteNode& node_;
   SdoClient& sdo_;
   Settings settings_;
+  IdentityReader identity_;
   Done done_;
   BusLoop::TimerId heartbeat_timer_;
   std::uint64_t generation_ = 0;  // a new attempt makes the callbacks of the old one no-ops

@@ -48,7 +48,8 @@ class NodeDriver {
   virtual void on_state(NodeState /*state*/) noexcept {}
   // What makes the device's state unknown to the master (master role), before the state machine acts.
   virtual void on_event(NodeEvent /*event*/) noexcept {}
-  // A boot attempt ended (master role), passed or failed.
+  // A boot attempt ended (master role), passed or failed; or, with report.adopted, the reading of a
+  // device adopted at a takeover (no boot ran: NodeStateMachine::take_over).
   virtual void on_boot(const BootReport& /*report*/) noexcept {}
   // Configuration step of the boot: the PDOs the device will use from now on. A refusal fails the
   // boot (CiA 302-2 error J) and the device is not started.

@@ -82,10 +82,97 @@ void NodeStateMachine::take_over(std::optional<NmtCommand> last_command) {
   if (held) node_.hold(*last_command);
   node_.adopt(reported);  // before its drivers start: what they send at once may go out
   node_.starting({true, false, {}, true});
-  spdlog::info("{}: node {}: adopted {}{} (no NMT, no SDO)", loop_.bus().uri(), node_.node_id(), to_string(reported),
+  spdlog::info("{}: node {}: adopted {}{} (no NMT, no SDO download; its identity is read after the first SYNC)",
+               loop_.bus().uri(), node_.node_id(), to_string(reported),
                held ? " as the master before held it" : ", as it runs");
+  adoption_ = Adoption::awaiting_sync;
+  adoption_detail_ = "adopted at a takeover (no NMT, no SDO download): its identity is read after the first SYNC";
   enter(held ? NodeState::stopped_by_operator : NodeState::operational,
         held ? "adopted at a takeover, held as the master before left it" : "adopted as it ran at a takeover");
+}
+
+// Posted from the first SYNC's cycle: every frame of that cycle (the SYNC that ends the takeover's
+// gap, every node's RPDOs) is out before the first request of the reading.
+void NodeStateMachine::on_sync() noexcept {
+  if (adoption_ != Adoption::awaiting_sync) return;
+  adoption_ = Adoption::reading;
+  loop_.post([this, gen = adoption_generation_] {
+    if (gen == adoption_generation_ && adoption_ == Adoption::reading) read_adopted();
+  });
+}
+
+void NodeStateMachine::read_adopted() {
+  ++adoption_generation_;
+  if (node_.state() == NmtState::stopped) {
+    adoption_ = Adoption::awaiting_state;
+    adoption_detail_ =
+        "adopted at a takeover (no NMT, no SDO download), stopped: its identity is read once it is heard in another "
+        "state (a stopped device answers no SDO, CiA 301)";
+    return;
+  }
+  adoption_ = Adoption::reading;
+  adoption_detail_ = "adopted at a takeover (no NMT, no SDO download): reading its identity (SDO uploads only)";
+  boot_.identity_reader().read_all([this, gen = adoption_generation_] { return gen != adoption_generation_; },
+                                   [this](IdentityReader::Reading r) { adopted_read(std::move(r)); });
+}
+
+// What an adopted device said about itself reaches the drivers as a boot's report would (info,
+// error history, 6010h follow in DeviceServices), with `adopted` set and nothing in `error`: no
+// boot ran, and none failed.
+void NodeStateMachine::adopted_read(IdentityReader::Reading reading) {
+  // Completed by a client that is being destroyed (the bridge stops): nothing to report.
+  if (!loop_.on_loop_thread()) return;
+  auto& check = reading.check;
+  if (!check.answered && node_.state() == NmtState::stopped) {
+    // Stopped meanwhile (an operator's stop): asked again once it answers SDO.
+    read_adopted();
+    return;
+  }
+  adoption_ = Adoption::read;
+  const auto& uri = loop_.bus().uri();
+  const auto id = node_.node_id();
+  BootReport report;
+  report.adopted = true;
+  report.held_by_operator = node_.operator_hold().has_value();
+  report.started = !report.held_by_operator;
+  report.was_operational = node_.state() == NmtState::operational;
+  report.pdos = boot_.line_pdos();
+  report.heartbeat_producer_ms = reading.heartbeat_producer_ms;
+  // The period a new state must be reported over to be believed (RemoteNode), as a boot sets it.
+  if (const auto producer = reading.heartbeat_producer_ms)
+    node_.set_heartbeat_producer(std::chrono::milliseconds(*producer));
+  std::string found;
+  if (check.error && check.answered) {
+    ++counters_.adopted_identity_mismatches;
+    found = fmt::format(
+        "ITS IDENTITY IS NOT THE LINE'S: {} (a boot would fail with CiA 302-2 error {}); adopted at the takeover all "
+        "the same, it runs on as the master before left it (a boot-up, a heartbeat loss or an operator's reset "
+        "boots it)",
+        check.error->message, check.error->code);
+    report.warnings.push_back(found);
+    spdlog::warn("{}: node {}: {}", uri, id, found);
+  } else if (check.error) {
+    found = "its identity could not be read: " + check.error->message;
+    report.warnings.push_back(found);
+    spdlog::warn("{}: node {}: adopted at the takeover, but {}", uri, id, found);
+  } else {
+    found = "its identity read (SDO uploads only) is what the line expects";
+    spdlog::info("{}: node {}: adopted at the takeover: {}", uri, id, found);
+  }
+  for (auto& w : boot_.heartbeat_warnings(reading.heartbeat_producer_ms)) {
+    spdlog::warn("{}: node {}: {}", uri, id, w);
+    report.warnings.push_back(std::move(w));
+  }
+  report.identity = std::move(check.identity);
+  adoption_detail_ = "adopted at a takeover (no NMT, no SDO download); " + found;
+  node_.tell([&report](NodeDriver& d) { d.on_boot(report); });
+}
+
+void NodeStateMachine::abandon_adoption() {
+  if (adoption_ == Adoption::none) return;
+  ++adoption_generation_;
+  adoption_ = Adoption::none;
+  adoption_detail_.clear();
 }
 
 Result<void> NodeStateMachine::operator_command(NmtCommand command) {
@@ -126,6 +213,7 @@ Result<void> NodeStateMachine::operator_command(NmtCommand command) {
 // meanwhile.
 void NodeStateMachine::reset_sent(bool by_operator) {
   abandon_heartbeat_check();
+  abandon_adoption();
   boot_.cancel();
   reset_unconfirmed_ = true;
   loop_.disarm_timer(timer_);
@@ -148,9 +236,12 @@ std::string NodeStateMachine::detail() const {
   // The boot's last step ("started") is history once an operator's stop or pre-operational took
   // the node out of operational: what holds it now is said instead.
   if (const auto& hold = node_.operator_hold(); hold && state_ == NodeState::stopped_by_operator) {
-    return fmt::format("configured; kept {} by the operator (nmt start releases it)",
-                       *hold == NmtCommand::stop ? "stopped" : "pre-operational");
+    return fmt::format("configured; kept {} by the operator (nmt start releases it){}",
+                       *hold == NmtCommand::stop ? "stopped" : "pre-operational",
+                       adoption_ == Adoption::none ? "" : "; " + adoption_detail_);
   }
+  // Adopted at a takeover: no boot ran, whose step would say nothing.
+  if (adoption_ != Adoption::none) return adoption_detail_;
   return boot_.step();
 }
 
@@ -159,6 +250,8 @@ void NodeStateMachine::on_heartbeat(NmtState state) noexcept {
   // boot must not take this heartbeat for the one that follows its configuration and start it
   // (the boot-up, once believed, boots it again).
   if (!node_.boot_up_pending()) boot_.heard(state);
+  // Adopted held stopped, now in a state that answers SDO (an operator's start, or pre-operational).
+  if (adoption_ == Adoption::awaiting_state && state != NmtState::stopped && !node_.boot_up_pending()) read_adopted();
   // Started (or released by an operator) and now heard operational: the condition for RPDOs.
   if ((state_ == NodeState::booting || state_ == NodeState::stopped_by_operator) && node_.ready_for_pdos()) {
     enter(NodeState::operational, "started, heard operational");
@@ -230,6 +323,7 @@ void NodeStateMachine::recover(const char* why) {
 
 void NodeStateMachine::boot_now(const std::string& why) {
   abandon_heartbeat_check();
+  abandon_adoption();
   loop_.disarm_timer(timer_);
   loop_.disarm_timer(reset_timer_);
   waiting_.clear();
@@ -243,6 +337,7 @@ void NodeStateMachine::boot_now(const std::string& why) {
 
 void NodeStateMachine::boot_after(std::chrono::milliseconds delay, const std::string& why) {
   abandon_heartbeat_check();
+  abandon_adoption();
   boot_.cancel();
   waiting_ = why;
   loop_.arm_timer(timer_, delay);

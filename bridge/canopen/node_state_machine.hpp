@@ -75,6 +75,8 @@ class NodeStateMachine final : public NodeDriver {
     // A state-unknown event while the boot after a reset had not passed: booted, not reset again.
     std::uint32_t resets_spared = 0;
     std::uint32_t adopted = 0;  // adopted as it ran when a standby took the bus over
+    // Adopted devices whose identity, read after the takeover, is not what the line expects (left running).
+    std::uint32_t adopted_identity_mismatches = 0;
   };
 
   // Before the loop starts: attaches itself to the node (as its first driver, so that it acts on
@@ -85,9 +87,18 @@ class NodeStateMachine final : public NodeDriver {
 
   void start();  // loop thread: the first boot
   // Loop thread, instead of start() on a standby that took the bus over (docs/redundancy.md): a
-  // device heard operational is adopted as it runs, without a frame (no NMT, no SDO); one the
-  // master before held stopped or pre-operational (its last NMT command, and the device reports
+  // device heard operational is adopted as it runs, without a frame (no NMT, no SDO download); one
+  // the master before held stopped or pre-operational (its last NMT command, and the device reports
   // that state) is adopted held so; any other gets the normal boot.
+  // An adopted device is then read, never written: what it says about itself (IdentityReader:
+  // 1000h, 1018h, 1008h..100Ah, 1017h, by SDO uploads) is judged against the line's expected
+  // identity and told to the drivers as a BootReport with `adopted` set (NodeDriver::on_boot), as a
+  // boot's would be. The reading begins right after the first SYNC this bridge sends (on_sync; it
+  // is posted behind that cycle, so none of its frames goes out ahead of that SYNC or its RPDOs),
+  // and for a device held stopped (which answers no SDO, CiA 301) once it is heard in another
+  // state. An identity the line does not expect leaves the device running (stopping a running
+  // line for what the master before accepted would be worse): a warning, the report's warnings and
+  // detail() say it. A boot that begins meanwhile abandons the reading.
   void take_over(std::optional<NmtCommand> last_command);
 
   // Loop thread: an operator's NMT command. Start is refused for a device whose boot has not
@@ -106,6 +117,7 @@ class NodeStateMachine final : public NodeDriver {
   void on_event(NodeEvent event) noexcept override;
   void on_heartbeat(NmtState state) noexcept override;
   void on_command(NmtCommand command) noexcept override;
+  void on_sync() noexcept override;
 
  private:
   void enter(NodeState next, std::string_view why);
@@ -121,6 +133,9 @@ class NodeStateMachine final : public NodeDriver {
   void keep_hold();                 // a failed boot of a held device: the hold's NMT command all the same
   void check_heartbeat_producer();  // RemoteNode::on_heartbeat_missing
   void abandon_heartbeat_check();   // a boot or a reset begins
+  void read_adopted();              // what an adopted device says about itself (take_over)
+  void adopted_read(IdentityReader::Reading reading);
+  void abandon_adoption();  // a boot or a reset begins: the adoption is history
 
   BusLoop& loop_;
   RemoteNode& node_;
@@ -141,6 +156,17 @@ class NodeStateMachine final : public NodeDriver {
   // state-unknown event boots the device instead of resetting it again.
   bool reset_unconfirmed_ = false;
   bool checking_heartbeat_producer_ = false;
+  // The reading of a device adopted at a takeover (take_over), until a boot begins.
+  enum class Adoption {
+    none,            // not adopted, or booted since
+    awaiting_sync,   // adopted: read after the first SYNC
+    awaiting_state,  // adopted held stopped: read once it is heard in a state that answers SDO
+    reading,         // its identity, names and 1017h are being read
+    read,            // read (detail() says what was found)
+  };
+  Adoption adoption_ = Adoption::none;
+  std::uint64_t adoption_generation_ = 0;  // a new reading or a boot makes the old one's callbacks no-ops
+  std::string adoption_detail_;            // what detail() says of the adoption
   Counters counters_;
 };
 

@@ -13,7 +13,10 @@
 //     momentary command was pressed, so no bit is released);
 //   - the master's heartbeat (701h) continues, operational (never a boot-up), and no device, each
 //     consuming it (1016h, written by the bridge's boot), raises a heartbeat error (EMCY 8130h);
-//   - the saw's status reaches a client again from the new master (the gap is printed).
+//   - the saw's status reaches a client again from the new master (the gap is printed);
+//   - the new master publishes each adopted device's info, read by SDO uploads only (the check of
+//     downloads above covers that reading): 1000h and 1018h as the simulator's line file gives its
+//     hardware (below, by hand), 1017h as the simulated heartbeat, started, the line's PDOs.
 // At the end a stop from the operator's panel is taken and put on the bus by the master of the
 // moment. A second test starts both bridges as standbys at the same moment: one master.
 #include <gtest/gtest.h>
@@ -31,6 +34,7 @@
 #include <map>
 #include <memory>
 #include <mutex>
+#include <optional>
 #include <random>
 #include <set>
 #include <string>
@@ -94,6 +98,27 @@ using safety::payload;
 
 const std::vector<const safety::SafetyDevice*>& devices() { return safety::every_device_type(); }
 
+// Each simulated device's hardware (its `simulation: identity:`, CiA 301 1000h and 1018h sub 1..4),
+// by node-ID: values of this test's own, none the simulator's defaults, each profile's number in
+// 1000h bits 0..15 (420 = 01A4h, 414 = 019Eh) so that a boot passes.
+struct Hardware {
+  std::uint32_t device_type, vendor_id, product_code, revision, serial_number;
+};
+const Hardware& hardware(int node) {
+  static const std::map<int, Hardware> table{
+      {5, {0x000401A4, 0x00000A5A, 0x00420405, 0x00030001, 0x31000005}},   // saw 3.1
+      {6, {0x000401A4, 0x00000A5A, 0x00420406, 0x00010000, 0x10000006}},   // saw 1.0
+      {3, {0x000201A4, 0x00000B6B, 0x00420203, 0x00010000, 0x20000003}},   // puller
+      {7, {0x000301A4, 0x00000C7C, 0x00420307, 0x00030001, 0x30000007}},   // corrugator
+      {9, {0x000001A4, 0x00000E9E, 0x00420009, 0x00010000, 0x90000009}},   // winder
+      {10, {0x0002019E, 0x00000D8D, 0x0041420A, 0x00010001, 0x4100000A}},  // feeder box
+  };
+  return table.at(node);
+}
+// The simulated devices' heartbeat producer time (their `simulation: heartbeat_period_ms`); the
+// bridges' line files do not change it, so 1017h holds it.
+constexpr int kSimHeartbeatMs = 100;
+
 class HotStandby : public ::testing::Test {
  protected:
   void SetUp() override {
@@ -133,7 +158,13 @@ class HotStandby : public ::testing::Test {
     for (const auto* d : devices()) {
       f << "  - name: " << d->name << "\n    bus: b\n    node_id: " << d->node << "\n    profile: " << d->profile
         << "\n    version: '" << d->version << "'\n    heartbeat_timeout_ms: 400\n";
-      if (simulation) f << "    simulation: {heartbeat_period_ms: 100}\n";
+      if (simulation) {
+        const auto& h = hardware(d->node);
+        f << fmt::format(
+            "    simulation:\n      heartbeat_period_ms: {}\n      identity: {{device_type: 0x{:08X}, vendor_id: "
+            "0x{:08X}, product_code: 0x{:08X}, revision: 0x{:08X}, serial_number: 0x{:08X}}}\n",
+            kSimHeartbeatMs, h.device_type, h.vendor_id, h.product_code, h.revision, h.serial_number);
+      }
       // Every device consumes the master's heartbeat (CiA 301 1016h sub 1: node 1, kConsumerMs),
       // as the bridge that boots it configures it.
       if (!simulation)
@@ -293,7 +324,9 @@ class HotStandby : public ::testing::Test {
   // What this test's DDS readers saw (their callbacks may run until TearDown resets dds_).
   std::mutex seen_mutex_;
   std::vector<std::int64_t> status_at_;  // realtime ns of each status sample of the saw
-  std::string role_, takeover_;          // the newest diagnostics of the bus
+  // Each device's info samples (by device name), in the order they came.
+  std::map<std::string, std::vector<linebridge_msgs::msg::DeviceInfo>> infos_;
+  std::string role_, takeover_;  // the newest diagnostics of the bus
   std::unique_ptr<lb::test::BusSpy> spy_;
   std::unique_ptr<lb::test::ChildProcess> sim_, a_, b_, saw_sim_;
   std::unique_ptr<lb::ddsl::Participant> dds_;
@@ -307,7 +340,9 @@ struct Takeover {
   std::size_t rpdo_changes = 0;
   std::size_t left_operational = 0;
   std::size_t rpdo_frames_after = 0;
-  std::size_t consumer_errors = 0;  // EMCY 8130h (heartbeat error) of any device
+  std::size_t consumer_errors = 0;    // EMCY 8130h (heartbeat error) of any device
+  std::int64_t identity_read_ns = 0;  // from the kill to the last adopted device's identity read (its info's stamp)
+  std::int64_t info_wait_ns = 0;      // what waiting for the infos added to the test (they were there or not yet)
 };
 
 std::int64_t percentile(std::vector<std::int64_t> v, double p) {
@@ -335,6 +370,23 @@ TEST_F(HotStandby, TwentyTimesTheMastersPcDiesAndTheStandbyTakesTheRunningLineOv
         std::lock_guard lock(seen_mutex_);
         status_at_.push_back(bus_now_ns());
       }));
+  for (const auto* d : devices()) {
+    ASSERT_TRUE(dds_->subscribe<linebridge_msgs::msg::DeviceInfoPubSubType>(
+        lb::ddsl::topic_name("hs", d->name, "info"), lb::ddsl::QosKind::state,
+        [this, name = d->name](const linebridge_msgs::msg::DeviceInfo& i, const eprosima::fastdds::dds::SampleInfo&) {
+          std::lock_guard lock(seen_mutex_);
+          infos_[name].push_back(i);
+        }));
+  }
+  // A device's newest info sample stamped (when its identity was read) after `from_ns`.
+  const auto info_after = [&](const std::string& name, std::int64_t from_ns) {
+    std::lock_guard lock(seen_mutex_);
+    std::optional<linebridge_msgs::msg::DeviceInfo> newest;
+    for (const auto& i : infos_[name]) {
+      if (std::int64_t{i.stamp().sec()} * 1'000'000'000 + i.stamp().nanosec() > from_ns) newest = i;
+    }
+    return newest;
+  };
   std::set<std::uint32_t> rpdo_ids;
   for (const auto* d : devices()) {
     for (int n = 1; n <= 4; ++n) rpdo_ids.insert(d->rpdo(n));
@@ -356,6 +408,12 @@ TEST_F(HotStandby, TwentyTimesTheMastersPcDiesAndTheStandbyTakesTheRunningLineOv
   std::mt19937 random(42);
   std::vector<Takeover> seen;
   int active = 0;
+  // Since when only the standby of the round can have published an info sample: A's boots were
+  // over (every device operational, its infos out), then each time the dead PC comes back. The
+  // master that dies published its own at its takeover, before that; and the standby publishes
+  // none before it takes over (a loaded machine may make it take over before the kill: its infos
+  // count all the same).
+  std::int64_t standby_since_ns = bus_now_ns();
   for (int k = 0; k < kills; ++k) {
     const int standby = 1 - active;
     // A random moment: 50 to 100 SYNCs after the standby stood by (it saw every synchronous RPDO).
@@ -367,9 +425,48 @@ TEST_F(HotStandby, TwentyTimesTheMastersPcDiesAndTheStandbyTakesTheRunningLineOv
     ASSERT_TRUE(lb::test::eventually(10s, [&] { return !dying.running(); }));
     ASSERT_TRUE(syncs_after(kill_ns + 5 * kMs, 50, 30s)) << "SYNC never came back after kill " << k << "\n" << logs();
     ASSERT_TRUE((*pcs[standby])->wait_log("took the bus over", 10000ms)) << logs();
+    // Every adopted device's info from the new master: its identity read at its takeover (the
+    // frames below, from the kill up to end_ns, include that reading).
+    const auto info_wait_from = std::chrono::steady_clock::now();
+    ASSERT_TRUE(lb::test::eventually(30s,
+                                     [&] {
+                                       return std::all_of(devices().begin(), devices().end(), [&](const auto* d) {
+                                         return info_after(d->name, standby_since_ns).has_value();
+                                       });
+                                     }))
+        << "no info of every adopted device from the new master at kill " << k << "\n"
+        << logs();
+    const auto info_wait_ns = (std::chrono::steady_clock::now() - info_wait_from).count();
+    std::int64_t identity_read_ns = 0;
+    for (const auto* d : devices()) {
+      const auto info = *info_after(d->name, standby_since_ns);
+      identity_read_ns = std::max(identity_read_ns,
+                                  std::int64_t{info.stamp().sec()} * 1'000'000'000 + info.stamp().nanosec() - kill_ns);
+      const auto& h = hardware(d->node);
+      EXPECT_EQ(info.node_id(), d->node) << d->name;
+      EXPECT_EQ(info.device_type(), h.device_type) << d->name << " at kill " << k;
+      EXPECT_EQ(info.vendor_id(), h.vendor_id) << d->name << " at kill " << k;
+      EXPECT_EQ(info.product_code(), h.product_code) << d->name << " at kill " << k;
+      EXPECT_EQ(info.revision_number(), h.revision) << d->name << " at kill " << k;
+      EXPECT_EQ(info.serial_number(), h.serial_number) << d->name << " at kill " << k;
+      EXPECT_TRUE(info.profile_matches()) << d->name;
+      EXPECT_EQ(info.heartbeat_producer_ms(), kSimHeartbeatMs) << d->name;
+      EXPECT_TRUE(info.started()) << d->name << ": " << info.remarks();
+      EXPECT_TRUE(info.boot_error().code().empty()) << d->name << ": " << info.boot_error().message();
+      EXPECT_EQ(info.remarks().find("NOT THE LINE'S"), std::string::npos) << d->name << ": " << info.remarks();
+      // The line's PDOs it adopted: each RPDO that carries an enabling level among them (COB-ID
+      // without CiA 301's valid and RTR bits).
+      for (const auto& e : d->enabling) {
+        EXPECT_TRUE(std::any_of(info.pdos().begin(), info.pdos().end(),
+                                [&](const auto& p) { return (p.cob_id() & 0x7FF) == e.cob_id; }))
+            << d->name << ": " << e.what << " not among the PDOs in use of its info at kill " << k;
+      }
+    }
     const auto end_ns = bus_now_ns();
 
     Takeover t;
+    t.identity_read_ns = identity_read_ns;
+    t.info_wait_ns = info_wait_ns;
     std::map<std::uint32_t, lb::can::CanFrame> before;
     for (const auto& f : spy_->frames()) {
       if (f.timestamp_ns < kill_ns && rpdo_ids.contains(f.id)) before[f.id] = f;
@@ -431,15 +528,18 @@ TEST_F(HotStandby, TwentyTimesTheMastersPcDiesAndTheStandbyTakesTheRunningLineOv
       break;
 
     // The dead PC comes back, as a standby: its power-up asks (73h), the new master answers (71h).
+    standby_since_ns = bus_now_ns();
     *pcs[active] = bridge(files[active], std::string(active == 0 ? "a-" : "b-") + std::to_string(k + 1));
     ASSERT_TRUE((*pcs[active])->wait_log("standing by the active master (node 1)", 30000ms)) << logs();
     active = standby;
   }
 
-  std::vector<std::int64_t> sync_gaps_ns, status_gaps_ns;
+  std::vector<std::int64_t> sync_gaps_ns, status_gaps_ns, identity_reads_ns, info_waits_ns;
   std::size_t changes = 0, left = 0, consumer_errors = 0;
   std::string each;  // per takeover: SYNC gap / status gap (ms)
   for (const auto& t : seen) {
+    identity_reads_ns.push_back(t.identity_read_ns);
+    info_waits_ns.push_back(t.info_wait_ns);
     each += fmt::format("{}{:.0f}/{:.0f}", each.empty() ? "" : ", ", t.sync_gap_ns / 1e6, t.status_gap_ns / 1e6);
     sync_gaps_ns.push_back(t.sync_gap_ns);
     if (t.status_gap_ns >= 0) status_gaps_ns.push_back(t.status_gap_ns);
@@ -457,6 +557,10 @@ TEST_F(HotStandby, TwentyTimesTheMastersPcDiesAndTheStandbyTakesTheRunningLineOv
   std::printf("per takeover, SYNC gap / status gap (ms; the new master waits %lld, %lld, %lld, ...): %s\n",
               static_cast<long long>(waits[1]), static_cast<long long>(waits[0]), static_cast<long long>(waits[1]),
               each.c_str());
+  std::printf("adopted devices' identity read (the last of them) after the kill: p50 %.1f ms, max %.1f ms; the wait "
+              "for their info added to the test: p50 %.1f ms, max %.1f ms\n",
+              percentile(identity_reads_ns, 0.5) / 1e6, percentile(identity_reads_ns, 1.0) / 1e6,
+              percentile(info_waits_ns, 0.5) / 1e6, percentile(info_waits_ns, 1.0) / 1e6);
   EXPECT_EQ(static_cast<int>(seen.size()), kills);
 
   // The master now serves DDS: the saw's stop from its panel is taken and on the bus.
@@ -552,7 +656,11 @@ TEST_F(HotStandby, AMasterFrozenPastTheTakeoverStepsBackWhenItResumesAndSendsNoS
   const auto frozen = pids(a_->pid());
   for (const auto p : frozen) ::kill(p, SIGSTOP);
   ASSERT_TRUE(b_->wait_log("took the bus over", 30000ms)) << logs();
-  // The operator stops the saw through the new master.
+  // The operator stops the saw through the new master, once its reader matched the panel's writer:
+  // a set value is volatile, and one written before would reach only the frozen master's reader
+  // (still matched) and go unanswered for the panel's 15 s, freezing A past the 10 s within which
+  // the virtual bus keeps a frame's own stamp (then its stall cannot be told from the frames).
+  ASSERT_TRUE(lb::test::eventually(30s, [&] { return panels_[0]->matches() >= 2; })) << logs();
   ASSERT_TRUE(lb::test::eventually(60s, [&] { return panels_[0]->set_enabling(false).accepted; })) << logs();
   ASSERT_TRUE(lb::test::eventually(10s,
                                    [&] {

@@ -179,8 +179,9 @@ class NodeStateMachineTest : public ::testing::Test {
   // boot-ups within 10 s.
   // hold: an operator's or the line's hold the node has before its first boot (kept from before a
   // restart of the bridge).
+  // standby: the machine is not started (take_over() below stands for a standby's takeover).
   void start_master(std::uint8_t device_state, std::optional<std::uint32_t> vendor = 0x1234, bool silent = false,
-                    std::optional<co::NmtCommand> hold = std::nullopt) {
+                    std::optional<co::NmtCommand> hold = std::nullopt, bool standby = false) {
     spy_ = std::make_unique<lb::test::BusSpy>(uri_);
     device_ = std::make_unique<ScriptedDevice>(uri_, device_state, silent);
     master_ = std::make_unique<co::BusLoop>(lb::can::open_bus(uri_).value());
@@ -199,7 +200,47 @@ class NodeStateMachineTest : public ::testing::Test {
     node_->attach(recorder_);
     if (hold) node_->hold(*hold);
     master_->start();
-    master_->post([this] { machine_->start(); });
+    if (!standby) master_->post([this] { machine_->start(); });
+  }
+
+  // A standby's takeover, as LineBridge does it: once the device is heard, take_over with the
+  // master's last NMT command to it; then the bus's first SYNC reaches the node's drivers.
+  ::testing::AssertionResult take_over(std::optional<co::NmtCommand> last_command) {
+    if (!eventually([&] { return on_master<bool>([this] { return node_->online(); }); }))
+      return ::testing::AssertionFailure() << "the device was never heard";
+    on_master<bool>([this, last_command] {
+      machine_->take_over(last_command);
+      node_->tell([](co::NodeDriver& d) { d.on_sync(); });
+      return true;
+    });
+    return ::testing::AssertionSuccess();
+  }
+  std::string detail() {
+    return on_master<std::string>([this] { return machine_->detail(); });
+  }
+  // The first report the drivers were told (a boot's or an adoption's), once there is one.
+  std::optional<co::BootReport> first_report() {
+    if (!eventually([&] { return !recorder_.boots().empty(); })) return std::nullopt;
+    return recorder_.boots().front();
+  }
+  // Every SDO request to the node so far was an upload or an abort (CiA 301 ccs 2, 3, 4: no
+  // download, ccs 0 or 1); how many there were. Asked once the reading is over: when the spy has
+  // seen an answer (580h + node) to every request (and at least `min` of them), it has seen them all.
+  std::size_t sdo_uploads_only(std::size_t min) {
+    const auto count = [](const std::vector<lb::can::CanFrame>& all, std::uint32_t id) {
+      return static_cast<std::size_t>(
+          std::count_if(all.begin(), all.end(), [id](const auto& f) { return f.id == id; }));
+    };
+    EXPECT_TRUE(spy_->wait_until([&](const auto& all) {
+      const auto requests = count(all, 0x600u + kNode);
+      return requests >= min && count(all, 0x580u + kNode) == requests;
+    })) << "the spy never saw the reading's frames";
+    std::size_t n = 0;
+    for (const auto& f : spy_->frames(0x600u + kNode)) {
+      ++n;
+      EXPECT_GE(f.data[0] >> 5, 2) << "an SDO download to an adopted device: command byte " << int(f.data[0]);
+    }
+    return n;
   }
 
   template <class T, class F>
@@ -519,4 +560,98 @@ TEST_F(NodeStateMachineTest, ABootUpStormsBackOffEndsInABoot) {
     }
   }
   EXPECT_TRUE(sdo_between(frames, previous, last)) << "started after the storm without a boot";
+}
+
+// A standby takes the bus over (docs/redundancy.md): the device it hears operational is adopted as
+// it runs, and what it says about itself is read by uploads only after the first SYNC and told to
+// the drivers as a report (adopted, started, the identity its dictionary holds: vendor-ID 1234h,
+// product 1, revision 2, serial 3; the optional objects it lacks as remarks). No NMT command, no
+// SDO download, never out of operational, and no boot.
+TEST_F(NodeStateMachineTest, AnAdoptedDeviceIsReadByUploadsNeverWritten) {
+  start_master(kOperational, 0x1234, false, std::nullopt, true);
+  ASSERT_TRUE(take_over(co::NmtCommand::start));
+  EXPECT_EQ(state(), NodeState::operational);
+  const auto report = first_report();
+  ASSERT_TRUE(report) << "no report of the adopted device; " << detail();
+  EXPECT_TRUE(report->adopted);
+  EXPECT_TRUE(report->started);
+  EXPECT_FALSE(report->held_by_operator);
+  EXPECT_FALSE(report->error);
+  EXPECT_TRUE(report->warnings.empty());
+  EXPECT_EQ(report->identity.device_type, 0x1A4u);
+  EXPECT_EQ(report->identity.vendor_id, 0x1234u);
+  EXPECT_EQ(report->identity.product_code, 1u);
+  EXPECT_EQ(report->identity.revision_number, 2u);
+  EXPECT_EQ(report->identity.serial_number, 3u);
+  EXPECT_NE(report->identity.remarks.find("device name: not implemented"), std::string::npos)
+      << report->identity.remarks;
+  EXPECT_NE(report->identity.remarks.find("heartbeat producer time 1017h: not implemented"), std::string::npos)
+      << report->identity.remarks;
+  EXPECT_FALSE(report->heartbeat_producer_ms);
+  EXPECT_NE(detail().find("adopted at a takeover (no NMT, no SDO download); its identity read (SDO uploads only) "
+                          "is what the line expects"),
+            std::string::npos)
+      << detail();
+  EXPECT_EQ(state(), NodeState::operational);
+  EXPECT_EQ(device_->state(), kOperational);
+  EXPECT_EQ(spy_->frames(0x000).size(), 0u) << "an NMT command to an adopted device";
+  EXPECT_GE(sdo_uploads_only(5), 5u);  // 1000h, 1018h sub 1..4 at least
+  const auto c = counters();
+  EXPECT_EQ(c.adopted, 1u);
+  EXPECT_EQ(c.boots, 0u);
+  EXPECT_EQ(c.adopted_identity_mismatches, 0u);
+  EXPECT_EQ(recorder_.states(), (std::vector<NodeState>{NodeState::operational}));
+}
+
+// The device the standby adopts is not the one the line expects here (vendor-ID 1234h where 9999h
+// is expected): it runs on (a boot would leave it running unmanaged; an adoption keeps it
+// operational, as the master before ran it), and the report's warnings and the diagnostics' detail
+// say it with the boot's letter; no NMT command, no SDO download.
+TEST_F(NodeStateMachineTest, AnAdoptedDeviceOfAnotherIdentityRunsOnAndIsReported) {
+  start_master(kOperational, 0x9999, false, std::nullopt, true);
+  ASSERT_TRUE(take_over(co::NmtCommand::start));
+  const auto report = first_report();
+  ASSERT_TRUE(report) << "no report of the adopted device; " << detail();
+  EXPECT_TRUE(report->adopted);
+  EXPECT_TRUE(report->started);
+  EXPECT_FALSE(report->error) << "no boot failed: the mismatch is a warning";
+  ASSERT_FALSE(report->warnings.empty());
+  const auto& w = report->warnings.front();
+  EXPECT_NE(w.find("ITS IDENTITY IS NOT THE LINE'S: node 9: vendor-ID (1018h sub 1) is 0000 1234h, the line expects "
+                   "0000 9999h"),
+            std::string::npos)
+      << w;
+  EXPECT_NE(w.find("CiA 302-2 error D"), std::string::npos) << w;
+  EXPECT_EQ(report->identity.vendor_id, 0x1234u);
+  EXPECT_NE(detail().find("ITS IDENTITY IS NOT THE LINE'S"), std::string::npos) << detail();
+  EXPECT_EQ(state(), NodeState::operational);
+  EXPECT_EQ(device_->state(), kOperational);
+  EXPECT_EQ(spy_->frames(0x000).size(), 0u) << "an NMT command to an adopted device";
+  EXPECT_GE(sdo_uploads_only(5), 5u);
+  EXPECT_EQ(counters().adopted_identity_mismatches, 1u);
+  EXPECT_EQ(counters().boots, 0u);
+}
+
+// Adopted held stopped (the master before stopped it): a stopped device answers no SDO (CiA 301),
+// so nothing is asked after the SYNC; once an operator starts it, it is read, and the report says
+// it runs.
+TEST_F(NodeStateMachineTest, AnAdoptedStoppedDeviceIsReadOnceItIsStarted) {
+  start_master(kStopped, 0x1234, false, std::nullopt, true);
+  ASSERT_TRUE(take_over(co::NmtCommand::stop));
+  EXPECT_EQ(state(), NodeState::stopped_by_operator);
+  // The SYNC's posted reading has run by now (posted before this question): it waits.
+  EXPECT_NE(detail().find("its identity is read once it is heard in another state"), std::string::npos) << detail();
+  EXPECT_EQ(spy_->frames(0x600u + kNode).size(), 0u) << "an SDO request to a stopped device";
+  EXPECT_TRUE(recorder_.boots().empty());
+  ASSERT_TRUE(operator_command(co::NmtCommand::start));
+  ASSERT_TRUE(reaches(NodeState::operational));
+  const auto report = first_report();
+  ASSERT_TRUE(report) << "no report once it was started; " << detail();
+  EXPECT_TRUE(report->adopted);
+  EXPECT_TRUE(report->started);
+  EXPECT_FALSE(report->held_by_operator);
+  EXPECT_EQ(report->identity.vendor_id, 0x1234u);
+  EXPECT_GE(sdo_uploads_only(5), 5u);
+  EXPECT_EQ(nmt_count(kStart), 1u);  // the operator's, nothing else
+  EXPECT_EQ(counters().boots, 0u);
 }

@@ -186,6 +186,8 @@ void DeviceServices::read_errors() {
 
 // After every boot attempt; one that passed first reads what the device says about itself (its
 // error register and error history, then 6010h), so `info` and the status tell the truth from then on.
+// A device adopted at a takeover comes here too once its identity was read (report.adopted), and
+// goes the same way: uploads only, as everything on this path.
 void DeviceServices::booted(const canopen::BootReport& report) {
   report_ = report;
   ++boots_reported_;
@@ -413,9 +415,9 @@ void DeviceServices::publish_info() {
   m.error_history_remark(error_history_.remark);
   if (report.started) {
     spdlog::info(
-        "{}: identity: vendor {:08X}h product {:08X}h rev {:08X}h serial {:08X}h, \"{}\" hw \"{}\" sw \"{}\"{}",
-        ctx_.device.name, id.vendor_id, id.product_code, id.revision_number, id.serial_number, id.device_name,
-        id.hardware_version, id.software_version,
+        "{}: identity{}: vendor {:08X}h product {:08X}h rev {:08X}h serial {:08X}h, \"{}\" hw \"{}\" sw \"{}\"{}",
+        ctx_.device.name, report.adopted ? " (adopted at a takeover)" : "", id.vendor_id, id.product_code,
+        id.revision_number, id.serial_number, id.device_name, id.hardware_version, id.software_version,
         configuration_word_.read() ? fmt::format(", configuration word {:08X}h", configuration_word_.raw()) : "");
   } else if (report.error) {
     spdlog::warn("{}: not started: {}", ctx_.device.name, report.error->message);

@@ -65,7 +65,7 @@ class DeviceServices final : public canopen::NodeDriver {
   // Service requests still waiting for a device that went offline could only time out one
   // after the other: they are answered at once.
   void on_nmt_change(canopen::NmtState state, bool online) noexcept override;
-  // After every boot attempt (master role).
+  // After every boot attempt, and after the reading of a device adopted at a takeover (master role).
   void on_boot(const canopen::BootReport& report) noexcept override { booted(report); }
 
   // This device's part of the line-wide services; the request's `device` is already this one.
