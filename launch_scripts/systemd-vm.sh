@@ -22,7 +22,7 @@
 # B, its DDS unit's process replaced and waiting; on vcan0 from the resume one SYNC producer, no NMT
 # command, no SDO download. Then B is killed (SIGKILL): A takes over under systemd (SYNC gap within
 # takeover_after_ms + a period + --tcg-margin-ms, no NMT, the device operational) and its DDS unit
-# serves again. About 4 minutes.
+# serves again. 3 to 4 minutes.
 #   launch_scripts/systemd-vm.sh --sustain 180     # the 3-minute run of issue 41
 #   launch_scripts/systemd-vm.sh --takeover        # a step back and two takeovers under systemd (issue 42)
 #   launch_scripts/systemd-vm.sh [OPTIONS]
