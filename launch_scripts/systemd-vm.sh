@@ -13,7 +13,18 @@
 # the DDS unit's main process killed each time it is active for --sustain seconds: the unit never
 # gives up, the bus unit's main PID never changes, SYNC never gaps over --sustain-gap-periods.
 # Prints the guest's log and a summary with the measured times. Slow (minutes): not in CI.
+# --takeover runs instead the hot standby scenario of issue 42 (systemd-vm/takeover.sh,
+# docs/redundancy.md): bridge A under the package's units, its bus `role: standby` (flying master
+# priority 1), bridge B (priority 2, --part both) a plain process, linebridge-sim the device. A
+# masters, B stands by; A's bus process is frozen (kill -STOP) until B has taken the bus over, then
+# resumed: A steps back (execv, the same PID), and its unit must stay active (reloading until the
+# new image's READY=1) with its MainPID and NRestarts, no watchdog or stop timeout, A standing by
+# B, its DDS unit's process replaced and waiting; on vcan0 from the resume one SYNC producer, no NMT
+# command, no SDO download. Then B is killed (SIGKILL): A takes over under systemd (SYNC gap within
+# takeover_after_ms + a period + --tcg-margin-ms, no NMT, the device operational) and its DDS unit
+# serves again. 3 to 4 minutes.
 #   launch_scripts/systemd-vm.sh --sustain 180     # the 3-minute run of issue 41
+#   launch_scripts/systemd-vm.sh --takeover        # a step back and two takeovers under systemd (issue 42)
 #   launch_scripts/systemd-vm.sh [OPTIONS]
 # Options:
 #   --units "A.service B.service"  the units under test, in start order (default linebridge-bus.service linebridge-dds.service;
@@ -28,9 +39,16 @@
 #   --deb FILE         use this .deb instead of running package.sh
 #   --timeout S        stop the VM after S seconds (default 900)
 #   --image-only       build (or find in the cache) the root image and exit
+#   --takeover         the hot standby scenario (launch_scripts/systemd-vm/takeover.sh) instead of the checks above
+#   --master-heartbeat-ms MS  --takeover: both bridges' master_heartbeat_ms (default 200)
+#   --takeover-after-ms MS    --takeover: both bridges' takeover_after_ms (default 1000; under WatchdogSec/2 - 1.5 s)
+#   --tcg-margin-ms MS        --takeover: slack on takeover_after_ms + a period for a takeover's SYNC gap (default 1000)
+#   --standby-hold S   --takeover: how long A stands by B after its step back, before B is killed (default 100:
+#                      past the DDS unit's TimeoutStartSec, which a standby's DDS unit runs into; 0: at once)
 # Cache: ${LINEBRIDGE_VM_CACHE:-~/.cache/linebridge-vm} (the kernel, shared with vcan-run.sh) and
 # its systemd-root/ (the mmdebstrap base as a tarball, the root image per .deb). Results of the last
-# run: BUILD_DIR/systemd-vm/ (check.log, summary.txt, journal.txt, candump.log, console.log).
+# run: BUILD_DIR/systemd-vm/ (check.log, summary.txt, journal.txt, candump.log, console.log; with
+# --takeover also bridge-b.log and the units' states across the step back, bus-states.log, dds-states.log).
 # Exit status: 0 every check passed, 1 a check failed, 2 the check could not run, 124 timeout,
 # 125 this script failed. Needs root (mmdebstrap, chroot, mke2fs -d of a root-owned tree).
 set -euo pipefail
@@ -48,6 +66,11 @@ image_only=0
 sustain=40
 sustain_gap=2
 alarm=5
+takeover=0
+heartbeat_ms=200
+takeover_ms=1000
+tcg_margin_ms=1000
+standby_hold=100
 
 die() { echo "systemd-vm: $*" >&2; exit 125; }
 say() { echo "systemd-vm: $*" >&2; }
@@ -66,6 +89,11 @@ while [ $# -gt 0 ]; do
     --deb) deb=${2:?}; shift 2 ;;
     --timeout) timeout_s=${2:?}; shift 2 ;;
     --image-only) image_only=1; shift ;;
+    --takeover) takeover=1; shift ;;
+    --master-heartbeat-ms) heartbeat_ms=${2:?}; shift 2 ;;
+    --takeover-after-ms) takeover_ms=${2:?}; shift 2 ;;
+    --tcg-margin-ms) tcg_margin_ms=${2:?}; shift 2 ;;
+    --standby-hold) standby_hold=${2:?}; shift 2 ;;
     -h|--help) usage; exit 0 ;;
     *) die "unknown argument $1 (see --help)" ;;
   esac
@@ -155,6 +183,7 @@ if [ ! -s "$image" ] || [ ! -s "$initramfs" ]; then
   chroot "$tree" dpkg -i /tmp/linebridge.deb >"$rdir/dpkg.log" 2>&1 || { cat "$rdir/dpkg.log" >&2; die "dpkg -i of the package in the root failed"; }
   rm "$tree/tmp/linebridge.deb"
   install -D -m 755 "$here/systemd-vm/check.sh" "$tree/usr/local/lib/linebridge-vm/check.sh"
+  install -D -m 644 "$here/systemd-vm/takeover.sh" "$tree/usr/local/lib/linebridge-vm/takeover.sh"
   install -D -m 644 "$here/systemd-vm/linebridge-vm-check.service" "$tree/etc/systemd/system/linebridge-vm-check.service"
   mkdir -p "$tree/etc/systemd/system/multi-user.target.wants" "$tree/lbjob"
   ln -sf ../linebridge-vm-check.service "$tree/etc/systemd/system/multi-user.target.wants/"
@@ -195,6 +224,8 @@ job=$(mktemp -d "${TMPDIR:-/tmp}/systemd-vm.XXXXXX")
 trap 'rm -rf "$job"' EXIT
 printf 'UNITS=%q\nBUS_UNIT=%q\nMARGIN_S=%q\nGAP_PERIODS=%q\nSIM=%q\nSUSTAIN_S=%q\nSUSTAIN_GAP_PERIODS=%q\nALARM_S=%q\n' \
   "$units" "$bus_unit" "$margin" "$gap_periods" "$sim" "$sustain" "$sustain_gap" "$alarm" >"$job/check.conf"
+printf 'TAKEOVER=%q\nHEARTBEAT_MS=%q\nTAKEOVER_MS=%q\nTCG_MARGIN_MS=%q\nSTANDBY_HOLD_S=%q\n' \
+  "$takeover" "$heartbeat_ms" "$takeover_ms" "$tcg_margin_ms" "$standby_hold" >>"$job/check.conf"
 khz=$(awk -F: '/^cpu MHz/ { printf "%d", $2 * 1000; exit }' /proc/cpuinfo)
 [ -n "$khz" ] || khz=2000000
 # shellcheck disable=SC2054  # qemu's options are comma-separated by design

@@ -315,15 +315,23 @@ int run(int argc, char** argv) {
                  notifier.watchdog().count() / 1000);
   }
   const int sig = app::run_until_signal(app::duration_ms(duration_s));
-  notifier.stopping();
-  if (channel) channel->stopping();  // the DDS process is ended just below: a clean stop, not a loss
   const bool dds_refused = supervisor && supervisor->refused_configuration();
+  const bool again = !dds_refused && (*bridge)->stepped_back();
+  // A step back is no stop to a service manager: this process goes on under its PID and its next
+  // image says READY=1 again. STOPPING=1 here had systemd wait TimeoutStopSec for an exit that never
+  // came, then kill the new image and restart the unit (systemd-vm.sh --takeover).
+  if (again) {
+    notifier.restarting("another master won the bus: starting again as a standby");
+  } else {
+    notifier.stopping();
+  }
+  if (channel) channel->stopping();  // the DDS process is ended just below: a clean stop, not a loss
   supervisor.reset();
   if (dds_refused) {
     (*bridge)->stop();
     return app::kExitUsage;
   }
-  if ((*bridge)->stepped_back()) {
+  if (again) {
     spdlog::warn("stopping: another master won the bus: starting again as a standby");
     (*bridge)->stop();
     return kRunAgain;

@@ -24,6 +24,10 @@ ServiceNotifier::~ServiceNotifier() {
 
 void ServiceNotifier::stopping() { sd_notify(0, "STOPPING=1"); }
 
+void ServiceNotifier::restarting(const std::string& why) {
+  sd_notifyf(0, "RELOADING=1\nWATCHDOG=1\nSTATUS=%s", why.c_str());
+}
+
 std::vector<std::uint64_t> ServiceNotifier::snapshot() const {
   std::vector<std::uint64_t> out;
   for (const auto& l : loops_) out.push_back(l.progress());
@@ -42,7 +46,10 @@ void ServiceNotifier::run() {
     if (std::all_of(now.begin(), now.end(), [](std::uint64_t n) { return n > 0; })) break;
     if (!wait(std::chrono::milliseconds(10))) return;
   }
-  sd_notifyf(0, "READY=1\nSTATUS=%zu bus loop(s) running", loops_.size());
+  // Every loop went round: what a ping says too. A process that started again in place (restarting())
+  // has had no ping since its previous image's last, and its first periodic one comes WatchdogSec/2
+  // from now.
+  sd_notifyf(0, "READY=1\nWATCHDOG=1\nSTATUS=%zu bus loop(s) running", loops_.size());
   if (watchdog_.count() == 0) return;
 
   const auto period = std::max<std::chrono::steady_clock::duration>(watchdog_ / 2, 4 * kLoopTick);

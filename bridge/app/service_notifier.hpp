@@ -1,9 +1,10 @@
 #pragma once
 // systemd's notification protocol for the gateway (Type=notify, WatchdogSec=): READY=1 once every
 // bus loop has gone round, WATCHDOG=1 only while every bus loop keeps making progress, STOPPING=1
-// when the stop begins. A stalled loop (a handler that blocks, a loop thread that ended) stops the
-// watchdog pings, and systemd restarts the service. Outside systemd (no NOTIFY_SOCKET) it sends
-// nothing and costs one idle thread.
+// when the stop begins, RELOADING=1 when the process starts again in place (a bridge that stepped
+// back re-executes itself: the same PID, whose next image says READY=1). A stalled loop (a handler
+// that blocks, a loop thread that ended) stops the watchdog pings, and systemd restarts the
+// service. Outside systemd (no NOTIFY_SOCKET) it sends nothing and costs one idle thread.
 
 #include <chrono>
 #include <condition_variable>
@@ -34,6 +35,10 @@ class ServiceNotifier {
   ServiceNotifier& operator=(const ServiceNotifier&) = delete;
 
   void stopping();
+  // The process replaces its image (execv) and goes on: not a stop. systemd shows the unit
+  // reloading, with `why` as its status, until the next image's READY=1; its watchdog keeps
+  // running, so this pings once more: the next image has a whole WatchdogSec to show its loops.
+  void restarting(const std::string& why);
 
   // The watchdog interval systemd asked for; zero without one.
   std::chrono::microseconds watchdog() const { return watchdog_; }

@@ -19,6 +19,8 @@
 #                (0: no such phase)
 #   SUSTAIN_GAP_PERIODS  largest SYNC gap allowed in that phase, in SYNC periods
 #   ALARM_S      the bus unit's LINEBRIDGE_DDS_ABSENT_ALARM_S here (its alarm without a DDS side)
+#   TAKEOVER     1: instead of all of the above, the hot standby scenario of takeover.sh (a step
+#                back and two takeovers with the units; its own parameters are listed there)
 set -uo pipefail
 job=/lbjob
 # shellcheck source=/dev/null
@@ -131,6 +133,9 @@ mkdir -p /run/lbvm
 say "kernel $(uname -r), systemd $(systemctl --version | awk 'NR == 1 { print $2 }'), PID 1: $(cat /proc/1/comm)"
 [ "$(cat /proc/1/comm)" = systemd ] || { failed "PID 1 is not systemd"; finish 2; }
 if ! { ip link add dev vcan0 type vcan && ip link set vcan0 up; }; then failed "cannot create vcan0"; finish 2; fi
+# --takeover: the hot standby scenario instead of the checks below (it ends with finish).
+# shellcheck source=takeover.sh disable=SC1091
+[ "${TAKEOVER:-0}" = 1 ] && . "$(dirname "$0")/takeover.sh"
 line=/etc/linebridge/vm-line.yaml
 # The package's own example line file, its bus moved to vcan0 (CAN_IF empty: no bring-up of a
 # real adapter; a vcan needs none).

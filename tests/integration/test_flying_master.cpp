@@ -10,7 +10,8 @@
 //   2. the bridge alone: 73h, 72h, its slot, 71h [2, 1], SYNC; it answers 73h, sends 76h every
 //      detect cycle, serves 1000h, 1017h, 1F80h, 1F90h over SDO and refuses writes;
 //   3. a better foreign master appears on a running line: the bridge negotiates, loses, steps back
-//      (same process, re-executed as a standby), stands by silent; the devices stay operational;
+//      (same process, re-executed as a standby), stands by silent; the devices stay operational; a
+//      service manager is told no stop (RELOADING=1, then the new image's READY=1);
 //   4. a worse one appears: it loses; the bridge masters on without a SYNC gap.
 #include <gtest/gtest.h>
 #include <poll.h>
@@ -40,6 +41,7 @@
 #include "support/bus_spy.hpp"
 #include "support/child_process.hpp"
 #include "support/eventually.hpp"
+#include "support/notify_socket.hpp"
 #include "support/safety_device.hpp"
 #include "support/sanitized.hpp"
 #include "support/spy_waits.hpp"
@@ -670,9 +672,13 @@ TEST_F(FlyingMaster, AloneItNegotiatesOnTheWireMastersAndServesItsFlyingMasterOb
 // appears without negotiating: its heartbeat starts and it sends a 76h. The bridge sends 72h; the
 // foreign master, after its 24 ms, 71h [0, 2]; the bridge steps back: its SYNC ends, no NMT or SDO
 // download from then on, the devices stay operational; its process (same PID) restarts as a
-// standby, whose 73h is answered by the foreign master, and it stays silent (its 76h ignored).
+// standby, whose 73h is answered by the foreign master, and it stays silent (its 76h ignored). Its
+// systemd notifications (a socket of the test's own): READY=1, then RELOADING=1 at the step back
+// and READY=1 from the new image, never STOPPING=1 (systemd would wait for an exit, then kill).
 TEST_F(FlyingMaster, StepsBackToABetterForeignMasterAndLeavesTheRunningLineAlone) {
+  lb::test::NotifySocket notify;
   ASSERT_NO_FATAL_FAILURE(master_a_running_line());
+  ::unsetenv("NOTIFY_SOCKET");  // only the bridge (and the simulator, which sends none) has it
   const auto pid = bridge_->pid();
   foreign_ = std::make_unique<ForeignMaster>(bus_, 0, kForeignNode);
   const auto appear_ns = after_a_force_negotiation();
@@ -729,6 +735,17 @@ TEST_F(FlyingMaster, StepsBackToABetterForeignMasterAndLeavesTheRunningLineAlone
   EXPECT_NE(log.find("started as standby", stepped), std::string::npos) << "no restart as a standby\n" << log;
   EXPECT_EQ(log.find("mastered from the start", stepped), std::string::npos) << log;
   EXPECT_EQ(log.find("took the bus over", stepped), std::string::npos) << log;
+  // What a service manager was told, in order: the first image ready, the step back no stop, the
+  // new image ready again.
+  const auto told = notify.during(500ms);
+  std::printf("notifications: %s\n", told.c_str());
+  const auto ready = told.find("READY=1");
+  const auto reloading = told.find("RELOADING=1\n", ready == std::string::npos ? 0 : ready);
+  ASSERT_NE(ready, std::string::npos) << told;
+  ASSERT_NE(reloading, std::string::npos) << "the step back did not say RELOADING=1: " << told;
+  EXPECT_NE(told.find("STATUS=another master won the bus", reloading), std::string::npos) << told;
+  EXPECT_NE(told.find("READY=1", reloading), std::string::npos) << "the new image never said READY=1: " << told;
+  EXPECT_EQ(told.find("STOPPING=1"), std::string::npos) << "a step back told as a stop: " << told;
   if (HasFailure()) std::printf("%s", logs().c_str());
 }
 

@@ -1,6 +1,7 @@
 // The systemd notifications of the gateway, with real bus loops and a real notification socket:
 // READY=1 once every loop runs, WATCHDOG=1 only while every loop makes progress (an idle loop
-// counts, its tick wakes it), none while one loop is stalled, again once it runs.
+// counts, its tick wakes it), none while one loop is stalled, again once it runs; RELOADING=1, not
+// STOPPING=1, when the process starts again in place.
 #include <gtest/gtest.h>
 #include <sys/socket.h>
 #include <sys/un.h>
@@ -54,6 +55,23 @@ TEST(ServiceNotifier, WatchdogIsFedOnlyWhileEveryLoopMakesProgress) {
   EXPECT_NE(socket.during(700ms).find("STOPPING=1"), std::string::npos);
   busy->stop();
   idle->stop();
+}
+
+// A process that starts again in place (a bridge that stepped back re-executes itself, the same
+// PID): RELOADING=1 with why as the status, never STOPPING=1 (systemd would wait TimeoutStopSec for
+// an exit that never comes, then kill the new image), and a last ping for the new image's start.
+TEST(ServiceNotifier, StartingAgainInPlaceIsNoStop) {
+  NotifySocket socket;
+  auto loop = ticking_loop("notify-d");
+  lb::app::ServiceNotifier notifier({{"d", [&] { return loop->iterations(); }}});
+  loop->start();
+  const auto ready = socket.next(2s);
+  EXPECT_EQ(ready.rfind("READY=1\n", 0), 0U) << ready;
+  EXPECT_NE(ready.find("WATCHDOG=1"), std::string::npos) << "READY=1 is a ping too: " << ready;
+  notifier.restarting("another master won the bus: starting again as a standby");
+  EXPECT_EQ(socket.next(2s), "RELOADING=1\nWATCHDOG=1\nSTATUS=another master won the bus: starting again as a standby");
+  EXPECT_EQ(socket.during(300ms).find("STOPPING=1"), std::string::npos);
+  loop->stop();
 }
 
 TEST(ServiceNotifier, NothingWithoutSystemd) {
