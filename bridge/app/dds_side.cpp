@@ -32,6 +32,8 @@ constexpr int kSendTimeoutMs = 200;
 // watchdog (a DDS side cut off from its bus serves nothing true).
 constexpr auto kBusSilence = std::chrono::seconds(3);
 constexpr auto kConnectFor = std::chrono::seconds(10);
+// Connected and not let in for this long: waiting is its state (a standby's bus side), say so.
+constexpr auto kWaitingReadyAfter = std::chrono::seconds(5);
 // How soon a stop signal is seen while samples stream (when none do, at every receive timeout).
 constexpr auto kSignalCheckEvery = std::chrono::milliseconds(20);
 // What the discovery gate held back is logged at most this often (a flood must not flood the log).
@@ -117,11 +119,18 @@ int run_dds_side(const ddsl::ParticipantOptions& options, const std::string& lin
   if (options.security) spdlog::info("{}", security_summary(options));
 
   std::unique_ptr<link::DdsChannel> channel;
+  uint64_t watchdog_usec = 0;
+  const bool watchdog = sd_watchdog_enabled(0, &watchdog_usec) > 0;
   while (true) {
     auto c = link::connect_channel(channel_path, kSendTimeoutMs);
     if (c) {
       // Connected: the bus side accepts once its line is set up, and what it says then is its
-      // answer; a refusal is final.
+      // answer; a refusal is final. A standby's bus side lets it in only when it masters a bus:
+      // waiting connected is then this process's normal state, and a service manager is told so
+      // (else systemd times its start out and starts another, again and again, on a standby PC).
+      const auto connected = std::chrono::steady_clock::now();
+      bool told_waiting = false;
+      auto last_ping = connected;
       while (!channel) {
         auto greeted = link::DdsChannel::greet(*c, kSendTimeoutMs, 100);
         if (!greeted) {
@@ -130,6 +139,21 @@ int run_dds_side(const ddsl::ParticipantOptions& options, const std::string& lin
         }
         channel = std::move(*greeted);
         if (!channel && stop_pending()) return kExitOk;
+        const auto now = std::chrono::steady_clock::now();
+        if (!channel && !told_waiting && now - connected >= kWaitingReadyAfter) {
+          told_waiting = true;
+          sd_notifyf(0,
+                     "READY=1\nSTATUS=waiting to be let in by the bus process of line %s (a standby that does "
+                     "not master a bus yet, or a line still being set up)",
+                     line.c_str());
+          spdlog::info("channel {}: connected, waiting to be let in (a standby bus side lets this DDS side in when "
+                       "it masters a bus)",
+                       channel_path);
+        }
+        if (told_waiting && watchdog && now - last_ping >= std::chrono::seconds(1)) {
+          sd_notify(0, "WATCHDOG=1");
+          last_ping = now;
+        }
       }
       break;
     }
@@ -149,8 +173,6 @@ int run_dds_side(const ddsl::ParticipantOptions& options, const std::string& lin
                channel->hello().line, channel->hello().lanes);
 
   Relay relay(**dds, *channel);
-  uint64_t watchdog_usec = 0;
-  const bool watchdog = sd_watchdog_enabled(0, &watchdog_usec) > 0;
   auto last_ping = std::chrono::steady_clock::now();
   auto next_tick = last_ping;
   auto next_signal_check = last_ping;

@@ -316,11 +316,12 @@ d_n1=$(prop "$dds_unit" NRestarts)
 dj=$(journal_since "$dds_unit" "$t_stop")
 info "$dds_unit after the step back: $(unit_line "$dds_unit") (before: MainPID $d_pid NRestarts $d_n)"
 info "$dds_unit journal: $(grep -E 'this DDS side ends|Main process exited|Scheduled restart|Started|Starting|bus process pid|timed out|Failed' <<<"$dj" | sed 's/^[0-9.]* [^ ]* //' | head -n 8 | tr '\n' ';')"
+d_state=$(prop "$dds_unit" ActiveState)
 if [ "$d_pid1" != "$d_pid" ] && [ "$d_n1" -gt "$d_n" ] && grep -q 'this DDS side ends' <<<"$dj" &&
-    [ "$(prop "$dds_unit" ActiveState)" = activating ]; then
-  pass "$dds_unit: its process ended with the old image's channel and systemd started another (MainPID $d_pid -> $d_pid1, NRestarts $d_n -> $d_n1), activating: it waits in the backlog of A's channel while A stands by (no READY=1)"
+    { [ "$d_state" = activating ] || [ "$d_state" = active ]; }; then
+  pass "$dds_unit: its process ended with the old image's channel and systemd started another (MainPID $d_pid -> $d_pid1, NRestarts $d_n -> $d_n1), $d_state: it waits in the backlog of A's channel while A stands by"
 else
-  failed "$dds_unit after the step back: $(unit_line "$dds_unit") (before MainPID $d_pid NRestarts $d_n); want a new process, activating"
+  failed "$dds_unit after the step back: $(unit_line "$dds_unit") (before MainPID $d_pid NRestarts $d_n); want a new process, activating or active"
 fi
 read -r nmt sdo <<<"$(forbidden_frames "$t_cont" "$t_settled" /run/lbvm/forbidden-3.log)"
 if [ "$nmt" = 0 ] && [ "$sdo" = 0 ]; then
@@ -350,6 +351,14 @@ if [ "$STANDBY_HOLD_S" -gt 0 ]; then
   dj=$(journal_since "$dds_unit" "$th")
   info "$dds_unit while A stood by $STANDBY_HOLD_S s: $(unit_line "$dds_unit"); start timeouts: $(grep -c 'Start operation timed out\|start operation timed out' <<<"$dj"), 'Failed with result' $(grep -c 'Failed with result' <<<"$dj"), restarts scheduled $(grep -c 'Scheduled restart' <<<"$dj")"
   grep -E 'systemd\[1\]' <<<"$dj" | sed 's/^[0-9.]* [^ ]* //' | head -n 8
+  # Waiting in the backlog is a standby DDS side's normal state: READY=1 with that status and its
+  # watchdog fed, so systemd neither times its start out nor restarts it.
+  if [ "$(prop "$dds_unit" ActiveState)" = active ] && prop "$dds_unit" StatusText | grep -q 'waiting to be let in' &&
+      ! grep -qi 'start operation timed out\|Failed with result\|Scheduled restart\|Watchdog timeout' <<<"$dj"; then
+    pass "$dds_unit while A stood by $STANDBY_HOLD_S s: active, StatusText '$(prop "$dds_unit" StatusText)', no start timeout, no restart"
+  else
+    failed "$dds_unit while A stood by $STANDBY_HOLD_S s: $(unit_line "$dds_unit"); want active, waiting to be let in, no timeout or restart"
+  fi
   if [ "$(prop "$bus_unit" MainPID)" = "$a_pid" ] && [ "$(prop "$bus_unit" NRestarts)" = "$a_n" ]; then
     pass "$bus_unit: MainPID $a_pid, NRestarts $a_n while A stood by"
   else

@@ -51,6 +51,7 @@
 #include "support/bus_spy.hpp"
 #include "support/child_process.hpp"
 #include "support/eventually.hpp"
+#include "support/notify_socket.hpp"
 #include "support/run_command.hpp"
 #include "support/safety_device.hpp"
 #include "support/safety_operator.hpp"
@@ -956,6 +957,52 @@ TEST_F(HotStandby, CheckOfAStandbyLineWithAMandatoryDevice) {
   EXPECT_NE(r.output.find("error: pair: when_mandatory_fails stop_others here, report_only in the peer's file"),
             std::string::npos)
       << r.output;
+}
+
+// A standby PC's DDS process under a service manager (the package's linebridge-dds.service,
+// Type=notify): it waits in its bus process's channel backlog until that bus side masters a bus.
+// Waiting is its normal state there, so it says READY=1 with that status and feeds its watchdog
+// (else systemd times its start out and starts another every 90 s, seen in the VM run); at the
+// takeover it is let in and says READY=1 again with its endpoints.
+TEST_F(HotStandby, AStandbysDdsSideWaitingToBeLetInIsReadyForItsServiceManager) {
+  start_sim();
+  a_ = bridge(write_line("a", "standby", kTakeoverAfterMs, dir_ + "/state_a", false), "ready-a");
+  ASSERT_TRUE(lb::test::eventually(30s, [&] { return !spy_->frames(kMasterHeartbeat).empty(); })) << logs();
+  const auto b_line = write_line("b", "standby", 2 * kTakeoverAfterMs, dir_ + "/state_b", false, 2);
+  const auto channel = dir_ + "/b.sock";
+  b_ = std::make_unique<lb::test::ChildProcess>(std::vector<std::string>{LB_BIN_BRIDGE, "--config", b_line, "--part",
+                                                                         "bus", "--channel", channel},
+                                                dir_ + "/ready-b-bus.log");
+  ASSERT_TRUE(b_->wait_log("standing by the active master (node 1)", 30000ms)) << logs();
+  std::unique_ptr<lb::test::ChildProcess> dds_side;
+  lb::test::NotifySocket notify;
+  ::setenv("WATCHDOG_USEC", "2000000", 1);
+  dds_side = std::make_unique<lb::test::ChildProcess>(std::vector<std::string>{LB_BIN_BRIDGE, "--config", b_line,
+                                                                               "--part", "dds", "--channel", channel},
+                                                      dir_ + "/ready-b-dds.log");
+  ::unsetenv("WATCHDOG_USEC");
+  ::unsetenv("NOTIFY_SOCKET");  // only the DDS side started above has it
+  const auto first = notify.next(30s);
+  EXPECT_EQ(first.rfind("READY=1", 0), 0U) << "'" << first << "'\n" << dds_side->log() << logs();
+  EXPECT_NE(first.find("waiting to be let in"), std::string::npos) << first;
+  EXPECT_NE(notify.during(3s).find("WATCHDOG=1"), std::string::npos) << dds_side->log();
+  EXPECT_FALSE(b_->log().find("DDS side connected") != std::string::npos) << "let in while standing by\n" << logs();
+
+  // The master's PC dies: B masters, and its DDS side, let in, is ready with its endpoints.
+  auto dead = lb::test::children_of(a_->pid());
+  dead.push_back(a_->pid());
+  for (const auto p : dead) ::kill(p, SIGKILL);
+  ASSERT_TRUE(b_->wait_log("took the bus over", 30000ms)) << logs();
+  std::string ready;
+  const auto until = std::chrono::steady_clock::now() + 30s;
+  while (ready.find("DDS endpoint(s)") == std::string::npos && std::chrono::steady_clock::now() < until) {
+    const auto m = notify.next(1s);
+    if (m.rfind("READY=1", 0) == 0) ready = m;
+  }
+  EXPECT_NE(ready.find("DDS endpoint(s) of line hs"), std::string::npos) << "'" << ready << "'\n"
+                                                                         << dds_side->log() << logs();
+  EXPECT_TRUE(dds_side->running()) << dds_side->log();
+  dds_side->stop();
 }
 
 // linebridge --check A --peer B: the pair as one line with a standby (docs/redundancy.md).
