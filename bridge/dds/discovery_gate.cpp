@@ -160,20 +160,21 @@ void write_high(std::vector<std::uint8_t>& m, std::size_t at, bool little, std::
   for (std::size_t i = 0; i < 4; ++i) m[at + (little ? i : 3 - i)] = static_cast<std::uint8_t>(high >> (8 * i));
 }
 
-// The announcement `a` of `source` as Fast DDS gets it (in the gate's `epoch`), alone in a message.
-std::shared_ptr<const DiscoveryGate::LastAnnouncement> last_announcement(Bytes message, const GuidPrefix& source,
-                                                                         const Announcement& a, std::uint32_t epoch) {
-  auto last = std::make_shared<DiscoveryGate::LastAnnouncement>();
-  auto& m = last->message;
+// The announcement `a` of `source` alone in a message, as Fast DDS gets it (the sequence number's
+// high word the gate's `epoch`).
+DiscoveryGate::KeptAnnouncement keep(Bytes message, const GuidPrefix& source, const Announcement& a,
+                                     std::uint32_t epoch) {
+  DiscoveryGate::KeptAnnouncement k;
+  auto& m = k.message;
   m.assign(message.begin(), message.begin() + 8);  // "RTPS", protocol version, vendor
   m.insert(m.end(), source.begin(), source.end());
   m.insert(m.end(), message.begin() + static_cast<long>(a.sub_at), message.begin() + static_cast<long>(a.sub_end));
-  last->sn_at = kHeaderSize + (a.sn_at - a.sub_at);
-  last->sn_little = a.little;
-  if (a.lease_at != 0) last->lease_at = kHeaderSize + (a.lease_at - a.sub_at);
-  last->lease_little = a.lease_little;
-  write_high(m, last->sn_at, last->sn_little, epoch);
-  return last;
+  k.sn_at = kHeaderSize + (a.sn_at - a.sub_at);
+  k.sn_little = a.little;
+  if (a.lease_at != 0) k.lease_at = kHeaderSize + (a.lease_at - a.sub_at);
+  k.lease_little = a.lease_little;
+  write_high(m, k.sn_at, k.sn_little, epoch);
+  return k;
 }
 
 }  // namespace
@@ -262,15 +263,12 @@ DiscoveryGate::Verdict DiscoveryGate::inspect(std::span<const std::uint8_t> mess
       // Its own goodbye: its lease ends instead (the header says why), unless it never gave one.
       const bool leaving = std::any_of(from.announcements.begin(), from.announcements.end(),
                                        [](const Announcement& a) { return !a.alive; });
-      if (leaving && it->second.last && it->second.last->lease_at != 0) {
-        forget_nts(it->first, it->second.last);
+      if (leaving && it->second.kept.lease_at != 0) {
+        forget_nts(it->first, it->second.kept);
         pass = false;
         continue;
       }
-      for (const auto& a : from.announcements) {
-        rewrites.push_back({a.sn_at, a.little, it->second.epoch});
-        if (a.alive) it->second.last = last_announcement(message, from.source, a, it->second.epoch);
-      }
+      for (const auto& a : from.announcements) rewrites.push_back({a.sn_at, a.little, it->second.epoch});
       for (const auto& [at, little] : from.fragments) rewrites.push_back({at, little, it->second.epoch});
       if (pending && from.other_traffic) took_part_nts(it);
       continue;
@@ -315,13 +313,13 @@ DiscoveryGate::Verdict DiscoveryGate::inspect(std::span<const std::uint8_t> mess
       seen_.erase(s);
     }
     e.epoch = ++sequence_;
-    e.last = last_announcement(message, from.source, *alive, e.epoch);
-    const auto added = entries_.emplace(from.source, e).first;
+    e.kept = keep(message, from.source, *alive, e.epoch);
+    const auto added = entries_.emplace(from.source, std::move(e)).first;
     count_nts(added->second, +1);
     pending_order_.emplace_back(from.source, now);
     ++counts_.admitted;
-    next_due_ = std::min(next_due_, e.until);
-    for (const auto& a : from.announcements) rewrites.push_back({a.sn_at, a.little, e.epoch});
+    next_due_ = std::min(next_due_, added->second.until);
+    for (const auto& a : from.announcements) rewrites.push_back({a.sn_at, a.little, added->second.epoch});
     if (from.other_traffic) took_part_nts(added);
   }
   if (!pass) {
@@ -488,7 +486,7 @@ void DiscoveryGate::leave_nts(Iterator it) {
 
 void DiscoveryGate::evict_nts(std::unordered_map<GuidPrefix, Entry, PrefixHash>::iterator it, Clock::time_point now) {
   ++counts_.evicted;
-  forget_nts(it->first, it->second.last);
+  forget_nts(it->first, it->second.kept);
   // Fast DDS drops it about a second from now (its lease); until then it keeps what it held for
   // it, so it keeps its place in the quotas, and nothing of it passes (which would renew that lease).
   count_nts(it->second, -1);
@@ -517,15 +515,15 @@ void DiscoveryGate::left_nts(Iterator it, Clock::time_point now) {
   refused_order_.push_back(it->first);
 }
 
-void DiscoveryGate::forget_nts(const GuidPrefix& prefix, const std::shared_ptr<const LastAnnouncement>& last) {
-  if (!last || last->lease_at == 0) {
+void DiscoveryGate::forget_nts(const GuidPrefix& prefix, const KeptAnnouncement& kept) {
+  if (kept.lease_at == 0) {
     to_hand_.push_back(goodbye(prefix, ++sequence_));
     return;
   }
-  auto m = last->message;
-  write_high(m, last->sn_at, last->sn_little, ++sequence_);
-  write_high(m, last->lease_at, last->lease_little, kLastLeaseS);
-  write_high(m, last->lease_at + 4, last->lease_little, 0);  // fraction
+  auto m = kept.message;
+  write_high(m, kept.sn_at, kept.sn_little, ++sequence_);
+  write_high(m, kept.lease_at, kept.lease_little, kLastLeaseS);
+  write_high(m, kept.lease_at + 4, kept.lease_little, 0);  // fraction
   to_hand_.push_back(std::move(m));
 }
 

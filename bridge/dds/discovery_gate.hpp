@@ -28,12 +28,12 @@
 //   sent it nothing and it sent nothing but announcements for `prove_within`, or else (a
 //   handshake under way: cutting one short can leave a real peer stuck, engaged()) after
 //   `talk_within`: Fast DDS is told its lease ended (below), so Fast DDS frees everything it held
-//   for it. One that took
-//   part is then refused for `refuse_for` (no new handshake with a participant of another PKI
-//   every few seconds); a silent one may come in again (a forger takes new prefixes anyway). A
-//   newcomer finding its quota full takes the place of the longest pending one that neither side
-//   sent anything to for `replaceable_after` (a real one starts its handshake within a second or
-//   so), else it waits (its announcements dropped until then);
+//   for it, and until it did the evicted one keeps its place in the quotas and nothing of it
+//   passes (which would renew that lease). One that took part is then refused for `refuse_for` (no new handshake with a
+//   participant of another PKI every few seconds); a silent one may come in again (a forger takes new prefixes anyway).
+//   A newcomer finding its quota full takes the place of the longest pending one that neither side sent anything to for
+//   `replaceable_after` (a real one starts its handshake within a second or so), else it waits (its announcements
+//   dropped until then);
 // - a secured participant additionally never lets the pending ones and the authenticated ones
 //   whose handshake it started (it keeps their final message) fill Fast DDS's handshake history:
 //   at most `handshake_slots` of them;
@@ -45,8 +45,8 @@
 // destroys the participant's handshake timer while it holds its mutex and waits for the event
 // thread, which may be waiting for that mutex (to encode an acknowledgement, or to remove a
 // participant whose lease ended). A participant whose lease ends is removed by the event thread
-// itself, which waits for nobody. So the gate keeps the last announcement of every participant it
-// let in and, to evict one, hands Fast DDS that announcement again with a lease of 1 s (Fast DDS
+// itself, which waits for nobody. So the gate keeps the announcement it let each participant in
+// with and, to evict one, hands Fast DDS that announcement again with a lease of 1 s (Fast DDS
 // reschedules its lease check when a lease shrinks): the event thread drops it a second later.
 // A participant's own goodbye is turned into the same (it is dropped; its lease ends instead).
 // Only a participant let in with an announcement that carried no lease (not Fast DDS) is said
@@ -70,7 +70,6 @@
 #include <cstdint>
 #include <deque>
 #include <list>
-#include <memory>
 #include <mutex>
 #include <optional>
 #include <span>
@@ -140,7 +139,7 @@ class DiscoveryGate {
   Verdict inspect(std::span<const std::uint8_t> message, std::vector<std::uint8_t>& rewritten, Clock::time_point now);
 
   // What to hand Fast DDS now, on a discovery socket, for the participants evicted or gone: for
-  // each its last announcement with a lease of 1 s (or, without one, its goodbye).
+  // each the announcement it was let in with, with a lease of 1 s (or, without one, its goodbye).
   std::vector<std::vector<std::uint8_t>> due(Clock::time_point now);
   // The unregister-dispose announcement of `prefix`, as its own participant would send it.
   static std::vector<std::uint8_t> goodbye(const GuidPrefix& prefix, std::uint32_t epoch);
@@ -149,9 +148,11 @@ class DiscoveryGate {
   // How long an evicted participant is kept out, and counted, if Fast DDS never reports it dropped
   // (it had no proxy for it): its lease of 1 s and Fast DDS's lease check, with room.
   static constexpr std::chrono::seconds kLeavingAtMost{5};
-  // A participant's last announcement as it reached Fast DDS (an RTPS header and the DATA
-  // submessage), to hand it again with its lease ended.
-  struct LastAnnouncement {
+  // The announcement a participant was let in with, as it reached Fast DDS (an RTPS header and the
+  // DATA submessage), to hand it again with its lease ended. Kept once: what its later
+  // announcements change (locators, say) matters nothing to a participant Fast DDS drops a second
+  // later, and copying each would cost an allocation per announcement.
+  struct KeptAnnouncement {
     std::vector<std::uint8_t> message;
     std::size_t sn_at = 0;
     bool sn_little = true;
@@ -181,7 +182,7 @@ class DiscoveryGate {
     std::uint32_t epoch = 0;  // the high word of its announcements' sequence numbers in Fast DDS
     bool talked = false;      // pending: it sent more than announcements (a handshake message)
     bool failed = false;      // its authentication failed
-    std::shared_ptr<const LastAnnouncement> last;
+    KeptAnnouncement kept;    // empty message: none (authenticated without passing as pending)
   };
   struct PrefixHash {
     std::size_t operator()(const GuidPrefix& p) const noexcept;
@@ -199,7 +200,7 @@ class DiscoveryGate {
   bool seen_before_nts(const GuidPrefix& prefix);
   void evict_nts(Iterator it, Clock::time_point now);
   void left_nts(Iterator it, Clock::time_point now);  // a leaving one is gone from Fast DDS
-  void forget_nts(const GuidPrefix& prefix, const std::shared_ptr<const LastAnnouncement>& last);
+  void forget_nts(const GuidPrefix& prefix, const KeptAnnouncement& kept);
   void trim_refused_nts(Clock::time_point now);
   bool room_nts(const Entry& e, Clock::time_point now);
 

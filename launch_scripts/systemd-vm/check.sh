@@ -127,6 +127,19 @@ wait_restarted() {
   done
 }
 journal_since() { journalctl -u "$1" --since "@${2%.*}" -o short-unix --no-pager 2>/dev/null; }
+# The line file the package's units run: readable by their group, named in their environment; its
+# SYNC period and its first device's node-ID into period_ms and node.
+use_line() {
+  chgrp linebridge "$1" && chmod 0640 "$1"
+  period_ms=$(awk '/sync_period_ms:/ { print $2; exit }' "$1")
+  node=$(awk '$1 == "node_id:" { print $2; exit }' "$1")
+  cat >/etc/default/linebridge <<CONF
+CAN_IF=
+LINEBRIDGE_CONFIG=$1
+LINEBRIDGE_LOG_LEVEL=info
+LINEBRIDGE_DDS_ABSENT_ALARM_S=$ALARM_S
+CONF
+}
 
 # --- set-up: vcan0, the line file on it, the unit's settings ------------------------------------
 mkdir -p /run/lbvm
@@ -141,15 +154,7 @@ line=/etc/linebridge/vm-line.yaml
 # real adapter; a vcan needs none).
 sed 's#interface: socketcan:can0#interface: socketcan:vcan0#' /etc/linebridge/line.yaml >"$line"
 grep -q 'socketcan:vcan0' "$line" || { failed "the package's line.yaml has no socketcan:can0 bus to move"; finish 2; }
-chgrp linebridge "$line" && chmod 0640 "$line"
-period_ms=$(awk '/sync_period_ms:/ { print $2; exit }' "$line")
-node=$(awk '$1 == "node_id:" { print $2; exit }' "$line")
-cat >/etc/default/linebridge <<CONF
-CAN_IF=
-LINEBRIDGE_CONFIG=$line
-LINEBRIDGE_LOG_LEVEL=info
-LINEBRIDGE_DDS_ABSENT_ALARM_S=$ALARM_S
-CONF
+use_line "$line"
 info "line file: /etc/linebridge/line.yaml on vcan0, SYNC period ${period_ms} ms, device node $node"
 if ! /usr/bin/linebridge --check "$line" >/run/lbvm/check-config.log 2>&1; then
   cat /run/lbvm/check-config.log

@@ -122,16 +122,8 @@ line=/etc/linebridge/vm-line.yaml
 line_b=/etc/linebridge/vm-line-b.yaml
 line_for 1 >"$line"
 { echo "state_dir: /var/lib/lbvm-b"; line_for 2; } >"$line_b"
-chgrp linebridge "$line" && chmod 0640 "$line"
 grep -q 'role: standby' "$line" || { failed "the package's line.yaml has no 'role: master' bus to make a standby"; finish 2; }
-period_ms=$(awk '/sync_period_ms:/ { print $2; exit }' "$line")
-node=$(awk '$1 == "node_id:" { print $2; exit }' "$line")
-cat >/etc/default/linebridge <<CONF
-CAN_IF=
-LINEBRIDGE_CONFIG=$line
-LINEBRIDGE_LOG_LEVEL=info
-LINEBRIDGE_DDS_ABSENT_ALARM_S=$ALARM_S
-CONF
+use_line "$line"
 info "bridge A: the package's units, $line (bus: $(grep -A4 'role: standby' "$line" | sed 's/^ *//' | tr '\n' ' '))"
 info "bridge B: --part both, a plain process, $line_b (priority 2, state_dir /var/lib/lbvm-b); SYNC ${period_ms} ms, device node $node"
 if out=$(/usr/bin/linebridge --check "$line" --peer "$line_b" 2>&1); then

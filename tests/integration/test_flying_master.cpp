@@ -44,6 +44,7 @@
 #include "support/notify_socket.hpp"
 #include "support/safety_device.hpp"
 #include "support/sanitized.hpp"
+#include "support/sdo_frames.hpp"
 #include "support/spy_waits.hpp"
 
 using namespace std::chrono_literals;
@@ -396,7 +397,7 @@ class FlyingMaster : public ::testing::Test {
     std::vector<std::string> out;
     for (const auto& f : bridge_frames(from_ns, to_ns)) {
       const bool download = std::any_of(devices().begin(), devices().end(), [&](const auto* d) {
-        return f.id == d->sdo_request_id() && f.len >= 1 && (f.data[0] >> 5) <= 1;
+        return f.id == d->sdo_request_id() && lb::test::sdo_download(f);
       });
       if (f.id == kNmt || download) out.push_back(describe(f));
     }

@@ -19,13 +19,14 @@ class LoopOnOwnBus : public ::testing::Test {
   explicit LoopOnOwnBus(std::string prefix) : prefix_(std::move(prefix)) {}
 
   void SetUp() override {
-    const std::string uri = "virtual:" + prefix_ + "-" + std::to_string(::getpid()) + "-" +
-                            ::testing::UnitTest::GetInstance()->current_test_info()->name();
-    spy_ = std::make_unique<BusSpy>(uri);
-    loop_ = std::make_unique<canopen::BusLoop>(can::open_bus(uri).value());
+    uri_ = "virtual:" + prefix_ + "-" + std::to_string(::getpid()) + "-" +
+           ::testing::UnitTest::GetInstance()->current_test_info()->name();
+    spy_ = std::make_unique<BusSpy>(uri_);
+    loop_ = std::make_unique<canopen::BusLoop>(can::open_bus(uri_).value());
   }
   void TearDown() override { loop_->stop(); }
 
+  std::string uri_;  // the bus, for what else the test opens on it
   std::unique_ptr<BusSpy> spy_;
   std::unique_ptr<canopen::BusLoop> loop_;
 

@@ -403,11 +403,12 @@ TEST(DiscoveryGate, AParticipantsOwnGoodbyeBecomesTheEndOfItsLease) {
   f.admit(p, f.t0, numbered(4));
   f.gate.authenticated(p, f.t0 + 1s);
   ASSERT_TRUE(f.offer(announcement(p, numbered(5)), f.t0 + 2s).pass);
-  // Its goodbye is not handed on: its last announcement (number 5) is, with a lease of 1 s.
+  // Its goodbye is not handed on: the announcement it was let in with (number 4, kept once) is,
+  // with a lease of 1 s, numbered above every one of its before (the later number 5 included).
   EXPECT_FALSE(f.offer(announcement(p, goodbye_numbered(6)), f.t0 + 3s).pass);
   const auto due = f.gate.due(f.t0 + 3s);
   ASSERT_EQ(forgotten(due), std::vector<GuidPrefix>{p});
-  EXPECT_EQ(lease_end(due[0])->sn_low, 5U);
+  EXPECT_EQ(lease_end(due[0])->sn_low, 4U);
   EXPECT_GT(lease_end(due[0])->sn_high, sn_high(f.rewritten));
   // Pending, the same.
   const auto q = prefix(0xbe);

@@ -2,11 +2,11 @@
 // only, and judged against the line's expected identity. Against a simulated saw (linebridge-sim's
 // device, on its own loop) whose 1000h, 1018h and 1017h come from its `simulation:` section, and
 // against a bare CiA 301 SDO server that lacks every optional object. A master loop and its
-// SdoClient in this process on one virtual bus, every frame recorded.
+// SdoClient in this process on the test's own virtual bus (LoopOnOwnBus), every frame recorded.
 //
 // Expected values are this file's: the simulation section below (written by hand), CiA 301
 // (1000h bits 0..15 the profile number, 420 = 01A4h; 1018h sub 1..4 vendor-ID, product code,
-// revision, serial number; 1017h in ms; an SDO download is ccs 0 or 1, an upload ccs 2 or 3) and
+// revision, serial number; 1017h in ms; what an SDO request asks: support/sdo_frames.hpp) and
 // CiA 302-2's boot error letters (C device type, D vendor-ID, M product code, B no answer).
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -29,6 +29,8 @@
 #include "profiles/profile_registry.hpp"
 #include "sim/device_simulator.hpp"
 #include "support/bus_spy.hpp"
+#include "support/sdo_frames.hpp"
+#include "support/unit_loop_fixture.hpp"
 
 namespace {
 
@@ -60,12 +62,12 @@ co::ObjectDictionary bare_dictionary() {
   return od;
 }
 
-class IdentityReaderTest : public ::testing::Test {
+class IdentityReaderTest : public lb::test::LoopOnOwnBus {
  protected:
+  IdentityReaderTest() : LoopOnOwnBus("idr") {}
   void SetUp() override {
-    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
-    std::string bus = "virtual:idr" + std::to_string(::getpid()) + "-" + info->name();
-    bus.resize(std::min<std::size_t>(bus.size(), 90));
+    LoopOnOwnBus::SetUp();
+    const auto& bus = uri_;
     auto config = lb::profiles::parse_line_config(
         "line: identity\n"
         "buses:\n"
@@ -85,19 +87,17 @@ class IdentityReaderTest : public ::testing::Test {
         "identity.yaml", registry_);
     ASSERT_TRUE(config) << config.error().message;
     config_ = std::move(*config);
-    spy_ = std::make_unique<lb::test::BusSpy>(bus);  // first member: the hub lives in this process
-    master_ = std::make_unique<co::BusLoop>(lb::can::open_bus(bus).value());
-    sdo_ = std::make_unique<co::SdoClient>(*master_, 300ms);
+    sdo_ = std::make_unique<co::SdoClient>(*loop_, 300ms);
     device_loop_ = std::make_unique<co::BusLoop>(lb::can::open_bus(bus).value());
     device_ = lb::sim::make_simulator(*device_loop_, config_.devices.at(0));
     bare_ = std::make_unique<co::SdoServer>(*device_loop_, kBare, bare_dictionary());
     device_->start();
-    master_->start();
+    loop_->start();
     device_loop_->start();
   }
   void TearDown() override {
     if (device_loop_) device_loop_->stop();
-    if (master_) master_->stop();
+    LoopOnOwnBus::TearDown();
     sdo_.reset();
   }
 
@@ -108,7 +108,7 @@ class IdentityReaderTest : public ::testing::Test {
   co::IdentityReader::Reading read_all(const co::IdentityReader& r) {
     auto done = std::make_shared<std::promise<co::IdentityReader::Reading>>();
     auto f = done->get_future();
-    master_->post([&r, done] {
+    loop_->post([&r, done] {
       r.read_all([] { return false; }, [done](co::IdentityReader::Reading x) { done->set_value(std::move(x)); });
     });
     if (f.wait_for(10s) != std::future_status::ready) throw std::runtime_error("the reading never ended");
@@ -117,7 +117,7 @@ class IdentityReaderTest : public ::testing::Test {
   co::IdentityReader::Check check(const co::IdentityReader& r) {
     auto done = std::make_shared<std::promise<co::IdentityReader::Check>>();
     auto f = done->get_future();
-    master_->post([&r, done] {
+    loop_->post([&r, done] {
       r.check([] { return false; }, [done](co::IdentityReader::Check x) { done->set_value(std::move(x)); });
     });
     if (f.wait_for(10s) != std::future_status::ready) throw std::runtime_error("the check never ended");
@@ -140,16 +140,14 @@ class IdentityReaderTest : public ::testing::Test {
     for (const auto& f : spy_->frames(0x600u + node)) {
       ++requests;
       EXPECT_GE(f.len, 1);
-      EXPECT_GE(f.data[0] >> 5, 2) << "an SDO download to node " << int(node) << ": command byte " << std::hex
-                                   << int(f.data[0]);
+      EXPECT_FALSE(lb::test::sdo_download(f))
+          << "an SDO download to node " << int(node) << ": command byte " << std::hex << int(f.data[0]);
     }
     return requests;
   }
 
   const lb::profiles::ProfileRegistry registry_ = lb::profiles::ProfileRegistry::builtin();
   lb::profiles::LineConfig config_;
-  std::unique_ptr<lb::test::BusSpy> spy_;
-  std::unique_ptr<co::BusLoop> master_;
   std::unique_ptr<co::SdoClient> sdo_;
   std::unique_ptr<co::BusLoop> device_loop_;
   std::unique_ptr<lb::sim::DeviceSimulator> device_;

@@ -131,6 +131,18 @@ class Line {
       node.starting({true, false, {}, true});
     });
   }
+  // A standby that heard the line run (both online, the puller operational) takes it over while
+  // the mandatory saw is silent: the saw is not adopted (it gets its boot), the puller is adopted
+  // as it runs.
+  void take_over_with_the_saw_silent() {
+    on_loop([&] { mandatory_.stand_by(); });
+    ran_before_ = true;
+    ASSERT_NO_FATAL_FAILURE(beat_until_both_online());
+    beating_saw_ = false;
+    ASSERT_TRUE(online(saw_, false));
+    on_loop([&] { mandatory_.mastering(); });
+    adopt_running(puller_);
+  }
   // A boot attempt that ended failed, as BootSequence reports a device that does not answer
   // (CiA 302-2 error B: no answer to 1000h).
   void boot_fails(co::RemoteNode& node) {
@@ -311,14 +323,7 @@ TEST(MandatoryDevices, AStandbyTakesARunningLineOverWithTheMandatoryDevicePassed
 // puller then, as on a master bus.
 TEST(MandatoryDevices, AtATakeoverASilentMandatoryDeviceStopsTheOthersOnlyWhenItsBootFails) {
   Line line(MandatoryDevices::Policy::stop_others);
-  line.on_loop([&] { line.mandatory_.stand_by(); });
-  line.ran_before_ = true;
-  ASSERT_NO_FATAL_FAILURE(line.beat_until_both_online());
-  line.beating_saw_ = false;
-  ASSERT_TRUE(line.online(line.saw_, false));
-
-  line.on_loop([&] { line.mandatory_.mastering(); });  // the saw is not heard: it gets a boot
-  line.adopt_running(line.puller_);
+  ASSERT_NO_FATAL_FAILURE(line.take_over_with_the_saw_silent());
   EXPECT_FALSE(line.any_nmt(500ms)) << "the takeover sent NMT";
   EXPECT_FALSE(line.on_loop([&] { return line.puller_.operator_hold().has_value(); })) << "held by the takeover";
   EXPECT_TRUE(line.on_loop([&] { return line.mandatory_.hold_of(1).empty(); }));
@@ -336,13 +341,7 @@ TEST(MandatoryDevices, AtATakeoverASilentMandatoryDeviceStopsTheOthersOnlyWhenIt
 // stopped.
 TEST(MandatoryDevices, AtATakeoverReportOnlyStopsNothingWhenTheMandatoryBootFails) {
   Line line(MandatoryDevices::Policy::report_only);
-  line.on_loop([&] { line.mandatory_.stand_by(); });
-  line.ran_before_ = true;
-  ASSERT_NO_FATAL_FAILURE(line.beat_until_both_online());
-  line.beating_saw_ = false;
-  ASSERT_TRUE(line.online(line.saw_, false));
-  line.on_loop([&] { line.mandatory_.mastering(); });
-  line.adopt_running(line.puller_);
+  ASSERT_NO_FATAL_FAILURE(line.take_over_with_the_saw_silent());
   line.boot_fails(line.saw_);
   EXPECT_FALSE(line.any_nmt(500ms)) << "report_only stopped the puller";
   EXPECT_NE(line.on_loop([&] { return line.mandatory_.state(); }).find("report_only"), std::string::npos);

@@ -24,6 +24,7 @@
 #include "canopen/sdo_client.hpp"
 #include "canopen/sdo_server.hpp"
 #include "support/bus_spy.hpp"
+#include "support/sdo_frames.hpp"
 
 using namespace std::chrono_literals;
 namespace co = lb::canopen;
@@ -238,7 +239,8 @@ class NodeStateMachineTest : public ::testing::Test {
     std::size_t n = 0;
     for (const auto& f : spy_->frames(0x600u + kNode)) {
       ++n;
-      EXPECT_GE(f.data[0] >> 5, 2) << "an SDO download to an adopted device: command byte " << int(f.data[0]);
+      EXPECT_FALSE(lb::test::sdo_download(f))
+          << "an SDO download to an adopted device: command byte " << int(f.data[0]);
     }
     return n;
   }
