@@ -120,12 +120,17 @@ TEST_F(Transmitter, EventDrivenRespectsInhibitTime) {
   EXPECT_EQ(sent_frames().size(), 2u);
 }
 
+// Waited for, not counted in a window (a loaded machine delays a timer, it never hastens one): the
+// sixth frame is the event timer's fifth resend, so it cannot come before five event times.
 TEST_F(Transmitter, EventTimerResendsUnchangedData) {
   make({.transmission_type = 254, .event_timer = 60ms});
+  const auto asked = std::chrono::steady_clock::now();
   on_loop([this] { tx_->on_data(); });
-  const auto frames = sent_frames(400ms);
-  EXPECT_GE(frames.size(), 5u);
-  EXPECT_LE(frames.size(), 8u);
+  const auto frames = spy_->wait_count(0x181, 6, 10s);
+  const auto seen_after = std::chrono::steady_clock::now() - asked;
+  ASSERT_GE(frames.size(), 6u) << "unchanged data not resent by the event timer";
+  for (const auto& f : frames) EXPECT_EQ(f.data[0], 1);
+  EXPECT_GE(seen_after, 5 * 60ms) << "resent faster than the event timer";
 }
 
 // Remote-only types (252/253) never send on their own; a closed gate (the device not started)
