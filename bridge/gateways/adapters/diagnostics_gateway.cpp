@@ -161,7 +161,19 @@ void DiagnosticsGateway::snapshot(std::size_t i) {
       if (const auto note = d.hold->note(); !note.empty()) n.boot_state(n.boot_state() + "; " + note);
     }
     n.set_values_at_start(d.node->set_values_at_start());
-    if (const auto& e = d.services->boot_report().error) n.boot_error(to_msg(*e));
+    const auto& report = d.services->boot_report();
+    if (const auto& e = report.error) n.boot_error(to_msg(*e));
+    n.last_boot_passed(report.started);
+    n.adopted(report.adopted);
+    n.product_name(report.identity.device_name);
+    const auto& profile = d.config->bridge_profile();
+    n.device_type(profile.device);
+    n.profile(profile.id + " " + profile.version);
+    const auto& errors = d.node->errors();
+    n.error_register(errors.error_register());
+    n.active_errors(errors.codes());
+    n.active_errors_known(errors.known());
+    n.active_errors_note(errors.note());
     const auto counters = d.services->boot_counters();
     n.boots(counters.boots);
     n.boot_failures(counters.boot_failures);
