@@ -18,4 +18,7 @@ std::string render_status_page(const LineView& view);
 // &, <, >, " and ' as entities: text and attribute values alike.
 std::string html_escape(std::string_view text);
 
+// A CiA 302-2 boot error letter (A..O) in words.
+std::string_view boot_error_meaning(char letter);
+
 }  // namespace lb::app::obs
