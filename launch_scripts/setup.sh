@@ -3,6 +3,9 @@
 # Idempotent: installs only what is missing, so repeated runs cost a dpkg query. clang-format and
 # clang-tidy (14) are for the lint stage (launch_scripts/lint.sh).
 # gdb: a test that finds a thread stuck prints every thread's stack (tests/support/thread_stacks.hpp).
+# libcivetweb-dev, prometheus-cpp-dev: the DDS process's status page and metrics (docs/observability.md);
+# chromium: the status page's test renders it in a real browser (headless); prometheus: the real
+# server and promtool the metrics, dashboard and alert-rule tests check against.
 #   launch_scripts/setup.sh [--clang] [--install-test]
 #     --clang: also clang and its sanitizer/libFuzzer runtime, for the AddressSanitizer + UBSan and
 #              fuzz stages (fuzz/)
@@ -19,6 +22,7 @@ packages=(
   can-utils qemu-system-x86 busybox-static xz-utils
   openssl libssl-dev libtinyxml2-dev
   libsystemd-dev dpkg-dev fakeroot lintian
+  libcivetweb-dev prometheus-cpp-dev chromium prometheus
   clang-format clang-tidy
   gdb
 )

@@ -11,13 +11,19 @@
 #include <csignal>
 #include <map>
 #include <memory>
+#include <optional>
 #include <thread>
 
 #include "app/arguments.hpp"
 #include "app/dds_options.hpp"
+#include "app/observability/http_server.hpp"
+#include "app/observability/line_view.hpp"
 #include "app/run_until_signal.hpp"
+#include "base/log_rate.hpp"
+#include "dds/cdr.hpp"
 #include "dds/channel_identity.hpp"
 #include "dds/raw_type.hpp"
+#include "dds/topic_names.hpp"
 #include "link/dds_channel.hpp"
 
 namespace lb::app {
@@ -49,13 +55,18 @@ bool stop_pending() {
 
 class Relay {
  public:
-  Relay(ddsl::Participant& dds, link::DdsChannel& channel) : dds_(dds), channel_(channel) {}
+  Relay(ddsl::Participant& dds, link::DdsChannel& channel, obs::LineViewKeeper& view, const std::string& line)
+      : dds_(dds),
+        channel_(channel),
+        view_(view),
+        diagnostics_topic_(ddsl::topic_name(line, ddsl::kBridgeNamespace, "diagnostics")) {}
 
   Result<void> declare(const link::Declare& d) {
     if (d.writer) {
       auto w = dds_.raw_writer(d);
       if (!w) return w.error();
       writers_[d.id] = *w;
+      if (d.topic == diagnostics_topic_) diagnostics_id_ = d.id;
       return {};
     }
     // A reader of one bus's devices sends on that bus's lane (Declare::lane): straight to its loop.
@@ -75,6 +86,10 @@ class Relay {
   void publish(link::Sample& s) {
     const auto it = writers_.find(s.id);
     if (it == writers_.end()) return;
+    ++published_;
+    // The line's diagnostics (once a second) feed the status page and the metrics; no other
+    // sample is decoded here (status samples are the relay's hot path).
+    if (s.id == diagnostics_id_) keep_diagnostics(s.payload);
     ddsl::RawSample raw{std::move(s.payload)};
     if (s.related == link::Identity{}) {
       it->second->write(&raw);
@@ -85,25 +100,80 @@ class Relay {
     it->second->write(&raw, params);
   }
 
+  // Once a second: what the bus process is told, and what the status page and the metrics show.
   link::DdsStats stats() const {
     link::DdsStats st;
     st.samples_not_forwarded = not_forwarded_.load(std::memory_order_relaxed);
     const auto remote = dds_.remote_counts();
     st.remote_participants = static_cast<std::uint32_t>(std::max(0, remote.known));
     st.remote_participants_refused = remote.refused;
+    view_.update([&](obs::LineView& v) {
+      v.samples_published = published_;
+      v.samples_not_forwarded = st.samples_not_forwarded;
+      v.remote_participants = st.remote_participants;
+      v.remote_participants_refused = remote.refused;
+      v.remote_participants_departed = remote.departed;
+      v.secured = dds_.secured();
+      v.gate = dds_.gate_counts();
+    });
     return st;
   }
 
  private:
+  void keep_diagnostics(const std::vector<std::uint8_t>& cdr) {
+    auto sample = std::make_shared<linebridge_msgs::msg::Diagnostics>();
+    if (!ddsl::from_cdr(cdr, *sample)) {
+      if (undecoded_.allow()) {
+        spdlog::warn("observability: a diagnostics sample of {} bytes could not be decoded; the status page keeps "
+                     "the previous one{}",
+                     cdr.size(), held_back_note(undecoded_));
+      }
+      return;
+    }
+    const auto now = std::chrono::steady_clock::now();
+    view_.update([&](obs::LineView& v) {
+      v.diagnostics = std::move(sample);
+      v.received = now;
+    });
+  }
+
   ddsl::Participant& dds_;
   link::DdsChannel& channel_;
+  obs::LineViewKeeper& view_;
+  std::string diagnostics_topic_;
+  std::optional<std::uint32_t> diagnostics_id_;         // its writer, once declared
   std::map<std::uint32_t, fdds::DataWriter*> writers_;  // main thread only
+  std::uint64_t published_ = 0;                         // main thread only
   std::atomic<std::uint64_t> not_forwarded_{0};
+  LogRate undecoded_{1};
 };
+
+// The status page and metrics, when the line file wants them: a server that cannot listen is an
+// error in the log, never the end of this process (the line's DDS side matters more than its page).
+std::unique_ptr<obs::ObservabilityServer> start_observability(const profiles::ObservabilityConfig& config,
+                                                              const obs::LineViewKeeper& view) {
+  if (!config.enabled) {
+    spdlog::info("observability: off (observability: listen: off): no status page, no metrics");
+    return nullptr;
+  }
+  obs::ObservabilityServer::Options options;
+  options.listen = config.listen();
+  auto server = obs::ObservabilityServer::start(options, view);
+  if (!server) {
+    spdlog::error("observability: {}; this DDS side runs on without its status page and metrics",
+                  server.error().message);
+    return nullptr;
+  }
+  spdlog::info("observability: status page http://{}/ and metrics http://{}/metrics (read-only: GET){}",
+               config.listen(), config.listen(),
+               config.address == "127.0.0.1" || config.address == "::1" ? " on loopback only" : "");
+  return std::move(*server);
+}
 
 }  // namespace
 
-int run_dds_side(const ddsl::ParticipantOptions& options, const std::string& line, const std::string& channel_path,
+int run_dds_side(const ddsl::ParticipantOptions& options, const std::string& line,
+                 const profiles::ObservabilityConfig& observability, const std::string& channel_path,
                  std::chrono::milliseconds duration) {
   if (!die_with_bus_process()) return kExitFailure;
   const auto started = std::chrono::steady_clock::now();
@@ -117,6 +187,10 @@ int run_dds_side(const ddsl::ParticipantOptions& options, const std::string& lin
     return dds.error().configuration ? kExitUsage : kExitFailure;
   }
   if (options.security) spdlog::info("{}", security_summary(options));
+  // Before the channel: while this DDS side waits for its bus process (a standby's waits until it
+  // masters a bus), the page says so.
+  obs::LineViewKeeper view(line);
+  const auto server = start_observability(observability, view);
 
   std::unique_ptr<link::DdsChannel> channel;
   uint64_t watchdog_usec = 0;
@@ -172,7 +246,12 @@ int run_dds_side(const ddsl::ParticipantOptions& options, const std::string& lin
   spdlog::info("channel {}: bus process pid {} of line {}, {} lane(s)", channel_path, channel->hello().pid,
                channel->hello().line, channel->hello().lanes);
 
-  Relay relay(**dds, *channel);
+  const auto let_in = std::chrono::steady_clock::now();
+  view.update([&](obs::LineView& v) {
+    v.connected = true;
+    v.connected_since = let_in;
+  });
+  Relay relay(**dds, *channel, view, line);
   auto last_ping = std::chrono::steady_clock::now();
   auto next_tick = last_ping;
   auto next_signal_check = last_ping;

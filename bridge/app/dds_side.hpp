@@ -9,13 +9,17 @@
 #include <string>
 
 #include "dds/participant.hpp"
+#include "profiles/line_config.hpp"
 
 namespace lb::app {
 
 // Returns the exit code: kExitOk on a stop signal or when `duration` elapsed, kExitUsage for a
 // configuration the DDS side refuses (security), kExitFailure when the channel to the bus process
-// fails (its supervisor starts a new DDS process).
-int run_dds_side(const ddsl::ParticipantOptions& options, const std::string& line, const std::string& channel_path,
+// fails (its supervisor starts a new DDS process). `observability`: where its status page and
+// metrics are served (app/observability/); a server that cannot listen is an error in the log, and
+// the DDS side runs on without it.
+int run_dds_side(const ddsl::ParticipantOptions& options, const std::string& line,
+                 const profiles::ObservabilityConfig& observability, const std::string& channel_path,
                  std::chrono::milliseconds duration);
 
 }  // namespace lb::app

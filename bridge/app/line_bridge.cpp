@@ -229,7 +229,8 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
   std::vector<gateways::DiagnosticsGateway::Bus> diag;
   for (const auto& rt : bridge->buses_) {
     gateways::DiagnosticsGateway::Bus b{rt.config,          rt.loop.get(),    rt.other_master.get(), {},
-                                        rt.mandatory.get(), rt.standby.get(), rt.flying.get()};
+                                        rt.mandatory.get(), rt.standby.get(), rt.flying.get(),       rt.sync.get(),
+                                        rt.sdo.get()};
     for (std::size_t i = 0; i < rt.nodes.size(); ++i) {
       for (const auto& dev : config.devices) {
         if (dev.bus == rt.config->name && dev.node_id == rt.nodes[i]->node_id()) {
@@ -272,6 +273,8 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
             side.absent_alarm(c.absent_alarm);
             side.absent_alarms(c.absent_alarms);
             side.last_end(channel->last_end());
+            side.samples_sent(c.samples_sent);
+            side.samples_replaced(c.states_superseded);
           }
         });
   } catch (const std::runtime_error& e) {

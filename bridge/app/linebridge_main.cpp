@@ -220,7 +220,15 @@ int run(int argc, char** argv) {
   if (dds_options.security && part != "dds") {
     for (const auto& w : lb::ddsl::security_warnings(*dds_options.security)) spdlog::warn("DDS security: {}", w);
   }
-  if (part == "dds") return app::run_dds_side(dds_options, config->line, channel_path, app::duration_ms(duration_s));
+  if (part == "dds") {
+    return app::run_dds_side(dds_options, config->line, config->observability, channel_path,
+                             app::duration_ms(duration_s));
+  }
+  // The bus process never listens: in one process there is no DDS process to serve the page from.
+  if (part == "single" && config->observability.enabled) {
+    spdlog::warn("observability: --part single serves no status page and no metrics (only the DDS process of --part "
+                 "both or dds does; the bus process never listens)");
+  }
 
   // A standby's DDS side serves only once it masters a bus (docs/redundancy.md): the split's channel
   // holds it back; in one process nothing would.

@@ -48,6 +48,46 @@ std::string_view emcy_family(std::uint16_t code) {
   }
 }
 
+EmcyClass emcy_class(std::uint16_t code) {
+  const unsigned high = code >> 8;
+  switch (code >> 12) {
+    case 0x0: return high == 0x00 ? EmcyClass::error_reset : EmcyClass::other;
+    case 0x1: return high == 0x10 ? EmcyClass::generic : EmcyClass::other;
+    case 0x2: return EmcyClass::current;
+    case 0x3: return EmcyClass::voltage;
+    case 0x4: return EmcyClass::temperature;
+    case 0x5: return EmcyClass::device_hardware;
+    case 0x6: return EmcyClass::device_software;
+    case 0x7: return EmcyClass::additional_modules;
+    case 0x8:
+      return high == 0x81 ? EmcyClass::communication : high == 0x82 ? EmcyClass::protocol : EmcyClass::monitoring;
+    case 0x9: return EmcyClass::external;
+    case 0xF: return high == 0xFF ? EmcyClass::device_specific : EmcyClass::additional_functions;
+    default: return EmcyClass::other;
+  }
+}
+
+std::string_view to_string(EmcyClass c) {
+  switch (c) {
+    case EmcyClass::error_reset: return "error_reset";
+    case EmcyClass::generic: return "generic";
+    case EmcyClass::current: return "current";
+    case EmcyClass::voltage: return "voltage";
+    case EmcyClass::temperature: return "temperature";
+    case EmcyClass::device_hardware: return "device_hardware";
+    case EmcyClass::device_software: return "device_software";
+    case EmcyClass::additional_modules: return "additional_modules";
+    case EmcyClass::communication: return "communication";
+    case EmcyClass::protocol: return "protocol";
+    case EmcyClass::monitoring: return "monitoring";
+    case EmcyClass::external: return "external";
+    case EmcyClass::additional_functions: return "additional_functions";
+    case EmcyClass::device_specific: return "device_specific";
+    case EmcyClass::other: break;
+  }
+  return "other";
+}
+
 void ActiveErrors::apply(const Emergency& e) {
   error_register_ = e.error_register;
   // CiA 301: the error register is 0 exactly when no error is active, whatever the code says.

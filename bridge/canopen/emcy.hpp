@@ -3,6 +3,7 @@
 // and the set of a device's active errors.
 
 #include <array>
+#include <cstddef>
 #include <cstdint>
 #include <optional>
 #include <string>
@@ -27,6 +28,34 @@ std::optional<Emergency> parse_emergency(const can::CanFrame& frame);
 
 // "generic", "current", "voltage", "temperature", "communication: heartbeat or life guard", ...
 std::string_view emcy_family(std::uint16_t error_code);
+
+// The class of an EMCY code, by its high byte as CiA 301's table of error codes groups them: a
+// small fixed set, so that a count per class is a bounded set of counters (diagnostics, metrics).
+// 00xxh error reset, 10xxh generic, 2xxxh current, 3xxxh voltage, 4xxxh temperature, 5xxxh device
+// hardware, 6xxxh device software, 7xxxh additional modules, 81xxh communication, 82xxh protocol
+// error, other 8xxxh monitoring, 9xxxh external, F0xxh..FExxh additional functions, FFxxh device
+// specific; anything else (01xxh..0Fxxh, 11xxh..1Fxxh, Axxxh..Exxxh) "other".
+enum class EmcyClass : std::uint8_t {
+  error_reset,
+  generic,
+  current,
+  voltage,
+  temperature,
+  device_hardware,
+  device_software,
+  additional_modules,
+  communication,
+  protocol,
+  monitoring,
+  external,
+  additional_functions,
+  device_specific,
+  other,
+};
+inline constexpr std::size_t kEmcyClasses = static_cast<std::size_t>(EmcyClass::other) + 1;
+EmcyClass emcy_class(std::uint16_t error_code);
+// As a metric's label spells it: "error_reset", "generic", ..., "device_specific", "other".
+std::string_view to_string(EmcyClass c);
 
 // The errors a device has active now, and whether that list can be trusted (CiA 301). Only the
 // EMCYs received since the device's last boot-up and its error register (1001h) say that; 1003h,

@@ -14,6 +14,7 @@
 #include <functional>
 #include <optional>
 #include <string>
+#include <string_view>
 
 #include "canopen/sdo_client.hpp"
 
@@ -55,6 +56,9 @@ struct BootError {
   std::uint32_t abort_code = 0;
   std::string message;  // the whole story in one line
 };
+// The letters a boot of this bridge reports (of CiA 302-2's A..O): diagnostics give a count for
+// each, zero or not, so a counter exists before its first failure.
+inline constexpr std::string_view kBootErrorLetters = "BCDJKMNO";
 
 class IdentityReader {
  public:

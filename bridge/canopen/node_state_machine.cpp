@@ -362,6 +362,14 @@ bool NodeStateMachine::storm() {
   return true;
 }
 
+void NodeStateMachine::count_failure(const BootReport& report) {
+  ++counters_.boot_failures;
+  if (!report.error) return;
+  const auto letter = static_cast<std::size_t>(report.error->code - 'A');
+  if (report.error->code >= 'A' && letter < counters_.boot_failures_by_letter.size())
+    ++counters_.boot_failures_by_letter[letter];
+}
+
 void NodeStateMachine::finished(const BootReport& report) {
   if (report.error) {
     last_failure_ = report.error;
@@ -379,7 +387,7 @@ void NodeStateMachine::finished(const BootReport& report) {
     // It runs, and what failed does not change by asking again (its identity, a configuration it
     // refuses): kept running as it is and reported, not booted every retry interval for ever.
     // A boot-up, a heartbeat loss or an operator's reset boots it again.
-    ++counters_.boot_failures;
+    count_failure(report);
     waiting_ = boot_.step() + "; it runs on unmanaged (not started by this bridge); a boot-up, a heartbeat loss or an "
                               "operator's reset boots it again";
     spdlog::warn(
@@ -387,7 +395,7 @@ void NodeStateMachine::finished(const BootReport& report) {
         loop_.bus().uri(), node_.node_id());
     enter(NodeState::running_unmanaged, fmt::format("boot error {} while it runs", e->code));
   } else {
-    ++counters_.boot_failures;
+    count_failure(report);
     boot_after(settings_.retry, boot_.step() + fmt::format("; next try in {} ms", settings_.retry.count()));
   }
   node_.tell([&report](NodeDriver& d) { d.on_boot(report); });

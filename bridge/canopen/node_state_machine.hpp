@@ -30,6 +30,7 @@
 //      │                 └──held by an operator──▶ stopped by operator ◀──operator stop
 //      └── any state ──heartbeat lost──▶ lost;  operator/recovery reset ──▶ resetting ──▶ booting
 
+#include <array>
 #include <chrono>
 #include <cstdint>
 #include <deque>
@@ -66,6 +67,9 @@ class NodeStateMachine final : public NodeDriver {
     std::uint32_t boots = 0;          // attempts begun
     std::uint32_t boots_started = 0;  // attempts that ended with NMT start
     std::uint32_t boot_failures = 0;
+    // Of boot_failures: per CiA 302-2 letter, A..O (index: letter - 'A'); a failure without one
+    // (none so far) is in boot_failures only.
+    std::array<std::uint32_t, 15> boot_failures_by_letter{};
     std::uint32_t state_unknown = 0;  // lost-and-back and unexpected states
     std::uint32_t storms = 0;         // times a storm began
     std::uint32_t transitions = 0;    // changes of state()
@@ -130,6 +134,7 @@ class NodeStateMachine final : public NodeDriver {
   // Records a boot-up or lost state; true (and the delay armed) when it makes a storm.
   bool storm();
   void finished(const BootReport& report);
+  void count_failure(const BootReport& report);
   void keep_hold();                 // a failed boot of a held device: the hold's NMT command all the same
   void check_heartbeat_producer();  // RemoteNode::on_heartbeat_missing
   void abandon_heartbeat_check();   // a boot or a reset begins

@@ -309,6 +309,7 @@ void RemoteNode::on_emcy_frame(const can::CanFrame& frame) {
     return;
   }
   ++stats_.emergencies;
+  ++stats_.emergencies_by_class[static_cast<std::size_t>(emcy_class(e->error_code))];
   errors_.apply(*e);
   if (emcy_log_.allow()) {
     spdlog::log(e->is_reset() ? spdlog::level::info : spdlog::level::warn,

@@ -69,6 +69,8 @@ class RemoteNode {
     // Its heartbeat timed out while it was heard by other frames of its own: kept online while its
     // 1017h was checked (NodeStateMachine::Counters::heartbeat_producer_rewrites: written back).
     std::uint32_t heartbeats_missing_while_heard = 0;
+    // Of emergencies (well-formed EMCYs, resets included): per class of the code (EmcyClass).
+    std::array<std::uint64_t, kEmcyClasses> emergencies_by_class{};
   };
   using Event = NodeEvent;
   using StartFacts = canopen::StartFacts;

@@ -11,6 +11,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <utility>
 
 #include "canopen/sdo_abort.hpp"
 
@@ -41,6 +42,7 @@ struct Request {
   int retries_left = 0;               // a stop: attempts still allowed after a timeout
   SdoClient::UploadDone on_upload;
   SdoClient::DownloadDone on_download;
+  Clock::time_point first_sent{};  // when it first went in flight (kept across a stop's preemption)
 };
 
 enum class Step { upload_initiate, upload_segment, download_initiate, download_segment };
@@ -98,6 +100,11 @@ std::future<R> via_future(Start start) {
   auto future = promise->get_future();
   start([promise](R r) { promise->set_value(std::move(r)); });
   return future;
+}
+
+template <std::size_t... Node>
+std::array<SdoClient::Durations, sizeof...(Node)> per_node_durations(std::index_sequence<Node...> /*nodes*/) {
+  return {((void)Node, SdoClient::Durations(SdoClient::kDurationBounds))...};
 }
 
 }  // namespace
@@ -162,6 +169,11 @@ class SdoClient::Core {
                                                             it->sub, reason)}));
       it = queue.erase(it);
     }
+  }
+
+  SdoClient::Durations durations(std::uint8_t node) {
+    std::lock_guard lock(mutex_);
+    return durations_[node];
   }
 
   // Loop thread: starts this node's next request now (from a callback too: drain() runs them
@@ -291,6 +303,10 @@ class SdoClient::Core {
   }
 
   void finish(std::uint8_t node, Completion c) {
+    const auto& r = nodes_[node].active->request;
+    if (r.first_sent != Clock::time_point{}) {
+      durations_[node].observe(std::chrono::duration<double>(Clock::now() - r.first_sent).count());
+    }
     nodes_[node].active.reset();
     ready_.push_back(std::move(c));
   }
@@ -371,6 +387,7 @@ class SdoClient::Core {
       ns.active.emplace();
       ns.active->request = std::move(ns.queue.front());
       ns.queue.pop_front();
+      if (ns.active->request.first_sent == Clock::time_point{}) ns.active->request.first_sent = Clock::now();
       begin(node);  // may complete at once (send failed): then the loop takes the next
     }
   }
@@ -550,6 +567,9 @@ class SdoClient::Core {
   int callbacks_running_ = 0;
   std::array<NodeTransfers, kMaxNode + 1> nodes_;  // by node-ID; 0 unused
   std::deque<Completion> ready_;                   // answered, callback not yet run
+  // By node-ID: every transfer that went in flight, from then to its end (answer, abort, timeout).
+  std::array<SdoClient::Durations, kMaxNode + 1> durations_ = per_node_durations(
+      std::make_index_sequence<kMaxNode + 1>());
 };
 
 // ---- SdoClient -----------------------------------------------------------------------------------
@@ -667,6 +687,11 @@ void SdoClient::cancel_waiting(std::uint8_t node, const std::string& reason) {
   if (node < 1 || node > kMaxNode) return;
   core_->cancel_waiting(node, reason);
   loop_.post([core = core_] { core->kick(); });
+}
+
+SdoClient::Durations SdoClient::durations(std::uint8_t node) const {
+  if (node < 1 || node > kMaxNode) return Durations(kDurationBounds);
+  return core_->durations(node);
 }
 
 void SdoClient::start_soon(std::uint8_t node) {

@@ -20,6 +20,7 @@
 // Callbacks run on the loop thread, except on destruction: requests still pending then complete on
 // the destroying thread before ~SdoClient returns, and no callback runs after it returned.
 
+#include <array>
 #include <chrono>
 #include <cstdint>
 #include <functional>
@@ -29,6 +30,7 @@
 #include <string>
 #include <vector>
 
+#include "base/histogram.hpp"
 #include "base/result.hpp"
 #include "canopen/bus_loop.hpp"
 #include "canopen/data_type.hpp"
@@ -101,6 +103,15 @@ class SdoClient {
                                           const ObjectValue& value);
 
   std::chrono::milliseconds timeout() const { return timeout_; }
+
+  // How long the transfers to a node took, from the first frame to their end (the answer, an
+  // abort, a timeout, a send the bus refused; a stop's retries and a transfer restarted after a
+  // stop count once, whole), in seconds: 1 ms to 5 s (the default timeout is 1 s; a stop retries
+  // for up to 3). Refusals that never went on the bus are not transfers. Any thread: a copy.
+  static constexpr std::array<double, 12> kDurationBounds{0.001, 0.002, 0.005, 0.01, 0.02, 0.05,
+                                                          0.1,   0.2,   0.5,   1.0,  2.0,  5.0};
+  using Durations = Histogram<kDurationBounds.size()>;
+  Durations durations(std::uint8_t node) const;
 
  private:
   // After a submit: sent at once when on the loop thread and nothing waits to be delivered, else

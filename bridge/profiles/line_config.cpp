@@ -3,6 +3,7 @@
 #include <arpa/inet.h>
 #include <algorithm>
 #include <array>
+#include <charconv>
 
 #include <filesystem>
 #include <map>
@@ -175,6 +176,51 @@ DdsConfig parse_dds(const YamlSource& src, const YAML::Node& n) {
   if (n["discovery_servers"])
     dds.discovery_servers = parse_discovery_servers(src, n["discovery_servers"], dds.localhost_only);
   return dds;
+}
+
+// observability: {listen: ADDRESS:PORT | off}. Numeric addresses only: a name would be resolved
+// at every start, and what the page is reachable on must be what the file says.
+ObservabilityConfig parse_observability(const YamlSource& src, const YAML::Node& n) {
+  src.expect_map(n, "observability");
+  src.check_keys(n, "observability", {"listen"});
+  ObservabilityConfig o;
+  const YAML::Node node = n["listen"];
+  if (!node) return o;
+  const auto text = src.as<std::string>(node, "listen");
+  if (text == "off") {
+    o.enabled = false;
+    return o;
+  }
+  const auto bad = [&](std::string_view why) {
+    src.fail(node, "observability: listen " + shown(text) + " " + std::string(why) +
+                       " (ADDRESS:PORT with a numeric address, e.g. 127.0.0.1:9420 or [::1]:9420; or off)");
+  };
+  std::string host;
+  std::string_view port_text;
+  if (text.starts_with("[")) {
+    const auto close = text.find("]:");
+    if (close == std::string::npos) bad("is not [IPv6]:PORT");
+    host = text.substr(1, close - 1);
+    port_text = std::string_view(text).substr(close + 2);
+    in6_addr addr6{};
+    if (::inet_pton(AF_INET6, host.c_str(), &addr6) != 1) bad("does not name an IPv6 address");
+  } else {
+    const auto colon = text.rfind(':');
+    if (colon == std::string::npos) bad("has no port");
+    host = text.substr(0, colon);
+    port_text = std::string_view(text).substr(colon + 1);
+    in_addr addr{};
+    if (::inet_pton(AF_INET, host.c_str(), &addr) != 1) bad("does not name an IPv4 address");
+  }
+  unsigned port = 0;
+  const auto [end, ec] = std::from_chars(port_text.data(), port_text.data() + port_text.size(), port);
+  if (port_text.empty() || ec != std::errc{} || end != port_text.data() + port_text.size() || port < 1 ||
+      port > 65535) {
+    bad("has no port 1..65535");
+  }
+  o.address = host;
+  o.port = static_cast<std::uint16_t>(port);
+  return o;
 }
 
 // profiles_dir: every *.yaml in it (in name order) over the built-in profiles.
@@ -853,7 +899,8 @@ Result<LineConfig> parse_line_config(const std::string& yaml_text, const std::st
     const YAML::Node root = src.parse(yaml_text);
     if (!root.IsMap()) src.fail(root, "a line configuration must be a mapping with line, buses and devices");
     src.check_keys(root, "line configuration",
-                   {"line", "dds", "profiles_dir", "buses", "devices", "state_dir", "restore_set_values", "startup"});
+                   {"line", "dds", "profiles_dir", "buses", "devices", "state_dir", "restore_set_values", "startup",
+                    "observability"});
     LineConfig cfg;
     cfg.line = src.required<std::string>(root, "line", "line configuration");
     check_name(src, root["line"], cfg.line);
@@ -871,6 +918,7 @@ Result<LineConfig> parse_line_config(const std::string& yaml_text, const std::st
                                "allows that only where it cannot cause a hazard");
       }
     }
+    if (const auto obs = root["observability"]) cfg.observability = parse_observability(src, obs);
     if (root["dds"]) {
       cfg.dds = parse_dds(src, root["dds"]);
       // Older line files bound every remote participant so (the DDS process ended past it).

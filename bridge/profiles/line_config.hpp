@@ -57,6 +57,18 @@ struct DdsConfig {
   int max_pending_participants = 32;
 };
 
+// observability: the DDS process's read-only status page and metrics (docs/observability.md). On
+// loopback unless the line file names another address; `listen: off` serves nothing.
+struct ObservabilityConfig {
+  bool enabled = true;
+  std::string address = "127.0.0.1";  // numeric IPv4, or IPv6 (without brackets)
+  std::uint16_t port = 9420;
+
+  bool ipv6() const { return address.find(':') != std::string::npos; }
+  // As civetweb's listening_ports and a URL spell it: 127.0.0.1:9420, [::1]:9420.
+  std::string listen() const { return (ipv6() ? "[" + address + "]" : address) + ":" + std::to_string(port); }
+};
+
 struct BusConfig {
   std::string name;
   std::string interface;  // "socketcan:can0", "virtual:demo", "log:/path/file.log?pace=fast"
@@ -253,6 +265,7 @@ struct LineConfig {
   std::string state_dir;
   bool restore_set_values = true;
   StartupPolicy startup;
+  ObservabilityConfig observability;
   std::vector<BusConfig> buses;
   std::vector<DeviceConfig> devices;
   // profiles_dir: profile files loaded over the built-in ones; the devices' resolved_profile

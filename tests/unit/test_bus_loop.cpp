@@ -18,6 +18,7 @@
 #include <vector>
 
 #include "canopen/bus_loop.hpp"
+#include "canopen/sync_producer.hpp"
 #include "support/bus_spy.hpp"
 
 using namespace std::chrono_literals;
@@ -372,4 +373,25 @@ TEST_F(Loop, AStalledLoopReadsTheFramesOfMeanwhileBeforeItTransmitsAgain) {
   ASSERT_TRUE(eventually([&] { return read_at_first_send >= 0; }, 10s));
   EXPECT_EQ(read_at_first_send, kMeanwhile) << "it transmitted before it had read the frames of its stall";
   EXPECT_EQ(on_loop([&] { return loop_->stalls(); }), 1u);
+}
+
+// The SYNC's timing as diagnostics and /metrics report it (SyncProducer::deviations): per SYNC,
+// |interval from the SYNC before - period|. A loop held up for 6 periods sends its next SYNC that
+// late: one interval of about 60 ms, 50 ms off a 10 ms period, beyond the 25 ms bound.
+TEST_F(Loop, TheSyncsDeviationFromItsPeriodIsMeasuredAndAStallShows) {
+  lb::canopen::SyncProducer sync(*loop_, 10ms);
+  sync.start();
+  loop_->start();
+  const auto deviations = [&] { return on_loop([&] { return sync.deviations(); }); };
+  ASSERT_TRUE(eventually([&] { return deviations().count() >= 5; })) << "no SYNCs measured";
+  on_loop([] { std::this_thread::sleep_for(60ms); });  // the loop stalls
+  ASSERT_TRUE(eventually([&] { return deviations().count() >= 12; }));
+  const auto d = deviations();
+  const auto& bounds = d.bounds();
+  const auto at_25ms = static_cast<std::size_t>(std::find(bounds.begin(), bounds.end(), 0.025) - bounds.begin());
+  ASSERT_LT(at_25ms, bounds.size()) << "25 ms is one of the documented bounds";
+  EXPECT_GE(d.count() - d.cumulative(at_25ms), 1u) << "the stall is not among the deviations";
+  EXPECT_GE(d.sum(), 0.045) << "the stall's 50 ms are not in the sum";
+  // Every SYNC after the first has its interval measured: the bus carries one more than counted.
+  EXPECT_TRUE(eventually([&] { return spy_->frames(0x080).size() >= d.count() + 1; }));
 }

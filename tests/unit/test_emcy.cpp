@@ -169,3 +169,28 @@ TEST(ErrorField, AFailedReadKeepsTheListAndSaysSoWhereItWasNotKnown) {
   EXPECT_FALSE(never_booted.known());
   EXPECT_NE(never_booted.note().find("could not be read"), std::string::npos) << never_booted.note();
 }
+
+// The classes diagnostics and /metrics count EMCYs by: CiA 301's table of error codes, by high
+// byte (cia301-essentials.md, EMCY), with the codes written by hand.
+TEST(EmcyClass, ByTheCodesHighByteAsCiA301GroupsThem) {
+  using lb::canopen::emcy_class;
+  using lb::canopen::EmcyClass;
+  EXPECT_EQ(emcy_class(0x0000), EmcyClass::error_reset);
+  EXPECT_EQ(emcy_class(0x1000), EmcyClass::generic);
+  EXPECT_EQ(emcy_class(0x2310), EmcyClass::current);
+  EXPECT_EQ(emcy_class(0x3210), EmcyClass::voltage);
+  EXPECT_EQ(emcy_class(0x4210), EmcyClass::temperature);
+  EXPECT_EQ(emcy_class(0x5000), EmcyClass::device_hardware);
+  EXPECT_EQ(emcy_class(0x6100), EmcyClass::device_software);
+  EXPECT_EQ(emcy_class(0x7000), EmcyClass::additional_modules);
+  EXPECT_EQ(emcy_class(0x8130), EmcyClass::communication);
+  EXPECT_EQ(emcy_class(0x8210), EmcyClass::protocol);
+  EXPECT_EQ(emcy_class(0x8611), EmcyClass::monitoring);
+  EXPECT_EQ(emcy_class(0x9000), EmcyClass::external);
+  EXPECT_EQ(emcy_class(0xF001), EmcyClass::additional_functions);
+  EXPECT_EQ(emcy_class(0xFF10), EmcyClass::device_specific);
+  EXPECT_EQ(emcy_class(0xA000), EmcyClass::other);
+  EXPECT_EQ(emcy_class(0x0100), EmcyClass::other);
+  EXPECT_EQ(lb::canopen::to_string(EmcyClass::device_specific), "device_specific");
+  EXPECT_EQ(lb::canopen::to_string(EmcyClass::error_reset), "error_reset");
+}

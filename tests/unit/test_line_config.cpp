@@ -832,3 +832,45 @@ TEST(LineConfig, StandbyRoleKeys) {
                        "    interface: virtual:x\n    role: master\n"));
   EXPECT_NE(e.find("both are masters"), std::string::npos) << e;
 }
+
+// observability: the DDS process's status page and metrics, on loopback unless the file names an
+// address; numeric addresses only; off serves nothing.
+TEST(LineConfig, ObservabilityListen) {
+  const auto registry = ProfileRegistry::builtin();
+  auto r = parse_line_config(kGood, "line.yaml", registry);
+  ASSERT_TRUE(r) << r.error().message;
+  EXPECT_TRUE(r->observability.enabled);
+  EXPECT_EQ(r->observability.listen(), "127.0.0.1:9420");
+  const auto with = [&](const std::string& value) {
+    return replace(kGood, "dds:\n", "observability:\n  listen: " + value + "\ndds:\n");
+  };
+  r = parse_line_config(with("\"192.0.2.7:8080\""), "line.yaml", registry);
+  ASSERT_TRUE(r) << r.error().message;
+  EXPECT_EQ(r->observability.address, "192.0.2.7");
+  EXPECT_EQ(r->observability.port, 8080);
+  r = parse_line_config(with("\"[::1]:9421\""), "line.yaml", registry);
+  ASSERT_TRUE(r) << r.error().message;
+  EXPECT_EQ(r->observability.listen(), "[::1]:9421");
+  r = parse_line_config(with("off"), "line.yaml", registry);
+  ASSERT_TRUE(r) << r.error().message;
+  EXPECT_FALSE(r->observability.enabled);
+
+  auto e = error_of(with("localhost:9420"));
+  EXPECT_NE(e.find("line.yaml:3:11: observability: listen 'localhost:9420' does not name an IPv4 address"),
+            std::string::npos)
+      << e;
+  e = error_of(with("127.0.0.1"));
+  EXPECT_NE(e.find("listen '127.0.0.1' has no port"), std::string::npos) << e;
+  e = error_of(with("127.0.0.1:70000"));
+  EXPECT_NE(e.find("listen '127.0.0.1:70000' has no port 1..65535"), std::string::npos) << e;
+  e = error_of(with("127.0.0.1:0"));
+  EXPECT_NE(e.find("has no port 1..65535"), std::string::npos) << e;
+  e = error_of(with("\"[::1:9420\""));
+  EXPECT_NE(e.find("is not [IPv6]:PORT"), std::string::npos) << e;
+  e = error_of(with("\"[nohost]:9420\""));
+  EXPECT_NE(e.find("does not name an IPv6 address"), std::string::npos) << e;
+  e = error_of(replace(kGood, "dds:\n", "observability:\n  listne: 127.0.0.1:9420\ndds:\n"));
+  EXPECT_NE(e.find("line.yaml:3:3: unknown key 'listne' in observability"), std::string::npos) << e;
+  e = error_of(replace(kGood, "dds:\n", "observability: 127.0.0.1:9420\ndds:\n"));
+  EXPECT_NE(e.find("line.yaml:2:16: observability must be a mapping (key: value)"), std::string::npos) << e;
+}

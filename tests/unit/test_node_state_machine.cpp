@@ -346,6 +346,7 @@ TEST_F(NodeStateMachineTest, AFreshDeviceIsBootedThenOperational) {
 TEST_F(NodeStateMachineTest, ASilentDeviceStaysUnknownUntilHeard) {
   start_master(kPreOperational, 0x1234, true);
   ASSERT_TRUE(eventually([&] { return counters().boot_failures >= 2; })) << "the probe was not retried";
+  EXPECT_GE(counters().boot_failures_by_letter['K' - 'A'], 2u) << "a boot without a heartbeat fails with K";
   EXPECT_EQ(state(), NodeState::unknown);
   EXPECT_EQ(nmt_count(kStart), 0u);
   device_->silence(false);
@@ -366,6 +367,10 @@ TEST_F(NodeStateMachineTest, AWrongDeviceFailsItsBootAndIsRetriedNeverStarted) {
   ASSERT_TRUE(boots.back().error);
   EXPECT_EQ(boots.back().error->code, 'D');
   EXPECT_EQ(state(), NodeState::boot_failed);
+  // Counted by letter for diagnostics and /metrics (index: letter - 'A'): every failure a D.
+  const auto c = counters();
+  EXPECT_EQ(c.boot_failures_by_letter['D' - 'A'], c.boot_failures);
+  EXPECT_EQ(c.boot_failures_by_letter['K' - 'A'], 0u);
   auto r = operator_command(co::NmtCommand::start);
   ASSERT_FALSE(r);
   EXPECT_NE(r.error().message.find("has not passed its boot"), std::string::npos) << r.error().message;

@@ -8,6 +8,7 @@
 #include <poll.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
 #include <condition_variable>
 #include <cstdint>
@@ -666,6 +667,30 @@ TEST_F(Sdo, TimeoutWithoutServerAbortsOnTheBus) {
                          {0x609, {0x2B, 0x00, 0x20, 0x01, 1, 2, 0, 0}},
                          {0x609, {0x80, 0x00, 0x20, 0x01, 0x00, 0x00, 0x04, 0x05}}});
   expect_quiet(*tap_);
+}
+
+// Diagnostics' SDO duration histogram (SdoClient::durations): per node, every transfer from its
+// first frame to its end. A read the server answers at once is within 1 s; a timeout of 100 ms
+// takes at least that, and lands in no bucket below 100 ms.
+TEST_F(Sdo, DurationsArePerNodeFromTheFirstFrameToTheEnd) {
+  SdoClient& client = client_and_server(100ms);
+  const auto bucket = [](double bound) {
+    const auto& b = SdoClient::kDurationBounds;
+    return static_cast<std::size_t>(std::find(b.begin(), b.end(), bound) - b.begin());
+  };
+  EXPECT_EQ(client.durations(kNode).count(), 0u);
+  auto read = client.upload_async(kNode, 0x1000, 0);
+  ASSERT_TRUE(wait(read));
+  auto lost = client.upload_async(9, 0x1000, 0);  // nobody answers for node 9
+  ASSERT_FALSE(wait(lost));
+  const auto answered = client.durations(kNode);
+  EXPECT_EQ(answered.count(), 1u);
+  EXPECT_EQ(answered.cumulative(bucket(1.0)), 1u);
+  const auto timed_out = client.durations(9);
+  EXPECT_EQ(timed_out.count(), 1u);
+  EXPECT_EQ(timed_out.cumulative(bucket(0.05)), 0u) << "a 100 ms timeout measured shorter than 50 ms";
+  EXPECT_GE(timed_out.sum(), 0.1);
+  EXPECT_EQ(client.durations(6).count(), 0u);
 }
 
 // The timeout is per step: a slow server that answers every step in time never times out.

@@ -1,6 +1,7 @@
 #include "gateways/adapters/diagnostics_gateway.hpp"
 
 #include <algorithm>
+#include <cstddef>
 #include <stdexcept>
 #include <string_view>
 
@@ -22,6 +23,41 @@ Replay replay_of(const profiles::BusConfig& bus) {
   if (bus.interface.rfind(kLog, 0) != 0) return Replay::none;
   const auto spec = can::LogBus::parse_spec(std::string_view(bus.interface).substr(kLog.size()));
   return spec && spec->pace == can::LogBus::Pace::fast ? Replay::fast : Replay::realtime;
+}
+
+template <std::size_t N>
+msg::Histogram to_msg(const Histogram<N>& h) {
+  msg::Histogram m;
+  m.upper_bounds().assign(h.bounds().begin(), h.bounds().end());
+  for (std::size_t i = 0; i < N; ++i) m.cumulative_counts().push_back(h.cumulative(i));
+  m.count(h.count());
+  m.sum(h.sum());
+  return m;
+}
+
+std::vector<msg::NamedCount> by_letter(const canopen::NodeStateMachine::Counters& c) {
+  std::vector<msg::NamedCount> out;
+  for (std::size_t i = 0; i < c.boot_failures_by_letter.size(); ++i) {
+    const char letter = static_cast<char>('A' + i);
+    const auto count = c.boot_failures_by_letter[i];
+    if (count == 0 && canopen::kBootErrorLetters.find(letter) == std::string_view::npos) continue;
+    msg::NamedCount n;
+    n.name(std::string(1, letter));
+    n.count(count);
+    out.push_back(std::move(n));
+  }
+  return out;
+}
+
+std::vector<msg::NamedCount> by_class(const canopen::RemoteNode::Stats& s) {
+  std::vector<msg::NamedCount> out;
+  for (std::size_t i = 0; i < canopen::kEmcyClasses; ++i) {
+    msg::NamedCount n;
+    n.name(std::string(canopen::to_string(static_cast<canopen::EmcyClass>(i))));
+    n.count(s.emergencies_by_class[i]);
+    out.push_back(std::move(n));
+  }
+  return out;
 }
 
 }  // namespace
@@ -123,6 +159,10 @@ void DiagnosticsGateway::snapshot(std::size_t i) {
     b.yielding_to_other_master(bus.other_master->yielding());
     b.other_master_last(bus.other_master->last());
   }
+  if (bus.sync != nullptr) {
+    b.sync_period_s(std::chrono::duration<double>(bus.sync->period()).count());
+    b.sync_period_deviation_s(to_msg(bus.sync->deviations()));
+  }
   if (bus.mandatory != nullptr) {
     b.mandatory_missing(bus.mandatory->missing());
     b.mandatory_state(bus.mandatory->state());
@@ -161,13 +201,26 @@ void DiagnosticsGateway::snapshot(std::size_t i) {
       if (const auto note = d.hold->note(); !note.empty()) n.boot_state(n.boot_state() + "; " + note);
     }
     n.set_values_at_start(d.node->set_values_at_start());
-    if (const auto& e = d.services->boot_report().error) n.boot_error(to_msg(*e));
+    const auto& report = d.services->boot_report();
+    if (const auto& e = report.error) n.boot_error(to_msg(*e));
+    n.last_boot_passed(report.started);
+    n.adopted(report.adopted);
+    n.product_name(report.identity.device_name);
+    const auto& profile = d.config->bridge_profile();
+    n.device_type(profile.device);
+    n.profile(profile.id + " " + profile.version);
+    const auto& errors = d.node->errors();
+    n.error_register(errors.error_register());
+    n.active_errors(errors.codes());
+    n.active_errors_known(errors.known());
+    n.active_errors_note(errors.note());
     const auto counters = d.services->boot_counters();
     n.boots(counters.boots);
     n.boot_failures(counters.boot_failures);
     n.state_unknown(counters.state_unknown);
     n.heartbeat_producer_rewrites(counters.heartbeat_producer_rewrites);
     n.resets_spared(counters.resets_spared);
+    if (d.services->state()) n.boot_failures_by_letter(by_letter(counters));
     const auto last = d.node->last_heartbeat_ns();
     n.last_heartbeat_age_s(last == 0 ? -1.0 : static_cast<double>(now_ns - last) / 1e9);
     const auto& s = d.node->stats();
@@ -183,6 +236,8 @@ void DiagnosticsGateway::snapshot(std::size_t i) {
     n.states_not_believed(s.states_not_believed);
     n.heartbeats_missing_while_heard(s.heartbeats_missing_while_heard);
     n.heartbeat_judgements_deferred(d.node->heartbeat_judgements_deferred());
+    n.emergencies_by_class(by_class(s));
+    if (bus.sdo != nullptr) n.sdo_duration_s(to_msg(bus.sdo->durations(d.config->node_id)));
     nodes.push_back(std::move(n));
   }
   std::lock_guard lock(mutex_);

@@ -16,6 +16,8 @@
 #include "canopen/flying_master.hpp"
 #include "canopen/other_master.hpp"
 #include "canopen/remote_node.hpp"
+#include "canopen/sdo_client.hpp"
+#include "canopen/sync_producer.hpp"
 #include "dds/participant.hpp"
 #include "gateways/adapters/device_services.hpp"
 #include "gateways/node/mandatory_devices.hpp"
@@ -43,6 +45,8 @@ class DiagnosticsGateway {
     const MandatoryDevices* mandatory = nullptr;  // master or standby role, when a device of the bus is mandatory
     const canopen::ActiveMasterWatch* standby = nullptr;  // standby role
     const canopen::FlyingMaster* flying = nullptr;        // standby role: its negotiation
+    const canopen::SyncProducer* sync = nullptr;          // master role: its SYNC's timing
+    const canopen::SdoClient* sdo = nullptr;              // master role: its transfers' durations
   };
 
   // The process's own fields (the set-value store, the log), filled on the publishing thread.
