@@ -2,8 +2,9 @@
 
 #include <spdlog/async.h>
 #include <spdlog/async_logger.h>
-#include <spdlog/sinks/stdout_color_sinks.h>
 #include <spdlog/spdlog.h>
+
+#include "app/journal_sink.hpp"
 
 namespace lb::app {
 
@@ -14,7 +15,8 @@ constexpr const char* kName = "linebridge";
 AsyncLog::AsyncLog(std::string pattern, std::size_t queue_lines) : pattern_(std::move(pattern)) {
   const auto level = spdlog::get_level();
   spdlog::init_thread_pool(queue_lines, 1);
-  auto sink = std::make_shared<spdlog::sinks::stdout_color_sink_mt>();
+  // The log's thread writes the lines and, under systemd, sends the events' to the journal.
+  auto sink = JournalSink::for_stdout();
   auto logger = std::make_shared<spdlog::async_logger>(kName, std::move(sink), spdlog::thread_pool(),
                                                        spdlog::async_overflow_policy::overrun_oldest);
   logger->set_level(level);
@@ -27,8 +29,7 @@ AsyncLog::~AsyncLog() {
   // held here until its queue's thread has written what waits and ended (the pool's destructor
   // joins it): so the logger is released on this thread, after the join, never by the worker.
   auto async = spdlog::default_logger();
-  auto sync = std::make_shared<spdlog::logger>(std::string(kName) + "-exit",
-                                               std::make_shared<spdlog::sinks::stdout_color_sink_mt>());
+  auto sync = std::make_shared<spdlog::logger>(std::string(kName) + "-exit", JournalSink::for_stdout());
   sync->set_level(spdlog::get_level());
   sync->set_pattern(pattern_);
   spdlog::set_default_logger(std::move(sync));

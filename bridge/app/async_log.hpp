@@ -2,8 +2,10 @@
 // The bridge's log off its bus loops: spdlog's default logger replaced by an asynchronous one
 // with a bounded queue, so a bus loop never waits for stdout (journald's socket under systemd,
 // a pipe nobody reads, a slow disk): a line is handed over, and when the queue is full the oldest
-// waiting line is dropped and counted (diagnostics: log_lines_dropped) instead. For the life of
-// main; the destructor writes what waits and puts a synchronous logger back.
+// waiting line is dropped and counted (diagnostics: log_lines_dropped) instead. The key events'
+// lines (base/journal_event) take the same queue; under systemd its thread sends them to the
+// journal with their fields (app/journal_sink). For the life of main; the destructor writes what
+// waits and puts a synchronous logger back.
 
 #include <cstddef>
 #include <cstdint>

@@ -1,5 +1,6 @@
 #include "app/line_bridge.hpp"
 
+#include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
@@ -11,6 +12,7 @@
 #include "app/async_log.hpp"
 #include "app/master_dictionary.hpp"
 #include "app/run_until_signal.hpp"
+#include "base/journal_event.hpp"
 #include "can/recording_bus.hpp"
 #include "gateways/node/momentary_commands.hpp"
 
@@ -45,6 +47,7 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
     rt.config = &bus_cfg;
     rt.loop = std::make_unique<canopen::BusLoop>(std::move(*bus));
     rt.loop->set_thread("lb-bus-" + bus_cfg.name, bus_cfg.realtime_priority);
+    rt.loop->name_events(journal::Where::of_bus(config.line, bus_cfg.name));
     rt.loop->on_failure([b = bridge.get(), name = bus_cfg.name](const std::string& why) {
       {
         std::lock_guard lock(b->failure_mutex_);
@@ -153,6 +156,7 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
     const bool master = profiles::masters(rt.config->role);
     rt.nodes.push_back(std::make_unique<canopen::RemoteNode>(*rt.loop, dev.node_id, dev.heartbeat_timeout, master));
     rt.nodes.back()->believe_every_boot_up(dev.starts_itself);
+    rt.nodes.back()->name_events(journal::Where::of_device(config.line, dev.bus, dev.name));
     if (rt.sync) {  // the bus's SYNC reaches the node's drivers (NodeDriver::on_sync)
       rt.sync->on_sync([node = rt.nodes.back().get()] { node->tell([](canopen::NodeDriver& d) { d.on_sync(); }); });
     }
@@ -338,7 +342,8 @@ void LineBridge::take_over(BusRuntime& rt, const canopen::ActiveMasterWatch::Tak
   if (rt.mandatory) rt.mandatory->mastering();
   if (!t.master_heard) {
     start_master(rt);
-    spdlog::info("bus {}: mastered from the start (no other master heard)", rt.config->name);
+    journal::log(journal::Event::takeover, spdlog::level::info, rt.loop->where(),
+                 fmt::format("bus {}: mastered from the start (no other master heard)", rt.config->name));
     return mastering();
   }
   const auto period = std::chrono::nanoseconds(rt.sync->period());
@@ -355,11 +360,13 @@ void LineBridge::take_over(BusRuntime& rt, const canopen::ActiveMasterWatch::Tak
     }
   }
   rt.sync->resume(first, [w = rt.standby.get()](std::int64_t at_ns) { w->first_sync_sent(at_ns); });
-  spdlog::warn("bus {}: took the bus over from the master (node {}): its last heartbeat {} ms ago, its last SYNC {} "
-               "ms ago, the first SYNC in {} ms",
-               rt.config->name, t.master_node_id, (t.at_ns - t.last_heartbeat_ns) / 1'000'000,
-               t.last_sync_ns == 0 ? -1 : (t.at_ns - t.last_sync_ns) / 1'000'000,
-               std::chrono::duration_cast<std::chrono::milliseconds>(first).count());
+  journal::log(journal::Event::takeover, spdlog::level::warn, rt.loop->where(),
+               fmt::format("bus {}: took the bus over from the master (node {}): its last heartbeat {} ms ago, its "
+                           "last SYNC {} ms ago, the first SYNC in {} ms",
+                           rt.config->name, t.master_node_id, (t.at_ns - t.last_heartbeat_ns) / 1'000'000,
+                           t.last_sync_ns == 0 ? -1 : (t.at_ns - t.last_sync_ns) / 1'000'000,
+                           std::chrono::duration_cast<std::chrono::milliseconds>(first).count()),
+               {{journal::kMasterNode, std::to_string(t.master_node_id)}});
   mastering();
 }
 

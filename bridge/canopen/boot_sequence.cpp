@@ -3,6 +3,8 @@
 #include <fmt/format.h>
 #include <spdlog/spdlog.h>
 
+#include "base/journal_event.hpp"
+
 namespace lb::canopen {
 
 namespace {
@@ -471,9 +473,13 @@ void BootSequence::fail(BootError error) {
   report_.identity.read_at_ns = now_ns();
   set_step(error.code != 0 ? fmt::format("failed ({}): {}", error.code, error.message) : "failed: " + error.message);
   if (fail_log_.allow(error.message)) {
-    spdlog::warn("{}: boot of node {} failed{}: {}{}", loop_.bus().uri(), node_.node_id(),
-                 error.code != 0 ? fmt::format(" (CiA 302-2 error {})", error.code) : std::string(), error.message,
-                 fail_log_.note());
+    journal::log(journal::Event::boot_failed, spdlog::level::warn, node_.where(),
+                 fmt::format("{}: boot of node {} failed{}: {}{}", loop_.bus().uri(), node_.node_id(),
+                             error.code != 0 ? fmt::format(" (CiA 302-2 error {})", error.code) : std::string(),
+                             error.message, fail_log_.note()),
+                 {{journal::kBootError, error.code != 0 ? std::string(1, error.code) : std::string()},
+                  {journal::kSdoAbort,
+                   error.abort_code != 0 ? fmt::format("{:08X}", error.abort_code) : std::string()}});
   }
   report_.error = std::move(error);
   if (done_) done_(report_);

@@ -379,12 +379,27 @@ void BusLoop::watch_link() {
   const auto level = s.state == can::BusState::down || s.state == can::BusState::bus_off ? spdlog::level::err
                      : s.state == can::BusState::error_active                            ? spdlog::level::info
                                                                                          : spdlog::level::warn;
+  const auto state_text = [&] {
+    return fmt::format("{}: controller state {} (was {})", bus_->uri(), can::to_string(s.state),
+                       can::to_string(last_state_));
+  };
+  const std::initializer_list<journal::Field> fields{{journal::kBusState, std::string(can::to_string(s.state))},
+                                                     {journal::kBusStateBefore,
+                                                      std::string(can::to_string(last_state_))}};
   if (s.state == can::BusState::down) {
-    spdlog::log(level, "{}: link down (interface down or gone): nothing is sent or received until it is back",
-                bus_->uri());
+    off_ = true;
+    journal::log(journal::Event::bus_off, level, where_,
+                 fmt::format("{}: link down (interface down or gone): nothing is sent or received until it is back",
+                             bus_->uri()),
+                 fields);
+  } else if (s.state == can::BusState::bus_off) {
+    off_ = true;
+    journal::log(journal::Event::bus_off, level, where_, state_text(), fields);
+  } else if (s.state == can::BusState::error_active && off_) {
+    off_ = false;
+    journal::log(journal::Event::bus_back, level, where_, state_text(), fields);
   } else if (last_state_ != can::BusState::unknown || s.state != can::BusState::error_active) {
-    spdlog::log(level, "{}: controller state {} (was {})", bus_->uri(), can::to_string(s.state),
-                can::to_string(last_state_));
+    spdlog::log(level, "{}", state_text());
   }
   last_state_ = s.state;
 }

@@ -25,6 +25,7 @@
 #include <thread>
 #include <vector>
 
+#include "base/journal_event.hpp"
 #include "base/log_rate.hpp"
 #include "base/result.hpp"
 #include "can/bus.hpp"
@@ -120,6 +121,10 @@ class BusLoop {
   // normal scheduling. A priority the system refuses is logged and the loop runs at normal
   // priority: a line without realtime rights still runs.
   void set_thread(std::string name, int realtime_priority);
+  // Before start(): the line and bus names its key events carry (base/journal_event: bus-off, and
+  // error-active again after it).
+  void name_events(journal::Where where) { where_ = std::move(where); }
+  const journal::Where& where() const { return where_; }
 
   void start();
   void stop();  // idempotent; joins the thread
@@ -224,6 +229,8 @@ class BusLoop {
   std::uint64_t frames_unclaimed_ = 0;
   std::int64_t last_frame_ns_ = 0;
   can::BusState last_state_ = can::BusState::unknown;
+  bool off_ = false;  // bus-off or down since it was last error-active
+  journal::Where where_;
   std::uint64_t last_reopens_ = 0;
   std::uint64_t handlers_disabled_ = 0;
   std::function<void(const std::string&)> failure_handler_;

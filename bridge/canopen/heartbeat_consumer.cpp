@@ -38,7 +38,6 @@ void HeartbeatConsumer::on_frame(const can::CanFrame& frame) {
   arm(timeout_);
   const NmtState state = nmt_state_from_byte(frame.data[0]);
   const bool came_online = !online_;
-  if (came_online) spdlog::info("{}: node {} online ({})", loop_.bus().uri(), node_id_, to_string(state));
   state_ = state;
   online_ = true;
   if (listener_.on_heartbeat) listener_.on_heartbeat(state, came_online);
@@ -78,7 +77,6 @@ void HeartbeatConsumer::declare_offline() {
   online_ = false;
   deferred_since_.reset();
   loop_.disarm_timer(timer_);
-  spdlog::warn("{}: node {} lost: no heartbeat for {} ms", loop_.bus().uri(), node_id_, timeout_.count());
   if (listener_.on_offline) listener_.on_offline();
 }
 

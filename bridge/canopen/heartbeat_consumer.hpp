@@ -12,7 +12,8 @@
 // after the deadline, with no heartbeat of this node before it, proves the loss. Bounded by
 // kJudgementBound of the loop's time, so a clock stepped back or a bus that stays readable
 // without frames still ends in a judgement. What the node is then (lost, or heard otherwise) is
-// its listener's decision (RemoteNode): the consumer only says that the heartbeat is missing.
+// its listener's decision (RemoteNode, which also logs it: online and lost are key events,
+// base/journal_event): the consumer only says that the heartbeat is missing.
 
 #include <chrono>
 #include <cstdint>

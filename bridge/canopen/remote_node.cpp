@@ -1,6 +1,7 @@
 #include "canopen/remote_node.hpp"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 #include <spdlog/spdlog.h>
 
 namespace lb::canopen {
@@ -49,6 +50,7 @@ RemoteNode::RemoteNode(BusLoop& loop, std::uint8_t node_id, std::chrono::millise
                            }
                          },
                  }) {
+  where_.node = node_id;
   loop_.on_frame(cob::emcy_base + node_id, [this](const can::CanFrame& f) {
     heard_frame(f.timestamp_ns);
     on_emcy_frame(f);
@@ -103,6 +105,11 @@ void RemoteNode::heartbeat(NmtState state, bool came_online) {
     missing_ = false;
     checking_ = false;
     spdlog::info("{}: node {}: its heartbeat is back", loop_.bus().uri(), node_id());
+  }
+  if (came_online) {
+    journal::log(journal::Event::device_online, spdlog::level::info, where_,
+                 fmt::format("{}: node {} online ({})", loop_.bus().uri(), node_id(), to_string(state)),
+                 {{journal::kNmtState, std::string(to_string(state))}});
   }
   if (state == NmtState::boot_up) return boot_up_seen(came_online);
   const NmtState before = believed_;
@@ -266,6 +273,10 @@ void RemoteNode::heartbeat_check_done(HeartbeatCheck result) {
 }
 
 void RemoteNode::went_offline() {
+  journal::log(journal::Event::device_lost, spdlog::level::warn, where_,
+               fmt::format("{}: node {} lost: no heartbeat for {} ms", loop_.bus().uri(), node_id(),
+                           heartbeat_timeout_.count()),
+               {{journal::kHeartbeatTimeoutMs, std::to_string(heartbeat_timeout_.count())}});
   missing_ = false;
   checking_ = false;
   candidate_.reset();
@@ -312,9 +323,12 @@ void RemoteNode::on_emcy_frame(const can::CanFrame& frame) {
   ++stats_.emergencies_by_class[static_cast<std::size_t>(emcy_class(e->error_code))];
   errors_.apply(*e);
   if (emcy_log_.allow()) {
-    spdlog::log(e->is_reset() ? spdlog::level::info : spdlog::level::warn,
-                "{}: node {} EMCY {:04X}h ({}), register {:02X}h{}", loop_.bus().uri(), node_id(), e->error_code,
-                emcy_family(e->error_code), e->error_register, held_back_note(emcy_log_));
+    journal::log(journal::Event::emcy, e->is_reset() ? spdlog::level::info : spdlog::level::warn, where_,
+                 fmt::format("{}: node {} EMCY {:04X}h ({}), register {:02X}h{}", loop_.bus().uri(), node_id(),
+                             e->error_code, emcy_family(e->error_code), e->error_register, held_back_note(emcy_log_)),
+                 {{journal::kEmcyCode, fmt::format("{:04X}", e->error_code)},
+                  {journal::kEmcyRegister, fmt::format("{:02X}", e->error_register)},
+                  {journal::kEmcyManufacturer, fmt::format("{:02X}", fmt::join(e->manufacturer, ""))}});
   }
   for (auto* d : drivers_) d->on_emcy(*e);
 }

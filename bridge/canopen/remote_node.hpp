@@ -38,6 +38,7 @@
 #include <string>
 #include <vector>
 
+#include "base/journal_event.hpp"
 #include "base/log_rate.hpp"
 #include "base/result.hpp"
 #include "canopen/bus_loop.hpp"
@@ -87,6 +88,14 @@ class RemoteNode {
 
   // Before the loop starts: the drivers are told in the order they were attached.
   void attach(NodeDriver& driver) { drivers_.push_back(&driver); }
+
+  // Before the loop starts: the line, bus and device names its key events carry (base/journal_event:
+  // online, lost, EMCY, a boot that failed). The node-ID is its own.
+  void name_events(journal::Where where) {
+    where.node = node_id();
+    where_ = std::move(where);
+  }
+  const journal::Where& where() const { return where_; }
 
   // Loop thread. Refused with the reason on a monitor bus. Records the state the device must take;
   // after a reset the device is no longer configured (its boot-up, or the node state machine's bound on
@@ -250,6 +259,7 @@ class RemoteNode {
   LogRate malformed_log_;
   LogRate spoof_log_{1};
   std::string set_values_at_start_;
+  journal::Where where_;
   std::int64_t last_heard_ns_ = 0;  // the newest frame of the device's own (its bus's timestamps)
   HeartbeatConsumer heartbeat_;
 };

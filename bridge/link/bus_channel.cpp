@@ -1,5 +1,6 @@
 #include "link/bus_channel.hpp"
 
+#include <fmt/format.h>
 #include <poll.h>
 #include <spdlog/spdlog.h>
 #include <sys/epoll.h>
@@ -13,6 +14,7 @@
 #include <cstring>
 #include <stdexcept>
 
+#include "base/journal_event.hpp"
 #include "base/log_rate.hpp"
 
 namespace lb::link {
@@ -398,12 +400,13 @@ void BusChannel::accept_peer() {
   bool hello_sent = false;
   int hello_errno = 0;
   std::chrono::milliseconds was_absent{0};
+  std::uint64_t connects = 0;
   {
     std::lock_guard lock(mutex_);
     peer_ = std::move(peer->fd);
     max_datagram_ = max_datagram;
     unsent_.reset();
-    ++counters_.connects;
+    connects = ++counters_.connects;
     counters_.connected = true;
     counters_.peer_pid = peer->pid;
     counters_.absent_alarm = false;
@@ -449,8 +452,15 @@ void BusChannel::accept_peer() {
                  "net.core.wmem_max): larger samples are not sent, and counted",
                  options_.path, max_datagram, sndbuf);
   }
-  spdlog::info("channel {}: DDS side connected (pid {}, uid {}); {} endpoints and {} state samples sent, {} lane(s)",
-               options_.path, peer->pid, peer->uid, endpoints, samples, lanes_.size());
+  const auto connected =
+      fmt::format("channel {}: DDS side connected (pid {}, uid {}); {} endpoints and {} state samples sent, {} lane(s)",
+                  options_.path, peer->pid, peer->uid, endpoints, samples, lanes_.size());
+  if (connects > 1) {  // one left before: a key event (base/journal_event)
+    journal::log(journal::Event::dds_side_back, spdlog::level::info, journal::Where::of_line(options_.line), connected,
+                 {{journal::kDdsPid, std::to_string(peer->pid)}});
+  } else {
+    spdlog::info("{}", connected);
+  }
   if (alarmed_) {
     alarmed_ = false;
     spdlog::warn("channel {}: a DDS side again, after {:.1f} s without one", options_.path,
@@ -513,8 +523,11 @@ void BusChannel::drop_peer(const std::string& why) {
     spdlog::info("channel {}: DDS side stopped ({})", options_.path, why);
     return;
   }
-  spdlog::warn("channel {}: DDS side gone ({}); the bus runs on, events and answers are dropped until it is back",
-               options_.path, why);
+  journal::log(journal::Event::dds_side_gone, spdlog::level::warn, journal::Where::of_line(options_.line),
+               fmt::format("channel {}: DDS side gone ({}); the bus runs on, events and answers are dropped until it "
+                           "is back",
+                           options_.path, why),
+               {{journal::kDdsPid, pid != 0 ? std::to_string(pid) : std::string()}});
 }
 
 void BusChannel::read_peer() {

@@ -21,6 +21,10 @@
 #   ALARM_S      the bus unit's LINEBRIDGE_DDS_ABSENT_ALARM_S here (its alarm without a DDS side)
 #   TAKEOVER     1: instead of all of the above, the hot standby scenario of takeover.sh (a step
 #                back and two takeovers with the units; its own parameters are listed there)
+# The key events' journal entries (docs/operations.md, "Searching the journal"): with SIM, the
+# simulator killed and started again must give the device's device_lost and device_online entries
+# (journalctl MESSAGE_ID=... LB_DEVICE=...) with its line, bus and node; the DDS unit's process
+# killed, the bus unit's dds_side_gone and dds_side_back entries with the old and new PIDs.
 set -uo pipefail
 job=/lbjob
 # shellcheck source=/dev/null
@@ -127,12 +131,70 @@ wait_restarted() {
   done
 }
 journal_since() { journalctl -u "$1" --since "@${2%.*}" -o short-unix --no-pager 2>/dev/null; }
+# The key events' MESSAGE_IDs, as docs/operations.md lists them (never change).
+ID_DEVICE_ONLINE=fecb2be038e74664b679c1f1ed7526f6
+ID_DEVICE_LOST=6279545544e24482b4b2b0a619f497d2
+ID_DDS_SIDE_GONE=3da26d56a43344538469b32eaa7a10fb
+ID_DDS_SIDE_BACK=ed00515540b8490389079f63dd96153f
+# Waits up to $3 s for the journal's entries of MESSAGE_ID $1 since $2 that match the fields
+# given after (NAME=value, journalctl's matches); prints the first (-o verbose).
+journal_event() {
+  local id=$1 since=$2 limit=$3 i out
+  shift 3
+  for ((i = 0; i < limit * 5; i++)); do
+    out=$(journalctl MESSAGE_ID="$id" "$@" --since "@${since%.*}" -o verbose --no-pager --quiet 2>/dev/null |
+      awk 'NR > 1 && /^[^ ]/ { exit } { print }')
+    grep -q "^ *MESSAGE_ID=$id\$" <<<"$out" && { echo "$out"; return 0; }
+    sleep 0.2
+  done
+  return 1
+}
+# A field of an entry journal_event printed.
+entry_field() { sed -n "s/^ *$1=//p" <<<"$2" | head -n 1; }
+# Checks an entry journal_event printed: each NAME=value given after it; prints what differs.
+entry_differs() {
+  local entry=$1 f
+  shift
+  for f in "$@"; do
+    [ "$(entry_field "${f%%=*}" "$entry")" = "${f#*=}" ] || echo -n "${f%%=*}=$(entry_field "${f%%=*}" "$entry") (want ${f#*=}); "
+  done
+}
+# The bus unit's dds_side_gone (DDS process $2) and dds_side_back (DDS process $3) entries since $1.
+check_dds_side_entries() {
+  local since=$1 old=$2 new=$3 e bad
+  if e=$(journal_event "$ID_DDS_SIDE_GONE" "$since" 30 LB_LINE="$line_name" LB_DDS_PID="$old"); then
+    bad=$(entry_differs "$e" LB_EVENT=dds_side_gone PRIORITY=4 _SYSTEMD_UNIT="$BUS_UNIT")
+    if [ -z "$bad" ]; then
+      pass "journal: journalctl MESSAGE_ID=$ID_DDS_SIDE_GONE LB_LINE=$line_name LB_DDS_PID=$old: $(entry_field MESSAGE "$e")"
+    else
+      failed "journal: the DDS side's dds_side_gone entry: $bad"
+    fi
+  else
+    failed "journal: no entry MESSAGE_ID=$ID_DDS_SIDE_GONE LB_LINE=$line_name LB_DDS_PID=$old within 30 s"
+    journalctl MESSAGE_ID="$ID_DDS_SIDE_GONE" -o verbose --no-pager | tail -n 30
+  fi
+  if e=$(journal_event "$ID_DDS_SIDE_BACK" "$since" 60 LB_LINE="$line_name" LB_DDS_PID="$new"); then
+    bad=$(entry_differs "$e" LB_EVENT=dds_side_back PRIORITY=6 _SYSTEMD_UNIT="$BUS_UNIT")
+    if [ -z "$bad" ]; then
+      pass "journal: journalctl MESSAGE_ID=$ID_DDS_SIDE_BACK LB_LINE=$line_name LB_DDS_PID=$new: $(entry_field MESSAGE "$e")"
+    else
+      failed "journal: the DDS side's dds_side_back entry: $bad"
+    fi
+  else
+    failed "journal: no entry MESSAGE_ID=$ID_DDS_SIDE_BACK LB_LINE=$line_name LB_DDS_PID=$new within 60 s"
+    journalctl MESSAGE_ID="$ID_DDS_SIDE_BACK" -o verbose --no-pager | tail -n 30
+  fi
+}
 # The line file the package's units run: readable by their group, named in their environment; its
 # SYNC period and its first device's node-ID into period_ms and node.
 use_line() {
   chgrp linebridge "$1" && chmod 0640 "$1"
   period_ms=$(awk '/sync_period_ms:/ { print $2; exit }' "$1")
   node=$(awk '$1 == "node_id:" { print $2; exit }' "$1")
+  # The names the key events carry (LB_LINE, LB_BUS, LB_DEVICE): the line's, its first bus's and device's.
+  line_name=$(awk '$1 == "line:" { print $2; exit }' "$1")
+  bus_name=$(awk '/^buses:/ { b = 1 } b && $1 == "-" && $2 == "name:" { print $3; exit }' "$1")
+  device=$(awk '/^devices:/ { d = 1 } d && $1 == "-" && $2 == "name:" { print $3; exit }' "$1")
   cat >/etc/default/linebridge <<CONF
 CAN_IF=
 LINEBRIDGE_CONFIG=$1
@@ -206,6 +268,47 @@ if [ "${SIM:-1}" = 1 ]; then
   fi
 fi
 
+# --- 1b. the device's key events in the journal: its simulator killed, then started again -------
+if [ "${SIM:-1}" = 1 ]; then
+  t_sim=$(now)
+  say "linebridge-vm-sim: kill -9 (device $device, node $node: lost after its heartbeat timeout)"
+  systemctl kill -s KILL linebridge-vm-sim.service
+  if e=$(journal_event "$ID_DEVICE_LOST" "$t_sim" 30 LB_DEVICE="$device"); then
+    bad=$(entry_differs "$e" LB_EVENT=device_lost LB_LINE="$line_name" LB_BUS="$bus_name" LB_NODE="$node" PRIORITY=4 \
+      _SYSTEMD_UNIT="$BUS_UNIT")
+    if [ -z "$bad" ]; then
+      pass "journal: journalctl MESSAGE_ID=$ID_DEVICE_LOST LB_DEVICE=$device (device_lost, LB_LINE=$line_name LB_BUS=$bus_name LB_NODE=$node): $(entry_field MESSAGE "$e")"
+    else
+      failed "journal: the device_lost entry of $device: $bad"
+    fi
+  else
+    failed "journal: no entry MESSAGE_ID=$ID_DEVICE_LOST LB_DEVICE=$device within 30 s of the simulator's kill"
+    journalctl -u "$BUS_UNIT" --since "@${t_sim%.*}" -o short-unix --no-pager | tail -n 20
+  fi
+  systemctl reset-failed linebridge-vm-sim.service 2>/dev/null
+  t_sim=$(now)
+  if systemd-run --quiet --unit=linebridge-vm-sim /usr/bin/linebridge-sim --config "$line"; then
+    if e=$(journal_event "$ID_DEVICE_ONLINE" "$t_sim" 30 LB_DEVICE="$device"); then
+      bad=$(entry_differs "$e" LB_EVENT=device_online LB_LINE="$line_name" LB_BUS="$bus_name" LB_NODE="$node" PRIORITY=6 \
+        _SYSTEMD_UNIT="$BUS_UNIT")
+      if [ -z "$bad" ]; then
+        pass "journal: journalctl MESSAGE_ID=$ID_DEVICE_ONLINE LB_DEVICE=$device (device_online, LB_NMT_STATE=$(entry_field LB_NMT_STATE "$e")): $(entry_field MESSAGE "$e")"
+      else
+        failed "journal: the device_online entry of $device: $bad"
+      fi
+    else
+      failed "journal: no entry MESSAGE_ID=$ID_DEVICE_ONLINE LB_DEVICE=$device within 30 s of the simulator's start"
+    fi
+    if wait_operational "$node" "$t_sim" 30; then
+      info "device node $node operational again after its simulator came back"
+    else
+      failed "device node $node not operational within 30 s after its simulator came back"
+    fi
+  else
+    failed "cannot start linebridge-sim again"
+  fi
+fi
+
 # --- 2./3. kill -9 and SIGSTOP (watchdog) of each unit's main process -----------------------------
 # One event: $1 unit, $2 signal (KILL or STOP).
 event() {
@@ -261,6 +364,8 @@ event() {
     grep -q 'status=9/KILL' <<<"$exitline" || { ok=0; failed "$u after kill -9: exit '$exitline' (want status=9/KILL)"; }
   fi
   info "$u: journal: $exitline"
+  # The DDS unit's process killed: the bus process's key events say so, with both processes.
+  [ "$u" != "$BUS_UNIT" ] && [ "$sig" = KILL ] && check_dds_side_entries "$t_ev" "$pid" "$pid1"
   [ "$ok" = 1 ] && pass "$u: kill -$sig of main PID $pid: restarted by systemd, main PID $pid -> $pid1, NRestarts $n0 -> $n1, active again $(fmt "$t_ev" "$t_back") s after the signal (limit $limit s; exit seen at +$(fmt "$t_ev" "${t_exit:-$t_ev}") s)"
   # The other units: same main process, and when the bus unit is one of them, SYNC without a gap.
   for o in "${!others[@]}"; do

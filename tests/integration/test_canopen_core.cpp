@@ -20,6 +20,7 @@
 #include "support/bus_spy.hpp"
 #include "support/child_process.hpp"
 #include "support/collector.hpp"
+#include "support/eventually.hpp"
 #include "support/line_views.hpp"
 #include "support/service_clients.hpp"
 #include "support/spy_waits.hpp"
@@ -330,7 +331,17 @@ TEST_F(CanopenCore, HeartbeatLossAndReturnFlipOnline) {
   })) << logs();
   ::kill(sim_pid(), SIGCONT);
   ASSERT_TRUE(saw1_.wait_last(15s, [](const msg::SawStatus& s) { return operational(s); })) << logs();
-  EXPECT_NE(bridge_->log().find("node 5 lost: no heartbeat for 400 ms"), std::string::npos) << logs();
+  // Key events (docs/operations.md): outside systemd the line carries the fields a journal entry
+  // would, the line file's names and the node-ID; online at the start and again after the loss.
+  EXPECT_NE(bridge_->log().find("node 5 lost: no heartbeat for 400 ms {LB_EVENT=device_lost LB_LINE=core LB_BUS=a "
+                                "LB_DEVICE=saw1 LB_NODE=5 LB_HEARTBEAT_TIMEOUT_MS=400}"),
+            std::string::npos)
+      << logs();
+  EXPECT_TRUE(lb::test::eventually(10s, [this] {
+    const auto log = bridge_->log();
+    const std::string online = "{LB_EVENT=device_online LB_LINE=core LB_BUS=a LB_DEVICE=saw1 LB_NODE=5 LB_NMT_STATE=";
+    return log.find(online, log.find("node 5 lost: no heartbeat")) != std::string::npos;
+  })) << logs();
 }
 
 TEST_F(CanopenCore, EmergenciesAreEventsAndActiveErrorsInStatus) {
@@ -347,6 +358,12 @@ TEST_F(CanopenCore, EmergenciesAreEventsAndActiveErrorsInStatus) {
   EXPECT_EQ(e.error_register(), 0x09);
   EXPECT_EQ(e.family(), "temperature");
   EXPECT_EQ(e.manufacturer(), (std::array<std::uint8_t, 5>{1, 2, 3, 4, 5}));
+  // The key event's line (docs/operations.md), its fields as the frame has them.
+  EXPECT_TRUE(bridge_->wait_log("node 5 EMCY 4210h (temperature), register 09h {LB_EVENT=emcy LB_LINE=core LB_BUS=a "
+                                "LB_DEVICE=saw1 LB_NODE=5 LB_EMCY_CODE=4210 LB_EMCY_REGISTER=09 "
+                                "LB_EMCY_MANUFACTURER=0102030405}",
+                                10s))
+      << logs();
   ASSERT_TRUE(saw1_.wait_last(5s, [](const msg::SawStatus& s) {
     return s.health().active_errors() == std::vector<std::uint16_t>{0x4210} && s.health().error_register() == 0x09;
   }));

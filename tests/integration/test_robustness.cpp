@@ -406,7 +406,7 @@ TEST(Robustness, MalformedFramesAreCountedAndFloodsLoggedAtABoundedRate) {
   for (int i = 0; i < 3; ++i) ASSERT_TRUE(line.spy().send(lb::can::make_frame(0x085, {0x10, 0x42})));  // 2-byte EMCY
   for (int i = 0; i < 2; ++i) ASSERT_TRUE(line.spy().send(lb::can::make_frame(0x705, {})));         // empty heartbeat
   for (int i = 0; i < 4; ++i) ASSERT_TRUE(line.spy().send(lb::can::make_frame(0x1A0, {1, 2, 3})));  // TPDO1 of node 32
-  const auto before = line.bridge_log_count("EMCY");
+  const auto before = line.bridge_log_count("node 5 EMCY");
   for (int i = 0; i < 2000; ++i) {
     ASSERT_TRUE(line.spy().send(emcy(5, i % 2 == 0)));
     if (i % 10 == 0) std::this_thread::sleep_for(1ms);  // stays: paces the injected flood
@@ -424,7 +424,7 @@ TEST(Robustness, MalformedFramesAreCountedAndFloodsLoggedAtABoundedRate) {
     return line.bridge().wait_log("more not logged", 300ms);
   })) << line.logs();
   // 2000 EMCYs within a second or two: a few lines a second get through, with the count of the others.
-  EXPECT_LT(line.bridge_log_count("EMCY") - before, 40u) << "one log line per EMCY";
+  EXPECT_LT(line.bridge_log_count("node 5 EMCY") - before, 40u) << "one log line per EMCY";
   ASSERT_TRUE(status.wait_last(5s, operational));
 }
 

@@ -39,6 +39,7 @@
 #include <string_view>
 #include <vector>
 
+#include "base/journal_event.hpp"
 #include "canopen/node_driver.hpp"
 #include "canopen/pdo_transmitter.hpp"
 #include "gateways/node/command_bits.hpp"
@@ -490,6 +491,10 @@ class DeviceOutput final : public canopen::NodeDriver {
       return "out of range: " + ok.error().message;
     return std::nullopt;
   }
+  // Values were kept for the RPDO, and refuse_kept() refused them.
+  bool kept_refused(const Rpdo& r, const Result<std::vector<std::uint8_t>>& kept) const {
+    return !kept && ctx_.set_values != nullptr && ctx_.set_values->restored(store_key(r)).has_value();
+  }
   // The kept payload of an RPDO if it may go back, else why not.
   Result<std::vector<std::uint8_t>> kept_payload(const Rpdo& r) const {
     const auto kept = ctx_.set_values != nullptr ? ctx_.set_values->restored(store_key(r)) : std::nullopt;
@@ -535,6 +540,7 @@ class DeviceOutput final : public canopen::NodeDriver {
     started_once_ = true;
     std::vector<std::string> notes;
     std::vector<std::string> cleared;
+    std::vector<std::string> refused;  // RPDOs whose kept values were refused (refuse_kept)
     std::vector<std::size_t> read_back;
     std::vector<std::vector<std::uint8_t>> read_base;  // per read_back: the kept values of write-only objects
     for (std::size_t k = 0; k < rpdos_.size(); ++k) {
@@ -558,6 +564,7 @@ class DeviceOutput final : public canopen::NodeDriver {
             continue;
           }
           if (!kept) {
+            if (kept_refused(r, kept)) refused.push_back(name);
             keep_silent(r, fmt::format("{} not restored ({}) and not readable", name, kept.error().message));
             notes.push_back(r.silent_why + ": kept silent, the device keeps what it last received");
             continue;
@@ -568,6 +575,7 @@ class DeviceOutput final : public canopen::NodeDriver {
           data = *kept;
           notes.push_back(name + " restored");
         } else {
+          if (kept_refused(r, kept)) refused.push_back(name);
           notes.push_back(fmt::format("{} not restored: {}", name, kept.error().message));
         }
       }
@@ -588,10 +596,15 @@ class DeviceOutput final : public canopen::NodeDriver {
       note += fmt::format("; enabling levels switched off until an operator sets them: {}", fmt::join(cleared, ", "));
     if (!read_back.empty()) note += "; reading back what it holds";
     if (!notes.empty()) note += fmt::format("; {}", fmt::join(notes, "; "));
-    if (!cleared.empty())
-      spdlog::warn("{}: {}", ctx_.device.name, note);
-    else if (first || scope == RestoreScope::nothing)
+    if (!cleared.empty() || !refused.empty()) {  // a key event (base/journal_event)
+      journal::log(journal::Event::set_values_refused, spdlog::level::warn, ctx_.node.where(),
+                   fmt::format("{}: {}", ctx_.device.name, note),
+                   {{journal::kRestoreScope, std::string(to_string(scope))},
+                    {journal::kEnablingOff, fmt::format("{}", fmt::join(cleared, ","))},
+                    {journal::kKeptRefused, fmt::format("{}", fmt::join(refused, ","))}});
+    } else if (first || scope == RestoreScope::nothing) {
       spdlog::info("{}: {}", ctx_.device.name, note);
+    }
     ctx_.node.note_set_values_at_start(note);
     keep();
     for (std::size_t i = 0; i < read_back.size(); ++i) start_read_back(read_back[i], note, read_base[i]);
