@@ -132,7 +132,8 @@ TEST_F(Cli, EchoIntoAPipeThatClosesEndsCleanlyAndTheNextClientIsAnswered) {
                                            20s);
   EXPECT_EQ(piped.exit_code, 0) << "the echo's exit status through the pipe (141: killed by SIGPIPE)\n" << piped.output;
   EXPECT_TRUE(has({piped.exit_code, piped.output}, "saw1 ")) << piped.output;
-  const auto next = cli({"set", "saw1", "--program", "on"}, 10s);
+  const auto next = cli({"set", "saw1", "--program", "on", "--sync-speed-percent", "50", "--product-length-m", "1.0"},
+                        10s);
   EXPECT_EQ(next.exit_code, 0) << next.output << line_->logs();
   EXPECT_TRUE(has(next, "accepted")) << next.output;
 }
@@ -155,12 +156,65 @@ TEST_F(Cli, SetTakesEachDevicesSetValues) {
   r = cli({"set", "puller1", "--sync-speed-percent", "10"});
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_TRUE(has(r, "--sync-speed-percent is not a set value of a puller (--extruder, --speed-percent)")) << r.output;
-  r = cli({"set", "saw1", "--wall-thickening", "on", "--program", "on"});
+  r = cli({"set", "saw1", "--wall-thickening", "on", "--program", "on", "--sync-speed-percent", "50",
+           "--product-length-m", "1.0"});
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_TRUE(has(r, "wall-thickening on")) << r.output;
   r = cli({"press", "puller1", "motor_start"});
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_TRUE(has(r, "motor_start: on the bus in ")) << r.output;
+}
+
+// A fresh bridge has no set value in force (the status reports them all 0): a value not given would
+// be a 0 nobody chose (a 0 m length), so `set` names the values to give and sends nothing (exit 2).
+// A stop needs none; once values are in force, those not given keep theirs.
+TEST_F(Cli, SetWithNothingInForceNamesTheValuesToGiveAndSendsNothing) {
+  lb::test::Collector<msg::SawStatusPubSubType> saw;
+  lb::test::Collector<msg::SawSetpointPubSubType> sent;  // every set value any client writes
+  ASSERT_TRUE(saw.subscribe(line_->dds(), line_->topic("saw1", "status"), QosKind::state));
+  ASSERT_TRUE(sent.subscribe(line_->dds(), line_->topic("saw1", "setpoint"), QosKind::command));
+  ASSERT_TRUE(saw.wait_last(30s, [](const msg::SawStatus& s) {
+    return operational(s) && s.control_word().raw() == 0 && s.sync_speed_set_percent() == 0 &&
+           s.product_length_set_m() == 0;
+  })) << "a fresh saw reports no set value in force";
+
+  auto r = cli({"set", "saw1", "--program", "on", "--sync-speed-percent", "90"});
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_TRUE(has(r, "saw1: no set values in force yet (its status reports them all 0: none was given since the "
+                     "bridge started and none was kept from before), so the values not given have nothing to keep: "
+                     "give --product-length-m too (nothing was sent)"))
+      << r.output;
+  EXPECT_FALSE(has(r, "accepted")) << r.output;
+  r = cli({"set", "saw1", "--wall-thickening", "on"});
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_TRUE(has(r, "give --sync-speed-percent, --product-length-m too")) << r.output;
+  r = cli({"set", "puller1", "--extruder", "running"});
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_TRUE(has(r, "puller1: no set values in force yet") && has(r, "give --speed-percent too")) << r.output;
+  r = cli({"set", "box1", "--loom-status", "start_advice"});
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_TRUE(has(r, "give --maximum-speed, --loom-width-m too")) << r.output;
+
+  // A stop carries nothing that runs: sent.
+  r = cli({"set", "saw1", "--program", "off"});
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(has(r, "saw1: accepted: program off")) << r.output;
+  r = cli({"set", "saw1", "--program", "on", "--sync-speed-percent", "90", "--product-length-m", "1.2"});
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(has(r, "saw1: accepted: program on, wall-thickening off, smooth pipe, sync speed 90 %, product length "
+                     "1.2 m"))
+      << r.output;
+  // Every set value the clients wrote has come (the last one accepted marks it): the refused ones
+  // are not among them, only the stop and the full one.
+  ASSERT_TRUE(sent.wait(10s, [](const auto& v) { return !v.empty() && v.back().product_length_m() == 1.2; }));
+  for (const auto& sp : sent.samples()) {
+    EXPECT_TRUE(!sp.saw_program_on() || sp.product_length_m() == 1.2)
+        << "a set value that switched the program on at " << sp.product_length_m() << " m went out";
+  }
+  // In force now: a value not given keeps its own.
+  r = cli({"set", "saw1", "--sync-speed-percent", "80"});
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(has(r, "sync speed 80 %, product length 1.2 m")) << r.output;
 }
 
 TEST_F(Cli, FeederTopicsServicesAndLoomPlay) {
@@ -307,6 +361,7 @@ TEST(CliWithoutBridge, SetAsksAgainUntilAnswered) {
   std::mutex m;
   std::map<std::uint64_t, int> seen;  // request id -> times it came
   double speed = 0;
+  double length = 0;
   lb::ddsl::Writer<msg::SetpointResultPubSubType> answers;
   auto dds = lb::ddsl::Participant::create({35, true, "askagain-responder"});
   ASSERT_TRUE(dds) << dds.error().message;
@@ -323,6 +378,7 @@ TEST(CliWithoutBridge, SetAsksAgainUntilAnswered) {
                                                           std::lock_guard lock(m);
                                                           times = ++seen[sp.request_id()];
                                                           speed = sp.sync_speed_percent();
+                                                          length = sp.product_length_m();
                                                         }
                                                         if (times < 2) return;  // the first answer "lost"
                                                         msg::SetpointResult r;
@@ -333,6 +389,7 @@ TEST(CliWithoutBridge, SetAsksAgainUntilAnswered) {
   msg::SawStatus online;
   online.health().online(true);
   online.health().nmt_state(msg::NMT_OPERATIONAL);
+  online.product_length_set_m(1.0);  // a set value in force, which the fields not given keep
   ASSERT_TRUE(status->write(online));
   // Like a bridge, it says in its diagnostics that the saw's boot passed (set waits for that).
   auto diagnostics = p.writer<msg::DiagnosticsPubSubType>(lb::ddsl::topic_name("askagain", "bridge", "diagnostics"),
@@ -355,6 +412,7 @@ TEST(CliWithoutBridge, SetAsksAgainUntilAnswered) {
   ASSERT_EQ(seen.size(), 1u) << "every write of one set value carries its request id";
   EXPECT_EQ(seen.begin()->second, 2) << "asked again once, after the first answer did not come";
   EXPECT_DOUBLE_EQ(speed, 40.0);
+  EXPECT_DOUBLE_EQ(length, 1.0);
 }
 
 // The same for a service call: `press` (and every other service call) asks again every second,
