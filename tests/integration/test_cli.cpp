@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <csignal>
 #include <cstdlib>
 #include <fstream>
 #include <map>
@@ -306,6 +307,45 @@ TEST_F(Cli, DiagnosticsFollowAnOperatorsNmtPreOperationalAndStart) {
                                const auto* n = puller_node(d);
                                return n != nullptr && n->node_state() == "operational" && n->boot_state() == "started";
                              }))
+      << last_text(diag) << line_->logs();
+}
+
+// NMT to a device the bridge does not hear (its simulator frozen): the command is sent, so the
+// CLI says sent and exits 0, with what is not known yet; the device, running again, takes the
+// reset (its boot-up, counted in the bridge's diagnostics).
+TEST_F(Cli, NmtToADeviceNotHeardIsSentAndSaysSo) {
+  lb::test::Collector<msg::SawStatusPubSubType> saw;
+  lb::test::Collector<msg::DiagnosticsPubSubType> diag;
+  ASSERT_TRUE(saw.subscribe(line_->dds(), line_->topic("saw1", "status"), QosKind::state));
+  ASSERT_TRUE(diag.subscribe(line_->dds(), line_->topic("bridge", "diagnostics"), QosKind::state));
+  const auto saw_boot_ups = [](const msg::Diagnostics& d) -> std::int64_t {
+    for (const auto& n : d.nodes()) {
+      if (n.device() == "saw1") return n.boot_ups();
+    }
+    return -1;
+  };
+  // Its boot-ups so far (the simulator's power-on one, if the bridge heard it): the reset's comes on top.
+  ASSERT_TRUE(saw.wait_last(30s, operational<msg::SawStatus>)) << line_->logs();
+  ASSERT_TRUE(diag.wait_last(30s, [&](const msg::Diagnostics& d) { return saw_boot_ups(d) >= 0; })) << last_text(diag);
+  const auto boot_ups_before = saw_boot_ups(diag.samples().back());
+  const auto sim = line_->sim().pid();
+  ASSERT_EQ(::kill(sim, SIGSTOP), 0);
+  struct Resume {
+    pid_t pid;
+    ~Resume() { ::kill(pid, SIGCONT); }
+  } resume{sim};
+  ASSERT_TRUE(saw.wait_last(30s, [](const msg::SawStatus& s) { return !s.health().online(); }))
+      << "a frozen saw still shown online\n"
+      << line_->logs();
+  const auto r = cli({"nmt", "saw1", "reset-node"});
+  EXPECT_EQ(r.exit_code, 0) << r.output << line_->logs();
+  EXPECT_TRUE(has(r, "NMT reset-node sent; saw1 was not heard before (no heartbeat within its timeout): its boot-up "
+                     "will tell that it took effect"))
+      << r.output;
+  EXPECT_FALSE(has(r, "refused")) << r.output;
+  ASSERT_EQ(::kill(sim, SIGCONT), 0);
+  EXPECT_TRUE(diag.wait_last(30s, [&](const msg::Diagnostics& d) { return saw_boot_ups(d) > boot_ups_before; }))
+      << "the reset sent did not reach the saw\n"
       << last_text(diag) << line_->logs();
 }
 

@@ -367,16 +367,18 @@ void DeviceServices::nmt(const srv::Nmt_Request& request, const ddsl::Respond<sr
     if (auto r = machine_->operator_command(c); !r) return reply(false, ctx_.device.name + " " + r.error().message);
     spdlog::info("{}: NMT command {:02X}h sent on request", ctx_.device.name, static_cast<int>(c));
     for (const auto& l : nmt_listeners_) l(c);
-    // NMT is unconfirmed (CiA 301): only the device's heartbeat tells that it was heard. A device
-    // that has none (offline) may be gone; sending may still help (a reset), claiming it did not.
+    // NMT is unconfirmed (CiA 301): success says it was sent, and only the device's heartbeat
+    // tells that it was heard. A device that has none (offline) may be gone, or only silent:
+    // sending may still help (a reset), so it is sent and answered sent, with what is not known.
     if (!ctx_.node.online()) {
       const bool stops = c == canopen::NmtCommand::stop || c == canopen::NmtCommand::enter_pre_operational;
       if (stops && ctx_.node.heard()) {
-        return reply(true, "sent; " + ctx_.device.name +
+        return reply(true, ctx_.device.name +
                                " sends no heartbeat just now, but it is heard (its other frames): a stop goes out");
       }
-      return reply(false, "sent, but " + ctx_.device.name +
-                              " is offline (no heartbeat within its timeout): nothing confirms that it took effect");
+      const bool resets = c == canopen::NmtCommand::reset_node || c == canopen::NmtCommand::reset_communication;
+      return reply(true, ctx_.device.name + " was not heard before (no heartbeat within its timeout): " +
+                             (resets ? "its boot-up" : "its heartbeat") + " will tell that it took effect");
     }
     reply(true, "");
   });
