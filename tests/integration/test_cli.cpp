@@ -19,6 +19,7 @@
 
 #include "app/boot_wait.hpp"
 #include "app/common_text.hpp"
+#include "app/saw_text.hpp"
 #include "msgs/commonPubSubTypes.h"
 #include "msgs/corrugatorPubSubTypes.h"
 #include "msgs/feederPubSubTypes.h"
@@ -161,6 +162,11 @@ TEST_F(Cli, SetTakesEachDevicesSetValues) {
            "--product-length-m", "1.0"});
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_TRUE(has(r, "wall-thickening on")) << r.output;
+  // The new length flipped the saw's change-of-length toggle (CiA 420-4 6020h bit 2): shown as a
+  // toggle with its level, never as a button pressed.
+  const auto saw = cli({"echo", "saw1", "status", "--duration", "2"});
+  EXPECT_TRUE(has(saw, ", toggles [change_of_length=1]")) << saw.output;
+  EXPECT_FALSE(has(saw, "pressed")) << saw.output;
   r = cli({"press", "puller1", "motor_start"});
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_TRUE(has(r, "motor_start: on the bus in ")) << r.output;
@@ -535,6 +541,41 @@ std::vector<std::string> idl_fields(const std::string& idl, const std::string& s
     if (std::smatch m; std::regex_search(line, m, field)) fields.push_back(m[2]);
   }
   return fields;
+}
+
+// A saw's status line, exactly: the change-of-length bit is a toggle (CiA 420-4 6020h bit 2: "each
+// change shall force the saw to take over the new length setting"), shown with its level among the
+// set values, never as a button pressed; a momentary command the control word carries is pressed.
+TEST(CliText, ASawsChangeOfLengthToggleIsShownAsAToggleNotPressed) {
+  msg::SawStatus s;
+  s.health().nmt_state(msg::NMT_OPERATIONAL);
+  s.health().online(true);
+  s.health().active_errors_known(true);
+  s.status_word().raw(0x1001);
+  s.status_word().saw_ready(true);
+  s.status_word().saw_program_enabled(true);
+  s.counter_value(2500);
+  s.actual_saw_counter_m(0.25);
+  s.product_speed_m_per_min(27.0);
+  s.control_word().raw(0x0005);
+  s.control_word().saw_program_on(true);
+  s.control_word().change_of_length(true);
+  s.sync_speed_set_percent(90.0);
+  s.product_length_set_m(1.0);
+  const auto clock = lb::app::clock_text(s.stamp());
+  EXPECT_EQ(lb::app::to_text(s),
+            clock +
+                " operational     online  | saw counter   0.2500 m  speed  27.000 m/min  pulses       2500 | status "
+                "1001h [saw_ready saw_program_enabled] | set: program on, smooth pipe, wall-thickening off, length "
+                "1.0000 m, sync 90.00 %, toggles [change_of_length=1]");
+  s.control_word().raw(0x0009);
+  s.control_word().change_of_length(false);
+  s.control_word().manual_cut(true);
+  EXPECT_EQ(lb::app::to_text(s),
+            clock +
+                " operational     online  | saw counter   0.2500 m  speed  27.000 m/min  pulses       2500 | status "
+                "1001h [saw_ready saw_program_enabled] | set: program on, smooth pipe, wall-thickening off, length "
+                "1.0000 m, sync 90.00 %, toggles [change_of_length=0], pressed [manual_cut]");
 }
 
 // `linebridge-cli echo bridge diagnostics` prints every field of the Diagnostics type: the field
