@@ -9,7 +9,12 @@
 #   <Enum> <field>;     -> a code field: the profile's code names match the enumerators' lower-case
 #                          tails (PULLER_SPEED_SET_REMOTE -> "remote"); the first enumerator is
 #                          what a profile without the field reports
-#   momentary           -> the control word's flags the setpoint does not carry (pressed like buttons)
+#   boolean <bit>;   // toggle...
+#                       -> a toggle: a flag whose every change is the command (CiA 420-4 6020h bit 2,
+#                          change of length), flipped by the bridge itself: neither a state the
+#                          setpoint carries nor a button, so never momentary
+#   momentary           -> the control word's flags the setpoint does not carry and that are no
+#                          toggle (pressed like buttons)
 
 # "haul_off" -> "HaulOff"
 function(lb_camel_case out name)
@@ -24,11 +29,18 @@ function(lb_camel_case out name)
   set(${out} "${result}" PARENT_SCOPE)
 endfunction()
 
-# Reads one IDL file into variables of the caller: idl_structs, idl_enums, and per struct
-# idl_struct_<S> ("type:name" items), per enum idl_enum_<E> (enumerators).
+# Reads one IDL file into variables of the caller: idl_structs, idl_enums, idl_toggles (the flags
+# whose comment begins with "toggle"), and per struct idl_struct_<S> ("type:name" items), per enum
+# idl_enum_<E> (enumerators).
 macro(lb_read_idl file)
   file(READ "${file}" _text)
   string(REPLACE ";" "" _text "${_text}")
+  string(REGEX MATCHALL "boolean[ \t]+[a-z_][a-z0-9_]*[ \t]*//[ \t]*toggle" _toggle_lines "${_text}")
+  set(idl_toggles "")
+  foreach(_line IN LISTS _toggle_lines)
+    string(REGEX REPLACE "boolean[ \t]+([a-z_][a-z0-9_]*).*" "\\1" _name "${_line}")
+    list(APPEND idl_toggles "${_name}")
+  endforeach()
   string(REGEX REPLACE "//[^\n]*" "" _text "${_text}")
   string(REPLACE "\n" ";" _lines "${_text}")
   set(idl_structs "")
@@ -148,15 +160,20 @@ function(lb_generate_word_bindings output)
     endif()
     lb_word_fields(status ${P}StatusWord StatusWord)
     lb_word_fields(control ${P}ControlWord ControlWord)
-    # Momentary: the control word's flags the setpoint does not carry as a state.
+    # Momentary: the control word's flags the setpoint does not carry as a state, but its toggles.
     set(momentary "")
+    set(toggles "")
     foreach(flag IN LISTS control_flag_names)
-      if(NOT "boolean:${flag}" IN_LIST idl_struct_${P}Setpoint)
+      if(flag IN_LIST idl_toggles)
+        string(APPEND toggles "\"${flag}\", ")
+      elseif(NOT "boolean:${flag}" IN_LIST idl_struct_${P}Setpoint)
         string(APPEND momentary "\"${flag}\", ")
       endif()
     endforeach()
     string(REGEX MATCHALL "\"[a-z0-9_]+\", " m "${momentary}")
     lb_count(n_momentary ${m})
+    string(REGEX MATCHALL "\"[a-z0-9_]+\", " t "${toggles}")
+    lb_count(n_toggles ${t})
     string(REGEX MATCHALL "{\"" sf "${status_flags}")
     lb_count(n_status_flags ${sf})
     string(REGEX MATCHALL "{\"" cf "${control_flags}")
@@ -188,6 +205,7 @@ ${control_flags}  }};
   static constexpr std::array<CodeField<ControlWord>, ${n_control_codes}> control_codes{{
 ${control_codes}  }};
   static constexpr std::array<std::string_view, ${n_momentary}> momentary{${momentary}};
+  static constexpr std::array<std::string_view, ${n_toggles}> toggles{${toggles}};
 };
 ")
   endforeach()

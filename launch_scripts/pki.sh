@@ -8,7 +8,8 @@
 #                               needs it (linebridge warns of a CA key beside the identity in use)
 #       DIR/governance.p7s      the domain's governance, signed (governance.xml: what was signed)
 #       DIR/bridge/             the bridge's identity: cert.pem key.pem permissions.p7s
-#       and prints the dds.security block for the line file.
+#       and prints the dds.security block for the line file: its security: key, indented as it
+#       goes under the line file's dds: (paste it as printed below the dds: line).
 #   launch_scripts/pki.sh issue --config LINE.yaml --dir DIR --name NAME --role ROLE [--devices D1,D2] [--days N]
 #       DIR/NAME/               cert.pem key.pem permissions.p7s (permissions.xml: what was signed)
 #       ROLE: observer (reads status, events, info, diagnostics), operator (also set values and
@@ -215,9 +216,9 @@ case "$cmd" in
     sign "$dir/governance.xml"
     issue bridge bridge
     abs=$(cd "$dir" && pwd)
+    # What goes under the line file's dds: (a line file has one), indented as it goes there.
     cat <<EOF
-# dds.security for the line file (relative paths are taken from the line file's folder):
-dds:
+  # dds.security: paste these lines, as they are, below the line file's dds: line
   security:
     identity_ca: $abs/ca/identity_ca.pem
     permissions_ca: $abs/ca/permissions_ca.pem

@@ -15,7 +15,7 @@ namespace lb::app {
 
 // Exit codes of every executable (README "Exit codes").
 inline constexpr int kExitOk = 0;
-inline constexpr int kExitFailure = 1;     // start-up or run-time failure; a refusal by the bridge (CLI)
+inline constexpr int kExitFailure = 1;     // a failure: start-up, a part of the bridge at run time (CLI: cli_exit.hpp)
 inline constexpr int kExitUsage = 2;       // bad arguments or configuration: retrying cannot help
 inline constexpr int kExitLoopFailed = 3;  // linebridge: a bus loop failed while running (restart it)
 
@@ -25,17 +25,25 @@ struct ExitCode {
   std::string_view meaning;
 };
 
-// The codes linebridge-sim and linebridge-security use; linebridge adds kExitLoopFailed.
-inline constexpr std::array kCommonExitCodes{
-    ExitCode{kExitOk, "done"},
-    ExitCode{kExitFailure, "failure (start-up, run time, or a request the bridge refused)"},
-    ExitCode{kExitUsage, "bad arguments or configuration"},
-};
+// Each program's own: what its code paths return, in its words (docs/command-line.md "Exit codes").
+// linebridge-cli's are in cli_exit.hpp: it alone sends requests, so it alone has refusals.
+inline constexpr ExitCode kExitDone{kExitOk, "done"};
+inline constexpr ExitCode kExitBadUsage{kExitUsage, "bad arguments or configuration"};
 inline constexpr std::array kBridgeExitCodes{
-    kCommonExitCodes[0],
-    kCommonExitCodes[1],
-    kCommonExitCodes[2],
+    ExitCode{kExitOk, "normal stop (SIGINT, SIGTERM, --duration), or --check found the file valid"},
+    ExitCode{kExitFailure, "start-up failure (a bus, the channel or the DDS participant cannot be opened), or "
+                           "--part dds lost its channel to the bus process"},
+    ExitCode{kExitUsage, "bad arguments or configuration, or --check found the file not valid"},
     ExitCode{kExitLoopFailed, "a bus loop failed while running (restart it)"},
+};
+inline constexpr std::array kSimExitCodes{
+    kExitDone,
+    ExitCode{kExitFailure, "a bus cannot be opened or a device cannot be played"},
+    kExitBadUsage,
+};
+inline constexpr std::array kSecurityExitCodes{
+    ExitCode{kExitOk, "the check passed, the document was printed"},
+    ExitCode{kExitUsage, "bad arguments or configuration, a problem in a security file"},
 };
 
 // "Exit codes: 0 done; 1 ...; 2 ...": the --help footer.
@@ -46,7 +54,7 @@ std::string version_text(std::string_view program);
 
 // Adds --version, lists `codes` under --help and makes CLI11's own failures follow the
 // conventions above.
-void add_conventions(CLI::App& cli, std::string_view program, std::span<const ExitCode> codes = kCommonExitCodes);
+void add_conventions(CLI::App& cli, std::string_view program, std::span<const ExitCode> codes);
 
 // Parses; returns the exit code to leave with (0 after --help/--version, kExitUsage for any
 // argument error, which CLI11 prints) or -1 to go on.

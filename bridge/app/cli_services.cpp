@@ -105,7 +105,9 @@ int call_nmt(const ServiceTarget& t, const std::string& command) {
   req.command(kCommands.at(command));
   auto r = call<srv::Nmt_RequestPubSubType, srv::Nmt_ResponsePubSubType>(t, "nmt", req);
   if (!r || r.bridge_restarted) return not_answered(r);
-  return report(r->success(), "NMT " + command + " sent", r->message());
+  // Sent is success: NMT is unconfirmed, and the bridge's message says what is not known yet.
+  return report(r->success(), "NMT " + command + " sent" + (r->message().empty() ? "" : "; " + r->message()),
+                r->message());
 }
 
 int call_sdo_read(const ServiceTarget& t, std::uint16_t index, std::uint8_t sub, const std::string& type) {

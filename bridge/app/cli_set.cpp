@@ -7,12 +7,15 @@
 #include <chrono>
 #include <condition_variable>
 #include <functional>
+#include <initializer_list>
 #include <mutex>
 #include <optional>
 #include <thread>
+#include <utility>
 
 #include "app/boot_wait.hpp"
 #include "app/cli_exit.hpp"
+#include "base/result.hpp"
 #include "dds/service.hpp"
 #include "dds/topic_names.hpp"
 #include "gateways/codecs/drive_binding.hpp"
@@ -61,12 +64,34 @@ bool wait_until(Clock::duration timeout, const std::function<bool()>& cond) {
   return true;
 }
 
+// The options a set value needs when nothing is in force yet and the command did not give them,
+// as "--a, --b": empty when it may be sent.
+std::string not_given(std::initializer_list<std::pair<bool, const char*>> options) {
+  std::string out;
+  for (const auto& [given, option] : options) {
+    if (!given) out += (out.empty() ? "" : ", ") + std::string(option);
+  }
+  return out;
+}
+
+// A device whose status reports every set value 0 has none in force: none was given since the
+// bridge started and none was kept from before (what a bridge sends until then). Its values then
+// have nothing to keep, and a 0 taken from there (a 0 m length, a 0 % speed) would be a value
+// nobody chose: the command must give them. Levels not given stay off, as they are.
+Error nothing_in_force(const std::string& device, const std::string& missing) {
+  return make_error(fmt::format("{}: no set values in force yet (its status reports them all 0: none was given since "
+                                "the bridge started and none was kept from before), so the values not given have "
+                                "nothing to keep: give {} too (nothing was sent)",
+                                device, missing));
+}
+
 // The common path: the device's current status (online), then the set value, then its answer.
-// make(status) builds the set value from what is in force; describe() says what was accepted.
+// make(status) builds the set value from what is in force, or says why it cannot (nothing sent);
+// describe() says what was accepted.
 template <class StatusPS, class SetpointPS>
 int send_set_value(ddsl::Participant& dds, const std::string& line, const std::string& device,
                    const char* setpoint_name, const char* result_name, const SetOptions& o,
-                   const std::function<typename SetpointPS::type(const typename StatusPS::type&)>& make,
+                   const std::function<Result<typename SetpointPS::type>(const typename StatusPS::type&)>& make,
                    const std::function<std::string(const typename SetpointPS::type&)>& describe) {
   using Status = typename StatusPS::type;
   const auto status_topic = ddsl::topic_name(line, device, "status");
@@ -114,7 +139,11 @@ int send_set_value(ddsl::Participant& dds, const std::string& line, const std::s
     fmt::print(stderr, "{}: the bridge does not subscribe {}\n", device, setpoint_topic);
     return kExitNoAnswer;
   }
-  auto sp = make(*current);
+  // What is in force now: the boot's start may have restored kept values since the first status.
+  current = status.wait(left(), [](const Status& s) { return s.health().online(); }).value_or(*current);
+  auto made = make(*current);
+  if (!made) return fmt::print(stderr, "{}\n", made.error().message), kExitUsage;
+  auto sp = *made;
   sp.request_id(request_id);
   // Asked again, the same set value with the same request id, every second until answered: Fast
   // DDS 2.9.1 can lose a writer's last sample after a burst of its others, and the answer to this
@@ -142,7 +171,17 @@ bool on(const std::optional<std::string>& v, bool in_force, const char* on_word 
 int set_saw(ddsl::Participant& dds, const std::string& line, const std::string& device, const SetOptions& o) {
   return send_set_value<msg::SawStatusPubSubType, msg::SawSetpointPubSubType>(
       dds, line, device, "setpoint", "setpoint_result", o,
-      [&o](const msg::SawStatus& s) {
+      [&o, &device](const msg::SawStatus& s) -> Result<msg::SawSetpoint> {
+        // The fields a SawSetpoint carries (a button pressed just now is none of them).
+        const auto& c = s.control_word();
+        const bool in_force = c.saw_program_on() || c.wall_thickening() || c.count_mode() != msg::SMOOTH_PIPE ||
+                              s.sync_speed_set_percent() != 0 || s.product_length_set_m() != 0;
+        // A program switched off runs on nothing it carries: a stop is never held back.
+        if (!in_force && o.program != "off") {
+          const auto missing = not_given({{o.sync_speed_percent.has_value(), "--sync-speed-percent"},
+                                          {o.product_length_m.has_value(), "--product-length-m"}});
+          if (!missing.empty()) return nothing_in_force(device, missing);
+        }
         msg::SawSetpoint sp;
         sp.saw_program_on(on(o.program, s.control_word().saw_program_on()));
         sp.wall_thickening(on(o.wall_thickening, s.control_word().wall_thickening()));
@@ -164,7 +203,10 @@ template <class StatusPS, class SetpointPS>
 int set_drive(ddsl::Participant& dds, const std::string& line, const std::string& device, const SetOptions& o) {
   return send_set_value<StatusPS, SetpointPS>(
       dds, line, device, "setpoint", "setpoint_result", o,
-      [&o](const typename StatusPS::type& s) {
+      [&o, &device](const typename StatusPS::type& s) -> Result<typename SetpointPS::type> {
+        const bool in_force = s.control_word().extruder_running() || s.speed_set_percent() != 0;
+        if (!in_force && o.extruder != "stopped" && !o.speed_percent)
+          return nothing_in_force(device, "--speed-percent");
         typename SetpointPS::type sp;
         sp.extruder_running(on(o.extruder, s.control_word().extruder_running(), "running"));
         sp.speed_set_percent(o.speed_percent.value_or(s.speed_set_percent()));
@@ -179,9 +221,16 @@ int set_drive(ddsl::Participant& dds, const std::string& line, const std::string
 int set_feeder(ddsl::Participant& dds, const std::string& line, const std::string& device, const SetOptions& o) {
   return send_set_value<msg::FeederStatusPubSubType, msg::LoomSetpointPubSubType>(
       dds, line, device, "loom", "loom_result", o,
-      [&o](const msg::FeederStatus& s) {
+      [&o, &device](const msg::FeederStatus& s) -> Result<msg::LoomSetpoint> {
         msg::LoomSetpoint sp;
         if (o.loom_status) {
+          // RPDO2 in force: a loom status or a weft filling other than 0 (a loom stop carries none).
+          const bool in_force = s.loom().loom_status().raw() != 0 || s.loom().weft_filling_raw() != 0;
+          if (!in_force && *o.loom_status != "stop") {
+            const auto missing = not_given({{o.maximum_speed_per_min.has_value(), "--maximum-speed"},
+                                            {o.loom_width_m.has_value(), "--loom-width-m"}});
+            if (!missing.empty()) return nothing_in_force(device, missing);
+          }
           // RPDO2 carries the loom status with the weft filling: what is not given stays in force.
           sp.loom_status(*o.loom_status);
           sp.maximum_speed_per_min(

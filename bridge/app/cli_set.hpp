@@ -1,6 +1,8 @@
 #pragma once
 // linebridge-cli set: a device's set values, whatever its type. Fields not given keep the value in
 // force, which the device's status topic reports (a feeder's loom parts not given are not sent).
+// A device with no set value in force yet (its status reports them all 0) has no value to keep:
+// then the values (speeds, lengths) must be given, else nothing is sent (exit 2); a stop needs none.
 
 #include <optional>
 #include <string>

@@ -36,7 +36,10 @@ std::string state_text(const msg::DeviceHealth& h) {
 std::string errors_text(const msg::DeviceHealth& h) {
   std::string out;
   if (!h.active_errors().empty()) out = fmt::format(" | EMCY active: {:04X}", fmt::join(h.active_errors(), " "));
-  if (!h.active_errors_known()) out += " | active errors UNCERTAIN: " + h.active_errors_note();
+  if (!h.active_errors_known())
+    out += " | active errors UNCERTAIN: " + h.active_errors_note();
+  else if (!h.active_errors_note().empty())
+    out += " | " + h.active_errors_note();  // e.g. an EMCY the device's own 1001h contradicted
   return out;
 }
 

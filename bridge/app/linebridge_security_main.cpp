@@ -38,7 +38,7 @@ std::vector<std::string> split(const std::string& list) {
 
 int main(int argc, char** argv) {
   CLI::App cli{"linebridge-security: governance and permissions of a line, and checks of its security files"};
-  lb::app::add_conventions(cli, "linebridge-security");
+  lb::app::add_conventions(cli, "linebridge-security", lb::app::kSecurityExitCodes);
   cli.require_subcommand(1);
   std::string config_path;
   lb::app::add_config_option(cli, config_path);

@@ -15,7 +15,7 @@
 
 int main(int argc, char** argv) {
   CLI::App cli{"linebridge-sim: simulated CANopen devices of a line"};
-  lb::app::add_conventions(cli, "linebridge-sim");
+  lb::app::add_conventions(cli, "linebridge-sim", lb::app::kSimExitCodes);
   std::string config_path;
   std::vector<std::string> only;
   double duration_s = 0;

@@ -17,12 +17,14 @@ std::string to_text(const msg::SawStatus& s) {
   const auto& c = s.control_word();
   const std::string bits = status_word_text<Binding>(w);
   const std::string pressed = pressed_text<Binding>(c);
+  const std::string toggles = toggles_text<Binding>(c);
   return fmt::format("{} {} | saw counter {:8.4f} m  speed {:7.3f} m/min  pulses {:>10} | status {:04X}h [{}] | "
-                     "set: program {}, {}, wall-thickening {}, length {:.4f} m, sync {:.2f} %{}{}{}{}",
+                     "set: program {}, {}, wall-thickening {}, length {:.4f} m, sync {:.2f} %{}{}{}{}{}",
                      clock_text(s.stamp()), state_text(s.health()), s.actual_saw_counter_m(),
                      s.product_speed_m_per_min(), s.counter_value(), w.raw(), bits, c.saw_program_on() ? "on" : "off",
                      to_text(c.count_mode()), c.wall_thickening() ? "on" : "off", s.product_length_set_m(),
-                     s.sync_speed_set_percent(), pressed.empty() ? "" : ", pressed [" + pressed + "]",
+                     s.sync_speed_set_percent(), toggles.empty() ? "" : ", toggles [" + toggles + "]",
+                     pressed.empty() ? "" : ", pressed [" + pressed + "]",
                      s.pdo_length_errors() ? fmt::format(" | {} short PDOs", s.pdo_length_errors()) : "",
                      errors_text(s.health()), other_values_text(s.other_values()));
 }

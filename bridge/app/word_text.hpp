@@ -30,13 +30,26 @@ std::string status_word_text(const typename Binding::StatusWord& w) {
   return out;
 }
 
-// The momentary commands the control word carries now (pressed like buttons).
+// The momentary commands the control word carries now (pressed like buttons). A toggle is none:
+// its every change is the command, so its level says nothing is held (toggles_text shows it).
 template <class Binding>
 std::string pressed_text(const typename Binding::ControlWord& c) {
   std::string out;
   for (const auto& f : Binding::control_flags) {
     if ((c.*f.get)() && std::ranges::find(Binding::momentary, f.name) != Binding::momentary.end())
       out += (out.empty() ? "" : " ") + std::string(f.name);
+  }
+  return out;
+}
+
+// The control word's toggles with their level now, "change_of_length=1": the level is the state
+// of the toggle (what the last change made it), never a button held.
+template <class Binding>
+std::string toggles_text(const typename Binding::ControlWord& c) {
+  std::string out;
+  for (const auto& f : Binding::control_flags) {
+    if (std::ranges::find(Binding::toggles, f.name) != Binding::toggles.end())
+      out += fmt::format("{}{}={}", out.empty() ? "" : " ", f.name, (c.*f.get)() ? 1 : 0);
   }
   return out;
 }

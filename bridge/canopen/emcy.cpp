@@ -1,6 +1,7 @@
 #include "canopen/emcy.hpp"
 
 #include <fmt/format.h>
+#include <fmt/ranges.h>
 
 #include <algorithm>
 
@@ -92,7 +93,10 @@ void ActiveErrors::apply(const Emergency& e) {
   error_register_ = e.error_register;
   // CiA 301: the error register is 0 exactly when no error is active, whatever the code says.
   if (e.error_register == 0) return clear();
-  if (!e.is_reset()) return add(e.error_code);
+  if (!e.is_reset()) {
+    if (known_) note_.clear();  // a note on codes cleared before is about earlier EMCYs
+    return add(e.error_code);
+  }
   // "Error reset" while the register still reports errors: some were cleared, others remain.
   known_ = false;
   reset_left_errors_ = true;
@@ -102,6 +106,21 @@ void ActiveErrors::apply(const Emergency& e) {
 }
 
 void ActiveErrors::reset_by_boot_up() { clear(); }
+
+std::vector<std::uint16_t> ActiveErrors::checked_after_emcy(std::uint8_t error_register) {
+  if (error_register != 0) {
+    reconcile(error_register);
+    return {};
+  }
+  auto contradicted = codes_;
+  clear();
+  if (!contradicted.empty()) {
+    note_ = fmt::format("EMCY {:04X}h cleared: the device's own error register 1001h read 00h after it (an error "
+                        "gone by then, or an EMCY the device never sent: CAN frames are not authenticated)",
+                        fmt::join(contradicted, " "));
+  }
+  return contradicted;
+}
 
 void ActiveErrors::reconcile(std::uint8_t error_register) {
   if (error_register == 0) return clear();

@@ -68,7 +68,11 @@ std::string_view to_string(EmcyClass c);
 //     EMCY does not say which: the list is uncertain until the register goes to 0 or a boot-up;
 //   - a boot-up clears it: the device starts without active errors;
 //   - the register read by the master (reconcile): 0 clears it; otherwise the list stays, and it
-//     is uncertain when no EMCY since the boot-up names an error that the register reports.
+//     is uncertain when no EMCY since the boot-up names an error that the register reports;
+//   - the register read again because an EMCY came while the device ran (checked_after_emcy): 0
+//     clears it too, with a note naming the codes the device's own register contradicts. CAN is
+//     not authenticated: any bus member can send an EMCY in a device's name, and only the device
+//     can say it has no error. A forged EMCY while the device has a real error is not told apart.
 // Until one of these happened (a monitor that joined a running line, a master before its first
 // read) the list is uncertain too: errors raised before cannot be known.
 class ActiveErrors {
@@ -79,6 +83,9 @@ class ActiveErrors {
   void reset_by_boot_up();
   // The device's error register 1001h as the master read it.
   void reconcile(std::uint8_t error_register);
+  // The same, read because an EMCY came while the device was operational: 0 clears the list and
+  // the note says which codes the device's own register contradicts. Returns those codes.
+  std::vector<std::uint16_t> checked_after_emcy(std::uint8_t error_register);
   // The list cannot be trusted: kept as it is, flagged, with the reason (and the register, if read).
   void mark_uncertain(std::string why, std::optional<std::uint8_t> error_register = std::nullopt);
 

@@ -114,6 +114,22 @@ TEST(Arguments, HelpListsEveryExitCode) {
   for (const int code : {lb::app::kExitOk, lb::app::kExitFailure, lb::app::kExitUsage, lb::app::kExitLoopFailed}) {
     EXPECT_TRUE(listed(bridge.output, code)) << "linebridge --help lacks exit code " << code << ":\n" << bridge.output;
   }
+  // The bridge, the simulator and the security tool send no request: no exit code of theirs means
+  // a refusal (their --help said "a request the bridge refused"), and each lists its own.
+  const auto sim = run_command({LB_BIN_SIM, "--help"});
+  const auto security = run_command({LB_BIN_SECURITY, "--help"});
+  EXPECT_TRUE(listed(sim.output, lb::app::kExitFailure)) << sim.output;
+  EXPECT_FALSE(listed(security.output, lb::app::kExitFailure)) << "linebridge-security never leaves with 1\n"
+                                                               << security.output;
+  for (const auto* help : {&bridge, &sim, &security}) {
+    const auto footer = help->output.find("Exit codes:");
+    ASSERT_NE(footer, std::string::npos) << help->output;
+    EXPECT_EQ(help->output.find("refused", footer), std::string::npos) << help->output;
+  }
+  EXPECT_NE(bridge.output.find("1 start-up failure (a bus, the channel or the DDS participant cannot be opened)"),
+            std::string::npos)
+      << bridge.output;
+  EXPECT_NE(sim.output.find("1 a bus cannot be opened or a device cannot be played"), std::string::npos) << sim.output;
 }
 
 TEST(Arguments, DurationsMustBeFiniteAndBounded) {

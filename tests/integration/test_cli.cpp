@@ -8,6 +8,7 @@
 
 #include <algorithm>
 #include <chrono>
+#include <csignal>
 #include <cstdlib>
 #include <fstream>
 #include <map>
@@ -18,6 +19,7 @@
 
 #include "app/boot_wait.hpp"
 #include "app/common_text.hpp"
+#include "app/saw_text.hpp"
 #include "msgs/commonPubSubTypes.h"
 #include "msgs/corrugatorPubSubTypes.h"
 #include "msgs/feederPubSubTypes.h"
@@ -132,7 +134,8 @@ TEST_F(Cli, EchoIntoAPipeThatClosesEndsCleanlyAndTheNextClientIsAnswered) {
                                            20s);
   EXPECT_EQ(piped.exit_code, 0) << "the echo's exit status through the pipe (141: killed by SIGPIPE)\n" << piped.output;
   EXPECT_TRUE(has({piped.exit_code, piped.output}, "saw1 ")) << piped.output;
-  const auto next = cli({"set", "saw1", "--program", "on"}, 10s);
+  const auto next = cli({"set", "saw1", "--program", "on", "--sync-speed-percent", "50", "--product-length-m", "1.0"},
+                        10s);
   EXPECT_EQ(next.exit_code, 0) << next.output << line_->logs();
   EXPECT_TRUE(has(next, "accepted")) << next.output;
 }
@@ -155,12 +158,70 @@ TEST_F(Cli, SetTakesEachDevicesSetValues) {
   r = cli({"set", "puller1", "--sync-speed-percent", "10"});
   EXPECT_EQ(r.exit_code, 2) << r.output;
   EXPECT_TRUE(has(r, "--sync-speed-percent is not a set value of a puller (--extruder, --speed-percent)")) << r.output;
-  r = cli({"set", "saw1", "--wall-thickening", "on", "--program", "on"});
+  r = cli({"set", "saw1", "--wall-thickening", "on", "--program", "on", "--sync-speed-percent", "50",
+           "--product-length-m", "1.0"});
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_TRUE(has(r, "wall-thickening on")) << r.output;
+  // The new length flipped the saw's change-of-length toggle (CiA 420-4 6020h bit 2): shown as a
+  // toggle with its level, never as a button pressed.
+  const auto saw = cli({"echo", "saw1", "status", "--duration", "2"});
+  EXPECT_TRUE(has(saw, ", toggles [change_of_length=1]")) << saw.output;
+  EXPECT_FALSE(has(saw, "pressed")) << saw.output;
   r = cli({"press", "puller1", "motor_start"});
   EXPECT_EQ(r.exit_code, 0) << r.output;
   EXPECT_TRUE(has(r, "motor_start: on the bus in ")) << r.output;
+}
+
+// A fresh bridge has no set value in force (the status reports them all 0): a value not given would
+// be a 0 nobody chose (a 0 m length), so `set` names the values to give and sends nothing (exit 2).
+// A stop needs none; once values are in force, those not given keep theirs.
+TEST_F(Cli, SetWithNothingInForceNamesTheValuesToGiveAndSendsNothing) {
+  lb::test::Collector<msg::SawStatusPubSubType> saw;
+  lb::test::Collector<msg::SawSetpointPubSubType> sent;  // every set value any client writes
+  ASSERT_TRUE(saw.subscribe(line_->dds(), line_->topic("saw1", "status"), QosKind::state));
+  ASSERT_TRUE(sent.subscribe(line_->dds(), line_->topic("saw1", "setpoint"), QosKind::command));
+  ASSERT_TRUE(saw.wait_last(30s, [](const msg::SawStatus& s) {
+    return operational(s) && s.control_word().raw() == 0 && s.sync_speed_set_percent() == 0 &&
+           s.product_length_set_m() == 0;
+  })) << "a fresh saw reports no set value in force";
+
+  auto r = cli({"set", "saw1", "--program", "on", "--sync-speed-percent", "90"});
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_TRUE(has(r, "saw1: no set values in force yet (its status reports them all 0: none was given since the "
+                     "bridge started and none was kept from before), so the values not given have nothing to keep: "
+                     "give --product-length-m too (nothing was sent)"))
+      << r.output;
+  EXPECT_FALSE(has(r, "accepted")) << r.output;
+  r = cli({"set", "saw1", "--wall-thickening", "on"});
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_TRUE(has(r, "give --sync-speed-percent, --product-length-m too")) << r.output;
+  r = cli({"set", "puller1", "--extruder", "running"});
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_TRUE(has(r, "puller1: no set values in force yet") && has(r, "give --speed-percent too")) << r.output;
+  r = cli({"set", "box1", "--loom-status", "start_advice"});
+  EXPECT_EQ(r.exit_code, 2) << r.output;
+  EXPECT_TRUE(has(r, "give --maximum-speed, --loom-width-m too")) << r.output;
+
+  // A stop carries nothing that runs: sent.
+  r = cli({"set", "saw1", "--program", "off"});
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(has(r, "saw1: accepted: program off")) << r.output;
+  r = cli({"set", "saw1", "--program", "on", "--sync-speed-percent", "90", "--product-length-m", "1.2"});
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(has(r, "saw1: accepted: program on, wall-thickening off, smooth pipe, sync speed 90 %, product length "
+                     "1.2 m"))
+      << r.output;
+  // Every set value the clients wrote has come (the last one accepted marks it): the refused ones
+  // are not among them, only the stop and the full one.
+  ASSERT_TRUE(sent.wait(10s, [](const auto& v) { return !v.empty() && v.back().product_length_m() == 1.2; }));
+  for (const auto& sp : sent.samples()) {
+    EXPECT_TRUE(!sp.saw_program_on() || sp.product_length_m() == 1.2)
+        << "a set value that switched the program on at " << sp.product_length_m() << " m went out";
+  }
+  // In force now: a value not given keeps its own.
+  r = cli({"set", "saw1", "--sync-speed-percent", "80"});
+  EXPECT_EQ(r.exit_code, 0) << r.output;
+  EXPECT_TRUE(has(r, "sync speed 80 %, product length 1.2 m")) << r.output;
 }
 
 TEST_F(Cli, FeederTopicsServicesAndLoomPlay) {
@@ -255,6 +316,45 @@ TEST_F(Cli, DiagnosticsFollowAnOperatorsNmtPreOperationalAndStart) {
       << last_text(diag) << line_->logs();
 }
 
+// NMT to a device the bridge does not hear (its simulator frozen): the command is sent, so the
+// CLI says sent and exits 0, with what is not known yet; the device, running again, takes the
+// reset (its boot-up, counted in the bridge's diagnostics).
+TEST_F(Cli, NmtToADeviceNotHeardIsSentAndSaysSo) {
+  lb::test::Collector<msg::SawStatusPubSubType> saw;
+  lb::test::Collector<msg::DiagnosticsPubSubType> diag;
+  ASSERT_TRUE(saw.subscribe(line_->dds(), line_->topic("saw1", "status"), QosKind::state));
+  ASSERT_TRUE(diag.subscribe(line_->dds(), line_->topic("bridge", "diagnostics"), QosKind::state));
+  const auto saw_boot_ups = [](const msg::Diagnostics& d) -> std::int64_t {
+    for (const auto& n : d.nodes()) {
+      if (n.device() == "saw1") return n.boot_ups();
+    }
+    return -1;
+  };
+  // Its boot-ups so far (the simulator's power-on one, if the bridge heard it): the reset's comes on top.
+  ASSERT_TRUE(saw.wait_last(30s, operational<msg::SawStatus>)) << line_->logs();
+  ASSERT_TRUE(diag.wait_last(30s, [&](const msg::Diagnostics& d) { return saw_boot_ups(d) >= 0; })) << last_text(diag);
+  const auto boot_ups_before = saw_boot_ups(diag.samples().back());
+  const auto sim = line_->sim().pid();
+  ASSERT_EQ(::kill(sim, SIGSTOP), 0);
+  struct Resume {
+    pid_t pid;
+    ~Resume() { ::kill(pid, SIGCONT); }
+  } resume{sim};
+  ASSERT_TRUE(saw.wait_last(30s, [](const msg::SawStatus& s) { return !s.health().online(); }))
+      << "a frozen saw still shown online\n"
+      << line_->logs();
+  const auto r = cli({"nmt", "saw1", "reset-node"});
+  EXPECT_EQ(r.exit_code, 0) << r.output << line_->logs();
+  EXPECT_TRUE(has(r, "NMT reset-node sent; saw1 was not heard before (no heartbeat within its timeout): its boot-up "
+                     "will tell that it took effect"))
+      << r.output;
+  EXPECT_FALSE(has(r, "refused")) << r.output;
+  ASSERT_EQ(::kill(sim, SIGCONT), 0);
+  EXPECT_TRUE(diag.wait_last(30s, [&](const msg::Diagnostics& d) { return saw_boot_ups(d) > boot_ups_before; }))
+      << "the reset sent did not reach the saw\n"
+      << last_text(diag) << line_->logs();
+}
+
 // When `set` may send: once the bridge's diagnostics say the device's boot passed, or settled
 // where the bridge's answer says why; never while it is still booting.
 TEST(CliText, SetWaitsForTheBootToPassOrSettle) {
@@ -307,6 +407,7 @@ TEST(CliWithoutBridge, SetAsksAgainUntilAnswered) {
   std::mutex m;
   std::map<std::uint64_t, int> seen;  // request id -> times it came
   double speed = 0;
+  double length = 0;
   lb::ddsl::Writer<msg::SetpointResultPubSubType> answers;
   auto dds = lb::ddsl::Participant::create({35, true, "askagain-responder"});
   ASSERT_TRUE(dds) << dds.error().message;
@@ -323,6 +424,7 @@ TEST(CliWithoutBridge, SetAsksAgainUntilAnswered) {
                                                           std::lock_guard lock(m);
                                                           times = ++seen[sp.request_id()];
                                                           speed = sp.sync_speed_percent();
+                                                          length = sp.product_length_m();
                                                         }
                                                         if (times < 2) return;  // the first answer "lost"
                                                         msg::SetpointResult r;
@@ -333,6 +435,7 @@ TEST(CliWithoutBridge, SetAsksAgainUntilAnswered) {
   msg::SawStatus online;
   online.health().online(true);
   online.health().nmt_state(msg::NMT_OPERATIONAL);
+  online.product_length_set_m(1.0);  // a set value in force, which the fields not given keep
   ASSERT_TRUE(status->write(online));
   // Like a bridge, it says in its diagnostics that the saw's boot passed (set waits for that).
   auto diagnostics = p.writer<msg::DiagnosticsPubSubType>(lb::ddsl::topic_name("askagain", "bridge", "diagnostics"),
@@ -355,6 +458,7 @@ TEST(CliWithoutBridge, SetAsksAgainUntilAnswered) {
   ASSERT_EQ(seen.size(), 1u) << "every write of one set value carries its request id";
   EXPECT_EQ(seen.begin()->second, 2) << "asked again once, after the first answer did not come";
   EXPECT_DOUBLE_EQ(speed, 40.0);
+  EXPECT_DOUBLE_EQ(length, 1.0);
 }
 
 // The same for a service call: `press` (and every other service call) asks again every second,
@@ -437,6 +541,41 @@ std::vector<std::string> idl_fields(const std::string& idl, const std::string& s
     if (std::smatch m; std::regex_search(line, m, field)) fields.push_back(m[2]);
   }
   return fields;
+}
+
+// A saw's status line, exactly: the change-of-length bit is a toggle (CiA 420-4 6020h bit 2: "each
+// change shall force the saw to take over the new length setting"), shown with its level among the
+// set values, never as a button pressed; a momentary command the control word carries is pressed.
+TEST(CliText, ASawsChangeOfLengthToggleIsShownAsAToggleNotPressed) {
+  msg::SawStatus s;
+  s.health().nmt_state(msg::NMT_OPERATIONAL);
+  s.health().online(true);
+  s.health().active_errors_known(true);
+  s.status_word().raw(0x1001);
+  s.status_word().saw_ready(true);
+  s.status_word().saw_program_enabled(true);
+  s.counter_value(2500);
+  s.actual_saw_counter_m(0.25);
+  s.product_speed_m_per_min(27.0);
+  s.control_word().raw(0x0005);
+  s.control_word().saw_program_on(true);
+  s.control_word().change_of_length(true);
+  s.sync_speed_set_percent(90.0);
+  s.product_length_set_m(1.0);
+  const auto clock = lb::app::clock_text(s.stamp());
+  EXPECT_EQ(lb::app::to_text(s),
+            clock +
+                " operational     online  | saw counter   0.2500 m  speed  27.000 m/min  pulses       2500 | status "
+                "1001h [saw_ready saw_program_enabled] | set: program on, smooth pipe, wall-thickening off, length "
+                "1.0000 m, sync 90.00 %, toggles [change_of_length=1]");
+  s.control_word().raw(0x0009);
+  s.control_word().change_of_length(false);
+  s.control_word().manual_cut(true);
+  EXPECT_EQ(lb::app::to_text(s),
+            clock +
+                " operational     online  | saw counter   0.2500 m  speed  27.000 m/min  pulses       2500 | status "
+                "1001h [saw_ready saw_program_enabled] | set: program on, smooth pipe, wall-thickening off, length "
+                "1.0000 m, sync 90.00 %, toggles [change_of_length=0], pressed [manual_cut]");
 }
 
 // `linebridge-cli echo bridge diagnostics` prints every field of the Diagnostics type: the field

@@ -1,7 +1,8 @@
 // The secured demo as a new user runs it (launch_scripts/demo.sh --secure), ten times in a row: it
 // failed 1 run of 8 when `linebridge-cli set` sent its set value as soon as the saw was online,
 // 14 ms before the saw's boot passed (refused: it would enable a device not yet configured).
-// Every run must set the saw's values, show what the demo shows, and stop cleanly. Each run is
+// Every run must set the saw's values, show what the demo shows, say DDS Security's expected
+// "No key material yet" at most once, and stop cleanly. Each run is
 // bounded at 120 s (about 25 s each on an idle machine); the test at 600 s (tests/CMakeLists.txt).
 // The test runs inside launch_scripts/netns-run.sh (ctest), so the demo is run with --inside: its
 // processes stay in the test's private namespace, and nothing is built or installed.
@@ -38,6 +39,13 @@ TEST(Demo, SecuredDemoRunsTenTimesInARow) {
     const auto tail = out.substr(
         out.rfind("(nothing received)") == std::string::npos ? 0 : out.rfind("(nothing received)"));
     EXPECT_FALSE(has(tail, "waiting for the bridge")) << "run " << run << ": after the demo's last step\n" << out;
+    // Fast DDS's "No key material yet" (a participant just discovered whose keys are still being
+    // exchanged: expected at every client's first call) is said once, as what it is, not a
+    // warning per dropped submessage (104-109 lines a run before).
+    std::size_t key_material = 0;
+    for (auto at = out.find("key material"); at != std::string::npos; at = out.find("key material", at + 1))
+      ++key_material;
+    EXPECT_LE(key_material, 1u) << "run " << run << "\n" << out;
     if (::testing::Test::HasFailure()) break;  // one failed run says it all; the rest would repeat it
   }
 }

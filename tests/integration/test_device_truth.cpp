@@ -7,6 +7,7 @@
 // codes and registers are written here by hand from CiA 301.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <thread>
 
@@ -225,4 +226,67 @@ TEST(DeviceTruth, SdoRequestsThatCannotSucceedAreRefusedAtOnce) {
   r = line.sdo_read("saw1", 0x1000, 0, "UNSIGNED32");
   EXPECT_TRUE(r.success()) << "a pre-operational device answers SDO: " << r.message();
   EXPECT_EQ(r.value().unsigned_value(), 0x01A4u);
+}
+
+// CAN is not authenticated: any bus member can send an EMCY in a device's name. An EMCY from a
+// device that runs makes the bridge read the device's own error register 1001h again (an SDO
+// upload, 40h 01 10 00 to 600h + node): a forged one, which the device's register contradicts
+// (00h), is cleared and the note says so; a real one (the simulator raises it with 2003h: its
+// register reports it) stays. Codes and registers from CiA 301 (4210h temperature: register 09h).
+TEST(DeviceTruth, AForgedEmcyIsClearedByTheDevicesOwnRegisterARealOneStays) {
+  lb::test::LineHarness line("truth5", 27);
+  line.start(saw("saw1", 3));
+  auto status = line.operational_status<msg::SawStatusPubSubType>("saw1");
+  line.bridge().wait_log("saw1: active errors from the device", 10s);  // the boot's own reading is done
+  ASSERT_TRUE(status.wait_last(10s, errors_are({}, true))) << line.logs();
+  const auto register_read_after = [&line](std::size_t from) {
+    return line.spy().wait_until([from](const std::vector<lb::can::CanFrame>& frames) {
+      for (std::size_t i = from; i < frames.size(); ++i) {
+        const auto& f = frames[i];
+        if (f.id == 0x603 && f.len == 8 && f.data[0] == 0x40 && f.data[1] == 0x01 && f.data[2] == 0x10 &&
+            f.data[3] == 0x00)
+          return true;
+      }
+      return false;
+    });
+  };
+
+  // Forged: EMCY 5000h (device hardware), register 01h, from the test's bus member on 083h.
+  const auto before = status.size();
+  const auto frames_before = line.spy().frames().size();
+  ASSERT_TRUE(line.spy().send(lb::can::make_frame(0x083, {0x00, 0x50, 0x01, 0, 0, 0, 0, 0})));
+  EXPECT_TRUE(register_read_after(frames_before)) << "1001h not read after the EMCY\n" << line.logs();
+  EXPECT_TRUE(status.wait_last(10s, [](const msg::SawStatus& s) {
+    return s.health().active_errors().empty() && s.health().active_errors_known() && s.health().error_register() == 0 &&
+           s.health().active_errors_note() ==
+               "EMCY 5000h cleared: the device's own error register 1001h read 00h after it (an error gone by then, "
+               "or an EMCY the device never sent: CAN frames are not authenticated)";
+  })) << line.logs();
+  const auto samples = status.samples();
+  EXPECT_TRUE(std::any_of(samples.begin() + static_cast<std::ptrdiff_t>(before), samples.end(),
+                          [](const msg::SawStatus& s) {
+                            return s.health().active_errors() == std::vector<std::uint16_t>{0x5000};
+                          }))
+      << "the EMCY was listed until the device's register said otherwise";
+  EXPECT_TRUE(line.bridge().wait_log("saw1: EMCY 5000h no longer listed as active", 5s)) << line.logs();
+
+  // Real: the simulator raises 4210h, its 1001h then 09h. Listed, read again, and it stays.
+  const auto frames_real = line.spy().frames().size();
+  ASSERT_TRUE(line.sdo_write("saw1", kErrorSimulation, 0, "UNSIGNED32", kTemperature).success());
+  ASSERT_TRUE(status.wait_last(5s, errors_are({kTemperature}, true))) << line.logs();
+  EXPECT_TRUE(register_read_after(frames_real)) << "1001h not read after the EMCY\n" << line.logs();
+  // The answer to that read (583h) is in: a negative check after a positive marker.
+  ASSERT_TRUE(line.spy().wait_until([frames_real](const std::vector<lb::can::CanFrame>& frames) {
+    std::size_t answers = 0;
+    for (std::size_t i = frames_real; i < frames.size(); ++i) {
+      const auto& f = frames[i];
+      if (f.id == 0x583 && f.len == 8 && (f.data[0] & 0xE0) == 0x40 && f.data[1] == 0x01 && f.data[2] == 0x10)
+        ++answers;
+    }
+    return answers >= 1;
+  }));
+  const auto syncs = line.spy().frames(0x080).size();
+  ASSERT_GE(line.spy().wait_count(0x080, syncs + 10).size(), syncs + 10) << line.logs();
+  EXPECT_TRUE(errors_are({kTemperature}, true)(status.samples().back()))
+      << status.samples().back().health().active_errors_note();
 }

@@ -35,6 +35,7 @@
 #include "support/bus_spy.hpp"
 #include "support/child_process.hpp"
 #include "support/eventually.hpp"
+#include "support/run_command.hpp"
 #include "support/secured_line_yaml.hpp"
 #include "support/spy_waits.hpp"
 #include "support/test_pki.hpp"
@@ -941,4 +942,39 @@ TEST_F(BridgeRefuses, EachBrokenFileIsNamedWithItsReason) {
                             dir_ + "/check.log"),
             0)
       << lb::test::read_text(dir_ + "/check.log");
+}
+
+// docs/security.md, step 1: `pki.sh init` "prints the dds.security block ...: paste it as printed
+// on the line below dds: in the line file". Done so to a plain line file, the file is valid and
+// secured (`linebridge --check`); before, the block began with its own `dds:`, and the file so
+// made had the key twice.
+TEST(PkiInit, ItsBlockPastedBelowDdsAsDocumentedMakesAValidSecuredLineFile) {
+  const std::string dir = ::testing::TempDir() + "/pki_paste_" + std::to_string(::getpid());
+  std::filesystem::remove_all(dir);
+  std::filesystem::create_directories(dir);
+  const std::string plain = "line: pastetest\n"
+                            "dds:\n"
+                            "  domain: 77\n"
+                            "  localhost_only: true\n"
+                            "buses:\n"
+                            "  - {name: b, interface: 'virtual:pastetest'}\n"
+                            "devices:\n"
+                            "  - {name: saw1, bus: b, node_id: 3, profile: cia420-4, version: '3.1'}\n";
+  std::ofstream(dir + "/plain.yaml") << plain;
+  const auto bin = std::filesystem::path(LB_BIN_BRIDGE).parent_path().string();
+  ASSERT_EQ(lb::test::shell("LINEBRIDGE_BIN='" + bin + "' '" LB_SOURCE_DIR "/launch_scripts/pki.sh' init --config '" +
+                                dir + "/plain.yaml' --dir '" + dir + "/pki' >'" + dir + "/printed.txt'",
+                            dir + "/pki.log"),
+            0)
+      << lb::test::read_text(dir + "/pki.log");
+  const std::string printed = lb::test::read_text(dir + "/printed.txt");
+  ASSERT_NE(printed.find("security:"), std::string::npos) << printed;
+  std::string pasted = plain;
+  pasted.insert(pasted.find("dds:\n") + 5, printed);
+  std::ofstream(dir + "/line.yaml") << pasted;
+  const auto r = lb::test::run_command({LB_BIN_BRIDGE, "--check", dir + "/line.yaml"}, 30s);
+  EXPECT_EQ(r.exit_code, 0) << pasted << "\n" << r.output;
+  EXPECT_NE(r.output.find("DDS domain 77 (localhost only), simple discovery, secured (DDS Security)"),
+            std::string::npos)
+      << r.output;
 }

@@ -194,3 +194,27 @@ TEST(EmcyClass, ByTheCodesHighByteAsCiA301GroupsThem) {
   EXPECT_EQ(lb::canopen::to_string(EmcyClass::device_specific), "device_specific");
   EXPECT_EQ(lb::canopen::to_string(EmcyClass::error_reset), "error_reset");
 }
+
+// An EMCY any bus member may have sent in the device's name (CAN is not authenticated): the
+// device's own 1001h read afterwards says 00h, so nothing is active, and the note says which codes
+// its register contradicts. A register that reports errors keeps the EMCY's code.
+TEST(ActiveErrors, TheDevicesOwnRegisterReadAfterAnEmcyClearsWhatItContradicts) {
+  ActiveErrors a;
+  a.reset_by_boot_up();
+  a.apply(emcy(0x5000, 0x01));
+  ASSERT_EQ(codes(a), std::vector<std::uint16_t>{0x5000});
+  EXPECT_EQ(a.checked_after_emcy(0x00), std::vector<std::uint16_t>{0x5000});
+  EXPECT_TRUE(codes(a).empty());
+  EXPECT_TRUE(a.known()) << "the device's own register says no error is active";
+  EXPECT_EQ(a.error_register(), 0x00);
+  EXPECT_EQ(a.note(), "EMCY 5000h cleared: the device's own error register 1001h read 00h after it (an error gone "
+                      "by then, or an EMCY the device never sent: CAN frames are not authenticated)");
+  // A real one later: listed, and the note about the earlier one goes.
+  a.apply(emcy(0x4210, 0x09));
+  EXPECT_EQ(codes(a), std::vector<std::uint16_t>{0x4210});
+  EXPECT_TRUE(a.note().empty()) << a.note();
+  EXPECT_TRUE(a.checked_after_emcy(0x09).empty());
+  EXPECT_EQ(codes(a), std::vector<std::uint16_t>{0x4210}) << "the register reports an error: the EMCY stays";
+  EXPECT_TRUE(a.known());
+  EXPECT_EQ(a.error_register(), 0x09);
+}

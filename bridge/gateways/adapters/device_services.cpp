@@ -5,7 +5,7 @@
 #include <spdlog/spdlog.h>
 
 #include <algorithm>
-
+#include <chrono>
 #include <stdexcept>
 
 #include "canopen/error_field.hpp"
@@ -133,6 +133,10 @@ DeviceServices::DeviceServices(DeviceContext context) : ctx_(context) {
     control.retry = d.boot_retry;
     control.reset_bound = std::max(2 * d.heartbeat_timeout, std::chrono::milliseconds(2000));
     machine_ = std::make_unique<canopen::NodeStateMachine>(ctx_.loop, ctx_.node, *ctx_.sdo, std::move(boot), control);
+    error_check_timer_ = ctx_.loop.create_timer([this] {
+      error_check_armed_ = false;
+      read_register_after_emcy();
+    });
   }
 }
 
@@ -156,6 +160,56 @@ void DeviceServices::on_emcy(const canopen::Emergency& e) noexcept {
   emergency_writer_.write(m);
   // The register being read may predate this EMCY: reconciling with it would undo what the EMCY said.
   if (reading_errors_) reread_errors_ = true;
+  if (error_check_in_flight_) error_check_again_ = true;
+  // A device that runs says itself whether the error is active: the list has something to check.
+  if (errors_to_check()) check_errors_after_emcy();
+}
+
+bool DeviceServices::errors_to_check() const {
+  const auto& errors = ctx_.node.errors();
+  // Not while another master holds the bus (a standby, one that stepped back): it transmits nothing.
+  return machine_ && report_.started && !reading_errors_ && !ctx_.loop.transmission_held() && ctx_.node.online() &&
+         ctx_.node.state() == canopen::NmtState::operational && (!errors.codes().empty() || !errors.known());
+}
+
+void DeviceServices::check_errors_after_emcy() {
+  if (error_check_in_flight_) {
+    error_check_again_ = true;
+    return;
+  }
+  if (error_check_armed_) return;  // the read is due already, and reads the register as it is then
+  constexpr auto kAtMostEvery = std::chrono::seconds(1);
+  const auto wait = std::max<std::chrono::steady_clock::duration>(std::chrono::steady_clock::duration::zero(),
+                                                                  error_check_at_ + kAtMostEvery -
+                                                                      std::chrono::steady_clock::now());
+  error_check_armed_ = true;
+  ctx_.loop.arm_timer(error_check_timer_, wait);
+}
+
+void DeviceServices::read_register_after_emcy() {
+  if (!errors_to_check()) return;  // gone, booting, or nothing left to check since
+  error_check_in_flight_ = true;
+  error_check_again_ = false;
+  error_check_at_ = std::chrono::steady_clock::now();
+  ctx_.sdo->read(ctx_.device.node_id, 0x1001, 0, DataType::unsigned8, [this](canopen::SdoClient::ReadResult r) {
+    error_check_in_flight_ = false;
+    if (error_check_again_) {  // an EMCY came meanwhile: this answer may predate it, read after it
+      if (errors_to_check()) check_errors_after_emcy();
+      return;
+    }
+    if (!r) {
+      spdlog::info("{}: error register 1001h not read after an EMCY: {}", ctx_.device.name, r.error().message);
+      return;
+    }
+    const auto reg = static_cast<std::uint8_t>(canopen::integer_bits(*r));
+    std::vector<std::uint16_t> cleared;
+    ctx_.node.update_errors([&](canopen::ActiveErrors& a) { cleared = a.checked_after_emcy(reg); });
+    if (!cleared.empty()) {
+      spdlog::warn("{}: EMCY {:04X}h no longer listed as active: the device's own error register 1001h reads 00h (an "
+                   "error gone by then, or an EMCY it never sent: CAN frames are not authenticated)",
+                   ctx_.device.name, fmt::join(cleared, " "));
+    }
+  });
 }
 
 void DeviceServices::read_errors() {
@@ -367,16 +421,18 @@ void DeviceServices::nmt(const srv::Nmt_Request& request, const ddsl::Respond<sr
     if (auto r = machine_->operator_command(c); !r) return reply(false, ctx_.device.name + " " + r.error().message);
     spdlog::info("{}: NMT command {:02X}h sent on request", ctx_.device.name, static_cast<int>(c));
     for (const auto& l : nmt_listeners_) l(c);
-    // NMT is unconfirmed (CiA 301): only the device's heartbeat tells that it was heard. A device
-    // that has none (offline) may be gone; sending may still help (a reset), claiming it did not.
+    // NMT is unconfirmed (CiA 301): success says it was sent, and only the device's heartbeat
+    // tells that it was heard. A device that has none (offline) may be gone, or only silent:
+    // sending may still help (a reset), so it is sent and answered sent, with what is not known.
     if (!ctx_.node.online()) {
       const bool stops = c == canopen::NmtCommand::stop || c == canopen::NmtCommand::enter_pre_operational;
       if (stops && ctx_.node.heard()) {
-        return reply(true, "sent; " + ctx_.device.name +
+        return reply(true, ctx_.device.name +
                                " sends no heartbeat just now, but it is heard (its other frames): a stop goes out");
       }
-      return reply(false, "sent, but " + ctx_.device.name +
-                              " is offline (no heartbeat within its timeout): nothing confirms that it took effect");
+      const bool resets = c == canopen::NmtCommand::reset_node || c == canopen::NmtCommand::reset_communication;
+      return reply(true, ctx_.device.name + " was not heard before (no heartbeat within its timeout): " +
+                             (resets ? "its boot-up" : "its heartbeat") + " will tell that it took effect");
     }
     reply(true, "");
   });

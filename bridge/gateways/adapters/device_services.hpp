@@ -8,6 +8,7 @@
 // also owns the device's node state machine (boot, error control, NMT: canopen/node_state_machine).
 // Device-type gateways add status, set values and typed configuration.
 
+#include <chrono>
 #include <cstdint>
 #include <functional>
 #include <memory>
@@ -87,6 +88,13 @@ class DeviceServices final : public canopen::NodeDriver {
   // Master role, after a boot that passed: 1001h reconciles the node's active errors, 1003h is
   // kept as the error history for info; then 6010h and info.
   void read_errors();
+  // Master role: an EMCY came while the device was operational. Its own 1001h is read again, so an
+  // EMCY it never sent (CAN is not authenticated) is cleared when its register says 00h: one read
+  // at a time per device, at most one a second, through the SDO client's queue, from a timer
+  // (never in the frame's handler).
+  void check_errors_after_emcy();
+  bool errors_to_check() const;  // operational, its boot passed, and the list has codes or is uncertain
+  void read_register_after_emcy();
   void read_configuration_word_and_publish();
   void booted(const canopen::BootReport& report);
   void publish_info();
@@ -103,6 +111,12 @@ class DeviceServices final : public canopen::NodeDriver {
   std::uint64_t boots_reported_ = 0;  // a newer boot report outdates the reads of an older one
   bool reading_errors_ = false;
   bool reread_errors_ = false;
+  // The 1001h check after an EMCY (check_errors_after_emcy).
+  canopen::BusLoop::TimerId error_check_timer_{};
+  bool error_check_armed_ = false;
+  bool error_check_in_flight_ = false;
+  bool error_check_again_ = false;  // an EMCY came while the read was in flight: its answer may predate it
+  std::chrono::steady_clock::time_point error_check_at_{};  // the last one's start
   linebridge_msgs::msg::ConfigurationWord configuration_word_;
   canopen::ErrorHistory error_history_;  // 1003h as the last boot that passed read it
   std::vector<std::function<void(canopen::NmtCommand)>> nmt_listeners_;
