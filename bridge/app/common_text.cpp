@@ -3,8 +3,10 @@
 #include <fmt/format.h>
 #include <fmt/ranges.h>
 
+#include <algorithm>
 #include <ctime>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace lb::app {
@@ -110,6 +112,35 @@ namespace {
 std::string yes_no(bool b) { return b ? "yes" : "no"; }
 std::string or_dash(const std::string& s) { return s.empty() ? "-" : s; }
 
+// A histogram as count, mean and its buckets (upper bound: observations at most that bound).
+std::string histogram_text(const msg::Histogram& h, double unit, std::string_view unit_name) {
+  if (h.count() == 0) return "none";
+  std::string out = fmt::format("n {} mean {:.3f} {}", h.count(), h.sum() / static_cast<double>(h.count()) / unit,
+                                unit_name);
+  const auto n = std::min(h.upper_bounds().size(), h.cumulative_counts().size());
+  for (std::size_t i = 0; i < n; ++i) {
+    out += fmt::format(" <={:g}:{}", h.upper_bounds()[i] / unit, h.cumulative_counts()[i]);
+  }
+  return out;
+}
+
+// The names whose count is not zero, "name count" each; "none" when all are.
+std::string counts_text(const std::vector<msg::NamedCount>& counts) {
+  std::string out;
+  for (const auto& c : counts) {
+    if (c.count() == 0) continue;
+    out += fmt::format("{}{} {}", out.empty() ? "" : ", ", c.name(), c.count());
+  }
+  return out.empty() ? "none" : out;
+}
+
+std::string codes_text(const std::vector<std::uint16_t>& codes) {
+  if (codes.empty()) return "none";
+  std::string out;
+  for (const auto c : codes) out += fmt::format("{}{:04X}h", out.empty() ? "" : " ", c);
+  return out;
+}
+
 }  // namespace
 
 // Every field of the message, each under its IDL name (underscores as hyphens), so that nothing
@@ -123,10 +154,10 @@ std::string to_text(const msg::Diagnostics& d) {
   const auto& side = d.dds_side();
   out += fmt::format(
       "  dds-side: connected {} connects {} samples-dropped {} samples-not-forwarded {} samples-on-lanes {} "
-      "remote-participants {} remote-participants-refused {}{}\n",
+      "remote-participants {} remote-participants-refused {} samples-sent {} samples-replaced {}{}\n",
       yes_no(side.connected()), side.connects(), side.samples_dropped(), side.samples_not_forwarded(),
-      side.samples_on_lanes(), side.remote_participants(), side.remote_participants_refused(),
-      side.connects() != 0 && !side.connected() ? "  (the DDS process is NOT CONNECTED)" : "");
+      side.samples_on_lanes(), side.remote_participants(), side.remote_participants_refused(), side.samples_sent(),
+      side.samples_replaced(), side.connects() != 0 && !side.connected() ? "  (the DDS process is NOT CONNECTED)" : "");
   out += fmt::format("  dds-side: peers-refused {} absent-s {:.1f} absent-alarm {} absent-alarms {} last-end {}\n",
                      side.peers_refused(), side.absent_s(), side.absent_alarm() ? "YES" : "no", side.absent_alarms(),
                      or_dash(side.last_end()));
@@ -155,6 +186,9 @@ std::string to_text(const msg::Diagnostics& d) {
         b.frames_held(), b.stops_sent_while_held(), or_dash(b.other_master_last()),
         b.yielding_to_other_master() ? " (YIELDING: transmits only stops, refuses other set values and commands)" : "");
     out += fmt::format("  bus {:<12} takeover {}\n", b.name(), or_dash(b.takeover()));
+    out += fmt::format("  bus {:<12} sync-period-s {} sync-period-deviation-s {}\n", b.name(),
+                       b.sync_period_s() > 0 ? fmt::format("{:g}", b.sync_period_s()) : std::string("none"),
+                       histogram_text(b.sync_period_deviation_s(), 1e-3, "ms"));
     out += fmt::format("  bus {:<12} mandatory-missing {} mandatory-state {}\n", b.name(),
                        b.mandatory_missing().empty() ? std::string("none")
                                                      : fmt::format("{}", fmt::join(b.mandatory_missing(), ", ")),
@@ -180,6 +214,16 @@ std::string to_text(const msg::Diagnostics& d) {
     out += fmt::format("  {:<12} mandatory {} line-hold {} boot-error {}\n", "", yes_no(n.mandatory()),
                        or_dash(n.line_hold()), or_dash(to_text(n.boot_error())));
     out += fmt::format("  {:<12} set-values-at-start {}\n", "", or_dash(n.set_values_at_start()));
+    out += fmt::format("  {:<12} device-type {} profile {} product-name {} last-boot-passed {} adopted {}\n", "",
+                       or_dash(n.device_type()), or_dash(n.profile()), or_dash(n.product_name()),
+                       yes_no(n.last_boot_passed()), yes_no(n.adopted()));
+    out +=
+        fmt::format("  {:<12} error-register {:02X}h active-errors {} active-errors-known {} active-errors-note {}\n",
+                    "", n.error_register(), codes_text(n.active_errors()), yes_no(n.active_errors_known()),
+                    or_dash(n.active_errors_note()));
+    out += fmt::format("  {:<12} boot-failures-by-letter {} emergencies-by-class {}\n", "",
+                       counts_text(n.boot_failures_by_letter()), counts_text(n.emergencies_by_class()));
+    out += fmt::format("  {:<12} sdo-duration-s {}\n", "", histogram_text(n.sdo_duration_s(), 1e-3, "ms"));
   }
   return out;
 }
