@@ -92,7 +92,8 @@
 #               buses x 30 saws at 8000 frames/s, the throughput figure's step), its observability
 #               listener on as by default (127.0.0.1:9420), alternating in chunks: not scraped, and
 #               scraped every second (curl GET /metrics, then 1 s, from the harness's core(s)); the
-#               scrapes answered and the size of the answer.
+#               scrapes answered and the size of the answer; and the CPU time one scrape costs the
+#               bridge (100 back to back once the load is over, less as long idle).
 set -euo pipefail
 
 usage() { sed -n '2,/^set -euo/p' "$0" | grep '^#' | sed 's/^# \{0,1\}//'; exit 2; }
@@ -542,9 +543,24 @@ throughput_step() {
   # VmHWM summed count a shared library's pages in each; Pss counts each page once, the target's figure.
   "$bin/bench-stats" memory $br >"$d/memory"
   rss=$(get "$d/memory" rss_kib); hwm=$(get "$d/memory" hwm_kib); pss=$(get "$d/memory" pss_kib)
+  local scrape_cpu_ms=""
+  if [ -n "$scraper" ]; then
+    # What one scrape costs the bridge in CPU time, which a shared machine's load moves far less
+    # than a share of a core: both processes' CPU over 100 scrapes back to back (the load is over),
+    # less their CPU over as long idle just before, over 100.
+    stop $scraper
+    local k0 k1 k2 e0 e1 e2
+    k0=$(tree_ticks $br); e0=$(now_ns)
+    sleep 2
+    k1=$(tree_ticks $br); e1=$(now_ns)
+    "${harness_cmd[@]}" bash -c 'for ((i = 0; i < 100; i++)); do curl -s -o /dev/null --max-time 5 http://127.0.0.1:9420/metrics; done' || true
+    k2=$(tree_ticks $br); e2=$(now_ns)
+    scrape_cpu_ms=$(awk -v k0="$k0" -v k1="$k1" -v k2="$k2" -v e0="$e0" -v e1="$e1" -v e2="$e2" -v hz="$clk_tck" \
+      'BEGIN { if (k0 == "" || k2 == "" || e1 <= e0) exit; busy = (k2 - k1) - (k1 - k0) * (e2 - e1) / (e1 - e0)
+               printf "%.2f", busy / hz * 1000 / 100 }')
+  fi
   touch "$d/stop"
   finish $inj || true
-  [ -z "$scraper" ] || stop $scraper
   stop $br
   # What the bus process's channel said at its stop (link::BusChannel::stop): state samples a newer
   # one replaced before they were sent, i.e. lost because the DDS process lagged (split bridge only).
@@ -579,6 +595,7 @@ throughput_step() {
       echo "scrapes_ok=$(awk '$1 == 200' "$d/scraper.out" | wc -l)"
       echo "scrape_kib=$(awk '$1 == 200 { b += $2; n++ } END { if (n) printf "%.0f", b / n / 1024 }' "$d/scraper.out")"
       echo "scrape_ms=$(awk '$1 == 200 { t += $3; n++ } END { if (n) printf "%.1f", t / n * 1000 }' "$d/scraper.out")"
+      echo "scrape_cpu_ms=$scrape_cpu_ms"
     fi
   } >"$d/step"
   # Frames: everything offered was sent at the full rate and taken by the bridge (no overflow).
@@ -675,12 +692,14 @@ fig_scrape() {  # RUN
         $1 == "sent" { sent += $2 } $1 == "samples" { got += $2 }
         $1 == "scrapes" { scrapes += $2 } $1 == "scrapes_ok" { ok += $2 }
         $1 == "scrape_kib" && $2 != "" { kib += $2; kn++ } $1 == "scrape_ms" && $2 != "" { ms += $2; mn++ }
+        $1 == "scrape_cpu_ms" && $2 != "" { cms += $2; cn++ }
         END {
           if (steps) printf "%s_cpu_pct=%.1f\n", k, cpu / steps
           printf "%s_missing=%d\n", k, sent - got
           if (scrapes) printf "%s_scrapes=%d\n%s_scrapes_ok=%d\n", k, scrapes, k, ok
           if (kn) printf "%s_kib=%.0f\n", k, kib / kn
           if (mn) printf "%s_ms=%.1f\n", k, ms / mn
+          if (cn) printf "%s_cpu_ms_per_scrape=%.2f\n%s_cpu_pct_at_1s=%.2f\n", k, cms / cn, k, cms / cn / 10
         }' >>"$vals"
     done
     awk -F= -v n="$n" '$1 == "scrape_plain_n" n "_cpu_pct" { a = $2 } $1 == "scrape_scraped_n" n "_cpu_pct" { b = $2 }
@@ -1144,6 +1163,7 @@ cmd() { echo "launch_scripts/bench.sh --only $1$quick_flag --runs $runs$run_flag
   if want scrape; then
     for n in $scrape_buses; do
       echo "| /metrics' cost, $n bus(es) x $devices saws at $full_rate frames/s: bridge CPU (both processes, % of a core) not scraped / scraped every second; the difference | $(stat scrape scrape_plain_n${n}_cpu_pct) / $(stat scrape scrape_scraped_n${n}_cpu_pct); $(stat scrape scrape_cost_n${n}_cpu_pct) | | | \`$(cmd scrape)\` |"
+      echo "| /metrics, $n bus(es): CPU per scrape, both processes (ms: 100 back to back after the load, less as long idle); so at one scrape a second (% of a core) | $(stat scrape scrape_scraped_n${n}_cpu_ms_per_scrape); $(stat scrape scrape_scraped_n${n}_cpu_pct_at_1s) | | | \`$(cmd scrape)\` |"
       echo "| /metrics, $n bus(es): scrapes answered / made; answer size (KiB); time per scrape (ms); samples missing not scraped / scraped | $(stat scrape scrape_scraped_n${n}_scrapes_ok) / $(stat scrape scrape_scraped_n${n}_scrapes); $(stat scrape scrape_scraped_n${n}_kib); $(stat scrape scrape_scraped_n${n}_ms); $(stat scrape scrape_plain_n${n}_missing) / $(stat scrape scrape_scraped_n${n}_missing) | | | \`$(cmd scrape)\` |"
     done
   fi
