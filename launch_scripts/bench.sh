@@ -10,13 +10,14 @@
 #   --quick          fewer samples and shorter steps (about 2 min instead of about 6 per run)
 #   --runs K         measure every figure K times; the table shows the median and the range
 #   --only FIGURES   comma-separated subset of: can2dds,dds2can,throughput,memory,startup,security,
-#                    jitter,soak,hop,hopjitter (the last four are not in the default set: run
+#                    jitter,soak,hop,hopjitter,scrape (the last five are not in the default set: run
 #                    them by name)
 #   --build-dir DIR  where the build is (default build-bench); it is configured (Release) and
 #                    built first unless --no-build
 #   --out DIR        keep raw latencies, logs and the exact commands there (default: a new
 #                    directory under /tmp, printed at the end)
 #   --buses LIST     bus counts the throughput search tries, ascending (stops at the first loss)
+#   --scrape-buses LIST  bus counts the scrape figure measures (default "1 8")
 #   --no-pin         do not pin: by default the bridge (and what stands in for it in a floor: the
 #                    bus sink, the bare DDS writer, the bare relays) runs alone on the last core and
 #                    the harness (injector, subscriber, set-value writer, simulator) on the others
@@ -87,6 +88,12 @@
 #               stress, the split bridge and `--part single` alternating: load alone; 20 observer
 #               participants on every status topic (bench-observers); the forged-discovery flood
 #               (bench-forged-announcements, 3,000 announcements at 2,000/s, repeated).
+#   scrape      what /metrics costs (issue 43): the bridge's CPU (both processes) at full load (N
+#               buses x 30 saws at 8000 frames/s, the throughput figure's step), its observability
+#               listener on as by default (127.0.0.1:9420), alternating in chunks: not scraped, and
+#               scraped every second (curl GET /metrics, then 1 s, from the harness's core(s)); the
+#               scrapes answered and the size of the answer; and the CPU time one scrape costs the
+#               bridge (100 back to back once the load is over, less as long idle).
 set -euo pipefail
 
 usage() { sed -n '2,/^set -euo/p' "$0" | grep '^#' | sed 's/^# \{0,1\}//'; exit 2; }
@@ -100,6 +107,7 @@ build_dir="$root/build-bench"
 do_build=1
 out_dir=""
 buses_list=""
+scrape_buses=""
 pin=1
 niceness=0
 profile=0
@@ -117,6 +125,7 @@ while (($#)); do
     --no-build) do_build=0 ;;
     --out) out_dir=$(realpath -m "${2:?}"); shift ;;
     --buses) buses_list=${2:?}; shift ;;
+    --scrape-buses) scrape_buses=${2:?}; shift ;;
     --no-pin) pin=0 ;;
     --nice) niceness=${2:?}; shift ;;
     --profile) profile=1 ;;
@@ -135,7 +144,7 @@ done
 [[ $rt_priority =~ ^[0-9]+$ ]] && ((rt_priority <= 99)) || { echo "bench.sh: --realtime-priority takes 0..99" >&2; exit 2; }
 ((!keep_awake || pin)) || { echo "bench.sh: --keep-awake keeps the bridge's core awake: it needs pinning (no --no-pin)" >&2; exit 2; }
 for f in ${only//,/ }; do
-  [[ $f =~ ^(can2dds|dds2can|throughput|memory|startup|security|jitter|soak|hop|hopjitter)$ ]] || { echo "bench.sh: unknown figure $f" >&2; exit 2; }
+  [[ $f =~ ^(can2dds|dds2can|throughput|memory|startup|security|jitter|soak|hop|hopjitter|scrape)$ ]] || { echo "bench.sh: unknown figure $f" >&2; exit 2; }
 done
 
 # Outside the namespace: build (no DDS here), then re-enter through the wrapper.
@@ -186,6 +195,7 @@ else
 fi
 [ -n "$buses_list" ] || buses_list="1 2 3 4 6 8 10 12 16"
 mem_buses=8
+[ -n "$scrape_buses" ] || scrape_buses="1 $mem_buses"
 cores=$(nproc)
 pin_cmd=()      # the bridge (and what stands for it in a floor): the last core, alone
 harness_cmd=()  # the load and the readers: every other core, so they never take the bridge's
@@ -481,9 +491,10 @@ fig_dds2can() {  # RUN
   "${pin_cmd[@]}" "$bin/bench-switch" 2>"$d/switch.err" | sed 's/^/dds2can_/' >>"$vals" || true
 }
 
-# throughput_step DIR N -> key=value lines in DIR/step, exit 0 when nothing was lost.
+# throughput_step DIR N [scrape] -> key=value lines in DIR/step, exit 0 when nothing was lost.
+# scrape: /metrics of the bridge's DDS process is fetched every second meanwhile (the scrape figure).
 throughput_step() {
-  local d=$1 n=$2 inj sub br count=$((full_rate * step_s))
+  local d=$1 n=$2 scrape=${3:-} inj sub br scraper="" count=$((full_rate * step_s))
   mkdir -p "$d"
   next_domain
   local p="tp-$n-$RANDOM"
@@ -498,6 +509,13 @@ throughput_step() {
   start "$d/bridge" "${pin_cmd[@]}" "$bridge_bin" --config "$d/line.yaml"
   br=$pid
   wait_file "$d/sub.ready" $sub 180
+  if [ -n "$scrape" ]; then
+    # One line per scrape: HTTP status, bytes, seconds. Before the measured window, so it spans it.
+    start "$d/scraper" "${harness_cmd[@]}" bash -c 'while :; do
+      curl -s -o /dev/null --max-time 1 -w "%{http_code} %{size_download} %{time_total}\n" http://127.0.0.1:9420/metrics
+      sleep 1; done'
+    scraper=$pid
+  fi
   sleep 0.5
   local c0 s0 i0 t0 c1 s1 i1 t1
   # The bridge's CPU is both its processes' (the DDS process does the Fast DDS writes).
@@ -525,6 +543,22 @@ throughput_step() {
   # VmHWM summed count a shared library's pages in each; Pss counts each page once, the target's figure.
   "$bin/bench-stats" memory $br >"$d/memory"
   rss=$(get "$d/memory" rss_kib); hwm=$(get "$d/memory" hwm_kib); pss=$(get "$d/memory" pss_kib)
+  local scrape_cpu_ms=""
+  if [ -n "$scraper" ]; then
+    # What one scrape costs the bridge in CPU time, which a shared machine's load moves far less
+    # than a share of a core: both processes' CPU over 100 scrapes back to back (the load is over),
+    # less their CPU over as long idle just before, over 100.
+    stop $scraper
+    local k0 k1 k2 e0 e1 e2
+    k0=$(tree_ticks $br); e0=$(now_ns)
+    sleep 2
+    k1=$(tree_ticks $br); e1=$(now_ns)
+    "${harness_cmd[@]}" bash -c 'for ((i = 0; i < 100; i++)); do curl -s -o /dev/null --max-time 5 http://127.0.0.1:9420/metrics; done' || true
+    k2=$(tree_ticks $br); e2=$(now_ns)
+    scrape_cpu_ms=$(awk -v k0="$k0" -v k1="$k1" -v k2="$k2" -v e0="$e0" -v e1="$e1" -v e2="$e2" -v hz="$clk_tck" \
+      'BEGIN { if (k0 == "" || k2 == "" || e1 <= e0) exit; busy = (k2 - k1) - (k1 - k0) * (e2 - e1) / (e1 - e0)
+               printf "%.2f", busy / hz * 1000 / 100 }')
+  fi
   touch "$d/stop"
   finish $inj || true
   stop $br
@@ -556,6 +590,13 @@ throughput_step() {
     echo "loaded_p50_us=$(get "$d/sub.out" sub_p50_us)"
     echo "loaded_p99_us=$(get "$d/sub.out" sub_p99_us)"
     echo "channel_superseded=${superseded:-}"
+    if [ -n "$scrape" ]; then
+      echo "scrapes=$(wc -l <"$d/scraper.out")"
+      echo "scrapes_ok=$(awk '$1 == 200' "$d/scraper.out" | wc -l)"
+      echo "scrape_kib=$(awk '$1 == 200 { b += $2; n++ } END { if (n) printf "%.0f", b / n / 1024 }' "$d/scraper.out")"
+      echo "scrape_ms=$(awk '$1 == 200 { t += $3; n++ } END { if (n) printf "%.1f", t / n * 1000 }' "$d/scraper.out")"
+      echo "scrape_cpu_ms=$scrape_cpu_ms"
+    fi
   } >"$d/step"
   # Frames: everything offered was sent at the full rate and taken by the bridge (no overflow).
   local frames_ok=0
@@ -633,6 +674,38 @@ fig_throughput() {  # RUN
   [ -z "$best_cpu" ] || echo "throughput_cpu_pct=$best_cpu" >>"$vals"
   per_bus=$(get "$d/n1/step" bridge_cpu_pct)
   [ -z "$per_bus" ] || echo "throughput_cpu_pct_1bus=$per_bus" >>"$vals"
+}
+
+# The bridge's CPU at full load, not scraped and scraped every second, alternating in chunks; per
+# N the mean over the chunks (each chunk a throughput step of its own: a fresh bridge and load).
+fig_scrape() {  # RUN
+  local d="$out_dir/scrape/run$1" n c what
+  vals="$d/values"; mkdir -p "$d"; : >"$vals"
+  for n in $scrape_buses; do
+    for ((c = 1; c <= chunks; c++)); do
+      throughput_step "$d/n$n/plain/c$c" "$n" || echo "bench.sh: scrape: $n bus(es), not scraped, chunk $c: loss (see $d/n$n/plain/c$c/step)" >&2
+      throughput_step "$d/n$n/scraped/c$c" "$n" scrape || echo "bench.sh: scrape: $n bus(es), scraped, chunk $c: loss (see $d/n$n/scraped/c$c/step)" >&2
+    done
+    for what in plain scraped; do
+      cat "$d/n$n/$what"/c*/step | awk -F= -v k="scrape_${what}_n$n" '
+        $1 == "bridge_cpu_pct" { cpu += $2; steps++ }
+        $1 == "sent" { sent += $2 } $1 == "samples" { got += $2 }
+        $1 == "scrapes" { scrapes += $2 } $1 == "scrapes_ok" { ok += $2 }
+        $1 == "scrape_kib" && $2 != "" { kib += $2; kn++ } $1 == "scrape_ms" && $2 != "" { ms += $2; mn++ }
+        $1 == "scrape_cpu_ms" && $2 != "" { cms += $2; cn++ }
+        END {
+          if (steps) printf "%s_cpu_pct=%.1f\n", k, cpu / steps
+          printf "%s_missing=%d\n", k, sent - got
+          if (scrapes) printf "%s_scrapes=%d\n%s_scrapes_ok=%d\n", k, scrapes, k, ok
+          if (kn) printf "%s_kib=%.0f\n", k, kib / kn
+          if (mn) printf "%s_ms=%.1f\n", k, ms / mn
+          if (cn) printf "%s_cpu_ms_per_scrape=%.2f\n%s_cpu_pct_at_1s=%.2f\n", k, cms / cn, k, cms / cn / 10
+        }' >>"$vals"
+    done
+    awk -F= -v n="$n" '$1 == "scrape_plain_n" n "_cpu_pct" { a = $2 } $1 == "scrape_scraped_n" n "_cpu_pct" { b = $2 }
+      END { if (a != "" && b != "") printf "scrape_cost_n%s_cpu_pct=%.1f\n", n, b - a }' "$vals" >>"$vals"
+    echo "scrape: $n bus(es): bridge CPU $(get "$vals" scrape_plain_n${n}_cpu_pct) % not scraped, $(get "$vals" scrape_scraped_n${n}_cpu_pct) % scraped every second" >&2
+  done
 }
 
 fig_memory() {  # RUN: reuses the throughput run's 8-bus step when there is one
@@ -1005,7 +1078,7 @@ if ((report_only)); then
 else
   if [ -n "${LINEBRIDGE_BENCH_SHARED_MEMORY:-}" ]; then echo shared-memory; else echo udp; fi >"$out_dir/transport"
   for ((r = 1; r <= runs; r++)); do
-    for f in can2dds dds2can throughput memory startup security jitter soak hop hopjitter; do
+    for f in can2dds dds2can throughput memory startup security jitter soak hop hopjitter scrape; do
       if want $f; then
         echo "== $f, run $r of $runs" >&2
         "fig_$f" $r
@@ -1037,6 +1110,7 @@ run_flags=""
 ((!keep_awake)) || run_flags+=" --keep-awake"
 [ -z "${LINEBRIDGE_BENCH_SHARED_MEMORY:-}" ] || run_flags+=" --shared-memory"
 ((pin)) || run_flags+=" --no-pin"
+[ "$scrape_buses" = "1 $mem_buses" ] || ! want scrape || run_flags+=" --scrape-buses '$scrape_buses'"
 cmd() { echo "launch_scripts/bench.sh --only $1$quick_flag --runs $runs$run_flags"; }
 {
   echo "| figure | value | target | result | reproduce |"
@@ -1085,6 +1159,13 @@ cmd() { echo "launch_scripts/bench.sh --only $1$quick_flag --runs $runs$run_flag
     echo "| Frames per status sample by N (PDO bursts merged, none overwritten) | ${local_row%; } | | | \`$(cmd throughput)\` |"
     local_row="" ; for n in $buses_list; do v=$(stat throughput throughput_superseded_n$n); [ -z "$v" ] || local_row+="$n: $v; "; done
     echo "| Status samples the bus process replaced unsent because its DDS process lagged, by N | ${local_row%; } | | | \`$(cmd throughput)\` |"
+  fi
+  if want scrape; then
+    for n in $scrape_buses; do
+      echo "| /metrics' cost, $n bus(es) x $devices saws at $full_rate frames/s: bridge CPU (both processes, % of a core) not scraped / scraped every second; the difference | $(stat scrape scrape_plain_n${n}_cpu_pct) / $(stat scrape scrape_scraped_n${n}_cpu_pct); $(stat scrape scrape_cost_n${n}_cpu_pct) | | | \`$(cmd scrape)\` |"
+      echo "| /metrics, $n bus(es): CPU per scrape, both processes (ms: 100 back to back after the load, less as long idle); so at one scrape a second (% of a core) | $(stat scrape scrape_scraped_n${n}_cpu_ms_per_scrape); $(stat scrape scrape_scraped_n${n}_cpu_pct_at_1s) | | | \`$(cmd scrape)\` |"
+      echo "| /metrics, $n bus(es): scrapes answered / made; answer size (KiB); time per scrape (ms); samples missing not scraped / scraped | $(stat scrape scrape_scraped_n${n}_scrapes_ok) / $(stat scrape scrape_scraped_n${n}_scrapes); $(stat scrape scrape_scraped_n${n}_kib); $(stat scrape scrape_scraped_n${n}_ms); $(stat scrape scrape_plain_n${n}_missing) / $(stat scrape scrape_scraped_n${n}_missing) | | | \`$(cmd scrape)\` |"
+    done
   fi
   if want memory; then
     echo "| Memory, $mem_buses x $devices saws at full load, bus + DDS process: PSS (each page once) / VmRSS / VmHWM summed (MiB) | $(stat memory memory_pss_mib) / $(stat memory memory_rss_mib) / $(stat memory memory_hwm_mib) | PSS <= 64 | $(verdict "$(median memory memory_pss_mib)" "<=" 64) | \`$(cmd memory)\` |"

@@ -218,6 +218,24 @@ TEST(MetricsText, AStateOutsideTheKnownSetIsItsOwnSeries) {
       << text;
 }
 
+// A device on a monitor bus is "monitored" and nothing else: not ten master states at 0 each.
+TEST(MetricsText, AMonitoredDeviceHasItsOneState) {
+  auto view = line_view();
+  auto d = std::make_shared<msg::Diagnostics>(*view.diagnostics);
+  d->nodes()[1].node_state("monitored");
+  view.diagnostics = d;
+  const auto text = render_metrics(view);
+  const std::string series = R"(linebridge_device_node_state{line="line1",bus="can0",device="puller1",node="6",)";
+  EXPECT_TRUE(has_line(text, series + R"(state="monitored"} 1)")) << text;
+  std::size_t count = 0;
+  for (auto at = text.find(series); at != std::string::npos; at = text.find(series, at + 1)) ++count;
+  EXPECT_EQ(count, 1u) << text;
+  EXPECT_TRUE(
+      has_line(text, R"(linebridge_device_node_state{line="line1",bus="can0",device="saw1",node="5",state="lost"} 0)"))
+      << "the master's devices keep every state\n"
+      << text;
+}
+
 TEST(MetricsText, BeforeTheFirstDiagnosticsOnlyTheProcessItself) {
   LineView v;
   v.line = "line1";

@@ -114,20 +114,21 @@ std::string nmt_state(msg::NmtState s) {
 }
 
 // The label sets of the enums (docs/observability.md lists them): CiA 301's NMT states, the
-// master's node states (canopen/node_state.hpp, the line's holds, a monitor's "monitored"), the
+// master's node states (canopen/node_state.hpp and the line's holds) or a monitor's one, the
 // controller states of can/bus.hpp.
 constexpr std::array<std::string_view, 5> kNmtStates{"unknown", "boot_up", "stopped", "operational", "pre_operational"};
-constexpr std::array<std::string_view, 11> kNodeStates{"unknown",
-                                                       "booting",
-                                                       "boot_failed",
-                                                       "running_unmanaged",
-                                                       "operational",
-                                                       "stopped_by_operator",
-                                                       "resetting",
-                                                       "lost",
-                                                       "waiting_for_a_mandatory_device",
-                                                       "stopped_by_the_line",
-                                                       "monitored"};
+constexpr std::array<std::string_view, 10> kMasterNodeStates{"unknown",
+                                                             "booting",
+                                                             "boot_failed",
+                                                             "running_unmanaged",
+                                                             "operational",
+                                                             "stopped_by_operator",
+                                                             "resetting",
+                                                             "lost",
+                                                             "waiting_for_a_mandatory_device",
+                                                             "stopped_by_the_line"};
+// A monitor bus's devices have this one state: the master's ten would be ten zeros per device.
+constexpr std::array<std::string_view, 1> kMonitorNodeStates{"monitored"};
 constexpr std::array<std::string_view, 6> kBusStates{"unknown",       "error_active", "error_warning",
                                                      "error_passive", "bus_off",      "down"};
 
@@ -197,8 +198,13 @@ void device_metrics(Exposition& x, const Labels& line, const msg::NodeDiagnostic
           n.online() ? 1 : 0);
   x.state_set("linebridge_device_nmt_state", "The device's CiA 301 NMT state as the bridge believes it: 1 for it.",
               labels, "state", kNmtStates, nmt_state(n.nmt_state()));
+  const auto node_state = label_value(n.node_state());
+  const auto monitored = node_state == kMonitorNodeStates[0];
   x.state_set("linebridge_device_node_state", "The master's state of the device: 1 for the current one.", labels,
-              "state", kNodeStates, label_value(n.node_state()));
+              "state",
+              monitored ? std::span<const std::string_view>(kMonitorNodeStates)
+                        : std::span<const std::string_view>(kMasterNodeStates),
+              node_state);
   if (n.last_heartbeat_age_s() >= 0) {
     x.gauge("linebridge_device_last_heartbeat_age_seconds",
             "Time since the device's last heartbeat, as of the newest diagnostics sample.", labels,
