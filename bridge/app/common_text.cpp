@@ -9,20 +9,13 @@
 #include <string_view>
 #include <vector>
 
+#include "app/nmt_text.hpp"
+
 namespace lb::app {
 
 namespace msg = linebridge_msgs::msg;
 
-std::string to_text(msg::NmtState s) {
-  switch (s) {
-    case msg::NMT_BOOT_UP: return "boot-up";
-    case msg::NMT_STOPPED: return "stopped";
-    case msg::NMT_OPERATIONAL: return "operational";
-    case msg::NMT_PRE_OPERATIONAL: return "pre-operational";
-    case msg::NMT_UNKNOWN: break;
-  }
-  return "unknown";
-}
+std::string to_text(msg::NmtState s) { return std::string(nmt_text(s)); }
 
 std::string clock_text(const msg::Time& t) {
   const std::time_t secs = t.sec();

@@ -159,31 +159,33 @@ entry_differs() {
     [ "$(entry_field "${f%%=*}" "$entry")" = "${f#*=}" ] || echo -n "${f%%=*}=$(entry_field "${f%%=*}" "$entry") (want ${f#*=}); "
   done
 }
+# One key event's journal entry: waits up to LIMIT s since SINCE for MESSAGE_ID ID matching the
+# fields before "--" (journalctl's matches), then checks the entry's fields after "--" (NAME=value).
+#   check_journal_entry EVENT ID SINCE LIMIT MATCH... -- WANT...
+check_journal_entry() {
+  local event=$1 id=$2 since=$3 limit=$4 e bad
+  shift 4
+  local match=()
+  while [ $# -gt 0 ] && [ "$1" != -- ]; do match+=("$1"); shift; done
+  shift
+  if e=$(journal_event "$id" "$since" "$limit" "${match[@]}"); then
+    bad=$(entry_differs "$e" LB_EVENT="$event" "$@")
+    if [ -z "$bad" ]; then
+      pass "journal: journalctl MESSAGE_ID=$id ${match[*]} ($event $*): $(entry_field MESSAGE "$e")"
+    else
+      failed "journal: the $event entry (${match[*]}): $bad"
+    fi
+  else
+    failed "journal: no entry MESSAGE_ID=$id ${match[*]} ($event) within $limit s"
+    journalctl MESSAGE_ID="$id" -o verbose --no-pager | tail -n 30
+  fi
+}
 # The bus unit's dds_side_gone (DDS process $2) and dds_side_back (DDS process $3) entries since $1.
 check_dds_side_entries() {
-  local since=$1 old=$2 new=$3 e bad
-  if e=$(journal_event "$ID_DDS_SIDE_GONE" "$since" 30 LB_LINE="$line_name" LB_DDS_PID="$old"); then
-    bad=$(entry_differs "$e" LB_EVENT=dds_side_gone PRIORITY=4 _SYSTEMD_UNIT="$BUS_UNIT")
-    if [ -z "$bad" ]; then
-      pass "journal: journalctl MESSAGE_ID=$ID_DDS_SIDE_GONE LB_LINE=$line_name LB_DDS_PID=$old: $(entry_field MESSAGE "$e")"
-    else
-      failed "journal: the DDS side's dds_side_gone entry: $bad"
-    fi
-  else
-    failed "journal: no entry MESSAGE_ID=$ID_DDS_SIDE_GONE LB_LINE=$line_name LB_DDS_PID=$old within 30 s"
-    journalctl MESSAGE_ID="$ID_DDS_SIDE_GONE" -o verbose --no-pager | tail -n 30
-  fi
-  if e=$(journal_event "$ID_DDS_SIDE_BACK" "$since" 60 LB_LINE="$line_name" LB_DDS_PID="$new"); then
-    bad=$(entry_differs "$e" LB_EVENT=dds_side_back PRIORITY=6 _SYSTEMD_UNIT="$BUS_UNIT")
-    if [ -z "$bad" ]; then
-      pass "journal: journalctl MESSAGE_ID=$ID_DDS_SIDE_BACK LB_LINE=$line_name LB_DDS_PID=$new: $(entry_field MESSAGE "$e")"
-    else
-      failed "journal: the DDS side's dds_side_back entry: $bad"
-    fi
-  else
-    failed "journal: no entry MESSAGE_ID=$ID_DDS_SIDE_BACK LB_LINE=$line_name LB_DDS_PID=$new within 60 s"
-    journalctl MESSAGE_ID="$ID_DDS_SIDE_BACK" -o verbose --no-pager | tail -n 30
-  fi
+  check_journal_entry dds_side_gone "$ID_DDS_SIDE_GONE" "$1" 30 LB_LINE="$line_name" LB_DDS_PID="$2" -- \
+    PRIORITY=4 _SYSTEMD_UNIT="$BUS_UNIT"
+  check_journal_entry dds_side_back "$ID_DDS_SIDE_BACK" "$1" 60 LB_LINE="$line_name" LB_DDS_PID="$3" -- \
+    PRIORITY=6 _SYSTEMD_UNIT="$BUS_UNIT"
 }
 # The line file the package's units run: readable by their group, named in their environment; its
 # SYNC period and its first device's node-ID into period_ms and node.
@@ -273,32 +275,13 @@ if [ "${SIM:-1}" = 1 ]; then
   t_sim=$(now)
   say "linebridge-vm-sim: kill -9 (device $device, node $node: lost after its heartbeat timeout)"
   systemctl kill -s KILL linebridge-vm-sim.service
-  if e=$(journal_event "$ID_DEVICE_LOST" "$t_sim" 30 LB_DEVICE="$device"); then
-    bad=$(entry_differs "$e" LB_EVENT=device_lost LB_LINE="$line_name" LB_BUS="$bus_name" LB_NODE="$node" PRIORITY=4 \
-      _SYSTEMD_UNIT="$BUS_UNIT")
-    if [ -z "$bad" ]; then
-      pass "journal: journalctl MESSAGE_ID=$ID_DEVICE_LOST LB_DEVICE=$device (device_lost, LB_LINE=$line_name LB_BUS=$bus_name LB_NODE=$node): $(entry_field MESSAGE "$e")"
-    else
-      failed "journal: the device_lost entry of $device: $bad"
-    fi
-  else
-    failed "journal: no entry MESSAGE_ID=$ID_DEVICE_LOST LB_DEVICE=$device within 30 s of the simulator's kill"
-    journalctl -u "$BUS_UNIT" --since "@${t_sim%.*}" -o short-unix --no-pager | tail -n 20
-  fi
+  check_journal_entry device_lost "$ID_DEVICE_LOST" "$t_sim" 30 LB_DEVICE="$device" -- LB_LINE="$line_name" \
+    LB_BUS="$bus_name" LB_NODE="$node" PRIORITY=4 _SYSTEMD_UNIT="$BUS_UNIT"
   systemctl reset-failed linebridge-vm-sim.service 2>/dev/null
   t_sim=$(now)
   if systemd-run --quiet --unit=linebridge-vm-sim /usr/bin/linebridge-sim --config "$line"; then
-    if e=$(journal_event "$ID_DEVICE_ONLINE" "$t_sim" 30 LB_DEVICE="$device"); then
-      bad=$(entry_differs "$e" LB_EVENT=device_online LB_LINE="$line_name" LB_BUS="$bus_name" LB_NODE="$node" PRIORITY=6 \
-        _SYSTEMD_UNIT="$BUS_UNIT")
-      if [ -z "$bad" ]; then
-        pass "journal: journalctl MESSAGE_ID=$ID_DEVICE_ONLINE LB_DEVICE=$device (device_online, LB_NMT_STATE=$(entry_field LB_NMT_STATE "$e")): $(entry_field MESSAGE "$e")"
-      else
-        failed "journal: the device_online entry of $device: $bad"
-      fi
-    else
-      failed "journal: no entry MESSAGE_ID=$ID_DEVICE_ONLINE LB_DEVICE=$device within 30 s of the simulator's start"
-    fi
+    check_journal_entry device_online "$ID_DEVICE_ONLINE" "$t_sim" 30 LB_DEVICE="$device" -- LB_LINE="$line_name" \
+      LB_BUS="$bus_name" LB_NODE="$node" PRIORITY=6 _SYSTEMD_UNIT="$BUS_UNIT"
     if wait_operational "$node" "$t_sim" 30; then
       info "device node $node operational again after its simulator came back"
     else

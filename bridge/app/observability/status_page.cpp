@@ -9,6 +9,7 @@
 #include <iterator>
 #include <vector>
 
+#include "app/nmt_text.hpp"
 #include "canopen/emcy.hpp"
 
 namespace lb::app::obs {
@@ -66,17 +67,6 @@ std::string seconds(double s) {
   if (s < 120) return fmt::format("{:.0f} s", s);
   if (s < 7200) return fmt::format("{:.0f} min", s / 60);
   return fmt::format("{:.1f} h", s / 3600);
-}
-
-std::string_view nmt_words(msg::NmtState s) {
-  switch (s) {
-    case msg::NMT_BOOT_UP: return "boot-up";
-    case msg::NMT_STOPPED: return "stopped";
-    case msg::NMT_OPERATIONAL: return "operational";
-    case msg::NMT_PRE_OPERATIONAL: return "pre-operational";
-    case msg::NMT_UNKNOWN: break;
-  }
-  return "unknown";
 }
 
 }  // namespace
@@ -213,8 +203,8 @@ void node_row(std::string& out, const msg::NodeDiagnostics& n) {
       "<tr class=\"node {}\" id=\"node-{}\" data-device=\"{}\" data-health=\"{}\">"
       "<td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}</td><td>{}{}</td><td>{}</td><td>{}</td><td>{}</td></tr>\n",
       row, html_escape(n.device()), html_escape(n.device()), html_escape(h.words), n.node_id(), device_cell(n),
-      type_cell(n), badge(h), html_escape(nmt_words(n.nmt_state())), badge(node_state(n)), state_reason(n),
-      heartbeat(n), active_errors(n), last_boot(n));
+      type_cell(n), badge(h), html_escape(nmt_text(n.nmt_state())), badge(node_state(n)), state_reason(n), heartbeat(n),
+      active_errors(n), last_boot(n));
 }
 
 Shown role(const msg::BusDiagnostics& b) {
