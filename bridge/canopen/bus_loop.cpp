@@ -15,6 +15,8 @@
 #include <cstring>
 #include <stdexcept>
 
+#include "can/detail.hpp"
+
 namespace lb::canopen {
 namespace {
 
@@ -276,6 +278,7 @@ void BusLoop::loop() {
       const auto now = std::chrono::steady_clock::now();
       if (last_wake_ != std::chrono::steady_clock::time_point{} && now - last_wake_ > stall_guard_ && !catching_up_) {
         catching_up_ = true;
+        stall_end_ns_ = can::detail::realtime_ns();
         ++stalls_;
       }
       last_wake_ = now;
@@ -461,6 +464,10 @@ void BusLoop::dispatch(const can::CanFrame& frame) {
     InHandler& operator=(const InHandler&) = delete;
   } in_handler{in_handler_};
   last_frame_ns_ = std::max(last_frame_ns_, frame.timestamp_ns);
+  // A frame stamped after the wake that ended the stall: every frame of meanwhile is read (a bus
+  // delivers in order). Waiting for no input at all instead would hold the SYNC and heartbeat for
+  // as long as the bus stays busy, and a standby takes a silent master's bus over.
+  if (catching_up_ && frame.timestamp_ns >= stall_end_ns_) catching_up_ = false;
   if (!frame.extended && !frame.rtr && !frame.error && frame.id < cob::kStandardIdCount) {
     auto& handlers = handlers_[frame.id];
     if (handlers.empty()) ++frames_unclaimed_;

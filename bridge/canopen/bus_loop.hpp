@@ -219,8 +219,9 @@ class BusLoop {
   bool held_ = false;
   std::chrono::nanoseconds stall_guard_{0};
   std::chrono::steady_clock::time_point last_wake_{};
-  bool catching_up_ = false;  // a stall: the frames of meanwhile are read before anything is sent
-  bool in_handler_ = false;   // a frame is being dispatched to its handlers
+  bool catching_up_ = false;       // a stall: the frames of meanwhile are read before anything is sent
+  std::int64_t stall_end_ns_ = 0;  // realtime of the wake-up that ended the last stall
+  bool in_handler_ = false;        // a frame is being dispatched to its handlers
   std::uint64_t stalls_ = 0;
   std::uint64_t frames_held_ = 0;
   std::uint64_t stops_sent_while_held_ = 0;

@@ -17,6 +17,7 @@
 #include <thread>
 #include <vector>
 
+#include "can/detail.hpp"
 #include "canopen/bus_loop.hpp"
 #include "canopen/sync_producer.hpp"
 #include "support/bus_spy.hpp"
@@ -373,6 +374,50 @@ TEST_F(Loop, AStalledLoopReadsTheFramesOfMeanwhileBeforeItTransmitsAgain) {
   ASSERT_TRUE(eventually([&] { return read_at_first_send >= 0; }, 10s));
   EXPECT_EQ(read_at_first_send, kMeanwhile) << "it transmitted before it had read the frames of its stall";
   EXPECT_EQ(on_loop([&] { return loop_->stalls(); }), 1u);
+}
+
+// The stall over and its frames read, the loop transmits again though the bus stays busy: frames
+// keep coming while its timer sends (a master booting its devices), and waiting for a moment with
+// no input at all would hold its SYNC and heartbeat until a standby takes its silent bus over.
+TEST_F(Loop, AfterAStallABusyBusDoesNotHoldTheTimersSendsOnceTheFramesOfMeanwhileAreRead) {
+  loop_->guard_stalls(100ms);
+  // Each frame takes the loop 1 ms, and they come faster: input is pending at every moment.
+  loop_->on_frame(0x200, [](const lb::can::CanFrame&) {
+    const auto until = std::chrono::steady_clock::now() + 1ms;
+    while (std::chrono::steady_clock::now() < until) {
+    }
+  });
+  const auto tick = loop_->create_timer([&] { (void)loop_->send(lb::can::make_frame(0x181, {0})); });
+  loop_->arm_timer(tick, 10ms, 10ms);
+  loop_->start();
+  ASSERT_TRUE(eventually([&] { return spy_->frames(0x181).size() >= 3; }));
+  std::atomic<bool> flooding{true};
+  std::thread flood([&] {
+    while (flooding) {
+      (void)spy_->send(lb::can::make_frame(0x200, {1}));
+      std::this_thread::sleep_for(200us);
+    }
+  });
+  std::promise<void> holding;
+  std::atomic<std::int64_t> stall_over_ns{0};
+  loop_->post([&] {
+    holding.set_value();
+    std::this_thread::sleep_for(300ms);  // stays: the stall being tested
+    stall_over_ns = lb::can::detail::realtime_ns();
+  });
+  ASSERT_EQ(holding.get_future().wait_for(5s), std::future_status::ready);
+  const auto sent_after_stall = [&] {
+    const auto over = stall_over_ns.load();
+    if (over == 0) return std::size_t{0};
+    const auto f = spy_->frames(0x181);
+    return static_cast<std::size_t>(
+        std::count_if(f.begin(), f.end(), [&](const lb::can::CanFrame& x) { return x.timestamp_ns > over; }));
+  };
+  const bool resumed = eventually([&] { return sent_after_stall() >= 10; }, 20s);
+  flooding = false;
+  flood.join();
+  EXPECT_TRUE(resumed) << sent_after_stall() << " timer frames after the stall while the bus stayed busy";
+  EXPECT_GE(on_loop([&] { return loop_->stalls(); }), 1u);
 }
 
 // The SYNC's timing as diagnostics and /metrics report it (SyncProducer::deviations): per SYNC,
