@@ -213,10 +213,12 @@ void FlyingMaster::tick() {
 }
 
 // Stamped while this loop did not run: during the last stall the tick saw, or after the last tick
-// by more than a stall (the frame is dispatched before the tick that would see the stall).
+// by more than a stall (the frame is dispatched before the tick that would see the stall). Or just
+// after that stall, by less than a stall: the standby judged this master silent during it, and its
+// 71h went out a timer's latency later.
 bool FlyingMaster::stalled_at(std::int64_t stamp_ns) const {
   const auto stall = std::chrono::nanoseconds(settings_.stall).count();
-  return stamp_ns > last_tick_ns_ + stall || (stall_from_ns_ < stamp_ns && stamp_ns < stall_to_ns_);
+  return stamp_ns > last_tick_ns_ + stall || (stall_from_ns_ < stamp_ns && stamp_ns < stall_to_ns_ + stall);
 }
 
 void FlyingMaster::event(std::string text) {

@@ -14,8 +14,8 @@
 // line's master node-ID, which this bridge produces) makes it negotiate again while it goes on
 // mastering; a better master's 71h then makes it step back. A master whose loop was stalled (its
 // process stopped) past two of its heartbeat periods, and that then reads another master's frames
-// stamped during the stall, steps back at once: a standby has taken over meanwhile, and mastership
-// never goes back by itself.
+// stamped during the stall (or less than a stall after it), steps back at once: a standby has taken
+// over meanwhile, and mastership never goes back by itself.
 //
 // A standby watching a live master takes no part in a negotiation: mastership moves only when the
 // master dies or by an operator.

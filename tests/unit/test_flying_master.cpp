@@ -33,8 +33,8 @@ class Flying : public lb::test::LoopOnOwnBus {
 
   // delay 50 ms, detect 50 ms (or `detect`), slot 1000 ms, device slot 1 ms: its wait 2 x 1000 + 1 x 1 =
   // 2001 ms, long enough for this test to act within it on a loaded machine; cycle 300 ms.
-  void start(std::chrono::milliseconds detect = 50ms) {
-    co::FlyingMaster::Settings s{kNode, kPriority, detect, 50ms, 1000ms, 1ms, 300ms, 100ms};
+  void start(std::chrono::milliseconds detect = 50ms, std::chrono::milliseconds stall = 100ms) {
+    co::FlyingMaster::Settings s{kNode, kPriority, detect, 50ms, 1000ms, 1ms, 300ms, stall};
     flying_ = std::make_unique<co::FlyingMaster>(
         *loop_, s, nullptr,
         co::FlyingMaster::Callbacks{[this] {
@@ -71,8 +71,8 @@ class Flying : public lb::test::LoopOnOwnBus {
     ASSERT_TRUE(spy_->send(lb::can::make_frame(id, data)));
   }
   // Alone on the bus: it negotiates and wins.
-  void become_active() {
-    start();
+  void become_active(std::chrono::milliseconds stall = 100ms) {
+    start(50ms, stall);
     ASSERT_TRUE(lb::test::eventually(10s, [&] { return saw("win"); }));
     ASSERT_TRUE(wait_sent(0x071));
   }
@@ -215,6 +215,26 @@ TEST_F(Flying, ActiveAfterItsLoopStalledAnotherMastersFramesMakeItStepBackWithou
   });
   blocked.get_future().wait();
   std::this_thread::sleep_for(250ms);  // stays: the announcement comes well into the stall
+  send(0x071, {7, 9});
+  ASSERT_TRUE(lb::test::eventually(10s, [&] { return saw("step back"); }));
+  EXPECT_EQ(sent(0x072).size(), requests) << "a negotiation instead of stepping back";
+}
+
+// The standby judged the master silent during its stall, and its 71h came a moment after the stall
+// ended: the same takeover, so a step back, not a negotiation with two SYNC producers meanwhile.
+TEST_F(Flying, ActiveAMastersAnswerRightAfterItsStallMakesItStepBack) {
+  become_active(600ms);  // a stall threshold of 600 ms: this test's thread answers well within it, loaded or not
+  const auto requests = sent(0x072).size();
+  std::promise<void> blocked;
+  std::promise<void> resumed;
+  loop_->post([&] {
+    blocked.set_value();
+    std::this_thread::sleep_for(2000ms);  // stays: the stall being tested
+    resumed.set_value();
+  });
+  blocked.get_future().wait();
+  resumed.get_future().wait();
+  std::this_thread::sleep_for(100ms);  // stays: the loop has run again (its tick saw the stall) when the 71h comes
   send(0x071, {7, 9});
   ASSERT_TRUE(lb::test::eventually(10s, [&] { return saw("step back"); }));
   EXPECT_EQ(sent(0x072).size(), requests) << "a negotiation instead of stepping back";
