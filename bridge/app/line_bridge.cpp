@@ -14,6 +14,7 @@
 #include "app/run_until_signal.hpp"
 #include "base/journal_event.hpp"
 #include "can/recording_bus.hpp"
+#include "canopen/cob_id.hpp"
 #include "gateways/node/momentary_commands.hpp"
 
 namespace lb::app {
@@ -60,6 +61,13 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
     if (master) {
       rt.sync = std::make_unique<canopen::SyncProducer>(*rt.loop, bus_cfg.sync_period);
       rt.sdo = std::make_unique<canopen::SdoClient>(*rt.loop, bus_cfg.sdo_timeout);
+    }
+    if (config.status_publish == profiles::StatusPublish::per_cycle) {
+      rt.cycle = std::make_unique<canopen::CycleDeadline>(*rt.loop, bus_cfg.sync_period);
+      // The SYNC as the bus carries it (a monitor, a standby) or as this bridge sends it (a master
+      // never receives its own frames).
+      rt.loop->on_frame(canopen::cob::sync, [c = rt.cycle.get()](const can::CanFrame&) { c->seen(); });
+      if (rt.sync) rt.sync->on_sync([c = rt.cycle.get()] { c->seen(); });
     }
     if (master && bus_cfg.master_node_id != 0) {
       rt.heartbeat = std::make_unique<canopen::HeartbeatProducer>(*rt.loop, bus_cfg.master_node_id,
@@ -160,10 +168,19 @@ Result<std::unique_ptr<LineBridge>> LineBridge::create(const profiles::LineConfi
     if (rt.sync) {  // the bus's SYNC reaches the node's drivers (NodeDriver::on_sync)
       rt.sync->on_sync([node = rt.nodes.back().get()] { node->tell([](canopen::NodeDriver& d) { d.on_sync(); }); });
     }
-    const gateways::DeviceContext ctx{
-        *rt.loop,       *rt.nodes.back(), rt.sync.get(), rt.sdo.get(),         *bridge->dds_,
-        config.line,    *rt.config,       dev,           dev.bridge_profile(), bridge->set_values_.get(),
-        config.startup, rpdos_from};
+    const gateways::DeviceContext ctx{*rt.loop,
+                                      *rt.nodes.back(),
+                                      rt.sync.get(),
+                                      rt.sdo.get(),
+                                      rt.cycle.get(),
+                                      *bridge->dds_,
+                                      config.line,
+                                      *rt.config,
+                                      dev,
+                                      dev.bridge_profile(),
+                                      bridge->set_values_.get(),
+                                      config.startup,
+                                      rpdos_from};
     bridge->dds_->set_reader_lane(rt.lane);  // the device's readers: on its bus's lane
     try {
       rt.services.push_back(std::make_unique<gateways::DeviceServices>(ctx));

@@ -14,6 +14,7 @@
 #include "app/service_notifier.hpp"
 #include "canopen/active_master_watch.hpp"
 #include "canopen/bus_loop.hpp"
+#include "canopen/cycle_deadline.hpp"
 #include "canopen/flying_master.hpp"
 #include "canopen/heartbeat_producer.hpp"
 #include "canopen/other_master.hpp"
@@ -75,6 +76,8 @@ class LineBridge {
     const profiles::BusConfig* config;
     std::unique_ptr<canopen::BusLoop> loop;
     std::unique_ptr<canopen::SyncProducer> sync;
+    // status_publish per_cycle: the SYNC cycle its devices' status samples wait for (PdoBurst).
+    std::unique_ptr<canopen::CycleDeadline> cycle;
     std::unique_ptr<canopen::HeartbeatProducer> heartbeat;
     std::unique_ptr<canopen::SdoClient> sdo;
     std::unique_ptr<canopen::OtherMasterWatch> other_master;

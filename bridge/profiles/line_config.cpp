@@ -835,6 +835,7 @@ std::string_view to_string(BusRole role) {
   }
   return "monitor";
 }
+std::string_view to_string(StatusPublish p) { return p == StatusPublish::per_cycle ? "per_cycle" : "per_frame"; }
 std::string_view to_string(PdoConfigMode mode) { return mode == PdoConfigMode::configure ? "configure" : "adopt"; }
 std::string_view to_string(StartupPolicy::WhenMandatoryFails policy) {
   return policy == StartupPolicy::WhenMandatoryFails::stop_others ? "stop_others" : "report_only";
@@ -900,7 +901,7 @@ Result<LineConfig> parse_line_config(const std::string& yaml_text, const std::st
     if (!root.IsMap()) src.fail(root, "a line configuration must be a mapping with line, buses and devices");
     src.check_keys(root, "line configuration",
                    {"line", "dds", "profiles_dir", "buses", "devices", "state_dir", "restore_set_values", "startup",
-                    "observability"});
+                    "observability", "status_publish"});
     LineConfig cfg;
     cfg.line = src.required<std::string>(root, "line", "line configuration");
     check_name(src, root["line"], cfg.line);
@@ -909,6 +910,16 @@ Result<LineConfig> parse_line_config(const std::string& yaml_text, const std::st
       if (cfg.state_dir.empty()) src.fail(root["state_dir"], "state_dir: the directory is empty");
     }
     cfg.restore_set_values = src.optional<bool>(root, "restore_set_values").value_or(true);
+    if (const auto sp = root["status_publish"]) {
+      const auto text = src.as<std::string>(sp, "status_publish");
+      if (text == "per_frame") {
+        cfg.status_publish = StatusPublish::per_frame;
+      } else if (text != "per_cycle") {
+        src.fail(sp, "status_publish: '" + text +
+                         "' is neither per_cycle (a device's status once per SYNC cycle, the "
+                         "default) nor per_frame (per burst of PDOs as they are read)");
+      }
+    }
     if (const auto startup = root["startup"]) {
       cfg.startup = parse_startup(src, startup);
       if (cfg.startup.restart_after_power_loss == StartupPolicy::Restart::allowed) {

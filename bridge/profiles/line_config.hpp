@@ -256,9 +256,17 @@ struct DeviceConfig {
   const Profile& bridge_profile() const { return profile_with_objects ? *profile_with_objects : *resolved_profile; }
 };
 
+// When a device's status sample goes out (docs/dds-contract.md, gateways/node/pdo_burst.hpp).
+enum class StatusPublish {
+  per_cycle,  // once the device's synchronous TPDOs of a SYNC cycle are in (or at half a cycle)
+  per_frame,  // per burst of PDOs, as they are read
+};
+std::string_view to_string(StatusPublish p);
+
 struct LineConfig {
   std::string line;
   DdsConfig dds;
+  StatusPublish status_publish = StatusPublish::per_cycle;
   // Where the set values in force are kept across restarts (<state_dir>/<line>.set_values); empty:
   // $STATE_DIRECTORY (systemd's StateDirectory=) when set, else nowhere. restore_set_values false:
   // every start begins from zero (and still keeps them).

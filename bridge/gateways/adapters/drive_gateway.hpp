@@ -69,7 +69,7 @@ template <class Binding>
 DriveGateway<Binding>::DriveGateway(DeviceContext context)
     : ctx_(context),
       codec_(context.profile, context.device.pdos, {}, !context.is_master()),
-      burst_(context.loop, [this](std::int64_t stamp_ns) { publish_status(stamp_ns); }),
+      burst_(context.loop, context.cycle, [this](std::int64_t stamp_ns) { publish_status(stamp_ns); }),
       output_(
           ctx_, codec_, [this](std::size_t pdo, const can::CanFrame& f) { on_pdo(pdo, f); },
           {.commands = resolve_commands(codec_.bitset("control_word"), momentary_commands<Binding>()),
@@ -116,7 +116,7 @@ void DriveGateway<Binding>::on_pdo(std::size_t pdo, const can::CanFrame& frame) 
       spdlog::info("{}: set echo agrees with the set value again", ctx_.device.name);
     }
   }
-  burst_.add(pdo, frame.timestamp_ns);
+  burst_.add(pdo, frame.timestamp_ns, cycle_of(codec_, pdo));
 }
 
 template <class Binding>

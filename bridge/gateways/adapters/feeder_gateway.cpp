@@ -40,7 +40,7 @@ srv::FeederWrite_Response refused(std::string message) {
 FeederGateway::FeederGateway(DeviceContext context)
     : ctx_(context),
       codec_(context.profile, context.device.pdos, !context.is_master()),
-      burst_(context.loop, [this](std::int64_t stamp_ns) { publish_status(stamp_ns); }),
+      burst_(context.loop, context.cycle, [this](std::int64_t stamp_ns) { publish_status(stamp_ns); }),
       // The loom controller's RPDOs are event-driven (255): they go out when a loom set value
       // changes them, and never before the first one. Only the loom status is a state (sent again
       // to a restarted box); triggers and picks are events.
@@ -94,7 +94,12 @@ void FeederGateway::on_pdo(std::size_t pdo, const can::CanFrame& frame) {
     unwinding_writer_.write(u);
     return;
   }
-  burst_.add(pdo, frame.timestamp_ns);  // a loom controller's RPDO (monitor role)
+  // The unwinding TPDO has its own topic above: the status never waits for it.
+  auto timing = cycle_of(codec_, pdo);
+  for (std::size_t i = 0; i < codec_.pdos().size(); ++i) {
+    if (codec_.carries(i, kUnwinding)) timing.each_sync &= ~PdoBurst::bit(i);
+  }
+  burst_.add(pdo, frame.timestamp_ns, timing);  // also a loom controller's RPDO (monitor role)
 }
 
 // A restarted control box gets the loom status again (DeviceOutput: state_pdo).

@@ -28,7 +28,7 @@ std::vector<CommandBit> saw_commands(const SawCodec& codec) {
 SawGateway::SawGateway(DeviceContext context)
     : ctx_(context),
       codec_(context.profile, context.device.pdos, !context.is_master()),
-      burst_(context.loop, [this](std::int64_t stamp_ns) { publish_status(stamp_ns); }),
+      burst_(context.loop, context.cycle, [this](std::int64_t stamp_ns) { publish_status(stamp_ns); }),
       output_(
           ctx_, codec_, [this](std::size_t pdo, const can::CanFrame& f) { on_pdo(pdo, f); },
           {.commands = saw_commands(codec_),
@@ -68,7 +68,7 @@ SawGateway::SawGateway(DeviceContext context)
 void SawGateway::on_nmt_change(canopen::NmtState, bool) noexcept { publish_status(ddsl::now_ns()); }
 
 void SawGateway::on_pdo(std::size_t pdo, const can::CanFrame& frame) {
-  if (receive_pdo(ctx_, codec_, burst_, pdo, frame)) burst_.add(pdo, frame.timestamp_ns);
+  if (receive_pdo(ctx_, codec_, burst_, pdo, frame)) burst_.add(pdo, frame.timestamp_ns, cycle_of(codec_, pdo));
 }
 
 void SawGateway::on_setpoint(const msg::SawSetpoint& sp) {

@@ -6,6 +6,7 @@
 #include <string_view>
 
 #include "canopen/bus_loop.hpp"
+#include "canopen/cycle_deadline.hpp"
 #include "canopen/remote_node.hpp"
 #include "canopen/sdo_client.hpp"
 #include "canopen/sync_producer.hpp"
@@ -18,8 +19,9 @@ namespace lb::gateways {
 struct DeviceContext {
   canopen::BusLoop& loop;
   canopen::RemoteNode& node;
-  canopen::SyncProducer* sync;  // null on a monitor bus: the bridge produces no SYNC there
-  canopen::SdoClient* sdo;      // null on a monitor bus: the bridge sends no SDO requests there
+  canopen::SyncProducer* sync;    // null on a monitor bus: the bridge produces no SYNC there
+  canopen::SdoClient* sdo;        // null on a monitor bus: the bridge sends no SDO requests there
+  canopen::CycleDeadline* cycle;  // status_publish per_cycle: the bus's SYNC cycle (PdoBurst); null: per_frame
   ddsl::Participant& dds;
   const std::string& line;
   const profiles::BusConfig& bus;

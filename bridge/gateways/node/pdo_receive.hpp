@@ -14,6 +14,21 @@
 
 namespace lb::gateways {
 
+// How PDO `pdo` and the device's other TPDOs are sent, as the PDO configuration in use says (the
+// boot's, where it adopted the device's own): PdoBurst's per-cycle sample.
+template <class Codec>
+PdoBurst::Timing cycle_of(const Codec& codec, std::size_t pdo) {
+  PdoBurst::Timing t;
+  const auto& pdos = codec.pdos();
+  for (std::size_t i = 0; i < pdos.size(); ++i) {
+    const auto& def = *pdos[i].def;
+    if (def.direction != profiles::PdoDirection::tx || !def.enabled) continue;
+    if (def.transmission_type == 1) t.each_sync |= PdoBurst::bit(i);
+    if (i == pdo) t.synchronous = def.synchronous();
+  }
+  return t;
+}
+
 // True when the frame is now in the codec's image; the caller then publishes it (burst.add).
 template <class Codec>
 bool receive_pdo(const DeviceContext& ctx, Codec& codec, PdoBurst& burst, std::size_t pdo, const can::CanFrame& frame) {
