@@ -28,6 +28,10 @@ int main(int argc, char** argv) {
   program.add_ready("the buses are open");
   program.add_go("start sending");
   program.add_stop("sending");
+  bool sync = false;
+  program.cli.add_flag("--sync", sync,
+                       "a SYNC (080h) on each bus before every round of its saws' TPDO1 and TPDO2, as a master "
+                       "sends it: the cycle the bridge's status_publish per_cycle waits for (not counted in the rate)");
   if (auto rc = program.parse(argc, argv)) return *rc;
   const int buses = program.buses;
   const int devices = program.devices;
@@ -48,6 +52,10 @@ int main(int argc, char** argv) {
   std::vector<std::uint32_t> k(static_cast<std::size_t>(buses * devices), 0);
   std::vector<std::uint64_t> dropped(static_cast<std::size_t>(buses), 0);
   std::uint64_t sent = 0;
+  std::uint64_t syncs = 0;
+  const auto cycle = static_cast<std::uint64_t>(2 * devices);  // frames per bus between two SYNCs
+  lb::can::CanFrame sync_frame;
+  sync_frame.id = 0x080;
   bench::Pacer pacer(rate * buses);
   pacer.start();
   const std::uint64_t total = count * static_cast<std::uint64_t>(buses);
@@ -56,6 +64,10 @@ int main(int argc, char** argv) {
     const auto b = static_cast<int>(i % static_cast<std::uint64_t>(buses));
     const auto d = static_cast<int>((i / static_cast<std::uint64_t>(buses)) % static_cast<std::uint64_t>(devices));
     auto& kd = k[static_cast<std::size_t>(b * devices + d)];
+    if (sync && (i / static_cast<std::uint64_t>(buses)) % cycle == 0 &&
+        bus[static_cast<std::size_t>(b)]->send(sync_frame)) {
+      ++syncs;
+    }
     const auto frame = bench::saw_tpdo(bench::node_id(d), ++kd, bench::stamp32(bench::realtime_ns()));
     if (bus[static_cast<std::size_t>(b)]->send(frame)) {
       ++sent;
@@ -66,9 +78,9 @@ int main(int argc, char** argv) {
   const double elapsed = pacer.elapsed_s();
   std::uint64_t dropped_total = 0;
   for (auto n : dropped) dropped_total += n;
-  std::fputs(fmt::format("inject_frames_sent={}\ninject_tx_dropped={}\ninject_elapsed_s={:.3f}\n"
+  std::fputs(fmt::format("inject_frames_sent={}\ninject_syncs_sent={}\ninject_tx_dropped={}\ninject_elapsed_s={:.3f}\n"
                          "inject_rate_per_bus={:.0f}\ninject_max_lag_ms={:.2f}\n",
-                         sent, dropped_total, elapsed, static_cast<double>(sent) / elapsed / buses,
+                         sent, syncs, dropped_total, elapsed, static_cast<double>(sent) / elapsed / buses,
                          static_cast<double>(pacer.max_lag_ns()) / 1e6)
                  .c_str(),
              stdout);

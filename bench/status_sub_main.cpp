@@ -38,6 +38,7 @@ struct Tally {
   std::uint64_t samples = 0;  // samples that reflect at least one stamped frame
   std::uint64_t other = 0;    // initial samples, NMT changes
   std::vector<std::int64_t> latencies;
+  std::vector<std::int64_t> last_latencies;  // TPDO2's alone: the last TPDO of a saw's cycle
   Clock::time_point last_sample{};
   bool have_diag = false;
   msg::Diagnostics diag;
@@ -97,7 +98,9 @@ int main(int argc, char** argv) {
               ++tally.samples;
               for (int i = 0; i < hits.n; ++i) {
                 const auto& hit = hits.hit[static_cast<std::size_t>(i)];
-                if (tally.stamped++ >= warmup) tally.latencies.push_back(bench::elapsed_since(hit.stamp, now));
+                if (tally.stamped++ < warmup) continue;
+                tally.latencies.push_back(bench::elapsed_since(hit.stamp, now));
+                if (hit.tpdo2) tally.last_latencies.push_back(tally.latencies.back());
               }
               tally.last_sample = Clock::now();
             }
@@ -167,6 +170,7 @@ int main(int argc, char** argv) {
         frames_in, error_frames, pdos, length_errors);
   }
   report += bench::format_summary("sub", bench::summarize(tally.latencies));
+  report += bench::format_summary("sub_last", bench::summarize(tally.last_latencies));
   std::fputs(report.c_str(), stdout);
   std::fflush(stdout);
   program.save_latencies(tally.latencies);

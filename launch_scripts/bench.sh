@@ -18,6 +18,9 @@
 #                    directory under /tmp, printed at the end)
 #   --buses LIST     bus counts the throughput search tries, ascending (stops at the first loss)
 #   --scrape-buses LIST  bus counts the scrape figure measures (default "1 8")
+#   --status-publish MODE  throughput, memory, scrape: the bench line's status_publish (per_cycle,
+#                    the bridge's default, or per_frame); the injector sends a SYNC before every
+#                    round of the saws' TPDOs either way, as a line's master does
 #   --no-pin         do not pin: by default the bridge (and what stands in for it in a floor: the
 #                    bus sink, the bare DDS writer, the bare relays) runs alone on the last core and
 #                    the harness (injector, subscriber, set-value writer, simulator) on the others
@@ -108,6 +111,7 @@ do_build=1
 out_dir=""
 buses_list=""
 scrape_buses=""
+status_publish=""
 pin=1
 niceness=0
 profile=0
@@ -126,6 +130,7 @@ while (($#)); do
     --out) out_dir=$(realpath -m "${2:?}"); shift ;;
     --buses) buses_list=${2:?}; shift ;;
     --scrape-buses) scrape_buses=${2:?}; shift ;;
+    --status-publish) status_publish=${2:?}; shift ;;
     --no-pin) pin=0 ;;
     --nice) niceness=${2:?}; shift ;;
     --profile) profile=1 ;;
@@ -498,9 +503,10 @@ throughput_step() {
   mkdir -p "$d"
   next_domain
   local p="tp-$n-$RANDOM"
-  "$bin/bench-config" --buses "$n" --devices $devices --domain $domain --prefix "$p" --role monitor >"$d/line.yaml"
+  "$bin/bench-config" --buses "$n" --devices $devices --domain $domain --prefix "$p" --role monitor \
+    ${status_publish:+--status-publish "$status_publish"} >"$d/line.yaml"
   start "$d/inject" "${harness_cmd[@]}" "$bin/bench-inject" --buses "$n" --devices $devices --rate $full_rate --count $count \
-    --prefix "$p" --ready "$d/inject.ready" --go "$d/go" --stop "$d/stop" --linger 120
+    --sync --prefix "$p" --ready "$d/inject.ready" --go "$d/go" --stop "$d/stop" --linger 120
   inj=$pid
   wait_file "$d/inject.ready" $inj
   start "$d/sub" "${harness_cmd[@]}" "$bin/bench-status-sub" --buses "$n" --devices $devices --domain $domain --expect $((count * n)) \
@@ -566,8 +572,9 @@ throughput_step() {
   # one replaced before they were sent, i.e. lost because the DDS process lagged (split bridge only).
   local superseded
   superseded=$(grep -hoE '[0-9]+ state sample\(s\) replaced' "$d/bridge.out" "$d/bridge.err" 2>/dev/null | tail -1 | cut -d' ' -f1)
-  local sent dropped rate frames_in err stamped
+  local sent dropped rate frames_in err stamped syncs
   sent=$(get "$d/inject.out" inject_frames_sent); dropped=$(get "$d/inject.out" inject_tx_dropped)
+  syncs=$(get "$d/inject.out" inject_syncs_sent)
   rate=$(get "$d/inject.out" inject_rate_per_bus)
   frames_in=$(get "$d/sub.out" bridge_frames_in); err=$(get "$d/sub.out" bridge_error_frames)
   stamped=$(get "$d/sub.out" sub_stamped)
@@ -581,6 +588,9 @@ throughput_step() {
     echo "bridge_overflows=${err:-0}"
     echo "samples=${stamped:-0}"
     echo "samples_published=$(get "$d/sub.out" sub_samples)"
+    echo "syncs=${syncs:-0}"
+    echo "samples_per_s_per_bus=$(awk -v s="$(get "$d/sub.out" sub_samples)" -v t=$step_s -v n="$n" 'BEGIN { if (s != "") printf "%.0f", s / t / n }')"
+    echo "loaded_last_p50_us=$(get "$d/sub.out" sub_last_p50_us)"
     echo "bridge_cpu_pct=$(cpu_percent "$c0" "$c1" "$t0" "$t1")"
     echo "sub_cpu_pct=$(cpu_percent "$s0" "$s1" "$t0" "$t1")"
     echo "inject_cpu_pct=$(cpu_percent "$i0" "$i1" "$t0" "$t1")"
@@ -600,7 +610,7 @@ throughput_step() {
   } >"$d/step"
   # Frames: everything offered was sent at the full rate and taken by the bridge (no overflow).
   local frames_ok=0
-  [ "${sent:-0}" = "$((count * n))" ] && [ "${frames_in:-x}" = "$sent" ] && [ "${err:-x}" = 0 ] &&
+  [ "${sent:-0}" = "$((count * n))" ] && [ "${frames_in:-x}" = "$((sent + ${syncs:-0}))" ] && [ "${err:-x}" = 0 ] &&
     awk -v r="${rate:-0}" -v t=$full_rate 'BEGIN { exit !(r >= 0.99 * t) }' && frames_ok=1
   echo "frames_ok=$frames_ok" >>"$d/step"
   ((frames_ok)) && [ "${stamped:-x}" = "$sent" ]
@@ -665,6 +675,8 @@ fig_throughput() {  # RUN
     fi
     echo "throughput_cpu_pct_n$n=$(get "$d/n$n/step" bridge_cpu_pct)" >>"$vals"
     echo "throughput_superseded_n$n=$(get "$d/n$n/step" channel_superseded)" >>"$vals"
+    echo "throughput_samples_per_s_per_bus_n$n=$(get "$d/n$n/step" samples_per_s_per_bus)" >>"$vals"
+    echo "throughput_last_p50_us_n$n=$(get "$d/n$n/step" loaded_last_p50_us)" >>"$vals"
     echo "throughput_frames_per_sample_n$n=$(awk -v f="$(get "$d/n$n/step" samples)" -v s="$(get "$d/n$n/step" samples_published)" 'BEGIN { if (s > 0) printf "%.2f", f / s }')" >>"$vals"
     [ "$(get "$d/n$n/step" frames_ok)" = 1 ] || break
     best_frames=$n
@@ -1157,6 +1169,10 @@ cmd() { echo "launch_scripts/bench.sh --only $1$quick_flag --runs $runs$run_flag
     echo "| Bridge CPU by N buses (% of its core) | ${local_row%; } | | | \`$(cmd throughput)\` |"
     local_row="" ; for n in $buses_list; do v=$(stat throughput throughput_frames_per_sample_n$n); [ -z "$v" ] || local_row+="$n: $v; "; done
     echo "| Frames per status sample by N (PDO bursts merged, none overwritten) | ${local_row%; } | | | \`$(cmd throughput)\` |"
+    local_row="" ; for n in $buses_list; do v=$(stat throughput throughput_samples_per_s_per_bus_n$n); [ -z "$v" ] || local_row+="$n: $v; "; done
+    echo "| Status samples per second per bus by N (status_publish ${status_publish:-per_cycle}) | ${local_row%; } | | | \`$(cmd throughput)\` |"
+    local_row="" ; for n in $buses_list; do v=$(stat throughput throughput_last_p50_us_n$n); [ -z "$v" ] || local_row+="$n: $v; "; done
+    echo "| CAN -> DDS under full load, the last TPDO of a saw's cycle (TPDO2), p50 µs by N | ${local_row%; } | | | \`$(cmd throughput)\` |"
     local_row="" ; for n in $buses_list; do v=$(stat throughput throughput_superseded_n$n); [ -z "$v" ] || local_row+="$n: $v; "; done
     echo "| Status samples the bus process replaced unsent because its DDS process lagged, by N | ${local_row%; } | | | \`$(cmd throughput)\` |"
   fi

@@ -874,3 +874,18 @@ TEST(LineConfig, ObservabilityListen) {
   e = error_of(replace(kGood, "dds:\n", "observability: 127.0.0.1:9420\ndds:\n"));
   EXPECT_NE(e.find("line.yaml:2:16: observability must be a mapping (key: value)"), std::string::npos) << e;
 }
+
+// status_publish: per_cycle unless the line says per_frame; anything else is refused with both.
+TEST(LineConfig, StatusPublishIsPerCycleByDefaultPerFrameWhenSaidAndNothingElse) {
+  const auto registry = ProfileRegistry::builtin();
+  auto r = parse_line_config(kGood, "line.yaml", registry);
+  ASSERT_TRUE(r) << r.error().message;
+  EXPECT_EQ(r->status_publish, lb::profiles::StatusPublish::per_cycle);
+  r = parse_line_config(replace(kGood, "line: test\n", "line: test\nstatus_publish: per_frame\n"), "line.yaml",
+                        registry);
+  ASSERT_TRUE(r) << r.error().message;
+  EXPECT_EQ(r->status_publish, lb::profiles::StatusPublish::per_frame);
+  const auto e = error_of(replace(kGood, "line: test\n", "line: test\nstatus_publish: per_sync\n"));
+  EXPECT_NE(e.find("line.yaml:2:17: status_publish: 'per_sync' is neither per_cycle"), std::string::npos) << e;
+  EXPECT_NE(e.find("nor per_frame"), std::string::npos) << e;
+}
