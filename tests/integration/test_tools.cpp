@@ -55,6 +55,7 @@ TEST(Check, DemoLineSummaryWithEveryTopicAndNoDdsNoCan) {
   EXPECT_EQ(shm_entries(), before) << "--check created Fast DDS shared-memory segments: it started a participant";
   for (const char* expected : {
            "line demo: 2 bus(es), 4 device(s)",
+           "status samples per SYNC cycle (status_publish: per_cycle)",
            "bus extrusion on virtual:demo-extrusion: master, SYNC every 20 ms",
            "bus weaving on virtual:demo-weaving: master, SYNC every 20 ms, SDO timeout 1000 ms, loop at realtime "
            "priority 30 (SCHED_FIFO)\n",

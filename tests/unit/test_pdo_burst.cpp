@@ -1,5 +1,6 @@
-// One status sample per burst of PDOs (BusLoop flushes + PdoBurst), on a real bus loop over a
-// virtual bus, with frames injected by a second bus member.
+// One status sample per burst of PDOs (BusLoop flushes + PdoBurst), or per SYNC cycle
+// (CycleDeadline), on a real bus loop over a virtual bus, with frames injected by a second bus
+// member.
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -10,6 +11,7 @@
 #include <vector>
 
 #include "canopen/bus_loop.hpp"
+#include "canopen/cycle_deadline.hpp"
 #include "gateways/node/pdo_burst.hpp"
 #include "support/bus_spy.hpp"
 #include "support/unit_loop_fixture.hpp"
@@ -34,7 +36,11 @@ class Burst : public lb::test::LoopOnOwnBus {
   Burst() : LoopOnOwnBus("burst") {}
   void SetUp() override {
     LoopOnOwnBus::SetUp();
-    burst_ = std::make_unique<PdoBurst>(*loop_, [this](std::int64_t stamp) { publish(stamp); });
+    if (per_cycle_) {
+      cycle_ = std::make_unique<lb::canopen::CycleDeadline>(*loop_, 200ms);
+      loop_->on_frame(0x080, [this](const lb::can::CanFrame&) { cycle_->seen(); });
+    }
+    burst_ = std::make_unique<PdoBurst>(*loop_, cycle_.get(), [this](std::int64_t stamp) { publish(stamp); });
     loop_->on_frame(kTpdo1, [this](const lb::can::CanFrame& f) { on_pdo(0, f); });
     loop_->on_frame(kTpdo2, [this](const lb::can::CanFrame& f) { on_pdo(1, f); });
     loop_->start();
@@ -44,7 +50,8 @@ class Burst : public lb::test::LoopOnOwnBus {
   void on_pdo(std::size_t index, const lb::can::CanFrame& f) {
     burst_->admit(index);
     image_[index] = f.data[0];
-    burst_->add(index, f.timestamp_ns);
+    // Both are synchronous TPDOs sent at every SYNC (transmission type 1), as a saw's.
+    burst_->add(index, f.timestamp_ns, PdoBurst::Timing{true, 0b11});
   }
   void publish(std::int64_t stamp) {
     burst_->published();
@@ -78,6 +85,8 @@ class Burst : public lb::test::LoopOnOwnBus {
     return samples_;
   }
 
+  bool per_cycle_ = false;  // set before SetUp
+  std::unique_ptr<lb::canopen::CycleDeadline> cycle_;
   std::unique_ptr<PdoBurst> burst_;
   std::array<std::uint8_t, 2> image_{};  // loop thread
   std::mutex m_;
@@ -135,11 +144,68 @@ TEST_F(Burst, ALongBurstOfOnePdoLosesNoValue) {
 TEST_F(Burst, AFlushRequestedOutsideABurstRunsAtOnce) {
   std::promise<std::size_t> seen;
   loop_->post([&] {
-    burst_->add(0, 42);  // e.g. a PDO decoded on behalf of a posted task
+    burst_->add(0, 42, {});  // e.g. a PDO decoded on behalf of a posted task
     seen.set_value(samples().size());
   });
   EXPECT_EQ(seen.get_future().get(), 1U);
   EXPECT_EQ(samples()[0].stamp_ns, 42);
+}
+
+// status_publish per_cycle: after a SYNC the sample waits for the device's other TPDO of the cycle.
+class Cycle : public Burst {
+ protected:
+  Cycle() { per_cycle_ = true; }
+  bool wait_samples(std::size_t n) {
+    return lb::test::eventually(10s, [&] { return samples().size() >= n; });
+  }
+};
+
+TEST_F(Cycle, TheTwoTpdosOfACycleMakeOneSampleThoughTheyCameApart) {
+  for (std::uint8_t c = 1; c <= 2; ++c) {
+    // SYNCs 200 ms apart: the deadline, half the interval measured, stays 100 ms.
+    const auto next = std::chrono::steady_clock::now() + 200ms;
+    send(0x080, 0);
+    send(kTpdo1, static_cast<std::uint8_t>(10 + c));
+    std::this_thread::sleep_for(30ms);  // stays: another burst, well within the cycle's 100 ms deadline
+    send(kTpdo2, static_cast<std::uint8_t>(20 + c));
+    ASSERT_TRUE(wait_samples(c));
+    std::this_thread::sleep_until(next);  // stays: the SYNC period the test plays
+  }
+  const auto s = samples();
+  ASSERT_EQ(s.size(), 2U);
+  EXPECT_EQ(s[0].values, (std::vector<std::uint8_t>{11, 21}));
+  EXPECT_EQ(s[1].values, (std::vector<std::uint8_t>{12, 22}));
+}
+
+TEST_F(Cycle, APdoAgainWithinTheCyclePublishesTheWaitingOneFirst) {
+  send(0x080, 0);
+  send(kTpdo1, 11);
+  send(kTpdo1, 12);
+  send(kTpdo2, 21);
+  ASSERT_TRUE(wait_samples(2));
+  const auto s = samples();
+  ASSERT_EQ(s.size(), 2U);
+  EXPECT_EQ(s[0].values, (std::vector<std::uint8_t>{11, 0}));
+  EXPECT_EQ(s[1].values, (std::vector<std::uint8_t>{12, 21}));
+}
+
+TEST_F(Cycle, AMissingTpdoHoldsTheOtherUntilTheDeadlineOnly) {
+  send(0x080, 0);
+  const auto sent = std::chrono::steady_clock::now();
+  send(kTpdo1, 11);
+  ASSERT_TRUE(wait_samples(1));
+  // The deadline is half the configured 200 ms (one SYNC seen, no interval measured yet).
+  EXPECT_GE(std::chrono::steady_clock::now() - sent, 90ms) << "published before the cycle's deadline";
+  EXPECT_EQ(samples()[0].values, (std::vector<std::uint8_t>{11, 0}));
+}
+
+TEST_F(Cycle, WithNoSyncHeardEachPdoGoesPerBurst) {
+  send(kTpdo1, 11);
+  ASSERT_TRUE(wait_samples(1));
+  std::this_thread::sleep_for(30ms);
+  send(kTpdo2, 21);
+  ASSERT_TRUE(wait_samples(2));
+  EXPECT_EQ(samples()[1].values, (std::vector<std::uint8_t>{11, 21}));
 }
 
 }  // namespace
