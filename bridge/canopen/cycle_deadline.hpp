@@ -1,9 +1,12 @@
 #pragma once
 // The publication deadline of a SYNC cycle (status_publish: per_cycle, docs/dds-contract.md): the
 // synchronous TPDOs of one cycle belong together (a device samples at the SYNC and sends after it),
-// so a device's status waits for the rest of its cycle, but never past half a SYNC interval after
-// the SYNC: a PDO that stays missing must not hold the others back. What still waits then, or at
-// the next SYNC, runs.
+// so a device's status waits for the rest of its cycle, but no longer than the cycle: a PDO that
+// stays missing must not hold the others back. What still waits at the next SYNC, or one interval
+// after the last SYNC when no next one came, runs. Not a shorter deadline: on a fully loaded bus
+// the cycle's TPDOs fill the whole cycle, every device's TPDO1 (lower identifiers win the
+// arbitration) before any TPDO2, so a device's last TPDO comes about half a cycle after its first
+// (measured: with half an interval as the deadline a saturated bus got one sample per frame).
 //
 // The SYNC is what the bus carried (a monitor, a standby) or what this bridge produced (a master,
 // which never receives its own frames): whoever sees it calls seen(). The interval is the last one
@@ -34,7 +37,7 @@ class CycleDeadline {
   // Loop thread: run this waiter at the deadline (once however often it is asked).
   void wait(WaiterId id);
   // Loop thread: the deadline of the open cycle after its SYNC.
-  std::chrono::nanoseconds deadline() const { return interval_ / 2; }
+  std::chrono::nanoseconds deadline() const { return interval_; }
 
  private:
   void close();

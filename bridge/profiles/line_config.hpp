@@ -258,7 +258,7 @@ struct DeviceConfig {
 
 // When a device's status sample goes out (docs/dds-contract.md, gateways/node/pdo_burst.hpp).
 enum class StatusPublish {
-  per_cycle,  // once the device's synchronous TPDOs of a SYNC cycle are in (or at half a cycle)
+  per_cycle,  // once the device's synchronous TPDOs of a SYNC cycle are in (or when the cycle ends)
   per_frame,  // per burst of PDOs, as they are read
 };
 std::string_view to_string(StatusPublish p);

@@ -6,7 +6,7 @@
 // counter value 1000 + i, saw counter i x 0.1 mm and speed i mm/min.
 //   per_cycle (the default): one sample per cycle with both TPDOs of it, never one with TPDO1 of
 //     a cycle and TPDO2 of the cycle before; a cycle whose TPDO2 never comes is published at the
-//     cycle's deadline (half the SYNC interval), not at the next SYNC.
+//     cycle's end (one SYNC interval after its SYNC) when the next SYNC does not come.
 //   per_frame: a sample per TPDO, so the mixed sample shows.
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -31,7 +31,7 @@ using namespace std::chrono_literals;
 namespace {
 
 constexpr std::uint8_t kNode = 5;
-constexpr auto kSyncPeriod = 200ms;  // the test's SYNC: half of it (the deadline) dwarfs a loaded machine's sleeps
+constexpr auto kSyncPeriod = 200ms;  // the test's SYNC: the deadline dwarfs a loaded machine's sleeps
 constexpr auto kTpdoGap = 3ms;       // TPDO2 after TPDO1: another burst for the bridge's loop
 constexpr int kCycles = 12;
 
@@ -137,15 +137,15 @@ TEST_F(StatusPerCycle, OneSamplePerCycleWithBothTpdosAndTheDeadlinePublishesACyc
   }
   EXPECT_EQ(status_.gaps(), 0u);
 
-  // A cycle whose TPDO2 never comes: its TPDO1 is published at the deadline, half a SYNC interval
-  // (about 100 ms), not at the next SYNC, which this test holds back for 5 s.
+  // A cycle whose TPDO2 never comes: its TPDO1 is published at the deadline, one SYNC interval
+  // (about 200 ms) after its SYNC, though the next SYNC does not come (this test holds it back).
   const auto sent = std::chrono::steady_clock::now();
   ASSERT_NO_FATAL_FAILURE(cycle(kCycles + 1, false));
   ASSERT_TRUE(status_.wait_last(4s, [](const msg::SawStatus& s) { return s.counter_value() == 1000 + kCycles + 1; }))
       << "the cycle without its TPDO2 was not published before the next SYNC\n"
       << bridge_->log();
   const auto waited = std::chrono::steady_clock::now() - sent;
-  std::printf("a cycle missing its TPDO2: published %.1f ms after its SYNC (deadline: half the %lld ms interval)\n",
+  std::printf("a cycle missing its TPDO2: published %.1f ms after its SYNC (deadline: the %lld ms interval)\n",
               std::chrono::duration<double, std::milli>(waited).count(), static_cast<long long>(kSyncPeriod.count()));
   const auto last = status_.samples().back();
   EXPECT_EQ(std::llround(last.product_speed_m_per_min() * 1000), kCycles) << "TPDO2 is the previous cycle's";
