@@ -93,6 +93,8 @@ constexpr std::int64_t kMarginMs = kSanitized ? 2000 : kOnVcan ? 500 : 100;
 constexpr int kConsumerMs = static_cast<int>(2 * kTakeoverAfterMs + 50 + kMarginMs);
 // SYNC gaps shorter than half a period allowed in a judged window (see HotStandby::sync_gaps).
 constexpr std::size_t kTwoProducers = 3;
+// SYNCs within any 10 periods: 11 at most from one producer, 2 more for stamps at a window's edges.
+constexpr std::size_t kMostInTenPeriods = 13;
 
 using lb::test::bus_now_ns;
 
@@ -318,13 +320,18 @@ class HotStandby : public ::testing::Test {
   // half a period. Two producers of one period make every other gap at most half a period (their
   // phases differ); one SYNC late by a loaded machine makes one short gap after it, so a few are
   // allowed (kTwoProducers).
+  // most_in_ten_periods: the most SYNCs stamped within any 10 periods. One producer sends at most
+  // 11 there however late its loop runs (its periodic timer skips what it missed, and a late SYNC
+  // is followed by one on time, which makes a short gap but no extra SYNC); two make about 20.
   struct Gaps {
     std::int64_t widest = 0;
     std::size_t short_ones = 0;
+    std::size_t most_in_ten_periods = 0;
   };
   Gaps sync_gaps(std::int64_t from_ns, std::int64_t to_ns) {
     Gaps g;
     std::int64_t last = 0;
+    std::vector<std::int64_t> stamps;
     for (const auto& f : spy_->frames(0x080)) {
       if (f.timestamp_ns < from_ns || f.timestamp_ns > to_ns) continue;
       if (last != 0) {
@@ -332,6 +339,11 @@ class HotStandby : public ::testing::Test {
         if (f.timestamp_ns - last < kSyncPeriodMs * kMs / 2) ++g.short_ones;
       }
       last = f.timestamp_ns;
+      stamps.push_back(f.timestamp_ns);
+    }
+    for (std::size_t first = 0, end = 0; first < stamps.size(); ++first) {
+      while (end < stamps.size() && stamps[end] - stamps[first] < 10 * kSyncPeriodMs * kMs) ++end;
+      g.most_in_ten_periods = std::max(g.most_in_ten_periods, end - first);
     }
     return g;
   }
@@ -625,8 +637,11 @@ TEST_F(HotStandby, TwoStandbysStartedTogetherEndWithOneMaster) {
     a_ = bridge(a, "together-a-" + std::to_string(i));
     b_ = bridge(b, "together-b-" + std::to_string(i));
     ASSERT_TRUE(syncs_after(from_ns, 100, 60s)) << "start " << i << "\n" << logs();
-    EXPECT_LE(sync_gaps(from_ns, bus_now_ns()).short_ones, kTwoProducers)
-        << "two SYNC producers at once, start " << i << "\n"
+    // Counted, not judged by short gaps: two bridges started at once on a loaded machine make the
+    // one producer's SYNCs late now and then (short gaps after them), never more of them.
+    const auto gaps = sync_gaps(from_ns, bus_now_ns());
+    EXPECT_LE(gaps.most_in_ten_periods, kMostInTenPeriods)
+        << "two SYNC producers at once, start " << i << " (" << gaps.short_ones << " gaps under half a period)\n"
         << logs();
     const bool a_masters = a_->log().find("mastered from the start") != std::string::npos;
     const bool b_masters = b_->log().find("mastered from the start") != std::string::npos;
