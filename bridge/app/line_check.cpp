@@ -132,11 +132,9 @@ void print_summary(const profiles::LineConfig& line, const std::vector<ddsl::Pla
              dds.security ? ", secured (DDS Security)" : "",
              dds.profiles_file.empty() ? "" : ", profiles " + dds.profiles_file);
   if (!line.profiles_dir.empty()) fmt::print(out, "profiles_dir {}\n", line.profiles_dir);
-  fmt::print(
-      out, "status samples {}\n",
-      line.status_publish == profiles::StatusPublish::per_cycle
-          ? "per SYNC cycle (status_publish: per_cycle): a device's once its synchronous TPDOs of the cycle are in"
-          : "per burst of PDOs (status_publish: per_frame)");
+  fmt::print(out, "status samples {} (status_publish: {})\n",
+             line.status_publish == profiles::StatusPublish::per_cycle ? "per SYNC cycle" : "per burst of PDOs",
+             profiles::to_string(line.status_publish));
   for (const auto& b : line.buses) {
     fmt::print(out, "bus {} on {}: {}", b.name, b.interface, profiles::to_string(b.role));
     if (profiles::masters(b.role)) {

@@ -51,7 +51,7 @@ class Burst : public lb::test::LoopOnOwnBus {
     burst_->admit(index);
     image_[index] = f.data[0];
     // Both are synchronous TPDOs sent at every SYNC (transmission type 1), as a saw's.
-    burst_->add(index, f.timestamp_ns, PdoBurst::Timing{true, 0b11});
+    burst_->add(index, f.timestamp_ns, [] { return PdoBurst::Timing{true, 0b11}; });
   }
   void publish(std::int64_t stamp) {
     burst_->published();
@@ -144,7 +144,7 @@ TEST_F(Burst, ALongBurstOfOnePdoLosesNoValue) {
 TEST_F(Burst, AFlushRequestedOutsideABurstRunsAtOnce) {
   std::promise<std::size_t> seen;
   loop_->post([&] {
-    burst_->add(0, 42, {});  // e.g. a PDO decoded on behalf of a posted task
+    burst_->add(0, 42, [] { return PdoBurst::Timing{}; });  // e.g. a PDO decoded on behalf of a posted task
     seen.set_value(samples().size());
   });
   EXPECT_EQ(seen.get_future().get(), 1U);

@@ -116,7 +116,7 @@ void DriveGateway<Binding>::on_pdo(std::size_t pdo, const can::CanFrame& frame) 
       spdlog::info("{}: set echo agrees with the set value again", ctx_.device.name);
     }
   }
-  burst_.add(pdo, frame.timestamp_ns, cycle_of(codec_, pdo));
+  burst_.add(pdo, frame.timestamp_ns, [&] { return cycle_of(codec_, pdo); });
 }
 
 template <class Binding>

@@ -94,12 +94,15 @@ void FeederGateway::on_pdo(std::size_t pdo, const can::CanFrame& frame) {
     unwinding_writer_.write(u);
     return;
   }
-  // The unwinding TPDO has its own topic above: the status never waits for it.
-  auto timing = cycle_of(codec_, pdo);
-  for (std::size_t i = 0; i < codec_.pdos().size(); ++i) {
-    if (codec_.carries(i, kUnwinding)) timing.each_sync &= ~PdoBurst::bit(i);
-  }
-  burst_.add(pdo, frame.timestamp_ns, timing);  // also a loom controller's RPDO (monitor role)
+  // Also a loom controller's RPDO (monitor role). The unwinding TPDO has its own topic above: the
+  // status never waits for it.
+  burst_.add(pdo, frame.timestamp_ns, [&] {
+    auto timing = cycle_of(codec_, pdo);
+    for (std::size_t i = 0; i < codec_.pdos().size(); ++i) {
+      if (codec_.carries(i, kUnwinding)) timing.each_sync &= ~PdoBurst::bit(i);
+    }
+    return timing;
+  });
 }
 
 // A restarted control box gets the loom status again (DeviceOutput: state_pdo).

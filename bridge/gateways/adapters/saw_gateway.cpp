@@ -68,7 +68,8 @@ SawGateway::SawGateway(DeviceContext context)
 void SawGateway::on_nmt_change(canopen::NmtState, bool) noexcept { publish_status(ddsl::now_ns()); }
 
 void SawGateway::on_pdo(std::size_t pdo, const can::CanFrame& frame) {
-  if (receive_pdo(ctx_, codec_, burst_, pdo, frame)) burst_.add(pdo, frame.timestamp_ns, cycle_of(codec_, pdo));
+  if (receive_pdo(ctx_, codec_, burst_, pdo, frame))
+    burst_.add(pdo, frame.timestamp_ns, [&] { return cycle_of(codec_, pdo); });
 }
 
 void SawGateway::on_setpoint(const msg::SawSetpoint& sp) {

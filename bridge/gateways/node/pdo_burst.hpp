@@ -41,12 +41,17 @@ class PdoBurst {
     if ((waiting_ & bit(index)) != 0) publish_(stamp_ns_);
   }
   // Loop thread, after decoding it: the sample goes out at the end of the burst, or of the cycle.
-  void add(std::size_t index, std::int64_t stamp_ns, Timing timing) {
+  // timing_of() -> Timing is asked only while a cycle is open: per_frame, and per_cycle with no
+  // SYNC heard, cost no look at the PDO configuration per frame.
+  template <class TimingOf>
+  void add(std::size_t index, std::int64_t stamp_ns, const TimingOf& timing_of) {
     waiting_ |= bit(index);
     stamp_ns_ = stamp_ns;
-    if (cycle_ != nullptr && timing.synchronous && cycle_->open()) {
-      if (timing.each_sync != 0 && (waiting_ & timing.each_sync) == timing.each_sync) return publish_(stamp_ns_);
-      return cycle_->wait(waiter_);
+    if (cycle_ != nullptr && cycle_->open()) {
+      if (const Timing timing = timing_of(); timing.synchronous) {
+        if (timing.each_sync != 0 && (waiting_ & timing.each_sync) == timing.each_sync) return publish_(stamp_ns_);
+        return cycle_->wait(waiter_);
+      }
     }
     loop_.request_flush(flush_);
   }

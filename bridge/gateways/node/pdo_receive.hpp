@@ -29,7 +29,8 @@ PdoBurst::Timing cycle_of(const Codec& codec, std::size_t pdo) {
   return t;
 }
 
-// True when the frame is now in the codec's image; the caller then publishes it (burst.add).
+// True when the frame is now in the codec's image; the caller then publishes it (burst.add, with
+// cycle_of for its timing).
 template <class Codec>
 bool receive_pdo(const DeviceContext& ctx, Codec& codec, PdoBurst& burst, std::size_t pdo, const can::CanFrame& frame) {
   auto& stats = ctx.node.stats();
