@@ -24,6 +24,8 @@
 #                                    (default ${XDG_CACHE_HOME:-$HOME/.cache}/linebridge-vm)
 #   LINEBRIDGE_VM_KERNEL=6.1.0-N-amd64  kernel to use (default: what linux-image-amd64 depends on,
 #                                    resolved once and kept in the cache)
+#   LINEBRIDGE_VM_APPEND="ARGS"      extra guest kernel arguments (e.g. tsc=reliable: a TSC
+#                                    clocksource and high-resolution timers instead of jiffies)
 #   Variables named LINEBRIDGE_*, GTEST_*, CTEST_* and SPDLOG_* are passed into the VM, as are
 #   PATH, HOME, LANG and TERM.
 # Exit status: the command's; 124 timeout; 125 the runner itself failed (message on stderr).
@@ -243,7 +245,7 @@ run_vm() {
     -accel tcg,thread=multi -cpu max -m 1024 -smp 2
     -nodefaults -no-user-config -display none -nic none -no-reboot
     -kernel "$kdir/vmlinux" -initrd "$initramfs"
-    -append "console=ttyS0 quiet cryptomgr.notests tsc_early_khz=$khz panic=-1"
+    -append "console=ttyS0 quiet cryptomgr.notests tsc_early_khz=$khz panic=-1${LINEBRIDGE_VM_APPEND:+ $LINEBRIDGE_VM_APPEND}"
     -serial "file:$job/console.log"
     -fsdev "local,id=hostroot,path=/,security_model=none,readonly=on,multidevs=remap"
     -device virtio-9p-device,fsdev=hostroot,mount_tag=hostroot
