@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Installs every build and run dependency of linebridge from Debian's packages.
 # Idempotent: installs only what is missing, so repeated runs cost a dpkg query. clang-format and
-# clang-tidy (14) are for the lint stage (launch_scripts/lint.sh).
+# clang-tidy (14) are for the lint stage (launch_scripts/lint.sh); lld links every build (CMakeLists.txt).
 # gdb: a test that finds a thread stuck prints every thread's stack (tests/support/thread_stacks.hpp).
 # libcivetweb-dev, prometheus-cpp-dev: the DDS process's status page and metrics (docs/observability.md);
 # chromium: the status page's test renders it in a real browser (headless); prometheus: the real
@@ -23,7 +23,7 @@ packages=(
   openssl libssl-dev libtinyxml2-dev
   libsystemd-dev dpkg-dev fakeroot lintian
   libcivetweb-dev prometheus-cpp-dev chromium prometheus
-  clang-format clang-tidy
+  clang-format clang-tidy lld
   gdb
 )
 list=0
