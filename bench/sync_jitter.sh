@@ -2,18 +2,18 @@
 # SYNC interval jitter on a real vcan0 (issue 44, point 5): the bridge's own SYNC (the bus loop's
 # timerfd, at normal scheduling and at the packaged realtime_priority 40) against a SYNC the kernel's
 # broadcast manager sends (bench/bcm_sync.py: CAN_BCM TX_SETUP, SETTIMER|STARTTIMER, count 0,
-# ival2 = the period), each alone and with CPU burners in the guest. A passive `candump -t a`
-# (kernel receive stamps) records every SYNC; bench/sync_intervals.py prints per case the intervals,
-# their mean, p50/p99/p99.9/max of |interval - period| (us), those off by over 1 ms and those longer
-# than 1.5 periods.
+# ival2 = the period), each alone and with CPU burners in the guest. bench-sync-jitter (the same
+# meter as bench.sh's jitter figure, here on socketcan:vcan0: kernel receive stamps) records every
+# SYNC; per case the script prints the intervals, their mean, p50/p99/p99.9/max of
+# |interval - period| (us), those off by over 1 ms and those longer than 1.5 periods.
 # Then checks what a kernel SYNC does when its process stops: SIGTERM, SIGKILL (both end it), SIGSTOP
 # (it goes on: the hazard of a frozen master).
 #   bench/sync_jitter.sh [--duration S] [--burners N] [--period-us US] [--out DIR] [--build DIR]
 #                        [--cases "loop loop-rt40 kernel"]
 # Runs itself inside launch_scripts/vcan-run.sh (the qemu VM on a kernel without CAN: 2 vCPUs; its
 # timers tick at 4 ms unless LINEBRIDGE_VM_APPEND=tsc=reliable gives it high-resolution ones).
-# Results: DIR/summary.txt (the table, the host's load average before and after) and the candump
-# logs, one per case. Default DIR: BUILD/sync-jitter-<date>. BENCHMARKS.md has the figures.
+# Results: DIR/summary.txt (the table, the host's load average before and after) and each case's
+# periods (bench-sync-jitter --out) and figures. Default DIR: BUILD/sync-jitter-<date>. BENCHMARKS.md has the figures.
 set -euo pipefail
 here=$(cd "$(dirname "$0")" && pwd)
 root=$(cd "$here/.." && pwd)
@@ -43,6 +43,7 @@ if [ "$inside" = 0 ]; then
   [ -n "$out" ] || out=$build/sync-jitter-$(date +%Y%m%d-%H%M%S)
   mkdir -p "$out"
   out=$(cd "$out" && pwd)
+  [ -x "$build/bench/bench-sync-jitter" ] || { echo "sync_jitter: no $build/bench/bench-sync-jitter (build it)" >&2; exit 2; }
   for b in linebridge linebridge-sim; do
     [[ " $cases " != *" loop"* ]] || [ -x "$build/bridge/app/$b" ] || { echo "sync_jitter: no $build/bridge/app/$b (build it)" >&2; exit 2; }
   done
@@ -123,7 +124,15 @@ say "# guest: $(nproc) CPUs, kernel $(uname -r), $duration s per case, period $p
 say "# guest clocksource $(cat /sys/devices/system/clocksource/clocksource0/current_clocksource 2>/dev/null)," \
   "clock event devices $(awk '/^Clock Event Device:/ {print $4}' /proc/timer_list 2>/dev/null | sort -u | xargs)," \
   "hres_active $(awk '/hres_active/ {print $3; exit}' /proc/timer_list 2>/dev/null)"
-first=1
+# One line of the table from bench-sync-jitter's figures ($2) and its periods file ($3, us first).
+row() {  # label figures periods
+  awk -v label="$1" -v period="$period_us" '
+    FNR == NR { split($0, kv, "="); v[kv[1]] = kv[2]; next }
+    { n++; sum += $1; d = $1 - period; if (d < 0) d = -d; if (d > 1000) off++; if ($1 > 1.5 * period) late++ }
+    END { printf "%-22s %6d %8.3f %7.0f %7.0f %8.0f %7.0f %5d %6d\n", label, n, n ? sum / n / 1000 : 0,
+                 v["jitter_p50_us"], v["jitter_p99_us"], v["jitter_p999_us"], v["jitter_max_us"], off, late }' "$2" "$3"
+}
+say "$(printf '%-22s %6s %8s %7s %7s %8s %7s %5s %6s' case n mean_ms p50_us p99_us p99.9_us max_us '>1ms' '>1.5T')"
 for load in 0 "$burners"; do
   for c in $cases; do
     burner_pids=()
@@ -138,15 +147,15 @@ for load in 0 "$burners"; do
       say "# $c: no SYNC within 60 s"; tail -20 "$work"/*.log; exit 1
     fi
     sleep 3  # past the boot of the simulated device (its SDO burst)
-    log="$out/candump-$c-load$load.txt"
-    timeout "$duration" candump -t a vcan0,080:7FF >"$log" 2>/dev/null || true
+    periods="$out/periods-$c-load$load.txt"
+    figures="$out/figures-$c-load$load.txt"
+    "$build/bench/bench-sync-jitter" --bus socketcan:vcan0 --duration "$duration" --period-us "$period_us" \
+      --out "$periods" >"$figures" || true
     stop_producer
     for p in "${burner_pids[@]}"; do kill "$p" 2>/dev/null || true; done
     wait 2>/dev/null || true
     pids=()
-    args=(--period-us "$period_us" --label "$c burners=$load")
-    [ "$first" = 1 ] && args+=(--header) && first=0
-    $py "$root/bench/sync_intervals.py" "${args[@]}" "$log" | tee -a "$out/summary.txt"
+    say "$(row "$c burners=$load" "$figures" "$periods")"
     if [ "$c" != kernel ] && grep -qi "error\|critical" "$work/bridge.log"; then
       cp "$work/bridge.log" "$out/bridge-$c-load$load.log"
     fi
